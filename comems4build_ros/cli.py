@@ -1,0 +1,66 @@
+"""``comems4build`` command line.
+
+Each subcommand lives in ``comems4build_ros/commands/<module>.py`` exposing
+``add_arguments(parser)`` and ``run(args) -> int``; heavy imports happen inside ``run``
+so that ``comems4build --help`` stays fast. Exit codes: 0 success, 1 failure of the
+job, 2 invalid usage or input (unknown EMS, unreadable file, invalid option).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: subcommand -> (module under comems4build_ros.commands, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("simulate", "run one EMS in-process over a scenario and write timeseries, weekly KPIs and summary"),
+    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros"),
+    "data": ("data", "build scenario CSVs from real sources (aWATTar, DWD, DHWCalc, load CSV)"),
+    "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D)"),
+    "launch": ("launch", "run the ROS 2 node set (plant_sim, feed, EMS, recorder) as separate processes"),
+    "evaluate": ("evaluate", "compute weekly KPIs and summary from a recorded bag"),
+    "compare": ("compare", "run RBC, fuzzy and MPC on one scenario and write the comparison report"),
+    "sweep": ("sweep", "run a grid of parameter variations and tabulate the KPIs"),
+}
+
+
+class UsageError(Exception):
+    """Invalid input or option; reported with exit code 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Parser with every available subcommand."""
+    parser = argparse.ArgumentParser(prog="comems4build", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (module, help_text) in COMMANDS.items():
+        try:
+            mod = importlib.import_module(f"comems4build_ros.commands.{module}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"comems4build_ros.commands.{module}":
+                raise
+            continue  # subcommand not built yet
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``comems4build``; returns the exit code."""
+    from .config import ConfigError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except (UsageError, ConfigError, FileNotFoundError, ValueError) as exc:
+        print(f"comems4build {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"comems4build {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    sys.exit(main())

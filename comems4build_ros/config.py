@@ -1,0 +1,407 @@
+"""Parameter files: loading, merging and validation.
+
+All parameters live in ``config/*.yaml`` in the ROS 2 parameter-file form::
+
+    /**:                       # or a node name such as plant_sim
+      ros__parameters:
+        battery:
+          e_max_kwh: 6.5
+
+The same files are passed to the ROS nodes with ``--ros-args --params-file``. This
+module reads them without rclpy, merges several files (later ones win, key by key) and
+validates the plant sections against :class:`PlantParams`. An invalid file raises
+:class:`ConfigError` naming the file, the parameter path and the rule broken.
+
+Other packages of the project (scenario generator, controllers) read their own sections
+with :func:`read_ros_params` and validate them with :func:`validate`.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Iterable, Mapping
+from pathlib import Path
+from typing import Any, TypeVar
+
+import yaml
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+
+PACKAGE = "comems4build_ros"
+
+#: Hours per second, seconds per hour and similar named conversion factors.
+SECONDS_PER_HOUR = 3600.0
+W_PER_KW = 1000.0
+J_PER_KWH = 3.6e6
+
+
+class ConfigError(ValueError):
+    """A parameter file is unreadable or a parameter breaks a rule."""
+
+
+def config_dir() -> Path:
+    """Directory of the default parameter files.
+
+    The source tree's ``config/`` when running from a checkout, else the installed
+    ``<prefix>/share/comems4build_ros/config``.
+    """
+    src = Path(__file__).resolve().parents[1] / "config"
+    if src.is_dir():
+        return src
+    installed = Path(sys.prefix) / "share" / PACKAGE / "config"
+    if installed.is_dir():
+        return installed
+    raise ConfigError(f"cannot find the config directory ({src} or {installed})")
+
+
+def default_plant_file() -> Path:
+    """Path of the default ``plant.yaml``."""
+    return config_dir() / "plant.yaml"
+
+
+def read_ros_params(path: str | Path, node: str | None = None) -> dict[str, Any]:
+    """Read a ROS 2 parameter file and return the merged ``ros__parameters`` dict.
+
+    Parameters
+    ----------
+    path : file name
+    node : node name whose section is merged over the ``/**`` section; ``None`` merges
+        every section in file order.
+
+    Raises
+    ------
+    ConfigError
+        If the file cannot be read or is not in parameter-file form.
+    """
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise ConfigError(f"{path}: cannot read parameter file: {exc.strerror}") from exc
+    try:
+        doc = yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise ConfigError(f"{path}: invalid YAML: {exc}") from exc
+    if not isinstance(doc, Mapping):
+        raise ConfigError(f"{path}: expected '<node>: ros__parameters: ...' at the top level")
+    merged: dict[str, Any] = {}
+    for key, section in doc.items():
+        if not isinstance(section, Mapping) or "ros__parameters" not in section:
+            raise ConfigError(f"{path}: section '{key}' has no 'ros__parameters' mapping")
+        if node is not None and key not in ("/**", node, f"/{node}"):
+            continue
+        params = section["ros__parameters"]
+        if not isinstance(params, Mapping):
+            raise ConfigError(f"{path}: '{key}.ros__parameters' must be a mapping")
+        deep_merge(merged, params)
+    return merged
+
+
+def deep_merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
+    """Merge ``extra`` into ``base`` in place, recursing into mappings; return ``base``."""
+    for key, value in extra.items():
+        if isinstance(value, Mapping) and isinstance(base.get(key), dict):
+            deep_merge(base[key], value)
+        elif isinstance(value, Mapping):
+            base[key] = deep_merge({}, value)
+        else:
+            base[key] = value
+    return base
+
+
+def set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
+    """Set ``data['a']['b'] = value`` for ``dotted='a.b'`` (creating mappings)."""
+    keys = dotted.split(".")
+    node = data
+    for key in keys[:-1]:
+        node = node.setdefault(key, {})
+        if not isinstance(node, dict):
+            raise ConfigError(f"parameter '{dotted}': '{key}' is not a section")
+    node[keys[-1]] = value
+
+
+M = TypeVar("M", bound=BaseModel)
+
+
+def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
+    """Validate ``data`` against a pydantic model; errors name source and parameter."""
+    try:
+        return model.model_validate(data)
+    except ValidationError as exc:
+        lines = []
+        for err in exc.errors():
+            loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+            msg = err["msg"]
+            if err["type"] == "extra_forbidden":
+                msg = "unknown parameter"
+            lines.append(f"{source}: parameter '{loc}': {msg}")
+        raise ConfigError("\n".join(lines)) from None
+
+
+class _Section(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+Pos = Field(gt=0)
+NonNeg = Field(ge=0)
+Frac = Field(ge=0, le=1)
+
+
+class SimulationParams(_Section):
+    """Run settings: step [h], horizon [h] and initial states."""
+
+    time_step_h: float = Pos
+    horizon_h: int = Field(gt=0)
+    soc_init: float = Frac
+    loh_init: float = Frac
+    t_air_init_c: float
+    v_dhw_init_l: float = NonNeg
+
+
+class SiteParams(_Section):
+    """Location of the building (degrees, metres, IANA time zone)."""
+
+    latitude_deg: float = Field(ge=-90, le=90)
+    longitude_deg: float = Field(ge=-180, le=180)
+    altitude_m: float
+    timezone: str
+
+
+class PVParams(_Section):
+    """PV array, ``eq:power_pv``."""
+
+    n_modules: int = Field(ge=0)
+    a_module_m2: float = Pos
+    eta_stc: float = Frac
+    eta_lt: float = Frac
+    eta_t_per_k: float = NonNeg
+    noct_c: float
+    t_stc_c: float
+    tilt_deg: float = Field(ge=0, le=90)
+    azimuth_deg: float = Field(ge=0, le=360)
+    albedo: float = Frac
+
+
+class BatteryParams(_Section):
+    """Battery energy storage, ``eq:batt_soc`` .. ``eq:s_summ``."""
+
+    e_max_kwh: float = Pos
+    p_ch_max_w: float = NonNeg
+    p_d_max_w: float = NonNeg
+    p_ch_min_w: float = NonNeg
+    p_d_min_w: float = NonNeg
+    eta_ch: float = Field(gt=0, le=1)
+    eta_d: float = Field(gt=0, le=1)
+    soc_min: float = Frac
+    soc_max: float = Frac
+
+    @model_validator(mode="after")
+    def _check(self) -> BatteryParams:
+        if self.soc_min >= self.soc_max:
+            raise ValueError(f"soc_min ({self.soc_min}) must be below soc_max ({self.soc_max})")
+        if self.p_ch_min_w > self.p_ch_max_w:
+            raise ValueError("p_ch_min_w must not exceed p_ch_max_w")
+        if self.p_d_min_w > self.p_d_max_w:
+            raise ValueError("p_d_min_w must not exceed p_d_max_w")
+        return self
+
+
+class FuelCellParams(_Section):
+    """PEM fuel cell, ``eq:molar_flows`` .. ``eq:FC_sys_efficiency``."""
+
+    p_max_w: float = Pos
+    p_nom_w: float = Pos
+    p_min_w: float = NonNeg
+    zeta: float = Field(gt=0, le=1)
+    eta_sys: float = Field(gt=0, le=1)
+    n_cells: int = Field(gt=0)
+    e_ocv_v: float = Pos
+    a_tafel_v: float = NonNeg
+    i_tafel_a: float = Pos
+    r_ohm_ohm: float = NonNeg
+    eta_el_mpc: float = Field(gt=0, lt=1)
+
+    @model_validator(mode="after")
+    def _check(self) -> FuelCellParams:
+        if self.p_min_w > self.zeta * self.p_max_w:
+            raise ValueError(
+                f"p_min_w ({self.p_min_w}) must not exceed zeta * p_max_w ({self.zeta * self.p_max_w})"
+            )
+        return self
+
+
+class HydrogenParams(_Section):
+    """Hydrogen store, ``eq:LOH`` (energy content at LHV)."""
+
+    e_max_kwh: float = Pos
+    loh_min: float = Frac
+    loh_max: float = Frac
+
+    @model_validator(mode="after")
+    def _check(self) -> HydrogenParams:
+        if self.loh_min >= self.loh_max:
+            raise ValueError(f"loh_min ({self.loh_min}) must be below loh_max ({self.loh_max})")
+        return self
+
+
+class HeatPumpParams(_Section):
+    """Air-source heat pump, ``sec:hp``."""
+
+    t_supply_sh_c: float
+    t_supply_dhw_c: float
+    mod_min: float = Field(gt=0, le=1)
+    cop_t_amb_c: list[float]
+    cop_45c: list[float]
+    cop_55c: list[float]
+    p_el_max_t_amb_c: list[float]
+    p_el_max_w: list[float]
+
+    @model_validator(mode="after")
+    def _check(self) -> HeatPumpParams:
+        n = len(self.cop_t_amb_c)
+        if n < 2 or len(self.cop_45c) != n or len(self.cop_55c) != n:
+            raise ValueError("cop_t_amb_c, cop_45c and cop_55c need the same length (>= 2)")
+        if any(b <= a for a, b in zip(self.cop_t_amb_c, self.cop_t_amb_c[1:])):
+            raise ValueError("cop_t_amb_c must increase strictly")
+        if min(self.cop_45c + self.cop_55c) <= 1.0:
+            raise ValueError("COP values must exceed 1")
+        m = len(self.p_el_max_t_amb_c)
+        if m < 2 or len(self.p_el_max_w) != m:
+            raise ValueError("p_el_max_t_amb_c and p_el_max_w need the same length (>= 2)")
+        if any(b <= a for a, b in zip(self.p_el_max_t_amb_c, self.p_el_max_t_amb_c[1:])):
+            raise ValueError("p_el_max_t_amb_c must increase strictly")
+        if min(self.p_el_max_w) <= 0:
+            raise ValueError("p_el_max_w must be positive")
+        return self
+
+
+class DHWParams(_Section):
+    """Hot-water tank, ``eq:DHW_model``."""
+
+    v_max_l: float = Pos
+    v_min_l: float = NonNeg
+    t_dhw_c: float
+    t_cold_c: float
+    q_loss_w: float = NonNeg
+    rho_kg_per_l: float = Pos
+    c_j_per_kg_k: float = Pos
+
+    @model_validator(mode="after")
+    def _check(self) -> DHWParams:
+        if self.v_min_l >= self.v_max_l:
+            raise ValueError(f"v_min_l ({self.v_min_l}) must be below v_max_l ({self.v_max_l})")
+        if self.t_dhw_c <= self.t_cold_c:
+            raise ValueError("t_dhw_c must exceed t_cold_c")
+        return self
+
+
+class BuildingParams(_Section):
+    """4R3C building, ``eq:dT_i`` .. ``eq:dT_wout`` (SI units)."""
+
+    c_air_j_per_k: float = Pos
+    c_wall_j_per_k: float = Pos
+    r_w_air_k_per_w: float = Pos
+    r_air_amb_k_per_w: float = Pos
+    r_w_k_per_w: float = Pos
+    r_w_amb_k_per_w: float = Pos
+    g_s_m2: float = NonNeg
+    f_conv: float = Frac
+    a_sol_k_m2_per_w: float = NonNeg
+
+
+class GridParams(_Section):
+    """Tariff: ``p_buy = spot + surcharge`` [EUR/kWh]; constant sell price."""
+
+    surcharge_eur_per_kwh: float
+    price_sell_eur_per_kwh: float = NonNeg
+
+
+class ComfortParams(_Section):
+    """Comfort bounds, ``eq:T_min``."""
+
+    t_min_home_c: float
+    t_min_away_c: float
+    t_max_c: float
+    home_hours_weekday: list[int]
+    home_hours_weekend: list[int]
+    holidays_country: str
+    holidays_subdivision: str
+
+    @model_validator(mode="after")
+    def _check(self) -> ComfortParams:
+        for name in ("home_hours_weekday", "home_hours_weekend"):
+            hours = getattr(self, name)
+            if len(hours) % 2 or any(not 0 <= h <= 24 for h in hours):
+                raise ValueError(f"{name} must hold [start, end) hour pairs within 0..24")
+            if any(b <= a for a, b in zip(hours[::2], hours[1::2])):
+                raise ValueError(f"{name}: each pair needs start < end")
+        if max(self.t_min_home_c, self.t_min_away_c) >= self.t_max_c:
+            raise ValueError("t_max_c must exceed both lower bounds")
+        return self
+
+
+class DegradationParams(_Section):
+    """Lifecycle and toggling costs, ``tab:degradation_HESS``."""
+
+    sigma_in_fc_eur: float = NonNeg
+    l_fc_h: float = Pos
+    sigma_om_fc_eur_per_h: float = NonNeg
+    sigma_fc_on_eur: float = NonNeg
+    sigma_fc_off_eur: float = NonNeg
+    sigma_in_b_eur: float = NonNeg
+    sigma_om_b_eur_per_h: float = NonNeg
+    n_b_cycles: float = Pos
+
+
+class PlantParams(_Section):
+    """All plant parameters (one section per device)."""
+
+    simulation: SimulationParams
+    site: SiteParams
+    pv: PVParams
+    battery: BatteryParams
+    fuel_cell: FuelCellParams
+    hydrogen: HydrogenParams
+    heat_pump: HeatPumpParams
+    dhw: DHWParams
+    building: BuildingParams
+    grid: GridParams
+    comfort: ComfortParams
+    degradation: DegradationParams
+
+
+PLANT_SECTIONS = tuple(PlantParams.model_fields)
+
+
+def load_plant_params(
+    paths: Iterable[str | Path] | None = None,
+    overrides: Mapping[str, Any] | None = None,
+) -> PlantParams:
+    """Load and validate the plant parameters.
+
+    Parameters
+    ----------
+    paths : parameter files merged over the default ``config/plant.yaml`` in order.
+        Sections that are not plant sections (e.g. ``mpc``) are ignored here.
+    overrides : ``{"battery.e_max_kwh": 10.0}``-style dotted overrides applied last.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file (or ``overrides``), the parameter and the rule broken.
+    """
+    files = [default_plant_file(), *(Path(p) for p in (paths or []))]
+    merged: dict[str, Any] = {}
+    for path in files:
+        data = read_ros_params(path)
+        deep_merge(merged, {k: v for k, v in data.items() if k in PLANT_SECTIONS})
+        unknown_plant = [k for k in data if k not in PLANT_SECTIONS and not isinstance(data[k], Mapping)]
+        if unknown_plant:
+            raise ConfigError(f"{path}: unknown top-level parameter(s): {', '.join(unknown_plant)}")
+    source = " + ".join(str(f) for f in files)
+    if overrides:
+        for key, value in overrides.items():
+            if key.split(".")[0] not in PLANT_SECTIONS:
+                raise ConfigError(f"overrides: parameter '{key}': unknown section")
+            set_dotted(merged, key, value)
+        source += " + overrides"
+    return validate(PlantParams, merged, source)

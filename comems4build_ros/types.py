@@ -1,0 +1,148 @@
+"""Core data records shared by the plant, the controllers, the KPIs and the ROS nodes.
+
+Time convention (the paper's): the action of step ``k`` acts over the hour
+``[t_k, t_k + 1 h)``; the state reported for step ``k`` is the state at the *end* of that
+hour (``SOC[k]`` in ``eq:batt_soc``); a controller deciding step ``k`` observes the state
+of step ``k - 1``. Powers are mean values over the step in W, temperatures in degC,
+volumes in litres, SOC and LOH as fractions of their capacity.
+"""
+
+from __future__ import annotations
+
+from dataclasses import asdict, dataclass, fields
+
+#: Heat-pump circuits (``eq:zetas``): off, space heating, domestic hot water.
+HP_OFF = 0
+HP_SH = 1
+HP_DHW = 2
+
+
+@dataclass(slots=True)
+class PlantState:
+    """Plant state at the end of a step.
+
+    Attributes
+    ----------
+    soc : battery state of charge [-]
+    loh : hydrogen level, fraction of the store's LHV energy [-]
+    t_air_c, t_wall_in_c, t_wall_out_c : 4R3C node temperatures [degC]
+    v_dhw_l : usable hot-water volume at T_DHW [l]
+    hp_mod : heat-pump modulation eta_HP applied in the step [-]
+    fc_on : fuel cell was on in the step (s_FC)
+    """
+
+    soc: float
+    loh: float
+    t_air_c: float
+    t_wall_in_c: float
+    t_wall_out_c: float
+    v_dhw_l: float
+    hp_mod: float = 0.0
+    fc_on: bool = False
+
+    def copy(self) -> PlantState:
+        """Independent copy."""
+        return PlantState(*(getattr(self, f.name) for f in fields(self)))
+
+
+@dataclass(slots=True)
+class Action:
+    """Set-points an EMS sends for one step (any values: the plant clips them).
+
+    Attributes
+    ----------
+    hp_mod : heat-pump modulation eta_HP, physically {0} U [mod_min, 1] [-]
+    hp_mode : HP_OFF, HP_SH or HP_DHW
+    p_fc_w : requested fuel-cell electrical output [W], 0 or [P_min, zeta * P_max]
+    p_bess_w : battery power [W], > 0 charging, < 0 discharging
+    """
+
+    hp_mod: float = 0.0
+    hp_mode: int = HP_OFF
+    p_fc_w: float = 0.0
+    p_bess_w: float = 0.0
+
+
+@dataclass(slots=True)
+class Exogenous:
+    """Uncontrolled inputs of one step (mean values over the step).
+
+    Attributes
+    ----------
+    t_amb_c : ambient air temperature [degC]
+    ghi_w_m2 : global horizontal irradiance q_s [W/m2]
+    p_pv_w : PV AC output from ``eq:power_pv`` [W]
+    p_load_w : appliance load P_el,load [W]
+    dhw_l_per_h : hot-water draw at T_DHW [l/h]
+    price_buy_eur_per_kwh, price_sell_eur_per_kwh : tariffs [EUR/kWh]
+    t_min_c, t_max_c : comfort bounds ``eq:T_min`` [degC]
+    """
+
+    t_amb_c: float
+    ghi_w_m2: float
+    p_pv_w: float
+    p_load_w: float
+    dhw_l_per_h: float
+    price_buy_eur_per_kwh: float
+    price_sell_eur_per_kwh: float
+    t_min_c: float
+    t_max_c: float
+
+
+# Bit flags of Flows.clipped: which part of an action the plant had to change.
+CLIP_HP_MODE = 1  # unknown hp_mode -> off
+CLIP_HP_MOD = 2  # modulation outside {0} U [mod_min, 1] (or NaN)
+CLIP_HP_DHW_FULL = 4  # DHW heating reduced so the tank does not overflow
+CLIP_FC_RANGE = 8  # FC request outside {0} U [P_min, zeta P_max]
+CLIP_FC_H2 = 16  # FC reduced or stopped by the H2 store's lower bound
+CLIP_BESS_POWER = 32  # battery power beyond its limits
+CLIP_BESS_SOC = 64  # battery power reduced by the SOC bounds
+CLIP_NONFINITE = 128  # NaN or inf in the action (treated as 0)
+
+
+@dataclass(slots=True)
+class Flows:
+    """Everything that happened in one step (mean powers [W], energies via t_s).
+
+    The power balance ``eq:power_balance`` reads
+    ``p_pv_w + p_buy_w + p_fc_w + p_dis_w = p_sell_w + p_load_w + p_hp_el_w + p_ch_w``;
+    ``balance_residual_w`` is left side minus right side.
+    """
+
+    p_pv_w: float
+    p_load_w: float
+    p_hp_el_w: float
+    hp_mode: int
+    hp_mod: float
+    cop: float
+    q_hp_sh_w: float
+    q_hp_dhw_w: float
+    p_fc_w: float
+    fc_on: bool
+    fc_start: bool
+    fc_stop: bool
+    p_h2_w: float  # hydrogen consumed, LHV power [W]
+    eta_fc_el: float
+    q_fc_rec_w: float  # recovered FC heat delivered to the DHW tank [W]
+    q_fc_dump_w: float  # recoverable FC heat the full tank could not take [W]
+    p_ch_w: float
+    p_dis_w: float
+    p_buy_w: float
+    p_sell_w: float
+    q_dhw_demand_w: float
+    q_dhw_loss_w: float
+    q_dhw_unmet_w: float
+    price_buy_eur_per_kwh: float
+    price_sell_eur_per_kwh: float
+    balance_residual_w: float
+    clipped: int
+
+    def as_dict(self) -> dict[str, float]:
+        """Field name -> value."""
+        return asdict(self)
+
+
+STATE_FIELDS = tuple(f.name for f in fields(PlantState))
+ACTION_FIELDS = tuple(f.name for f in fields(Action))
+EXOGENOUS_FIELDS = tuple(f.name for f in fields(Exogenous))
+FLOW_FIELDS = tuple(f.name for f in fields(Flows))
