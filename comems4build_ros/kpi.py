@@ -1,0 +1,224 @@
+"""Key performance indicators of a run (``sec:evaluation_metrics``).
+
+One function per KPI, each with a fixed short key and its unit in the docstring; the
+weekly table and the run summary are built from them. Input is the per-step timeseries
+(``timeseries.csv`` of a run, or the same table rebuilt from a ROS bag), so the in-process
+path, the ROS path and the bag evaluation share this code and give identical figures.
+
+Conventions: row ``k`` holds the action and flows of step ``k`` (mean powers over the
+step [W]) and the state at the end of the step; the comfort bounds of row ``k`` are those
+of step ``k`` (``eq:discomfort`` compares ``T_air[k]`` with ``T_air,min[k]``).
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+import pandas as pd
+
+from .config import W_PER_KW
+
+#: Hours per evaluation week.
+HOURS_PER_WEEK = 168.0
+#: A week counts as "with discomfort" above this many Kelvin-hours (measurement
+#: resolution; a 0.01 K violation over one hour). [K*h]
+DISCOMFORT_TOL_KH = 0.01
+#: The H2 store counts as empty within this fraction of LOH_min. [-]
+LOH_EMPTY_TOL = 1e-6
+
+#: Timeseries columns the KPIs read.
+REQUIRED_COLUMNS = (
+    "time",
+    "t_air_c",
+    "t_min_c",
+    "t_max_c",
+    "p_buy_w",
+    "p_sell_w",
+    "price_buy_eur_per_kwh",
+    "price_sell_eur_per_kwh",
+    "p_ch_w",
+    "p_dis_w",
+    "p_fc_w",
+    "p_h2_w",
+    "eta_fc_el",
+    "q_fc_rec_w",
+    "q_fc_dump_w",
+    "q_dhw_demand_w",
+    "q_dhw_loss_w",
+    "q_dhw_unmet_w",
+    "p_hp_el_w",
+    "q_hp_sh_w",
+    "q_hp_dhw_w",
+    "p_pv_w",
+    "p_load_w",
+    "fc_on",
+    "fc_start",
+    "loh",
+    "balance_residual_w",
+    "clipped",
+)
+
+
+def _energy_kwh(power_w: np.ndarray, dt_h: float) -> float:
+    """``t_s * sum(P)`` in kWh for mean powers [W] over steps of ``dt_h`` hours."""
+    return float(np.sum(power_w) * dt_h / W_PER_KW)
+
+
+def discomfort_kh(t_air_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray, dt_h: float) -> float:
+    """Thermal discomfort ``eq:discomfort``: band violation integrated over time [K*h]."""
+    below = np.clip(t_min_c - t_air_c, 0.0, None)
+    above = np.clip(t_air_c - t_max_c, 0.0, None)
+    return float(np.sum(below + above) * dt_h)
+
+
+def discomfort_hours(t_air_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray, dt_h: float) -> float:
+    """Time outside the comfort band (CityLearn-style share, as hours) [h]."""
+    return float(np.count_nonzero((t_air_c < t_min_c) | (t_air_c > t_max_c)) * dt_h)
+
+
+def cost_eur(price_eur_per_kwh: np.ndarray, power_w: np.ndarray, dt_h: float) -> float:
+    """Energy cost or reimbursement ``eq:costs``: ``t_s * sum(p[k] * P[k])`` [EUR]."""
+    return float(np.sum(price_eur_per_kwh * power_w) * dt_h / W_PER_KW)
+
+
+def fc_working_hours(fc_on: np.ndarray, dt_h: float) -> float:
+    """Fuel-cell working hours ``eq:working_hours`` [h]."""
+    return float(np.count_nonzero(fc_on) * dt_h)
+
+
+def fc_toggles(fc_start: np.ndarray) -> int:
+    """Fuel-cell start-ups ``eq:on_off_switching`` [-]."""
+    return int(np.count_nonzero(fc_start))
+
+
+def _week_kpis(ts: pd.DataFrame, dt_h: float) -> dict[str, float]:
+    """All per-period KPIs of the rows ``ts`` (one week or any slice)."""
+    col = {name: ts[name].to_numpy(dtype=float) for name in REQUIRED_COLUMNS if name != "time"}
+    e = lambda name: _energy_kwh(col[name], dt_h)  # noqa: E731
+    on = col["fc_on"] > 0.5
+    return {
+        "hours": float(len(ts) * dt_h),
+        "discomfort_kh": discomfort_kh(col["t_air_c"], col["t_min_c"], col["t_max_c"], dt_h),
+        "discomfort_h": discomfort_hours(col["t_air_c"], col["t_min_c"], col["t_max_c"], dt_h),
+        "cost_eur": cost_eur(col["price_buy_eur_per_kwh"], col["p_buy_w"], dt_h),
+        "reimbursement_eur": cost_eur(col["price_sell_eur_per_kwh"], col["p_sell_w"], dt_h),
+        "buy_kwh": e("p_buy_w"),
+        "sell_kwh": e("p_sell_w"),
+        "bess_charged_kwh": e("p_ch_w"),
+        "bess_discharged_kwh": e("p_dis_w"),
+        "fc_kwh": e("p_fc_w"),
+        "h2_kwh": e("p_h2_w"),
+        # eq:heat_recovery: all recoverable FC heat; the part the tank could use as well
+        "heat_recovered_kwh": _energy_kwh(col["q_fc_rec_w"] + col["q_fc_dump_w"], dt_h),
+        "heat_recovered_used_kwh": e("q_fc_rec_w"),
+        "dhw_demand_kwh": _energy_kwh(col["q_dhw_demand_w"] + col["q_dhw_loss_w"], dt_h),
+        "dhw_unmet_kwh": e("q_dhw_unmet_w"),
+        "hp_el_kwh": e("p_hp_el_w"),
+        "sh_heat_kwh": e("q_hp_sh_w"),
+        "hp_dhw_heat_kwh": e("q_hp_dhw_w"),
+        "pv_kwh": e("p_pv_w"),
+        "load_kwh": e("p_load_w"),
+        "fc_working_hours": fc_working_hours(on, dt_h),
+        "fc_toggles": float(fc_toggles(col["fc_start"] > 0.5)),
+        "fc_mean_load_w": float(np.mean(col["p_fc_w"][on])) if on.any() else 0.0,
+        "clipped_steps": float(np.count_nonzero(col["clipped"])),
+    }
+
+
+def weekly_kpis(ts: pd.DataFrame, dt_h: float = 1.0) -> pd.DataFrame:
+    """One row of KPIs per week of the run (a last partial week gets its own row).
+
+    Parameters
+    ----------
+    ts : per-step timeseries with at least :data:`REQUIRED_COLUMNS`
+    dt_h : step length [h]
+
+    Returns
+    -------
+    DataFrame
+        Columns ``week`` (1-based), ``start`` (ISO time of the week's first step) and
+        the keys of the per-period KPIs (units in the names: kh = K*h, eur, kwh, h, w).
+    """
+    missing = [c for c in REQUIRED_COLUMNS if c not in ts.columns]
+    if missing:
+        raise ValueError(f"timeseries lacks column(s): {', '.join(missing)}")
+    steps_per_week = int(round(HOURS_PER_WEEK / dt_h))
+    rows = []
+    for w, start in enumerate(range(0, len(ts), steps_per_week)):
+        part = ts.iloc[start : start + steps_per_week]
+        rows.append({"week": w + 1, "start": str(part["time"].iloc[0]), **_week_kpis(part, dt_h)})
+    return pd.DataFrame(rows)
+
+
+def h2_empty_at(ts: pd.DataFrame, loh_min: float, dt_h: float = 1.0) -> str | None:
+    """ISO time (end of the step) when the H2 store first reached LOH_min, or ``None``."""
+    loh = ts["loh"].to_numpy(dtype=float)
+    hit = np.flatnonzero(loh <= loh_min + LOH_EMPTY_TOL)
+    if hit.size == 0:
+        return None
+    start = pd.Timestamp(ts["time"].iloc[int(hit[0])])
+    return (start + pd.Timedelta(hours=dt_h)).isoformat()
+
+
+def summarize(
+    ts: pd.DataFrame,
+    weekly: pd.DataFrame,
+    loh_min: float,
+    dt_h: float = 1.0,
+    extra: Mapping[str, Any] | None = None,
+) -> dict[str, Any]:
+    """Run summary (``summary.json``): weekly medians, extremes and run totals.
+
+    Parameters
+    ----------
+    ts : per-step timeseries
+    weekly : output of :func:`weekly_kpis`
+    loh_min : lower bound of the H2 store [-]
+    dt_h : step length [h]
+    extra : entries added as they are (e.g. ``ems``, ``scenario``, ``wall_s``)
+    """
+    on = ts["fc_on"].to_numpy(dtype=float) > 0.5
+    eta = ts["eta_fc_el"].to_numpy(dtype=float)
+    fallback = int(ts["fallback"].astype(float).sum()) if "fallback" in ts else 0
+    slack = int((ts["ems_slack_used"].astype(float) > 0.5).sum()) if "ems_slack_used" in ts else 0
+    total = _week_kpis(ts, dt_h)
+    med = weekly.median(numeric_only=True)
+    summary: dict[str, Any] = {
+        "weeks": int(len(weekly)),
+        "steps": int(len(ts)),
+        "cost_eur_week_median": float(med["cost_eur"]),
+        "reimbursement_eur_week_median": float(med["reimbursement_eur"]),
+        "discomfort_kh_week_median": float(med["discomfort_kh"]),
+        "discomfort_weeks_nonzero": int((weekly["discomfort_kh"] > DISCOMFORT_TOL_KH).sum()),
+        "buy_kwh_week_median": float(med["buy_kwh"]),
+        "sell_kwh_week_median": float(med["sell_kwh"]),
+        "bess_charged_kwh_week_median": float(med["bess_charged_kwh"]),
+        "h2_kwh_week_min": float(weekly["h2_kwh"].min()),
+        "h2_kwh_week_max": float(weekly["h2_kwh"].max()),
+        "h2_kwh_week_std": float(weekly["h2_kwh"].std(ddof=0)),
+        "fc_working_hours": total["fc_working_hours"],
+        "fc_toggles": int(total["fc_toggles"]),
+        "fc_mean_load_w": total["fc_mean_load_w"],
+        "fc_mean_eta_el": float(np.mean(eta[on])) if on.any() else 0.0,
+        "loh_end": float(ts["loh"].iloc[-1]),
+        "h2_empty_at": h2_empty_at(ts, loh_min, dt_h),
+        "dhw_unmet_kwh": total["dhw_unmet_kwh"],
+        "max_balance_residual_w": float(np.max(np.abs(ts["balance_residual_w"].to_numpy(dtype=float)))),
+        "clipped_actions": int(total["clipped_steps"]),
+        "fallback_steps": fallback,
+        "slack_steps": slack,
+        "cost_eur_total": total["cost_eur"],
+        "reimbursement_eur_total": total["reimbursement_eur"],
+        "discomfort_kh_total": total["discomfort_kh"],
+        "buy_kwh_total": total["buy_kwh"],
+        "sell_kwh_total": total["sell_kwh"],
+        "bess_charged_kwh_total": total["bess_charged_kwh"],
+        "h2_kwh_total": total["h2_kwh"],
+        "heat_recovered_kwh_total": total["heat_recovered_kwh"],
+        "dhw_demand_kwh_total": total["dhw_demand_kwh"],
+    }
+    if extra:
+        summary.update(extra)
+    return summary

@@ -1,0 +1,278 @@
+"""The in-process closed loop: scenario -> observation -> EMS -> plant -> KPIs.
+
+``simulate`` runs one EMS over a scenario and returns the per-step timeseries, the
+weekly KPI table and the run summary; ``write_run`` stores them as ``timeseries.csv``,
+``weekly.csv`` and ``summary.json``. The ROS nodes reuse :class:`ObservationBuilder`,
+:func:`exogenous_series` and :func:`record_row`, so both paths compute identical numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time as _time
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import holidays as _holidays
+import numpy as np
+import pandas as pd
+
+from . import kpi
+from .config import PlantParams
+from .ems import make_controller
+from .ems.base import FORECAST_KEYS, INFO_LEVELS, Controller, Observation
+from .models.pv import pv_power_w
+from .plant import Plant
+from .scenario.base import Scenario
+from .types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, Flows, PlantState
+
+#: Steps shown in the price window and forecasts (h at 1 h steps), ``eq:EDF_prices``.
+PRICE_WINDOW = 24
+#: Comfort look-ahead of ComEMS4Build, ``eq:s_sh`` (k .. k+5).
+BOUNDS_AHEAD = 5
+
+#: End-of-step state columns of the timeseries (hp_mod and fc_on come with the flows).
+STATE_COLUMNS = ("soc", "loh", "t_air_c", "t_wall_in_c", "t_wall_out_c", "v_dhw_l")
+#: Applied-command columns (what the EMS asked for, before the plant clipped it).
+COMMAND_COLUMNS = tuple(f"cmd_{name}" for name in ACTION_FIELDS)
+#: Exogenous columns not already among the flows.
+EXO_COLUMNS = ("t_amb_c", "ghi_w_m2", "dhw_l_per_h", "t_min_c", "t_max_c", "spot_eur_per_mwh")
+#: Fixed timeseries columns, in file order (EMS info columns ``ems_*`` follow).
+TIMESERIES_COLUMNS = ("time", "step", *FLOW_FIELDS, *STATE_COLUMNS, *COMMAND_COLUMNS, *EXO_COLUMNS, "fallback")
+
+
+def dloh_per_day(params: PlantParams, n_steps: int) -> float:
+    """Daily permissible H2 use ``eq:deltaLOH``: ``24 h * LOH_init / N`` as a fraction/day.
+
+    Parameters
+    ----------
+    params : plant parameters (initial LOH, step length)
+    n_steps : steps N of the whole run
+    """
+    steps_per_day = 24.0 / params.simulation.time_step_h
+    return params.simulation.loh_init * steps_per_day / n_steps
+
+
+def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]:
+    """Per-step :class:`Exogenous` records for the whole scenario (PV computed once)."""
+    p_pv = pv_power_w(
+        scenario.time, scenario.ghi_w_m2, scenario.dhi_w_m2, scenario.t_amb_c, params.pv, params.site
+    )
+    cols = zip(
+        scenario.t_amb_c.tolist(),
+        scenario.ghi_w_m2.tolist(),
+        np.asarray(p_pv, dtype=float).tolist(),
+        scenario.p_load_w.tolist(),
+        scenario.dhw_l_per_h.tolist(),
+        scenario.price_buy_eur_per_kwh.tolist(),
+        scenario.price_sell_eur_per_kwh.tolist(),
+        scenario.t_min_c.tolist(),
+        scenario.t_max_c.tolist(),
+    )
+    return [Exogenous(*c) for c in cols]
+
+
+class ObservationBuilder:
+    """Builds the :class:`Observation` of one information level for each step.
+
+    Parameters
+    ----------
+    scenario : the run's inputs
+    params : plant parameters
+    level : information level (``basic``, ``fuzzy``, ``mpc``)
+    exo : per-step exogenous records from :func:`exogenous_series`
+    """
+
+    def __init__(self, scenario: Scenario, params: PlantParams, level: str, exo: Sequence[Exogenous]) -> None:
+        if level not in INFO_LEVELS:
+            raise ValueError(f"unknown information level '{level}'")
+        self.level = level
+        self._fields = INFO_LEVELS[level]
+        pad = PRICE_WINDOW
+
+        def padded(values: Sequence[float]) -> list[float]:
+            vals = list(values)
+            return vals + [vals[-1]] * pad
+
+        self._exo = exo
+        self._prices = padded(scenario.price_buy_eur_per_kwh.tolist())
+        self._t_min = padded(scenario.t_min_c.tolist())
+        self._series = {
+            "t_amb_c": padded(scenario.t_amb_c.tolist()),
+            "ghi_w_m2": padded(scenario.ghi_w_m2.tolist()),
+            "p_pv_w": padded([e.p_pv_w for e in exo]),
+            "p_load_w": padded(scenario.p_load_w.tolist()),
+            "dhw_l_per_h": padded(scenario.dhw_l_per_h.tolist()),
+            "t_min_c": self._t_min,
+            "t_max_c": padded(scenario.t_max_c.tolist()),
+            "price_buy_eur_per_kwh": self._prices,
+        }
+        t0 = scenario.time[0]
+        self._day_index = [int(((t - t0).total_seconds() / 3600.0) // 24) for t in scenario.time]
+        self._hour = [int(t.hour) for t in scenario.time]
+        self._weekday = [int(t.weekday()) for t in scenario.time]
+        years = sorted({t.year for t in scenario.time})
+        hol = _holidays.country_holidays(
+            params.comfort.holidays_country, subdiv=params.comfort.holidays_subdivision, years=years
+        )
+        self._weekend = [wd >= 5 or t.date() in hol for wd, t in zip(self._weekday, scenario.time)]
+        self._dloh = dloh_per_day(params, scenario.n_steps)
+
+    def data(self, k: int, state: PlantState) -> dict[str, Any]:
+        """All fields of the level for step ``k`` given the state at the end of ``k-1``."""
+        e = self._exo[k]
+        d: dict[str, Any] = {
+            "step": k,
+            "day_index": self._day_index[k],
+            "hour_of_day": self._hour[k],
+            "weekday": self._weekday[k],
+            "is_weekend": self._weekend[k],
+            "t_air_c": state.t_air_c,
+            "v_dhw_l": state.v_dhw_l,
+            "soc": state.soc,
+            "loh": state.loh,
+            "hp_mod_prev": state.hp_mod,
+            "p_pv_w": e.p_pv_w,
+            "p_load_w": e.p_load_w,
+            "t_min_c": e.t_min_c,
+            "t_max_c": e.t_max_c,
+            "price_buy_eur_per_kwh": e.price_buy_eur_per_kwh,
+            "price_sell_eur_per_kwh": e.price_sell_eur_per_kwh,
+            "prices_buy_24h": tuple(self._prices[k : k + PRICE_WINDOW]),
+        }
+        if self.level in ("fuzzy", "mpc"):
+            d["t_min_5h_c"] = tuple(self._t_min[k : k + BOUNDS_AHEAD + 1])
+            d["ghi_w_m2"] = e.ghi_w_m2
+            d["dloh_per_day"] = self._dloh
+            d["fc_on_prev"] = bool(state.fc_on)
+        if self.level == "mpc":
+            d["t_amb_c"] = e.t_amb_c
+            d["t_wall_in_c"] = state.t_wall_in_c
+            d["t_wall_out_c"] = state.t_wall_out_c
+            d["forecast"] = {key: tuple(self._series[key][k : k + PRICE_WINDOW]) for key in FORECAST_KEYS}
+        return d
+
+    def build(self, k: int, state: PlantState) -> Observation:
+        """The :class:`Observation` for step ``k``."""
+        return Observation(self.level, self.data(k, state))
+
+
+def record_row(
+    time_iso: str,
+    k: int,
+    flows: Flows,
+    state: PlantState,
+    command: Action,
+    exo: Exogenous,
+    ghi_spot: tuple[float, float],
+    fallback: bool,
+) -> list[Any]:
+    """One timeseries row in :data:`TIMESERIES_COLUMNS` order.
+
+    ``ghi_spot`` is ``(ghi_w_m2, spot_eur_per_mwh)``; ``ghi_w_m2`` is also in ``exo`` but
+    the spot price is not, so both come together from the scenario.
+    """
+    row: list[Any] = [time_iso, k]
+    row.extend(getattr(flows, f) for f in FLOW_FIELDS)
+    row.extend(getattr(state, f) for f in STATE_COLUMNS)
+    row.extend(getattr(command, f) for f in ACTION_FIELDS)
+    row.extend((exo.t_amb_c, ghi_spot[0], exo.dhw_l_per_h, exo.t_min_c, exo.t_max_c, ghi_spot[1]))
+    row.append(bool(fallback))
+    return row
+
+
+@dataclass
+class RunResult:
+    """Outputs of one run: per-step timeseries, weekly KPIs and the summary."""
+
+    timeseries: pd.DataFrame
+    weekly: pd.DataFrame
+    summary: dict[str, Any] = field(default_factory=dict)
+
+
+def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[str, Any] | None = None) -> RunResult:
+    """Weekly KPIs and summary of a timeseries (shared by in-process and bag evaluation)."""
+    dt_h = params.simulation.time_step_h
+    weekly = kpi.weekly_kpis(ts, dt_h)
+    summary = kpi.summarize(ts, weekly, params.hydrogen.loh_min, dt_h, extra=extra)
+    return RunResult(ts, weekly, summary)
+
+
+def simulate(
+    ems: str | Controller,
+    scenario: Scenario,
+    params: PlantParams,
+    ems_options: Mapping[str, Any] | None = None,
+    progress: bool = False,
+) -> RunResult:
+    """Run one EMS in closed loop with the plant over ``scenario.n_steps`` steps.
+
+    Parameters
+    ----------
+    ems : EMS name (see :data:`comems4build_ros.ems.REGISTRY`) or a controller object
+    scenario : inputs of the run
+    params : plant parameters
+    ems_options : options passed to the controller's constructor (name only)
+    progress : show a progress bar (tqdm, on stderr)
+    """
+    t_start = _time.perf_counter()
+    ctrl = make_controller(ems, params, ems_options) if isinstance(ems, str) else ems
+    ctrl.reset()
+    plant = Plant(params)
+    exo = exogenous_series(scenario, params)
+    builder = ObservationBuilder(scenario, params, ctrl.info_level, exo)
+    times = [t.isoformat() for t in scenario.time[: scenario.n_steps]]
+    ghi = scenario.ghi_w_m2.tolist()
+    spot = scenario.spot_eur_per_mwh.tolist()
+    state = plant.initial_state()
+    rows: list[list[Any]] = []
+    infos: list[dict[str, float]] = []
+    steps: Any = range(scenario.n_steps)
+    if progress:
+        from tqdm import tqdm
+
+        steps = tqdm(steps, desc=f"simulate {ctrl.name}", unit="h", mininterval=0.5, leave=False)
+    ems_s = 0.0
+    for k in steps:
+        obs = builder.build(k, state)
+        t0 = _time.perf_counter()
+        action = ctrl.act(obs)
+        ems_s += _time.perf_counter() - t0
+        info = getattr(ctrl, "step_info", None)
+        if info:
+            infos.append(dict(info))
+        state, flows = plant.step(state, action, exo[k])
+        rows.append(record_row(times[k], k, flows, state, action, exo[k], (ghi[k], spot[k]), False))
+    ts = pd.DataFrame(rows, columns=list(TIMESERIES_COLUMNS))
+    if infos and len(infos) == len(ts):
+        info_df = pd.DataFrame(infos).add_prefix("ems_")
+        ts = pd.concat([ts, info_df], axis=1)
+    wall = _time.perf_counter() - t_start
+    extra = {
+        "ems": ctrl.name,
+        "scenario": scenario.name,
+        "wall_s": wall,
+        "ems_s": ems_s,
+    }
+    return evaluate_timeseries(ts, params, extra)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
+    """Write ``timeseries.csv`` (optional), ``weekly.csv`` and ``summary.json`` to ``out_dir``."""
+    out = Path(out_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    if timeseries:
+        result.timeseries.to_csv(out / "timeseries.csv", index=False)
+    result.weekly.to_csv(out / "weekly.csv", index=False)
+    clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.summary.items()}
+    (out / "summary.json").write_text(json.dumps(clean, indent=2, default=_json_default) + "\n", encoding="utf-8")
+    return out
