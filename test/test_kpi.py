@@ -1,0 +1,119 @@
+"""KPIs on hand-made series with known answers (eq:discomfort, eq:costs, eq:consumed_grid, ...)."""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from comems4build_ros import kpi
+
+
+def make_ts(n: int, **cols: object) -> pd.DataFrame:
+    """A timeseries of ``n`` hourly steps with zero flows unless given."""
+    base = {name: np.zeros(n) for name in kpi.REQUIRED_COLUMNS if name != "time"}
+    base["time"] = [t.isoformat() for t in pd.date_range("2022-12-01", periods=n, freq="h", tz="Europe/Berlin")]
+    base["t_air_c"] = np.full(n, 21.0)
+    base["t_min_c"] = np.full(n, 18.0)
+    base["t_max_c"] = np.full(n, 24.0)
+    base["loh"] = np.ones(n)
+    for key, value in cols.items():
+        base[key] = np.broadcast_to(np.asarray(value, dtype=float), (n,)).copy() if key != "time" else value
+    return pd.DataFrame(base)
+
+
+def test_discomfort_hand_computed() -> None:
+    t_air = np.array([17.0, 18.5, 25.0, 21.0])
+    t_min = np.array([18.0, 21.0, 18.0, 21.0])
+    t_max = np.full(4, 24.0)
+    # violations 1.0 + 2.5 + 1.0 + 0 = 4.5 K over 1 h steps
+    assert kpi.discomfort_kh(t_air, t_min, t_max, 1.0) == pytest.approx(4.5)
+    assert kpi.discomfort_kh(t_air, t_min, t_max, 0.25) == pytest.approx(1.125)
+    assert kpi.discomfort_hours(t_air, t_min, t_max, 1.0) == 3.0
+
+
+def test_cost_and_energy_hand_computed() -> None:
+    # 2 kW bought for 3 h at 0.30, 0.40, 0.50 EUR/kWh -> 0.6 + 0.8 + 1.0 = 2.4 EUR
+    price = np.array([0.30, 0.40, 0.50])
+    p_buy = np.array([2000.0, 2000.0, 2000.0])
+    assert kpi.cost_eur(price, p_buy, 1.0) == pytest.approx(2.4)
+    ts = make_ts(3, price_buy_eur_per_kwh=price, p_buy_w=p_buy, p_sell_w=[0, 500, 0],
+                 price_sell_eur_per_kwh=0.0794)
+    w = kpi.weekly_kpis(ts, 1.0)
+    assert len(w) == 1
+    assert w.loc[0, "cost_eur"] == pytest.approx(2.4)
+    assert w.loc[0, "buy_kwh"] == pytest.approx(6.0)
+    assert w.loc[0, "sell_kwh"] == pytest.approx(0.5)
+    assert w.loc[0, "reimbursement_eur"] == pytest.approx(0.5 * 0.0794)
+
+
+def test_fc_hours_toggles_and_mean_load() -> None:
+    on = [0, 1, 1, 0, 1, 0]
+    start = [0, 1, 0, 0, 1, 0]
+    p_fc = [0, 1000, 1500, 0, 500, 0]
+    ts = make_ts(6, fc_on=on, fc_start=start, p_fc_w=p_fc, p_h2_w=np.array(p_fc) * 2, eta_fc_el=[0, .5, .4, 0, .6, 0])
+    w = kpi.weekly_kpis(ts, 1.0)
+    assert w.loc[0, "fc_working_hours"] == 3.0
+    assert w.loc[0, "fc_toggles"] == 2.0
+    assert w.loc[0, "fc_kwh"] == pytest.approx(3.0)
+    assert w.loc[0, "h2_kwh"] == pytest.approx(6.0)
+    assert w.loc[0, "fc_mean_load_w"] == pytest.approx(1000.0)
+    s = kpi.summarize(ts, w, loh_min=0.0)
+    assert s["fc_mean_eta_el"] == pytest.approx(0.5)
+    assert s["fc_toggles"] == 2
+
+
+def test_heat_recovery_dhw_and_unmet() -> None:
+    ts = make_ts(4, q_fc_rec_w=[1000, 0, 0, 0], q_fc_dump_w=[0, 500, 0, 0],
+                 q_dhw_demand_w=[2000, 0, 0, 0], q_dhw_loss_w=35, q_dhw_unmet_w=[0, 0, 250, 0])
+    w = kpi.weekly_kpis(ts, 1.0)
+    assert w.loc[0, "heat_recovered_kwh"] == pytest.approx(1.5)
+    assert w.loc[0, "heat_recovered_used_kwh"] == pytest.approx(1.0)
+    assert w.loc[0, "dhw_demand_kwh"] == pytest.approx(2.0 + 4 * 0.035)
+    assert w.loc[0, "dhw_unmet_kwh"] == pytest.approx(0.25)
+
+
+def test_weeks_split_and_partial_week() -> None:
+    n = 168 * 2 + 24
+    t_air = np.full(n, 21.0)
+    t_air[200] = 17.0  # 1 K below 18 in week 2
+    ts = make_ts(n, t_air_c=t_air)
+    w = kpi.weekly_kpis(ts, 1.0)
+    assert list(w["week"]) == [1, 2, 3]
+    assert list(w["hours"]) == [168.0, 168.0, 24.0]
+    assert list(w["discomfort_kh"]) == [0.0, 1.0, 0.0]
+    s = kpi.summarize(ts, w, loh_min=0.0)
+    assert s["discomfort_weeks_nonzero"] == 1
+    assert s["weeks"] == 3 and s["steps"] == n
+
+
+def test_weekly_equals_whole_run_totals() -> None:
+    """Computing KPIs week by week sums to computing them once over the run (BOPTEST-style)."""
+    rng = np.random.default_rng(1)
+    n = 168 * 3
+    ts = make_ts(n, p_buy_w=rng.uniform(0, 3000, n), price_buy_eur_per_kwh=rng.uniform(0.1, 0.6, n),
+                 t_air_c=rng.uniform(16, 26, n), t_min_c=np.where(rng.random(n) < 0.5, 18.0, 21.0))
+    w = kpi.weekly_kpis(ts, 1.0)
+    s = kpi.summarize(ts, w, loh_min=0.0)
+    assert w["cost_eur"].sum() == pytest.approx(s["cost_eur_total"])
+    assert w["discomfort_kh"].sum() == pytest.approx(s["discomfort_kh_total"])
+    assert w["buy_kwh"].sum() == pytest.approx(s["buy_kwh_total"])
+    assert s["cost_eur_week_median"] == pytest.approx(float(np.median(w["cost_eur"])))
+
+
+def test_h2_empty_at_and_residual() -> None:
+    loh = np.linspace(0.5, 0.0, 10)
+    ts = make_ts(10, loh=loh, balance_residual_w=[0, -2e-7, 1e-7, 0, 0, 0, 0, 0, 0, 0])
+    w = kpi.weekly_kpis(ts, 1.0)
+    s = kpi.summarize(ts, w, loh_min=0.0)
+    # LOH reaches 0 in the last step (index 9), whose end is 10 h after the start
+    assert s["h2_empty_at"] == pd.Timestamp("2022-12-01 10:00", tz="Europe/Berlin").isoformat()
+    assert s["max_balance_residual_w"] == pytest.approx(2e-7)
+    s2 = kpi.summarize(ts, w, loh_min=-0.1)
+    assert s2["h2_empty_at"] is None
+
+
+def test_missing_column_is_named() -> None:
+    ts = make_ts(3).drop(columns=["p_buy_w"])
+    with pytest.raises(ValueError, match="p_buy_w"):
+        kpi.weekly_kpis(ts, 1.0)
