@@ -19,9 +19,10 @@ from typing import Any
 import holidays as _holidays
 import numpy as np
 import pandas as pd
+from pydantic import BaseModel, ConfigDict, Field
 
 from . import kpi
-from .config import PlantParams
+from .config import PlantParams, config_dir, read_ros_params, validate
 from .ems import make_controller
 from .ems.base import FORECAST_KEYS, INFO_LEVELS, Controller, Observation
 from .models.pv import pv_power_w
@@ -75,6 +76,61 @@ def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]
     return [Exogenous(*c) for c in cols]
 
 
+class ForecastSettings(BaseModel):
+    """Forecast settings (``config/forecast.yaml``); see that file for the sources."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+    mode: str = Field(pattern="^(perfect|imperfect)$")
+    seed: int
+    sigma_t_amb_k_24h: float = Field(ge=0)
+    sigma_ghi_rel_24h: float = Field(ge=0)
+
+
+def load_forecast_settings(path: str | Path | None = None, **overrides: Any) -> ForecastSettings:
+    """Read the ``forecast`` section of ``config/forecast.yaml`` (or ``path``), with overrides."""
+    path = Path(path) if path else config_dir() / "forecast.yaml"
+    data = dict(read_ros_params(path).get("forecast", {}))
+    data.update(overrides)
+    return validate(ForecastSettings, data, str(path))
+
+
+class ForecastModel:
+    """The 24-step forecasts the MPC receives (``forecast`` field of the observation).
+
+    ``perfect``: the scenario's future values (the paper's setting). ``imperfect``:
+    persistence for ``p_load_w`` and ``dhw_l_per_h`` (value 24 h earlier; before the
+    first day, the first value), noisy ``t_amb_c`` (additive Gaussian) and ``ghi_w_m2`` /
+    ``p_pv_w`` (one multiplicative Gaussian factor, clipped at 0), with standard deviation
+    ``sigma_24h * sqrt(lead / 24)``; lead 0 is the measured current step and stays exact.
+    The noise of step ``k`` is drawn from a generator seeded with ``(seed, k)``, so runs
+    are reproducible and the in-process and ROS paths see identical forecasts.
+    """
+
+    def __init__(self, series: Mapping[str, list[float]], settings: ForecastSettings, steps_per_day: int) -> None:
+        self._series = series
+        self._s = settings
+        self._day = steps_per_day
+        lead = np.arange(PRICE_WINDOW, dtype=float)
+        self._scale = np.sqrt(lead / steps_per_day)
+
+    def window(self, k: int) -> dict[str, tuple[float, ...]]:
+        """Forecast of every key in :data:`FORECAST_KEYS` for steps ``k .. k+23``."""
+        s = self._series
+        out = {key: s[key][k : k + PRICE_WINDOW] for key in FORECAST_KEYS}
+        if self._s.mode == "imperfect":
+            day = self._day
+            for key in ("p_load_w", "dhw_l_per_h"):
+                vals = s[key]
+                out[key] = [vals[k]] + [vals[max(k + i - day, 0)] for i in range(1, PRICE_WINDOW)]
+            rng = np.random.default_rng((self._s.seed, k))
+            e_t = rng.standard_normal(PRICE_WINDOW) * self._s.sigma_t_amb_k_24h * self._scale
+            f_g = np.clip(1.0 + rng.standard_normal(PRICE_WINDOW) * self._s.sigma_ghi_rel_24h * self._scale, 0.0, None)
+            out["t_amb_c"] = (np.asarray(out["t_amb_c"]) + e_t).tolist()
+            out["ghi_w_m2"] = (np.asarray(out["ghi_w_m2"]) * f_g).tolist()
+            out["p_pv_w"] = (np.asarray(out["p_pv_w"]) * f_g).tolist()
+        return {key: tuple(v) for key, v in out.items()}
+
+
 class ObservationBuilder:
     """Builds the :class:`Observation` of one information level for each step.
 
@@ -84,9 +140,17 @@ class ObservationBuilder:
     params : plant parameters
     level : information level (``basic``, ``fuzzy``, ``mpc``)
     exo : per-step exogenous records from :func:`exogenous_series`
+    forecast : forecast settings for the MPC level (default: ``config/forecast.yaml``)
     """
 
-    def __init__(self, scenario: Scenario, params: PlantParams, level: str, exo: Sequence[Exogenous]) -> None:
+    def __init__(
+        self,
+        scenario: Scenario,
+        params: PlantParams,
+        level: str,
+        exo: Sequence[Exogenous],
+        forecast: ForecastSettings | None = None,
+    ) -> None:
         if level not in INFO_LEVELS:
             raise ValueError(f"unknown information level '{level}'")
         self.level = level
@@ -120,6 +184,11 @@ class ObservationBuilder:
         )
         self._weekend = [wd >= 5 or t.date() in hol for wd, t in zip(self._weekday, scenario.time)]
         self._dloh = dloh_per_day(params, scenario.n_steps)
+        self._forecast = ForecastModel(
+            self._series,
+            forecast or load_forecast_settings(),
+            int(round(24.0 / params.simulation.time_step_h)),
+        )
 
     def data(self, k: int, state: PlantState) -> dict[str, Any]:
         """All fields of the level for step ``k`` given the state at the end of ``k-1``."""
@@ -152,7 +221,7 @@ class ObservationBuilder:
             d["t_amb_c"] = e.t_amb_c
             d["t_wall_in_c"] = state.t_wall_in_c
             d["t_wall_out_c"] = state.t_wall_out_c
-            d["forecast"] = {key: tuple(self._series[key][k : k + PRICE_WINDOW]) for key in FORECAST_KEYS}
+            d["forecast"] = self._forecast.window(k)
         return d
 
     def build(self, k: int, state: PlantState) -> Observation:
@@ -207,6 +276,7 @@ def simulate(
     params: PlantParams,
     ems_options: Mapping[str, Any] | None = None,
     progress: bool = False,
+    forecast: ForecastSettings | None = None,
 ) -> RunResult:
     """Run one EMS in closed loop with the plant over ``scenario.n_steps`` steps.
 
@@ -217,13 +287,15 @@ def simulate(
     params : plant parameters
     ems_options : options passed to the controller's constructor (name only)
     progress : show a progress bar (tqdm, on stderr)
+    forecast : forecast settings for an MPC (default ``config/forecast.yaml``: perfect)
     """
     t_start = _time.perf_counter()
     ctrl = make_controller(ems, params, ems_options) if isinstance(ems, str) else ems
     ctrl.reset()
     plant = Plant(params)
     exo = exogenous_series(scenario, params)
-    builder = ObservationBuilder(scenario, params, ctrl.info_level, exo)
+    forecast = forecast or load_forecast_settings()
+    builder = ObservationBuilder(scenario, params, ctrl.info_level, exo, forecast)
     times = [t.isoformat() for t in scenario.time[: scenario.n_steps]]
     ghi = scenario.ghi_w_m2.tolist()
     spot = scenario.spot_eur_per_mwh.tolist()
@@ -256,6 +328,7 @@ def simulate(
         "scenario": scenario.name,
         "wall_s": wall,
         "ems_s": ems_s,
+        "forecast": forecast.mode if ctrl.info_level == "mpc" else None,
     }
     return evaluate_timeseries(ts, params, extra)
 

@@ -24,6 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--ems-option", action="append", default=[], metavar="KEY=VALUE",
                         help="option passed to the EMS, e.g. --ems-option solver=CBC (repeatable)")
+    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
+                        help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
     parser.add_argument("--out", required=True, help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
@@ -49,7 +51,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config import load_plant_params
     from ..ems import UnknownEMSError, controller_class
     from ..scenario import resolve_scenario
-    from ..sim import simulate, write_run
+    from ..sim import load_forecast_settings, simulate, write_run
 
     for path in args.config:
         if not Path(path).is_file():
@@ -64,6 +66,7 @@ def run(args: argparse.Namespace) -> int:
         args.ems, scenario, params,
         ems_options=parse_assignments(args.ems_option, "--ems-option"),
         progress=not args.no_progress and sys.stderr.isatty(),
+        forecast=load_forecast_settings(**({"mode": args.forecast} if args.forecast else {})),
     )
     out = write_run(result, args.out)
     s = result.summary
