@@ -21,7 +21,7 @@ from __future__ import annotations
 import sys
 from collections.abc import Iterable, Mapping
 from pathlib import Path
-from typing import Any, TypeVar
+from typing import Any, Literal, TypeVar
 
 import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
@@ -179,6 +179,7 @@ class PVParams(_Section):
     tilt_deg: float = Field(ge=0, le=90)
     azimuth_deg: float = Field(ge=0, le=360)
     albedo: float = Frac
+    sky_model: Literal["isotropic", "klucher", "haydavies", "reindl", "king", "perez"] = "isotropic"
 
 
 class BatteryParams(_Section):
@@ -306,6 +307,7 @@ class BuildingParams(_Section):
     g_s_m2: float = NonNeg
     f_conv: float = Frac
     a_sol_k_m2_per_w: float = NonNeg
+    t_amb_init_c: float
 
 
 class GridParams(_Section):
