@@ -82,10 +82,13 @@ def discretize(b: BuildingParams, dt_h: float) -> tuple[np.ndarray, np.ndarray]:
 
 
 def heat_loss_coefficient_w_per_k(b: BuildingParams) -> float:
-    """Steady-state heat loss coefficient H = Q_h / (T_air - T_amb) [W/K].
+    """Steady-state heat loss coefficient of the air node H [W/K].
 
     The air node loses heat directly (R_air,amb) and through the envelope chain
-    R_w,air + R_w + R_w,amb in parallel.
+    R_w,air + R_w + R_w,amb in parallel; H = Q_h / (T_air - T_amb) when all heat enters
+    the air (f_conv = 1). With f_conv < 1 part of the heat delivered to the inner wall
+    node leaves through the envelope without passing the air, so slightly more heat is
+    needed per kelvin of air temperature (see :func:`steady_state_c`).
     """
     return 1.0 / b.r_air_amb_k_per_w + 1.0 / (b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w)
 

@@ -19,6 +19,8 @@ at the middle of the hour (``time + 30 min``).
 
 from __future__ import annotations
 
+import warnings
+
 import numpy as np
 import pandas as pd
 import pvlib
@@ -102,17 +104,32 @@ def poa_irradiance_w_m2(time, ghi_w_m2, dhi_w_m2, pv: PVParams, site: SiteParams
     # Diffuse cannot exceed global (measurement noise): cap it.
     dhi = np.minimum(dhi, ghi)
     mid = index + pd.Timedelta(minutes=MID_STEP_MINUTES)
+    with warnings.catch_warnings():
+        # pvlib 0.16 still uses pandas attributes deprecated in pandas 3 (dayofyear).
+        warnings.filterwarnings("ignore", category=DeprecationWarning, module="pvlib")
+        return _poa_from_horizontal(mid, ghi, dhi, pv, site)
+
+
+def _poa_from_horizontal(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.ndarray, pv: PVParams, site: SiteParams):
+    """pvlib steps of :func:`poa_irradiance_w_m2` for validated inputs at mid-step times."""
     solpos = pvlib.solarposition.get_solarposition(mid, site.latitude_deg, site.longitude_deg, site.altitude_m)
-    zenith = solpos["apparent_zenith"].to_numpy()
+    zenith = solpos["apparent_zenith"]
     location = pvlib.location.Location(site.latitude_deg, site.longitude_deg, altitude=site.altitude_m)
-    dni_clear = location.get_clearsky(mid, model="ineichen", solar_position=solpos)["dni"].to_numpy()
-    dni = pvlib.irradiance.dni(ghi, dhi, zenith, dni_clear=dni_clear, zenith_threshold_for_zero_dni=ZENITH_DNI_ZERO_DEG)
+    dni_clear = location.get_clearsky(mid, model="ineichen", solar_position=solpos)["dni"]
+    # pvlib.irradiance.dni indexes by boolean masks: pass aligned Series, not bare arrays.
+    dni = pvlib.irradiance.dni(
+        pd.Series(ghi, index=mid),
+        pd.Series(dhi, index=mid),
+        zenith,
+        dni_clear=dni_clear,
+        zenith_threshold_for_zero_dni=ZENITH_DNI_ZERO_DEG,
+    )
     dni = np.nan_to_num(np.asarray(dni, dtype=float), nan=0.0)
     dni_extra = pvlib.irradiance.get_extra_radiation(mid).to_numpy()
     total = pvlib.irradiance.get_total_irradiance(
         surface_tilt=pv.tilt_deg,
         surface_azimuth=pv.azimuth_deg,
-        solar_zenith=zenith,
+        solar_zenith=zenith.to_numpy(),
         solar_azimuth=solpos["azimuth"].to_numpy(),
         dni=dni,
         ghi=ghi,

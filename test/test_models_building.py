@@ -1,0 +1,79 @@
+"""4R3C building, eq:dT_i..eq:dT_wout, ZOH discretisation eq:state_update_bldgs."""
+
+import numpy as np
+import pytest
+
+from comems4build_ros.config import load_plant_params
+from comems4build_ros.models import building
+
+
+@pytest.fixture(scope="module")
+def bp():
+    return load_plant_params().building
+
+
+def _euler(b, x0, u, seconds, dt_s):
+    """Integrate the ODEs written out term by term (independent of building.continuous)."""
+    ta, twi, two = x0
+    q, tamb, qs = u
+    for _ in range(int(round(seconds / dt_s))):
+        tamb_eq = tamb + b.a_sol_k_m2_per_w * qs
+        d_ta = (
+            (twi - ta) / b.r_w_air_k_per_w + (tamb - ta) / b.r_air_amb_k_per_w + b.g_s_m2 * qs + b.f_conv * q
+        ) / b.c_air_j_per_k
+        d_twi = ((ta - twi) / b.r_w_air_k_per_w + (two - twi) / b.r_w_k_per_w + (1 - b.f_conv) * q) / b.c_wall_j_per_k
+        d_two = ((twi - two) / b.r_w_k_per_w + (tamb_eq - two) / b.r_w_amb_k_per_w) / b.c_wall_j_per_k
+        ta, twi, two = ta + dt_s * d_ta, twi + dt_s * d_twi, two + dt_s * d_two
+    return np.array([ta, twi, two])
+
+
+@pytest.mark.parametrize("u", [(3000.0, -5.0, 0.0), (0.0, 10.0, 300.0), (1500.0, 2.0, 100.0)])
+def test_zoh_matches_fine_euler(bp, u):
+    Ad, Bd = building.discretize(bp, 1.0)
+    x0 = np.array([20.0, 19.0, 8.0])
+    zoh = Ad @ x0 + Bd @ np.array(u)
+    euler = _euler(bp, x0, u, 3600.0, 0.5)
+    np.testing.assert_allclose(zoh, euler, atol=2e-3)
+
+
+def test_steady_state_is_fixed_point(bp):
+    Ad, Bd = building.discretize(bp, 1.0)
+    u = np.array([1200.0, 3.0, 50.0])
+    x = building.steady_state_c(*u, bp)
+    np.testing.assert_allclose(Ad @ x + Bd @ u, x, atol=1e-9)
+
+
+def test_heat_loss_coefficient(bp):
+    # H = 1/R_air,amb + 1/(R_w,air + R_w + R_w,amb) = 1/0.0333 + 1/0.0192 = 30.03 + 52.08 W/K
+    h = building.heat_loss_coefficient_w_per_k(bp)
+    assert h == pytest.approx(1 / 0.0333 + 1 / 0.0192, rel=1e-9)
+    # All heat into the air node (f_conv = 1): H * 20 K holds the air 20 K above ambient.
+    conv = bp.model_copy(update={"f_conv": 1.0})
+    assert building.steady_state_c(h * 20.0, 0.0, 0.0, conv)[0] == pytest.approx(20.0, rel=1e-9)
+    # With f_conv = 0.4, 60 % enters the inner wall node and part of it leaves through the
+    # envelope without passing the air: T_air = 20 K * (f + (1 - f) G_wa / (G_wa + G_out)),
+    # G_wa = 1/0.0008 = 1250 W/K, G_out = 1/(0.0100 + 0.0084) W/K -> 20 * 0.975 = 19.5 K.
+    g_wa, g_out = 1 / 0.0008, 1 / 0.0184
+    expected = 20.0 * (0.4 + 0.6 * g_wa / (g_wa + g_out))
+    assert building.steady_state_c(h * 20.0, 0.0, 0.0, bp)[0] == pytest.approx(expected, rel=1e-9)
+
+
+def test_two_half_steps_equal_one_step(bp):
+    Ad1, Bd1 = building.discretize(bp, 1.0)
+    Ad2, Bd2 = building.discretize(bp, 0.5)
+    x0 = np.array([21.0, 20.0, 5.0])
+    u = np.array([2000.0, -3.0, 20.0])
+    x_half = Ad2 @ (Ad2 @ x0 + Bd2 @ u) + Bd2 @ u
+    np.testing.assert_allclose(Ad1 @ x0 + Bd1 @ u, x_half, atol=1e-10)
+
+
+def test_simulate_and_stability(bp):
+    Ad, Bd = building.discretize(bp, 1.0)
+    assert np.max(np.abs(np.linalg.eigvals(Ad))) < 1.0
+    xs = building.simulate([20.0, 20.0, 20.0], np.tile([0.0, 0.0, 0.0], (2000, 1)), Ad, Bd)
+    assert xs.shape == (2001, 3) and np.all(np.diff(xs[:, 0]) <= 1e-12)
+
+
+def test_invalid_step_raises(bp):
+    with pytest.raises(ValueError, match="dt_h"):
+        building.discretize(bp, 0.0)
