@@ -1,0 +1,123 @@
+"""Rule-based controller (``--ems rbc``, paper ``sec:RBC``).
+
+The RBC follows the ComEMS4Build workflow with crisp rules and the "basic" inputs of
+``tab:level_of_information`` (no comfort bounds ahead, no radiation, no H2 allowance):
+
+1. Heating: the thermal states chi_SH ``eq:s_sh`` (with T_air,min[k] only, no
+   look-ahead) and chi_DHW ``eq:s_dhw`` drive two hysteresis switches on the same [0, 1]
+   scale. Room heating switches on when T_air reaches T_air,min (chi_SH = 0) and off at
+   T_air,max (chi_SH = 1); tank heating on below ``dhw_on_chi`` and off above
+   ``dhw_off_chi``. When both want heat, DHW goes first. The HP runs at ``hp_mod_on``.
+2. dP = P_PV - P_el,HP - P_el,load, P_el,HP estimated as eta_HP * P_el,max(t_ref).
+3. FC at P_el,FC = zeta * P_el,FC,max when dP < 0 and the EDF price ``eq:EDF_prices``
+   is in the upper quartile (and the store is above LOH_min; the RBC does not know how
+   much H2 it may use per day, so it empties the store early).
+4. Battery: in the lowest EDF quartile it charges at full power (the grid buys the load
+   and the charge); otherwise it takes the residual dP_new = dP + P_el,FC: charging with
+   surplus, discharging to cover demand, within its power and SOC limits.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any
+
+from pydantic import BaseModel, ConfigDict, Field
+
+from ..config import PlantParams, config_dir, deep_merge, read_ros_params, set_dotted, validate
+from ..models.battery import power_limits_w
+from ..types import HP_DHW, HP_OFF, HP_SH, Action
+from .base import Observation
+from .features import chi_dhw, chi_sh, edf_price, hp_p_el_ref_w
+
+
+class RBCOptions(BaseModel):
+    """Options of the RBC (``config/rbc.yaml``, section ``rbc``); see the file for sources."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    sh_on_chi: float = Field(ge=0, le=1)
+    sh_off_chi: float = Field(ge=0, le=1)
+    dhw_on_chi: float = Field(ge=0, le=1)
+    dhw_off_chi: float = Field(ge=0, le=1)
+    hp_mod_on: float = Field(gt=0, le=1)
+    p_el_ref_t_amb_c: float
+    edf_upper_quartile: float = Field(ge=0, le=1)
+    edf_lower_quartile: float = Field(ge=0, le=1)
+
+
+def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCOptions:
+    """Defaults from ``config/rbc.yaml`` with ``options`` (dotted keys allowed) merged over them."""
+    path = config_dir() / "rbc.yaml"
+    data = dict(read_ros_params(path).get("rbc", {}))
+    extra: dict[str, Any] = {}
+    for key, value in (options or {}).items():
+        set_dotted(extra, str(key), value)
+    deep_merge(data, extra)
+    return validate(RBCOptions, data, f"{path} + options" if extra else str(path))
+
+
+class RuleBasedController:
+    """The paper's RBC (``sec:RBC``).
+
+    Parameters
+    ----------
+    params : plant parameters (device sizes, tank volumes)
+    options : overrides of ``config/rbc.yaml`` section ``rbc`` (may be empty)
+    """
+
+    name = "rbc"
+    info_level = "basic"
+
+    def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
+        self.params = params
+        self.options = load_rbc_options(options)
+        if params.heat_pump.mod_min > self.options.hp_mod_on:
+            raise ValueError(f"rbc option hp_mod_on={self.options.hp_mod_on} is below the HP's minimal modulation")
+        self._p_hp_ref_w = hp_p_el_ref_w(params.heat_pump, self.options.p_el_ref_t_amb_c)
+        self._p_fc_w = params.fuel_cell.zeta * params.fuel_cell.p_max_w
+        self.step_info: dict[str, float] = {}
+        self.reset()
+
+    def reset(self) -> None:
+        """Both heating switches off."""
+        self._sh_on = False
+        self._dhw_on = False
+        self.step_info = {}
+
+    def act(self, obs: Observation) -> Action:
+        """Set-points of the step."""
+        o, p = self.options, self.params
+        c_sh = chi_sh(obs.t_air_c, obs.t_min_c, obs.t_max_c)
+        c_dhw = chi_dhw(obs.v_dhw_l, p.dhw.v_min_l, p.dhw.v_max_l)
+        if c_sh <= o.sh_on_chi:
+            self._sh_on = True
+        elif c_sh >= o.sh_off_chi:
+            self._sh_on = False
+        if c_dhw <= o.dhw_on_chi:
+            self._dhw_on = True
+        elif c_dhw >= o.dhw_off_chi:
+            self._dhw_on = False
+        if self._dhw_on:
+            mode, eta = HP_DHW, o.hp_mod_on
+        elif self._sh_on:
+            mode, eta = HP_SH, o.hp_mod_on
+        else:
+            mode, eta = HP_OFF, 0.0
+        dp_w = obs.p_pv_w - eta * self._p_hp_ref_w - obs.p_load_w
+        edf = edf_price(obs.price_buy_eur_per_kwh, obs.prices_buy_24h)
+        p_fc = 0.0
+        if dp_w < 0.0 and edf > o.edf_upper_quartile and obs.loh > p.hydrogen.loh_min:
+            p_fc = self._p_fc_w
+        dp_new_w = dp_w + p_fc
+        b = p.battery
+        if edf <= o.edf_lower_quartile:
+            p_bess = b.p_ch_max_w
+        elif dp_new_w > 0.0:
+            p_bess = min(dp_new_w, b.p_ch_max_w)
+        else:
+            p_bess = -min(-dp_new_w, b.p_d_max_w)
+        room_ch, room_d = power_limits_w(obs.soc, b, p.simulation.time_step_h)
+        p_bess = min(p_bess, room_ch) if p_bess > 0 else max(p_bess, -room_d)
+        self.step_info = {"chi_sh": c_sh, "chi_dhw": c_dhw, "edf": edf, "dp_w": dp_w, "dp_new_w": dp_new_w}
+        return Action(hp_mod=eta, hp_mode=mode, p_fc_w=p_fc, p_bess_w=p_bess)
