@@ -1,0 +1,1 @@
+"""Benchmarks behind ``comems4build bench <target>``: each module prints figures (no timed tests)."""
