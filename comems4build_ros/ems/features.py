@@ -88,21 +88,45 @@ def edf_price(price_now: float, prices_24h: Sequence[float]) -> float:
 class DailyH2Allowance:
     """Daily permissible H2 use of ComEMS4Build (``eq:deltaLOH``, ``sec:FLC``).
 
-    The allowance ``dLOH = 24 h * LOH_init / N`` (fraction of the store per day, given to
-    the EMS in the observation as ``dloh_per_day``) is renewed at the start of every day:
-    unused H2 is not carried over ("ComEMS4Build may not use the entire permissible
-    amount unless necessary"). The use so far today is the drop of the observed LOH
-    since the day's first step. :meth:`update` returns the remaining share of today's
-    allowance in [0, 1], the FLC_FC input "dLOH" (``fig:FLC_3D``: dLOH[k-1] = 80 %).
+    The EMS observes ``dloh_per_day`` = ``24 h * LOH_init / N`` (fraction of the store per
+    day, N = steps of the whole period). The paper: "This value is updated daily, as
+    ComEMS4Build may not use the entire permissible amount unless necessary." Two readings:
+
+    ``fixed``
+        every day gets ``dloh_per_day``; unused H2 is not carried over.
+    ``rolling``
+        ``eq:deltaLOH`` is re-evaluated every day with the current level as LOH_init and
+        the remaining period as N: ``(LOH[k-1] - LOH_min) / days_left`` with
+        ``days_left = LOH_init / dloh_per_day - day_index`` (the period length follows from
+        the observed dLOH and the configured initial level), so H2 left unused on earlier
+        days is spread over the remaining ones.
+
+    The use so far today is the drop of the observed LOH since the day's first step.
+    :meth:`update` returns the remaining share of today's allowance in [0, 1], the FLC_FC
+    input "dLOH" (``fig:FLC_3D``: dLOH[k-1] = 80 %).
+
+    Parameters
+    ----------
+    mode : "fixed" or "rolling"
+    loh_init : initial H2 level of the period [-] (``simulation.loh_init``)
+    loh_min : lower bound of the store [-] (``hydrogen.loh_min``)
     """
 
-    def __init__(self) -> None:
+    MODES = ("fixed", "rolling")
+
+    def __init__(self, mode: str = "fixed", loh_init: float = 1.0, loh_min: float = 0.0) -> None:
+        if mode not in self.MODES:
+            raise ValueError(f"unknown H2 allowance mode '{mode}' (known: {', '.join(self.MODES)})")
+        self.mode = mode
+        self.loh_init = loh_init
+        self.loh_min = loh_min
         self.reset()
 
     def reset(self) -> None:
         """Forget the current day."""
         self._day: int | None = None
         self._loh_day_start = 0.0
+        self.today = 0.0  # today's allowance [fraction of the store]
         self.remaining = 0.0  # [fraction of the store]
         self.share = 0.0  # [-]
 
@@ -111,16 +135,21 @@ class DailyH2Allowance:
 
         Parameters
         ----------
-        day_index : index of the current step's day (changes at local midnight)
+        day_index : index of the current step's day since the start of the period
         loh : H2 level at the end of the previous step [-]
-        dloh_per_day : today's allowance, fraction of the store [-/day]
+        dloh_per_day : allowance of ``eq:deltaLOH``, fraction of the store [-/day]
         """
         if day_index != self._day:
             self._day = day_index
             self._loh_day_start = loh
+            if self.mode == "rolling" and dloh_per_day > 0:
+                days_left = max(1.0, self.loh_init / dloh_per_day - day_index)
+                self.today = max(0.0, loh - self.loh_min) / days_left
+            else:
+                self.today = dloh_per_day
         used = max(0.0, self._loh_day_start - loh)
-        self.remaining = max(0.0, dloh_per_day - used)
-        self.share = self.remaining / dloh_per_day if dloh_per_day > 0 else 0.0
+        self.remaining = max(0.0, self.today - used)
+        self.share = self.remaining / self.today if self.today > 0 else 0.0
         return self.share
 
 

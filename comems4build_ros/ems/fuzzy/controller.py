@@ -133,7 +133,11 @@ class FuzzyEMS:
         self._p_fc_max_w = fc.zeta * fc.p_max_w
         self._p_fc_min_w = fc.p_min_w
         self._dt_h = params.simulation.time_step_h
-        self._allowance = DailyH2Allowance()
+        self._allowance = DailyH2Allowance(
+            str(_option(fc_sec, "fc", "h2_allowance", self.fc.source, str)),
+            params.simulation.loh_init,
+            params.hydrogen.loh_min,
+        )
         self.step_info: dict[str, float] = {}
 
     def reset(self) -> None:
