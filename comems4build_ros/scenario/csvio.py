@@ -123,8 +123,22 @@ def _numeric(path: Path, df: pd.DataFrame, col: str) -> np.ndarray:
     return arr
 
 
-def fill_gaps(path: str | Path, col: str, arr: np.ndarray, line_of=_line, max_fill_h: int = MAX_FILL_H) -> np.ndarray:
+def _line_label(i: int) -> str:
+    return f"line {_line(i)}"
+
+
+def fill_gaps(
+    path: str | Path, col: str, arr: np.ndarray, where=_line_label, max_fill_h: int = MAX_FILL_H
+) -> np.ndarray:
     """Linearly interpolate runs of at most ``max_fill_h`` missing values (with a warning).
+
+    Parameters
+    ----------
+    path : source named in messages
+    col : column named in messages
+    arr : values with NaN for missing ones
+    where : row index -> location text for messages (default ``line N`` of a CSV)
+    max_fill_h : longest run that is filled [rows = h]
 
     Raises
     ------
@@ -136,23 +150,25 @@ def fill_gaps(path: str | Path, col: str, arr: np.ndarray, line_of=_line, max_fi
         return arr
     idx = np.flatnonzero(miss)
     runs = np.split(idx, np.flatnonzero(np.diff(idx) > 1) + 1)
-    for run in runs:
+
+    def span(run: np.ndarray) -> str:
         first, last = int(run[0]), int(run[-1])
-        where = f"line {line_of(first)}" if first == last else f"lines {line_of(first)}-{line_of(last)}"
-        if first == 0 or last == len(arr) - 1:
-            raise ScenarioError(f"{path}: {where}, column '{col}': missing value at the start or end of the data")
+        return where(first) if first == last else f"{where(first)} to {where(last)}"
+
+    for run in runs:
+        if run[0] == 0 or run[-1] == len(arr) - 1:
+            raise ScenarioError(f"{path}: {span(run)}, column '{col}': missing value at the start or end of the data")
         if len(run) > max_fill_h:
             raise ScenarioError(
-                f"{path}: {where}, column '{col}': {len(run)} missing values in a row (at most {max_fill_h} are filled)"
+                f"{path}: {span(run)}, column '{col}': {len(run)} missing values in a row "
+                f"(at most {max_fill_h} are filled)"
             )
     x = np.arange(len(arr))
     out = arr.copy()
     out[miss] = np.interp(x[miss], x[~miss], arr[~miss])
-    lines = ", ".join(
-        str(line_of(int(r[0]))) if len(r) == 1 else f"{line_of(int(r[0]))}-{line_of(int(r[-1]))}" for r in runs
-    )
     warnings.warn(
-        f"{path}: column '{col}': {int(miss.sum())} missing value(s) filled by linear interpolation (lines {lines})",
+        f"{path}: column '{col}': {int(miss.sum())} missing value(s) filled by linear interpolation "
+        f"({'; '.join(span(r) for r in runs)})",
         ScenarioWarning,
         stacklevel=3,
     )

@@ -1,0 +1,102 @@
+"""``comems4build data``: build scenario CSVs from real sources.
+
+- ``data fetch-prices --start DATE --end DATE --out prices.json`` downloads aWATTar
+  day-ahead prices (internet access needed; urllib only).
+- ``data build --prices X.json --temperature Y.txt --solar Z.txt [--dhw D.txt] [--load L.csv]
+  --out scenario.csv`` combines the sources into a scenario CSV (hourly, local time with UTC
+  offset); DHW and load come from the default generator when not given, which it says.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Subcommands ``fetch-prices`` and ``build``."""
+    sub = parser.add_subparsers(dest="data_command", metavar="ACTION", required=True)
+    fetch = sub.add_parser("fetch-prices", help="download aWATTar day-ahead prices as JSON (needs internet)")
+    fetch.add_argument("--start", required=True, help="first hour, ISO date/time (naive = site local time)")
+    fetch.add_argument("--end", required=True, help="end (exclusive), ISO date/time")
+    fetch.add_argument("--out", required=True, help="JSON file to write")
+    fetch.add_argument("--config", action="append", default=[], help="extra plant parameter file (site time zone)")
+
+    build = sub.add_parser("build", help="combine price, weather, DHW and load sources into a scenario CSV")
+    build.add_argument("--prices", required=True, help="aWATTar marketdata JSON")
+    build.add_argument("--temperature", required=True, help="DWD air temperature, 10-minute (TT_10) or hourly (TT_TU)")
+    build.add_argument("--solar", required=True, help="DWD 10-minute solar radiation (GS_10, DS_10 in J/cm2)")
+    build.add_argument("--dhw", help="DHWCalc output (l/h per step, one year); default: generator")
+    build.add_argument("--dhw-year", type=int, help="calendar year of the DHWCalc file (default: first year built)")
+    build.add_argument("--load", help="household load CSV (time + power column); default: generator")
+    build.add_argument("--load-column", help="power column of the load CSV")
+    build.add_argument("--load-unit", choices=("W", "kW"), help="unit of the power column (default: from its name)")
+    build.add_argument("--start", help="first hour (ISO; naive = site local time); default: first common hour")
+    build.add_argument("--end", help="end, exclusive (ISO); default: last common hour + 1 h")
+    build.add_argument("--seed", type=int, help="seed of the generator for DHW/load not given")
+    build.add_argument("--config", action="append", default=[], help="extra plant parameter file (site, holidays)")
+    build.add_argument("--out", required=True, help="scenario CSV to write")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``fetch-prices`` or ``build``."""
+    import pandas as pd
+
+    from ..cli import UsageError
+    from ..config import load_plant_params
+    from ..scenario import loaders
+
+    for path in args.config:
+        if not Path(path).is_file():
+            raise UsageError(f"--config {path}: no such file")
+    params = load_plant_params(args.config)
+    tz = params.site.timezone
+
+    def when(text: str, option: str) -> pd.Timestamp:
+        try:
+            t = pd.Timestamp(text)
+        except ValueError:
+            raise UsageError(f"{option} '{text}' is not an ISO date/time") from None
+        return t.tz_localize(tz) if t.tzinfo is None else t
+
+    if args.data_command == "fetch-prices":
+        import urllib.error
+
+        start, end = when(args.start, "--start"), when(args.end, "--end")
+        if end <= start:
+            raise UsageError("--end must be after --start")
+        try:
+            text = loaders.fetch_awattar(start, end)
+        except (urllib.error.URLError, TimeoutError, OSError) as exc:
+            print(f"comems4build data fetch-prices: download failed: {exc}")
+            return 1
+        out = Path(args.out)
+        out.parent.mkdir(parents=True, exist_ok=True)
+        out.write_text(text, encoding="utf-8")
+        series = loaders.read_awattar_json(out)
+        print(f"wrote {out}: {len(series)} hourly prices {series.index[0]} .. {series.index[-1]}")
+        return 0
+
+    for option in ("prices", "temperature", "solar", "dhw", "load"):
+        path = getattr(args, option)
+        if path is not None and not Path(path).is_file():
+            raise UsageError(f"--{option} {path}: no such file")
+    prices = (args.prices, loaders.read_awattar_json(args.prices))
+    temperature = (args.temperature, loaders.read_dwd_temperature(args.temperature))
+    solar = (args.solar, loaders.read_dwd_solar(args.solar))
+    dhw = None
+    if args.dhw:
+        year = args.dhw_year or (
+            when(args.start, "--start").year if args.start else prices[1].index[0].tz_convert(tz).year
+        )
+        dhw = (args.dhw, loaders.read_dhwcalc(args.dhw, year, tz))
+    load = (args.load, loaders.read_load_csv(args.load, args.load_column, args.load_unit)) if args.load else None
+    frame, provenance = loaders.build_scenario_frame(
+        params, prices, temperature, solar, dhw=dhw, load=load, start=args.start, end=args.end, seed=args.seed
+    )
+    out = loaders.write_frame_csv(frame, args.out, tz)
+    first, last = frame.index[0].tz_convert(tz), frame.index[-1].tz_convert(tz)
+    print(f"wrote {out}: {len(frame)} hours {first.isoformat()} .. {last.isoformat()}")
+    for col, source in provenance.items():
+        print(f"  {col:18s} <- {source}")
+    return 0

@@ -1,0 +1,447 @@
+"""Loaders for real data sources, resampled to 1 h, and the builder of a scenario CSV.
+
+Sources (formats in FACTS.md "Data formats"):
+
+- aWATTar market data API JSON (day-ahead price, EUR/MWh, net of taxes);
+  :func:`fetch_awattar` downloads it (``comems4build data fetch-prices``).
+- DWD open data, 10-minute air temperature (``TT_10``) and solar radiation (``GS_10``
+  global, ``DS_10`` diffuse, J/cm2 per 10 min), and the hourly temperature product (``TT_TU``).
+- DHWCalc output: one column of draws in l/h, one row per time step of a whole year.
+- A household load CSV: a ``time`` column (ISO 8601 with UTC offset) and a power column.
+
+Time conventions (documented choices):
+
+- Every hourly value belongs to the step that *starts* at its time stamp (UTC inside this
+  module; the scenario CSV is written in the site's local time with its offset).
+- DWD ``MESS_DATUM`` is UTC. Radiation sums are taken to cover the 10 minutes *ending* at
+  the stamp, so the hour ``[h, h+1)`` averages the stamps ``h:10 .. h+1:00``; temperatures are
+  instantaneous, so the hour averages the stamps ``h:00 .. h:50``. An hour needs at least
+  :data:`MIN_VALID_10MIN` valid 10-minute values, otherwise it is missing. The hourly
+  product's value at ``HH`` is used for the step starting at ``HH``.
+- Missing hours in a built scenario are filled by linear interpolation when a run is at
+  most :data:`~.csvio.MAX_FILL_H` hours long (with a warning), otherwise the build fails
+  naming the source file, the time and the column.
+"""
+
+from __future__ import annotations
+
+import json
+import urllib.parse
+import urllib.request
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from ..config import PlantParams
+from .base import CSV_COLUMNS
+from .csvio import MISSING_MARKER, ScenarioError, fill_gaps
+
+#: aWATTar market data endpoint (FACTS.md).
+AWATTAR_URL = "https://api.awattar.de/v1/marketdata"
+#: Milliseconds per hour (aWATTar time stamps are epoch milliseconds, UTC).
+MS_PER_HOUR = 3_600_000
+#: Joule per cm2 -> Joule per m2.
+CM2_PER_M2 = 10_000.0
+#: Seconds in a DWD 10-minute interval.
+SECONDS_PER_10MIN = 600.0
+#: Minimum number of valid 10-minute values for an hourly value.
+MIN_VALID_10MIN = 4
+#: Watt per kilowatt.
+W_PER_KW = 1000.0
+HOURS_PER_DAY = 24
+#: DHWCalc rows per year -> step length [s] (365-day years).
+DHWCALC_STEPS = {365 * HOURS_PER_DAY * k: 3600 // k for k in (1, 2, 4, 6, 12, 60)}
+
+
+def j_per_cm2_10min_to_w_m2(value_j_cm2: np.ndarray | float) -> np.ndarray:
+    """Mean irradiance [W/m2] of a 10-minute radiation sum [J/cm2]: ``v * 10000 / 600``."""
+    return np.asarray(value_j_cm2, dtype=float) * CM2_PER_M2 / SECONDS_PER_10MIN
+
+
+# --------------------------------------------------------------------------- aWATTar
+
+
+def read_awattar_json(path: str | Path) -> pd.Series:
+    """Day-ahead prices of an aWATTar ``/v1/marketdata`` answer as an hourly series.
+
+    Returns
+    -------
+    Series of spot prices [EUR/MWh] indexed by the UTC start of each hour. Intervals shorter
+    than 1 h (e.g. 15 min) are averaged to the hour.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file and the entry (``data[i]``) for bad JSON, a wrong unit, missing
+        fields, duplicate/overlapping/decreasing intervals or gaps.
+    """
+    path = Path(path)
+    try:
+        doc = json.loads(path.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ScenarioError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
+    if not isinstance(doc, dict) or not isinstance(doc.get("data"), list):
+        raise ScenarioError(f"{path}: expected an object with a 'data' list (aWATTar marketdata format)")
+    if not doc["data"]:
+        raise ScenarioError(f"{path}: 'data' is empty")
+    starts, ends, prices = [], [], []
+    for i, entry in enumerate(doc["data"]):
+        for key in ("start_timestamp", "end_timestamp", "marketprice"):
+            if not isinstance(entry, dict) or key not in entry:
+                raise ScenarioError(f"{path}: data[{i}]: field '{key}' missing")
+        unit = str(entry.get("unit", "Eur/MWh"))
+        if unit.lower().replace(" ", "") != "eur/mwh":
+            raise ScenarioError(f"{path}: data[{i}], field 'unit': '{unit}' (expected Eur/MWh)")
+        price = entry["marketprice"]
+        if not isinstance(price, int | float) or not np.isfinite(price):
+            raise ScenarioError(f"{path}: data[{i}], field 'marketprice': '{price}' is not a number")
+        starts.append(int(entry["start_timestamp"]))
+        ends.append(int(entry["end_timestamp"]))
+        prices.append(float(price))
+    starts_a, ends_a = np.array(starts), np.array(ends)
+    length = ends_a - starts_a
+    if np.any(length <= 0) or np.any(MS_PER_HOUR % length != 0):
+        i = int(np.flatnonzero((length <= 0) | (MS_PER_HOUR % np.maximum(length, 1) != 0))[0])
+        raise ScenarioError(f"{path}: data[{i}]: interval of {length[i]} ms does not divide one hour")
+    for i in range(1, len(starts_a)):
+        if starts_a[i] != ends_a[i - 1]:
+            kind = "gap" if starts_a[i] > ends_a[i - 1] else "overlapping or decreasing interval"
+            t = pd.Timestamp(starts_a[i], unit="ms", tz="UTC").isoformat()
+            raise ScenarioError(f"{path}: data[{i}], field 'start_timestamp': {kind} at {t}")
+    index = pd.DatetimeIndex(pd.to_datetime(starts_a, unit="ms", utc=True))
+    series = pd.Series(prices, index=index, name="spot_eur_per_mwh")
+    weights = pd.Series(length / MS_PER_HOUR, index=index)
+    hourly = (series * weights).resample("1h").sum(min_count=1) / weights.resample("1h").sum(min_count=1)
+    coverage = weights.resample("1h").sum()
+    partial = coverage[(coverage > 0) & (coverage < 1 - 1e-9)]
+    if len(partial):
+        raise ScenarioError(f"{path}: hour {partial.index[0].isoformat()} only partly covered by the data")
+    return hourly.rename("spot_eur_per_mwh")
+
+
+def fetch_awattar(start: pd.Timestamp, end: pd.Timestamp, timeout_s: float = 30.0) -> str:
+    """Download aWATTar market data between two times (needs internet access).
+
+    Returns the JSON text of ``GET /v1/marketdata?start=<ms>&end=<ms>``.
+    """
+    query = urllib.parse.urlencode(
+        {"start": int(start.tz_convert("UTC").timestamp() * 1000), "end": int(end.tz_convert("UTC").timestamp() * 1000)}
+    )
+    request = urllib.request.Request(f"{AWATTAR_URL}?{query}", headers={"User-Agent": "comems4build_ros"})
+    with urllib.request.urlopen(request, timeout=timeout_s) as response:  # noqa: S310 (fixed https URL)
+        return response.read().decode("utf-8")
+
+
+# --------------------------------------------------------------------------- DWD
+
+
+def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame:
+    """Read a DWD open-data product (semicolon separated, ``MESS_DATUM`` UTC, rows end with ``eor``).
+
+    Returns a frame of the requested columns (floats, -999 -> NaN) indexed by UTC time.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, line and column for a missing column, a bad time stamp, a
+        non-numeric value, a row without ``eor`` or with the wrong number of fields.
+    """
+    path = Path(path)
+    try:
+        lines = path.read_text(encoding="latin-1").splitlines()
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
+    if not lines:
+        raise ScenarioError(f"{path}: empty file")
+    header = [h.strip() for h in lines[0].split(";")]
+    for col in ("MESS_DATUM", *columns):
+        if col not in header:
+            raise ScenarioError(f"{path}: line 1 (header): column '{col}' missing (found {';'.join(header)})")
+    pos = {c: header.index(c) for c in ("MESS_DATUM", *columns)}
+    times, rows = [], []
+    for n, line in enumerate(lines[1:], start=2):
+        if not line.strip():
+            continue
+        fields = [f.strip() for f in line.split(";")]
+        if len(fields) != len(header):
+            raise ScenarioError(f"{path}: line {n}: {len(fields)} fields, header has {len(header)}")
+        if header[-1].lower() == "eor" and fields[-1].lower() != "eor":
+            raise ScenarioError(f"{path}: line {n}, column 'eor': row does not end with 'eor'")
+        stamp = fields[pos["MESS_DATUM"]]
+        fmt = {12: "%Y%m%d%H%M", 10: "%Y%m%d%H"}.get(len(stamp))
+        try:
+            if fmt is None:
+                raise ValueError
+            times.append(pd.Timestamp(pd.to_datetime(stamp, format=fmt)).tz_localize("UTC"))
+        except ValueError:
+            raise ScenarioError(f"{path}: line {n}, column 'MESS_DATUM': '{stamp}' is not yyyymmddHH[MM]") from None
+        row = []
+        for col in columns:
+            text = fields[pos[col]]
+            try:
+                value = float(text)
+            except ValueError:
+                raise ScenarioError(f"{path}: line {n}, column '{col}': '{text}' is not a number") from None
+            row.append(np.nan if value == MISSING_MARKER else value)
+        rows.append(row)
+    if not rows:
+        raise ScenarioError(f"{path}: no data rows")
+    df = pd.DataFrame(rows, index=pd.DatetimeIndex(times, name="time"), columns=list(columns))
+    dup = df.index.duplicated()
+    if dup.any() or not df.index.is_monotonic_increasing:
+        i = int(np.flatnonzero(dup)[0]) if dup.any() else int(np.flatnonzero(np.diff(df.index.asi8) < 0)[0]) + 1
+        kind = "duplicate" if dup.any() else "decreasing"
+        raise ScenarioError(f"{path}: data row {i + 1}, column 'MESS_DATUM': {kind} time {df.index[i].isoformat()}")
+    return df
+
+
+def _hourly_from_10min(df: pd.DataFrame, end_stamped: bool) -> pd.DataFrame:
+    """Hourly means of 10-minute values; hours with fewer than MIN_VALID_10MIN values are NaN."""
+    shifted = df.copy()
+    if end_stamped:
+        shifted.index = shifted.index - pd.Timedelta(minutes=10)
+    mean = shifted.resample("1h").mean()
+    count = shifted.resample("1h").count()
+    return mean.where(count >= MIN_VALID_10MIN)
+
+
+def read_dwd_temperature(path: str | Path) -> pd.Series:
+    """Hourly air temperature [degC] from a DWD 10-minute (``TT_10``) or hourly (``TT_TU``) file."""
+    path = Path(path)
+    with path.open(encoding="latin-1") as fh:
+        header = fh.readline().upper()
+    if "TT_10" in header:
+        df = read_dwd_product(path, ("TT_10",))
+        return _hourly_from_10min(df, end_stamped=False)["TT_10"].rename("t_amb_c")
+    if "TT_TU" in header:
+        df = read_dwd_product(path, ("TT_TU",))
+        return df["TT_TU"].asfreq("1h").rename("t_amb_c")
+    raise ScenarioError(f"{path}: line 1 (header): neither 'TT_10' nor 'TT_TU' found (DWD air temperature)")
+
+
+def read_dwd_solar(path: str | Path) -> pd.DataFrame:
+    """Hourly mean global and diffuse horizontal irradiance [W/m2] from a DWD 10-minute solar file.
+
+    ``GS_10`` and ``DS_10`` are sums over 10 minutes in J/cm2; the mean irradiance of an
+    interval is ``v * 10000 / 600`` W/m2 (:func:`j_per_cm2_10min_to_w_m2`).
+    """
+    df = read_dwd_product(path, ("GS_10", "DS_10"))
+    w = pd.DataFrame(
+        {"ghi_w_m2": j_per_cm2_10min_to_w_m2(df["GS_10"]), "dhi_w_m2": j_per_cm2_10min_to_w_m2(df["DS_10"])},
+        index=df.index,
+    )
+    return _hourly_from_10min(w, end_stamped=True)
+
+
+# --------------------------------------------------------------------------- DHWCalc, load
+
+
+def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
+    """Hourly hot-water draws [l/h] from a DHWCalc output file (one value in l/h per line, one year).
+
+    The number of rows gives the step (8760 -> 1 h, 35040 -> 15 min, ... 525600 -> 1 min);
+    step ``i`` starts at ``year``-01-01 00:00 local time + ``i`` steps (DHWCalc ignores
+    daylight saving). A header line that is not a number is skipped.
+    """
+    path = Path(path)
+    values: list[float] = []
+    first_data_line = 1
+    for n, line in enumerate(path.read_text(encoding="latin-1").splitlines(), start=1):
+        text = line.strip().split(";")[0].split(",")[0].split()[0] if line.strip() else ""
+        if not text:
+            continue
+        try:
+            values.append(float(text))
+        except ValueError:
+            if not values and n == 1:
+                first_data_line = 2
+                continue
+            raise ScenarioError(f"{path}: line {n}, column 1: '{text}' is not a number (l/h)") from None
+    arr = np.asarray(values)
+    if len(arr) not in DHWCALC_STEPS:
+        raise ScenarioError(
+            f"{path}: {len(arr)} rows; a DHWCalc year has one of {sorted(DHWCALC_STEPS)} rows (365 days)"
+        )
+    bad = np.flatnonzero(~np.isfinite(arr) | (arr < 0))
+    if len(bad):
+        raise ScenarioError(f"{path}: line {first_data_line + int(bad[0])}, column 1: '{arr[bad[0]]}' (l/h >= 0)")
+    per_hour = len(arr) // (365 * HOURS_PER_DAY)
+    hourly = arr.reshape(-1, per_hour).mean(axis=1)
+    start = pd.Timestamp(year, 1, 1).tz_localize(timezone)
+    std_offset = start.utcoffset()
+    index = pd.date_range((pd.Timestamp(year, 1, 1) - std_offset).tz_localize("UTC"), periods=len(hourly), freq="h")
+    return pd.Series(hourly, index=index, name="dhw_l_per_h")
+
+
+def read_load_csv(path: str | Path, column: str | None = None, unit: str | None = None) -> pd.Series:
+    """Hourly mean appliance load [W] from a CSV with ``time`` (ISO 8601 with offset) and a power column.
+
+    Parameters
+    ----------
+    column : power column (default: the only column other than ``time``)
+    unit : ``W`` or ``kW`` (default: from a ``_w`` / ``_kw`` suffix of the column name)
+
+    Sub-hourly rows (regular steps dividing one hour, value = mean power over the step
+    starting at its time) are averaged to 1 h.
+    """
+    path = Path(path)
+    try:
+        df = pd.read_csv(path, dtype=str, keep_default_na=False)
+    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        raise ScenarioError(f"{path}: cannot read CSV: {exc}") from None
+    df.columns = [str(c).strip() for c in df.columns]
+    if "time" not in df.columns:
+        raise ScenarioError(f"{path}: line 1 (header): column 'time' missing")
+    others = [c for c in df.columns if c != "time"]
+    if column is None:
+        if len(others) != 1:
+            raise ScenarioError(
+                f"{path}: line 1 (header): several power columns {others}; choose one with --load-column"
+            )
+        column = others[0]
+    if column not in df.columns:
+        raise ScenarioError(f"{path}: line 1 (header): column '{column}' missing")
+    if unit is None:
+        low = column.lower()
+        unit = "kW" if low.endswith("_kw") else "W" if low.endswith("_w") else None
+        if unit is None:
+            raise ScenarioError(f"{path}: column '{column}': unit unknown; name it *_w or *_kw or pass --load-unit")
+    factor = {"w": 1.0, "kw": W_PER_KW}.get(unit.lower())
+    if factor is None:
+        raise ScenarioError(f"{path}: unit '{unit}' is not W or kW")
+    times = []
+    for i, text in enumerate(df["time"]):
+        try:
+            t = pd.Timestamp(text.strip())
+        except ValueError:
+            raise ScenarioError(f"{path}: line {i + 2}, column 'time': cannot parse '{text}'") from None
+        if t.tzinfo is None:
+            raise ScenarioError(f"{path}: line {i + 2}, column 'time': '{text}' has no UTC offset")
+        times.append(t.tz_convert("UTC"))
+    index = pd.DatetimeIndex(times)
+    values = pd.to_numeric(df[column].replace(r"^\s*$", np.nan, regex=True), errors="coerce").to_numpy(dtype=float)
+    bad = np.flatnonzero(np.isnan(values) & ~df[column].str.strip().str.lower().isin(("", "nan")).to_numpy())
+    if len(bad):
+        text = df[column].iloc[bad[0]]
+        raise ScenarioError(f"{path}: line {bad[0] + 2}, column '{column}': '{text}' is not a number")
+    values[values == MISSING_MARKER] = np.nan
+    steps = np.diff(index.as_unit("s").asi8)
+    if len(steps):
+        step = int(steps[0])
+        wrong = np.flatnonzero(steps != step)
+        if step <= 0 or 3600 % step != 0 or len(wrong):
+            i = int(wrong[0]) + 1 if len(wrong) else 1
+            raise ScenarioError(
+                f"{path}: line {i + 2}, column 'time': irregular, duplicate or decreasing time "
+                f"({index[i - 1].isoformat()} -> {index[i].isoformat()})"
+            )
+    negative = np.flatnonzero(values < 0)
+    if len(negative):
+        raise ScenarioError(f"{path}: line {negative[0] + 2}, column '{column}': negative load {values[negative[0]]:g}")
+    series = pd.Series(values * factor, index=index)
+    hourly = series.resample("1h").mean()
+    return hourly.rename("p_load_w")
+
+
+# --------------------------------------------------------------------------- build
+
+
+def repeat_year_profile(profile: pd.Series, index: pd.DatetimeIndex, timezone: str) -> pd.Series:
+    """Values of a one-year hourly profile (e.g. DHWCalc) at ``index``, by position in the year.
+
+    The position is (day of year, hour) in local standard time (UTC + the zone's January
+    offset, as DHWCalc ignores daylight saving); day 366 of leap years reuses day 365.
+    So a profile for one year serves a window in any year, e.g. Dec 2022 .. Feb 2023.
+    """
+    values = profile.to_numpy(dtype=float)
+    year = index[0].year
+    std_offset = pd.Timestamp(year, 1, 1).tz_localize(timezone).utcoffset()
+    local_std = index.tz_convert("UTC").tz_localize(None) + std_offset
+    doy = np.minimum(local_std.day_of_year.to_numpy(), 365)
+    pos = (doy - 1) * HOURS_PER_DAY + local_std.hour.to_numpy()
+    return pd.Series(values[pos], index=index, name=profile.name)
+
+
+def build_scenario_frame(
+    params: PlantParams,
+    prices: tuple[str, pd.Series],
+    temperature: tuple[str, pd.Series],
+    solar: tuple[str, pd.DataFrame],
+    dhw: tuple[str, pd.Series] | None = None,
+    load: tuple[str, pd.Series] | None = None,
+    start: str | None = None,
+    end: str | None = None,
+    seed: int | None = None,
+) -> tuple[pd.DataFrame, dict[str, str]]:
+    """Combine hourly source series into a scenario frame (UTC index, the CSV columns).
+
+    Each source is ``(name, series)``; the name appears in messages. The window is the
+    common span of prices, temperature and solar, cut to ``start`` / ``end`` (ISO, naive =
+    local time, end exclusive). DHW and load are taken from the default generator when not
+    given (same window, same seed), and the returned provenance says so.
+
+    Returns
+    -------
+    frame, provenance (column -> source)
+    """
+    tz = params.site.timezone
+    required = {
+        "spot_eur_per_mwh": prices,
+        "t_amb_c": temperature,
+        "ghi_w_m2": (solar[0], solar[1]["ghi_w_m2"]),
+        "dhi_w_m2": (solar[0], solar[1]["dhi_w_m2"]),
+    }
+    first = max(s.first_valid_index() for _, s in required.values())
+    last = min(s.last_valid_index() for _, s in required.values())
+
+    def local(text: str) -> pd.Timestamp:
+        t = pd.Timestamp(text)
+        return (t.tz_localize(tz) if t.tzinfo is None else t).tz_convert("UTC")
+
+    if start is not None:
+        first = max(first, local(start))
+    if end is not None:
+        last = min(last, local(end) - pd.Timedelta(hours=1))
+    if last < first:
+        spans = "; ".join(f"{n}: {s.first_valid_index()} .. {s.last_valid_index()}" for n, s in required.values())
+        raise ScenarioError(f"the sources share no common hours ({spans})")
+    index = pd.date_range(first, last, freq="h")
+    provenance: dict[str, str] = {}
+    frame = pd.DataFrame(index=index)
+    sources: dict[str, tuple[str, pd.Series]] = dict(required)
+    if load is not None:
+        sources["p_load_w"] = load
+    if dhw is not None:
+        sources["dhw_l_per_h"] = (dhw[0], repeat_year_profile(dhw[1], index, tz))
+    for col, (name, series) in sources.items():
+        values = series.reindex(index).to_numpy(dtype=float)
+
+        def where(i: int, _index: pd.DatetimeIndex = index) -> str:
+            return f"time {_index[i].tz_convert(tz).isoformat()}"
+
+        frame[col] = fill_gaps(name, col, values, where=where)
+        provenance[col] = name
+    missing = [c for c in ("p_load_w", "dhw_l_per_h") if c not in frame]
+    if missing:
+        from .generator import generate
+        from .settings import load_scenario_settings
+
+        settings = load_scenario_settings()
+        seed = settings.seed if seed is None else seed
+        g = generate(settings, params.site, params.comfort.holidays_country, params.comfort.holidays_subdivision,
+                     len(index), seed, start=index[0].tz_convert(tz))
+        for col in missing:
+            frame[col] = getattr(g, col)
+            provenance[col] = f"default generator (seed {seed})"
+    return frame[list(CSV_COLUMNS[1:])], provenance
+
+
+def write_frame_csv(frame: pd.DataFrame, path: str | Path, timezone: str) -> Path:
+    """Write a scenario frame (UTC index) as a scenario CSV with local times and offsets."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    out = frame.copy()
+    out.insert(0, "time", [t.tz_convert(timezone).isoformat() for t in frame.index])
+    out.to_csv(path, index=False, float_format="%.10g")
+    return path
