@@ -1,0 +1,138 @@
+"""``comems4build compare``: run RBC, fuzzy and MPC on one scenario and write the report.
+
+``--from-runs DIR`` only rebuilds the report from the runs an earlier ``compare`` wrote.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+#: EMS compared by default (the paper's three schedulers).
+DEFAULT_EMS = "rbc,fuzzy,mpc"
+#: FC system efficiencies by default (paper sec:heat_recovery); the first is the base.
+DEFAULT_ETAS = "0.75,0.90"
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``compare``."""
+    parser.add_argument("--ems", default=DEFAULT_EMS, help=f"comma-separated EMS names (default {DEFAULT_EMS})")
+    parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
+    parser.add_argument("--start", default=None, help="first step of the window (ISO date/time), CSV only")
+    parser.add_argument("--weeks", type=int, default=None, help="run length in whole weeks (default: 12 / whole CSV)")
+    parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
+                        help="run in-process or through the ROS 2 node set (bags evaluated)")
+    parser.add_argument("--fc-efficiency", default=DEFAULT_ETAS, metavar="ETA[,ETA...]",
+                        help="FC system efficiencies (fuel_cell.eta_sys); the first gives runs/<ems>/, the others "
+                             f"runs/<ems>_eta<percent>/ for the heat-recovery figure (default {DEFAULT_ETAS})")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="parameter file merged over config/plant.yaml (repeatable)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one plant parameter for every run, e.g. --set battery.e_max_kwh=10")
+    parser.add_argument("--jobs", type=int, default=None,
+                        help="parallel runs (default: CPU count in-process, 1 with --via ros)")
+    parser.add_argument("--from-runs", default=None, metavar="DIR",
+                        help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
+    parser.add_argument("--out", default=None, help="output directory (default with --from-runs: that DIR)")
+
+
+def parse_etas(text: str) -> list[float]:
+    """``"0.75,0.90"`` -> ``[0.75, 0.9]`` (each in (0, 1], no duplicates)."""
+    from ..cli import UsageError
+
+    etas = []
+    for part in text.split(","):
+        try:
+            eta = float(part)
+        except ValueError:
+            raise UsageError(f"--fc-efficiency: '{part}' is not a number") from None
+        if not 0.0 < eta <= 1.0:
+            raise UsageError(f"--fc-efficiency: {eta} is outside (0, 1]")
+        if any(abs(eta - e) < 1e-9 for e in etas):
+            raise UsageError(f"--fc-efficiency: {eta} given twice")
+        etas.append(eta)
+    return etas
+
+
+def run_name(ems: str, eta: float, base_eta: float) -> str:
+    """Run directory name: ``<ems>`` at the base efficiency, else ``<ems>_eta<percent>``."""
+    return ems if abs(eta - base_eta) < 1e-9 else f"{ems}_eta{eta * 100:.0f}"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the comparison (unless --from-runs) and write the report."""
+    from ..cli import UsageError
+    from ..config import load_plant_params
+    from ..ems import UnknownEMSError, controller_class
+    from ..report.build import build_report
+    from ..report.runner import RunTask, run_tasks
+    from ..report.runs import RUNS_DIR, Manifest, RunDirError, RunSpec, write_manifest
+    from .simulate import parse_assignments
+
+    if args.from_runs:
+        try:
+            rep = build_report(args.from_runs, args.out)
+        except RunDirError as exc:
+            raise UsageError(str(exc)) from None
+        _print_report(rep)
+        return 0
+    if not args.out:
+        raise UsageError("--out is required (unless --from-runs)")
+    emss = [e.strip() for e in args.ems.split(",") if e.strip()]
+    if not emss:
+        raise UsageError("--ems: no EMS given")
+    levels = {}
+    for ems in emss:
+        try:
+            levels[ems] = str(controller_class(ems).info_level)
+        except UnknownEMSError as exc:
+            raise UsageError(f"--ems {ems}: {exc}") from None
+    etas = parse_etas(args.fc_efficiency)
+    for path in args.config:
+        if not Path(path).is_file():
+            raise UsageError(f"--config {path}: no such file")
+    overrides = parse_assignments(args.set, "--set")
+    for eta in etas:  # validate every parameter set before starting any run
+        load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
+    out = Path(args.out)
+    base = etas[0]
+    specs, tasks = [], []
+    for ems in emss:
+        for eta in etas:
+            name = run_name(ems, eta, base)
+            ov = {**overrides, "fuel_cell.eta_sys": eta}
+            specs.append(RunSpec(name=name, ems=ems, eta_sys=eta, info_level=levels[ems], overrides=ov))
+            tasks.append(RunTask(ems=ems, out_dir=str(out / RUNS_DIR / name), scenario=args.scenario,
+                                 start=args.start, weeks=args.weeks, overrides=ov,
+                                 config=[str(Path(c).resolve()) for c in args.config], via=args.via))
+    jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
+    out.mkdir(parents=True, exist_ok=True)
+    walls: dict[str, float] = {}
+
+    def done(task: RunTask, summary: dict) -> None:
+        name = Path(task.out_dir).name
+        walls[name] = float(summary["task_wall_s"])
+        print(f"  run {name}: {summary['task_wall_s']:.1f} s, cost median {summary['cost_eur_week_median']:.2f} "
+              f"EUR/week", file=sys.stderr, flush=True)
+
+    print(f"compare: {len(tasks)} runs ({', '.join(s.name for s in specs)}) via {args.via}", file=sys.stderr)
+    t0 = time.perf_counter()
+    run_tasks(tasks, jobs=jobs, on_done=done)
+    wall = time.perf_counter() - t0
+    manifest = Manifest(scenario=args.scenario, weeks=args.weeks, via=args.via, base_eta=base, runs=specs,
+                        overrides=overrides, config=[str(Path(c).resolve()) for c in args.config],
+                        wall_s={**walls, "all_runs": wall})
+    write_manifest(manifest, out)
+    rep = build_report(out)
+    print(f"runs: {wall:.1f} s wall for {len(tasks)} runs", file=sys.stderr)
+    _print_report(rep)
+    return 0
+
+
+def _print_report(rep) -> None:  # noqa: ANN001
+    held = sum(f["verdict"] == "held" for f in rep.findings)
+    evaluated = sum(f["verdict"] != "n/a" for f in rep.findings)
+    print(f"report: {held} of {evaluated} evaluated findings held; built in {rep.seconds:.2f} s")
+    print(f"wrote {rep.markdown}, {rep.html} and {len(rep.figures)} figures in {rep.markdown.parent / 'figures'}")

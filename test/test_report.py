@@ -1,0 +1,300 @@
+"""Report building from run directories: figures, numbers parsed back, findings, bad run directories.
+
+One short comparison (1 week; thermostat, RBC and fuzzy at 75 % and 90 % FC system
+efficiency, in-process) is run once per module through the ``compare`` command; the tests
+read what it wrote. Window selection, hysteresis counting and the heat-recovery cover are
+checked on hand-made series.
+"""
+
+from __future__ import annotations
+
+import json
+import re
+import shutil
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from comems4build_ros.cli import main
+from comems4build_ros.report import findings as fd
+from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, build_report
+from comems4build_ros.report.figures import select_windows
+from comems4build_ros.report.paper import DERIVED, load_paper_results
+from comems4build_ros.report.runs import SUMMARY_KEYS, RunDirError, read_run
+
+EMS = ("thermostat", "rbc", "fuzzy")
+FIGURES = (
+    "quality_indicators_occupants",
+    "HESS_usage",
+    "working_hours_FC",
+    "hydrogen_timeseries",
+    "grid_usage",
+    "heat_recovery",
+    "performance_comparison",
+    "performance_comparison_highSolar",
+    "level_of_information",
+)
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+@pytest.fixture(scope="module")
+def comparison(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    out = tmp_path_factory.mktemp("compare")
+    rc = main(["compare", "--ems", ",".join(EMS), "--weeks", "1", "--fc-efficiency", "0.75,0.90",
+               "--out", str(out)])
+    assert rc == 0
+    return out
+
+
+def _summary(root: Path, name: str) -> dict:
+    return json.loads((root / "runs" / name / "summary.json").read_text())
+
+
+def _md_table(md: str, heading: str) -> list[list[str]]:
+    """Rows (header first) of the first Markdown table after ``heading``."""
+    part = md[md.index(heading):]
+    lines = []
+    for line in part.splitlines()[1:]:
+        if line.startswith("|"):
+            lines.append([c.strip() for c in line.strip().strip("|").split(" | ")])
+        elif lines:
+            break
+    return [lines[0], *lines[2:]]
+
+
+def test_run_directories_written(comparison: Path) -> None:
+    for ems in EMS:
+        for name in (ems, f"{ems}_eta90"):
+            d = comparison / "runs" / name
+            for f in ("timeseries.csv", "weekly.csv", "summary.json"):
+                assert (d / f).stat().st_size > 0, d / f
+    assert _summary(comparison, "rbc")["eta_sys"] == 0.75
+    assert _summary(comparison, "rbc_eta90")["eta_sys"] == 0.90
+    # the 90 % variant recovers 0.90/0.75 times the heat of the same FC operation at most
+    base, hi = _summary(comparison, "rbc"), _summary(comparison, "rbc_eta90")
+    if base["heat_recovered_kwh_total"] > 0:
+        assert hi["heat_recovered_kwh_total"] > base["heat_recovered_kwh_total"]
+
+
+def test_every_figure_written_and_non_empty(comparison: Path) -> None:
+    for key in FIGURES:
+        png = comparison / "figures" / f"{key}.png"
+        data = png.read_bytes()
+        assert data[:8] == PNG_MAGIC, png
+        assert len(data) > 5000, png
+
+
+def test_html_is_self_contained(comparison: Path) -> None:
+    text = (comparison / "report.html").read_text()
+    assert text.count('src="data:image/png;base64,') == len(FIGURES)
+    assert 'src="figures/' not in text
+    # same numbers as the Markdown: the cost median of every EMS appears in both
+    md = (comparison / "report.md").read_text()
+    for ems in EMS:
+        value = f"{_summary(comparison, ems)['cost_eur_week_median']:.2f}"
+        assert value in md and value in text
+
+
+def test_summary_table_equals_summaries(comparison: Path) -> None:
+    md = (comparison / "report.md").read_text()
+    rows = _md_table(md, "## Run summary")
+    header = rows[0]
+    assert header[1:] == ["ComEMS4Build", "RBC", "Thermostat"]  # paper order (MPC, fuzzy, RBC), others after
+    by_label = {r[0]: r[1:] for r in rows[1:]}
+    names = ["fuzzy", "rbc", "thermostat"]
+    for key, lab, digits in SUMMARY_TABLE:
+        for col, ems in enumerate(names):
+            value = _summary(comparison, ems).get(key)
+            printed = by_label[lab][col]
+            if value is None:
+                assert printed == "-"
+            elif digits is None:
+                assert printed == str(value)
+            else:
+                assert float(printed) == pytest.approx(round(float(value), digits), abs=0.5 * 10**-digits), (key, ems)
+
+
+def test_weekly_tables_equal_weekly_csv(comparison: Path) -> None:
+    md = (comparison / "report.md").read_text()
+    for ems, heading in (("rbc", "### RBC (rbc)"), ("fuzzy", "### ComEMS4Build (fuzzy)")):
+        rows = _md_table(md, heading)
+        weekly = pd.read_csv(comparison / "runs" / ems / "weekly.csv")
+        assert len(rows) == 1 + len(weekly) + 1  # header, weeks, median
+        s = _summary(comparison, ems)
+        median = dict(zip(rows[0], rows[-1]))
+        assert float(median["cost [EUR]"]) == pytest.approx(s["cost_eur_week_median"], abs=0.005)
+        assert float(median["bought [kWh]"]) == pytest.approx(s["buy_kwh_week_median"], abs=0.005)
+        assert float(median["discomfort [Kh]"]) == pytest.approx(s["discomfort_kh_week_median"], abs=0.005)
+        first = dict(zip(rows[0], rows[1]))
+        for col, head, digits in WEEKLY_TABLE:
+            assert float(first[head]) == pytest.approx(weekly[col].iloc[0], abs=0.5 * 10**-digits + 1e-9)
+
+
+def test_paper_table_measured_values(comparison: Path) -> None:
+    md = (comparison / "report.md").read_text()
+    rows = _md_table(md, "## The paper's reported figures")
+    header = rows[0]
+    by_key = {r[0]: dict(zip(header, r)) for r in rows[1:]}
+    cost = by_key["electricity cost [EUR/week, median]"]
+    assert cost["ComEMS4Build paper"] == "25.02"
+    assert cost["RBC paper"] == "43.10"
+    assert cost["MPC measured"] == "not run"
+    assert float(cost["ComEMS4Build measured"]) == pytest.approx(
+        _summary(comparison, "fuzzy")["cost_eur_week_median"], abs=0.005)
+    loh = by_key["LOH left at the end [%]"]
+    assert float(loh["RBC measured"]) == pytest.approx(100 * _summary(comparison, "rbc")["loh_end"], abs=0.005)
+    rng = by_key["H2 consumption range [kWh/week, min..max]"]["ComEMS4Build measured"]
+    lo, hi = (float(x) for x in rng.split(".."))
+    s = _summary(comparison, "fuzzy")
+    assert (lo, hi) == pytest.approx((s["h2_kwh_week_min"], s["h2_kwh_week_max"]), abs=0.005)
+
+
+def test_findings_follow_the_summaries(comparison: Path) -> None:
+    found = {f["key"]: f for f in json.loads((comparison / "findings.json").read_text())}
+    assert len(found) == len(fd.FINDINGS)
+    rbc, fuzzy = _summary(comparison, "rbc"), _summary(comparison, "fuzzy")
+    expect = "held" if fuzzy["cost_eur_week_median"] < rbc["cost_eur_week_median"] else "not held"
+    assert found["fuzzy_cheaper_than_rbc"]["verdict"] == expect
+    expect = "held" if fuzzy["fc_mean_load_w"] < rbc["fc_mean_load_w"] else "not held"
+    assert found["fuzzy_fc_lower_load"]["verdict"] == expect
+    assert found["mpc_cheapest"]["verdict"] == "n/a"  # no MPC run
+    assert found["fuzzy_h2_even"]["verdict"] == "n/a"  # one week: no spread between weeks
+    # the evidence quotes the figures
+    assert f"{fuzzy['cost_eur_week_median']:.2f}" in found["fuzzy_cheaper_than_rbc"]["evidence"]
+    md = (comparison / "report.md").read_text()
+    rows = _md_table(md, "## Findings of the paper")
+    assert [r[3] for r in rows[1:]] == [f["verdict"] for f in json.loads((comparison / "findings.json").read_text())]
+
+
+def test_level_of_information_table(comparison: Path) -> None:
+    md = (comparison / "report.md").read_text()
+    rows = _md_table(md, "## Inputs each EMS may use")
+    table = {r[0]: dict(zip(rows[0], r)) for r in rows[1:]}
+    assert table["RBC (basic)"]["24 h-ahead el. tariffs"] == "yes"
+    assert table["RBC (basic)"]["solar radiation q_s"] == "-"
+    assert table["ComEMS4Build (fuzzy)"]["solar radiation q_s"] == "yes"
+    assert table["ComEMS4Build (fuzzy)"]["forecasts (models and profiles)"] == "-"
+
+
+def test_report_from_runs_matches(comparison: Path, tmp_path: Path) -> None:
+    rep = build_report(comparison, tmp_path / "again")
+    assert rep.markdown.read_text() == (comparison / "report.md").read_text()
+
+
+def _copy(comparison: Path, tmp_path: Path) -> Path:
+    dst = tmp_path / "copy"
+    shutil.copytree(comparison, dst, ignore=shutil.ignore_patterns("figures", "report.*"))
+    return dst
+
+
+def test_missing_run_directory(comparison: Path, tmp_path: Path, capsys: pytest.CaptureFixture) -> None:
+    root = _copy(comparison, tmp_path)
+    shutil.rmtree(root / "runs" / "fuzzy_eta90")
+    with pytest.raises(RunDirError, match=re.escape(str(root / "runs" / "fuzzy_eta90")) + ": run directory missing"):
+        build_report(root)
+    assert main(["compare", "--from-runs", str(root)]) == 2
+    assert "fuzzy_eta90" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("file", "content", "message"),
+    [
+        ("summary.json", '{"weeks": 1, "steps"', "summary.json: not valid JSON"),
+        ("summary.json", '{"weeks": 1}', "summary.json: lacks key"),
+        ("weekly.csv", "week,start\n1,x\n", "weekly.csv: lacks column"),
+        ("timeseries.csv", "", "timeseries.csv: not a readable CSV"),
+    ],
+)
+def test_corrupt_run_files(comparison: Path, tmp_path: Path, file: str, content: str, message: str) -> None:
+    root = _copy(comparison, tmp_path)
+    (root / "runs" / "rbc" / file).write_text(content)
+    with pytest.raises(RunDirError, match=re.escape(str(root / "runs" / "rbc" / message.split(":")[0]))
+                       + re.escape(message[message.index(":"):])):
+        build_report(root)
+
+
+def test_non_numeric_summary_and_short_timeseries(comparison: Path, tmp_path: Path) -> None:
+    root = _copy(comparison, tmp_path)
+    path = root / "runs" / "rbc" / "summary.json"
+    data = json.loads(path.read_text())
+    data["loh_end"] = "full"
+    path.write_text(json.dumps(data))
+    with pytest.raises(RunDirError, match="key 'loh_end' is not a finite number"):
+        read_run(root / "runs" / "rbc")
+    ts = root / "runs" / "fuzzy" / "timeseries.csv"
+    lines = ts.read_text().splitlines()
+    ts.write_text("\n".join(lines[:-3]) + "\n")
+    with pytest.raises(RunDirError, match="timeseries.csv has 165 rows but summary.json says 168 steps"):
+        read_run(root / "runs" / "fuzzy")
+
+
+def test_missing_manifest(tmp_path: Path) -> None:
+    with pytest.raises(RunDirError, match="does not exist"):
+        build_report(tmp_path / "nowhere")
+    tmp_path.joinpath("x").mkdir()
+    with pytest.raises(RunDirError, match=re.escape(str(tmp_path / "x" / "compare.json")) + ": manifest missing"):
+        build_report(tmp_path / "x")
+    (tmp_path / "x" / "compare.json").write_text("{not json")
+    with pytest.raises(RunDirError, match="corrupt manifest"):
+        build_report(tmp_path / "x")
+
+
+def test_paper_results_file() -> None:
+    data = load_paper_results()
+    assert "FACTS" in data["source"]
+    for row in data["rows"]:
+        assert row["measure"] in DERIVED or row["measure"] in SUMMARY_KEYS, row["key"]
+    cost = next(r for r in data["rows"] if r["key"] == "cost")
+    assert cost["paper"] == {"mpc": "12.96", "fuzzy": "25.02", "rbc": "43.10"}
+
+
+# ---------------------------------------------------------------- hand-made series
+
+
+def _series(days: int, tz: str = "Europe/Berlin") -> pd.DataFrame:
+    time = pd.date_range("2023-01-02 00:00", periods=24 * days, freq="h", tz=tz).tz_convert("UTC")
+    return pd.DataFrame({"time": time, "price_buy_eur_per_kwh": 0.3, "t_amb_c": 5.0, "ghi_w_m2": 50.0})
+
+
+def test_select_windows_hand_made() -> None:
+    ts = _series(10)
+    ts.loc[48:48 + 72 - 1, "price_buy_eur_per_kwh"] = 0.6  # days 2-4 expensive ...
+    ts.loc[48:48 + 72 - 1, "t_amb_c"] = -3.0  # ... and cold
+    ts.loc[24 * 6:24 * 9 - 1, "ghi_w_m2"] = 300.0  # days 6-8 sunny
+    w = select_windows(ts, "Europe/Berlin")
+    assert w["cold"] == (48, 120)
+    assert w["sunny"] == (144, 216)
+
+
+def test_select_windows_sunny_may_not_overlap_cold() -> None:
+    ts = _series(6)
+    ts.loc[24:96 - 1, "price_buy_eur_per_kwh"] = 0.6  # cold window days 1-3
+    ts.loc[24:96 - 1, "t_amb_c"] = -3.0
+    ts.loc[48:120 - 1, "ghi_w_m2"] = 400.0  # sunniest window overlaps it (days 2-4) ...
+    ts.loc[0:24 - 1, "ghi_w_m2"] = 100.0
+    w = select_windows(ts, "Europe/Berlin")
+    assert w["cold"] == (24, 96)
+    # candidates start at 0, 24, 48, 72; each overlaps [24, 96), so the sunniest of all is taken
+    assert w["sunny"] == (48, 120)
+
+
+def test_select_windows_short_run() -> None:
+    ts = _series(2)
+    assert select_windows(ts, "Europe/Berlin") == {"cold": (0, 48), "sunny": (0, 48)}
+
+
+def test_hysteresis_swings_hand_made() -> None:
+    # bounds 21..24; T: low, mid, high, mid, low, high, high, low -> 2 upward swings in 8 h
+    t = [21.2, 22.5, 23.8, 22.0, 21.1, 23.6, 23.9, 21.0]
+    ts = pd.DataFrame({"t_air_c": t, "t_min_c": 21.0, "t_max_c": 24.0})
+    assert fd.hysteresis_swings_per_week(ts) == pytest.approx(2 / (8 / 168))
+
+
+def test_h2_price_response_hand_made() -> None:
+    price = np.array([0.1, 0.2, 0.3, 0.4, 0.5, 0.6, 0.7, 0.8])
+    h2 = np.array([0, 0, 100, 100, 100, 100, 900, 1100.0])
+    hi, lo = fd.h2_price_response(pd.DataFrame({"price_buy_eur_per_kwh": price, "p_h2_w": h2}))
+    assert hi == pytest.approx(1000.0)  # 75 % quantile 0.625 (linear): hours at 0.7 and 0.8
+    assert lo == pytest.approx(0.0)  # 25 % quantile 0.275: hours at 0.1 and 0.2
