@@ -68,22 +68,22 @@ def scenario_from_frame(
     """
     time = pd.DatetimeIndex(frame.index).tz_convert(params.site.timezone)
     time.name = "time"
-    spot = frame["spot_eur_per_mwh"].to_numpy(dtype=float)
+    spot = np.array(frame["spot_eur_per_mwh"], dtype=float)
     buy, sell = _tariff(spot, params)
     if "price_buy_eur_per_kwh" in frame:
-        buy = frame["price_buy_eur_per_kwh"].to_numpy(dtype=float)
+        buy = np.array(frame["price_buy_eur_per_kwh"], dtype=float)
     t_min, t_max = comfort_bounds(time, params.comfort)
     return Scenario(
         name=name,
         time=time,
-        t_amb_c=frame["t_amb_c"].to_numpy(dtype=float),
-        ghi_w_m2=frame["ghi_w_m2"].to_numpy(dtype=float),
-        dhi_w_m2=frame["dhi_w_m2"].to_numpy(dtype=float),
+        t_amb_c=np.array(frame["t_amb_c"], dtype=float),
+        ghi_w_m2=np.array(frame["ghi_w_m2"], dtype=float),
+        dhi_w_m2=np.array(frame["dhi_w_m2"], dtype=float),
         spot_eur_per_mwh=spot,
         price_buy_eur_per_kwh=buy,
         price_sell_eur_per_kwh=sell,
-        p_load_w=frame["p_load_w"].to_numpy(dtype=float),
-        dhw_l_per_h=frame["dhw_l_per_h"].to_numpy(dtype=float),
+        p_load_w=np.array(frame["p_load_w"], dtype=float),
+        dhw_l_per_h=np.array(frame["dhw_l_per_h"], dtype=float),
         t_min_c=t_min,
         t_max_c=t_max,
         n_steps=n_steps,

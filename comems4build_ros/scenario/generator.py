@@ -36,6 +36,7 @@ appliance set, far from the FACTS range, so the load model above is ours.
 from __future__ import annotations
 
 import random
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -142,13 +143,14 @@ def _solar(
     s = settings.solar
     mid = time + pd.Timedelta(minutes=30)
     loc = pvlib.location.Location(site.latitude_deg, site.longitude_deg, tz=site.timezone, altitude=site.altitude_m)
-    cs = loc.get_clearsky(mid, model=s.clearsky_model)
-    ghi_cs = cs["ghi"].to_numpy()
     kc_h = kc_day[day] * (1.0 + _ar1(rng, len(time), s.hourly_phi, s.hourly_sigma * np.sqrt(1 - s.hourly_phi**2)))
     kc_h = np.clip(kc_h, 0.02, s.kc_max)
-    ghi = np.where(ghi_cs > 0, ghi_cs * kc_h, 0.0)
-    zenith = loc.get_solarposition(mid)["apparent_zenith"].to_numpy()
-    dhi = pvlib.irradiance.erbs(ghi, zenith, mid)["dhi"].to_numpy()
+    with warnings.catch_warnings():  # pandas deprecation notices from inside pvlib
+        warnings.simplefilter("ignore", DeprecationWarning)
+        ghi_cs = loc.get_clearsky(mid, model=s.clearsky_model)["ghi"].to_numpy()
+        ghi = np.where(ghi_cs > 0, ghi_cs * kc_h, 0.0)
+        zenith = loc.get_solarposition(mid)["apparent_zenith"].to_numpy()
+        dhi = pvlib.irradiance.erbs(ghi, zenith, mid)["dhi"].to_numpy()
     dhi = np.clip(np.nan_to_num(dhi), 0.0, ghi)
     return ghi, dhi
 
@@ -290,16 +292,18 @@ def _dhw(seed_int: int, time: pd.DatetimeIndex, settings: ScenarioSettings, coun
             hol = sorted(
                 x.timetuple().tm_yday for x in _holiday_dates(country, subdiv, (year,)) if x.timetuple().tm_yday <= 365
             )
-            df = OpenDHW.generate_dhw_profile(
-                s_step=d.step_s,
-                categories=d.categories,
-                mean_drawoff_vol_per_day=d.litres_per_day,
-                occupancy=1,
-                holidays=hol,
-                building_type="SFH",
-                weekend_weekday_factor=lib_factor,
-                initial_day=pd.Timestamp(year, 1, 1).day_of_week,
-            )
+            with warnings.catch_warnings():  # pandas deprecation notices from inside OpenDHW
+                warnings.simplefilter("ignore", DeprecationWarning)
+                df = OpenDHW.generate_dhw_profile(
+                    s_step=d.step_s,
+                    categories=d.categories,
+                    mean_drawoff_vol_per_day=d.litres_per_day,
+                    occupancy=1,
+                    holidays=hol,
+                    building_type="SFH",
+                    weekend_weekday_factor=lib_factor,
+                    initial_day=pd.Timestamp(year, 1, 1).day_of_week,
+                )
             hourly = np.asarray(df["Water_LperH"], dtype=float).reshape(-1, steps_per_hour).mean(axis=1)
             sel = local.year == year
             doy = np.minimum(local[sel].day_of_year.to_numpy(), DAYS_PER_YEAR)

@@ -320,7 +320,8 @@ def read_load_csv(path: str | Path, column: str | None = None, unit: str | None 
             raise ScenarioError(f"{path}: line {i + 2}, column 'time': '{text}' has no UTC offset")
         times.append(t.tz_convert("UTC"))
     index = pd.DatetimeIndex(times)
-    values = pd.to_numeric(df[column].replace(r"^\s*$", np.nan, regex=True), errors="coerce").to_numpy(dtype=float)
+    numeric = pd.to_numeric(df[column].replace(r"^\s*$", np.nan, regex=True), errors="coerce")
+    values = numeric.to_numpy(dtype=float, copy=True)
     bad = np.flatnonzero(np.isnan(values) & ~df[column].str.strip().str.lower().isin(("", "nan")).to_numpy())
     if len(bad):
         text = df[column].iloc[bad[0]]
