@@ -1,0 +1,128 @@
+"""``comems4build fuzzy-surface``: input-output maps of the three ComEMS4Build FLCs (``fig:FLC_3D``).
+
+Draws, as in the paper's figure and with the conditions of its caption:
+
+- FLC_flex: alpha_HP over EDF price and solar radiation q_s for SOC[k-1] = 10 % and
+  LOH[k-1] = 10 % (the thermal state min(chi_SH, chi_DHW) is not given in the caption;
+  ``--chi``, default 0.5);
+- FLC_FC: alpha_FC over EDF price and load dP for SOC[k-1] = 20 %, dLOH[k-1] = 80 % and
+  s_on/off[k-1] = on;
+- FLC_B: alpha_B over EDF price and residual load dP_new for SOC[k-1] = 50 %.
+
+Writes ``flc_flex.png``, ``flc_fc.png``, ``flc_b.png`` and ``flc_3d.png`` (all three side
+by side) into ``--out``. The controllers are built from ``config/fuzzy/*.yaml`` and the
+plant parameters (``--config``), so the maps follow the configured device sizes.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+#: Grid points per axis of each map.
+N_GRID = 41
+#: Watts per kilowatt for the load axes.
+W_PER_KW = 1000.0
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``fuzzy-surface``."""
+    parser.add_argument("--out", required=True, help="output directory for the PNG files")
+    parser.add_argument("--chi", type=float, default=0.5, help="min(chi_SH, chi_DHW) of the FLC_flex map (default 0.5)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE", help="extra plant parameter file")
+    parser.add_argument("--dpi", type=int, default=150, help="resolution of the PNG files (default 150)")
+
+
+def surfaces(systems: dict[str, Any], chi: float, n: int = N_GRID) -> dict[str, dict[str, Any]]:
+    """The three maps as arrays: per FLC x, y (meshgrids), z and axis labels."""
+    import numpy as np
+
+    flex, fc, bat = systems["flex"], systems["fc"], systems["battery"]
+    price = np.linspace(0.0, 1.0, n)
+    out: dict[str, dict[str, Any]] = {}
+
+    qs = np.linspace(flex.variable("qs").lo, flex.variable("qs").hi, n)
+    x, y = np.meshgrid(price, qs)
+    inputs = np.column_stack([np.full(x.size, chi), np.full(x.size, 0.1), np.full(x.size, 0.1), x.ravel(), y.ravel()])
+    out["flc_flex"] = {
+        "x": x, "y": y, "z": flex.evaluate(inputs).reshape(x.shape),
+        "xlabel": "EDF price [-]", "ylabel": "q_s [W/m2]", "zlabel": "alpha_HP [-]",
+        "title": f"FLC_flex: SOC = 10 %, LOH = 10 %, chi = {chi:g}",
+    }
+
+    scale_fc = fc.load_scale_w
+    # dP from twice the FC + BESS load (start of "big negative") to 0
+    v = fc.variable("dp")
+    dp = np.linspace(max(v.lo, 2.0 * v.points[v.term_names.index("bn")][2]), v.hi, n)
+    x, y = np.meshgrid(price, dp)
+    inputs = np.column_stack([y.ravel(), np.full(x.size, 0.8), np.full(x.size, 0.2), x.ravel(), np.ones(x.size)])
+    out["flc_fc"] = {
+        "x": x, "y": y * scale_fc / W_PER_KW, "z": fc.evaluate(inputs).reshape(x.shape),
+        "xlabel": "EDF price [-]", "ylabel": "dP [kW]", "zlabel": "alpha_FC [-]",
+        "title": "FLC_FC: SOC = 20 %, dLOH = 80 %, FC on",
+    }
+
+    scale_b = bat.load_scale_w
+    span = 2.0 * max(abs(bat.peak("dp_new", "mn")) * 2.0, bat.peak("dp_new", "mp") * 2.0)
+    dpn = np.linspace(-span, span, n)
+    x, y = np.meshgrid(price, dpn)
+    inputs = np.column_stack([y.ravel(), np.full(x.size, 0.5), x.ravel()])
+    out["flc_b"] = {
+        "x": x, "y": y * scale_b / W_PER_KW, "z": bat.evaluate(inputs).reshape(x.shape),
+        "xlabel": "EDF price [-]", "ylabel": "dP_new [kW]", "zlabel": "alpha_B [-]",
+        "title": "FLC_B: SOC = 50 %",
+    }
+    return out
+
+
+def _draw(ax: Any, s: dict[str, Any]) -> None:
+    ax.plot_surface(s["x"], s["y"], s["z"], cmap="viridis", linewidth=0, antialiased=True)
+    ax.set_xlabel(s["xlabel"])
+    ax.set_ylabel(s["ylabel"])
+    ax.set_zlabel(s["zlabel"])
+    ax.set_title(s["title"], fontsize=10)
+    ax.view_init(elev=28, azim=-130)
+
+
+def run(args: argparse.Namespace) -> int:
+    """Write the PNG files; print their paths."""
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from ..cli import UsageError
+    from ..config import load_plant_params
+    from ..ems.fuzzy import load_flcs
+
+    if not 0.0 <= args.chi <= 1.0:
+        raise UsageError(f"--chi must lie in [0, 1], got {args.chi}")
+    params = load_plant_params(args.config)
+    systems = {}
+    for key, (system, section) in load_flcs(params).items():
+        system.load_scale_w = float(section.get("load_scale_w", 10_000.0))
+        systems[key] = system
+    maps = surfaces(systems, args.chi)
+    out = Path(args.out)
+    out.mkdir(parents=True, exist_ok=True)
+    written = []
+    for name, s in maps.items():
+        fig = plt.figure(figsize=(5.5, 4.5))
+        _draw(fig.add_subplot(projection="3d"), s)
+        fig.tight_layout()
+        path = out / f"{name}.png"
+        fig.savefig(path, dpi=args.dpi)
+        plt.close(fig)
+        written.append(path)
+    fig = plt.figure(figsize=(16, 5))
+    for i, s in enumerate(maps.values()):
+        _draw(fig.add_subplot(1, 3, i + 1, projection="3d"), s)
+    fig.tight_layout()
+    path = out / "flc_3d.png"
+    fig.savefig(path, dpi=args.dpi)
+    plt.close(fig)
+    written.append(path)
+    for p in written:
+        print(p)
+    return 0

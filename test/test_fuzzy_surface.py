@@ -1,0 +1,38 @@
+"""``comems4build fuzzy-surface`` draws the fig:FLC_3D maps."""
+
+import numpy as np
+
+from comems4build_ros.cli import main
+from comems4build_ros.commands.fuzzy_surface import surfaces
+from comems4build_ros.config import load_plant_params
+from comems4build_ros.ems.fuzzy import load_flcs
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def test_writes_four_pngs(tmp_path):
+    assert main(["fuzzy-surface", "--out", str(tmp_path), "--dpi", "40"]) == 0
+    for name in ("flc_flex", "flc_fc", "flc_b", "flc_3d"):
+        data = (tmp_path / f"{name}.png").read_bytes()
+        assert data[:8] == PNG_MAGIC and len(data) > 2000
+
+
+def test_bad_chi_is_usage_error(tmp_path, capsys):
+    assert main(["fuzzy-surface", "--out", str(tmp_path), "--chi", "1.5"]) == 2
+    assert "--chi must lie in [0, 1]" in capsys.readouterr().err
+
+
+def test_maps_show_the_papers_trends():
+    systems = {}
+    for key, (system, section) in load_flcs(load_plant_params()).items():
+        system.load_scale_w = float(section.get("load_scale_w", 10_000.0))
+        systems[key] = system
+    maps = surfaces(systems, chi=0.5, n=11)
+    fc = maps["flc_fc"]  # rows: dP (from big demand to 0), columns: EDF price 0 .. 1
+    # fig:FLC_3D middle: alpha_FC grows with the price and with the load
+    assert np.all(np.diff(fc["z"], axis=1) >= -1e-9)
+    assert fc["z"][0, -1] > fc["z"][-1, -1]
+    b = maps["flc_b"]  # rows: dP_new from demand to surplus
+    # right: at low prices and small load it charges, at high prices and big load it discharges
+    assert b["z"][len(b["z"]) // 2, 0] > 0.0
+    assert b["z"][0, -1] < -0.5
