@@ -124,3 +124,12 @@ def test_docs_table_matches_generator(stats):
     m = re.search(r"<!-- stats:begin -->\n(.*?)\n<!-- stats:end -->", text, re.S)
     assert m, "docs/scenario.md lacks the stats markers"
     assert m.group(1).strip() == st.markdown_table(stats).strip()
+
+
+def test_fractional_weeks(params):
+    two_days = sc.default_scenario(params, weeks=2 / 7)
+    assert two_days.n_steps == 48 and len(two_days.time) == 72
+    with pytest.raises(sc.ScenarioError, match="whole number"):
+        sc.default_scenario(params, weeks=0.3)  # 50.4 h
+    w = sc.resolve_scenario("default", params, start="2022-12-05T06:00", weeks=0.5)
+    assert w.n_steps == 84 and w.time[0].hour == 6

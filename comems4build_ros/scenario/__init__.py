@@ -47,6 +47,21 @@ HOURS_PER_WEEK = 168
 KWH_PER_MWH = 1000.0
 
 _CACHE: dict[tuple, object] = {}
+
+
+def steps_of_weeks(weeks: float, name: str) -> int:
+    """Run length [steps] of ``weeks`` weeks at 1 h; fractions allowed if they give whole hours.
+
+    Raises
+    ------
+    ScenarioError
+        If ``weeks * 168`` is below 1 or not a whole number of hours.
+    """
+    hours = float(weeks) * HOURS_PER_WEEK
+    n = round(hours)
+    if n < 1 or abs(hours - n) > 1e-6:
+        raise ScenarioError(f"{name}: weeks={weeks} gives {hours:g} h; it must give a whole number >= 1 of hours")
+    return int(n)
 _CACHE_MAX = 16
 
 
@@ -91,11 +106,11 @@ def scenario_from_frame(
     )
 
 
-def _generated_frame(params: PlantParams, settings: ScenarioSettings, weeks: int, seed: int) -> pd.DataFrame:
+def _generated_frame(params: PlantParams, settings: ScenarioSettings, n_steps: int, seed: int) -> pd.DataFrame:
     """Generated series as a frame, cached in memory on everything they depend on."""
     from .generator import generate
 
-    hours = weeks * HOURS_PER_WEEK + settings.lookahead_h
+    hours = n_steps + settings.lookahead_h
     key = (
         settings.model_dump_json(),
         params.site.model_dump_json(),
@@ -115,14 +130,15 @@ def _generated_frame(params: PlantParams, settings: ScenarioSettings, weeks: int
 
 
 def default_scenario(
-    params: PlantParams, weeks: int = 12, seed: int | None = None, settings: ScenarioSettings | None = None
+    params: PlantParams, weeks: float = 12, seed: int | None = None, settings: ScenarioSettings | None = None
 ) -> Scenario:
     """The embedded default winter scenario (generated, deterministic, no network).
 
     Parameters
     ----------
     params : plant parameters (site, tariff, comfort)
-    weeks : run length [weeks]; the arrays hold ``weeks * 168 + lookahead_h`` hours
+    weeks : run length [weeks] (fractions allowed when ``weeks * 168`` is a whole number of
+        hours); the arrays hold ``weeks * 168 + lookahead_h`` hours
     seed : random seed (default: ``scenario.seed`` of ``config/scenario.yaml``)
     settings : generator settings (default: ``config/scenario.yaml``)
 
@@ -131,8 +147,7 @@ def default_scenario(
     Scenario named ``default`` with ``n_steps = weeks * 168``.
     """
     settings = settings or load_scenario_settings()
-    if weeks < 1:
-        raise ScenarioError(f"default scenario: weeks must be >= 1 (got {weeks})")
+    n_steps = steps_of_weeks(weeks, "default scenario")
     if weeks > settings.weeks:
         warnings.warn(
             f"default scenario: {weeks} weeks requested, the generator is calibrated for {settings.weeks} weeks "
@@ -141,13 +156,13 @@ def default_scenario(
             stacklevel=2,
         )
     seed = settings.seed if seed is None else int(seed)
-    frame = _generated_frame(params, settings, weeks, seed)
+    frame = _generated_frame(params, settings, n_steps, seed)
     meta = {"source": "generator", "seed": seed, "settings": "config/scenario.yaml", "weeks": weeks}
-    return scenario_from_frame("default", frame, params, weeks * HOURS_PER_WEEK, meta)
+    return scenario_from_frame("default", frame, params, n_steps, meta)
 
 
 def _window(
-    name: str, frame: pd.DataFrame, params: PlantParams, start: str | None, weeks: int | None, lookahead_h: int,
+    name: str, frame: pd.DataFrame, params: PlantParams, start: str | None, weeks: float | None, lookahead_h: int,
     meta: dict,
 ) -> Scenario:
     """Cut ``frame`` to start at ``start`` and run ``weeks`` weeks (plus available look-ahead)."""
@@ -168,9 +183,7 @@ def _window(
         meta["start"] = t0.isoformat()
     rows = len(frame)
     if weeks is not None:
-        if weeks < 1:
-            raise ScenarioError(f"{name}: weeks must be >= 1 (got {weeks})")
-        n_steps = weeks * HOURS_PER_WEEK
+        n_steps = steps_of_weeks(weeks, name)
         if n_steps > rows:
             raise ScenarioError(
                 f"{name}: {weeks} week(s) need {n_steps} hourly rows from "
@@ -183,7 +196,7 @@ def _window(
 
 
 def load_scenario_csv(
-    path: str | Path, params: PlantParams, start: str | None = None, weeks: int | None = None,
+    path: str | Path, params: PlantParams, start: str | None = None, weeks: float | None = None,
     lookahead_h: int = 24,
 ) -> Scenario:
     """Read a scenario CSV (see :mod:`.csvio` for the format and the checks).
@@ -193,8 +206,8 @@ def load_scenario_csv(
     path : CSV file
     params : plant parameters (tariff unless the file has ``price_buy_eur_per_kwh``, comfort, time zone)
     start : ISO date/time of the first step (naive = local time of the site); default: first row
-    weeks : run length [weeks]; default: all whole weeks of the file (rows after them are look-ahead;
-        a file shorter than one week runs all its rows)
+    weeks : run length [weeks] (fractions giving whole hours allowed); default: all whole weeks
+        of the file (rows after them are look-ahead; a file shorter than one week runs all its rows)
     lookahead_h : rows kept after the run for the day-ahead window [h]
 
     Raises
@@ -208,7 +221,7 @@ def load_scenario_csv(
 
 
 def resolve_scenario(
-    spec: str | Path, params: PlantParams, start: str | None = None, weeks: int | None = None
+    spec: str | Path, params: PlantParams, start: str | None = None, weeks: float | None = None
 ) -> Scenario:
     """``"default"`` (the generated scenario) or a scenario CSV path, cut to ``start`` and ``weeks``.
 
