@@ -1,0 +1,457 @@
+"""rosbag2 / MCAP bags: writing with a bounded chunk, reading complete and interrupted bags.
+
+No rclpy here: the evaluator reads bags without a ROS graph.
+
+Writing (:class:`BagWriter`) goes through rosbags 0.11.9 (``Writer(path, version=8,
+storage_plugin=StoragePlugin.MCAP)``, metadata version 8 so that Jazzy's ``ros2 bag info``
+parses the QoS strings; TOOLCHAIN facts). rosbags keeps the pending MCAP chunk in memory
+and writes it only when it exceeds 1 MiB; a recorder killed with SIGKILL would lose
+everything in that chunk. :class:`BagWriter` therefore closes the pending chunk itself when
+it holds ``chunk_max_bytes`` or is ``chunk_period_s`` old and then flushes the file to the
+operating system, so after a SIGKILL the ``.mcap`` file holds every message up to the last
+closed chunk (at most ``chunk_period_s`` of data is lost). A SIGKILLed recorder writes no
+summary section, no footer and no ``metadata.yaml``: :func:`iter_messages` then reads the
+``.mcap`` file sequentially with the ``mcap`` library's stream reader and stops at the
+truncated record.
+
+Reading (:func:`iter_messages`) uses rosbags' ``AnyReader`` for complete bags (a
+``metadata.yaml`` is present) and the ``mcap`` stream reader otherwise; messages are
+decoded with the Jazzy typestore of rosbags.
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Iterable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+from rosbags.rosbag2 import StoragePlugin, Writer
+from rosbags.typesys import Stores, get_typestore
+
+#: rosbag2 metadata version that Jazzy reads (version 9 writes QoS as a list Jazzy rejects).
+METADATA_VERSION = 8
+#: Default: close the pending chunk when it is this old [s] ...
+DEFAULT_CHUNK_PERIOD_S = 1.0
+#: ... or when it holds this many bytes of records [byte].
+DEFAULT_CHUNK_MAX_BYTES = 256 * 1024
+NS_PER_S = 1_000_000_000
+
+_TYPESTORE = None
+
+
+def typestore() -> Any:
+    """The rosbags typestore of ROS 2 Jazzy (type hashes match Jazzy's; TOOLCHAIN facts)."""
+    global _TYPESTORE
+    if _TYPESTORE is None:
+        _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)
+    return _TYPESTORE
+
+
+def ros_type_to_bag_type(ros_type: str) -> str:
+    """``std_msgs/msg/Float64`` (or ``std_msgs/Float64``) -> ``std_msgs/msg/Float64``."""
+    parts = ros_type.split("/")
+    if len(parts) == 2:
+        return f"{parts[0]}/msg/{parts[1]}"
+    if len(parts) == 3 and parts[1] == "msg":
+        return ros_type
+    raise ValueError(f"not a ROS 2 message type name: {ros_type!r}")
+
+
+def qos_for_bag(reliable: bool = True, transient_local: bool = False, depth: int = 10) -> Qos:
+    """A rosbag2 QoS record (offered_qos_profiles) for a publisher of the given kind."""
+    return Qos(
+        history=QosHistory.KEEP_LAST,
+        depth=depth,
+        reliability=QosReliability.RELIABLE if reliable else QosReliability.BEST_EFFORT,
+        durability=QosDurability.TRANSIENT_LOCAL if transient_local else QosDurability.VOLATILE,
+        deadline=QosTime(0, 0),
+        lifespan=QosTime(0, 0),
+        liveliness=QosLiveliness.AUTOMATIC,
+        liveliness_lease_duration=QosTime(0, 0),
+        avoid_ros_namespace_conventions=False,
+    )
+
+
+class BagWriter:
+    """rosbag2 directory with MCAP storage whose data survive a SIGKILL up to the last chunk.
+
+    Parameters
+    ----------
+    path : bag directory to create (must not exist)
+    chunk_period_s : close the pending chunk once its first message is this old [s]
+    chunk_max_bytes : close the pending chunk once it holds this many bytes [byte]
+    """
+
+    def __init__(
+        self,
+        path: str | Path,
+        chunk_period_s: float = DEFAULT_CHUNK_PERIOD_S,
+        chunk_max_bytes: int = DEFAULT_CHUNK_MAX_BYTES,
+    ) -> None:
+        if chunk_period_s <= 0 or chunk_max_bytes <= 0:
+            raise ValueError("chunk_period_s and chunk_max_bytes must be positive")
+        self.path = Path(path)
+        if self.path.exists():
+            raise FileExistsError(f"bag directory already exists: {self.path}")
+        self.chunk_period_s = chunk_period_s
+        self.chunk_max_bytes = chunk_max_bytes
+        self._writer = Writer(self.path, version=METADATA_VERSION, storage_plugin=StoragePlugin.MCAP)
+        self._writer.open()
+        storage = self._writer.storage
+        # rosbags' McapWriter: the pending chunk is storage.chunk.bio, close_chunk() writes it to storage.bio.
+        if not (hasattr(storage, "close_chunk") and hasattr(storage, "chunk") and hasattr(storage, "bio")):
+            raise RuntimeError("unsupported rosbags version: MCAP writer without close_chunk() (pin rosbags==0.11.9)")
+        self._storage = storage
+        self._connections: dict[str, Any] = {}
+        self._chunk_opened_at: float | None = None
+        self.message_count = 0
+        self.chunks_written = 0
+        self.closed = False
+
+    @property
+    def mcap_path(self) -> Path:
+        """The ``.mcap`` file inside the bag directory."""
+        return Path(self._storage.path)
+
+    def add_topic(self, topic: str, msgtype: str, qos: Qos | None = None) -> None:
+        """Register ``topic`` of type ``msgtype`` (e.g. ``std_msgs/msg/Float64``)."""
+        if topic in self._connections:
+            raise ValueError(f"topic registered twice in bag {self.path}: {topic}")
+        self._connections[topic] = self._writer.add_connection(
+            topic,
+            ros_type_to_bag_type(msgtype),
+            typestore=typestore(),
+            offered_qos_profiles=[qos or qos_for_bag()],
+        )
+
+    def set_custom_data(self, key: str, value: str) -> None:
+        """Add a ``custom_data`` entry to ``metadata.yaml`` (written on close)."""
+        self._writer.set_custom_data(key, value)
+
+    def write(self, topic: str, t_ns: int, raw: bytes | memoryview) -> None:
+        """Append one CDR-serialized message received at ``t_ns`` [ns since the epoch]."""
+        self._writer.write(self._connections[topic], int(t_ns), raw)
+        self.message_count += 1
+        if self._chunk_opened_at is None:
+            self._chunk_opened_at = time.monotonic()
+        if self._storage.chunk.bio.tell() >= self.chunk_max_bytes:
+            self.flush_chunk()
+
+    def tick(self) -> None:
+        """Close the pending chunk if it is older than ``chunk_period_s`` (call periodically)."""
+        if self._chunk_opened_at is not None and time.monotonic() - self._chunk_opened_at >= self.chunk_period_s:
+            self.flush_chunk()
+
+    def flush_chunk(self) -> None:
+        """Write the pending chunk and its message index to the file and flush it to the OS."""
+        if self.closed or not self._storage.chunk.bio.tell():
+            return
+        self._storage.close_chunk()
+        self._storage.bio.flush()
+        self._chunk_opened_at = None
+        self.chunks_written += 1
+
+    def close(self) -> None:
+        """Write the last chunk, the MCAP summary and footer, and ``metadata.yaml``."""
+        if self.closed:
+            return
+        self._writer.close()
+        self.closed = True
+
+    def __enter__(self) -> BagWriter:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.close()
+
+
+@dataclass
+class BagInfo:
+    """What :func:`bag_info` found.
+
+    Attributes
+    ----------
+    path : the bag directory or ``.mcap`` file given
+    mcap_files : the MCAP files read, in order
+    complete : ``metadata.yaml`` present (bag closed cleanly)
+    topics : topic -> message type
+    message_count : messages read
+    truncated : the last MCAP file ended inside a record (writer was killed)
+    """
+
+    path: Path
+    mcap_files: list[Path]
+    complete: bool
+    topics: dict[str, str] = field(default_factory=dict)
+    message_count: int = 0
+    truncated: bool = False
+
+
+def _locate(path: str | Path) -> tuple[Path, list[Path], bool]:
+    p = Path(path)
+    if not p.exists():
+        raise FileNotFoundError(f"bag not found: {p}")
+    if p.is_file():
+        if p.suffix != ".mcap":
+            raise ValueError(f"not an MCAP file or rosbag2 directory: {p}")
+        return p, [p], False
+    files = sorted(p.glob("*.mcap"))
+    if not files:
+        raise ValueError(f"no .mcap file in bag directory {p} (only MCAP storage is supported)")
+    return p, files, (p / "metadata.yaml").is_file()
+
+
+def iter_messages(
+    path: str | Path, topics: Iterable[str] | None = None, info: BagInfo | None = None
+) -> Iterator[tuple[str, str, int, bytes]]:
+    """Yield ``(topic, msgtype, log_time_ns, cdr_bytes)`` of a bag, in log-time order per file.
+
+    ``path`` is a rosbag2 directory or a bare ``.mcap`` file. A complete bag is read with
+    rosbags' ``AnyReader``; a bag without ``metadata.yaml`` (recorder killed) is read
+    sequentially from its ``.mcap`` files up to the last complete record. Pass a
+    :class:`BagInfo` (e.g. from :func:`bag_info`) as ``info`` to have it filled.
+    """
+    root, files, complete = _locate(path)
+    wanted = None if topics is None else set(topics)
+    if info is not None:
+        info.path, info.mcap_files, info.complete = root, files, complete
+    if complete:
+        from rosbags.highlevel import AnyReader
+
+        with AnyReader([root], default_typestore=typestore()) as reader:
+            conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
+            if info is not None:
+                info.topics.update({c.topic: c.msgtype for c in reader.connections})
+            for conn, t_ns, raw in reader.messages(connections=conns):
+                if info is not None:
+                    info.message_count += 1
+                yield conn.topic, conn.msgtype, t_ns, raw
+        return
+    from mcap.exceptions import EndOfFile
+    from mcap.records import Channel, Message, Schema
+    from mcap.stream_reader import StreamReader
+
+    for f in files:
+        schemas: dict[int, str] = {}
+        channels: dict[int, tuple[str, str]] = {}
+        with f.open("rb") as fh:
+            records = StreamReader(fh).records
+            while True:
+                try:
+                    rec = next(records)
+                except StopIteration:
+                    break
+                except EndOfFile:
+                    if info is not None:
+                        info.truncated = True
+                    break
+                if isinstance(rec, Schema):
+                    schemas[rec.id] = rec.name
+                elif isinstance(rec, Channel):
+                    channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, ""))
+                    if info is not None:
+                        info.topics[rec.topic] = schemas.get(rec.schema_id, "")
+                elif isinstance(rec, Message):
+                    topic, msgtype = channels[rec.channel_id]
+                    if wanted is not None and topic not in wanted:
+                        continue
+                    if info is not None:
+                        info.message_count += 1
+                    yield topic, msgtype, rec.log_time, rec.data
+
+
+def bag_info(path: str | Path) -> BagInfo:
+    """Read the whole bag once and report files, completeness, topics and message count."""
+    info = BagInfo(Path(path), [], False)
+    for _ in iter_messages(path, info=info):
+        pass
+    return info
+
+
+def decode(msgtype: str, raw: bytes | memoryview) -> Any:
+    """Deserialize CDR bytes of ``msgtype`` with the Jazzy typestore."""
+    return typestore().deserialize_cdr(raw, ros_type_to_bag_type(msgtype))
+
+
+# ---------------------------------------------------------------------- bag -> timeseries
+#: Topic (relative contract name) with one timeseries row per step.
+RECORD_TOPIC = "plant/record"
+#: Topic carrying the EMS's per-step ``step_info`` as JSON.
+INFO_TOPIC = "ems/info"
+#: Topic carrying the run length (element ``n_steps``).
+TRUTH_TOPIC = "feed/truth"
+#: File the recorder writes next to the MCAP file with the run's description.
+RUN_INFO_FILE = "run_info.json"
+
+
+@dataclass
+class BagRun:
+    """One building's run rebuilt from a bag.
+
+    Attributes
+    ----------
+    namespace : ``/`` or ``/building_<i>``
+    timeseries : one row per step, columns of ``comems4build_ros.sim.TIMESERIES_COLUMNS``
+        (plus ``ems_<key>`` when the EMS published its step_info for every step)
+    n_steps : steps of the run according to ``feed/truth`` (None if never recorded)
+    first_ns, last_ns : receive times of the first message and of the last ``plant/record`` [ns]
+    counters : the plant's fault counters after the last recorded step
+    """
+
+    namespace: str
+    timeseries: Any
+    n_steps: int | None
+    first_ns: int
+    last_ns: int
+    counters: dict[str, int] = field(default_factory=dict)
+
+    @property
+    def complete(self) -> bool:
+        """Every step of the run is in the bag."""
+        return self.n_steps is not None and len(self.timeseries) == self.n_steps
+
+
+def read_run_info(path: str | Path) -> dict[str, Any]:
+    """The ``run_info.json`` beside the MCAP file (``{}`` if absent)."""
+    import json
+
+    p = Path(path)
+    f = (p if p.is_dir() else p.parent) / RUN_INFO_FILE
+    if not f.is_file():
+        return {}
+    try:
+        out = json.loads(f.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{f}: invalid JSON: {exc}") from None
+    if not isinstance(out, dict):
+        raise ValueError(f"{f}: expected a JSON object")
+    return out
+
+
+def _split(topic: str, name: str) -> str | None:
+    """Namespace of ``topic`` if it ends with the contract name ``name``."""
+    if topic == f"/{name}":
+        return "/"
+    if topic.endswith(f"/{name}"):
+        return topic[: -len(name) - 1]
+    return None
+
+
+def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
+    """Rebuild the per-step timeseries of every namespace of a bag.
+
+    Parameters
+    ----------
+    path : rosbag2 directory or ``.mcap`` file (complete or cut short by a SIGKILL)
+    timezone : time zone of the ``time`` column (the site's, ``site.timezone``)
+    info : filled like :func:`iter_messages` does
+
+    Raises
+    ------
+    ValueError
+        If the bag has no ``plant/record`` topic, a record does not match the contract
+        layout, or steps are missing in the middle of a run (naming topic and steps).
+    """
+    import json
+
+    import pandas as pd
+
+    from ..sim import TIMESERIES_COLUMNS
+    from .contract import load_contract
+
+    contract = load_contract()
+    layout = contract.topic(RECORD_TOPIC).layout({})
+    truth_layout = contract.topic(TRUTH_TOPIC).layout({})
+    n_idx = truth_layout.index["n_steps"]
+    info = info if info is not None else BagInfo(Path(path), [], False)
+    records: dict[str, dict[int, tuple[int, Any]]] = {}
+    infos: dict[str, dict[int, dict[str, float]]] = {}
+    n_steps: dict[str, int] = {}
+    first_ns: int | None = None
+    for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
+        first_ns = t_ns if first_ns is None else min(first_ns, t_ns)
+        ns = _split(topic, RECORD_TOPIC)
+        if ns is not None:
+            data = decode(msgtype, raw).data
+            if len(data) != layout.length:
+                raise ValueError(
+                    f"bag {path}: topic '{topic}': {len(data)} elements, the contract layout has {layout.length}"
+                )
+            step = int(data[0])
+            records.setdefault(ns, {}).setdefault(step, (t_ns, data))
+            continue
+        ns = _split(topic, INFO_TOPIC)
+        if ns is not None:
+            try:
+                msg = json.loads(decode(msgtype, raw).data)
+                infos.setdefault(ns, {})[int(msg["step"])] = {k: float(v) for k, v in msg["info"].items()}
+            except (ValueError, KeyError, TypeError) as exc:
+                raise ValueError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
+            continue
+        ns = _split(topic, TRUTH_TOPIC)
+        if ns is not None and ns not in n_steps:
+            n_steps[ns] = int(decode(msgtype, raw).data[n_idx])
+    if not records:
+        topics = ", ".join(sorted(info.topics)) or "none"
+        raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages (topics: {topics})")
+    columns = [c for c in TIMESERIES_COLUMNS if c != "time"]
+    counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands")
+    runs: dict[str, BagRun] = {}
+    for ns in sorted(records, key=_ns_key):
+        by_step = records[ns]
+        steps = sorted(by_step)
+        expected = list(range(len(steps)))
+        if steps != expected:
+            missing = sorted(set(range(steps[-1] + 1)) - set(steps))
+            raise ValueError(
+                f"bag {path}: topic '{resolve_ns(ns, RECORD_TOPIC)}': steps missing in the middle of the run: "
+                f"{_ranges(missing)} (recorder overloaded or messages lost)"
+            )
+        rows = [layout.unpack(by_step[k][1]) for k in steps]
+        ts = pd.DataFrame({c: [r[c] for r in rows] for c in columns})
+        times = pd.to_datetime([r["time_unix_s"] for r in rows], unit="s", utc=True).tz_convert(timezone)
+        ts.insert(0, "time", [t.isoformat() for t in times])
+        ts = ts[list(TIMESERIES_COLUMNS)]
+        step_infos = infos.get(ns, {})
+        if step_infos and all(k in step_infos for k in steps):
+            ts = pd.concat([ts, pd.DataFrame([step_infos[k] for k in steps]).add_prefix("ems_")], axis=1)
+        last = rows[-1]
+        runs[ns] = BagRun(
+            namespace=ns,
+            timeseries=ts,
+            n_steps=n_steps.get(ns),
+            first_ns=int(first_ns or 0),
+            last_ns=max(t for t, _ in by_step.values()),
+            counters={c: int(last[c]) for c in counter_names},
+        )
+    return runs
+
+
+def resolve_ns(ns: str, name: str) -> str:
+    """``/`` + ``a/b`` -> ``/a/b``; ``/building_1`` + ``a/b`` -> ``/building_1/a/b``."""
+    return f"{ns.rstrip('/')}/{name}"
+
+
+def _ns_key(ns: str) -> tuple[int, str]:
+    tail = ns.rsplit("_", 1)[-1]
+    return (int(tail), ns) if tail.isdigit() else (-1, ns)
+
+
+def _ranges(values: list[int]) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (at most 10 ranges)."""
+    out: list[str] = []
+    start = prev = None
+    for v in values:
+        if start is None:
+            start = prev = v
+        elif v == prev + 1:
+            prev = v
+        else:
+            out.append(f"{start}-{prev}" if prev != start else f"{start}")
+            start = prev = v
+    if start is not None:
+        out.append(f"{start}-{prev}" if prev != start else f"{start}")
+    return ", ".join(out[:10]) + (" ..." if len(out) > 10 else "")

@@ -1,0 +1,272 @@
+"""``recorder``: records every topic of the contract to a rosbag2 directory with MCAP storage.
+
+For each namespace of the parameter ``namespaces`` (default: the node's own namespace)
+the node subscribes to every topic of ``msg_defs/topics.yaml`` with ``raw=True`` and
+writes the CDR bytes unchanged, stamped with the receive time [ns since the epoch] (as
+``ros2 bag record`` does), through :class:`comems4build_ros.ros.bag.BagWriter`: rosbags
+0.11.9, metadata version 8 (what Jazzy's ``ros2 bag info`` reads), Jazzy typestore.
+
+Crash safety: the pending MCAP chunk is written out and flushed when it is
+``chunk_period_s`` old (default 1 s) or holds ``chunk_max_bytes`` (256 KiB); after a
+SIGKILL the ``.mcap`` file holds everything up to the last written chunk (no summary
+section and no ``metadata.yaml``; ``comems4build evaluate`` reads such a bag directly
+from the ``.mcap`` file). SIGINT and SIGTERM close the bag cleanly.
+
+Readiness: once every subscription has matched a publisher (for the topics of
+``wait_for_topics``, default all topics published by plant_sim, feed and the EMS) and
+``settle_s`` more seconds have passed, the node publishes ``recorder/ready`` = true
+(transient local) in every namespace; ``plant_sim`` with ``wait_for_recorder`` starts only
+then, so the first step is recorded. After ``ready_timeout_s`` it declares ready anyway
+and names the topics without a publisher.
+
+End of run: with ``stop_when_done`` (default) the node closes the bag and exits once
+``plant/done`` arrived from every namespace, every ``plant/record`` of the run
+(``n_steps`` from ``feed/truth``) is in, and ``done_grace_s`` has passed for late
+messages (``ems/info`` of the last step); after ``done_timeout_s`` it stops even if some
+records are missing, with a warning.
+
+Progress: with ``progress_period_s`` > 0 the node prints ``progress <recorded> <total>``
+lines on stdout (plant/record messages recorded, steps of all namespaces; total 0 until
+known), read by ``comems4build launch``.
+
+Other parameters: ``bag_path`` (directory to create, required), ``run_info`` (JSON
+string, stored as ``run_info.json`` in the bag directory and as ``custom_data`` entry
+``comems4build.run_info`` of ``metadata.yaml``).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from std_msgs.msg import Bool
+
+from ..bag import BagWriter, qos_for_bag
+from ..common import param, run_node
+from ..contract import Contract, load_contract, resolve
+
+NODE_NAME = "recorder"
+#: History depth of every recording subscription: how many messages per topic may queue
+#: while the recorder is busy (the publishers' own depths are 10..1000).
+RECORD_DEPTH = 100_000
+#: Default wait between "every topic matched" and "ready" for the publishers' side of
+#: discovery to complete [s].
+SETTLE_S = 0.3
+#: Default limit on the wait for publishers [s].
+READY_TIMEOUT_S = 60.0
+#: Default wait for late messages after the last record [s].
+DONE_GRACE_S = 0.3
+#: Default limit on the wait for missing records once every plant is done [s].
+DONE_TIMEOUT_S = 5.0
+#: Period of the housekeeping timer (chunk age, readiness, end of run, progress) [s].
+TICK_S = 0.05
+#: Contract roles whose topics the recorder waits for by default.
+WAIT_ROLES = ("plant", "feed", "ems")
+#: custom_data key of metadata.yaml holding the run information.
+RUN_INFO_KEY = "comems4build.run_info"
+RUN_INFO_FILE = "run_info.json"
+
+
+def default_wait_topics(contract: Contract) -> list[str]:
+    """Topics with a plant, feed or EMS publisher (what a closed-loop run publishes)."""
+    roles = {n.name: n.role for n in contract.nodes.values()}
+    return [t.name for t in contract.topics.values() if any(roles.get(p) in WAIT_ROLES for p in t.publishers)]
+
+
+class Recorder(Node):
+    """Bag recorder node (see the module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
+        self.contract = load_contract()
+        self.contract.node(NODE_NAME)
+        bag_path = str(param(self, "bag_path", ""))
+        if not bag_path:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'bag_path' (bag directory to create) is required")
+        namespaces = [str(n) for n in param(self, "namespaces", [""]) if str(n)] or [self.get_namespace()]
+        self.namespaces = ["/" + ns.strip("/") if ns.strip("/") else "/" for ns in namespaces]
+        if len(set(self.namespaces)) != len(self.namespaces):
+            raise ValueError(f"node '{NODE_NAME}': parameter 'namespaces' lists a namespace twice: {namespaces}")
+        wait = [str(t) for t in param(self, "wait_for_topics", ["*"]) if str(t)]
+        if wait == ["*"]:
+            wait = default_wait_topics(self.contract)
+        for t in wait:
+            self.contract.topic(t)  # ContractError names an unknown topic
+        self.settle_s = float(param(self, "settle_s", SETTLE_S))
+        self.ready_timeout_s = float(param(self, "ready_timeout_s", READY_TIMEOUT_S))
+        self.stop_when_done = bool(param(self, "stop_when_done", True))
+        self.done_grace_s = float(param(self, "done_grace_s", DONE_GRACE_S))
+        self.done_timeout_s = float(param(self, "done_timeout_s", DONE_TIMEOUT_S))
+        self.progress_period_s = float(param(self, "progress_period_s", 0.0))
+        run_info = str(param(self, "run_info", ""))
+        info_obj: Any = None
+        if run_info:
+            try:
+                info_obj = json.loads(run_info)
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"node '{NODE_NAME}': parameter 'run_info' is not JSON: {exc}") from None
+
+        self.writer = BagWriter(
+            bag_path,
+            chunk_period_s=float(param(self, "chunk_period_s", 1.0)),
+            chunk_max_bytes=int(param(self, "chunk_max_bytes", 256 * 1024)),
+        )
+        if info_obj is not None:
+            (Path(bag_path) / RUN_INFO_FILE).write_text(json.dumps(info_obj, indent=2) + "\n", encoding="utf-8")
+            self.writer.set_custom_data(RUN_INFO_KEY, json.dumps(info_obj, separators=(",", ":")))
+
+        self._subs: list[tuple[str, Any]] = []  # (full topic, subscription) of the wait list
+        self.records = dict.fromkeys(self.namespaces, 0)
+        self.n_steps: dict[str, int] = {}
+        self.done_at: dict[str, float] = {}
+        for ns in self.namespaces:
+            for spec in self.contract.topics.values():
+                full = resolve(ns, spec.name)
+                self.writer.add_topic(full, spec.type, self._bag_qos(spec.qos))
+                sub = self.create_subscription(
+                    spec.msg_class(), full, self._callback(ns, spec.name, full), self._record_qos(spec.qos), raw=True
+                )
+                if spec.name in wait:
+                    self._subs.append((full, sub))
+        self._ready_pubs = []
+        ready_spec = self.contract.topic("recorder/ready")
+        for ns in self.namespaces:
+            self._ready_pubs.append(
+                self.create_publisher(ready_spec.msg_class(), resolve(ns, ready_spec.name), ready_spec.qos_profile())
+            )
+        self.ready = False
+        self._t0 = time.monotonic()
+        self._matched_at: float | None = None
+        self._last_record_at = self._t0
+        self._t_progress = 0.0
+        self.finished = None
+        from rclpy.task import Future
+
+        self.finished = Future()
+        self.create_timer(TICK_S, self._tick)
+        self.get_logger().info(
+            f"recording {len(self.contract.topics)} topics x {len(self.namespaces)} namespace(s) to {bag_path}"
+        )
+
+    # ------------------------------------------------------------------ qos
+    @staticmethod
+    def _record_qos(spec: Any) -> QoSProfile:
+        """Subscription QoS: the contract's reliability and durability, a deep history."""
+        return QoSProfile(
+            reliability=ReliabilityPolicy.RELIABLE if spec.reliability == "reliable" else ReliabilityPolicy.BEST_EFFORT,
+            history=HistoryPolicy.KEEP_LAST,
+            depth=RECORD_DEPTH,
+            durability=(
+                DurabilityPolicy.TRANSIENT_LOCAL if spec.durability == "transient_local" else DurabilityPolicy.VOLATILE
+            ),
+        )
+
+    @staticmethod
+    def _bag_qos(spec: Any) -> Any:
+        return qos_for_bag(spec.reliability == "reliable", spec.durability == "transient_local", spec.depth)
+
+    # ------------------------------------------------------------------ callbacks
+    def _callback(self, ns: str, name: str, full: str) -> Any:
+        write = self.writer.write
+        if name == "plant/record":
+
+            def on_record(raw: bytes) -> None:
+                write(full, time.time_ns(), raw)
+                self.records[ns] += 1
+                self._last_record_at = time.monotonic()
+
+            return on_record
+        if name == "feed/truth":
+
+            def on_truth(raw: bytes) -> None:
+                write(full, time.time_ns(), raw)
+                if ns not in self.n_steps:
+                    from ..bag import decode
+
+                    self.n_steps[ns] = int(decode("std_msgs/msg/Float64MultiArray", raw).data[1])
+
+            return on_truth
+        if name == "plant/done":
+
+            def on_done(raw: bytes) -> None:
+                write(full, time.time_ns(), raw)
+                from ..bag import decode
+
+                if decode("std_msgs/msg/Bool", raw).data and ns not in self.done_at:
+                    self.done_at[ns] = time.monotonic()
+
+            return on_done
+
+        def on_msg(raw: bytes) -> None:
+            write(full, time.time_ns(), raw)
+
+        return on_msg
+
+    # ------------------------------------------------------------------ housekeeping
+    def _tick(self) -> None:
+        now = time.monotonic()
+        self.writer.tick()
+        if not self.ready:
+            self._check_ready(now)
+        if self.progress_period_s > 0 and now - self._t_progress >= self.progress_period_s:
+            self._t_progress = now
+            self.print_progress()
+        if self.stop_when_done and len(self.done_at) == len(self.namespaces) and not self.finished.done():
+            complete = all(self.records[ns] >= self.n_steps.get(ns, 0) for ns in self.namespaces)
+            first_done = min(self.done_at.values())
+            quiet = now - max(max(self.done_at.values()), self._last_record_at) >= self.done_grace_s
+            if (complete and quiet) or now - first_done > self.done_timeout_s:
+                if not complete:
+                    missing = {ns: self.n_steps.get(ns, 0) - self.records[ns] for ns in self.namespaces}
+                    self.get_logger().warning(f"stopping with plant/record messages missing: {missing}")
+                self.print_progress()
+                self.get_logger().info(f"every plant is done: {self.writer.message_count} messages recorded")
+                self.finished.set_result(0)
+
+    def _check_ready(self, now: float) -> None:
+        unmatched = [full for full, sub in self._subs if sub.get_publisher_count() == 0]
+        if unmatched:
+            self._matched_at = None
+            if now - self._t0 > self.ready_timeout_s:
+                self.get_logger().warning(
+                    f"no publisher after {self.ready_timeout_s} s on: {', '.join(unmatched)}; recording anyway"
+                )
+                self._declare_ready()
+            return
+        if self._matched_at is None:
+            self._matched_at = now
+        if now - self._matched_at >= self.settle_s:
+            self._declare_ready()
+
+    def _declare_ready(self) -> None:
+        self.ready = True
+        msg = Bool(data=True)
+        for pub in self._ready_pubs:
+            pub.publish(msg)
+        self.get_logger().info("ready: subscribed to every topic")
+
+    def print_progress(self) -> None:
+        """``progress <plant/record messages> <steps of the run, 0 = unknown>`` on stdout."""
+        total = sum(self.n_steps.values()) if len(self.n_steps) == len(self.namespaces) else 0
+        print(f"progress {sum(self.records.values())} {total}", flush=True)
+
+    def destroy_node(self) -> None:
+        """Close the bag (last chunk, summary, metadata.yaml), then destroy the node."""
+        try:
+            self.writer.close()
+        finally:
+            super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``recorder`` (``ros2 run comems4build_ros recorder``)."""
+    return run_node(Recorder, args)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
