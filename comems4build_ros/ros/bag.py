@@ -455,3 +455,99 @@ def _ranges(values: list[int]) -> str:
     if start is not None:
         out.append(f"{start}-{prev}" if prev != start else f"{start}")
     return ", ".join(out[:10]) + (" ..." if len(out) > 10 else "")
+
+
+def building_dir(out: Path, namespace: str, n_namespaces: int) -> Path:
+    """Output directory of one namespace: ``out`` itself for a single root-namespace run."""
+    return out if n_namespaces == 1 and namespace == "/" else out / namespace.strip("/")
+
+
+def evaluate_bag(
+    path: str | Path,
+    out: str | Path,
+    params: Any = None,
+    wall_s: float | None = None,
+    timeseries: bool = True,
+) -> dict[str, dict[str, Any]]:
+    """Weekly KPIs and summary of every building in a bag, with the in-process KPI code.
+
+    Writes, per namespace, ``timeseries.csv`` (optional), ``weekly.csv`` and
+    ``summary.json`` through :func:`comems4build_ros.sim.write_run` (into ``out`` for a
+    single building in the root namespace, else into ``out/building_<i>/``, and then
+    ``out/weekly.csv`` with a ``building`` column and ``out/summary.json`` with one
+    summary per building).
+
+    Parameters
+    ----------
+    path : rosbag2 directory or ``.mcap`` file
+    out : output directory
+    params : plant parameters (default: those named in the bag's ``run_info.json``)
+    wall_s : wall time of the run [s] for the summary (default: receive time of the last
+        record minus that of the first message of the bag)
+
+    Summary entries besides the KPIs (as in-process): ``ems``, ``scenario``, ``forecast``
+    from ``run_info.json`` (None without it), ``wall_s``, and ``ems_s`` = None (the
+    controller's own compute time is not in the bag). An incomplete run adds
+    ``bag_incomplete`` (steps recorded and expected); fault counters of the plant other
+    than fallback steps are added as ``ros_faults`` when non-zero.
+
+    Returns
+    -------
+    namespace -> summary
+    """
+    import json
+
+    import pandas as pd
+
+    from ..config import load_plant_params
+    from ..sim import evaluate_timeseries, write_run
+
+    out = Path(out)
+    run_info = read_run_info(path)
+    if params is None:
+        params = load_plant_params(run_info.get("config_files") or [], run_info.get("overrides") or {})
+    info = BagInfo(Path(path), [], False)
+    runs = read_runs(path, params.site.timezone, info)
+    summaries: dict[str, dict[str, Any]] = {}
+    weekly_parts = []
+    for ns, run in runs.items():
+        wall = wall_s if wall_s is not None else (run.last_ns - run.first_ns) / NS_PER_S
+        extra: dict[str, Any] = {
+            "ems": run_info.get("ems"),
+            "scenario": run_info.get("scenario"),
+            "wall_s": wall,
+            "ems_s": None,
+            "forecast": run_info.get("forecast"),
+        }
+        if not run.complete:
+            extra["bag_incomplete"] = {
+                "steps_recorded": len(run.timeseries),
+                "steps_expected": run.n_steps,
+                "metadata_yaml": info.complete,
+                "truncated_mcap": info.truncated,
+            }
+        faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
+        if faults:
+            extra["ros_faults"] = faults
+        result = evaluate_timeseries(run.timeseries, params, extra)
+        write_run(result, building_dir(out, ns, len(runs)), timeseries=timeseries)
+        summaries[ns] = result.summary
+        weekly_parts.append(result.weekly.assign(building=ns.strip("/") or "root"))
+    if len(runs) > 1 or "/" not in runs:
+        weekly = pd.concat(weekly_parts, ignore_index=True)
+        weekly = weekly[["building", *[c for c in weekly.columns if c != "building"]]]
+        weekly.to_csv(out / "weekly.csv", index=False)
+        combined = {"buildings": {ns.strip("/"): s for ns, s in summaries.items()}}
+        (out / "summary.json").write_text(json.dumps(combined, indent=2, default=_json_default) + "\n", "utf-8")
+    return summaries
+
+
+def _json_default(value: Any) -> Any:
+    import math
+
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        value = value.item()
+        return None if isinstance(value, float) and not math.isfinite(value) else value
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")

@@ -1,0 +1,50 @@
+"""``comems4build evaluate``: weekly KPIs and summary from a recorded bag."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``evaluate``."""
+    parser.add_argument("bag", help="rosbag2 directory (MCAP storage) or .mcap file; a bag cut by SIGKILL is read too")
+    parser.add_argument("--out", required=True, help="output directory (timeseries.csv, weekly.csv, summary.json)")
+    parser.add_argument("--config", action="append", default=None, metavar="FILE",
+                        help="parameter file merged over config/plant.yaml (default: the bag's run_info.json)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one plant parameter (with --config or alone)")
+    parser.add_argument("--no-timeseries", action="store_true", help="do not write timeseries.csv")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the bag, compute the KPIs, write the files."""
+    from ..cli import UsageError
+    from ..config import load_plant_params
+    from ..ros.bag import evaluate_bag, read_run_info
+    from .simulate import parse_assignments
+
+    bag = Path(args.bag)
+    if not bag.exists():
+        raise UsageError(f"bag {bag}: no such file or directory")
+    params = None
+    if args.config is not None or args.set:
+        for path in args.config or []:
+            if not Path(path).is_file():
+                raise UsageError(f"--config {path}: no such file")
+        info = read_run_info(bag)
+        files = args.config if args.config is not None else info.get("config_files") or []
+        overrides = dict(info.get("overrides") or {}) if args.config is None else {}
+        overrides.update(parse_assignments(args.set, "--set"))
+        params = load_plant_params(files, overrides)
+    summaries = evaluate_bag(bag, args.out, params=params, timeseries=not args.no_timeseries)
+    complete = bag.is_dir() and (bag / "metadata.yaml").is_file()
+    state = "complete" if complete else "no metadata.yaml (recorder killed?); read the .mcap directly"
+    print(f"bag {bag}: {state}")
+    keys = ("weeks", "steps", "cost_eur_week_median", "discomfort_kh_week_median", "loh_end", "fallback_steps")
+    for ns, s in summaries.items():
+        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **({"bag_incomplete": s["bag_incomplete"]}
+                                                                               if "bag_incomplete" in s else {})}))
+    print(f"wrote {Path(args.out) / 'weekly.csv'}, {Path(args.out) / 'summary.json'}")
+    return 0

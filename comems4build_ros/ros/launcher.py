@@ -1,0 +1,551 @@
+"""Python launcher of the node set: separate OS processes on an isolated ROS 2 domain.
+
+:func:`launch` starts, per building, ``plant_sim``, ``feed`` and the EMS node, plus one
+``recorder`` for the whole graph, each as its own OS process (the venv's console script,
+or ``python -m <module>`` when none is installed), waits for the run, stops every
+process and evaluates the bag with the in-process KPI code
+(:func:`comems4build_ros.ros.bag.evaluate_bag`). No rclpy in this process.
+
+Isolation: the children get the parent's full environment (the ROS wheels' bootstrap
+needs its ``LD_LIBRARY_PATH``; TOOLCHAIN facts) plus ``ROS_DOMAIN_ID`` (a free id, see
+:func:`acquire_domain_id`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, ``ROS_LOG_DIR``
+under the output directory and ``PYTHONPATH`` starting with the directory this package
+was imported from (the nodes run the same code as the launcher).
+
+Process hygiene: every child runs in its own session (a terminal Ctrl-C reaches only the
+launcher, which then stops the children in order) and gets ``PR_SET_PDEATHSIG`` =
+SIGTERM (if the launcher itself is killed, the kernel stops the children). Stopping is
+SIGINT (rclpy shuts down cleanly), then SIGTERM after ``grace_s``, then SIGKILL; the
+recorder is stopped last so that it closes the bag. Any node that exits while the run is
+in progress (a crash, or a plant exiting with an error) stops the whole launch with
+:class:`LaunchError` naming the node, its exit code and its log file.
+
+``--buildings N``: building ``i`` runs under the namespace ``/building_<i>`` with
+scenario seed ``seed + i`` (default scenario); one recorder records all namespaces into
+one bag.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import errno
+import fcntl
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+#: Console script of each node and the module run with ``python -m`` when there is none.
+NODE_MODULES: dict[str, str] = {
+    "plant_sim": "comems4build_ros.ros.nodes.plant_sim",
+    "feed": "comems4build_ros.ros.nodes.feed",
+    "recorder": "comems4build_ros.ros.nodes.recorder",
+    "replay": "comems4build_ros.ros.nodes.replay",
+}
+#: EMS name -> console script (EMS without one run as ``python -m ...ems_node --ems NAME``).
+EMS_SCRIPTS: dict[str, str] = {"fuzzy": "fuzzy_ems", "rbc": "rbc_ems", "mpc": "mpc_ems"}
+EMS_MODULE = "comems4build_ros.ros.nodes.ems_node"
+#: Domain ids tried by :func:`acquire_domain_id` (0..101 keep Fast DDS's ports below the
+#: Linux ephemeral range).
+DOMAIN_IDS = range(1, 102)
+LOCK_DIR = Path(tempfile.gettempdir())
+#: Wait after SIGINT and after SIGTERM before the next signal [s].
+GRACE_S = 5.0
+#: The recorder may need longer to write the summary of a large bag [s].
+RECORDER_GRACE_S = 20.0
+#: Poll period of the supervision loop [s].
+POLL_S = 0.05
+#: Recorder progress line period [s].
+PROGRESS_PERIOD_S = 0.25
+#: prctl option number of PR_SET_PDEATHSIG (linux/prctl.h).
+PR_SET_PDEATHSIG = 1
+
+
+class LaunchError(RuntimeError):
+    """The launch failed: a node crashed or exited early, or the run timed out."""
+
+
+# ---------------------------------------------------------------------- domain ids
+@contextlib.contextmanager
+def acquire_domain_id(preferred: int | None = None) -> Iterator[int]:
+    """Hold an exclusive lock on a ROS domain id for the duration of the block.
+
+    With ``preferred`` that id is locked (waiting is not an option: an error if another
+    launcher holds it); otherwise the first free id of :data:`DOMAIN_IDS`, starting at an
+    offset derived from the process id, is taken. Locks are ``flock`` locks on
+    ``$TMPDIR/comems4build_ros_domain_<id>.lock`` and vanish with the process.
+    """
+    ids: Sequence[int]
+    if preferred is not None:
+        if not 0 <= preferred <= 232:
+            raise ValueError(f"ROS domain id {preferred} outside 0..232")
+        ids = [preferred]
+    else:
+        n = len(DOMAIN_IDS)
+        off = os.getpid() % n
+        ids = [DOMAIN_IDS[(off + i) % n] for i in range(n)]
+    for did in ids:
+        fh = open(LOCK_DIR / f"comems4build_ros_domain_{did}.lock", "a")  # noqa: SIM115
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            fh.close()
+            if exc.errno in (errno.EAGAIN, errno.EACCES):
+                continue
+            raise
+        try:
+            yield did
+        finally:
+            fh.close()
+        return
+    raise LaunchError(f"no free ROS domain id (tried {ids[0]}..{ids[-1]})")
+
+
+# ---------------------------------------------------------------------- processes
+def _set_pdeathsig() -> None:
+    """In the child before exec: receive SIGTERM when the launcher dies."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the launcher's own clean-up still applies
+        pass
+
+
+def node_command(executable: str, ems: str | None = None) -> list[str]:
+    """Command line of a node: the venv's console script if installed, else ``python -m``.
+
+    ``executable`` is a key of :data:`NODE_MODULES` or ``"ems"`` (then ``ems`` names it).
+    """
+    bindir = Path(sys.executable).parent
+    if executable == "ems":
+        if ems is None:
+            raise ValueError("node_command('ems') needs the EMS name")
+        script = EMS_SCRIPTS.get(ems)
+        if script and (bindir / script).is_file():
+            return [str(bindir / script)]
+        return [sys.executable, "-m", EMS_MODULE, "--ems", ems]
+    module = NODE_MODULES[executable]
+    if (bindir / executable).is_file():
+        return [str(bindir / executable)]
+    return [sys.executable, "-m", module]
+
+
+def ros_args(namespace: str = "", params: dict[str, Any] | None = None, params_files: Sequence[str] = ()) -> list[str]:
+    """``--ros-args`` part of a command line: namespace, ``-p name:=value``, params files.
+
+    Values are written as YAML (lists and strings as JSON, which YAML reads); empty
+    lists are left out (their type cannot be inferred).
+    """
+    out = ["--ros-args"]
+    if namespace and namespace != "/":
+        out += ["-r", f"__ns:={namespace}"]
+    for f in params_files:
+        out += ["--params-file", str(f)]
+    for name, value in (params or {}).items():
+        if isinstance(value, (list, tuple)):
+            if not value:
+                continue
+            text = json.dumps([str(v) for v in value] if all(isinstance(v, str) for v in value) else list(value))
+        elif isinstance(value, bool):
+            text = "true" if value else "false"
+        elif isinstance(value, str):
+            text = json.dumps(value)
+        else:
+            text = repr(value)
+        out += ["-p", f"{name}:={text}"]
+    return out
+
+
+@dataclass
+class Child:
+    """One running node process."""
+
+    name: str  # e.g. "plant_sim" or "building_3/plant_sim"
+    role: str  # plant, feed, ems, recorder, replay
+    proc: subprocess.Popen
+    log_path: Path
+    stdout_reader: threading.Thread | None = None
+
+    def tail(self, lines: int = 8) -> str:
+        """Last lines of the node's log."""
+        try:
+            text = self.log_path.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return ""
+        return "\n".join(text.rstrip().splitlines()[-lines:])
+
+
+class ProcessGroup:
+    """Node processes started with one environment; stops them all, in order, on exit.
+
+    Parameters
+    ----------
+    env : environment of every child
+    log_dir : directory of the per-node log files (stdout and stderr)
+    """
+
+    def __init__(self, env: dict[str, str], log_dir: Path) -> None:
+        self.env = env
+        self.log_dir = log_dir
+        self.children: list[Child] = []
+        log_dir.mkdir(parents=True, exist_ok=True)
+
+    def start(
+        self, name: str, role: str, argv: Sequence[str], on_stdout_line: Callable[[str], None] | None = None
+    ) -> Child:
+        """Start ``argv``; with ``on_stdout_line`` its stdout is read line by line in a thread."""
+        log_path = self.log_dir / f"{name.replace('/', '__')}.log"
+        log: IO[bytes] = log_path.open("wb")
+        try:
+            proc = subprocess.Popen(
+                list(argv),
+                env=self.env,
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE if on_stdout_line else log,
+                stderr=log,
+                start_new_session=True,
+                preexec_fn=_set_pdeathsig,  # noqa: PLW1509 (no threads share state with the child)
+            )
+        finally:
+            log.close()
+        child = Child(name, role, proc, log_path)
+        if on_stdout_line is not None:
+            assert proc.stdout is not None
+            stream = proc.stdout
+
+            def pump() -> None:
+                for raw in stream:
+                    on_stdout_line(raw.decode("utf-8", errors="replace").rstrip("\n"))
+
+            child.stdout_reader = threading.Thread(target=pump, name=f"stdout-{name}", daemon=True)
+            child.stdout_reader.start()
+        self.children.append(child)
+        return child
+
+    def running(self) -> list[Child]:
+        """Children that have not exited."""
+        return [c for c in self.children if c.proc.poll() is None]
+
+    def stop(self, children: Sequence[Child], grace_s: float = GRACE_S) -> None:
+        """SIGINT, then SIGTERM after ``grace_s``, then SIGKILL; waits until all are gone."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            alive = [c for c in children if c.proc.poll() is None]
+            if not alive:
+                break
+            for c in alive:
+                with contextlib.suppress(ProcessLookupError):
+                    c.proc.send_signal(sig)
+            deadline = time.monotonic() + grace_s
+            while time.monotonic() < deadline and any(c.proc.poll() is None for c in alive):
+                time.sleep(0.02)
+        for c in children:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                c.proc.wait(timeout=grace_s)
+            if c.stdout_reader is not None:
+                c.stdout_reader.join(timeout=1.0)
+            if c.proc.stdout is not None:
+                c.proc.stdout.close()
+
+    def stop_all(self, grace_s: float = GRACE_S, recorder_grace_s: float = RECORDER_GRACE_S) -> None:
+        """Stop every node: plants, feeds and EMS first, the recorder last (it closes the bag)."""
+        self.stop([c for c in self.children if c.role != "recorder"], grace_s)
+        self.stop([c for c in self.children if c.role == "recorder"], recorder_grace_s)
+
+    def __enter__(self) -> ProcessGroup:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop_all()
+
+
+@contextlib.contextmanager
+def sigterm_as_keyboard_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM to the launcher behaves like Ctrl-C (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = None) -> dict[str, str]:
+    """The parent's full environment plus the isolation variables and PYTHONPATH."""
+    env = dict(os.environ if base is None else base)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_LOG_DIR"] = str(ros_log_dir)
+    env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; the range above replaces it
+    root = str(Path(__file__).resolve().parents[2])
+    parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
+    env["PYTHONPATH"] = os.pathsep.join([root, *parts])
+    env["PYTHONUNBUFFERED"] = "1"
+    return env
+
+
+# ---------------------------------------------------------------------- the launch
+@dataclass
+class LaunchOptions:
+    """What :func:`launch` runs.
+
+    Attributes
+    ----------
+    ems : EMS name (fuzzy, rbc, mpc; thermostat and mpc-qp run through ``ems_node``)
+    out : output directory (``bag/``, ``log/``, ``weekly.csv``, ``summary.json``, ...)
+    scenario : ``default`` or a scenario CSV path
+    weeks : run length [weeks] (None = the scenario's default)
+    steps : cut the run to its first ``steps`` steps (short test runs; None = all)
+    start : ISO start time (CSV scenarios)
+    buildings : number of independent buildings
+    seed : scenario seed of building 0 (default scenario; None = the configured seed)
+    config_files : parameter files merged over ``config/plant.yaml``
+    overrides : ``section.key`` -> value overrides of the plant parameters
+    ems_options : options of the EMS (``key=value`` strings)
+    forecast : forecast mode of the MPC (None = ``config/forecast.yaml``)
+    domain_id : ROS domain id (None = a free one)
+    timeout_s : stop with an error after this wall time [s] (None = no limit)
+    progress : show a progress bar (tqdm on stderr)
+    plant_params : extra ``-p`` parameters of plant_sim (e.g. ``step_timeout_s``)
+    """
+
+    ems: str
+    out: Path
+    scenario: str = "default"
+    weeks: float | None = None
+    steps: int | None = None
+    start: str | None = None
+    buildings: int = 1
+    seed: int | None = None
+    config_files: list[str] = field(default_factory=list)
+    overrides: dict[str, Any] = field(default_factory=dict)
+    ems_options: list[str] = field(default_factory=list)
+    forecast: str | None = None
+    domain_id: int | None = None
+    timeout_s: float | None = None
+    progress: bool = False
+    plant_params: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class LaunchResult:
+    """Outcome of :func:`launch`."""
+
+    out: Path
+    bag: Path
+    domain_id: int
+    wall_s: float  # from the first process start to the end of the run [s]
+    run_s: float  # from the recorder's first record to the end of the run [s]
+    summaries: dict[str, dict[str, Any]]  # namespace -> summary
+
+
+def namespaces(buildings: int) -> list[str]:
+    """``["/"]`` for one building, else ``["/building_0", ...]``."""
+    if buildings < 1:
+        raise ValueError(f"--buildings must be >= 1, got {buildings}")
+    return ["/"] if buildings == 1 else [f"/building_{i}" for i in range(buildings)]
+
+
+def _feed_window(weeks: float | None, steps: int | None) -> tuple[int, int]:
+    """``weeks`` and ``steps`` parameters of the feed (integer weeks, fractions via steps)."""
+    from ..scenario import HOURS_PER_WEEK
+
+    if weeks is None:
+        return 0, int(steps or 0)
+    whole = math.ceil(weeks - 1e-9)
+    n = int(round(weeks * HOURS_PER_WEEK))
+    if steps is not None:
+        n = min(n, steps)
+    return whole, (0 if n == whole * HOURS_PER_WEEK else n)
+
+
+def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[str, Any]:
+    """The run's description stored in the bag (``run_info.json``): what evaluate needs."""
+    from ..ems import controller_class
+    from ..sim import load_forecast_settings
+
+    level = controller_class(opts.ems).info_level
+    forecast = load_forecast_settings(**({"mode": opts.forecast} if opts.forecast else {})).mode
+    name = "default" if opts.scenario == "default" else Path(opts.scenario).name
+    return {
+        "ems": opts.ems,
+        "scenario": name,
+        "forecast": forecast if level == "mpc" else None,
+        "weeks": opts.weeks,
+        "steps": opts.steps,
+        "start": opts.start,
+        "buildings": [{"namespace": ns, "seed": s} for ns, s in zip(namespaces(opts.buildings), seeds)],
+        "config_files": [str(Path(f).resolve()) for f in opts.config_files],
+        "overrides": opts.overrides,
+        "ems_options": opts.ems_options,
+        "timezone": params.site.timezone,
+    }
+
+
+def launch(opts: LaunchOptions) -> LaunchResult:
+    """Run the node set, wait for the end, stop every process, evaluate the bag.
+
+    Raises
+    ------
+    LaunchError
+        If a node crashes or exits before the end, or ``timeout_s`` passes.
+    KeyboardInterrupt
+        On Ctrl-C or SIGTERM (after every child has been stopped).
+    """
+    from ..config import load_plant_params
+    from ..scenario.settings import load_scenario_settings
+    from .bag import evaluate_bag
+
+    out = Path(opts.out)
+    bag = out / "bag"
+    if bag.exists():
+        raise FileExistsError(f"{bag} exists: choose another --out or remove it")
+    params = load_plant_params(opts.config_files, opts.overrides)
+    ns_list = namespaces(opts.buildings)
+    if opts.buildings > 1 and opts.scenario == "default":
+        base = opts.seed if opts.seed is not None else load_scenario_settings().seed
+        seeds: list[int | None] = [base + i for i in range(opts.buildings)]
+    else:
+        seeds = [opts.seed] * opts.buildings
+    info = run_info(opts, params, seeds)
+    weeks, steps = _feed_window(opts.weeks, opts.steps)
+    out.mkdir(parents=True, exist_ok=True)
+
+    common: dict[str, Any] = {"config_files": info["config_files"]}
+    if opts.overrides:
+        common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
+
+    progress = _Progress()
+
+    def on_progress(line: str) -> None:
+        parts = line.split()
+        if len(parts) == 3 and parts[0] == "progress":
+            progress.set(int(parts[1]), int(parts[2]))
+
+    bar = None
+    if opts.progress:
+        from tqdm import tqdm
+
+        bar = tqdm(total=0, desc=f"launch {opts.ems} x{opts.buildings}", unit="step", mininterval=0.3, leave=False)
+    try:
+        with acquire_domain_id(opts.domain_id) as domain_id, sigterm_as_keyboard_interrupt():
+            env = child_env(domain_id, out / "log" / "ros")
+            t0 = time.monotonic()
+            with ProcessGroup(env, out / "log") as group:
+                rec_params = {
+                    "bag_path": str(bag.resolve()),
+                    "namespaces": ns_list,
+                    "run_info": json.dumps(info),
+                    "progress_period_s": PROGRESS_PERIOD_S,
+                }
+                recorder = group.start(
+                    "recorder", "recorder", [*node_command("recorder"), *ros_args("", rec_params)], on_progress
+                )
+                plants = [
+                    _start_building(group, opts, ns, seed, common, weeks, steps) for ns, seed in zip(ns_list, seeds)
+                ]
+                t_first_record = _supervise(group, recorder, plants, progress, bar, t0, opts.timeout_s)
+                t_end = time.monotonic()
+    finally:
+        if bar is not None:
+            bar.close()
+    wall = t_end - t0
+    run_s = t_end - (t_first_record or t0)
+    summaries = evaluate_bag(bag, out, params=params, wall_s=wall)
+    return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
+
+
+class _Progress:
+    """Recorded and total steps, as last reported by the recorder (thread-safe)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self.recorded = 0
+        self.total = 0
+
+    def set(self, recorded: int, total: int) -> None:
+        with self._lock:
+            self.recorded, self.total = recorded, total
+
+    def get(self) -> tuple[int, int]:
+        with self._lock:
+            return self.recorded, self.total
+
+
+def _start_building(
+    group: ProcessGroup, opts: LaunchOptions, ns: str, seed: int | None, common: dict[str, Any], weeks: int, steps: int
+) -> Child:
+    """Start the EMS, the feed and the plant of one building; returns the plant."""
+    prefix = "" if ns == "/" else ns.strip("/") + "/"
+    ems_params = dict(common)
+    if opts.ems_options:
+        ems_params["ems_options"] = list(opts.ems_options)
+    group.start(f"{prefix}{opts.ems}_ems", "ems", [*node_command("ems", opts.ems), *ros_args(ns, ems_params)])
+    feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps)
+    if seed is not None:
+        feed_params["seed"] = int(seed)
+    if opts.start:
+        feed_params["start"] = opts.start
+    if opts.forecast:
+        feed_params["forecast_mode"] = opts.forecast
+    group.start(f"{prefix}feed", "feed", [*node_command("feed"), *ros_args(ns, feed_params)])
+    plant_params = dict(common, wait_for_recorder=True, **opts.plant_params)
+    return group.start(f"{prefix}plant_sim", "plant", [*node_command("plant_sim"), *ros_args(ns, plant_params)])
+
+
+def _supervise(
+    group: ProcessGroup,
+    recorder: Child,
+    plants: list[Child],
+    progress: _Progress,
+    bar: Any,
+    t0: float,
+    timeout_s: float | None,
+) -> float | None:
+    """Wait until every plant and the recorder exited 0; returns when the first record came.
+
+    Raises
+    ------
+    LaunchError
+        When any other exit happens first, or after ``timeout_s``.
+    """
+    t_first_record: float | None = None
+    while True:
+        time.sleep(POLL_S)
+        r, n = progress.get()
+        if r and t_first_record is None:
+            t_first_record = time.monotonic()
+        if bar is not None:
+            if n and bar.total != n:
+                bar.reset(total=n)
+            bar.n = r
+            bar.refresh()
+        plants_done = all(p.proc.poll() == 0 for p in plants)
+        for c in group.children:
+            code = c.proc.poll()
+            # plants exit 0 after their last step; the recorder exits 0 once every plant said done
+            if code is None or (c.role == "plant" and code == 0) or (c is recorder and code == 0):
+                continue
+            raise LaunchError(
+                f"node '{c.name}' exited with code {code} while the run was in progress (log: {c.log_path}):\n"
+                f"{c.tail()}"
+            )
+        if plants_done and recorder.proc.poll() == 0:
+            return t_first_record
+        if timeout_s is not None and time.monotonic() - t0 > timeout_s:
+            raise LaunchError(f"run not finished after {timeout_s} s (recorded {r} of {n} steps)")
