@@ -7,6 +7,7 @@ from pathlib import Path
 import pytest
 import yaml
 
+from comems4build_ros import kpi
 from comems4build_ros.ems.base import FORECAST_KEYS, INFO_LEVELS
 from comems4build_ros.ros.contract import (
     ALLOWED_TYPES,
@@ -18,7 +19,8 @@ from comems4build_ros.ros.contract import (
     relative,
     resolve,
 )
-from comems4build_ros.types import ACTION_FIELDS, FLOW_FIELDS, STATE_FIELDS
+from comems4build_ros.sim import TIMESERIES_COLUMNS
+from comems4build_ros.types import ACTION_FIELDS, EXOGENOUS_FIELDS, FLOW_FIELDS, STATE_FIELDS
 
 SIZES = {"horizon": 24, "comfort_ahead": 6}
 
@@ -64,12 +66,22 @@ def test_forecast_topics_cover_every_forecast_key_and_only_mpc_reads_them(contra
         assert set(t.subscribers) == {"mpc_ems", "mpc_qp_ems"}
 
 
-def test_record_layout_covers_state_flows_and_command(contract):
-    labels = set(contract.topic("plant/record").field_names())
-    assert set(STATE_FIELDS) <= labels
-    assert set(FLOW_FIELDS) <= labels
-    assert {f"cmd_{a}" for a in ACTION_FIELDS} <= labels
-    assert {"step", "time_unix_s", "t_min_c", "t_max_c", "fallback"} <= labels
+def test_record_layout_is_the_in_process_timeseries_row(contract):
+    # plant/record carries one row of sim.py's timeseries (time as unix seconds), so the
+    # bag evaluation rebuilds the same table and the same KPIs.
+    names = contract.topic("plant/record").field_names()
+    assert names[: len(TIMESERIES_COLUMNS) - 1] == TIMESERIES_COLUMNS[1:]
+    assert set(kpi.REQUIRED_COLUMNS) - {"time"} <= set(names)
+    assert set(STATE_FIELDS) <= set(names) and set(FLOW_FIELDS) <= set(names)
+    assert {f"cmd_{a}" for a in ACTION_FIELDS} <= set(names)
+    assert names[len(TIMESERIES_COLUMNS) - 1 :] == ("time_unix_s", "fallback_steps", "rejected_commands",
+                                                     "wrong_step_commands")
+
+
+def test_truth_layout_carries_every_exogenous_field(contract):
+    names = contract.topic("feed/truth").field_names()
+    assert set(EXOGENOUS_FIELDS) <= set(names)
+    assert names[:3] == ("step", "n_steps", "time_unix_s")
 
 
 def test_command_layout_is_step_plus_action_fields(contract):
@@ -86,7 +98,7 @@ def test_layout_expansion_pack_unpack_roundtrip(contract):
     back = lay.unpack(data)
     assert back["step"] == 7 and isinstance(back["step"], int)
     assert back["price_sell_eur_per_kwh"] == 0.0794
-    assert back["prices_buy_24h"].tolist() == prices  # float64 passes through bit for bit
+    assert back["prices_buy_24h"] == tuple(prices)  # float64 passes through bit for bit, as a tuple like sim.py
     with pytest.raises(ContractError, match="feed/prices.*28 elements"):
         lay.unpack([*data, 1.0])
     with pytest.raises(ContractError, match="prices_buy_24h.*23 elements"):

@@ -153,7 +153,7 @@ class Layout:
         return out
 
     def unpack(self, data: Sequence[float]) -> dict[str, Any]:
-        """Element sequence -> field name -> value (int/bool labels converted, vectors as arrays).
+        """Element sequence -> field name -> value (int/bool labels converted, vectors as float tuples).
 
         Dotted names are returned flat (``"forecast.t_amb_c"``); see :func:`nest`.
 
@@ -175,7 +175,7 @@ class Layout:
                 else:
                     out[f.name] = float(v)
             else:
-                out[f.name] = np.array(data[f.start : f.stop], dtype=float)
+                out[f.name] = tuple(float(x) for x in data[f.start : f.stop])
         return out
 
 

@@ -1,0 +1,307 @@
+"""Helpers shared by the ROS 2 nodes: contract-checked pub/sub, parameters, packing, main loop.
+
+* :class:`ContractNode` is the base class of every node of the package. Its
+  ``create_publisher`` / ``create_subscription`` refuse any topic the contract
+  (``msg_defs/topics.yaml``) does not declare for the node, so a node cannot quietly
+  publish or read something outside its row of ``tab:level_of_information``.
+  :meth:`ContractNode.contract_publisher` and :meth:`ContractNode.contract_subscription`
+  take the type and QoS from the contract.
+* :class:`ArrayPublisher` packs values into a reused ``Float64MultiArray`` in the
+  contract's layout order.
+* :func:`plant_params_from_node` loads the plant parameters named by the node's
+  ``config_files`` parameter (or its ``--params-file`` files, see docs/ros_nodes.md).
+* :func:`command_to_action` validates an ``ems/command`` message (length, finiteness,
+  ranges) and names the field it rejects.
+* :func:`run_node` is the body of every ``main()``: init, SingleThreadedExecutor, clean
+  shutdown on Ctrl-C / SIGTERM (executor shutdown, destroy node, ``rclpy.try_shutdown``).
+"""
+
+from __future__ import annotations
+
+import math
+import sys
+from collections.abc import Callable, Sequence
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.task import Future
+
+from ..config import ConfigError, PlantParams, load_plant_params
+from ..types import ACTION_FIELDS, HP_DHW, HP_OFF, HP_SH, Action
+from .contract import Contract, ContractError, Layout, load_contract, relative, sizes
+
+#: Topics rclpy itself creates for every node (parameter events, logging); not in the contract.
+INFRASTRUCTURE_TOPICS = frozenset({"/parameter_events", "/rosout"})
+
+#: Relative tolerance on the command range checks [-]: a command up to 1 % beyond a
+#: device limit is accepted and clipped by the plant exactly as in-process (solver and
+#: rounding noise); anything further out is rejected as invalid.
+COMMAND_RANGE_REL_TOL = 0.01
+#: Absolute tolerance on the command power range checks [W].
+COMMAND_RANGE_ABS_TOL_W = 1.0
+#: Exit code of a node that refused to start (bad parameters, scenario or contract).
+EXIT_BAD_INPUT = 2
+
+
+class CommandError(ValueError):
+    """An ``ems/command`` message is invalid; ``field`` names the offending element."""
+
+    def __init__(self, field: str, reason: str) -> None:
+        super().__init__(f"field '{field}': {reason}")
+        self.field = field
+        self.reason = reason
+
+
+class ContractNode(Node):
+    """A ``Node`` whose publishers and subscriptions must be declared in the topic contract.
+
+    Parameters
+    ----------
+    node_name : node name; must be a node of the contract
+    contract : contract to enforce (default: the package's ``msg_defs/topics.yaml``)
+    kwargs : passed to ``rclpy.node.Node``
+    """
+
+    def __init__(self, node_name: str, contract: Contract | None = None, **kwargs: Any) -> None:
+        self.contract = contract or load_contract()
+        self.contract.node(node_name)  # raises ContractError for an undeclared node
+        super().__init__(node_name, **kwargs)
+
+    # -- enforcement -------------------------------------------------------------
+    def _contract_name(self, topic: str) -> str:
+        """Contract (relative) name of ``topic`` as this node would resolve it."""
+        full = self.resolve_topic_name(topic)
+        if full in INFRASTRUCTURE_TOPICS:
+            return full
+        rel = relative(self.get_namespace(), full)
+        if rel is None:
+            raise ContractError(
+                f"node '{self.get_name()}': topic '{full}' lies outside its namespace '{self.get_namespace()}'"
+            )
+        return rel
+
+    def create_publisher(self, msg_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
+        name = self._contract_name(topic)
+        if name not in INFRASTRUCTURE_TOPICS and not self.contract.may_publish(self.get_name(), name):
+            raise ContractError(
+                f"node '{self.get_name()}' may not publish '{name}' ({self.contract.path} does not declare it)"
+            )
+        return super().create_publisher(msg_type, topic, *args, **kwargs)
+
+    def create_subscription(self, msg_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
+        name = self._contract_name(topic)
+        if name not in INFRASTRUCTURE_TOPICS and not self.contract.may_subscribe(self.get_name(), name):
+            raise ContractError(
+                f"node '{self.get_name()}' may not subscribe to '{name}' ({self.contract.path} does not declare it)"
+            )
+        return super().create_subscription(msg_type, topic, *args, **kwargs)
+
+    # -- contract-typed helpers --------------------------------------------------
+    def contract_publisher(self, topic: str) -> Any:
+        """Publisher of the contract topic ``topic`` with its type and QoS."""
+        spec = self.contract.topic(topic)
+        return self.create_publisher(spec.msg_class(), topic, spec.qos_profile())
+
+    def contract_subscription(self, topic: str, callback: Callable[[Any], None], raw: bool = False) -> Any:
+        """Subscription to the contract topic ``topic`` with its type and QoS."""
+        spec = self.contract.topic(topic)
+        return self.create_subscription(spec.msg_class(), topic, callback, spec.qos_profile(), raw=raw)
+
+    def declared_topics(self) -> tuple[set[str], set[str]]:
+        """Contract names of this node's actual publishers and subscriptions (infrastructure excluded)."""
+        ns = self.get_namespace()
+        pubs = {relative(ns, p.topic_name) or p.topic_name for p in self.publishers}
+        subs = {relative(ns, s.topic_name) or s.topic_name for s in self.subscriptions}
+        return pubs - INFRASTRUCTURE_TOPICS, subs - INFRASTRUCTURE_TOPICS
+
+
+class ArrayPublisher:
+    """Publishes ``Float64MultiArray`` messages of one contract topic, reusing one message.
+
+    Parameters
+    ----------
+    node : the publishing node
+    topic : contract topic name
+    layout_sizes : values of the layout size symbols (:func:`contract.sizes`)
+    """
+
+    def __init__(self, node: ContractNode, topic: str, layout_sizes: dict[str, int]) -> None:
+        from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+        spec = node.contract.topic(topic)
+        self.topic = topic
+        self.layout: Layout = spec.layout(layout_sizes)
+        self.publisher = node.contract_publisher(topic)
+        self._msg = Float64MultiArray()
+        n = self.layout.length
+        self._msg.layout.dim = [MultiArrayDimension(label=topic, size=n, stride=n)]
+
+    def publish(self, data: Sequence[float]) -> None:
+        """Publish ``data`` (``array('d')`` preferred: no per-element checks) as is."""
+        self._msg.data = data
+        self.publisher.publish(self._msg)
+
+    def publish_values(self, values: dict[str, Any]) -> None:
+        """Pack ``values`` (by field name) in layout order and publish."""
+        self.publish(self.layout.pack(values))
+
+
+def layout_sizes(params: PlantParams) -> dict[str, int]:
+    """Layout size symbols for ``params`` (horizon and comfort look-ahead of sim.py)."""
+    from ..sim import BOUNDS_AHEAD, PRICE_WINDOW
+
+    out = sizes(params, comfort_ahead=BOUNDS_AHEAD + 1)
+    out["horizon"] = PRICE_WINDOW  # the loop's price window and forecast length [steps]
+    return out
+
+
+def param(node: Node, name: str, default: Any) -> Any:
+    """Value of parameter ``name``, declared with ``default`` unless already declared.
+
+    Nodes are created with ``automatically_declare_parameters_from_overrides=True`` (so
+    every key of a ``--params-file`` becomes a parameter); a parameter given there is
+    already declared and keeps its value. Array values are returned as lists.
+    """
+    if not node.has_parameter(name):
+        node.declare_parameter(name, default)
+    value = node.get_parameter(name).value
+    if value is not None and not isinstance(value, (str, bytes, bool, int, float)):
+        value = list(value)
+    return value
+
+
+def plant_params_from_node(node: Node) -> PlantParams:
+    """Plant parameters of a node, from its ROS parameters.
+
+    ``config/plant.yaml`` is merged with, in order: the files of the string-array
+    parameter ``config_files`` (parameter-file form, as ``comems4build simulate
+    --config``), every node parameter whose first dotted segment is a plant section
+    (``battery.e_max_kwh`` and so on: what ``--ros-args --params-file config/plant.yaml``
+    or ``-p battery.e_max_kwh:=10.0`` sets), and the ``overrides`` string array of
+    ``section.key=value`` items (YAML scalars).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file or override and the parameter that is invalid.
+    """
+    import yaml
+
+    from ..config import PLANT_SECTIONS
+
+    files = [str(f) for f in param(node, "config_files", [""]) if f]
+    ros_overrides: dict[str, Any] = {}
+    for name, p in node.get_parameters_by_prefix("").items():
+        if name.split(".", 1)[0] in PLANT_SECTIONS and "." in name:
+            value = p.value
+            ros_overrides[name] = value if isinstance(value, (str, bool, int, float)) else list(value)
+    for item in param(node, "overrides", [""]):
+        if not item:
+            continue
+        key, sep, value = str(item).partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"node '{node.get_name()}': parameter 'overrides': '{item}' is not KEY=VALUE")
+        ros_overrides[key.strip()] = yaml.safe_load(value)
+    return load_plant_params(files, ros_overrides)
+
+
+def command_bounds(params: PlantParams) -> dict[str, tuple[float, float]]:
+    """Accepted range of each ``ems/command`` field (device limits plus tolerance).
+
+    hp_mod [-] in [0, 1]; p_fc_w [W] in [0, P_FC,max]; p_bess_w [W] in [-P_d,max, P_ch,max],
+    each widened by :data:`COMMAND_RANGE_REL_TOL` and :data:`COMMAND_RANGE_ABS_TOL_W`.
+    """
+
+    def widen(lo: float, hi: float, abs_tol: float) -> tuple[float, float]:
+        span = max(abs(lo), abs(hi))
+        tol = COMMAND_RANGE_REL_TOL * span + abs_tol
+        return lo - tol, hi + tol
+
+    return {
+        "hp_mod": widen(0.0, 1.0, 0.0),
+        "p_fc_w": widen(0.0, params.fuel_cell.p_max_w, COMMAND_RANGE_ABS_TOL_W),
+        "p_bess_w": widen(-params.battery.p_d_max_w, params.battery.p_ch_max_w, COMMAND_RANGE_ABS_TOL_W),
+    }
+
+
+VALID_HP_MODES = (HP_OFF, HP_SH, HP_DHW)
+
+
+def command_to_action(
+    data: Sequence[float], layout: Layout, bounds: dict[str, tuple[float, float]]
+) -> tuple[int, Action]:
+    """Validate one ``ems/command`` payload and return ``(step, Action)``.
+
+    Raises
+    ------
+    CommandError
+        For a wrong length, a non-finite value, a non-integral step or circuit, an
+        unknown circuit, or a value outside :func:`command_bounds`; ``field`` names it.
+    """
+    if len(data) != layout.length:
+        raise CommandError("(length)", f"{len(data)} elements, the contract layout has {layout.length}")
+    for label, value in zip(layout.labels, data):
+        if not math.isfinite(value):
+            raise CommandError(label, f"non-finite value {value}")
+    step_f = data[0]
+    if step_f < 0 or step_f != int(step_f):
+        raise CommandError("step", f"not a non-negative integer: {step_f}")
+    values = dict(zip(ACTION_FIELDS, data[1:]))
+    mode = values["hp_mode"]
+    if mode not in VALID_HP_MODES:
+        raise CommandError("hp_mode", f"{mode} is not one of {VALID_HP_MODES} (off, SH, DHW)")
+    for name, (lo, hi) in bounds.items():
+        v = values[name]
+        if not lo <= v <= hi:
+            raise CommandError(name, f"{v} outside the accepted range [{lo:g}, {hi:g}]")
+    return int(step_f), Action(
+        hp_mod=float(values["hp_mod"]),
+        hp_mode=int(mode),
+        p_fc_w=float(values["p_fc_w"]),
+        p_bess_w=float(values["p_bess_w"]),
+    )
+
+
+def action_values(step: int, action: Action) -> list[float]:
+    """``ems/command`` payload of ``action`` for ``step`` (layout: step, ACTION_FIELDS)."""
+    return [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS)]
+
+
+def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+    """Create a node, spin it on a SingleThreadedExecutor and always shut down cleanly.
+
+    The node may expose ``finished: rclpy.task.Future``; spinning stops when it
+    completes (its result is the exit code, default 0). Ctrl-C (KeyboardInterrupt) and
+    SIGTERM (ExternalShutdownException) end the spin with exit code 0. A
+    :class:`ConfigError`, :class:`ContractError` or ``ValueError`` raised while the node
+    is created is reported on stderr with exit code :data:`EXIT_BAD_INPUT`.
+    Order of shutdown (TOOLCHAIN.md): executor shutdown, destroy node, rclpy shutdown.
+    """
+    rclpy.init(args=args)
+    executor = SingleThreadedExecutor()
+    node: Node | None = None
+    code = 0
+    try:
+        node = make_node()
+        executor.add_node(node)
+        finished: Future | None = getattr(node, "finished", None)
+        if finished is not None:
+            executor.spin_until_future_complete(finished)
+            if finished.done():
+                code = int(finished.result() or 0)
+        else:
+            executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ConfigError, ContractError, ValueError, FileNotFoundError) as exc:
+        name = node.get_name() if node is not None else "node"
+        print(f"[{name}] error: {exc}", file=sys.stderr, flush=True)
+        code = EXIT_BAD_INPUT
+    finally:
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code

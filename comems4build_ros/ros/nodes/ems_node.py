@@ -1,0 +1,180 @@
+"""EMS nodes: ``fuzzy_ems``, ``rbc_ems``, ``mpc_ems`` (and ``thermostat_ems``, ``mpc_qp_ems``).
+
+One module for every EMS: the node wraps the controller of the core
+(:func:`comems4build_ros.ems.make_controller`) and is swapped by starting another node;
+all publish ``ems/command``. Each node subscribes to exactly the topics its row of
+``tab:level_of_information`` allows (the contract lists the node as a subscriber of
+those topics only; :class:`~comems4build_ros.ros.common.ContractNode` refuses anything
+else). From the messages tagged with step ``k`` it rebuilds the very
+:class:`~comems4build_ros.ems.base.Observation` the in-process loop builds with
+:class:`comems4build_ros.sim.ObservationBuilder` (labels = observation fields, float64
+values unchanged, vectors as tuples), calls the controller once per step and publishes
+the command for step ``k`` (and the controller's ``step_info`` on ``ems/info``).
+
+A repeated state announcement for a step already answered (the plant repeats while it
+waits, e.g. if the first command was lost during discovery) is answered with the same
+command again; the controller is never called twice for a step.
+
+Parameters: ``ems`` (set by the entry point), ``ems_options`` (string array of
+``key=value``, as ``comems4build simulate --ems-option``), and the plant parameters
+(:func:`comems4build_ros.ros.common.plant_params_from_node`).
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+from array import array
+from collections.abc import Callable
+from typing import Any
+
+from rclpy.task import Future
+from std_msgs.msg import Float64MultiArray, String
+
+from ...ems import make_controller
+from ...ems.base import Observation
+from ...types import ACTION_FIELDS
+from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
+from ..contract import ContractError, load_contract, nest
+
+#: Topic whose repeated message for an answered step triggers a re-send of the command.
+RESEND_TRIGGER_TOPIC = "state/t_air_c"
+#: Exit code when the controller raised.
+EXIT_CONTROLLER_ERROR = 1
+
+
+def parse_options(items: list[str], node_name: str) -> dict[str, Any]:
+    """``["solver=HiGHS", "gap=0.01"]`` -> ``{"solver": "HiGHS", "gap": 0.01}`` (YAML scalars)."""
+    import yaml
+
+    out: dict[str, Any] = {}
+    for item in items:
+        if not item:
+            continue
+        key, sep, value = str(item).partition("=")
+        if not sep or not key.strip():
+            raise ValueError(f"node '{node_name}': parameter 'ems_options': '{item}' is not KEY=VALUE")
+        out[key.strip()] = yaml.safe_load(value)
+    return out
+
+
+class EMSNode(ContractNode):
+    """Wraps one controller; see the module docstring.
+
+    Parameters
+    ----------
+    ems : EMS name of the registry (``fuzzy``, ``rbc``, ``mpc``, ``mpc-qp``, ``thermostat``)
+    """
+
+    def __init__(self, ems: str) -> None:
+        contract = load_contract()
+        node_name = contract.ems_node_name(ems)
+        super().__init__(node_name, contract, automatically_declare_parameters_from_overrides=True)
+        spec = contract.node(node_name)
+        params = plant_params_from_node(self)
+        options = parse_options(param(self, "ems_options", [""]), node_name)
+        self.controller = make_controller(ems, params, options)
+        self.controller.reset()
+        self.level = self.controller.info_level
+        if self.level != spec.info_level:
+            raise ContractError(
+                f"node '{node_name}': controller '{ems}' has information level '{self.level}', "
+                f"the contract says '{spec.info_level}'"
+            )
+        sizes = layout_sizes(params)
+        self._cmd = ArrayPublisher(self, "ems/command", sizes)
+        self._info_pub = self.contract_publisher("ems/info")
+        self._inputs = [t for t in contract.subscribed_by(node_name) if t.is_array]
+        self._full = (1 << len(self._inputs)) - 1
+        self._pending: dict[int, list[Any]] = {}  # step -> [fields, bitmask of topics received]
+        self._answered = -1
+        self._last_cmd: array | None = None
+        self.steps = 0
+        for i, topic in enumerate(self._inputs):
+            self.contract_subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name))
+        self.finished = Future()
+        self.get_logger().info(
+            f"EMS '{ems}' (level '{self.level}') listening to {len(self._inputs)} topics: "
+            + ", ".join(t.name for t in self._inputs)
+        )
+
+    def _callback(self, index: int, layout: Any, topic: str) -> Callable[[Float64MultiArray], None]:
+        bit = 1 << index
+        resend = topic == RESEND_TRIGGER_TOPIC
+
+        def on_msg(msg: Float64MultiArray) -> None:
+            data = msg.data
+            step = int(data[0]) if len(data) else -1
+            if step <= self._answered:
+                if resend and step == self._answered and self._last_cmd is not None:
+                    self._cmd.publish(self._last_cmd)
+                return
+            try:
+                values = layout.unpack(data)
+            except ContractError as exc:
+                self.get_logger().error(f"topic '{topic}': {exc}; message dropped")
+                return
+            entry = self._pending.get(step)
+            if entry is None:
+                entry = self._pending[step] = [{}, 0]
+            entry[0].update(values)
+            entry[1] |= bit
+            if entry[1] == self._full:
+                self._decide(step, entry[0])
+
+        return on_msg
+
+    def _decide(self, step: int, fields: dict[str, Any]) -> None:
+        for s in [s for s in self._pending if s <= step]:
+            del self._pending[s]
+        data = nest(fields)
+        data["step"] = step
+        try:
+            action = self.controller.act(Observation(self.level, data))
+        except Exception as exc:  # a failing controller ends the node; the plant falls back
+            self.get_logger().error(f"controller failed at step {step}: {type(exc).__name__}: {exc}")
+            self.finished.set_result(EXIT_CONTROLLER_ERROR)
+            return
+        payload = array("d", [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS)])
+        self._cmd.publish(payload)
+        self._answered = step
+        self._last_cmd = payload
+        self.steps += 1
+        info = getattr(self.controller, "step_info", None)
+        if info:
+            payload_info = {"step": step, "info": {k: float(v) for k, v in info.items()}}
+            self._info_pub.publish(String(data=json.dumps(payload_info)))
+
+
+def main(args: list[str] | None = None, ems: str | None = None) -> int:
+    """Run the EMS node ``ems``; without it, the name after ``--ems`` on the command line.
+
+    ``python -m comems4build_ros.ros.nodes.ems_node --ems thermostat --ros-args ...``
+    runs an EMS that has no console script of its own (thermostat, mpc-qp).
+    """
+    if ems is None:
+        argv = list(sys.argv[1:] if args is None else args)
+        if "--ems" not in argv or argv.index("--ems") + 1 >= len(argv):
+            print("ems_node: error: give the EMS as '--ems NAME'", file=sys.stderr)
+            return 2
+        ems = argv[argv.index("--ems") + 1]
+    return run_node(lambda: EMSNode(ems), args)
+
+
+def main_fuzzy(args: list[str] | None = None) -> int:
+    """Entry point of ``fuzzy_ems``: ComEMS4Build (sec:FLC)."""
+    return main(args, "fuzzy")
+
+
+def main_rbc(args: list[str] | None = None) -> int:
+    """Entry point of ``rbc_ems``: the rule-based controller (sec:RBC)."""
+    return main(args, "rbc")
+
+
+def main_mpc(args: list[str] | None = None) -> int:
+    """Entry point of ``mpc_ems``: the MILP MPC (sec:MPC)."""
+    return main(args, "mpc")
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,221 @@
+"""``feed``: publishes the scenario's exogenous signals, step by step, ahead of the plant.
+
+For each step ``k`` the feed publishes (topics of ``msg_defs/topics.yaml``, element 0 =
+``k``):
+
+* ``feed/truth``: the inputs the plant applies in step ``k`` (``Exogenous`` of sim.py
+  plus run length, start time and spot price); read by ``plant_sim`` only;
+* what an EMS may read, split by ``tab:level_of_information``: ``feed/calendar``,
+  ``feed/measured``, ``feed/comfort``, ``feed/prices`` (every EMS);
+  ``feed/comfort_ahead``, ``feed/solar``, ``feed/h2_allowance`` (fuzzy and MPC);
+  ``feed/t_amb`` and ``forecast/*`` (MPC only).
+
+The values are those of :class:`comems4build_ros.sim.ObservationBuilder` (MPC level,
+which contains every other level), so an EMS node rebuilds exactly the observation of
+the in-process loop. Pacing: the feed publishes when ``plant/step`` announces the step
+the plant waits for, up to ``lookahead_steps`` steps ahead; a repeated announcement (the
+plant re-announces while it waits, e.g. for a restarted EMS) makes it publish the steps
+``k .. k + lookahead_steps`` again. The feed is never on the critical path of a step.
+
+Parameters: ``scenario`` (``default`` or a CSV path), ``weeks`` (whole weeks, 0 = the
+default length), ``steps`` (cut the run to its first N steps, 0 = all), ``start`` (ISO
+time, empty = from the beginning), ``seed`` (default scenario only, -1 = the seed of
+``config/scenario.yaml``), ``forecast_mode`` (empty = ``config/forecast.yaml``), ``lookahead_steps``,
+and the plant parameters (see :func:`comems4build_ros.ros.common.plant_params_from_node`).
+A scenario with a gap or a non-finite value makes the feed refuse to start.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import inspect
+from array import array
+from typing import Any
+
+import numpy as np
+from std_msgs.msg import UInt32
+
+from ...config import SECONDS_PER_HOUR
+from ...scenario.base import SERIES, Scenario
+from ...types import EXOGENOUS_FIELDS, PlantState
+from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
+
+NODE_NAME = "feed"
+#: Feed topics besides feed/truth, published for every step.
+EMS_TOPICS = (
+    "feed/calendar",
+    "feed/measured",
+    "feed/comfort",
+    "feed/prices",
+    "feed/comfort_ahead",
+    "feed/solar",
+    "feed/h2_allowance",
+    "feed/t_amb",
+)
+#: Default number of steps published ahead of the step the plant waits for.
+LOOKAHEAD_STEPS = 4
+#: Tolerance on the hourly spacing check of the scenario time index [s].
+TIME_STEP_TOL_S = 1e-6
+
+
+class ScenarioInputError(ValueError):
+    """The scenario has a gap, an irregular step or a non-finite value."""
+
+
+def check_scenario(scenario: Scenario, time_step_h: float) -> None:
+    """Refuse a scenario with non-finite values or irregular time steps.
+
+    Raises
+    ------
+    ScenarioInputError
+        Naming the scenario, the series and the first offending time.
+    """
+    for name in SERIES:
+        values = np.asarray(getattr(scenario, name), dtype=float)
+        bad = np.flatnonzero(~np.isfinite(values))
+        if bad.size:
+            i = int(bad[0])
+            raise ScenarioInputError(
+                f"scenario '{scenario.name}': series '{name}' has {bad.size} non-finite value(s), "
+                f"first at {scenario.time[i].isoformat()} (row {i}): {values[i]}"
+            )
+    if len(scenario.time) > 1:
+        dt = np.asarray((scenario.time[1:] - scenario.time[:-1]).total_seconds(), dtype=float)
+        want = time_step_h * SECONDS_PER_HOUR
+        bad = np.flatnonzero(np.abs(dt - want) > TIME_STEP_TOL_S)
+        if bad.size:
+            i = int(bad[0])
+            raise ScenarioInputError(
+                f"scenario '{scenario.name}': time step {dt[i]:.0f} s instead of {want:.0f} s between "
+                f"{scenario.time[i].isoformat()} and {scenario.time[i + 1].isoformat()} (gap or irregular index)"
+            )
+
+
+def load_scenario(
+    spec: str, params: Any, start: str | None, weeks: int | None, seed: int | None, steps: int | None = None
+) -> Scenario:
+    """The run's scenario through the core's loaders (their file checks included).
+
+    Parameters
+    ----------
+    spec : ``default`` or a scenario CSV path
+    params : plant parameters
+    start, weeks : window of the run (see :func:`comems4build_ros.scenario.resolve_scenario`)
+    seed : generator seed of the default scenario (None = the configured seed)
+    steps : cut the run to its first ``steps`` steps (the rest stays as look-ahead);
+        None = the whole window
+    """
+    from ... import scenario as scen
+
+    if seed is None or "seed" in inspect.signature(scen.resolve_scenario).parameters:
+        kwargs: dict[str, Any] = {} if seed is None else {"seed": seed}
+        out = scen.resolve_scenario(spec, params, start=start, weeks=weeks, **kwargs)
+    elif spec == "default" and start is None:
+        settings = scen.load_scenario_settings()
+        out = scen.default_scenario(params, weeks=weeks or settings.weeks, seed=seed, settings=settings)
+    else:
+        raise ValueError(f"parameter 'seed' applies to the default scenario without 'start' (scenario '{spec}')")
+    if steps is not None:
+        if not 0 < steps <= out.n_steps:
+            raise ValueError(f"parameter 'steps': {steps} outside 1..{out.n_steps} of scenario '{out.name}'")
+        out = dataclasses.replace(out, n_steps=steps)
+    return out
+
+
+class Feed(ContractNode):
+    """Scenario publisher node (see the module docstring)."""
+
+    def __init__(self) -> None:
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
+        from ...sim import ObservationBuilder, exogenous_series, load_forecast_settings
+
+        params = plant_params_from_node(self)
+        spec = str(param(self, "scenario", "default"))
+        weeks = int(param(self, "weeks", 0)) or None
+        steps = int(param(self, "steps", 0)) or None
+        start = str(param(self, "start", "")) or None
+        seed = int(param(self, "seed", -1))
+        mode = str(param(self, "forecast_mode", ""))
+        self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
+
+        scenario = load_scenario(spec, params, start, weeks, None if seed < 0 else seed, steps)
+        check_scenario(scenario, params.simulation.time_step_h)
+        self.n_steps = scenario.n_steps
+        exo = exogenous_series(scenario, params)
+        forecast = load_forecast_settings(**({"mode": mode} if mode else {}))
+        self._builder = ObservationBuilder(scenario, params, "mpc", exo, forecast)
+        self._exo = exo
+        self._time_s = [t.timestamp() for t in scenario.time]
+        self._spot = scenario.spot_eur_per_mwh.tolist()
+        # The builder's state-dependent fields are not published by the feed (plant_sim
+        # publishes the state); a neutral state fills them.
+        self._blank = PlantState(soc=0.0, loh=0.0, t_air_c=0.0, t_wall_in_c=0.0, t_wall_out_c=0.0, v_dhw_l=0.0)
+
+        sizes_ = layout_sizes(params)
+        self._truth = ArrayPublisher(self, "feed/truth", sizes_)
+        forecast_topics = tuple(t.name for t in self.contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
+        self._pubs = [ArrayPublisher(self, t, sizes_) for t in (*EMS_TOPICS, *forecast_topics)]
+        self._pub_fields = [p.layout.fields for p in self._pubs]
+        self.contract_subscription("plant/step", self._on_plant_step)
+        self._check_payload_lengths()
+        self._next = 0  # first step not yet published
+        self._last_request = -1
+        self.get_logger().info(
+            f"scenario '{scenario.name}': {self.n_steps} steps from {scenario.time[0].isoformat()}, "
+            f"forecast {forecast.mode}, {self.lookahead} steps ahead"
+        )
+
+    # ------------------------------------------------------------------ publishing
+    def payloads(self, k: int) -> list[array]:
+        """Payloads of step ``k``: feed/truth first, then the EMS and forecast topics."""
+        e = self._exo[k]
+        truth = array("d", (float(k), float(self.n_steps), self._time_s[k]))
+        truth.extend(float(getattr(e, f)) for f in EXOGENOUS_FIELDS)
+        truth.append(float(self._spot[k]))
+        out = [truth]
+        data = self._builder.data(k, self._blank)
+        forecast = data.get("forecast", {})
+        for fields in self._pub_fields:
+            payload = array("d")
+            for f in fields:
+                head, dot, key = f.name.partition(".")
+                value = forecast[key] if dot else data[head]
+                if f.size is None:
+                    payload.append(float(value))
+                else:
+                    payload.extend(value)
+            out.append(payload)
+        return out
+
+    def _check_payload_lengths(self) -> None:
+        for pub, payload in zip((self._truth, *self._pubs), self.payloads(0)):
+            if len(payload) != pub.layout.length:
+                raise ValueError(
+                    f"topic '{pub.topic}': the feed builds {len(payload)} elements, "
+                    f"the contract layout has {pub.layout.length}"
+                )
+
+    def _publish_step(self, k: int) -> None:
+        for pub, payload in zip((self._truth, *self._pubs), self.payloads(k)):
+            pub.publish(payload)
+
+    def _on_plant_step(self, msg: UInt32) -> None:
+        k = int(msg.data)
+        if k >= self.n_steps:
+            return
+        last = min(k + self.lookahead, self.n_steps - 1)
+        first = k if k <= self._last_request else max(self._next, k)
+        for j in range(first, last + 1):
+            self._publish_step(j)
+        self._next = max(self._next, last + 1)
+        self._last_request = k
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``feed`` (``ros2 run comems4build_ros feed``)."""
+    return run_node(Feed, args)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
