@@ -21,7 +21,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ems", default=DEFAULT_EMS, help=f"comma-separated EMS names (default {DEFAULT_EMS})")
     parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
     parser.add_argument("--start", default=None, help="first step of the window (ISO date/time), CSV only")
-    parser.add_argument("--weeks", type=int, default=None, help="run length in whole weeks (default: 12 / whole CSV)")
+    parser.add_argument("--weeks", type=float, default=None, help="run length in weeks (default: 12 / whole CSV)")
     parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
                         help="run in-process or through the ROS 2 node set (bags evaluated)")
     parser.add_argument("--fc-efficiency", default=DEFAULT_ETAS, metavar="ETA[,ETA...]",

@@ -17,7 +17,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ems", required=True, help="comma-separated EMS names")
     parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
     parser.add_argument("--start", default=None, help="first step of the window (ISO date/time), CSV only")
-    parser.add_argument("--weeks", type=int, default=None, help="run length in whole weeks (default: 12 / whole CSV)")
+    parser.add_argument("--weeks", type=float, default=None, help="run length in weeks (default: 12 / whole CSV)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--jobs", type=int, default=None, help="parallel runs (default and maximum: CPU count)")

@@ -201,7 +201,7 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     figs = figures.all_figures(runs, variants, levels, out / "figures", tz, manifest.base_eta, params.dhw.v_max_l)
     ctx = Context(runs=runs, variants=variants, params=params, base_eta=manifest.base_eta)
     verdicts = evaluate_findings(ctx)
-    source, prows = paper_table(runs)
+    source, prows = paper_table(runs, params.hydrogen.loh_min)
     spans = figures.window_spans(runs, tz)
     first = next(iter(runs.values()))
     t = first.timeseries["time"].dt.tz_convert(tz)

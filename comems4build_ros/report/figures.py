@@ -19,6 +19,7 @@ from pathlib import Path
 import matplotlib
 
 matplotlib.use("Agg")
+import matplotlib.dates as mdates  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
@@ -60,9 +61,15 @@ def label(ems: str) -> str:
     return EMS_LABELS.get(ems, ems)
 
 
-def _save(fig: plt.Figure, path: Path) -> Path:
+def _local_naive(time: pd.Series, tz: str) -> np.ndarray:
+    """UTC times as naive local ``datetime64`` (cheap for matplotlib's date axis)."""
+    return time.dt.tz_convert(tz).dt.tz_localize(None).to_numpy()
+
+
+def _save(fig: plt.Figure, path: Path, tight_bbox: bool = False) -> Path:
+    """Write the PNG (the figures lay themselves out; ``tight_bbox`` for legends outside the axes)."""
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI, bbox_inches="tight")
+    fig.savefig(path, dpi=DPI, bbox_inches="tight" if tight_bbox else None)
     plt.close(fig)
     return path
 
@@ -100,7 +107,7 @@ def hess_usage(runs: Mapping[str, RunData], path: Path) -> Path:
     """``fig:HESS_usage``: weekly BESS charged energy and H2 consumption."""
     fig, axes = plt.subplots(2, 1, figsize=(5.5, 6.5), sharex=True)
     _boxes(axes[0], runs, "bess_charged_kwh", "BESS charged [kWh/week]", "Battery charging")
-    _boxes(axes[1], runs, "h2_kwh", "H$_2$ consumed, LHV [kWh/week]", "Hydrogen consumption")
+    _boxes(axes[1], runs, "h2_kwh", "H\u2082 consumed, LHV [kWh/week]", "Hydrogen consumption")
     fig.tight_layout()
     return _save(fig, path)
 
@@ -137,7 +144,7 @@ def hydrogen_timeseries(runs: Mapping[str, RunData], path: Path, tz: str) -> Pat
     """``fig:hydrogen_timeseries``: LOH of every EMS, buy price and radiation over the run."""
     fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
     for e, r in runs.items():
-        t = r.timeseries["time"].dt.tz_convert(tz)
+        t = _local_naive(r.timeseries["time"], tz)
         axes[0].plot(t, PERCENT * r.timeseries["loh"], color=colour(e), label=label(e), lw=1.6)
     axes[0].set_ylabel("level of hydrogen LOH [%]")
     axes[0].set_ylim(bottom=0)
@@ -145,19 +152,21 @@ def hydrogen_timeseries(runs: Mapping[str, RunData], path: Path, tz: str) -> Pat
     axes[0].grid(alpha=0.3)
     axes[0].set_title("Hydrogen in the store over the evaluation period", fontsize=10)
     ts = next(iter(runs.values())).timeseries
-    t = ts["time"].dt.tz_convert(tz)
+    t = _local_naive(ts["time"], tz)
     ax = axes[1]
-    ax.plot(t, ts["price_buy_eur_per_kwh"], color="#444444", lw=0.8, label="buy price $p_{buy}$")
+    ax.plot(t, ts["price_buy_eur_per_kwh"], color="#444444", lw=0.8, label="buy price p_buy")
     ax.set_ylabel("buy price [EUR/kWh]")
     ax2 = ax.twinx()
-    ax2.fill_between(t, ts["ghi_w_m2"], color="#f2b134", alpha=0.45, lw=0, label="global radiation $q_s$")
-    ax2.set_ylabel("global radiation [W/m$^2$]")
+    ax2.fill_between(t, ts["ghi_w_m2"], color="#f2b134", alpha=0.45, lw=0, label="global radiation q_s")
+    ax2.set_ylabel("global radiation [W/m\u00b2]")
     ax.set_zorder(ax2.get_zorder() + 1)  # price line over the radiation area
     ax.patch.set_visible(False)
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
     ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
-    ax.set_xlabel(f"time ({tz})")
+    ax.set_xlabel(f"local time ({tz})")
+    ax.xaxis.set_major_locator(mdates.AutoDateLocator(maxticks=10))
+    ax.xaxis.set_major_formatter(mdates.DateFormatter("%d.%m.%Y"))
     ax.grid(alpha=0.3)
     fig.autofmt_xdate()
     fig.tight_layout()
@@ -199,7 +208,7 @@ def heat_recovery(
     ax.legend(fontsize=8, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
     ax.grid(axis="y", alpha=0.3)
     fig.tight_layout()
-    return _save(fig, path)
+    return _save(fig, path, tight_bbox=True)
 
 
 def select_windows(ts: pd.DataFrame, tz: str, days: int = WINDOW_DAYS) -> dict[str, tuple[int, int]]:
@@ -242,18 +251,18 @@ def performance_comparison(
     twins: list[list[plt.Axes]] = [[] for _ in range(5)]
     for j, e in enumerate(names):
         ts = runs[e].timeseries.iloc[a:b]
-        t = ts["time"].dt.tz_convert(tz)
+        t = _local_naive(ts["time"], tz)
         c = colour(e)
         ax = axes[0, j]
-        ax.plot(t, ts["t_air_c"], color=c, lw=1.6, label="$T_{air}$")
-        ax.step(t, ts["t_min_c"], where="post", color="grey", ls="--", lw=1, label="$T_{air,min}$, $T_{air,max}$")
+        ax.plot(t, ts["t_air_c"], color=c, lw=1.6, label="T_air")
+        ax.step(t, ts["t_min_c"], where="post", color="grey", ls="--", lw=1, label="T_air,min, T_air,max")
         ax.step(t, ts["t_max_c"], where="post", color="grey", ls="--", lw=1)
         ax.set_ylabel("air temperature [°C]")
         ax.set_title(label(e), color=c, fontsize=11, fontweight="bold")
         axr = ax.twinx()
         twins[0].append(axr)
-        axr.plot(t, PERCENT * ts["v_dhw_l"] / v_max_l, color="#17becf", lw=1, label="$V_{DHW}$")
-        axr.set_ylabel("DHW volume [% of V$_{max}$]")
+        axr.plot(t, PERCENT * ts["v_dhw_l"] / v_max_l, color="#17becf", lw=1, label="V_DHW")
+        axr.set_ylabel("DHW volume [% of V_max]")
         axr.set_ylim(0, 105)
         if j == 0:
             h1, l1 = ax.get_legend_handles_labels()
@@ -295,6 +304,7 @@ def performance_comparison(
         ax = axes[4, j]
         ax.plot(t, PERCENT * ts["loh"], color=c, lw=1.4, label="LOH")
         ax.set_ylabel("LOH [%]")
+        ax.set_ylim(0, 100)
         axr = ax.twinx()
         twins[4].append(axr)
         axr.step(t, ts["p_fc_w"] / W_PER_KW, where="post", color="#9467bd", lw=0.9, label="FC power")
@@ -303,7 +313,9 @@ def performance_comparison(
             h1, l1 = ax.get_legend_handles_labels()
             h2, l2 = axr.get_legend_handles_labels()
             ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
-        ax.set_xlabel(f"time ({tz})")
+        ax.set_xlabel(f"local time ({tz})")
+        ax.xaxis.set_major_locator(mdates.HourLocator(byhour=(0, 12)))
+        ax.xaxis.set_major_formatter(mdates.DateFormatter("%d.%m. %H:%M"))
         for row in axes[:, j]:
             row.grid(alpha=0.3)
     for row in [list(axes[i, :]) for i in range(5)] + twins:  # same scale in every column
@@ -376,7 +388,7 @@ def level_of_information(levels: Mapping[str, str], path: Path) -> Path:
         table[i, 0].get_text().set_color(colour(ems))
         table[i, 0].get_text().set_fontweight("bold")
     ax.set_title("Inputs each EMS may use (tab:level_of_information, enforced by the observation)", fontsize=10)
-    return _save(fig, path)
+    return _save(fig, path, tight_bbox=True)
 
 
 def all_figures(

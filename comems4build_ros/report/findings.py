@@ -24,11 +24,12 @@ import pandas as pd
 
 from ..config import PlantParams
 from ..kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
-from .paper import h2_empty_days_before_end
+from .paper import H2_EMPTY_TOL, h2_empty_days_before_end
 from .runs import RunData
 
-#: "H2 left" at the end: LOH above LOH_min by more than this fraction of the store [-].
-H2_LEFT_TOL = 0.01
+#: "H2 left" at the end: LOH above LOH_min by more than this fraction of the store [-]
+#: (the same threshold as "empty", ``paper.H2_EMPTY_TOL``).
+H2_LEFT_TOL = H2_EMPTY_TOL
 #: RBC "empties the store early": LOH_min reached at least this many days before the end [d].
 EARLY_EMPTY_DAYS = 7.0
 #: "Full permissible power": mean FC load at least this share of zeta * P_FC,max [-].
@@ -41,6 +42,10 @@ DHW_HALF = 0.5
 DHW_UNMET_TOL_KWH = 0.01
 #: Price quartile used for "low" and "high" prices [-].
 QUARTILE = 0.25
+
+#: The paper's three schedulers; findings compare these only (baselines such as the
+#: thermostat appear in the tables and figures but not in the findings).
+PAPER_EMS = ("mpc", "fuzzy", "rbc")
 
 HELD = "held"
 NOT_HELD = "not held"
@@ -308,10 +313,17 @@ def _fuzzy_bess_like_mpc(ctx: Context) -> Verdict:
 @finding("rbc_empties_early", "issue 3 §4; FACTS table", "RBC reaches LOH_min at least a week before the "
          "end", ("rbc",))
 def _rbc_empties_early(ctx: Context) -> Verdict:
-    days = h2_empty_days_before_end(ctx.runs["rbc"])
+    days = h2_empty_days_before_end(ctx.runs["rbc"], ctx.params.hydrogen.loh_min)
     ok = days is not None and days >= EARLY_EMPTY_DAYS
-    txt = "never reached" if days is None else f"reached {_f(days, 1)} days before the end"
-    return _v(ok, f"rbc: LOH_min {txt}; LOH at the end {_f(100 * ctx.s('rbc', 'loh_end'), 1)} %")
+    return _v(ok, f"rbc: {_empty_text(ctx, 'rbc', days)}")
+
+
+def _empty_text(ctx: Context, ems: str, days: float | None) -> str:
+    tol = _f(100 * H2_EMPTY_TOL, 0)
+    txt = "never" if days is None else f"{_f(days, 1)} days before the end"
+    exact = ctx.runs[ems].summary.get("h2_empty_at")
+    return (f"LOH within {tol} % of LOH_min {txt}; LOH at the end {_f(100 * ctx.s(ems, 'loh_end'), 2)} %; "
+            f"exactly LOH_min reached at {exact or 'never'}")
 
 
 @finding("fuzzy_h2_left", "issue 3 §4; FACTS table", "ComEMS4Build ends with H2 left", ("fuzzy",))
@@ -365,10 +377,9 @@ def _mpc_h2_high_prices(ctx: Context) -> Verdict:
 @finding("mpc_h2_not_emptied_early", "issue 4 §3", "MPC does not empty the H2 store before the last day",
          ("mpc",))
 def _mpc_h2_kept(ctx: Context) -> Verdict:
-    days = h2_empty_days_before_end(ctx.runs["mpc"])
+    days = h2_empty_days_before_end(ctx.runs["mpc"], ctx.params.hydrogen.loh_min)
     ok = days is None or days <= 1.0
-    txt = "never reached" if days is None else f"reached {_f(days, 1)} days before the end"
-    return _v(ok, f"mpc: LOH_min {txt}; LOH at the end {_f(100 * ctx.s('mpc', 'loh_end'), 1)} %")
+    return _v(ok, f"mpc: {_empty_text(ctx, 'mpc', days)}")
 
 
 # ---------------------------------------------------------------- fuel cell
@@ -487,6 +498,17 @@ def _dhw_met(ctx: Context) -> Verdict:
               "unmet DHW energy: " + ", ".join(f"{e} {_f(v)} kWh" for e, v in unmet.items()))
 
 
+def paper_context(ctx: Context) -> Context:
+    """``ctx`` restricted to the paper's EMS (:data:`PAPER_EMS`)."""
+    return Context(
+        runs={e: r for e, r in ctx.runs.items() if e in PAPER_EMS},
+        variants={k: r for k, r in ctx.variants.items() if k[0] in PAPER_EMS},
+        params=ctx.params,
+        base_eta=ctx.base_eta,
+    )
+
+
 def evaluate_findings(ctx: Context) -> list[tuple[Finding, Verdict]]:
-    """Every registered finding with its verdict for ``ctx``."""
-    return [(f, f.evaluate(ctx)) for f in FINDINGS]
+    """Every registered finding with its verdict, over the paper's EMS in ``ctx``."""
+    pctx = paper_context(ctx)
+    return [(f, f.evaluate(pctx)) for f in FINDINGS]

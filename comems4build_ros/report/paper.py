@@ -56,31 +56,39 @@ def fmt(value: float, digits: int = 2) -> str:
     return f"{value:.{digits}f}"
 
 
-def _discomfort_weeks(run: RunData, _: Mapping[str, RunData]) -> str:
+def _discomfort_weeks(run: RunData, _: Mapping[str, RunData], __: float) -> str:
     s = run.summary
     return f"{int(s['discomfort_weeks_nonzero'])} of {int(s['weeks'])}"
 
 
-def _h2_range(run: RunData, _: Mapping[str, RunData]) -> str:
+def _h2_range(run: RunData, _: Mapping[str, RunData], __: float) -> str:
     s = run.summary
     return f"{fmt(s['h2_kwh_week_min'])}..{fmt(s['h2_kwh_week_max'])}"
 
 
-def _loh_end_pct(run: RunData, _: Mapping[str, RunData]) -> str:
+def _loh_end_pct(run: RunData, _: Mapping[str, RunData], __: float) -> str:
     return fmt(PERCENT * float(run.summary["loh_end"]))
 
 
-def h2_empty_days_before_end(run: RunData) -> float | None:
-    """Days between the H2 store reaching LOH_min and the end of the run, or None [d]."""
-    empty = run.summary.get("h2_empty_at")
-    if not empty:
+#: The H2 store counts as empty within this fraction of the store above LOH_min [-]
+#: (a FC at its minimum power needs about 0.4 kWh of H2 per hour; a remainder of 1 % of the
+#: default 1800 kWh store is about a day of minimum operation).
+H2_EMPTY_TOL = 0.01
+
+
+def h2_empty_days_before_end(run: RunData, loh_min: float, tol: float = H2_EMPTY_TOL) -> float | None:
+    """Days between the H2 store first falling to ``LOH_min + tol`` and the end of the run, or None [d]."""
+    loh = run.timeseries["loh"].to_numpy(dtype=float)
+    hit = (loh <= loh_min + tol).nonzero()[0]
+    if hit.size == 0:
         return None
-    end = pd.Timestamp(run.timeseries["time"].iloc[-1]) + pd.Timedelta(hours=1)
-    return float((end - pd.Timestamp(empty)).total_seconds() / 3600.0 / HOURS_PER_DAY)
+    end = pd.Timestamp(run.timeseries["time"].iloc[-1])
+    reached = pd.Timestamp(run.timeseries["time"].iloc[int(hit[0])])
+    return float((end - reached).total_seconds() / 3600.0 / HOURS_PER_DAY)
 
 
-def _h2_empty(run: RunData, _: Mapping[str, RunData]) -> str:
-    days = h2_empty_days_before_end(run)
+def _h2_empty(run: RunData, _: Mapping[str, RunData], loh_min: float) -> str:
+    days = h2_empty_days_before_end(run, loh_min)
     return "never" if days is None else fmt(days, 1)
 
 
@@ -93,16 +101,16 @@ def relative_to_mpc_pct(run: RunData, runs: Mapping[str, RunData], key: str) -> 
     return PERCENT * (float(run.summary[key]) - ref) / ref
 
 
-def _vs_mpc(key: str) -> Callable[[RunData, Mapping[str, RunData]], str]:
-    def measure(run: RunData, runs: Mapping[str, RunData]) -> str:
+def _vs_mpc(key: str) -> Callable[[RunData, Mapping[str, RunData], float], str]:
+    def measure(run: RunData, runs: Mapping[str, RunData], _: float) -> str:
         value = relative_to_mpc_pct(run, runs, key)
         return "n/a (no MPC run)" if value is None else f"{value:+.2f}"
 
     return measure
 
 
-#: Derived measures (name -> function(run, runs by EMS) -> printed value).
-DERIVED: dict[str, Callable[[RunData, Mapping[str, RunData]], str]] = {
+#: Derived measures (name -> function(run, runs by EMS, LOH_min) -> printed value).
+DERIVED: dict[str, Callable[[RunData, Mapping[str, RunData], float], str]] = {
     "discomfort_weeks": _discomfort_weeks,
     "h2_range": _h2_range,
     "loh_end_pct": _loh_end_pct,
@@ -112,21 +120,23 @@ DERIVED: dict[str, Callable[[RunData, Mapping[str, RunData]], str]] = {
 }
 
 
-def measured_value(measure: str, run: RunData, runs: Mapping[str, RunData]) -> str:
+def measured_value(measure: str, run: RunData, runs: Mapping[str, RunData], loh_min: float) -> str:
     """The measured value of ``measure`` for ``run`` as printed in the report."""
     if measure in DERIVED:
-        return DERIVED[measure](run, runs)
+        return DERIVED[measure](run, runs, loh_min)
     if measure not in run.summary:
         raise KeyError(f"{run.path / 'summary.json'}: no key '{measure}' (paper_results.yaml measure)")
     return fmt(float(run.summary[measure]))
 
 
-def paper_table(runs: Mapping[str, RunData], path: str | Path = PAPER_RESULTS_FILE) -> tuple[str, list[PaperRow]]:
+def paper_table(
+    runs: Mapping[str, RunData], loh_min: float, path: str | Path = PAPER_RESULTS_FILE
+) -> tuple[str, list[PaperRow]]:
     """Source label and the paper-vs-measured rows for the EMS in ``runs`` (EMS -> base run)."""
     data = load_paper_results(path)
     rows = []
     for row in data["rows"]:
         paper = {ems: (None if v is None else str(v)) for ems, v in row["paper"].items()}
-        measured = {ems: measured_value(row["measure"], run, runs) for ems, run in runs.items()}
+        measured = {ems: measured_value(row["measure"], run, runs, loh_min) for ems, run in runs.items()}
         rows.append(PaperRow(row["key"], row["label"], row["where"], paper, measured))
     return str(data["source"]).strip(), rows

@@ -45,7 +45,7 @@ class RunTask:
     out_dir: str
     scenario: str = "default"
     start: str | None = None
-    weeks: int | None = None
+    weeks: float | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     config: list[str] = field(default_factory=list)
     via: str = "inprocess"

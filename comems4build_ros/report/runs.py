@@ -104,7 +104,7 @@ class Manifest:
     """What a comparison ran: scenario, weeks, path (ROS or in-process), runs."""
 
     scenario: str
-    weeks: int | None
+    weeks: float | None
     via: str
     base_eta: float
     runs: list[RunSpec]
