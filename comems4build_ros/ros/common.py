@@ -112,9 +112,12 @@ class ContractNode(Node):
     def declared_topics(self) -> tuple[set[str], set[str]]:
         """Contract names of this node's actual publishers and subscriptions (infrastructure excluded)."""
         ns = self.get_namespace()
-        pubs = {relative(ns, p.topic_name) or p.topic_name for p in self.publishers}
-        subs = {relative(ns, s.topic_name) or s.topic_name for s in self.subscriptions}
-        return pubs - INFRASTRUCTURE_TOPICS, subs - INFRASTRUCTURE_TOPICS
+
+        def names(endpoints: Any) -> set[str]:
+            full = {e.topic_name for e in endpoints} - INFRASTRUCTURE_TOPICS
+            return {relative(ns, t) or t for t in full}
+
+        return names(self.publishers), names(self.subscriptions)
 
 
 class ArrayPublisher:
@@ -269,7 +272,7 @@ def action_values(step: int, action: Action) -> list[float]:
     return [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS)]
 
 
-def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> int:
+def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name: str = "node") -> int:
     """Create a node, spin it on a SingleThreadedExecutor and always shut down cleanly.
 
     The node may expose ``finished: rclpy.task.Future``; spinning stops when it
@@ -296,8 +299,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None) -> in
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     except (ConfigError, ContractError, ValueError, FileNotFoundError) as exc:
-        name = node.get_name() if node is not None else "node"
-        print(f"[{name}] error: {exc}", file=sys.stderr, flush=True)
+        label = node.get_name() if node is not None else name
+        print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
     finally:
         executor.shutdown()

@@ -158,7 +158,7 @@ def main(args: list[str] | None = None, ems: str | None = None) -> int:
             print("ems_node: error: give the EMS as '--ems NAME'", file=sys.stderr)
             return 2
         ems = argv[argv.index("--ems") + 1]
-    return run_node(lambda: EMSNode(ems), args)
+    return run_node(lambda: EMSNode(ems), args, f"{ems}_ems")
 
 
 def main_fuzzy(args: list[str] | None = None) -> int:

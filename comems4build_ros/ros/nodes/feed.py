@@ -213,7 +213,7 @@ class Feed(ContractNode):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``feed`` (``ros2 run comems4build_ros feed``)."""
-    return run_node(Feed, args)
+    return run_node(Feed, args, NODE_NAME)
 
 
 if __name__ == "__main__":

@@ -312,7 +312,7 @@ class PlantSim(ContractNode):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``plant_sim`` (``ros2 run comems4build_ros plant_sim``)."""
-    return run_node(PlantSim, args)
+    return run_node(PlantSim, args, NODE_NAME)
 
 
 if __name__ == "__main__":

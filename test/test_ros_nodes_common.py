@@ -1,0 +1,248 @@
+"""In-process tests of the node helpers: contract enforcement, command validation, parameters.
+
+These create rclpy nodes in the test process (no DDS peers needed); the closed-loop and
+fault tests with real processes are in test_ros_nodes.py.
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import stat
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from comems4build_ros.config import ConfigError, load_plant_params  # noqa: E402
+from comems4build_ros.ros.common import (  # noqa: E402
+    ArrayPublisher,
+    CommandError,
+    ContractNode,
+    command_bounds,
+    command_to_action,
+    layout_sizes,
+    plant_params_from_node,
+)
+from comems4build_ros.ros.contract import ContractError, load_contract  # noqa: E402
+from comems4build_ros.types import HP_DHW  # noqa: E402
+
+pytestmark = pytest.mark.ros
+
+REPO = Path(__file__).resolve().parents[1]
+
+
+@pytest.fixture()
+def context(tmp_path, monkeypatch):
+    """A private rclpy context (domain id from the pid, logs in tmp)."""
+    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "log"))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=150 + os.getpid() % 80)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_plant_params()
+
+
+def test_undeclared_publisher_and_subscription_are_refused(context):
+    from std_msgs.msg import Float64MultiArray
+
+    node = ContractNode("fuzzy_ems", context=context)
+    try:
+        node.contract_publisher("ems/command")  # declared
+        with pytest.raises(ContractError, match="'fuzzy_ems' may not publish 'state/soc'"):
+            node.create_publisher(Float64MultiArray, "state/soc", 10)
+        with pytest.raises(ContractError, match="'fuzzy_ems' may not subscribe to 'forecast/p_load_w'"):
+            node.contract_subscription("forecast/p_load_w", lambda msg: None)
+        with pytest.raises(ContractError, match="may not subscribe to 'feed/t_amb'"):
+            node.create_subscription(Float64MultiArray, "feed/t_amb", lambda msg: None, 10)
+        with pytest.raises(ContractError, match="'no/such' is not in the contract"):
+            node.contract_publisher("no/such")
+        pubs, subs = node.declared_topics()
+        assert pubs == {"ems/command"} and subs == set()
+    finally:
+        node.destroy_node()
+
+
+def test_enforcement_under_a_namespace(context):
+    from std_msgs.msg import Float64MultiArray
+
+    node = ContractNode("rbc_ems", context=context, namespace="/building_2")
+    try:
+        node.contract_subscription("state/soc", lambda msg: None)
+        assert node.resolve_topic_name("state/soc") == "/building_2/state/soc"
+        with pytest.raises(ContractError, match="outside its namespace"):
+            node.create_publisher(Float64MultiArray, "/ems/command", 10)
+        with pytest.raises(ContractError, match="'rbc_ems' may not subscribe to 'feed/solar'"):
+            node.contract_subscription("feed/solar", lambda msg: None)
+        assert node.declared_topics() == (set(), {"state/soc"})
+    finally:
+        node.destroy_node()
+
+
+def test_unknown_node_name_is_refused(context):
+    with pytest.raises(ContractError, match="node 'intruder' is not in the contract"):
+        ContractNode("intruder", context=context)
+
+
+def test_array_publisher_packs_in_layout_order(context, params):
+    node = ContractNode("plant_sim", context=context)
+    try:
+        pub = ArrayPublisher(node, "state/t_wall", layout_sizes(params))
+        assert pub.layout.labels == ("step", "t_wall_in_c", "t_wall_out_c")
+        pub.publish_values({"step": 4, "t_wall_in_c": 19.5, "t_wall_out_c": 3.25})
+        assert list(pub._msg.data) == [4.0, 19.5, 3.25]
+    finally:
+        node.destroy_node()
+
+
+def test_layout_sizes_follow_the_in_process_loop(params):
+    from comems4build_ros.sim import BOUNDS_AHEAD, PRICE_WINDOW
+
+    s = layout_sizes(params)
+    assert s == {"horizon": PRICE_WINDOW, "comfort_ahead": BOUNDS_AHEAD + 1}
+    lay = load_contract().topic("feed/comfort_ahead").layout(s)
+    assert lay.length == 1 + 6  # k .. k+5 (sec:information: 5 h ahead)
+
+
+# ---------------------------------------------------------------------- commands
+@pytest.fixture(scope="module")
+def cmd_layout(params):
+    return load_contract().topic("ems/command").layout(layout_sizes(params))
+
+
+def test_valid_command_becomes_an_action(params, cmd_layout):
+    step, action = command_to_action([12.0, 0.6, 2.0, 800.0, -500.0], cmd_layout, command_bounds(params))
+    assert step == 12
+    assert (action.hp_mod, action.hp_mode, action.p_fc_w, action.p_bess_w) == (0.6, HP_DHW, 800.0, -500.0)
+    assert isinstance(action.hp_mode, int)
+
+
+def test_command_bounds_are_device_limits_plus_tolerance(params):
+    b = command_bounds(params)
+    # p_bess: [-1000, 1000] W (config/plant.yaml) widened by 1 % of 1000 W + 1 W = 11 W
+    assert b["p_bess_w"] == pytest.approx((-1011.0, 1011.0))
+    # p_fc: [0, 2441.6] W widened by 24.416 W + 1 W
+    assert b["p_fc_w"] == pytest.approx((-25.416, 2441.6 + 25.416))
+    assert b["hp_mod"] == pytest.approx((-0.01, 1.01))
+
+
+@pytest.mark.parametrize(
+    "data, field, reason",
+    [
+        ([1.0, 0.5, 1.0, 0.0], "(length)", "4 elements"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0], "(length)", "6 elements"),
+        ([1.0, math.nan, 1.0, 0.0, 0.0], "hp_mod", "non-finite"),
+        ([1.0, 0.5, 1.0, math.inf, 0.0], "p_fc_w", "non-finite"),
+        ([1.0, 0.5, 1.0, 0.0, -math.inf], "p_bess_w", "non-finite"),
+        ([math.nan, 0.5, 1.0, 0.0, 0.0], "step", "non-finite"),
+        ([1.5, 0.5, 1.0, 0.0, 0.0], "step", "not a non-negative integer"),
+        ([-1.0, 0.5, 1.0, 0.0, 0.0], "step", "not a non-negative integer"),
+        ([1.0, 0.5, 3.0, 0.0, 0.0], "hp_mode", "is not one of"),
+        ([1.0, 0.5, 1.5, 0.0, 0.0], "hp_mode", "is not one of"),
+        ([1.0, 1.5, 1.0, 0.0, 0.0], "hp_mod", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 5000.0, 0.0], "p_fc_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, -100.0, 0.0], "p_fc_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 0.0, 1e6], "p_bess_w", "outside the accepted range"),
+    ],
+)
+def test_invalid_command_names_the_field(params, cmd_layout, data, field, reason):
+    with pytest.raises(CommandError, match=reason) as err:
+        command_to_action(data, cmd_layout, command_bounds(params))
+    assert err.value.field == field
+    assert f"field '{field}'" in str(err.value)
+
+
+# ---------------------------------------------------------------------- parameters
+def test_plant_params_from_ros_parameters(context, tmp_path):
+    from rclpy.parameter import Parameter
+
+    extra = tmp_path / "bigger_battery.yaml"
+    extra.write_text("/**:\n  ros__parameters:\n    battery:\n      e_max_kwh: 10.0\n")
+    node = ContractNode(
+        "plant_sim",
+        context=context,
+        automatically_declare_parameters_from_overrides=True,
+        parameter_overrides=[
+            Parameter("config_files", value=[str(extra)]),
+            Parameter("dhw.v_max_l", value=350.0),  # as `--params-file` with a dhw section sets it
+            Parameter("overrides", value=["pv.n_modules=20"]),
+        ],
+    )
+    try:
+        p = plant_params_from_node(node)
+        assert p.battery.e_max_kwh == 10.0
+        assert p.dhw.v_max_l == 350.0
+        assert p.pv.n_modules == 20
+        assert p.fuel_cell.p_max_w == load_plant_params().fuel_cell.p_max_w  # untouched default
+    finally:
+        node.destroy_node()
+
+
+def test_invalid_ros_parameter_names_the_parameter(context):
+    from rclpy.parameter import Parameter
+
+    node = ContractNode(
+        "feed",
+        context=context,
+        automatically_declare_parameters_from_overrides=True,
+        parameter_overrides=[Parameter("battery.soc_min", value=0.95)],
+    )
+    try:
+        with pytest.raises(ConfigError, match="battery"):
+            plant_params_from_node(node)
+    finally:
+        node.destroy_node()
+
+
+# ---------------------------------------------------------------------- ros2 run lookup
+EXECUTABLES = ("plant_sim", "feed", "fuzzy_ems", "rbc_ems", "mpc_ems", "recorder", "replay")
+
+
+def test_lib_scripts_are_executable_in_the_source_tree():
+    for name in EXECUTABLES:
+        path = REPO / "lib_scripts" / name
+        assert path.is_file(), path
+        assert path.stat().st_mode & stat.S_IXUSR, f"{path} is not executable"
+        assert path.read_text().startswith("#!/bin/sh\n")
+
+
+def test_ros2_run_lookup_finds_every_executable(monkeypatch):
+    """What `ros2 run comems4build_ros X` does: ament index -> <prefix>/lib/<pkg>/X."""
+    from ament_index_python.packages import PackageNotFoundError, get_package_prefix
+
+    monkeypatch.setenv("AMENT_PREFIX_PATH", sys.prefix)
+    try:
+        prefix = Path(get_package_prefix("comems4build_ros"))
+    except PackageNotFoundError:
+        pytest.skip("package not installed into the venv (run tools/setup.sh --no-run)")
+    for name in EXECUTABLES:
+        exe = prefix / "lib" / "comems4build_ros" / name
+        assert exe.is_file() and os.access(exe, os.X_OK), exe
+
+
+def test_installed_executable_runs_with_the_venv_python(tmp_path):
+    """The shell/Python first line finds <prefix>/bin/python even with a bare PATH."""
+    exe = Path(sys.prefix) / "lib" / "comems4build_ros" / "feed"
+    if not exe.is_file():
+        pytest.skip("package not installed into the venv (run tools/setup.sh --no-run)")
+    env = {
+        "PATH": "/usr/bin:/bin",
+        "HOME": str(tmp_path),
+        "ROS_LOG_DIR": str(tmp_path / "log"),
+        "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
+        "ROS_DOMAIN_ID": str(150 + os.getpid() % 80),
+    }
+    missing = tmp_path / "missing.csv"
+    proc = subprocess.run(
+        [str(exe), "--ros-args", "-p", f"scenario:={missing}"], env=env, capture_output=True, text=True, timeout=120
+    )
+    assert proc.returncode == 2, proc.stderr
+    assert "[feed] error: scenario" in proc.stderr and "missing.csv" in proc.stderr
