@@ -8,7 +8,6 @@ import pytest
 
 from comems4build_ros.cli import main
 from comems4build_ros.commands.compare import parse_etas, run_name
-from comems4build_ros.report.runner import override_file
 
 
 def test_parse_etas() -> None:
@@ -20,15 +19,6 @@ def test_run_names() -> None:
     assert run_name("rbc", 0.75, 0.75) == "rbc"
     assert run_name("rbc", 0.90, 0.75) == "rbc_eta90"
     assert run_name("mpc", 0.75, 0.90) == "mpc_eta75"
-
-
-def test_override_file_is_a_ros_parameter_file(tmp_path: Path) -> None:
-    from comems4build_ros.config import load_plant_params
-
-    path = override_file({"fuel_cell.eta_sys": 0.9, "battery.e_max_kwh": 10.0}, tmp_path / "o.yaml")
-    params = load_plant_params([path])
-    assert params.fuel_cell.eta_sys == 0.9
-    assert params.battery.e_max_kwh == 10.0
 
 
 @pytest.mark.parametrize(
@@ -52,3 +42,25 @@ def test_bad_input_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture, argv: l
 def test_out_required(capsys: pytest.CaptureFixture) -> None:
     assert main(["compare", "--weeks", "1"]) == 2
     assert "--out is required" in capsys.readouterr().err
+
+
+@pytest.mark.ros
+def test_via_ros_equals_inprocess(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """One RBC week through the node set: bag recorded, KPIs read from it equal the in-process run."""
+    import json
+
+    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "roslog"))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    common = ["--ems", "rbc", "--weeks", "1", "--fc-efficiency", "0.75"]
+    assert main(["compare", *common, "--via", "ros", "--out", str(tmp_path / "ros")]) == 0
+    assert main(["compare", *common, "--out", str(tmp_path / "ip")]) == 0
+    run = tmp_path / "ros" / "runs" / "rbc"
+    assert any((run / "bag").glob("*.mcap"))
+    assert (run / "timeseries.csv").stat().st_size > 0
+    ros = json.loads((run / "summary.json").read_text())
+    ip = json.loads((tmp_path / "ip" / "runs" / "rbc" / "summary.json").read_text())
+    for key in ("cost_eur_week_median", "buy_kwh_week_median", "sell_kwh_week_median", "discomfort_kh_week_median",
+                "fc_working_hours", "fc_toggles", "loh_end", "h2_kwh_total"):
+        assert ros[key] == pytest.approx(ip[key], rel=1e-9, abs=1e-9), key
+    assert json.loads((tmp_path / "ros" / "compare.json").read_text())["via"] == "ros"
+    assert "runs ros" in (tmp_path / "ros" / "report.md").read_text()

@@ -182,7 +182,7 @@ def heat_recovery(
     drawn behind; a black tick over each bar group marks that run's weekly DHW demand
     including the tank losses.
     """
-    emss = list(dict.fromkeys(e for e, _ in variants))
+    emss = ordered(list(dict.fromkeys(e for e, _ in variants)))
     etas = sorted({eta for _, eta in variants}, reverse=True)
     base = variants[(emss[0], base_eta)] if (emss[0], base_eta) in variants else next(iter(variants.values()))
     weeks = base.weekly["week"].to_numpy(int)

@@ -9,16 +9,12 @@ spreads tasks over at most ``os.cpu_count()`` worker processes, longest first.
 from __future__ import annotations
 
 import os
-import subprocess
-import sys
 import time
 from collections.abc import Callable, Sequence
 from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
-
-import yaml
 
 #: Relative cost of one step per EMS (orders tasks longest first; unknown EMS count 1).
 EMS_WEIGHT = {"mpc": 50.0, "mpc-qp": 10.0, "fuzzy": 2.0, "rbc": 1.0, "thermostat": 1.0}
@@ -84,66 +80,37 @@ def _run_inprocess(task: RunTask) -> dict[str, Any]:
     return result.summary
 
 
-def override_file(overrides: dict[str, Any], path: Path) -> Path:
-    """Write dotted plant overrides as a ROS 2 parameter file (``/**: ros__parameters``)."""
-    nested: dict[str, Any] = {}
-    for key, value in overrides.items():
-        node = nested
-        parts = key.split(".")
-        for p in parts[:-1]:
-            node = node.setdefault(p, {})
-        node[parts[-1]] = value
-    path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text("# plant overrides of this run (written by comems4build compare)\n"
-                    + yaml.safe_dump({"/**": {"ros__parameters": nested}}, sort_keys=True), encoding="utf-8")
-    return path
-
-
 def _run_ros(task: RunTask) -> dict[str, Any]:
-    """Run through the ROS 2 node set with ``comems4build launch`` and rebuild the timeseries from the bag."""
+    """Run through the ROS 2 node set (:func:`comems4build_ros.ros.launcher.launch`).
+
+    The launcher starts plant_sim, feed, the EMS node and the recorder as separate
+    processes on a free ROS domain, and evaluates the recorded bag into the run
+    directory (``bag/``, ``timeseries.csv``, ``weekly.csv``, ``summary.json``) with the
+    in-process KPI code. ``eta_sys`` is added to the summary as for in-process runs.
+    """
     import json
 
+    from ..ros.launcher import LaunchError, LaunchOptions, launch
+
     out = Path(task.out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    cmd = [sys.executable, "-m", "comems4build_ros.cli", "launch", "--ems", task.ems, "--scenario", task.scenario,
-           "--out", str(out)]
-    if task.weeks is not None:
-        cmd += ["--weeks", str(task.weeks)]
-    if task.start is not None:
-        cmd += ["--start", task.start]
-    for cfg in task.config:
-        cmd += ["--config", cfg]
-    if task.overrides:
-        cmd += ["--config", str(override_file(task.overrides, out / "overrides.yaml"))]
-    proc = subprocess.run(cmd, capture_output=True, text=True)
-    (out / "launch.log").write_text(proc.stdout + proc.stderr, encoding="utf-8")
-    if proc.returncode != 0:
-        tail = (proc.stderr or proc.stdout).strip().splitlines()[-5:]
-        raise RunFailedError(f"{out}: 'comems4build launch --ems {task.ems}' exited with {proc.returncode}: "
-                             + " / ".join(tail))
-    bag = out / "bag"
-    if not bag.exists():
-        raise RunFailedError(f"{out}: the launcher wrote no bag/")
-    _evaluate_bag(bag, out, task)
-    summary = json.loads((out / "summary.json").read_text(encoding="utf-8"))
-    return summary
-
-
-def _evaluate_bag(bag: Path, out: Path, task: RunTask) -> None:
-    """Rebuild timeseries.csv, weekly.csv and summary.json from the bag (the evaluator's code)."""
+    opts = LaunchOptions(ems=task.ems, out=out, scenario=task.scenario, weeks=task.weeks, start=task.start,
+                         config_files=list(task.config), overrides=dict(task.overrides),
+                         ems_options=[f"{k}={v}" for k, v in task.ems_options.items()])
+    try:
+        result = launch(opts)
+    except LaunchError as exc:
+        raise RunFailedError(f"{out}: ROS run of {task.ems} failed: {exc}") from None
+    if len(result.summaries) != 1:
+        raise RunFailedError(f"{out}: expected one building in the bag, got {len(result.summaries)}")
+    summary = dict(next(iter(result.summaries.values())))
     from ..config import load_plant_params
 
-    params = load_plant_params(task.config, task.overrides)
-    try:
-        from ..ros import evaluate as ros_evaluate  # the bag evaluator (ROS issue)
-    except ImportError as exc:
-        raise RunFailedError(f"{bag}: no bag evaluator available ({exc})") from None
-    result = ros_evaluate.evaluate_bag(bag, params)
-    from ..sim import write_run
-
-    result.summary["eta_sys"] = params.fuel_cell.eta_sys
-    result.summary.setdefault("ems", task.ems)
-    write_run(result, out, timeseries=True)
+    summary["eta_sys"] = load_plant_params(task.config, task.overrides).fuel_cell.eta_sys
+    path = out / "summary.json"
+    data = json.loads(path.read_text(encoding="utf-8"))
+    data["eta_sys"] = summary["eta_sys"]
+    path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
+    return summary
 
 
 def run_tasks(
