@@ -135,15 +135,15 @@ class EMSNode(ContractNode):
             self.get_logger().error(f"controller failed at step {step}: {type(exc).__name__}: {exc}")
             self.finished.set_result(EXIT_CONTROLLER_ERROR)
             return
+        info = getattr(self.controller, "step_info", None)
+        if info:  # before the command, so it is out before the plant records the step
+            payload_info = {"step": step, "info": {k: float(v) for k, v in info.items()}}
+            self._info_pub.publish(String(data=json.dumps(payload_info)))
         payload = array("d", [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS)])
         self._cmd.publish(payload)
         self._answered = step
         self._last_cmd = payload
         self.steps += 1
-        info = getattr(self.controller, "step_info", None)
-        if info:
-            payload_info = {"step": step, "info": {k: float(v) for k, v in info.items()}}
-            self._info_pub.publish(String(data=json.dumps(payload_info)))
 
 
 def main(args: list[str] | None = None, ems: str | None = None) -> int:

@@ -176,10 +176,12 @@ class PlantSim(ContractNode):
             self._event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
             return
         self._cmd = action
-        if not self._ever_commanded:
-            self._t_first_cmd = time.monotonic()
+        now = time.monotonic()
+        if self._ever_commanded:  # the first round trip includes the EMS start-up
+            self._rtt.append(now - self._t_step_announced)
+        else:
+            self._t_first_cmd = now
         self._ever_commanded = True
-        self._rtt.append(time.monotonic() - self._t_step_announced)
         self._try_advance()
 
     # ------------------------------------------------------------------ stepping
