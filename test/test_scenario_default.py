@@ -133,3 +133,15 @@ def test_fractional_weeks(params):
         sc.default_scenario(params, weeks=0.3)  # 50.4 h
     w = sc.resolve_scenario("default", params, start="2022-12-05T06:00", weeks=0.5)
     assert w.n_steps == 84 and w.time[0].hour == 6
+
+
+def test_short_default_run_is_the_start_of_the_full_scenario() -> None:
+    """--weeks cuts the default scenario; it does not generate a different one."""
+    params = load_plant_params()
+    full = sc.default_scenario(params, weeks=12)
+    short = sc.default_scenario(params, weeks=1)
+    assert short.n_steps == 168
+    n = len(short.time)
+    assert (short.time == full.time[:n]).all()
+    for name in sc.SERIES:
+        np.testing.assert_array_equal(getattr(short, name), getattr(full, name)[:n])

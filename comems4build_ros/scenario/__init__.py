@@ -156,7 +156,11 @@ def default_scenario(
             stacklevel=2,
         )
     seed = settings.seed if seed is None else int(seed)
-    frame = _generated_frame(params, settings, n_steps, seed)
+    # The generator's series depend on its length (calibration anchors, smoothing), so
+    # always generate at least the configured period and cut: a shorter run is then
+    # exactly the beginning of the full default scenario.
+    n_gen = max(n_steps, steps_of_weeks(settings.weeks, "default scenario"))
+    frame = _generated_frame(params, settings, n_gen, seed).iloc[: n_steps + settings.lookahead_h]
     meta = {"source": "generator", "seed": seed, "settings": "config/scenario.yaml", "weeks": weeks}
     return scenario_from_frame("default", frame, params, n_steps, meta)
 
