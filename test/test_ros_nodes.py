@@ -93,6 +93,8 @@ class Graph:
         self.infos: dict[int, dict[str, float]] = {}
         self.states: dict[int, float] = {}
         self.done = False
+        self.on_state: Callable[[int], None] | None = None  # hook called for each state/t_air_c message
+        self.may_fail: set[str] = set()  # processes a test kills or expects to fail
 
     # -- processes
     def start(self, name: str, argv: list[str]) -> subprocess.Popen:
@@ -159,7 +161,10 @@ class Graph:
             self.done = bool(msg.data)
 
         def on_state(msg: Float64MultiArray) -> None:
-            self.states[int(msg.data[0])] = msg.data[1]
+            step = int(msg.data[0])
+            self.states[step] = msg.data[1]
+            if self.on_state is not None:
+                self.on_state(step)
 
         self.subs = {}
         for topic, typ, cb in (
@@ -189,7 +194,7 @@ class Graph:
                 logs = "\n".join(f"--- {n}\n{self.log(n)[-3000:]}" for n in self.logs)
                 pytest.fail(f"timeout waiting for {what}\n{logs}")
             for name, proc in self.procs.items():
-                if proc.poll() not in (None, 0):
+                if name not in self.may_fail and proc.poll() not in (None, 0):
                     pytest.fail(f"{name} exited with {proc.returncode} while waiting for {what}:\n{self.log(name)}")
             self.executor.spin_once(timeout_sec=0.05)
 
@@ -315,6 +320,180 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
     ts = graph.timeseries()
     assert ts.attrs["counters"] == {"fallback_steps": 0, "rejected_commands": 0, "wrong_step_commands": 0}
     assert_same_run(ts, ref)
-    for name in ("ems", "feed", "plant_sim"):
-        assert graph.stop(name) == 0, graph.log(name)
+    for name, sig in (("ems", signal.SIGINT), ("feed", signal.SIGTERM), ("plant_sim", signal.SIGINT)):
+        assert graph.stop(name, sig) == 0, graph.log(name)  # clean shutdown on Ctrl-C and on SIGTERM
         assert "Traceback" not in graph.log(name), graph.log(name)
+
+
+# ---------------------------------------------------------------------- faults
+def _fallback_rule(t_air_c: float, v_dhw_l: float, t_min_c: float, params) -> tuple[int, float]:
+    """(hp_mode, hp_mod) of the safe fallback, written out by hand from ems/fallback.py's
+    documented rule: DHW at full power if the tank is within 25 % of its usable range above
+    V_min, else SH at full power if the room is within 0.5 K of T_min, else off."""
+    d = params.dhw
+    if v_dhw_l <= d.v_min_l + 0.25 * (d.v_max_l - d.v_min_l):
+        return 2, 1.0
+    if t_air_c <= t_min_c + 0.5:
+        return 1, 1.0
+    return 0, 0.0
+
+
+def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Graph) -> None:
+    killed_at: list[int] = []
+
+    def kill_on_step(step: int) -> None:  # SIGKILL the EMS the moment the plant announces step 12
+        if step == 12 and not killed_at:
+            killed_at.append(step)
+            graph.may_fail.add("ems")
+            os.kill(graph.procs["ems"].pid, signal.SIGKILL)
+
+    graph.collect()
+    graph.on_state = kill_on_step
+    graph.start_ems("thermostat")
+    graph.start_feed()
+    graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=0.4, republish_period_s=0.1)
+    graph.ready()
+
+    def n_fallback() -> int:
+        lay = graph.contract.topic("plant/record").layout(graph.sizes)
+        return sum(1 for r in graph.records.values() if r[lay.index["fallback"]] > 0.5)
+
+    graph.spin_until(lambda: n_fallback() >= 3, 60.0, "3 fallback steps after the EMS was killed")
+    graph.procs["ems"].wait(10)
+    assert graph.procs["ems"].returncode == -signal.SIGKILL
+    graph.start_ems("thermostat")  # restart: the plant must hand control back to it
+    graph.may_fail.discard("ems")
+    graph.spin_until(lambda: graph.done and len(graph.records) == STEPS, RUN_TIMEOUT_S, "the end of the run")
+
+    ts = graph.timeseries()
+    fb = ts["fallback"].to_numpy(dtype=bool)
+    first, last = int(np.argmax(fb)), int(len(fb) - 1 - np.argmax(fb[::-1]))
+    assert first >= 12, "no fallback before the EMS died"
+    assert fb[first : last + 1].all(), "fallback steps are contiguous while the EMS is down"
+    assert last < STEPS - 1 and not fb[last + 1 :].any(), "the restarted EMS took over again"
+    assert ts.attrs["counters"]["fallback_steps"] == int(fb.sum()) >= 3
+    p = graph.params
+    for k in np.flatnonzero(fb):  # the fallback is the documented safe action for the state at the start of k
+        mode, mod = _fallback_rule(ts["t_air_c"][k - 1], ts["v_dhw_l"][k - 1], ts["t_min_c"][k], p)
+        assert (ts["cmd_hp_mode"][k], ts["cmd_hp_mod"][k], ts["cmd_p_fc_w"][k], ts["cmd_p_bess_w"][k]) == (
+            mode, mod, 0.0, 0.0), f"step {k}"
+        # comfort: a room that started the step inside the band stays within 0.3 K of it
+        if ts["t_air_c"][k - 1] >= ts["t_min_c"][k]:
+            assert ts["t_air_c"][k] >= ts["t_min_c"][k] - 0.3, f"step {k}"
+    # storage bounds hold throughout
+    assert ts["soc"].between(p.battery.soc_min - 1e-9, p.battery.soc_max + 1e-9).all()
+    assert ts["loh"].between(p.hydrogen.loh_min - 1e-9, p.hydrogen.loh_max + 1e-9).all()
+    assert ts["v_dhw_l"].between(p.dhw.v_min_l - 1e-9, p.dhw.v_max_l + 1e-9).all()
+    plant_log = graph.log("plant_sim")
+    assert plant_log.count(" fallback no valid command on 'ems/command'") == int(fb.sum())
+    assert f"fallback_steps={int(fb.sum())}" in plant_log
+
+
+def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: Graph) -> None:
+    from std_msgs.msg import Float64MultiArray
+
+    graph.collect()
+    cmd_pub = graph.node.create_publisher(
+        Float64MultiArray, "ems/command", graph.contract.topic("ems/command").qos_profile()
+    )
+    graph.start_feed(steps=3)
+    graph.start_plant(wait_for_recorder=True, step_timeout_s=2.0, startup_timeout_s=2.0)
+    graph.ready()
+    graph.spin_until(lambda: cmd_pub.get_subscription_count() > 0 and 0 in graph.states, 60.0, "step 0")
+
+    def send(*values: float) -> None:
+        cmd_pub.publish(Float64MultiArray(data=list(values)))
+
+    nan, inf = float("nan"), float("inf")
+    send(0.0, 1.0, 1.0, 0.0)  # wrong length
+    send(0.0, nan, 1.0, 0.0, 0.0)  # NaN
+    send(0.0, 1.0, 1.0, inf, 0.0)  # inf
+    send(0.0, 1.0, 1.0, 0.0, 5.0e5)  # battery power far beyond its 1 kW
+    send(0.0, 1.0, 7.0, 0.0, 0.0)  # unknown circuit
+    send(5.0, 1.0, 1.0, 0.0, 0.0)  # valid, but for step 5 while the plant waits for step 0
+    graph.spin_until(lambda: 0 in graph.records, 30.0, "step 0 (after the timeout)")
+    lay = graph.contract.topic("plant/record").layout(graph.sizes)
+    r0 = lay.unpack(graph.records[0])
+    assert r0["fallback"] is True, "invalid commands count as missing: the plant fell back"
+    assert (r0["rejected_commands"], r0["wrong_step_commands"]) == (5, 1)
+
+    graph.spin_until(lambda: 1 in graph.states, 10.0, "step 1")
+    send(1.0, 1.0, 1.0, 0.0, 0.0)  # valid: space heating at full power
+    graph.spin_until(lambda: 2 in graph.states, 10.0, "step 2")
+    send(2.0, 0.0, 0.0, 0.0, 0.0)
+    graph.spin_until(lambda: len(graph.records) == 3, 10.0, "the end of the run")
+    r1, r2 = lay.unpack(graph.records[1]), lay.unpack(graph.records[2])
+    assert r1["fallback"] is False and (r1["cmd_hp_mode"], r1["cmd_hp_mod"]) == (1, 1.0)
+    assert r1["hp_mode"] == 1 and r1["q_hp_sh_w"] > 0
+    assert r2["fallback"] is False and r2["cmd_hp_mode"] == 0
+    assert graph.procs["plant_sim"].wait(30) == 0
+    log = graph.log("plant_sim")
+    for expected in (
+        "rejected topic 'ems/command' field '(length)': 4 elements",
+        "rejected topic 'ems/command' field 'hp_mod': non-finite value nan",
+        "rejected topic 'ems/command' field 'p_fc_w': non-finite value inf",
+        "rejected topic 'ems/command' field 'p_bess_w': 500000.0 outside the accepted range",
+        "rejected topic 'ems/command' field 'hp_mode': 7.0 is not one of",
+        "wrong_step topic 'ems/command': command for step 5 ignored",
+        "rejected_commands=5 wrong_step_commands=1",
+    ):
+        assert expected in log, expected
+
+
+@pytest.fixture(scope="module")
+def scenario_csv(tmp_path_factory) -> Path:
+    """One week (plus look-ahead) of the default scenario written as a scenario CSV."""
+    from comems4build_ros.scenario import resolve_scenario, write_scenario_csv
+
+    path = tmp_path_factory.mktemp("scen") / "week.csv"
+    write_scenario_csv(resolve_scenario("default", load_plant_params(), weeks=1), path)
+    return path
+
+
+def test_feed_refuses_a_scenario_with_nan_or_gap(graph: Graph, scenario_csv: Path) -> None:
+    lines = scenario_csv.read_text().splitlines(keepends=True)
+    header = lines[0].strip().split(",")
+    col = header.index("t_amb_c")
+    nan_row = lines[11].split(",")
+    nan_row[col] = "NaN"
+    with_nan = graph.tmp / "with_nan.csv"
+    with_nan.write_text("".join([*lines[:11], ",".join(nan_row), *lines[12:]]))  # line 12 of the file
+    with_gap = graph.tmp / "with_gap.csv"
+    with_gap.write_text("".join([*lines[:30], *lines[31:]]))  # the hour of line 31 is missing
+
+    graph.may_fail.update({"feed_nan", "feed_gap"})
+    graph.start("feed_nan", ["-m", "comems4build_ros.ros.nodes.feed", *_ros_args({"scenario": str(with_nan)})])
+    graph.start("feed_gap", ["-m", "comems4build_ros.ros.nodes.feed", *_ros_args({"scenario": str(with_gap)})])
+    assert graph.procs["feed_nan"].wait(120) == 2
+    assert graph.procs["feed_gap"].wait(120) == 2
+    nan_log, gap_log = graph.log("feed_nan"), graph.log("feed_gap")
+    assert "[feed] error:" in nan_log and "with_nan.csv" in nan_log and "line 12" in nan_log
+    assert "column 't_amb_c'" in nan_log and "refuses a scenario with missing values" in nan_log
+    assert "[feed] error:" in gap_log and "with_gap.csv" in gap_log and "gap" in gap_log
+    assert "Traceback" not in nan_log + gap_log
+
+
+def test_feed_check_refuses_non_finite_series_and_irregular_steps() -> None:
+    """The feed's own check on a Scenario object (whatever loader produced it)."""
+    from comems4build_ros.ros.nodes.feed import ScenarioInputError, check_scenario
+    from comems4build_ros.scenario import resolve_scenario
+
+    scen = resolve_scenario("default", load_plant_params(), weeks=1)
+    bad = dataclasses.replace(scen, p_load_w=scen.p_load_w.copy())
+    bad.p_load_w[7] = np.nan
+    with pytest.raises(ScenarioInputError, match=r"series 'p_load_w' has 1 non-finite value\(s\), first at "
+                       r"2022-12-01T07:00:00\+01:00 \(row 7\)"):
+        check_scenario(bad, 1.0)
+    keep = np.r_[0:20, 21 : len(scen.time)]
+    gap = dataclasses.replace(
+        scen, time=scen.time[keep], **{k: getattr(scen, k)[keep] for k in _series_names()}
+    )
+    with pytest.raises(ScenarioInputError, match=r"time step 7200 s instead of 3600 s between 2022-12-01T19:00"):
+        check_scenario(gap, 1.0)
+    check_scenario(scen, 1.0)  # the default scenario passes
+
+
+def _series_names() -> tuple[str, ...]:
+    from comems4build_ros.scenario.base import SERIES
+
+    return SERIES

@@ -21,14 +21,18 @@ Parameters: ``scenario`` (``default`` or a CSV path), ``weeks`` (whole weeks, 0 
 default length), ``steps`` (cut the run to its first N steps, 0 = all), ``start`` (ISO
 time, empty = from the beginning), ``seed`` (default scenario only, -1 = the seed of
 ``config/scenario.yaml``), ``forecast_mode`` (empty = ``config/forecast.yaml``), ``lookahead_steps``,
-and the plant parameters (see :func:`comems4build_ros.ros.common.plant_params_from_node`).
-A scenario with a gap or a non-finite value makes the feed refuse to start.
+``allow_gap_fill`` (default false) and the plant parameters (see
+:func:`comems4build_ros.ros.common.plant_params_from_node`). A scenario with a time gap,
+a non-finite value, or missing values the core loader would interpolate makes the feed
+refuse to start (exit code 2, the message names file, line and column); with
+``allow_gap_fill:=true`` the loader's documented interpolation is accepted.
 """
 
 from __future__ import annotations
 
 import dataclasses
 import inspect
+import warnings
 from array import array
 from typing import Any
 
@@ -54,6 +58,8 @@ EMS_TOPICS = (
 )
 #: Default number of steps published ahead of the step the plant waits for.
 LOOKAHEAD_STEPS = 4
+#: Text of the core loader's warning about interpolated missing values.
+GAP_FILL_MARK = "filled by linear interpolation"
 #: Tolerance on the hourly spacing check of the scenario time index [s].
 TIME_STEP_TOL_S = 1e-6
 
@@ -92,7 +98,14 @@ def check_scenario(scenario: Scenario, time_step_h: float) -> None:
 
 
 def load_scenario(
-    spec: str, params: Any, start: str | None, weeks: int | None, seed: int | None, steps: int | None = None
+    spec: str,
+    params: Any,
+    start: str | None,
+    weeks: int | None,
+    seed: int | None,
+    steps: int | None = None,
+    allow_gap_fill: bool = False,
+    notes: list[str] | None = None,
 ) -> Scenario:
     """The run's scenario through the core's loaders (their file checks included).
 
@@ -104,17 +117,38 @@ def load_scenario(
     seed : generator seed of the default scenario (None = the configured seed)
     steps : cut the run to its first ``steps`` steps (the rest stays as look-ahead);
         None = the whole window
+    allow_gap_fill : accept missing values the loader filled by interpolation (its
+        ``ScenarioWarning``); by default they make the feed refuse the scenario
+    notes : receives the text of every other loader warning
+
+    Raises
+    ------
+    ScenarioInputError
+        For filled missing values unless ``allow_gap_fill``.
+    ScenarioError, ValueError
+        From the loaders (file, line and column named) or for an invalid window.
     """
     from ... import scenario as scen
 
-    if seed is None or "seed" in inspect.signature(scen.resolve_scenario).parameters:
-        kwargs: dict[str, Any] = {} if seed is None else {"seed": seed}
-        out = scen.resolve_scenario(spec, params, start=start, weeks=weeks, **kwargs)
-    elif spec == "default" and start is None:
-        settings = scen.load_scenario_settings()
-        out = scen.default_scenario(params, weeks=weeks or settings.weeks, seed=seed, settings=settings)
-    else:
-        raise ValueError(f"parameter 'seed' applies to the default scenario without 'start' (scenario '{spec}')")
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always", scen.ScenarioWarning)
+        if seed is None or "seed" in inspect.signature(scen.resolve_scenario).parameters:
+            kwargs: dict[str, Any] = {} if seed is None else {"seed": seed}
+            out = scen.resolve_scenario(spec, params, start=start, weeks=weeks, **kwargs)
+        elif spec == "default" and start is None:
+            settings = scen.load_scenario_settings()
+            out = scen.default_scenario(params, weeks=weeks or settings.weeks, seed=seed, settings=settings)
+        else:
+            raise ValueError(f"parameter 'seed' applies to the default scenario without 'start' (scenario '{spec}')")
+    for w in caught:
+        text = str(w.message)
+        if issubclass(w.category, scen.ScenarioWarning) and GAP_FILL_MARK in text and not allow_gap_fill:
+            raise ScenarioInputError(
+                f"{text}: the feed refuses a scenario with missing values "
+                "(parameter allow_gap_fill:=true accepts the core loader's documented interpolation)"
+            )
+        if notes is not None:
+            notes.append(text)
     if steps is not None:
         if not 0 < steps <= out.n_steps:
             raise ValueError(f"parameter 'steps': {steps} outside 1..{out.n_steps} of scenario '{out.name}'")
@@ -138,7 +172,11 @@ class Feed(ContractNode):
         mode = str(param(self, "forecast_mode", ""))
         self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
 
-        scenario = load_scenario(spec, params, start, weeks, None if seed < 0 else seed, steps)
+        allow_fill = bool(param(self, "allow_gap_fill", False))
+        notes: list[str] = []
+        scenario = load_scenario(spec, params, start, weeks, None if seed < 0 else seed, steps, allow_fill, notes)
+        for note in notes:
+            self.get_logger().warning(note)
         check_scenario(scenario, params.simulation.time_step_h)
         self.n_steps = scenario.n_steps
         exo = exogenous_series(scenario, params)
