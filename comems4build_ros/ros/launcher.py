@@ -121,6 +121,15 @@ def _set_pdeathsig() -> None:
         pass
 
 
+def _child_setup(nice: int) -> Callable[[], None]:
+    def setup() -> None:
+        _set_pdeathsig()
+        if nice:
+            os.nice(nice)
+
+    return setup
+
+
 def node_command(executable: str, ems: str | None = None) -> list[str]:
     """Command line of a node: the venv's console script if installed, else ``python -m``.
 
@@ -201,9 +210,17 @@ class ProcessGroup:
         log_dir.mkdir(parents=True, exist_ok=True)
 
     def start(
-        self, name: str, role: str, argv: Sequence[str], on_stdout_line: Callable[[str], None] | None = None
+        self,
+        name: str,
+        role: str,
+        argv: Sequence[str],
+        on_stdout_line: Callable[[str], None] | None = None,
+        nice: int = 0,
     ) -> Child:
-        """Start ``argv``; with ``on_stdout_line`` its stdout is read line by line in a thread."""
+        """Start ``argv``; with ``on_stdout_line`` its stdout is read line by line in a thread.
+
+        ``nice`` lowers the child's CPU priority (a node off the critical path of a step).
+        """
         log_path = self.log_dir / f"{name.replace('/', '__')}.log"
         log: IO[bytes] = log_path.open("wb")
         try:
@@ -214,7 +231,7 @@ class ProcessGroup:
                 stdout=subprocess.PIPE if on_stdout_line else log,
                 stderr=log,
                 start_new_session=True,
-                preexec_fn=_set_pdeathsig,  # noqa: PLW1509 (no threads share state with the child)
+                preexec_fn=_child_setup(nice),
             )
         finally:
             log.close()
@@ -454,7 +471,10 @@ def launch(opts: LaunchOptions) -> LaunchResult:
                     "progress_period_s": PROGRESS_PERIOD_S,
                 }
                 recorder = group.start(
-                    "recorder", "recorder", [*node_command("recorder"), *ros_args("", rec_params)], on_progress
+                    "recorder",
+                    "recorder",
+                    [*node_command("recorder"), *ros_args("", rec_params)],
+                    on_progress,
                 )
                 plants = [
                     _start_building(group, opts, ns, seed, common, weeks, steps) for ns, seed in zip(ns_list, seeds)

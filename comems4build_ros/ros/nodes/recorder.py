@@ -46,7 +46,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool
 
-from ..bag import BagWriter, qos_for_bag
+from ..bag import RECORD_TOPIC, TRUTH_TOPIC, BagWriter, decode, qos_for_bag
 from ..common import param, run_node
 from ..contract import Contract, load_contract, resolve
 
@@ -70,6 +70,7 @@ WAIT_ROLES = ("plant", "feed", "ems")
 #: custom_data key of metadata.yaml holding the run information.
 RUN_INFO_KEY = "comems4build.run_info"
 RUN_INFO_FILE = "run_info.json"
+DONE_TOPIC = "plant/done"
 
 
 def default_wait_topics(contract: Contract) -> list[str]:
@@ -128,9 +129,12 @@ class Recorder(Node):
             for spec in self.contract.topics.values():
                 full = resolve(ns, spec.name)
                 self.writer.add_topic(full, spec.type, self._bag_qos(spec.qos))
+                holder: list[Any] = []
                 sub = self.create_subscription(
-                    spec.msg_class(), full, self._callback(ns, spec.name, full), self._record_qos(spec.qos), raw=True
+                    spec.msg_class(), full, self._callback(ns, spec.name, full, holder), self._record_qos(spec.qos),
+                    raw=True,
                 )
+                holder.append(sub)
                 if spec.name in wait:
                     self._subs.append((full, sub))
         self._ready_pubs = []
@@ -171,41 +175,42 @@ class Recorder(Node):
         return qos_for_bag(spec.reliability == "reliable", spec.durability == "transient_local", spec.depth)
 
     # ------------------------------------------------------------------ callbacks
-    def _callback(self, ns: str, name: str, full: str) -> Any:
+    def _callback(self, ns: str, name: str, full: str, holder: list[Any]) -> Any:
+        """Callback of one subscription: write the message, then drain the queue.
+
+        The executor wakes up once per message it hands over; taking every queued
+        message of the topic in one go (``Subscription.handle.take_message``, what the
+        executor itself calls) costs one wake-up per burst instead of one per message.
+        The receive time is the middleware's ``received_timestamp`` [ns since the epoch].
+        """
         write = self.writer.write
-        if name == "plant/record":
+        special = name in (RECORD_TOPIC, TRUTH_TOPIC, DONE_TOPIC)
 
-            def on_record(raw: bytes) -> None:
-                write(full, time.time_ns(), raw)
-                self.records[ns] += 1
-                self._last_record_at = time.monotonic()
-
-            return on_record
-        if name == "feed/truth":
-
-            def on_truth(raw: bytes) -> None:
-                write(full, time.time_ns(), raw)
-                if ns not in self.n_steps:
-                    from ..bag import decode
-
-                    self.n_steps[ns] = int(decode("std_msgs/msg/Float64MultiArray", raw).data[1])
-
-            return on_truth
-        if name == "plant/done":
-
-            def on_done(raw: bytes) -> None:
-                write(full, time.time_ns(), raw)
-                from ..bag import decode
-
-                if decode("std_msgs/msg/Bool", raw).data and ns not in self.done_at:
-                    self.done_at[ns] = time.monotonic()
-
-            return on_done
-
-        def on_msg(raw: bytes) -> None:
-            write(full, time.time_ns(), raw)
+        def on_msg(raw: bytes, info: Any) -> None:
+            while True:
+                t_ns = info.get("received_timestamp") or time.time_ns()
+                write(full, t_ns, raw)
+                if special:
+                    self._special(ns, name, raw)
+                sub = holder[0]
+                with sub.handle:
+                    taken = sub.handle.take_message(sub.msg_type, True)
+                if taken is None:
+                    return
+                raw, info = taken
 
         return on_msg
+
+    def _special(self, ns: str, name: str, raw: bytes) -> None:
+        """Progress and end-of-run bookkeeping from plant/record, feed/truth, plant/done."""
+        if name == RECORD_TOPIC:
+            self.records[ns] += 1
+            self._last_record_at = time.monotonic()
+        elif name == TRUTH_TOPIC:
+            if ns not in self.n_steps:
+                self.n_steps[ns] = int(decode("std_msgs/msg/Float64MultiArray", raw).data[1])
+        elif name == DONE_TOPIC and decode("std_msgs/msg/Bool", raw).data and ns not in self.done_at:
+            self.done_at[ns] = time.monotonic()
 
     # ------------------------------------------------------------------ housekeeping
     def _tick(self) -> None:
