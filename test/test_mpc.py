@@ -76,14 +76,14 @@ def test_loh_min_schedule(params):
     assert np.all(loh_min_schedule(200, 0, 1 / 84, ctrl.const, "day") == 0.0)  # never below the store's min
 
 
-def fc_enumeration(prices, load_w, params, fc_on_prev=False):
+def fc_enumeration(prices, load_w, params, fc_on_prev=False, fc_eta="one"):
     """Cost of every FC on/off pattern for the 3-step case, by hand.
 
     Load above zeta * P_max, no PV and no battery power: an FC that is on runs at
     zeta * P_max (H2 has no price in eq:mpc_objective), the grid buys the rest.
     """
     p_fc = params.fuel_cell.zeta * params.fuel_cell.p_max_w
-    c = lifecycle_costs(params)
+    c = lifecycle_costs(params, fc_eta)
     out = {}
     for pattern in itertools.product((0, 1), repeat=len(prices)):
         cost, prev = 0.0, int(fc_on_prev)
@@ -95,14 +95,15 @@ def fc_enumeration(prices, load_w, params, fc_on_prev=False):
     return out
 
 
+@pytest.mark.parametrize("fc_eta", ["one", "eta_el_mpc"])
 @pytest.mark.parametrize("formulation", ["tight", "paper"])
-@pytest.mark.parametrize("prices", [(0.2, 0.6, 0.2), (0.6, 0.6, 0.2), (0.2, 0.2, 0.2), (0.6, 0.2, 0.6)])
-def test_three_step_optimum_matches_enumeration(params3, prices, formulation):
+@pytest.mark.parametrize("prices", [(0.2, 0.6, 0.2), (0.6, 0.6, 0.2), (0.15, 0.15, 0.15), (0.6, 0.1, 0.6)])
+def test_three_step_optimum_matches_enumeration(params3, prices, formulation, fc_eta):
     load = 2500.0
     ctrl = MPCController(params3, {"mip_rel_gap": 0.0, "warm_start": False, "formulation": formulation,
-                                   "integer_steps": 3})
+                                   "integer_steps": 3, "fc_lifecycle_eta": fc_eta})
     action = ctrl.act(mpc_obs(3, prices=prices, load_w=load))
-    costs = fc_enumeration(prices, load, params3)
+    costs = fc_enumeration(prices, load, params3, fc_eta=fc_eta)
     best = min(costs, key=costs.get)
     res = ctrl.last_result
     assert res.optimal
@@ -116,7 +117,7 @@ def test_three_step_optimum_matches_enumeration(params3, prices, formulation):
 
 def test_three_step_running_fc_is_kept_on(params3):
     """With the FC on before the horizon, stopping costs sigma_off (eq:on_off_logic)."""
-    prices, load = (0.38, 0.38, 0.2), 2500.0
+    prices, load = (0.2, 0.2, 0.1), 2500.0
     ctrl = MPCController(params3, {"mip_rel_gap": 0.0, "warm_start": False})
     ctrl.act(mpc_obs(3, prices=prices, load_w=load, fc_on_prev=True))
     costs = fc_enumeration(prices, load, params3, fc_on_prev=True)

@@ -25,7 +25,7 @@ class _Options(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
     loh_min_mode: Literal["day", "step"] = "day"
-    fc_lifecycle_eta: Literal["eta_el_mpc", "eta_sys", "one"] = "eta_el_mpc"
+    fc_lifecycle_eta: Literal["eta_el_mpc", "eta_sys", "one"] = "one"
     penalty_comfort_eur_per_kh: float = Field(default=100.0, gt=0)
     penalty_dhw_eur_per_lh: float = Field(default=1.0, gt=0)
     penalty_soc_eur_per_h: float = Field(default=1000.0, gt=0)
