@@ -551,3 +551,27 @@ def _json_default(value: Any) -> Any:
         value = value.item()
         return None if isinstance(value, float) and not math.isfinite(value) else value
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def lost_messages(path: str | Path) -> dict[str, int]:
+    """Per array topic, steps of the run (``plant/record`` of its namespace) with no message.
+
+    A complete recording gives ``{}``; used by the tests and ``bench ros`` to show that
+    the recorder kept up.
+    """
+    from collections import defaultdict
+
+    steps: dict[str, set[int]] = defaultdict(set)
+    for topic, msgtype, _t, raw in iter_messages(path):
+        if msgtype.endswith("Float64MultiArray"):
+            steps[topic].add(int(decode(msgtype, raw).data[0]))
+    out: dict[str, int] = {}
+    for topic, got in steps.items():
+        ns = topic.rsplit("/", 2)[0] if topic.count("/") > 2 else "/"
+        ref = steps.get(resolve_ns(ns, RECORD_TOPIC))
+        if ref is None:
+            continue
+        missing = len(set(range(max(ref) + 1)) - got)
+        if missing:
+            out[topic] = missing
+    return out

@@ -9,8 +9,10 @@ process and evaluates the bag with the in-process KPI code
 Isolation: the children get the parent's full environment (the ROS wheels' bootstrap
 needs its ``LD_LIBRARY_PATH``; TOOLCHAIN facts) plus ``ROS_DOMAIN_ID`` (a free id, see
 :func:`acquire_domain_id`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, ``ROS_LOG_DIR``
-under the output directory and ``PYTHONPATH`` starting with the directory this package
-was imported from (the nodes run the same code as the launcher).
+under the output directory, ``PYTHONPATH`` starting with the directory this package
+was imported from (the nodes run the same code as the launcher) and, unless set,
+``FASTDDS_DEFAULT_PROFILES_FILE`` = ``launch_scripts/fastdds_profile.xml`` (deep
+shared-memory port queues: without it a briefly descheduled recorder loses messages).
 
 Process hygiene: every child runs in its own session (a terminal Ctrl-C reaches only the
 launcher, which then stops the children in order) and gets ``PR_SET_PDEATHSIG`` =
@@ -67,6 +69,8 @@ RECORDER_GRACE_S = 20.0
 POLL_S = 0.05
 #: Recorder progress line period [s].
 PROGRESS_PERIOD_S = 0.25
+#: Fast DDS profile given to every node unless the user sets one (see the file's comment).
+FASTDDS_PROFILE = "fastdds_profile.xml"
 #: prctl option number of PR_SET_PDEATHSIG (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
 
@@ -313,7 +317,20 @@ def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = N
     parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
     env["PYTHONPATH"] = os.pathsep.join([root, *parts])
     env["PYTHONUNBUFFERED"] = "1"
+    if not env.get("FASTDDS_DEFAULT_PROFILES_FILE") and not env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):
+        profile = fastdds_profile()
+        if profile is not None:
+            env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
     return env
+
+
+def fastdds_profile() -> Path | None:
+    """``fastdds_profile.xml`` (deep shared-memory port queues): source tree, then installed share."""
+    src = Path(__file__).resolve().parents[2] / "launch_scripts" / FASTDDS_PROFILE
+    if src.is_file():
+        return src
+    installed = Path(sys.prefix) / "share" / "comems4build_ros" / "launch" / FASTDDS_PROFILE
+    return installed if installed.is_file() else None
 
 
 # ---------------------------------------------------------------------- the launch

@@ -1,0 +1,220 @@
+"""``replay``: publishes the messages of a recorded bag again.
+
+Usage: ``replay BAG [--rate R] [--inputs-only] [--source-namespace NS] [--ros-args ...]``
+(or the parameters ``bag_path``, ``rate``, ``inputs_only``, ``source_namespace``,
+``lookahead_steps``). The bag may be complete or cut short by a SIGKILL of the recorder.
+
+Which messages: those recorded under ``source_namespace`` (default: the node's own
+namespace, or the only namespace of the bag), published under the same contract names
+in the node's namespace, as recorded (the CDR bytes are published unchanged). The
+recorder's own ``recorder/ready`` is never replayed.
+
+Pacing, full replay (default): the recorded receive times are replayed scaled by
+``1 / rate``: ``rate = 1`` is real time, ``rate = 10`` ten times faster, ``rate <= 0`` as
+fast as possible (at most :data:`BURST` messages per 1 ms timer tick, so that the
+executor and the transport keep up; a subscriber slower than that with a shallow queue
+can still lose messages, the recorder cannot: its queues are deep). The replay
+starts once every replayed topic has a subscriber (at most ``wait_for_subscribers_s``,
+default 5 s, then it starts anyway and names the topics nobody listens to).
+
+Pacing, ``--inputs-only``: only the feed's topics (``feed/*``, ``forecast/*``) are
+replayed, so that a plant and another EMS can run against the recorded inputs. Time is
+then given by the new closed loop, not by the recording: the node behaves like the feed
+and publishes the recorded inputs of steps ``k .. k + lookahead_steps`` when the plant
+announces step ``k`` on ``plant/step`` (a repeated announcement makes it publish them
+again); ``rate`` does not apply. It exits once the plant has announced the last step.
+The recorded messages are grouped by their element 0 (``step``), the first message per
+topic and step is used.
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from typing import Any
+
+from rclpy.duration import Duration
+from rclpy.task import Future
+
+from ..bag import decode, iter_messages
+from ..common import ContractNode, param, run_node
+
+NODE_NAME = "replay"
+#: Messages published at most per timer tick.
+BURST = 64
+#: Wait for the acknowledgement of the last messages before exiting [s].
+ACK_TIMEOUT_S = 5.0
+#: Timer period of the full replay [s].
+TICK_S = 0.001
+#: Default steps published ahead of the plant in --inputs-only mode (as the feed).
+LOOKAHEAD_STEPS = 4
+#: Default wait for a subscriber on every replayed topic before the full replay starts [s].
+WAIT_FOR_SUBSCRIBERS_S = 5.0
+#: Wait after every topic has a subscriber, for the subscribers' side of discovery [s].
+SETTLE_S = 0.3
+#: Contract node whose topics --inputs-only replays.
+INPUT_ROLE = "feed"
+#: Topics never replayed.
+SKIP_TOPICS = frozenset({"recorder/ready"})
+
+
+def _split(topic: str, names: set[str]) -> tuple[str, str] | None:
+    """``/building_1/feed/truth`` -> (``/building_1``, ``feed/truth``) for a known contract name."""
+    for name in names:
+        if topic == f"/{name}":
+            return "/", name
+        if topic.endswith(f"/{name}"):
+            return topic[: -len(name) - 1], name
+    return None
+
+
+class Replay(ContractNode):
+    """Bag replay node (see the module docstring)."""
+
+    def __init__(self, cli: argparse.Namespace) -> None:
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
+        bag = cli.bag or str(param(self, "bag_path", ""))
+        if not bag:
+            raise ValueError(f"node '{NODE_NAME}': give the bag (argument BAG or parameter 'bag_path')")
+        self.rate = float(cli.rate if cli.rate is not None else param(self, "rate", 1.0))
+        self.inputs_only = bool(cli.inputs_only or param(self, "inputs_only", False))
+        self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
+        wanted_ns = cli.source_namespace or str(param(self, "source_namespace", ""))
+        self.wait_s = float(param(self, "wait_for_subscribers_s", WAIT_FOR_SUBSCRIBERS_S))
+        self.settle_s = float(param(self, "settle_s", SETTLE_S))
+        self._t_created = time.monotonic()
+        self._matched_at: float | None = None
+
+        contract = self.contract
+        names = set(contract.topics) - SKIP_TOPICS
+        if self.inputs_only:
+            names = {t.name for t in contract.published_by(INPUT_ROLE)}
+        by_ns: dict[str, list[tuple[str, int, bytes]]] = {}
+        for topic, _msgtype, t_ns, raw in iter_messages(bag):
+            hit = _split(topic, names)
+            if hit is not None:
+                by_ns.setdefault(hit[0], []).append((hit[1], t_ns, bytes(raw)))
+        if not by_ns:
+            raise ValueError(f"bag {bag}: no message on the topics to replay ({', '.join(sorted(names))})")
+        if wanted_ns:
+            ns = "/" + wanted_ns.strip("/") if wanted_ns.strip("/") else "/"
+        elif len(by_ns) == 1:
+            ns = next(iter(by_ns))
+        else:
+            ns = self.get_namespace()
+        if ns not in by_ns:
+            raise ValueError(
+                f"bag {bag}: no recorded namespace '{ns}' (recorded: {', '.join(sorted(by_ns))}); "
+                "set 'source_namespace'"
+            )
+        messages = sorted(by_ns[ns], key=lambda m: m[1])
+        self._pubs = {name: self.contract_publisher(name) for name in sorted({m[0] for m in messages})}
+        self.published = 0
+        self.finished = Future()
+        if self.inputs_only:
+            self._steps: dict[int, list[tuple[str, bytes]]] = {}
+            seen: set[tuple[str, int]] = set()
+            for name, _t, raw in messages:
+                step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
+                if (name, step) not in seen:
+                    seen.add((name, step))
+                    self._steps.setdefault(step, []).append((name, raw))
+            self.last_step = max(self._steps)
+            self._next = 0
+            self._last_request = -1
+            self.contract_subscription("plant/step", self._on_plant_step)
+            self.get_logger().info(
+                f"inputs-only replay of {bag} ({ns}): steps 0..{self.last_step}, paced by plant/step, "
+                f"{self.lookahead} steps ahead"
+            )
+        else:
+            self._messages = messages
+            self._i = 0
+            self._t_first = messages[0][1]
+            self._t0: float | None = None
+            self.create_timer(TICK_S, self._tick)
+            pace = "as fast as possible" if self.rate <= 0 else f"at {self.rate:g}x the recorded pace"
+            self.get_logger().info(f"replaying {len(messages)} messages of {bag} ({ns}) {pace}")
+
+    # ------------------------------------------------------------------ full replay
+    def _tick(self) -> None:
+        if self._i >= len(self._messages) or self.finished.done():
+            return
+        now = time.monotonic()
+        if self._t0 is None:
+            if not self._subscribers_ready(now):
+                return
+            self._t0 = now
+        n = 0
+        while self._i < len(self._messages):
+            name, t_ns, raw = self._messages[self._i]
+            if self.rate > 0 and self._t0 + (t_ns - self._t_first) / 1e9 / self.rate > now:
+                break
+            self._pubs[name].publish(raw)
+            self._i += 1
+            self.published += 1
+            n += 1
+            if n >= BURST:
+                break
+        if self._i >= len(self._messages):
+            self._wait_acks()
+            self.get_logger().info(f"replay done: {self.published} messages")
+            self.finished.set_result(0)
+
+    def _subscribers_ready(self, now: float) -> bool:
+        """Every topic has a subscriber (plus ``settle_s``), or ``wait_for_subscribers_s`` passed."""
+        if now - self._t_created > self.wait_s:
+            missing = [n for n, p in self._pubs.items() if p.get_subscription_count() == 0]
+            if missing:
+                self.get_logger().warning(f"no subscriber after {self.wait_s} s on: {', '.join(missing)}")
+            return True
+        if any(p.get_subscription_count() == 0 for p in self._pubs.values()):
+            self._matched_at = None
+            return False
+        if self._matched_at is None:
+            self._matched_at = now
+        return now - self._matched_at >= self.settle_s
+
+    def _wait_acks(self) -> None:
+        for pub in self._pubs.values():
+            pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * 1e9)))
+
+    # ------------------------------------------------------------------ inputs only
+    def _on_plant_step(self, msg: Any) -> None:
+        k = int(msg.data)
+        last = min(k + self.lookahead, self.last_step)
+        first = k if k <= self._last_request else max(self._next, k)
+        for j in range(first, last + 1):
+            for name, raw in self._steps.get(j, ()):
+                self._pubs[name].publish(raw)
+                self.published += 1
+        self._next = max(self._next, last + 1)
+        self._last_request = max(self._last_request, k)
+        if k >= self.last_step and not self.finished.done():
+            self._wait_acks()
+            self.get_logger().info(f"inputs-only replay done: plant at step {k}, {self.published} messages")
+            self.finished.set_result(0)
+
+
+def parse_cli(argv: list[str]) -> argparse.Namespace:
+    """The non-ROS arguments of ``replay``."""
+    parser = argparse.ArgumentParser(prog="replay", description=__doc__.splitlines()[0])
+    parser.add_argument("bag", nargs="?", default=None, help="rosbag2 directory or .mcap file")
+    parser.add_argument("--rate", type=float, default=None, help="1 = real time, 10 = 10x, 0 = as fast as possible")
+    parser.add_argument("--inputs-only", action="store_true", help="replay only the feed topics, paced by the plant")
+    parser.add_argument("--source-namespace", default=None, help="namespace of the bag to replay (multi-building)")
+    return parser.parse_args(argv)
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``replay`` (``ros2 run comems4build_ros replay BAG --rate 0``)."""
+    from rclpy.utilities import remove_ros_args
+
+    argv = list(sys.argv if args is None else args)
+    cli = parse_cli(remove_ros_args(argv)[1:])
+    return run_node(lambda: Replay(cli), argv)
+
+
+if __name__ == "__main__":
+    sys.exit(main())
