@@ -287,6 +287,44 @@ class ProcessGroup:
 
     def __exit__(self, *exc: object) -> None:
         self.stop_all()
+        marker = self.env.get("ROS_LOG_DIR")
+        if marker:  # anything a node started itself and left behind
+            sweep("ROS_LOG_DIR", marker)
+
+
+def processes_with_env(name: str, value: str) -> list[int]:
+    """Ids of this user's processes whose environment has ``name=value`` (Linux ``/proc``).
+
+    Every node of a launch carries the launch's own ``ROS_LOG_DIR``, so this finds all
+    processes of one launch, including any a node may have started itself.
+    """
+    needle = f"{name}={value}".encode()
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit() or int(d.name) == os.getpid():
+            continue
+        try:
+            env = (d / "environ").read_bytes()
+        except OSError:
+            continue
+        if needle in env.split(b"\0"):
+            out.append(int(d.name))
+    return out
+
+
+def sweep(name: str, value: str, grace_s: float = GRACE_S) -> list[int]:
+    """SIGTERM, then SIGKILL, every process left with ``name=value`` in its environment."""
+    left = processes_with_env(name, value)
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for pid in left:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.kill(pid, sig)
+        deadline = time.monotonic() + grace_s
+        while time.monotonic() < deadline and processes_with_env(name, value):
+            time.sleep(0.05)
+        if not processes_with_env(name, value):
+            break
+    return left
 
 
 @contextlib.contextmanager

@@ -1,0 +1,223 @@
+"""Bag writer/reader and the recorder node (real rclpy processes for the ``ros`` tests)."""
+
+from __future__ import annotations
+
+import signal
+import subprocess
+import sys
+import textwrap
+import time
+from pathlib import Path
+
+import pytest
+import yaml
+from mcap.exceptions import EndOfFile
+from mcap.reader import NonSeekingReader, make_reader
+from mcap.records import Message
+from mcap.stream_reader import StreamReader
+from mcap_ros2.decoder import DecoderFactory
+from rosbags.highlevel import AnyReader
+
+from comems4build_ros.ros.bag import BagInfo, BagWriter, decode, iter_messages, typestore
+from comems4build_ros.ros.launcher import ProcessGroup, acquire_domain_id, child_env, node_command, ros_args
+
+ARRAY = "std_msgs/msg/Float64MultiArray"
+
+
+def _array(values: list[float]) -> bytes:
+    ts = typestore()
+    cls = ts.types[ARRAY]
+    layout = ts.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
+    import numpy as np
+
+    return bytes(ts.serialize_cdr(cls(layout=layout, data=np.array(values, dtype=float)), ARRAY))
+
+
+def test_bag_writer_round_trip_rosbags_and_mcap(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    with BagWriter(bag) as w:
+        w.add_topic("/state/soc", ARRAY)
+        w.add_topic("/plant/step", "std_msgs/msg/UInt32")
+        w.set_custom_data("comems4build.run_info", '{"ems":"fuzzy"}')
+        for k in range(3):
+            w.write("/state/soc", 1_000 + k, _array([k, 0.5 + 0.1 * k]))
+        w.write("/plant/step", 2_000, bytes(typestore().serialize_cdr(typestore().types["std_msgs/msg/UInt32"](7),
+                                                                       "std_msgs/msg/UInt32")))
+    meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
+    assert meta["version"] == 8
+    assert meta["storage_identifier"] == "mcap"
+    assert meta["message_count"] == 4
+    assert meta["custom_data"] == {"comems4build.run_info": '{"ems":"fuzzy"}'}
+    # rosbags
+    with AnyReader([bag]) as reader:
+        got = [(c.topic, t, reader.deserialize(raw, c.msgtype)) for c, t, raw in reader.messages()]
+    assert [g[1] for g in got] == [1000, 1001, 1002, 2000]
+    assert list(got[2][2].data) == [2.0, 0.7]
+    assert got[3][2].data == 7
+    # mcap with the ROS 2 decoder
+    with (bag / "bag.mcap").open("rb") as fh:
+        reader = make_reader(fh, decoder_factories=[DecoderFactory()])
+        assert reader.get_summary().statistics.message_count == 4
+        decoded = [(ch.topic, list(m.data) if ch.topic == "/state/soc" else m.data)
+                   for _, ch, _, m in reader.iter_decoded_messages()]
+    assert decoded == [("/state/soc", [0.0, 0.5]), ("/state/soc", [1.0, 0.6]), ("/state/soc", [2.0, 0.7]),
+                       ("/plant/step", 7)]
+
+
+def test_bag_writer_refuses_existing_directory(tmp_path: Path) -> None:
+    (tmp_path / "bag").mkdir()
+    with pytest.raises(FileExistsError, match="bag"):
+        BagWriter(tmp_path / "bag")
+
+
+WRITER_SCRIPT = textwrap.dedent(
+    """
+    import sys, time
+    import numpy as np
+    from comems4build_ros.ros.bag import BagWriter, typestore
+    ts = typestore()
+    cls, lay = ts.types["std_msgs/msg/Float64MultiArray"], ts.types["std_msgs/msg/MultiArrayLayout"]
+    w = BagWriter(sys.argv[1], chunk_period_s=0.1)
+    w.add_topic("/state/soc", "std_msgs/msg/Float64MultiArray")
+    for k in range(40):
+        raw = ts.serialize_cdr(cls(layout=lay(dim=[], data_offset=0), data=np.array([k, k / 100.0])),
+                               "std_msgs/msg/Float64MultiArray")
+        w.write("/state/soc", 1000 + k, raw)
+    time.sleep(0.3)
+    w.tick()  # the 40 messages are now a closed chunk on disk
+    for k in range(40, 45):
+        raw = ts.serialize_cdr(cls(layout=lay(dim=[], data_offset=0), data=np.array([k, k / 100.0])),
+                               "std_msgs/msg/Float64MultiArray")
+        w.write("/state/soc", 1000 + k, raw)  # pending chunk, lost with the process
+    print("written", flush=True)
+    time.sleep(60)
+    """
+)
+
+
+def test_sigkilled_writer_leaves_readable_mcap(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    proc = subprocess.Popen([sys.executable, "-c", WRITER_SCRIPT, str(bag)], stdout=subprocess.PIPE, text=True)
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().strip() == "written"
+    finally:
+        proc.send_signal(signal.SIGKILL)
+        proc.wait(timeout=10)
+    assert not (bag / "metadata.yaml").exists()
+    # the mcap library reads the file sequentially up to the cut
+    msgs = []
+    with (bag / "bag.mcap").open("rb") as fh:
+        records = StreamReader(fh).records
+        with pytest.raises(EndOfFile):
+            for rec in records:
+                if isinstance(rec, Message):
+                    msgs.append(rec)
+    assert len(msgs) == 40
+    # and so does the project's reader, which flags the bag as cut short
+    info = BagInfo(bag, [], False)
+    values = [list(decode(t, raw).data) for _, t, _, raw in iter_messages(bag, info=info)]
+    assert values[0] == [0.0, 0.0] and values[-1] == [39.0, 0.39]
+    assert not info.complete and info.truncated and info.message_count == 40
+
+
+# ---------------------------------------------------------------------- recorder node
+PUBLISHER_SCRIPT = textwrap.dedent(
+    """
+    import sys, time
+    import rclpy
+    from rclpy.duration import Duration
+    from std_msgs.msg import Float64MultiArray
+    from comems4build_ros.ros.contract import load_contract
+    n, pause = int(sys.argv[1]), float(sys.argv[2])
+    rclpy.init()
+    node = rclpy.create_node("test_publisher")
+    spec = load_contract().topic("state/soc")
+    pub = node.create_publisher(Float64MultiArray, "/state/soc", spec.qos_profile())
+    t0 = time.monotonic()
+    while pub.get_subscription_count() == 0 and time.monotonic() - t0 < 30:
+        time.sleep(0.05)
+    time.sleep(0.5)
+    for k in range(n):
+        pub.publish(Float64MultiArray(data=[float(k), k / 10.0]))
+    pub.wait_for_all_acked(Duration(seconds=5))
+    print("published", flush=True)
+    time.sleep(pause)
+    node.destroy_node()
+    rclpy.shutdown()
+    """
+)
+
+
+def _start_recorder(group: ProcessGroup, bag: Path, **params: object) -> subprocess.Popen:
+    p = {"bag_path": str(bag), "wait_for_topics": ["state/soc"], "stop_when_done": False, **params}
+    return group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", p)]).proc
+
+
+def _publish(group: ProcessGroup, n: int, pause: float = 0.0) -> subprocess.Popen:
+    proc = group.start("publisher", "test", [sys.executable, "-c", PUBLISHER_SCRIPT, str(n), str(pause)],
+                       on_stdout_line=lambda line: None).proc
+    return proc
+
+
+def _wait_log(path: Path, text: str, timeout_s: float = 60.0) -> None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        if path.exists() and text in path.read_text(errors="replace"):
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"'{text}' not in {path} after {timeout_s} s")
+
+
+@pytest.mark.ros
+@pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGTERM])
+def test_recorder_records_and_closes_on_signal(tmp_path: Path, sig: signal.Signals) -> None:
+    bag = tmp_path / "bag"
+    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
+        rec = _start_recorder(group, bag)
+        pub = _publish(group, 25)
+        assert pub.wait(timeout=60) == 0
+        time.sleep(0.3)
+        rec.send_signal(sig)
+        assert rec.wait(timeout=20) == 0
+    assert (bag / "metadata.yaml").is_file()
+    with AnyReader([bag]) as reader:
+        conns = [c for c in reader.connections if c.topic == "/state/soc"]
+        data = [list(reader.deserialize(raw, c.msgtype).data) for c, _, raw in reader.messages(connections=conns)]
+        topics = {c.topic for c in reader.connections}
+    assert data == [[float(k), k / 10.0] for k in range(25)]
+    assert {"/state/soc", "/plant/record", "/ems/command", "/feed/truth", "/clock"} <= topics  # every topic
+
+
+@pytest.mark.ros
+def test_recorder_sigkill_keeps_closed_chunks(tmp_path: Path) -> None:
+    bag = tmp_path / "bag"
+    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
+        rec = _start_recorder(group, bag, chunk_period_s=0.2)
+        pub = _publish(group, 30, pause=30.0)
+        t0 = time.monotonic()
+        while not list(iter_messages_safe(bag)) and time.monotonic() - t0 < 60:
+            time.sleep(0.1)
+        time.sleep(1.0)  # > chunk_period_s: the 30 messages are in a closed chunk
+        rec.send_signal(signal.SIGKILL)
+        rec.wait(timeout=10)
+        pub.send_signal(signal.SIGINT)
+    assert not (bag / "metadata.yaml").exists()
+    expected = [[float(k), k / 10.0] for k in range(30)]
+    decoded = []
+    with (bag / "bag.mcap").open("rb") as fh:  # the mcap library with the ROS 2 decoder, sequentially
+        reader = NonSeekingReader(fh, decoder_factories=[DecoderFactory()])
+        with pytest.raises(EndOfFile):
+            for _, ch, _, m in reader.iter_decoded_messages(log_time_order=False):
+                if ch.topic == "/state/soc":
+                    decoded.append(list(m.data))
+    assert decoded == expected
+    data = [list(decode(t, raw).data) for topic, t, _, raw in iter_messages(bag) if topic == "/state/soc"]
+    assert data == expected
+
+
+def iter_messages_safe(bag: Path) -> list:
+    """Messages of the /state/soc topic on disk so far (empty while the file has none)."""
+    try:
+        return [m for m in iter_messages(bag) if m[0] == "/state/soc"]
+    except (FileNotFoundError, ValueError):
+        return []
