@@ -1,0 +1,179 @@
+"""``comems4build launch`` / ``evaluate``: closed loop over DDS equals in-process; faults leave no process."""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import pytest
+from mcap.reader import make_reader
+from rosbags.highlevel import AnyReader
+
+from comems4build_ros.config import load_plant_params
+from comems4build_ros.ros.bag import lost_messages
+from comems4build_ros.ros.launcher import LaunchOptions, launch, processes_with_env
+from comems4build_ros.sim import simulate
+
+pytestmark = pytest.mark.ros
+TIMING_KEYS = ("wall_s", "ems_s")
+#: ``comems4build`` of this tree (``-m comems4build_ros.cli`` would define a second UsageError class).
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+
+
+def _reference(ems: str, steps: int, seed: int | None = None) -> dict:
+    """In-process summary over the same scenario window as the feed builds it."""
+    from comems4build_ros.ros.nodes.feed import load_scenario
+
+    params = load_plant_params()
+    scenario = load_scenario("default", params, None, 1, seed, steps)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return simulate(ems, scenario, params).summary
+
+
+def _same(a: dict, b: dict) -> None:
+    keys = set(a) - set(TIMING_KEYS)
+    assert keys == set(b) - set(TIMING_KEYS)
+    for k in sorted(keys):
+        va, vb = a[k], b[k]
+        if isinstance(va, float) and isinstance(vb, float) and math.isnan(va):
+            assert math.isnan(vb), k
+        else:
+            assert va == vb, k
+
+
+def test_launch_fuzzy_equals_in_process_and_bag_opens(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=36, timeout_s=150))
+    summary = json.loads((out / "summary.json").read_text())
+    _same(summary, _reference("fuzzy", 36))
+    assert summary["steps"] == 36 and summary["ems"] == "fuzzy" and summary["ems_s"] is None
+    assert (out / "weekly.csv").read_text().count("\n") == 2  # header + one (partial) week
+    with AnyReader([res.bag]) as reader:
+        assert sum(1 for c in reader.connections if c.topic == "/plant/record") == 1
+        n_records = sum(1 for _ in reader.messages([c for c in reader.connections if c.topic == "/plant/record"]))
+    assert n_records == 36
+    with (res.bag / "bag.mcap").open("rb") as fh:
+        stats = make_reader(fh).get_summary().statistics
+    assert stats.message_count > 36 * 20
+    assert lost_messages(res.bag) == {}
+    assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []
+
+
+def test_two_buildings_under_namespaces_with_seeds(tmp_path: Path) -> None:
+    from comems4build_ros.scenario.settings import load_scenario_settings
+
+    out = tmp_path / "run"
+    launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=24, buildings=2, timeout_s=150))
+    combined = json.loads((out / "summary.json").read_text())["buildings"]
+    assert sorted(combined) == ["building_0", "building_1"]
+    seed = load_scenario_settings().seed
+    for i in range(2):
+        per = json.loads((out / f"building_{i}" / "summary.json").read_text())
+        _same(per, _reference("rbc", 24, seed + i))
+    assert combined["building_0"]["cost_eur_total"] != combined["building_1"]["cost_eur_total"]
+    with AnyReader([out / "bag"]) as reader:
+        topics = {c.topic for c in reader.connections}
+    assert {"/building_0/plant/record", "/building_1/ems/command"} <= topics
+
+
+# ---------------------------------------------------------------------- faults
+def _cli(out: Path, *extra: str) -> subprocess.Popen:
+    cmd = [*CLI, "launch", "--ems", "fuzzy", "--weeks", "12", "--out", str(out),
+           "--no-progress", *extra]
+    return subprocess.Popen(cmd, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+
+
+def _wait_for(cond, timeout_s: float = 90.0) -> None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        if cond():
+            return
+        time.sleep(0.1)
+    raise AssertionError(f"condition not met after {timeout_s} s")
+
+
+def _running(out: Path) -> bool:
+    log = out / "log" / "plant_sim.log"
+    return log.exists() and "starting the run" in log.read_text(errors="replace")
+
+
+def _pid_of(out: Path, name: str) -> int:
+    for pid in processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")):
+        try:
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0")
+        except OSError:
+            continue
+        if any(Path(a).name == name or a.endswith(f"nodes.{name}") for a in argv[:3]):
+            return pid
+    raise AssertionError(f"no process {name}")
+
+
+def _finish(proc: subprocess.Popen, out: Path) -> tuple[int, str]:
+    try:
+        _, err = proc.communicate(timeout=90)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+    marker = str(out / "log" / "ros")
+    time.sleep(0.2)
+    left = processes_with_env("ROS_LOG_DIR", marker)
+    for pid in left:  # never leave anything behind, even when the assertion below fails
+        os.kill(pid, signal.SIGKILL)
+    assert left == [], f"processes left behind: {left}"
+    return proc.returncode, err
+
+
+def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = _cli(out)  # the launcher picks and locks a free domain id
+    _wait_for(lambda: _running(out))
+    time.sleep(1.0)
+    proc.send_signal(signal.SIGINT)
+    code, err = _finish(proc, out)
+    assert code == 130, err
+    assert (out / "bag" / "metadata.yaml").is_file()  # recorder stopped last, bag closed cleanly
+
+
+def test_ems_crash_stops_the_launch(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = _cli(out)
+    _wait_for(lambda: _running(out))
+    os.kill(_pid_of(out, "fuzzy_ems"), signal.SIGKILL)
+    code, err = _finish(proc, out)
+    assert code == 1
+    assert "node 'fuzzy_ems' exited with code -9" in err
+    assert (out / "bag" / "metadata.yaml").is_file()
+
+
+def test_recorder_sigkill_then_evaluate_reads_the_cut_bag(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    proc = _cli(out)
+    _wait_for(lambda: _running(out))
+    time.sleep(2.5)  # > the 1 s chunk period: some chunks are on disk
+    os.kill(_pid_of(out, "recorder"), signal.SIGKILL)
+    code, err = _finish(proc, out)
+    assert code == 1 and "node 'recorder' exited with code -9" in err
+    assert not (out / "bag" / "metadata.yaml").exists()
+    ev = tmp_path / "eval"
+    res = subprocess.run([*CLI, "evaluate", str(out / "bag"), "--out", str(ev)],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    summary = json.loads((ev / "summary.json").read_text())
+    inc = summary["bag_incomplete"]
+    assert inc["steps_expected"] == 2016 and 0 < inc["steps_recorded"] < 2016
+    assert inc["metadata_yaml"] is False
+    assert summary["steps"] == inc["steps_recorded"] and summary["ems"] == "fuzzy"
+
+
+def test_evaluate_refuses_a_missing_bag(tmp_path: Path) -> None:
+    res = subprocess.run([*CLI, "evaluate", str(tmp_path / "nope"), "--out",
+                          str(tmp_path / "e")], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 2 and "nope" in res.stderr
