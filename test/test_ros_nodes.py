@@ -311,6 +311,9 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
     for node in ("plant_sim", "feed", ems_node):
         want_pub = {t.name for t in c.published_by(node)}
         want_sub = {t.name for t in c.subscribed_by(node)}
+        t_end = time.monotonic() + 10.0  # endpoint discovery is asynchronous: give it time under load
+        while graph.graph_topics(node) != (want_pub, want_sub) and time.monotonic() < t_end:
+            graph.executor.spin_once(timeout_sec=0.1)
         got_pub, got_sub = graph.graph_topics(node)
         assert got_pub == want_pub, f"{node} publishes {got_pub ^ want_pub} against the contract"
         assert got_sub == want_sub, f"{node} subscribes {got_sub ^ want_sub} against the contract"

@@ -36,12 +36,21 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture()
-def context(tmp_path, monkeypatch):
-    """A private rclpy context (domain id from the pid, logs in tmp)."""
+def domain_id():
+    """A ROS domain id locked for this test (the launcher's lock files)."""
+    from comems4build_ros.ros.launcher import acquire_domain_id
+
+    with acquire_domain_id() as did:
+        yield did
+
+
+@pytest.fixture()
+def context(tmp_path, monkeypatch, domain_id):
+    """A private rclpy context (own domain id, logs in tmp)."""
     monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "log"))
     monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
     ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=150 + os.getpid() % 80)
+    rclpy.init(context=ctx, domain_id=domain_id)
     yield ctx
     rclpy.try_shutdown(context=ctx)
 
@@ -228,7 +237,7 @@ def test_ros2_run_lookup_finds_every_executable(monkeypatch):
         assert exe.is_file() and os.access(exe, os.X_OK), exe
 
 
-def test_installed_executable_runs_with_the_venv_python(tmp_path):
+def test_installed_executable_runs_with_the_venv_python(tmp_path, domain_id):
     """The shell/Python first line finds <prefix>/bin/python even with a bare PATH."""
     exe = Path(sys.prefix) / "lib" / "comems4build_ros" / "feed"
     if not exe.is_file():
@@ -238,7 +247,7 @@ def test_installed_executable_runs_with_the_venv_python(tmp_path):
         "HOME": str(tmp_path),
         "ROS_LOG_DIR": str(tmp_path / "log"),
         "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST",
-        "ROS_DOMAIN_ID": str(150 + os.getpid() % 80),
+        "ROS_DOMAIN_ID": str(domain_id),
     }
     missing = tmp_path / "missing.csv"
     proc = subprocess.run(

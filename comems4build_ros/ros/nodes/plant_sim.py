@@ -301,7 +301,10 @@ class PlantSim(ContractNode):
             return
         have_truth = self.k in self._truth
         if have_truth and self._cmd is None:
-            timeout = self.step_timeout_s if self._ever_commanded else self.startup_timeout_s
+            # The start-up timeout covers the EMS's first answer only; once the run fell
+            # back or had a command, every step waits step_timeout_s.
+            first = not self._ever_commanded and self.fallback_steps == 0
+            timeout = self.startup_timeout_s if first else self.step_timeout_s
             if now - self._t_wait > timeout:
                 self._fallback()
                 return
