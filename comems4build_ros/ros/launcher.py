@@ -69,6 +69,8 @@ RECORDER_GRACE_S = 20.0
 POLL_S = 0.05
 #: Recorder progress line period [s].
 PROGRESS_PERIOD_S = 0.25
+#: UDP port of the discovery server: this base + the (locked) domain id.
+DISCOVERY_PORT_BASE = 11811
 #: Fast DDS profile given to every node unless the user sets one (see the file's comment).
 FASTDDS_PROFILE = "fastdds_profile.xml"
 #: prctl option number of PR_SET_PDEATHSIG (linux/prctl.h).
@@ -278,9 +280,10 @@ class ProcessGroup:
                 c.proc.stdout.close()
 
     def stop_all(self, grace_s: float = GRACE_S, recorder_grace_s: float = RECORDER_GRACE_S) -> None:
-        """Stop every node: plants, feeds and EMS first, the recorder last (it closes the bag)."""
-        self.stop([c for c in self.children if c.role != "recorder"], grace_s)
+        """Stop every node: plants, feeds and EMS first, then the recorder (it closes the bag), then discovery."""
+        self.stop([c for c in self.children if c.role not in ("recorder", "discovery")], grace_s)
         self.stop([c for c in self.children if c.role == "recorder"], recorder_grace_s)
+        self.stop([c for c in self.children if c.role == "discovery"], grace_s)
 
     def __enter__(self) -> ProcessGroup:
         return self
@@ -355,7 +358,7 @@ def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = N
     parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
     env["PYTHONPATH"] = os.pathsep.join([root, *parts])
     env["PYTHONUNBUFFERED"] = "1"
-    if not env.get("FASTDDS_DEFAULT_PROFILES_FILE") and not env.get("FASTRTPS_DEFAULT_PROFILES_FILE"):
+    if "FASTDDS_DEFAULT_PROFILES_FILE" not in env and "FASTRTPS_DEFAULT_PROFILES_FILE" not in env:
         profile = fastdds_profile()
         if profile is not None:
             env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
@@ -394,6 +397,7 @@ class LaunchOptions:
     timeout_s : stop with an error after this wall time [s] (None = no limit)
     progress : show a progress bar (tqdm on stderr)
     plant_params : extra ``-p`` parameters of plant_sim (e.g. ``step_timeout_s``)
+    discovery_server : use a Fast DDS discovery server (None = with more than one building)
     """
 
     ems: str
@@ -412,6 +416,7 @@ class LaunchOptions:
     timeout_s: float | None = None
     progress: bool = False
     plant_params: dict[str, Any] = field(default_factory=dict)
+    discovery_server: bool | None = None
 
 
 @dataclass
@@ -519,6 +524,9 @@ def launch(opts: LaunchOptions) -> LaunchResult:
             env = child_env(domain_id, out / "log" / "ros")
             t0 = time.monotonic()
             with ProcessGroup(env, out / "log") as group:
+                use_server = opts.discovery_server if opts.discovery_server is not None else opts.buildings > 1
+                if use_server:
+                    start_discovery_server(group, DISCOVERY_PORT_BASE + domain_id)
                 rec_params = {
                     "bag_path": str(bag.resolve()),
                     "namespaces": ns_list,
@@ -543,6 +551,23 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     run_s = t_end - (t_first_record or t0)
     summaries = evaluate_bag(bag, out, params=params, wall_s=wall)
     return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
+
+
+def start_discovery_server(group: ProcessGroup, port: int) -> Child | None:
+    """Start ``fast-discovery-server`` on 127.0.0.1:``port`` and point every later child at it.
+
+    With simple discovery every participant announces itself to every other one; with
+    dozens of node processes on one host (``--buildings 16``: 49) that did not complete
+    within minutes here. A discovery server makes discovery O(n). Returns None (simple
+    discovery stays) when the tool is not installed.
+    """
+    exe = Path(sys.executable).parent / "fast-discovery-server"
+    if not exe.is_file():
+        print(f"launcher: {exe} not found, using simple discovery", file=sys.stderr)
+        return None
+    child = group.start("discovery_server", "discovery", [str(exe), "-i", "0", "-l", "127.0.0.1", "-p", str(port)])
+    group.env = dict(group.env, ROS_DISCOVERY_SERVER=f"127.0.0.1:{port}")
+    return child
 
 
 class _Progress:

@@ -1,0 +1,135 @@
+"""Speed of the ROS 2 node set: step round trip, 12-week fuzzy run, throughput with N buildings.
+
+``comems4build bench ros`` prints, in one run (issue "distributed system", section 5):
+
+1. the 12-week fuzzy run over ROS (``comems4build launch``: plant_sim, feed, fuzzy_ems
+   and the recorder as separate processes over Fast DDS) next to the same run
+   in-process, with a check that both summaries are equal (timing entries aside);
+2. the median and 99th percentile of the step round trip plant -> EMS -> plant in that
+   run, as measured by plant_sim (from the state announcement of step k to the arrival
+   of the command for step k; ``plant/events`` "stats" line in the bag);
+3. the throughput with ``--buildings 1, 4, 16`` (N independent buildings under
+   ``/building_<i>``, one recorder): wall time and building-steps per second.
+
+Targets on 2 cores: round trip median < 2 ms, 12-week fuzzy run over ROS < 20 s, 16
+buildings x 12 weeks < 2 min. Wall times include process start-up (imports, scenario
+generation) and the bag evaluation is not included. Figures depend on the load of the
+machine: the benchmark prints the load average before each run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import tempfile
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+TARGET_RTT_MEDIAN_MS = 2.0
+TARGET_FUZZY_12W_S = 20.0
+TARGET_16_BUILDINGS_S = 120.0
+TIMING_KEYS = ("wall_s", "ems_s")
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``comems4build bench ros``."""
+    parser.add_argument("--weeks", type=float, default=12, help="run length [weeks] (default 12)")
+    parser.add_argument("--buildings", default="1,4,16", help="building counts of the throughput runs (default 1,4,16)")
+    parser.add_argument("--ems", default="fuzzy", help="EMS of every run (default fuzzy)")
+    parser.add_argument("--out", default=None, help="keep the runs in this directory (default: a temporary one)")
+
+
+def plant_stats(bag: Path) -> dict[str, dict[str, float]]:
+    """plant_sim's end-of-run statistics per namespace, from the ``plant/events`` "stats" lines."""
+    from ..ros.bag import decode, iter_messages
+
+    out: dict[str, dict[str, float]] = {}
+    for topic, msgtype, _t, raw in iter_messages(bag):
+        if not topic.endswith("plant/events"):
+            continue
+        parts = str(decode(msgtype, raw).data).split()
+        if len(parts) > 2 and parts[1] == "stats":
+            ns = topic[: -len("/plant/events")] or "/"
+            out[ns] = {k: float(v) for k, v in (p.split("=", 1) for p in parts[2:] if "=" in p)}
+    return out
+
+
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (1 min), {five:.2f} (5 min) on {os.cpu_count()} cores"
+
+
+def _mark(ok: bool) -> str:
+    return "meets target" if ok else "MISSES target"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the benchmark and print the figures."""
+    from ..cli import UsageError
+    from ..config import load_plant_params
+    from ..ros.bag import lost_messages
+    from ..ros.launcher import LaunchOptions, launch
+    from ..ros.nodes.feed import load_scenario
+    from ..sim import simulate
+
+    try:
+        counts = [int(x) for x in str(args.buildings).split(",") if x.strip()]
+    except ValueError:
+        raise UsageError(f"--buildings: comma-separated integers expected, got '{args.buildings}'") from None
+    if any(n < 1 for n in counts):
+        raise UsageError(f"--buildings: counts must be >= 1, got {counts}")
+    root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bench_ros_"))
+    root.mkdir(parents=True, exist_ok=True)
+    params = load_plant_params()
+    weeks = args.weeks
+    whole = math.ceil(weeks - 1e-9)
+    steps = int(round(weeks * 168))
+
+    print(f"== 1. {args.ems}, {weeks:g} weeks ({steps} steps): ROS node set vs in-process   [{_load()}]")
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scenario = load_scenario("default", params, None, whole, None, steps if steps != whole * 168 else None)
+        ref = simulate(args.ems, scenario, params)
+    t_in = time.perf_counter() - t0
+    res = launch(LaunchOptions(ems=args.ems, out=root / f"{args.ems}_{weeks:g}w", weeks=weeks))
+    summary = res.summaries["/"]
+    diff = sorted(k for k in set(ref.summary) | set(summary) - set(TIMING_KEYS)
+                  if k not in TIMING_KEYS and ref.summary.get(k) != summary.get(k))
+    lost = lost_messages(res.bag)
+    print(f"in-process: {t_in:7.2f} s (scenario + run; run alone {ref.summary['wall_s']:.2f} s)")
+    print(f"over ROS:   {res.wall_s:7.2f} s (process start to end of run; {res.run_s:.2f} s after the first record)"
+          f"  -> {_mark(res.wall_s < TARGET_FUZZY_12W_S)} < {TARGET_FUZZY_12W_S:g} s")
+    print(f"summaries equal (timing aside): {'yes' if not diff else 'NO, differ in ' + ', '.join(diff)}; "
+          f"messages lost by the recorder: {sum(lost.values())}")
+
+    stats = plant_stats(res.bag).get("/", {})
+    med, p99 = stats.get("rtt_median_ms", float("nan")), stats.get("rtt_p99_ms", float("nan"))
+    print(f"\n== 2. step round trip plant -> {args.ems}_ems -> plant over DDS (measured by plant_sim, "
+          f"{int(stats.get('steps', 0))} steps)")
+    ok = med < TARGET_RTT_MEDIAN_MS
+    print(f"median {med:.3f} ms, p99 {p99:.3f} ms  -> {_mark(ok)} < {TARGET_RTT_MEDIAN_MS:g} ms")
+
+    print(f"\n== 3. throughput, {args.ems}, {weeks:g} weeks per building")
+    print(f"{'buildings':>9} {'wall_s':>8} {'run_s':>8} {'building-steps/s':>17} {'rtt_med_ms':>10} {'lost':>5}")
+    results: dict[int, Any] = {1: res}
+    for n in counts:
+        if n not in results:
+            print(f"   ({_load()})", flush=True)
+            results[n] = launch(LaunchOptions(ems=args.ems, out=root / f"{args.ems}_{weeks:g}w_x{n}", weeks=weeks,
+                                              buildings=n))
+        r = results[n]
+        st = plant_stats(r.bag)
+        rtts = sorted(s.get("rtt_median_ms", float("nan")) for s in st.values())
+        rtt = rtts[len(rtts) // 2] if rtts else float("nan")
+        lost_n = sum(lost_messages(r.bag).values())
+        print(f"{n:>9} {r.wall_s:8.2f} {r.run_s:8.2f} {n * steps / r.wall_s:17.1f} {rtt:10.3f} {lost_n:>5}", flush=True)
+    if 16 in results:
+        w16 = results[16].wall_s
+        print(f"16 buildings x {weeks:g} weeks: {w16:.1f} s -> {_mark(w16 < TARGET_16_BUILDINGS_S)} "
+              f"< {TARGET_16_BUILDINGS_S:g} s")
+    print(f"\nruns kept in {root}")
+    return 0
