@@ -1,0 +1,83 @@
+"""``replay``: a recorded bag published again (full, as fast as possible; inputs only, paced by the plant)."""
+
+from __future__ import annotations
+
+import json
+import time
+import warnings
+from collections import Counter
+from pathlib import Path
+
+import pytest
+
+from comems4build_ros.config import load_plant_params
+from comems4build_ros.ros.bag import evaluate_bag, iter_messages
+from comems4build_ros.ros.contract import load_contract
+from comems4build_ros.ros.launcher import (
+    LaunchOptions,
+    ProcessGroup,
+    acquire_domain_id,
+    child_env,
+    launch,
+    node_command,
+    ros_args,
+)
+
+pytestmark = pytest.mark.ros
+STEPS = 24
+
+
+@pytest.fixture(scope="module")
+def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A 24-step fuzzy run recorded by the launcher."""
+    out = tmp_path_factory.mktemp("recorded") / "run"
+    return launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=STEPS, timeout_s=150)).bag
+
+
+def _wait_exit(child, timeout_s: float = 90.0) -> int:
+    t0 = time.monotonic()
+    while child.proc.poll() is None:
+        assert time.monotonic() - t0 < timeout_s, child.tail()
+        time.sleep(0.05)
+    return child.proc.returncode
+
+
+def test_full_replay_as_fast_as_possible_is_recorded_again(recorded: Path, tmp_path: Path) -> None:
+    bag = tmp_path / "again"
+    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
+        rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {
+            "bag_path": str(bag), "wait_for_topics": ["feed/truth"], "stop_when_done": True})])
+        rep = group.start("replay", "replay", [*node_command("replay"), str(recorded), "--rate", "0"])
+        assert _wait_exit(rep) == 0, rep.tail()
+        assert _wait_exit(rec) == 0, rec.tail()  # stops by itself: plant/done was replayed
+    original = Counter((t, bytes(raw)) for t, _, _, raw in iter_messages(recorded) if t != "/recorder/ready")
+    again = Counter((t, bytes(raw)) for t, _, _, raw in iter_messages(bag) if t != "/recorder/ready")
+    assert again == original
+
+
+@pytest.mark.skipif(
+    not load_contract().may_subscribe("replay", "plant/step"),
+    reason="contract: 'replay' is not (yet) a subscriber of plant/step, needed for the lock-step --inputs-only mode",
+)
+def test_inputs_only_replay_drives_another_ems(recorded: Path, tmp_path: Path) -> None:
+    """rbc against the inputs recorded with fuzzy gives the in-process rbc run on the same scenario."""
+    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.sim import simulate
+
+    bag = tmp_path / "rbc_bag"
+    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
+        rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {"bag_path": str(bag)})])
+        group.start("rbc_ems", "ems", [*node_command("ems", "rbc")])
+        group.start("replay", "replay", [*node_command("replay"), str(recorded), "--inputs-only"])
+        plant = group.start("plant_sim", "plant", [*node_command("plant_sim"),
+                                                   *ros_args("", {"wait_for_recorder": True})])
+        assert _wait_exit(plant) == 0, plant.tail()
+        assert _wait_exit(rec) == 0, rec.tail()
+    params = load_plant_params()
+    summary = evaluate_bag(bag, tmp_path / "eval", params=params)["/"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = simulate("rbc", load_scenario("default", params, None, 1, None, STEPS), params).summary
+    for key in set(ref) - {"wall_s", "ems_s", "ems", "scenario"}:
+        assert summary[key] == ref[key], key
+    assert json.loads((tmp_path / "eval" / "summary.json").read_text())["fallback_steps"] == 0
