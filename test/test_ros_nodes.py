@@ -354,14 +354,15 @@ def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Gr
     graph.on_state = kill_on_step
     graph.start_ems("thermostat")
     graph.start_feed()
-    graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=0.4, republish_period_s=0.1)
+    # 2 s: long enough that a loaded machine does not trigger a fallback before the kill
+    graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=2.0, republish_period_s=0.2)
     graph.ready()
 
     def n_fallback() -> int:
         lay = graph.contract.topic("plant/record").layout(graph.sizes)
         return sum(1 for r in graph.records.values() if r[lay.index["fallback"]] > 0.5)
 
-    graph.spin_until(lambda: n_fallback() >= 3, 60.0, "3 fallback steps after the EMS was killed")
+    graph.spin_until(lambda: n_fallback() >= 2, 60.0, "2 fallback steps after the EMS was killed")
     graph.procs["ems"].wait(10)
     assert graph.procs["ems"].returncode == -signal.SIGKILL
     graph.start_ems("thermostat")  # restart: the plant must hand control back to it
@@ -374,7 +375,7 @@ def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Gr
     assert first >= 12, "no fallback before the EMS died"
     assert fb[first : last + 1].all(), "fallback steps are contiguous while the EMS is down"
     assert last < STEPS - 1 and not fb[last + 1 :].any(), "the restarted EMS took over again"
-    assert ts.attrs["counters"]["fallback_steps"] == int(fb.sum()) >= 3
+    assert ts.attrs["counters"]["fallback_steps"] == int(fb.sum()) >= 2
     p = graph.params
     for k in np.flatnonzero(fb):  # the fallback is the documented safe action for the state at the start of k
         mode, mod = _fallback_rule(ts["t_air_c"][k - 1], ts["v_dhw_l"][k - 1], ts["t_min_c"][k], p)
@@ -387,6 +388,7 @@ def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Gr
     assert ts["soc"].between(p.battery.soc_min - 1e-9, p.battery.soc_max + 1e-9).all()
     assert ts["loh"].between(p.hydrogen.loh_min - 1e-9, p.hydrogen.loh_max + 1e-9).all()
     assert ts["v_dhw_l"].between(p.dhw.v_min_l - 1e-9, p.dhw.v_max_l + 1e-9).all()
+    assert graph.stop("plant_sim") == 0
     plant_log = graph.log("plant_sim")
     assert plant_log.count(" fallback no valid command on 'ems/command'") == int(fb.sum())
     assert f"fallback_steps={int(fb.sum())}" in plant_log

@@ -7,12 +7,14 @@ step (``ems/command``) have arrived. Protocol (docs/ros_nodes.md):
 1. Announce step ``k``: publish the state at the start of ``k`` (end of ``k-1``) on
    ``state/*``, each message tagged with ``k``, then ``plant/step`` = ``k``.
 2. Wait. A command tagged with another step is ignored and counted
-   (``wrong_step_commands``); a command with a wrong length, NaN/inf or an out-of-range
-   value is rejected with a log line naming topic and field, counted
+   (``wrong_step_commands``; an exact re-send of the command applied in the previous
+   step is a retransmission, counted as ``duplicate_commands`` in the final
+   statistics); a command with a wrong length, NaN/inf or an out-of-range value is
+   rejected with a log line naming topic and field, counted
    (``rejected_commands``) and treated as missing. While waiting, the announcement is
    repeated every ``republish_period_s`` (a restarted EMS or a late subscriber picks it
    up). After ``step_timeout_s`` without a valid command (``startup_timeout_s`` before
-   the first command of the run) the plant applies the safe fallback
+   the first command or fallback of the run) the plant applies the safe fallback
    (:func:`comems4build_ros.ems.fallback.safe_action`), logs and counts it
    (``fallback_steps``) and moves on; the EMS takes over again as soon as it answers.
 3. Step the plant, publish ``plant/record`` (one timeseries row of the in-process loop)
@@ -123,6 +125,9 @@ class PlantSim(ContractNode):
         self.fallback_steps = 0
         self.rejected_commands = 0
         self.wrong_step_commands = 0
+        self.duplicate_commands = 0
+        self._cmd_data: list[float] | None = None  # payload of the pending command
+        self._last_cmd: list[float] | None = None  # payload of the command applied in step k-1
         self._t_created = time.monotonic()
         self._t_wait = 0.0
         self._t_announce = 0.0
@@ -171,11 +176,17 @@ class PlantSim(ContractNode):
             self.rejected_commands += 1
             self._event("rejected", f"topic 'ems/command' {exc}")
             return
+        if step == self.k - 1 and self._last_cmd is not None and list(msg.data) == self._last_cmd:
+            # the EMS re-sent the command just applied (answer to a repeated announcement
+            # that crossed its first answer): a retransmission, not a wrong step
+            self.duplicate_commands += 1
+            return
         if not self.started or self.done or step != self.k:
             self.wrong_step_commands += 1
             self._event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
             return
         self._cmd = action
+        self._cmd_data = list(msg.data)
         now = time.monotonic()
         if self._ever_commanded:  # the first round trip includes the EMS start-up
             self._rtt.append(now - self._t_step_announced)
@@ -208,6 +219,7 @@ class PlantSim(ContractNode):
     def _try_advance(self) -> None:
         if self.started and not self.done and self._cmd is not None and self.k in self._truth:
             action, self._cmd = self._cmd, None
+            self._last_cmd = self._cmd_data
             self._step(action, fallback=False)
 
     def _step(self, action: Action, fallback: bool) -> None:
@@ -252,6 +264,7 @@ class PlantSim(ContractNode):
         t = self._truth[self.k]
         action = safe_action(self.state.t_air_c, self.state.v_dhw_l, t[self._ti["t_min_c"]], self.params)
         self.fallback_steps += 1
+        self._last_cmd = None
         self._event(
             "fallback",
             f"no valid command on 'ems/command' within the timeout: safe action hp_mode={action.hp_mode} "
@@ -273,6 +286,7 @@ class PlantSim(ContractNode):
             "fallback_steps": float(self.fallback_steps),
             "rejected_commands": float(self.rejected_commands),
             "wrong_step_commands": float(self.wrong_step_commands),
+            "duplicate_commands": float(self.duplicate_commands),
         }
 
     def _finish(self) -> None:
