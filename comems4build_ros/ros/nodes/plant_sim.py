@@ -17,8 +17,8 @@ step (``ems/command``) have arrived. Protocol (docs/ros_nodes.md):
    the first command or fallback of the run) the plant applies the safe fallback
    (:func:`comems4build_ros.ems.fallback.safe_action`), logs and counts it
    (``fallback_steps``) and moves on; the EMS takes over again as soon as it answers.
-3. Step the plant, publish ``plant/record`` (one timeseries row of the in-process loop)
-   and ``clock`` (end of the step), then announce ``k + 1``.
+3. Step the plant, announce ``k + 1``, then publish ``plant/record`` (one timeseries row
+   of the in-process loop) and ``clock`` (end of step ``k``).
 
 After the last step the node publishes ``plant/done``, waits until the record messages
 are acknowledged, and exits (``exit_when_done``). With ``wait_for_recorder`` it starts
@@ -249,16 +249,17 @@ class PlantSim(ContractNode):
         row.append(1.0 if fallback else 0.0)
         t0 = t[ti["time_unix_s"]]
         row.extend((t0, float(self.fallback_steps), float(self.rejected_commands), float(self.wrong_step_commands)))
+        self.k = k + 1
+        self._t_wait = time.monotonic()
+        last = self.n_steps is not None and self.k >= self.n_steps
+        if not last:
+            self._announce()  # first, so the EMS works on k + 1 while the record goes out
         self._record.publish(row)
         end_ns = int(round(t0 * NS_PER_S)) + self.dt_ns
         self._clock_msg.clock = Time(sec=end_ns // NS_PER_S, nanosec=end_ns % NS_PER_S)
         self._clock_pub.publish(self._clock_msg)
-        self.k = k + 1
-        self._t_wait = time.monotonic()
-        if self.n_steps is not None and self.k >= self.n_steps:
+        if last:
             self._finish()
-        else:
-            self._announce()
 
     def _fallback(self) -> None:
         t = self._truth[self.k]
