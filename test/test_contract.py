@@ -182,3 +182,13 @@ def test_markdown_table_lists_every_topic(contract):
     for name in contract.topics:
         assert f"`{name}`" in table
 
+
+
+def test_docs_table_lists_every_topic(contract):
+    """docs/ros_nodes.md documents every topic of the contract (forecast topics as one row)."""
+    text = (Path(__file__).resolve().parents[1] / "docs" / "ros_nodes.md").read_text()
+    for name in contract.topics:
+        if name.startswith("forecast/"):
+            assert name.split("/", 1)[1] in text, name
+        else:
+            assert f"`{name}`" in text, name
