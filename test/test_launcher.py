@@ -79,9 +79,10 @@ def test_two_buildings_under_namespaces_with_seeds(tmp_path: Path) -> None:
         per = json.loads((out / f"building_{i}" / "summary.json").read_text())
         _same(per, _reference("rbc", 24, seed + i))
     assert combined["building_0"]["cost_eur_total"] != combined["building_1"]["cost_eur_total"]
-    with AnyReader([out / "bag"]) as reader:
+    with AnyReader([out / "bag" / "building_0", out / "bag" / "building_1"]) as reader:  # one bag per building
         topics = {c.topic for c in reader.connections}
     assert {"/building_0/plant/record", "/building_1/ems/command"} <= topics
+    assert lost_messages(out / "bag") == {}
 
 
 # ---------------------------------------------------------------------- faults

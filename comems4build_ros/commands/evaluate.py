@@ -22,7 +22,7 @@ def run(args: argparse.Namespace) -> int:
     """Read the bag, compute the KPIs, write the files."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..ros.bag import evaluate_bag, read_run_info
+    from ..ros.bag import bag_set, evaluate_bag, read_run_info
     from .simulate import parse_assignments
 
     bag = Path(args.bag)
@@ -39,7 +39,7 @@ def run(args: argparse.Namespace) -> int:
         overrides.update(parse_assignments(args.set, "--set"))
         params = load_plant_params(files, overrides)
     summaries = evaluate_bag(bag, args.out, params=params, timeseries=not args.no_timeseries)
-    complete = bag.is_dir() and (bag / "metadata.yaml").is_file()
+    complete = all(p.is_dir() and (p / "metadata.yaml").is_file() for p in bag_set(bag))
     state = "complete" if complete else "no metadata.yaml (recorder killed?); read the .mcap directly"
     print(f"bag {bag}: {state}")
     keys = ("weeks", "steps", "cost_eur_week_median", "discomfort_kh_week_median", "loh_end", "fallback_steps")

@@ -204,6 +204,18 @@ def _locate(path: str | Path) -> tuple[Path, list[Path], bool]:
     return p, files, (p / "metadata.yaml").is_file()
 
 
+def bag_set(path: str | Path) -> list[Path]:
+    """The bags under ``path``: ``[path]`` for a bag or ``.mcap`` file, else its sub-directories holding bags.
+
+    ``comems4build launch --buildings N`` writes one bag per building, ``bag/building_<i>/``.
+    """
+    p = Path(path)
+    if not p.is_dir() or any(p.glob("*.mcap")) or (p / "metadata.yaml").exists():
+        return [p]
+    subs = sorted((d for d in p.iterdir() if d.is_dir() and any(d.glob("*.mcap"))), key=lambda d: _ns_key(d.name))
+    return subs or [p]
+
+
 def iter_messages(
     path: str | Path, topics: Iterable[str] | None = None, info: BagInfo | None = None
 ) -> Iterator[tuple[str, str, int, bytes]]:
@@ -214,10 +226,20 @@ def iter_messages(
     sequentially from its ``.mcap`` files up to the last complete record. Pass a
     :class:`BagInfo` (e.g. from :func:`bag_info`) as ``info`` to have it filled.
     """
+    parts = bag_set(path)
+    if len(parts) > 1 or parts[0] != Path(path):
+        for part in parts:
+            yield from iter_messages(part, topics, info)
+        if info is not None:
+            info.path = Path(path)
+        return
     root, files, complete = _locate(path)
     wanted = None if topics is None else set(topics)
     if info is not None:
-        info.path, info.mcap_files, info.complete = root, files, complete
+        first = not info.mcap_files
+        info.path = root
+        info.mcap_files.extend(files)
+        info.complete = complete if first else (info.complete and complete)
     if complete:
         from rosbags.highlevel import AnyReader
 
@@ -318,7 +340,7 @@ def read_run_info(path: str | Path) -> dict[str, Any]:
     """The ``run_info.json`` beside the MCAP file (``{}`` if absent)."""
     import json
 
-    p = Path(path)
+    p = bag_set(path)[0]
     f = (p if p.is_dir() else p.parent) / RUN_INFO_FILE
     if not f.is_file():
         return {}

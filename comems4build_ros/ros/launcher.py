@@ -23,8 +23,10 @@ in progress (a crash, or a plant exiting with an error) stops the whole launch w
 :class:`LaunchError` naming the node, its exit code and its log file.
 
 ``--buildings N``: building ``i`` runs under the namespace ``/building_<i>`` with
-scenario seed ``seed + i`` (default scenario); one recorder records all namespaces into
-one bag.
+scenario seed ``seed + i`` (default scenario) and its own recorder writing
+``bag/building_<i>/`` (one recorder for all namespaces spent its time in rclpy's executor,
+whose per-wake-up bookkeeping grows with the square of the number of subscriptions: 512
+subscriptions for 16 buildings could not keep up).
 """
 
 from __future__ import annotations
@@ -65,6 +67,8 @@ LOCK_DIR = Path(tempfile.gettempdir())
 GRACE_S = 5.0
 #: The recorder may need longer to write the summary of a large bag [s].
 RECORDER_GRACE_S = 20.0
+#: Wait for the recorder to drain its queues and stop by itself after the last plant exited [s].
+RECORDER_DRAIN_S = 60.0
 #: Poll period of the supervision loop [s].
 POLL_S = 0.05
 #: Recorder progress line period [s].
@@ -431,6 +435,11 @@ class LaunchResult:
     summaries: dict[str, dict[str, Any]]  # namespace -> summary
 
 
+def bag_dir(bag: Path, ns: str) -> Path:
+    """Bag of namespace ``ns``: ``bag`` itself for the root namespace, else ``bag/building_<i>``."""
+    return bag if ns == "/" else bag / ns.strip("/")
+
+
 def namespaces(buildings: int) -> list[str]:
     """``["/"]`` for one building, else ``["/building_0", ...]``."""
     if buildings < 1:
@@ -502,17 +511,14 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     info = run_info(opts, params, seeds)
     weeks, steps = _feed_window(opts.weeks, opts.steps)
     out.mkdir(parents=True, exist_ok=True)
+    if len(ns_list) > 1:
+        bag.mkdir()
 
     common: dict[str, Any] = {"config_files": info["config_files"]}
     if opts.overrides:
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
 
-    progress = _Progress()
-
-    def on_progress(line: str) -> None:
-        parts = line.split()
-        if len(parts) == 3 and parts[0] == "progress":
-            progress.set(int(parts[1]), int(parts[2]))
+    progress = _Progress(len(ns_list))
 
     bar = None
     if opts.progress:
@@ -527,22 +533,21 @@ def launch(opts: LaunchOptions) -> LaunchResult:
                 use_server = opts.discovery_server if opts.discovery_server is not None else opts.buildings > 1
                 if use_server:
                     start_discovery_server(group, DISCOVERY_PORT_BASE + domain_id)
-                rec_params = {
-                    "bag_path": str(bag.resolve()),
-                    "namespaces": ns_list,
-                    "run_info": json.dumps(info),
-                    "progress_period_s": PROGRESS_PERIOD_S,
-                }
-                recorder = group.start(
-                    "recorder",
-                    "recorder",
-                    [*node_command("recorder"), *ros_args("", rec_params)],
-                    on_progress,
-                )
+                recorders = []
+                for i, ns in enumerate(ns_list):
+                    rec_params = {
+                        "bag_path": str(bag_dir(bag, ns).resolve()),
+                        "namespaces": [ns],
+                        "run_info": json.dumps(info),
+                        "progress_period_s": PROGRESS_PERIOD_S,
+                    }
+                    name = "recorder" if ns == "/" else f"{ns.strip('/')}/recorder"
+                    argv = [*node_command("recorder"), *ros_args("", rec_params)]
+                    recorders.append(group.start(name, "recorder", argv, progress.listener(i)))
                 plants = [
                     _start_building(group, opts, ns, seed, common, weeks, steps) for ns, seed in zip(ns_list, seeds)
                 ]
-                t_first_record = _supervise(group, recorder, plants, progress, bar, t0, opts.timeout_s)
+                t_first_record = _supervise(group, recorders, plants, progress, bar, t0, opts.timeout_s)
                 t_end = time.monotonic()
     finally:
         if bar is not None:
@@ -571,20 +576,31 @@ def start_discovery_server(group: ProcessGroup, port: int) -> Child | None:
 
 
 class _Progress:
-    """Recorded and total steps, as last reported by the recorder (thread-safe)."""
+    """Recorded and total steps, as last reported by each recorder (thread-safe)."""
 
-    def __init__(self) -> None:
+    def __init__(self, n: int) -> None:
         self._lock = threading.Lock()
-        self.recorded = 0
-        self.total = 0
+        self.recorded = [0] * n
+        self.total = [0] * n
 
-    def set(self, recorded: int, total: int) -> None:
+    def set(self, i: int, recorded: int, total: int) -> None:
         with self._lock:
-            self.recorded, self.total = recorded, total
+            self.recorded[i], self.total[i] = recorded, total
 
     def get(self) -> tuple[int, int]:
+        """Recorded steps of all buildings, and their total (0 until every recorder knows its own)."""
         with self._lock:
-            return self.recorded, self.total
+            return sum(self.recorded), (sum(self.total) if all(self.total) else 0)
+
+    def listener(self, i: int) -> Callable[[str], None]:
+        """stdout line handler of recorder ``i``."""
+
+        def on_line(line: str) -> None:
+            parts = line.split()
+            if len(parts) == 3 and parts[0] == "progress":
+                self.set(i, int(parts[1]), int(parts[2]))
+
+        return on_line
 
 
 def _start_building(
@@ -610,14 +626,14 @@ def _start_building(
 
 def _supervise(
     group: ProcessGroup,
-    recorder: Child,
+    recorders: list[Child],
     plants: list[Child],
     progress: _Progress,
     bar: Any,
     t0: float,
     timeout_s: float | None,
 ) -> float | None:
-    """Wait until every plant and the recorder exited 0; returns when the first record came.
+    """Wait until every plant and every recorder exited 0; returns when the first record came.
 
     Raises
     ------
@@ -625,6 +641,7 @@ def _supervise(
         When any other exit happens first, or after ``timeout_s``.
     """
     t_first_record: float | None = None
+    t_plants_done: float | None = None
     while True:
         time.sleep(POLL_S)
         r, n = progress.get()
@@ -639,13 +656,22 @@ def _supervise(
         for c in group.children:
             code = c.proc.poll()
             # plants exit 0 after their last step; the recorder exits 0 once every plant said done
-            if code is None or (c.role == "plant" and code == 0) or (c is recorder and code == 0):
+            if code is None or (c.role in ("plant", "recorder") and code == 0):
                 continue
             raise LaunchError(
                 f"node '{c.name}' exited with code {code} while the run was in progress (log: {c.log_path}):\n"
                 f"{c.tail()}"
             )
-        if plants_done and recorder.proc.poll() == 0:
+        running = [r for r in recorders if r.proc.poll() is None]
+        if plants_done and not running:
             return t_first_record
+        if plants_done:
+            t_plants_done = t_plants_done or time.monotonic()
+            if time.monotonic() - t_plants_done > RECORDER_DRAIN_S:
+                print(f"launcher: {len(running)} recorder(s) still running {RECORDER_DRAIN_S:g} s after the last "
+                      "plant exited; stopping them (SIGINT closes the bag)", file=sys.stderr)
+                for r in running:
+                    r.proc.send_signal(signal.SIGINT)
+                t_plants_done = time.monotonic() + RECORDER_GRACE_S  # one signal, then wait
         if timeout_s is not None and time.monotonic() - t0 > timeout_s:
             raise LaunchError(f"run not finished after {timeout_s} s (recorded {r} of {n} steps)")

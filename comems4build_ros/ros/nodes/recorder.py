@@ -20,7 +20,7 @@ then, so the first step is recorded. After ``ready_timeout_s`` it declares ready
 and names the topics without a publisher.
 
 End of run: with ``stop_when_done`` (default) the node closes the bag and exits once
-``plant/done`` arrived from every namespace, every ``plant/record`` of the run
+``plant/done`` (or the last ``plant/record``) arrived from every namespace, every ``plant/record`` of the run
 (``n_steps`` from ``feed/truth``) is in, and ``done_grace_s`` has passed for late
 messages (``ems/info`` of the last step); after ``done_timeout_s`` it stops even if some
 records are missing, with a warning.
@@ -206,6 +206,8 @@ class Recorder(Node):
         if name == RECORD_TOPIC:
             self.records[ns] += 1
             self._last_record_at = time.monotonic()
+            if ns not in self.done_at and self.records[ns] >= self.n_steps.get(ns, -1) > 0:
+                self.done_at[ns] = self._last_record_at  # every record in: done even if plant/done is lost
         elif name == TRUTH_TOPIC:
             if ns not in self.n_steps:
                 self.n_steps[ns] = int(decode("std_msgs/msg/Float64MultiArray", raw).data[1])
