@@ -31,6 +31,7 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
+from rclpy._rclpy_pybind11 import NodeNameNonExistentError  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
@@ -217,8 +218,11 @@ class Graph:
 
     def graph_topics(self, node: str, ns: str = "/") -> tuple[set[str], set[str]]:
         """Contract names of a remote node's publishers and subscriptions (graph API)."""
-        pubs = self.node.get_publisher_names_and_types_by_node(node, ns)
-        subs = self.node.get_subscriber_names_and_types_by_node(node, ns)
+        try:
+            pubs = self.node.get_publisher_names_and_types_by_node(node, ns)
+            subs = self.node.get_subscriber_names_and_types_by_node(node, ns)
+        except NodeNameNonExistentError:  # node discovery is asynchronous: not (yet) known
+            return set(), set()
 
         def names(items: list) -> set[str]:
             return {relative(ns, t) for t, _ in items if t not in ("/parameter_events", "/rosout")}

@@ -292,11 +292,12 @@ class PlantSim(ContractNode):
 
     def _finish(self) -> None:
         self.done = True
-        self._done_pub.publish(Bool(data=True))
         st = self.stats()
         line = " ".join(f"{k}={v:.6g}" for k, v in st.items())
-        self._events_pub.publish(String(data=f"{self.k} stats {line}"))
+        # log first: whoever sees plant/done can rely on the final line being in the log
         self.get_logger().info(f"run done: {line}")
+        self._done_pub.publish(Bool(data=True))
+        self._events_pub.publish(String(data=f"{self.k} stats {line}"))
         for pub in (self._record.publisher, self._done_pub, self._events_pub):
             pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * NS_PER_S)))
         if self.exit_when_done:
