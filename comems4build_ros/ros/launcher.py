@@ -77,6 +77,19 @@ PROGRESS_PERIOD_S = 0.25
 DISCOVERY_PORT_BASE = 11811
 #: Fast DDS profile given to every node unless the user sets one (see the file's comment).
 FASTDDS_PROFILE = "fastdds_profile.xml"
+#: Module of the host processes (one process per role for many buildings).
+HOST_MODULE = "comems4build_ros.ros.host"
+#: Buildings per recorder process in host mode (one recorder process for all 16 buildings
+#: would hold 16 x 32 subscriptions in one executor, see the module docstring).
+HOST_BUILDINGS_PER_RECORDER = 4
+#: Host mode: plant_sim's step timeout [s]. One EMS process answers every building in
+#: turn, so on a loaded machine a command can come later than the 5 s meant to detect a
+#: dead EMS (a dead host process stops the launch anyway). Overridden by ``plant_params``.
+HOST_STEP_TIMEOUT_S = 60.0
+#: Host mode: plant_sim's watchdog and the recorder's housekeeping timer periods [s]
+#: (instead of 0.02 s and 0.05 s: N nodes' timers wake one shared executor N times as often).
+HOST_WATCHDOG_PERIOD_S = 0.1
+HOST_RECORDER_TICK_S = 0.2
 #: prctl option number of PR_SET_PDEATHSIG (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
 
@@ -401,7 +414,11 @@ class LaunchOptions:
     timeout_s : stop with an error after this wall time [s] (None = no limit)
     progress : show a progress bar (tqdm on stderr)
     plant_params : extra ``-p`` parameters of plant_sim (e.g. ``step_timeout_s``)
-    discovery_server : use a Fast DDS discovery server (None = with more than one building)
+    discovery_server : use a Fast DDS discovery server (None = with more than one building
+        in process-per-node mode; never in host mode)
+    host_mode : one process per role hosting the nodes of all buildings (see
+        :mod:`comems4build_ros.ros.host`); None = with more than one building
+    buildings_per_recorder : buildings recorded by one recorder process in host mode
     """
 
     ems: str
@@ -421,6 +438,8 @@ class LaunchOptions:
     progress: bool = False
     plant_params: dict[str, Any] = field(default_factory=dict)
     discovery_server: bool | None = None
+    host_mode: bool | None = None
+    buildings_per_recorder: int = HOST_BUILDINGS_PER_RECORDER
 
 
 @dataclass
@@ -518,7 +537,11 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     if opts.overrides:
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
 
-    progress = _Progress(len(ns_list))
+    host = opts.host_mode if opts.host_mode is not None else opts.buildings > 1
+    if host and opts.buildings_per_recorder < 1:
+        raise ValueError(f"buildings_per_recorder must be >= 1, got {opts.buildings_per_recorder}")
+    n_recorders = math.ceil(len(ns_list) / opts.buildings_per_recorder) if host else len(ns_list)
+    progress = _Progress(n_recorders)
 
     bar = None
     if opts.progress:
@@ -530,11 +553,17 @@ def launch(opts: LaunchOptions) -> LaunchResult:
             env = child_env(domain_id, out / "log" / "ros")
             t0 = time.monotonic()
             with ProcessGroup(env, out / "log") as group:
-                use_server = opts.discovery_server if opts.discovery_server is not None else opts.buildings > 1
+                use_server = opts.discovery_server
+                if use_server is None:
+                    use_server = opts.buildings > 1 and not host
                 if use_server:
                     start_discovery_server(group, DISCOVERY_PORT_BASE + domain_id)
                 recorders = []
-                for i, ns in enumerate(ns_list):
+                if host:
+                    recorders, plants = _start_hosts(
+                        group, opts, ns_list, seeds, common, weeks, steps, bag, info, progress, out / "host"
+                    )
+                for i, ns in enumerate([] if host else ns_list):
                     rec_params = {
                         "bag_path": str(bag_dir(bag, ns).resolve()),
                         "namespaces": [ns],
@@ -544,9 +573,11 @@ def launch(opts: LaunchOptions) -> LaunchResult:
                     name = "recorder" if ns == "/" else f"{ns.strip('/')}/recorder"
                     argv = [*node_command("recorder"), *ros_args("", rec_params)]
                     recorders.append(group.start(name, "recorder", argv, progress.listener(i)))
-                plants = [
-                    _start_building(group, opts, ns, seed, common, weeks, steps) for ns, seed in zip(ns_list, seeds)
-                ]
+                if not host:
+                    plants = [
+                        _start_building(group, opts, ns, seed, common, weeks, steps)
+                        for ns, seed in zip(ns_list, seeds)
+                    ]
                 t_first_record = _supervise(group, recorders, plants, progress, bar, t0, opts.timeout_s)
                 t_end = time.monotonic()
     finally:
@@ -622,6 +653,85 @@ def _start_building(
     group.start(f"{prefix}feed", "feed", [*node_command("feed"), *ros_args(ns, feed_params)])
     plant_params = dict(common, wait_for_recorder=True, **opts.plant_params)
     return group.start(f"{prefix}plant_sim", "plant", [*node_command("plant_sim"), *ros_args(ns, plant_params)])
+
+
+def _building_params(
+    opts: LaunchOptions, seed: int | None, common: dict[str, Any], weeks: int, steps: int
+) -> dict[str, dict[str, Any]]:
+    """Parameters of the EMS, feed and plant of one building (role -> parameters)."""
+    ems_params = dict(common)
+    if opts.ems_options:
+        ems_params["ems_options"] = list(opts.ems_options)
+    feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps)
+    if seed is not None:
+        feed_params["seed"] = int(seed)
+    if opts.start:
+        feed_params["start"] = opts.start
+    if opts.forecast:
+        feed_params["forecast_mode"] = opts.forecast
+    plant_params = dict(common, wait_for_recorder=True, **opts.plant_params)
+    return {"ems": ems_params, "feed": feed_params, "plant": plant_params}
+
+
+def host_command(role: str, spec_path: Path) -> list[str]:
+    """Command line of a host process (``python -m comems4build_ros.ros.host``)."""
+    return [sys.executable, "-m", HOST_MODULE, "--role", role, "--spec", str(spec_path)]
+
+
+def _start_hosts(
+    group: ProcessGroup,
+    opts: LaunchOptions,
+    ns_list: list[str],
+    seeds: list[int | None],
+    common: dict[str, Any],
+    weeks: int,
+    steps: int,
+    bag: Path,
+    info: dict[str, Any],
+    progress: _Progress,
+    spec_dir: Path,
+) -> tuple[list[Child], list[Child]]:
+    """Host mode: recorder processes (one per ``buildings_per_recorder``), then one EMS,
+    one feed and one plant process for all buildings; returns (recorders, [plant host])."""
+    spec_dir.mkdir(parents=True, exist_ok=True)
+
+    def write(name: str, spec: dict[str, Any]) -> Path:
+        path = spec_dir / f"{name}.json"
+        path.write_text(json.dumps(spec, indent=1) + "\n", encoding="utf-8")
+        return path
+
+    per = opts.buildings_per_recorder
+    extra: dict[str, Any] = {}
+    recorders = []
+    for j in range(0, len(ns_list), per):
+        nodes = [
+            {"namespace": ns, "params": {
+                "bag_path": str(bag_dir(bag, ns).resolve()),
+                "namespaces": [ns],
+                "run_info": json.dumps(info),
+                "progress_period_s": 0.0,
+                "tick_s": HOST_RECORDER_TICK_S,
+            }}
+            for ns in ns_list[j:j + per]
+        ]
+        name = f"host_recorder_{j // per}"
+        path = write(name, dict(extra, progress_period_s=PROGRESS_PERIOD_S, nodes=nodes))
+        recorders.append(group.start(name, "recorder", host_command("recorder", path), progress.listener(j // per)))
+    by_role: dict[str, list[dict[str, Any]]] = {"ems": [], "feed": [], "plant": []}
+    for ns, seed in zip(ns_list, seeds):
+        for role, params in _building_params(opts, seed, common, weeks, steps).items():
+            if role == "plant":
+                params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S,
+                          **params}
+            by_role[role].append({"namespace": ns, "params": params})
+    plant = None
+    for role in ("ems", "feed", "plant"):
+        path = write(f"host_{role}", dict(extra, ems=opts.ems, nodes=by_role[role]))
+        child = group.start(f"host_{role}", role, host_command(role, path))
+        if role == "plant":
+            plant = child
+    assert plant is not None
+    return recorders, [plant]
 
 
 def _supervise(

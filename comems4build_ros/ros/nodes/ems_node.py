@@ -64,12 +64,13 @@ class EMSNode(ContractNode):
     Parameters
     ----------
     ems : EMS name of the registry (``fuzzy``, ``rbc``, ``mpc``, ``mpc-qp``, ``thermostat``)
+    node_kwargs : passed to ``rclpy.node.Node`` (e.g. ``namespace``, ``parameter_overrides``)
     """
 
-    def __init__(self, ems: str) -> None:
+    def __init__(self, ems: str, **node_kwargs: Any) -> None:
         contract = load_contract()
         node_name = contract.ems_node_name(ems)
-        super().__init__(node_name, contract, automatically_declare_parameters_from_overrides=True)
+        super().__init__(node_name, contract, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         spec = contract.node(node_name)
         params = plant_params_from_node(self)
         options = parse_options(param(self, "ems_options", [""]), node_name)

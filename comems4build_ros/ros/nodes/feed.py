@@ -159,8 +159,9 @@ def load_scenario(
 class Feed(ContractNode):
     """Scenario publisher node (see the module docstring)."""
 
-    def __init__(self) -> None:
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
+    def __init__(self, **node_kwargs: Any) -> None:
+        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         from ...sim import ObservationBuilder, exogenous_series, load_forecast_settings
 
         params = plant_params_from_node(self)

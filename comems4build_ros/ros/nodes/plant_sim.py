@@ -60,7 +60,7 @@ STEP_TIMEOUT_S = 5.0
 STARTUP_TIMEOUT_S = 120.0
 #: Default period of the repeated announcement while the plant waits [s].
 REPUBLISH_PERIOD_S = 0.5
-#: Period of the watchdog timer (timeouts, repeats) [s].
+#: Default period of the watchdog timer (timeouts, repeats; parameter ``watchdog_period_s``) [s].
 WATCHDOG_PERIOD_S = 0.02
 #: Wait for the acknowledgement of the last messages before exiting [s].
 ACK_TIMEOUT_S = 5.0
@@ -83,15 +83,17 @@ STATE_TOPICS: dict[str, tuple[str, ...]] = {
 class PlantSim(ContractNode):
     """Plant simulator node (see the module docstring)."""
 
-    def __init__(self) -> None:
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
+    def __init__(self, **node_kwargs: Any) -> None:
+        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         self.params = plant_params_from_node(self)
         self.step_timeout_s = float(param(self, "step_timeout_s", STEP_TIMEOUT_S))
         self.startup_timeout_s = float(param(self, "startup_timeout_s", STARTUP_TIMEOUT_S))
         self.republish_period_s = float(param(self, "republish_period_s", REPUBLISH_PERIOD_S))
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.exit_when_done = bool(param(self, "exit_when_done", True))
-        for name in ("step_timeout_s", "startup_timeout_s", "republish_period_s"):
+        self.watchdog_period_s = float(param(self, "watchdog_period_s", WATCHDOG_PERIOD_S))
+        for name in ("step_timeout_s", "startup_timeout_s", "republish_period_s", "watchdog_period_s"):
             if not getattr(self, name) > 0:
                 raise ValueError(f"node '{NODE_NAME}': parameter '{name}' must be positive")
 
@@ -140,7 +142,7 @@ class PlantSim(ContractNode):
         self._step_msg = UInt32()
         self._clock_msg = Clock()
         self.finished = Future()
-        self.create_timer(WATCHDOG_PERIOD_S, self._watchdog)
+        self.create_timer(self.watchdog_period_s, self._watchdog)
         self.get_logger().info(
             f"plant ready: step timeout {self.step_timeout_s} s, start-up timeout {self.startup_timeout_s} s, "
             f"wait for recorder: {self.wait_for_recorder}"

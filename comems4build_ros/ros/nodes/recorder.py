@@ -29,9 +29,9 @@ Progress: with ``progress_period_s`` > 0 the node prints ``progress <recorded> <
 lines on stdout (plant/record messages recorded, steps of all namespaces; total 0 until
 known), read by ``comems4build launch``.
 
-Other parameters: ``bag_path`` (directory to create, required), ``run_info`` (JSON
-string, stored as ``run_info.json`` in the bag directory and as ``custom_data`` entry
-``comems4build.run_info`` of ``metadata.yaml``).
+Other parameters: ``tick_s`` (housekeeping timer period, default 0.05 s), ``bag_path``
+(directory to create, required), ``run_info`` (JSON string, stored as ``run_info.json`` in
+the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``).
 """
 
 from __future__ import annotations
@@ -63,7 +63,8 @@ READY_TIMEOUT_S = 60.0
 DONE_GRACE_S = 0.3
 #: Default limit on the wait for missing records once every plant is done [s].
 DONE_TIMEOUT_S = 5.0
-#: Period of the housekeeping timer (chunk age, readiness, end of run, progress) [s].
+#: Default period of the housekeeping timer (chunk age, readiness, end of run, progress;
+#: parameter ``tick_s``) [s].
 TICK_S = 0.05
 #: Contract roles whose topics the recorder waits for by default.
 WAIT_ROLES = ("plant", "feed", "ems")
@@ -82,8 +83,9 @@ def default_wait_topics(contract: Contract) -> list[str]:
 class Recorder(Node):
     """Bag recorder node (see the module docstring)."""
 
-    def __init__(self) -> None:
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
+    def __init__(self, **node_kwargs: Any) -> None:
+        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         self.contract = load_contract()
         self.contract.node(NODE_NAME)
         bag_path = str(param(self, "bag_path", ""))
@@ -152,7 +154,10 @@ class Recorder(Node):
         from rclpy.task import Future
 
         self.finished = Future()
-        self.create_timer(TICK_S, self._tick)
+        tick_s = float(param(self, "tick_s", TICK_S))
+        if not tick_s > 0:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'tick_s' must be positive")
+        self.create_timer(tick_s, self._tick)
         self.get_logger().info(
             f"recording {len(self.contract.topics)} topics x {len(self.namespaces)} namespace(s) to {bag_path}"
         )

@@ -1,0 +1,212 @@
+"""Host mode: one OS process per role runs that role's nodes of many buildings.
+
+``python -m comems4build_ros.ros.host --role plant|feed|ems|recorder --spec FILE.json``
+
+With ``--buildings N`` the process-per-node launch starts 3N + N + 1 processes; with 16
+buildings Fast DDS discovery between ~65 participants and the per-process overhead
+(imports, executors, one wake-up per message per process) did not finish in minutes on
+2 cores (docs/ros_tools.md). In host mode the launcher starts one process per role
+(plant, feed, EMS) and one recorder process per few buildings. Each process creates the
+very node classes of ``comems4build_ros.ros.nodes`` (:class:`PlantSim`, :class:`Feed`,
+:class:`EMSNode`, :class:`Recorder`), one ``rclpy`` node per building under
+``/building_<i>/`` with its parameters as ``parameter_overrides``, and spins them all on
+one ``SingleThreadedExecutor``. The nodes still talk over DDS (one participant per
+process, rclpy's default), so the lock-step protocol, the contract checks and the bags
+are those of the separate processes.
+
+Spec file (JSON, written by the launcher)::
+
+    {"ems": "fuzzy",                       # EMS name (role ems only)
+     "progress_period_s": 0.25,            # recorder only: one summed progress line per period
+     "nodes": [{"namespace": "/building_0", "params": {"config_files": [...], ...}}, ...]}
+
+The recorders' own progress lines are replaced by one line ``progress <recorded>
+<total>`` summed over the process's recorders (give them ``progress_period_s`` 0).
+Parameter values: bool, int, float, str or a non-empty list of one of them (empty lists
+are left out: their type cannot be inferred, as with ``-p``).
+
+Exit codes: plant and recorder processes exit 0 once every node's ``finished`` future
+completed with 0 (the first non-zero result is the exit code); feed and EMS processes
+run until SIGINT/SIGTERM, and an EMS process exits with the code of the first EMS node
+whose controller failed. A bad parameter or scenario gives exit code 2 and a message
+naming the namespace. Parameter services are not started for hosted nodes (fewer
+entities in the shared executor); ``ros2 param`` does not reach them.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+#: Roles a host process can run.
+ROLES = ("plant", "feed", "ems", "recorder")
+#: Roles whose process ends once all its nodes' ``finished`` futures are done.
+FINISHING_ROLES = ("plant", "recorder")
+#: Exit code for a bad spec, parameter or scenario.
+EXIT_BAD_INPUT = 2
+
+
+class HostSpecError(ValueError):
+    """The spec file is unreadable or malformed."""
+
+
+def load_spec(path: str | Path) -> dict[str, Any]:
+    """Read and check a host spec file (see the module docstring).
+
+    Raises
+    ------
+    HostSpecError
+        Naming the file and the offending entry.
+    """
+    p = Path(path)
+    try:
+        spec = json.loads(p.read_text(encoding="utf-8"))
+    except (OSError, json.JSONDecodeError) as exc:
+        raise HostSpecError(f"host spec '{p}': {exc}") from None
+    nodes = spec.get("nodes") if isinstance(spec, dict) else None
+    if not isinstance(nodes, list) or not nodes:
+        raise HostSpecError(f"host spec '{p}': 'nodes' must be a non-empty list")
+    seen: set[str] = set()
+    for i, entry in enumerate(nodes):
+        if not isinstance(entry, dict) or not isinstance(entry.get("namespace"), str):
+            raise HostSpecError(f"host spec '{p}': nodes[{i}] needs a string 'namespace'")
+        if entry["namespace"] in seen:
+            raise HostSpecError(f"host spec '{p}': nodes[{i}]: namespace '{entry['namespace']}' given twice")
+        seen.add(entry["namespace"])
+        if not isinstance(entry.get("params", {}), dict):
+            raise HostSpecError(f"host spec '{p}': nodes[{i}].params must be an object")
+    return spec
+
+
+def to_parameters(params: dict[str, Any]) -> list[Any]:
+    """``rclpy.parameter.Parameter`` list of ``params`` (empty lists left out)."""
+    from rclpy.parameter import Parameter
+
+    out = []
+    for name, value in params.items():
+        if isinstance(value, (list, tuple)):
+            if not value:
+                continue
+            value = list(value)
+        out.append(Parameter(name, value=value))
+    return out
+
+
+def node_factory(role: str, spec: dict[str, Any]) -> Any:
+    """``make(namespace, parameter_overrides) -> Node`` for ``role``."""
+    if role == "plant":
+        from .nodes.plant_sim import PlantSim
+
+        return lambda **kw: PlantSim(**kw)
+    if role == "feed":
+        from .nodes.feed import Feed
+
+        return lambda **kw: Feed(**kw)
+    if role == "recorder":
+        from .nodes.recorder import Recorder
+
+        return lambda **kw: Recorder(**kw)
+    if role == "ems":
+        from .nodes.ems_node import EMSNode
+
+        ems = spec.get("ems")
+        if not isinstance(ems, str) or not ems:
+            raise HostSpecError("host spec: role 'ems' needs the EMS name as 'ems'")
+        return lambda **kw: EMSNode(ems, **kw)
+    raise HostSpecError(f"unknown role '{role}' (one of {', '.join(ROLES)})")
+
+
+def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> int:
+    """Create every node of ``spec`` and spin them on one SingleThreadedExecutor.
+
+    Shutdown order as :func:`comems4build_ros.ros.common.run_node`: executor shutdown,
+    destroy every node (a recorder closes its bag there), rclpy shutdown.
+    """
+    import rclpy
+    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.task import Future
+
+    from ..config import ConfigError
+    from .contract import ContractError
+
+    make = node_factory(role, spec)
+    rclpy.init(args=args)
+    executor = SingleThreadedExecutor()
+    nodes: list[Any] = []
+    code = 0
+    current = "?"
+    progress_nodes: list[Any] = []
+    try:
+        for entry in spec["nodes"]:
+            current = entry["namespace"]
+            params = dict(entry.get("params", {}))
+            node = make(
+                namespace=current,
+                parameter_overrides=to_parameters(params),
+                start_parameter_services=False,
+            )
+            nodes.append(node)
+            executor.add_node(node)
+        period = float(spec.get("progress_period_s", 0.0))
+        if role == "recorder" and period > 0:
+            progress_nodes = list(nodes)
+            nodes[0].create_timer(period, lambda: print_progress(progress_nodes))
+        all_done = Future()
+        futures = [f for f in (getattr(n, "finished", None) for n in nodes) if f is not None]
+
+        def check(_: Any = None) -> None:
+            if all_done.done():
+                return
+            failed = [int(f.result() or 0) for f in futures if f.done() and int(f.result() or 0) != 0]
+            if failed:
+                all_done.set_result(failed[0])
+            elif role in FINISHING_ROLES and all(f.done() for f in futures):
+                all_done.set_result(0)
+
+        for f in futures:
+            f.add_done_callback(check)
+        executor.spin_until_future_complete(all_done)
+        if all_done.done():
+            code = int(all_done.result() or 0)
+        if progress_nodes:
+            print_progress(progress_nodes)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except (ConfigError, ContractError, ValueError, FileNotFoundError) as exc:
+        print(f"[host {role} {current}] error: {exc}", file=sys.stderr, flush=True)
+        code = EXIT_BAD_INPUT
+    finally:
+        executor.shutdown()
+        for node in nodes:
+            node.destroy_node()
+        rclpy.try_shutdown()
+    return code
+
+
+def print_progress(recorders: list[Any]) -> None:
+    """One ``progress <recorded> <total>`` line for all hosted recorders (total 0 until every one knows)."""
+    recorded = sum(sum(r.records.values()) for r in recorders)
+    known = all(len(r.n_steps) == len(r.namespaces) for r in recorders)
+    total = sum(sum(r.n_steps.values()) for r in recorders) if known else 0
+    print(f"progress {recorded} {total}", flush=True)
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point: ``python -m comems4build_ros.ros.host --role ROLE --spec FILE``."""
+    parser = argparse.ArgumentParser(prog="comems4build_ros.ros.host", description=__doc__.splitlines()[0])
+    parser.add_argument("--role", required=True, choices=ROLES)
+    parser.add_argument("--spec", required=True, help="JSON spec file (namespaces and parameters of the nodes)")
+    ns, rest = parser.parse_known_args(argv)
+    try:
+        spec = load_spec(ns.spec)
+    except HostSpecError as exc:
+        print(f"error: {exc}", file=sys.stderr)
+        return EXIT_BAD_INPUT
+    return run_host(ns.role, spec, rest or None)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())

@@ -1,0 +1,82 @@
+"""Host mode (one process per role for many buildings): spec checks, parameters, closed loop equals in-process."""
+
+from __future__ import annotations
+
+import json
+import warnings
+from pathlib import Path
+
+import pytest
+
+from comems4build_ros.ros.host import HostSpecError, load_spec, main, to_parameters
+
+
+def _write(tmp_path: Path, obj: object) -> Path:
+    path = tmp_path / "spec.json"
+    path.write_text(json.dumps(obj) if not isinstance(obj, str) else obj)
+    return path
+
+
+def test_load_spec_names_the_file_and_entry(tmp_path: Path) -> None:
+    with pytest.raises(HostSpecError, match="spec.json.*'nodes' must be a non-empty list"):
+        load_spec(_write(tmp_path, {"nodes": []}))
+    with pytest.raises(HostSpecError, match=r"nodes\[1\]: namespace '/b' given twice"):
+        load_spec(_write(tmp_path, {"nodes": [{"namespace": "/b"}, {"namespace": "/b"}]}))
+    with pytest.raises(HostSpecError, match=r"nodes\[0\] needs a string 'namespace'"):
+        load_spec(_write(tmp_path, {"nodes": [{"params": {}}]}))
+    with pytest.raises(HostSpecError, match="spec.json"):
+        load_spec(_write(tmp_path, "{not json"))
+    spec = load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "params": {"x": 1}}]}))
+    assert spec["nodes"][0]["params"] == {"x": 1}
+
+
+def test_main_exit_code_2_on_bad_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--role", "plant", "--spec", str(tmp_path / "missing.json")]) == 2
+    assert "missing.json" in capsys.readouterr().err
+
+
+def test_to_parameters_types() -> None:
+    from rclpy.parameter import Parameter
+
+    params = {
+        p.name: p for p in to_parameters({"a": True, "b": 3, "c": 0.5, "d": "x", "e": ["u", "v"], "f": [], "g": [1.0]})
+    }
+    assert sorted(params) == ["a", "b", "c", "d", "e", "g"]  # empty list left out
+    assert params["a"].type_ == Parameter.Type.BOOL and params["a"].value is True
+    assert params["b"].type_ == Parameter.Type.INTEGER and params["b"].value == 3
+    assert params["c"].type_ == Parameter.Type.DOUBLE
+    assert params["d"].type_ == Parameter.Type.STRING
+    assert params["e"].type_ == Parameter.Type.STRING_ARRAY and list(params["e"].value) == ["u", "v"]
+    assert params["g"].type_ == Parameter.Type.DOUBLE_ARRAY
+
+
+@pytest.mark.ros
+def test_three_buildings_in_host_mode_equal_in_process(tmp_path: Path) -> None:
+    """3 buildings, 2 per recorder process: 5 node processes, each building equals its in-process run."""
+    from comems4build_ros.config import load_plant_params
+    from comems4build_ros.ros.bag import lost_messages
+    from comems4build_ros.ros.launcher import LaunchOptions, launch, processes_with_env
+    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.scenario.settings import load_scenario_settings
+    from comems4build_ros.sim import simulate
+
+    out = tmp_path / "run"
+    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, host_mode=True,
+                         buildings_per_recorder=2, timeout_s=150))
+    logs = sorted(p.name for p in (out / "log").glob("*.log"))
+    assert logs == ["host_ems.log", "host_feed.log", "host_plant.log", "host_recorder_0.log", "host_recorder_1.log"]
+    params = load_plant_params()
+    seed = load_scenario_settings().seed
+    for i in range(3):
+        per = json.loads((out / f"building_{i}" / "summary.json").read_text())
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            ref = simulate("fuzzy", load_scenario("default", params, None, 1, seed + i, 30), params).summary
+        keys = set(ref) - {"wall_s", "ems_s"}
+        assert keys == set(per) - {"wall_s", "ems_s"}
+        for k in sorted(keys):
+            assert per[k] == ref[k] or (per[k] != per[k] and ref[k] != ref[k]), (i, k)  # NaN == NaN
+        assert per["steps"] == 30
+    assert (out / "bag" / "building_2" / "metadata.yaml").is_file()
+    assert lost_messages(out / "bag").get("/building_1/plant/record") is None
+    assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []
