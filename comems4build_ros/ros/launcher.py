@@ -371,9 +371,15 @@ def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = N
     env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
     env["ROS_LOG_DIR"] = str(ros_log_dir)
     env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; the range above replaces it
-    root = str(Path(__file__).resolve().parents[2])
-    parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
-    env["PYTHONPATH"] = os.pathsep.join([root, *parts])
+    root_path = Path(__file__).resolve().parents[2]
+    # Running from a source tree: children import this same tree. An installed package is
+    # found by the children's interpreter anyway; putting site-packages on PYTHONPATH would
+    # place it before the standard library (and the old 'pathlib' backport that OpenDHW
+    # pulls in would then shadow the real pathlib).
+    if root_path.name not in ("site-packages", "dist-packages"):
+        root = str(root_path)
+        parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
+        env["PYTHONPATH"] = os.pathsep.join([root, *parts])
     env["PYTHONUNBUFFERED"] = "1"
     if "FASTDDS_DEFAULT_PROFILES_FILE" not in env and "FASTRTPS_DEFAULT_PROFILES_FILE" not in env:
         profile = fastdds_profile()
