@@ -9,7 +9,8 @@
    run, as measured by plant_sim (from the state announcement of step k to the arrival
    of the command for step k; ``plant/events`` "stats" line in the bag);
 3. the throughput with ``--buildings 1, 4, 16`` (N independent buildings under
-   ``/building_<i>``, one recorder): wall time and building-steps per second.
+   ``/building_<i>``; N > 1 in the launcher's host mode, one process per role, see
+   :mod:`comems4build_ros.ros.host`): wall time and building-steps per second.
 
 Targets on 2 cores: round trip median < 2 ms, 12-week fuzzy run over ROS < 20 s, 16
 buildings x 12 weeks < 2 min. Wall times include process start-up (imports, scenario
