@@ -58,6 +58,19 @@ def default_plant_file() -> Path:
     return config_dir() / "plant.yaml"
 
 
+def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError) -> Any:
+    """Parse a YAML file; ``error`` names the file (and ``what`` it is) when that fails."""
+    path = Path(path)
+    try:
+        text = path.read_text(encoding="utf-8")
+    except OSError as exc:
+        raise error(f"{path}: cannot read {what}: {exc.strerror}") from exc
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as exc:
+        raise error(f"{path}: invalid YAML: {exc}") from exc
+
+
 def read_ros_params(path: str | Path, node: str | None = None) -> dict[str, Any]:
     """Read a ROS 2 parameter file and return the merged ``ros__parameters`` dict.
 
@@ -73,14 +86,7 @@ def read_ros_params(path: str | Path, node: str | None = None) -> dict[str, Any]
         If the file cannot be read or is not in parameter-file form.
     """
     path = Path(path)
-    try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ConfigError(f"{path}: cannot read parameter file: {exc.strerror}") from exc
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ConfigError(f"{path}: invalid YAML: {exc}") from exc
+    doc = load_yaml(path, "parameter file")
     if not isinstance(doc, Mapping):
         raise ConfigError(f"{path}: expected '<node>: ros__parameters: ...' at the top level")
     merged: dict[str, Any] = {}

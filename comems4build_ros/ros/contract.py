@@ -31,7 +31,8 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-import yaml
+
+from ..config import load_yaml
 
 PACKAGE = "comems4build_ros"
 CONTRACT_FILE = "topics.yaml"
@@ -510,15 +511,7 @@ def parse_contract(doc: Any, path: Path) -> Contract:
 @functools.lru_cache(maxsize=4)
 def _load_cached(path: str) -> Contract:
     p = Path(path)
-    try:
-        text = p.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise ContractError(f"{p}: cannot read the topic contract: {exc.strerror}") from exc
-    try:
-        doc = yaml.safe_load(text)
-    except yaml.YAMLError as exc:
-        raise ContractError(f"{p}: invalid YAML: {exc}") from exc
-    return parse_contract(doc, p)
+    return parse_contract(load_yaml(p, "the topic contract", ContractError), p)
 
 
 def load_contract(path: str | Path | None = None) -> Contract:
