@@ -645,20 +645,12 @@ def _start_building(
 ) -> Child:
     """Start the EMS, the feed and the plant of one building; returns the plant."""
     prefix = "" if ns == "/" else ns.strip("/") + "/"
-    ems_params = dict(common)
-    if opts.ems_options:
-        ems_params["ems_options"] = list(opts.ems_options)
-    group.start(f"{prefix}{opts.ems}_ems", "ems", [*node_command("ems", opts.ems), *ros_args(ns, ems_params)])
-    feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps)
-    if seed is not None:
-        feed_params["seed"] = int(seed)
-    if opts.start:
-        feed_params["start"] = opts.start
-    if opts.forecast:
-        feed_params["forecast_mode"] = opts.forecast
-    group.start(f"{prefix}feed", "feed", [*node_command("feed"), *ros_args(ns, feed_params)])
-    plant_params = dict(common, wait_for_recorder=True, **opts.plant_params)
-    return group.start(f"{prefix}plant_sim", "plant", [*node_command("plant_sim"), *ros_args(ns, plant_params)])
+    params = _building_params(opts, seed, common, weeks, steps)
+    group.start(f"{prefix}{opts.ems}_ems", "ems", [*node_command("ems", opts.ems), *ros_args(ns, params["ems"])])
+    group.start(f"{prefix}feed", "feed", [*node_command("feed"), *ros_args(ns, params["feed"])])
+    return group.start(
+        f"{prefix}plant_sim", "plant", [*node_command("plant_sim"), *ros_args(ns, params["plant"])]
+    )
 
 
 def _building_params(
