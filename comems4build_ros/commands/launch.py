@@ -33,6 +33,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", type=float, default=None, help="give up after this wall time [s]")
     parser.add_argument("--out", required=True, help="output directory (bag/, log/, weekly.csv, summary.json)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--print-plan", action="store_true",
+                        help="print the run plan (processes, nodes, parameters) and exit without starting anything")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,6 +75,11 @@ def run(args: argparse.Namespace) -> int:
         progress=not args.no_progress and sys.stderr.isatty(),
         plant_params={} if args.step_timeout is None else {"step_timeout_s": float(args.step_timeout)},
     )
+    if args.print_plan:
+        from ..ros.plan import plan_run
+
+        print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
+        return 0
     try:
         result = launch(opts)
     except LaunchError as exc:

@@ -1,0 +1,576 @@
+"""The plan of a launch: which nodes run, in which process and host group, with what.
+
+A :class:`RunPlan` is plain data, built by :func:`plan_run` from the
+:class:`LaunchOptions` of ``comems4build launch`` without starting anything: the
+buildings (namespace, scenario seed, bag directory), the host groups (where a set of
+processes runs: the local host, or a network namespace with its own address), and the
+processes (command line, the nodes each hosts with their namespace and parameters,
+the files to write before the start, environment additions, and the exit rule). The
+supervisor (:mod:`comems4build_ros.ros.supervisor`) starts and watches any plan; the
+launcher (:mod:`comems4build_ros.ros.launcher`) joins the two and evaluates the bag.
+
+Every way to run is an option of the plan, never a branch through the supervisor:
+
+* ``layout``: ``node`` (one OS process per node, the default for one building) or
+  ``role`` (one process per role hosting that role's nodes of every building, recorders
+  split by ``buildings_per_recorder``; the default for more buildings; see
+  :mod:`comems4build_ros.ros.host`);
+* ``discovery_server``: a Fast DDS discovery server process and ``ROS_DISCOVERY_SERVER``
+  in every other process's environment.
+
+``RunPlan.describe()`` prints the plan (``comems4build launch --print-plan``); the tests
+check plans without processes.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import json
+import math
+import sys
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+#: Console script of each node and the module run with ``python -m`` when there is none.
+NODE_MODULES: dict[str, str] = {
+    "plant_sim": "comems4build_ros.ros.nodes.plant_sim",
+    "feed": "comems4build_ros.ros.nodes.feed",
+    "recorder": "comems4build_ros.ros.nodes.recorder",
+    "replay": "comems4build_ros.ros.nodes.replay",
+}
+#: EMS name -> console script (EMS without one run as ``python -m ...ems_node --ems NAME``).
+EMS_SCRIPTS: dict[str, str] = {"fuzzy": "fuzzy_ems", "rbc": "rbc_ems", "mpc": "mpc_ems"}
+EMS_MODULE = "comems4build_ros.ros.nodes.ems_node"
+#: Module of the host processes (one process per role for many buildings).
+HOST_MODULE = "comems4build_ros.ros.host"
+#: Recorder progress line period [s].
+PROGRESS_PERIOD_S = 0.25
+#: UDP port of the discovery server: this base + the (locked) domain id.
+DISCOVERY_PORT_BASE = 11811
+#: Buildings per recorder process in host mode (one recorder process for all 16 buildings
+#: would hold 16 x 32 subscriptions in one executor, see the module docstring of the launcher).
+HOST_BUILDINGS_PER_RECORDER = 4
+#: Host mode: plant_sim's step timeout [s]. One EMS process answers every building in
+#: turn, so on a loaded machine a command can come later than the 5 s meant to detect a
+#: dead EMS (a dead host process stops the launch anyway). Overridden by ``plant_params``.
+HOST_STEP_TIMEOUT_S = 60.0
+#: Host mode: plant_sim's watchdog and the recorder's housekeeping timer periods [s]
+#: (instead of 0.02 s and 0.05 s: N nodes' timers wake one shared executor N times as often).
+HOST_WATCHDOG_PERIOD_S = 0.1
+HOST_RECORDER_TICK_S = 0.2
+#: Process layouts: one process per node, or one process per role for all buildings.
+LAYOUTS = ("node", "role")
+#: Stop stages: plant, feed and EMS first, then the recorders (they close the bags),
+#: then services (discovery server).
+STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES = 0, 1, 2
+#: Name of the host group of a plan that runs everything on this host as it is.
+LOCAL_GROUP = "local"
+
+
+@dataclass
+class LaunchOptions:
+    """What :func:`comems4build_ros.ros.launcher.launch` runs.
+
+    Attributes
+    ----------
+    ems : EMS name (fuzzy, rbc, mpc; thermostat and mpc-qp run through ``ems_node``)
+    out : output directory (``bag/``, ``log/``, ``weekly.csv``, ``summary.json``, ...)
+    scenario : ``default`` or a scenario CSV path
+    weeks : run length [weeks] (None = the scenario's default)
+    steps : cut the run to its first ``steps`` steps (short test runs; None = all)
+    start : ISO start time (CSV scenarios)
+    buildings : number of independent buildings
+    seed : scenario seed of building 0 (default scenario; None = the configured seed)
+    config_files : parameter files merged over ``config/plant.yaml``
+    overrides : ``section.key`` -> value overrides of the plant parameters
+    ems_options : options of the EMS (``key=value`` strings)
+    forecast : forecast mode of the MPC (None = ``config/forecast.yaml``)
+    domain_id : ROS domain id (None = a free one)
+    timeout_s : stop with an error after this wall time [s] (None = no limit)
+    progress : show a progress bar (tqdm on stderr)
+    plant_params : extra ``-p`` parameters of plant_sim (e.g. ``step_timeout_s``)
+    discovery_server : use a Fast DDS discovery server (None = with more than one building
+        in process-per-node mode; never in host mode)
+    host_mode : one process per role hosting the nodes of all buildings (see
+        :mod:`comems4build_ros.ros.host`); None = with more than one building
+        (``layout`` ``role``; False = ``node``)
+    buildings_per_recorder : buildings recorded by one recorder process in host mode
+    """
+
+    ems: str
+    out: Path
+    scenario: str = "default"
+    weeks: float | None = None
+    steps: int | None = None
+    start: str | None = None
+    buildings: int = 1
+    seed: int | None = None
+    config_files: list[str] = field(default_factory=list)
+    overrides: dict[str, Any] = field(default_factory=dict)
+    ems_options: list[str] = field(default_factory=list)
+    forecast: str | None = None
+    domain_id: int | None = None
+    timeout_s: float | None = None
+    progress: bool = False
+    plant_params: dict[str, Any] = field(default_factory=dict)
+    discovery_server: bool | None = None
+    host_mode: bool | None = None
+    buildings_per_recorder: int = HOST_BUILDINGS_PER_RECORDER
+
+    @property
+    def layout(self) -> str:
+        """``role`` (host mode) or ``node`` (one process per node); see :data:`LAYOUTS`."""
+        host = self.host_mode if self.host_mode is not None else self.buildings > 1
+        return "role" if host else "node"
+
+
+# ---------------------------------------------------------------------- plan records
+@dataclass(frozen=True)
+class NodePlan:
+    """One ROS node of the plan.
+
+    Attributes
+    ----------
+    role : plant, feed, ems or recorder
+    name : node name (``plant_sim``, ``feed``, ``fuzzy_ems``, ``recorder``)
+    namespace : ``/`` or ``/building_<i>``
+    params : ROS parameters of the node
+    """
+
+    role: str
+    name: str
+    namespace: str
+    params: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class ProcessPlan:
+    """One OS process of the plan.
+
+    Attributes
+    ----------
+    name : name in messages and of the log file (``plant_sim``, ``building_3/feed``, ``host_ems``)
+    role : plant, feed, ems, recorder or discovery (what the exit rule looks at)
+    argv : command line
+    nodes : the ROS nodes the process runs (empty for a service such as the discovery server)
+    group : host group (:class:`HostGroup`) the process runs in
+    files : ``(path, text)`` written before the start (host spec files)
+    env : environment additions of this process (over the group's and the plan's)
+    finishes : exit code 0 at the end of its part of the run is normal (plants, recorders);
+        any other exit while the run is in progress fails the launch
+    progress : the process prints ``progress <recorded> <total>`` lines on stdout
+    stop_stage : order of stopping (:data:`STAGE_NODES`, :data:`STAGE_RECORDERS`,
+        :data:`STAGE_SERVICES`)
+    """
+
+    name: str
+    role: str
+    argv: tuple[str, ...]
+    nodes: tuple[NodePlan, ...] = ()
+    group: str = LOCAL_GROUP
+    files: tuple[tuple[str, str], ...] = ()
+    env: dict[str, str] = field(default_factory=dict)
+    finishes: bool = False
+    progress: bool = False
+    stop_stage: int = STAGE_NODES
+
+
+@dataclass(frozen=True)
+class HostGroup:
+    """Where a set of processes runs.
+
+    Attributes
+    ----------
+    name : group name (``local`` = this host as it is)
+    env : environment additions of every process of the group
+    """
+
+    name: str
+    env: dict[str, str] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
+class BuildingPlan:
+    """One building: namespace, scenario seed (None = configured) and bag directory."""
+
+    namespace: str
+    seed: int | None
+    bag: Path
+
+
+@dataclass(frozen=True)
+class RunPlan:
+    """Everything a launch runs (see the module docstring).
+
+    Attributes
+    ----------
+    ems : EMS name
+    out : output directory; ``bag`` the bag directory (or set of per-building bags)
+    domain_id : ROS domain id of every process
+    layout : ``node`` or ``role`` (:data:`LAYOUTS`)
+    buildings : the buildings, in namespace order
+    groups : host groups by name
+    processes : processes in start order
+    env : environment additions of every process (besides the isolation variables the
+        supervisor sets: domain id, discovery range, log directory)
+    run_info : the run's description stored in every bag (``run_info.json``)
+    timeout_s : overall wall-time limit [s] (None = none)
+    """
+
+    ems: str
+    out: Path
+    bag: Path
+    domain_id: int
+    layout: str
+    buildings: tuple[BuildingPlan, ...]
+    groups: dict[str, HostGroup]
+    processes: tuple[ProcessPlan, ...]
+    env: dict[str, str] = field(default_factory=dict)
+    run_info: dict[str, Any] = field(default_factory=dict)
+    timeout_s: float | None = None
+
+    def process(self, name: str) -> ProcessPlan:
+        """The process called ``name`` (KeyError naming the known ones)."""
+        for p in self.processes:
+            if p.name == name:
+                return p
+        raise KeyError(f"no process '{name}' in the plan (processes: {', '.join(p.name for p in self.processes)})")
+
+    def nodes(self, role: str | None = None) -> list[tuple[ProcessPlan, NodePlan]]:
+        """``(process, node)`` of every node (of ``role``), in start order."""
+        return [(p, n) for p in self.processes for n in p.nodes if role is None or n.role == role]
+
+    def describe(self) -> str:
+        """Human-readable plan: groups, processes and the nodes each runs."""
+        lines = [
+            f"run plan: EMS {self.ems}, {len(self.buildings)} building(s), layout '{self.layout}', "
+            f"ROS domain {self.domain_id}, {len(self.processes)} process(es), "
+            f"time limit {'none' if self.timeout_s is None else f'{self.timeout_s:g} s'}",
+            f"bag: {self.bag}",
+        ]
+        for g in self.groups.values():
+            env = " ".join(f"{k}={v}" for k, v in sorted(g.env.items()))
+            lines.append(f"group {g.name}" + (f": {env}" if env else ""))
+            for p in self.processes:
+                if p.group != g.name:
+                    continue
+                nodes = ", ".join(f"{n.namespace.rstrip('/')}/{n.name}" for n in p.nodes) or "-"
+                lines.append(f"  process {p.name} [{p.role}, stop stage {p.stop_stage}]: {nodes}")
+                lines.append(f"    $ {' '.join(p.argv)}")
+        return "\n".join(lines)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready form of the plan."""
+
+        def node(n: NodePlan) -> dict[str, Any]:
+            return {"role": n.role, "name": n.name, "namespace": n.namespace, "params": n.params}
+
+        return {
+            "ems": self.ems,
+            "out": str(self.out),
+            "bag": str(self.bag),
+            "domain_id": self.domain_id,
+            "layout": self.layout,
+            "timeout_s": self.timeout_s,
+            "env": self.env,
+            "buildings": [{"namespace": b.namespace, "seed": b.seed, "bag": str(b.bag)} for b in self.buildings],
+            "groups": [{"name": g.name, "env": g.env} for g in self.groups.values()],
+            "processes": [
+                {"name": p.name, "role": p.role, "group": p.group, "argv": list(p.argv),
+                 "nodes": [node(n) for n in p.nodes], "files": [f for f, _ in p.files], "env": p.env,
+                 "finishes": p.finishes, "progress": p.progress, "stop_stage": p.stop_stage}
+                for p in self.processes
+            ],
+        }
+
+
+# ---------------------------------------------------------------------- command lines
+def node_command(executable: str, ems: str | None = None) -> list[str]:
+    """Command line of a node: the venv's console script if installed, else ``python -m``.
+
+    ``executable`` is a key of :data:`NODE_MODULES` or ``"ems"`` (then ``ems`` names it).
+    """
+    bindir = Path(sys.executable).parent
+    if executable == "ems":
+        if ems is None:
+            raise ValueError("node_command('ems') needs the EMS name")
+        script = EMS_SCRIPTS.get(ems)
+        if script and (bindir / script).is_file():
+            return [str(bindir / script)]
+        return [sys.executable, "-m", EMS_MODULE, "--ems", ems]
+    module = NODE_MODULES[executable]
+    if (bindir / executable).is_file():
+        return [str(bindir / executable)]
+    return [sys.executable, "-m", module]
+
+
+def ros_args(namespace: str = "", params: dict[str, Any] | None = None, params_files: Sequence[str] = ()) -> list[str]:
+    """``--ros-args`` part of a command line: namespace, ``-p name:=value``, params files.
+
+    Values are written as YAML (lists and strings as JSON, which YAML reads); empty
+    lists are left out (their type cannot be inferred).
+    """
+    out = ["--ros-args"]
+    if namespace and namespace != "/":
+        out += ["-r", f"__ns:={namespace}"]
+    for f in params_files:
+        out += ["--params-file", str(f)]
+    for name, value in (params or {}).items():
+        if isinstance(value, (list, tuple)):
+            if not value:
+                continue
+            text = json.dumps([str(v) for v in value] if all(isinstance(v, str) for v in value) else list(value))
+        elif isinstance(value, bool):
+            text = "true" if value else "false"
+        elif isinstance(value, str):
+            text = json.dumps(value)
+        else:
+            text = repr(value)
+        out += ["-p", f"{name}:={text}"]
+    return out
+
+
+def host_command(role: str, spec_path: Path) -> list[str]:
+    """Command line of a host process (``python -m comems4build_ros.ros.host``)."""
+    return [sys.executable, "-m", HOST_MODULE, "--role", role, "--spec", str(spec_path)]
+
+
+def discovery_server_command(port: int) -> list[str] | None:
+    """``fast-discovery-server`` on 127.0.0.1:``port`` (None when the ROS wheels lack it)."""
+    exe = Path(sys.executable).parent / "fast-discovery-server"
+    if not exe.is_file():
+        return None
+    return [str(exe), "-i", "0", "-l", "127.0.0.1", "-p", str(port)]
+
+
+# ---------------------------------------------------------------------- the planner
+def bag_dir(bag: Path, ns: str) -> Path:
+    """Bag of namespace ``ns``: ``bag`` itself for the root namespace, else ``bag/building_<i>``."""
+    return bag if ns == "/" else bag / ns.strip("/")
+
+
+def namespaces(buildings: int) -> list[str]:
+    """``["/"]`` for one building, else ``["/building_0", ...]``."""
+    if buildings < 1:
+        raise ValueError(f"--buildings must be >= 1, got {buildings}")
+    return ["/"] if buildings == 1 else [f"/building_{i}" for i in range(buildings)]
+
+
+def feed_window(weeks: float | None, steps: int | None) -> tuple[int, int]:
+    """``weeks`` and ``steps`` parameters of the feed (integer weeks, fractions via steps)."""
+    from ..scenario import HOURS_PER_WEEK
+
+    if weeks is None:
+        return 0, int(steps or 0)
+    whole = math.ceil(weeks - 1e-9)
+    n = int(round(weeks * HOURS_PER_WEEK))
+    if steps is not None:
+        n = min(n, steps)
+    return whole, (0 if n == whole * HOURS_PER_WEEK else n)
+
+
+def building_seeds(opts: LaunchOptions) -> list[int | None]:
+    """Scenario seed of each building: ``seed + i`` for several buildings on the default scenario."""
+    from ..scenario.settings import load_scenario_settings
+
+    if opts.buildings > 1 and opts.scenario == "default":
+        base = opts.seed if opts.seed is not None else load_scenario_settings().seed
+        return [base + i for i in range(opts.buildings)]
+    return [opts.seed] * opts.buildings
+
+
+def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[str, Any]:
+    """The run's description stored in the bag (``run_info.json``): what evaluate needs."""
+    from ..ems import controller_class
+    from ..sim import load_forecast_settings
+
+    level = controller_class(opts.ems).info_level
+    forecast = load_forecast_settings(**({"mode": opts.forecast} if opts.forecast else {})).mode
+    name = "default" if opts.scenario == "default" else Path(opts.scenario).name
+    return {
+        "ems": opts.ems,
+        "scenario": name,
+        "forecast": forecast if level == "mpc" else None,
+        "weeks": opts.weeks,
+        "steps": opts.steps,
+        "start": opts.start,
+        "buildings": [{"namespace": ns, "seed": s} for ns, s in zip(namespaces(opts.buildings), seeds)],
+        "config_files": [str(Path(f).resolve()) for f in opts.config_files],
+        "overrides": opts.overrides,
+        "ems_options": opts.ems_options,
+        "timezone": params.site.timezone,
+    }
+
+
+def building_params(opts: LaunchOptions, seed: int | None, common: dict[str, Any]) -> dict[str, dict[str, Any]]:
+    """Parameters of the EMS, feed and plant of one building (role -> parameters)."""
+    weeks, steps = feed_window(opts.weeks, opts.steps)
+    ems_params = dict(common)
+    if opts.ems_options:
+        ems_params["ems_options"] = list(opts.ems_options)
+    feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps)
+    if seed is not None:
+        feed_params["seed"] = int(seed)
+    if opts.start:
+        feed_params["start"] = opts.start
+    if opts.forecast:
+        feed_params["forecast_mode"] = opts.forecast
+    plant_params = dict(common, wait_for_recorder=True, **opts.plant_params)
+    return {"ems": ems_params, "feed": feed_params, "plant": plant_params}
+
+
+def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float) -> dict[str, Any]:
+    """Parameters of the recorder of namespace ``ns``."""
+    return {
+        "bag_path": str(bag_dir(bag, ns).resolve()),
+        "namespaces": [ns],
+        "run_info": json.dumps(info),
+        "progress_period_s": progress_period_s,
+    }
+
+
+def ems_node_name(ems: str) -> str:
+    """Node name of the EMS ``ems`` in the topic contract (``fuzzy_ems``, ``mpc_qp_ems``, ...)."""
+    from .contract import load_contract
+
+    return load_contract().ems_node_name(ems)
+
+
+def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan:
+    """The plan of ``opts`` on ``domain_id``; starts nothing (see the module docstring).
+
+    Parameters
+    ----------
+    opts : launch options
+    domain_id : ROS domain id of the run (the launcher locks a free one first)
+    params : plant parameters (default: loaded from ``opts.config_files`` and ``opts.overrides``)
+
+    Raises
+    ------
+    ValueError
+        For an invalid building count, layout or ``buildings_per_recorder``.
+    """
+    from ..config import load_plant_params
+
+    out = Path(opts.out)
+    bag = out / "bag"
+    if params is None:
+        params = load_plant_params(opts.config_files, opts.overrides)
+    ns_list = namespaces(opts.buildings)
+    seeds = building_seeds(opts)
+    info = run_info(opts, params, seeds)
+    layout = opts.layout
+    if layout == "role" and opts.buildings_per_recorder < 1:
+        raise ValueError(f"buildings_per_recorder must be >= 1, got {opts.buildings_per_recorder}")
+    common: dict[str, Any] = {"config_files": info["config_files"]}
+    if opts.overrides:
+        common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
+    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns)) for ns, seed in zip(ns_list, seeds))
+
+    if layout == "role":
+        processes = _role_processes(opts, buildings, common, bag, info, out / "host")
+    else:
+        processes = _node_processes(opts, buildings, common, bag, info)
+    use_server = opts.discovery_server
+    if use_server is None:
+        use_server = opts.buildings > 1 and layout == "node"
+    if use_server:
+        port = DISCOVERY_PORT_BASE + domain_id
+        argv = discovery_server_command(port)
+        if argv is not None:
+            server = {"ROS_DISCOVERY_SERVER": f"127.0.0.1:{port}"}
+            processes = [
+                ProcessPlan("discovery_server", "discovery", tuple(argv), stop_stage=STAGE_SERVICES),
+                *(dataclasses.replace(p, env={**p.env, **server}) for p in processes),
+            ]
+        else:
+            print("launcher: fast-discovery-server not found, using simple discovery", file=sys.stderr)
+    return RunPlan(
+        ems=opts.ems,
+        out=out,
+        bag=bag,
+        domain_id=domain_id,
+        layout=layout,
+        buildings=buildings,
+        groups={LOCAL_GROUP: HostGroup(LOCAL_GROUP)},
+        processes=tuple(processes),
+        run_info=info,
+        timeout_s=opts.timeout_s,
+    )
+
+
+def _node_processes(
+    opts: LaunchOptions, buildings: Sequence[BuildingPlan], common: dict[str, Any], bag: Path, info: dict[str, Any]
+) -> list[ProcessPlan]:
+    """Layout ``node``: one recorder per building, then EMS, feed and plant of each building."""
+    out: list[ProcessPlan] = []
+    for b in buildings:
+        prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
+        params = recorder_params(b.namespace, bag, info, PROGRESS_PERIOD_S)
+        out.append(ProcessPlan(
+            f"{prefix}recorder", "recorder", (*node_command("recorder"), *ros_args("", params)),
+            nodes=(NodePlan("recorder", "recorder", "/", params),), finishes=True, progress=True,
+            stop_stage=STAGE_RECORDERS,
+        ))
+    ems_name = ems_node_name(opts.ems)
+    for b in buildings:
+        prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
+        params = building_params(opts, b.seed, common)
+        ns = b.namespace
+        out.append(ProcessPlan(f"{prefix}{opts.ems}_ems", "ems",
+                               (*node_command("ems", opts.ems), *ros_args(ns, params["ems"])),
+                               nodes=(NodePlan("ems", ems_name, ns, params["ems"]),)))
+        out.append(ProcessPlan(f"{prefix}feed", "feed", (*node_command("feed"), *ros_args(ns, params["feed"])),
+                               nodes=(NodePlan("feed", "feed", ns, params["feed"]),)))
+        out.append(ProcessPlan(f"{prefix}plant_sim", "plant",
+                               (*node_command("plant_sim"), *ros_args(ns, params["plant"])),
+                               nodes=(NodePlan("plant", "plant_sim", ns, params["plant"]),), finishes=True))
+    return out
+
+
+def _role_processes(
+    opts: LaunchOptions,
+    buildings: Sequence[BuildingPlan],
+    common: dict[str, Any],
+    bag: Path,
+    info: dict[str, Any],
+    spec_dir: Path,
+) -> list[ProcessPlan]:
+    """Layout ``role`` (host mode): recorder processes (one per ``buildings_per_recorder``),
+    then one EMS, one feed and one plant process for all buildings."""
+    out: list[ProcessPlan] = []
+
+    def spec_file(name: str, spec: dict[str, Any]) -> tuple[Path, tuple[tuple[str, str], ...]]:
+        path = spec_dir / f"{name}.json"
+        return path, ((str(path), json.dumps(spec, indent=1) + "\n"),)
+
+    per = opts.buildings_per_recorder
+    for j in range(0, len(buildings), per):
+        nodes = [
+            NodePlan("recorder", "recorder", b.namespace,
+                     dict(recorder_params(b.namespace, bag, info, 0.0), tick_s=HOST_RECORDER_TICK_S))
+            for b in buildings[j:j + per]
+        ]
+        name = f"host_recorder_{j // per}"
+        spec = {"progress_period_s": PROGRESS_PERIOD_S,
+                "nodes": [{"namespace": n.namespace, "params": n.params} for n in nodes]}
+        path, files = spec_file(name, spec)
+        out.append(ProcessPlan(name, "recorder", tuple(host_command("recorder", path)), nodes=tuple(nodes),
+                               files=files, finishes=True, progress=True, stop_stage=STAGE_RECORDERS))
+    by_role: dict[str, list[NodePlan]] = {"ems": [], "feed": [], "plant": []}
+    names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
+    for b in buildings:
+        for role, params in building_params(opts, b.seed, common).items():
+            if role == "plant":
+                params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S,
+                          **params}
+            by_role[role].append(NodePlan(role, names[role], b.namespace, params))
+    for role in ("ems", "feed", "plant"):
+        name = f"host_{role}"
+        spec = {"ems": opts.ems, "nodes": [{"namespace": n.namespace, "params": n.params} for n in by_role[role]]}
+        path, files = spec_file(name, spec)
+        out.append(ProcessPlan(name, role, tuple(host_command(role, path)), nodes=tuple(by_role[role]),
+                               files=files, finishes=role == "plant"))
+    return out

@@ -1,0 +1,466 @@
+"""Supervisor: starts the processes of a :class:`~comems4build_ros.ros.plan.RunPlan` and watches them.
+
+No rclpy in this process. :func:`run_plan` writes the plan's files, starts every
+process in plan order with the plan's environment, waits for the end of the run by one
+exit rule, and stops everything in the plan's stop stages.
+
+Isolation: the children get the parent's full environment (the ROS wheels' bootstrap
+needs its ``LD_LIBRARY_PATH``; TOOLCHAIN facts) plus ``ROS_DOMAIN_ID`` (a free id, see
+:func:`acquire_domain_id`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, ``ROS_LOG_DIR``
+under the output directory, ``PYTHONPATH`` starting with the directory this package
+was imported from (the nodes run the same code as the launcher) and, unless set,
+``FASTDDS_DEFAULT_PROFILES_FILE`` = ``launch_scripts/fastdds_profile.xml`` (deep
+shared-memory port queues: without it a briefly descheduled recorder loses messages),
+then the plan's, the host group's and the process's own environment additions.
+
+Process hygiene: every child runs in its own session (a terminal Ctrl-C reaches only the
+launcher, which then stops the children in order) and gets ``PR_SET_PDEATHSIG`` =
+SIGTERM (if the launcher itself is killed, the kernel stops the children). Stopping is
+SIGINT (rclpy shuts down cleanly), then SIGTERM after ``grace_s``, then SIGKILL; the
+recorders are stopped after the nodes so that they close the bags, services last.
+
+Exit rule: a process marked ``finishes`` (plants, recorders) may exit 0 at the end of its
+part of the run; any other exit while the run is in progress (a crash, or a plant
+exiting with an error) stops the whole launch with :class:`LaunchError` naming the
+process, its exit code and its log file. The run is done when every finishing process
+has exited 0.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import ctypes
+import errno
+import fcntl
+import os
+import signal
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from collections.abc import Callable, Iterator, Sequence
+from dataclasses import dataclass
+from pathlib import Path
+from typing import IO, Any
+
+from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan
+
+#: Domain ids tried by :func:`acquire_domain_id` (0..101 keep Fast DDS's ports below the
+#: Linux ephemeral range).
+DOMAIN_IDS = range(1, 102)
+LOCK_DIR = Path(tempfile.gettempdir())
+#: Wait after SIGINT and after SIGTERM before the next signal [s].
+GRACE_S = 5.0
+#: The recorder may need longer to write the summary of a large bag [s].
+RECORDER_GRACE_S = 20.0
+#: Wait for the recorder to drain its queues and stop by itself after the last plant exited [s].
+RECORDER_DRAIN_S = 60.0
+#: Poll period of the supervision loop [s].
+POLL_S = 0.05
+#: Fast DDS profile given to every node unless the user sets one (see the file's comment).
+FASTDDS_PROFILE = "fastdds_profile.xml"
+#: prctl option number of PR_SET_PDEATHSIG (linux/prctl.h).
+PR_SET_PDEATHSIG = 1
+
+
+class LaunchError(RuntimeError):
+    """The launch failed: a node crashed or exited early, or the run timed out."""
+
+
+# ---------------------------------------------------------------------- domain ids
+@contextlib.contextmanager
+def acquire_domain_id(preferred: int | None = None) -> Iterator[int]:
+    """Hold an exclusive lock on a ROS domain id for the duration of the block.
+
+    With ``preferred`` that id is locked (waiting is not an option: an error if another
+    launcher holds it); otherwise the first free id of :data:`DOMAIN_IDS`, starting at an
+    offset derived from the process id, is taken. Locks are ``flock`` locks on
+    ``$TMPDIR/comems4build_ros_domain_<id>.lock`` and vanish with the process.
+    """
+    ids: Sequence[int]
+    if preferred is not None:
+        if not 0 <= preferred <= 232:
+            raise ValueError(f"ROS domain id {preferred} outside 0..232")
+        ids = [preferred]
+    else:
+        n = len(DOMAIN_IDS)
+        off = os.getpid() % n
+        ids = [DOMAIN_IDS[(off + i) % n] for i in range(n)]
+    for did in ids:
+        fh = open(LOCK_DIR / f"comems4build_ros_domain_{did}.lock", "a")  # noqa: SIM115
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            fh.close()
+            if exc.errno in (errno.EAGAIN, errno.EACCES):
+                continue
+            raise
+        try:
+            yield did
+        finally:
+            fh.close()
+        return
+    raise LaunchError(f"no free ROS domain id (tried {ids[0]}..{ids[-1]})")
+
+
+# ---------------------------------------------------------------------- processes
+def _set_pdeathsig() -> None:
+    """In the child before exec: receive SIGTERM when the launcher dies."""
+    try:
+        libc = ctypes.CDLL(None, use_errno=True)
+        libc.prctl(PR_SET_PDEATHSIG, signal.SIGTERM, 0, 0, 0)
+    except (OSError, AttributeError):  # not Linux: the launcher's own clean-up still applies
+        pass
+
+
+def _child_setup(nice: int) -> Callable[[], None]:
+    def setup() -> None:
+        _set_pdeathsig()
+        if nice:
+            os.nice(nice)
+
+    return setup
+
+
+@dataclass
+class Child:
+    """One running node process."""
+
+    name: str  # e.g. "plant_sim" or "building_3/plant_sim"
+    role: str  # plant, feed, ems, recorder, replay
+    proc: subprocess.Popen
+    log_path: Path
+    stdout_reader: threading.Thread | None = None
+    stage: int = STAGE_NODES
+    finishes: bool = False
+
+    def tail(self, lines: int = 8) -> str:
+        """Last lines of the node's log."""
+        try:
+            text = self.log_path.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return ""
+        return "\n".join(text.rstrip().splitlines()[-lines:])
+
+
+class ProcessGroup:
+    """Node processes started with one environment; stops them all, in order, on exit.
+
+    Parameters
+    ----------
+    env : environment of every child
+    log_dir : directory of the per-node log files (stdout and stderr)
+    """
+
+    def __init__(self, env: dict[str, str], log_dir: Path) -> None:
+        self.env = env
+        self.log_dir = log_dir
+        self.children: list[Child] = []
+        log_dir.mkdir(parents=True, exist_ok=True)
+
+    def start(
+        self,
+        name: str,
+        role: str,
+        argv: Sequence[str],
+        on_stdout_line: Callable[[str], None] | None = None,
+        nice: int = 0,
+        env: dict[str, str] | None = None,
+        stage: int | None = None,
+        finishes: bool | None = None,
+    ) -> Child:
+        """Start ``argv``; with ``on_stdout_line`` its stdout is read line by line in a thread.
+
+        ``nice`` lowers the child's CPU priority (a node off the critical path of a step);
+        ``env`` is added to the group's environment. ``stage`` (stop order) and
+        ``finishes`` (exit 0 at the end of the run is normal) default by ``role``:
+        recorders stop after the nodes, a discovery server last; plants and recorders finish.
+        """
+        log_path = self.log_dir / f"{name.replace('/', '__')}.log"
+        log: IO[bytes] = log_path.open("wb")
+        try:
+            proc = subprocess.Popen(
+                list(argv),
+                env=self.env if not env else {**self.env, **env},
+                stdin=subprocess.DEVNULL,
+                stdout=subprocess.PIPE if on_stdout_line else log,
+                stderr=log,
+                start_new_session=True,
+                preexec_fn=_child_setup(nice),
+            )
+        finally:
+            log.close()
+        if stage is None:
+            stage = {"recorder": STAGE_RECORDERS, "discovery": STAGE_SERVICES}.get(role, STAGE_NODES)
+        if finishes is None:
+            finishes = role in ("plant", "recorder")
+        child = Child(name, role, proc, log_path, stage=stage, finishes=finishes)
+        if on_stdout_line is not None:
+            assert proc.stdout is not None
+            stream = proc.stdout
+
+            def pump() -> None:
+                for raw in stream:
+                    on_stdout_line(raw.decode("utf-8", errors="replace").rstrip("\n"))
+
+            child.stdout_reader = threading.Thread(target=pump, name=f"stdout-{name}", daemon=True)
+            child.stdout_reader.start()
+        self.children.append(child)
+        return child
+
+    def running(self) -> list[Child]:
+        """Children that have not exited."""
+        return [c for c in self.children if c.proc.poll() is None]
+
+    def stop(self, children: Sequence[Child], grace_s: float = GRACE_S) -> None:
+        """SIGINT, then SIGTERM after ``grace_s``, then SIGKILL; waits until all are gone."""
+        for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
+            alive = [c for c in children if c.proc.poll() is None]
+            if not alive:
+                break
+            for c in alive:
+                with contextlib.suppress(ProcessLookupError):
+                    c.proc.send_signal(sig)
+            deadline = time.monotonic() + grace_s
+            while time.monotonic() < deadline and any(c.proc.poll() is None for c in alive):
+                time.sleep(0.02)
+        for c in children:
+            with contextlib.suppress(subprocess.TimeoutExpired):
+                c.proc.wait(timeout=grace_s)
+            if c.stdout_reader is not None:
+                c.stdout_reader.join(timeout=1.0)
+            if c.proc.stdout is not None:
+                c.proc.stdout.close()
+
+    def stop_all(self, grace_s: float = GRACE_S, recorder_grace_s: float = RECORDER_GRACE_S) -> None:
+        """Stop every process by stage: nodes first, then the recorders (they close the bags), then services."""
+        for stage in (STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES):
+            self.stop([c for c in self.children if c.stage == stage], recorder_grace_s if stage == STAGE_RECORDERS
+                      else grace_s)
+        self.stop([c for c in self.children if c.stage not in (STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES)],
+                  grace_s)
+
+    def __enter__(self) -> ProcessGroup:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop_all()
+        marker = self.env.get("ROS_LOG_DIR")
+        if marker:  # anything a node started itself and left behind
+            sweep("ROS_LOG_DIR", marker)
+
+
+def processes_with_env(name: str, value: str) -> list[int]:
+    """Ids of this user's processes whose environment has ``name=value`` (Linux ``/proc``).
+
+    Every node of a launch carries the launch's own ``ROS_LOG_DIR``, so this finds all
+    processes of one launch, including any a node may have started itself.
+    """
+    needle = f"{name}={value}".encode()
+    out = []
+    for d in Path("/proc").iterdir():
+        if not d.name.isdigit() or int(d.name) == os.getpid():
+            continue
+        try:
+            env = (d / "environ").read_bytes()
+        except OSError:
+            continue
+        if needle in env.split(b"\0"):
+            out.append(int(d.name))
+    return out
+
+
+def sweep(name: str, value: str, grace_s: float = GRACE_S) -> list[int]:
+    """SIGTERM, then SIGKILL, every process left with ``name=value`` in its environment."""
+    left = processes_with_env(name, value)
+    for sig in (signal.SIGTERM, signal.SIGKILL):
+        for pid in left:
+            with contextlib.suppress(ProcessLookupError, PermissionError):
+                os.kill(pid, sig)
+        deadline = time.monotonic() + grace_s
+        while time.monotonic() < deadline and processes_with_env(name, value):
+            time.sleep(0.05)
+        if not processes_with_env(name, value):
+            break
+    return left
+
+
+@contextlib.contextmanager
+def sigterm_as_keyboard_interrupt() -> Iterator[None]:
+    """Within the block, SIGTERM to the launcher behaves like Ctrl-C (main thread only)."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+
+    def handler(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    old = signal.signal(signal.SIGTERM, handler)
+    try:
+        yield
+    finally:
+        signal.signal(signal.SIGTERM, old)
+
+
+def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = None) -> dict[str, str]:
+    """The parent's full environment plus the isolation variables and PYTHONPATH."""
+    env = dict(os.environ if base is None else base)
+    env["ROS_DOMAIN_ID"] = str(domain_id)
+    env["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+    env["ROS_LOG_DIR"] = str(ros_log_dir)
+    env.pop("ROS_LOCALHOST_ONLY", None)  # deprecated in Jazzy; the range above replaces it
+    root_path = Path(__file__).resolve().parents[2]
+    # Running from a source tree: children import this same tree. An installed package is
+    # found by the children's interpreter anyway; putting site-packages on PYTHONPATH would
+    # place it before the standard library (and the old 'pathlib' backport that OpenDHW
+    # pulls in would then shadow the real pathlib).
+    if root_path.name not in ("site-packages", "dist-packages"):
+        root = str(root_path)
+        parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
+        env["PYTHONPATH"] = os.pathsep.join([root, *parts])
+    env["PYTHONUNBUFFERED"] = "1"
+    if "FASTDDS_DEFAULT_PROFILES_FILE" not in env and "FASTRTPS_DEFAULT_PROFILES_FILE" not in env:
+        profile = fastdds_profile()
+        if profile is not None:
+            env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+    return env
+
+
+def fastdds_profile() -> Path | None:
+    """``fastdds_profile.xml`` (deep shared-memory port queues): source tree, then installed share."""
+    src = Path(__file__).resolve().parents[2] / "launch_scripts" / FASTDDS_PROFILE
+    if src.is_file():
+        return src
+    installed = Path(sys.prefix) / "share" / "comems4build_ros" / "launch" / FASTDDS_PROFILE
+    return installed if installed.is_file() else None
+
+
+class Progress:
+    """Recorded and total steps, as last reported by each recorder (thread-safe)."""
+
+    def __init__(self, n: int) -> None:
+        self._lock = threading.Lock()
+        self.recorded = [0] * n
+        self.total = [0] * n
+
+    def set(self, i: int, recorded: int, total: int) -> None:
+        with self._lock:
+            self.recorded[i], self.total[i] = recorded, total
+
+    def get(self) -> tuple[int, int]:
+        """Recorded steps of all buildings, and their total (0 until every recorder knows its own)."""
+        with self._lock:
+            return sum(self.recorded), (sum(self.total) if all(self.total) else 0)
+
+    def listener(self, i: int) -> Callable[[str], None]:
+        """stdout line handler of recorder ``i``."""
+
+        def on_line(line: str) -> None:
+            parts = line.split()
+            if len(parts) == 3 and parts[0] == "progress":
+                self.set(i, int(parts[1]), int(parts[2]))
+
+        return on_line
+
+
+def supervise(
+    group: ProcessGroup,
+    recorders: list[Child],
+    plants: list[Child],
+    progress: Progress,
+    bar: Any,
+    t0: float,
+    timeout_s: float | None,
+) -> float | None:
+    """Wait until every plant and every recorder exited 0; returns when the first record came.
+
+    Raises
+    ------
+    LaunchError
+        When any other exit happens first, or after ``timeout_s``.
+    """
+    t_first_record: float | None = None
+    t_plants_done: float | None = None
+    while True:
+        time.sleep(POLL_S)
+        r, n = progress.get()
+        if r and t_first_record is None:
+            t_first_record = time.monotonic()
+        if bar is not None:
+            if n and bar.total != n:
+                bar.reset(total=n)
+            bar.n = r
+            bar.refresh()
+        plants_done = all(p.proc.poll() == 0 for p in plants)
+        for c in group.children:
+            code = c.proc.poll()
+            # plants exit 0 after their last step; the recorder exits 0 once every plant said done
+            if code is None or (c.finishes and code == 0):
+                continue
+            raise LaunchError(
+                f"node '{c.name}' exited with code {code} while the run was in progress (log: {c.log_path}):\n"
+                f"{c.tail()}"
+            )
+        running = [r for r in recorders if r.proc.poll() is None]
+        if plants_done and not running:
+            return t_first_record
+        if plants_done:
+            t_plants_done = t_plants_done or time.monotonic()
+            if time.monotonic() - t_plants_done > RECORDER_DRAIN_S:
+                print(f"launcher: {len(running)} recorder(s) still running {RECORDER_DRAIN_S:g} s after the last "
+                      "plant exited; stopping them (SIGINT closes the bag)", file=sys.stderr)
+                for r in running:
+                    r.proc.send_signal(signal.SIGINT)
+                t_plants_done = time.monotonic() + RECORDER_GRACE_S  # one signal, then wait
+        if timeout_s is not None and time.monotonic() - t0 > timeout_s:
+            raise LaunchError(f"run not finished after {timeout_s} s (recorded {r} of {n} steps)")
+
+
+@dataclass
+class Supervised:
+    """Times of a supervised run (``time.monotonic`` [s])."""
+
+    t0: float  # first process started
+    t_first_record: float | None  # first plant/record reported by a recorder
+    t_end: float  # end of the run (before the processes were stopped)
+
+
+def run_plan(plan: RunPlan, bar: Any = None) -> Supervised:
+    """Start every process of ``plan``, wait for the end of the run, stop them all.
+
+    Parameters
+    ----------
+    plan : what to run (:func:`comems4build_ros.ros.plan.plan_run`)
+    bar : tqdm progress bar to update (None = no bar)
+
+    Raises
+    ------
+    LaunchError
+        If a process exits against the exit rule or the plan's time limit passes.
+    KeyboardInterrupt
+        On Ctrl-C or SIGTERM (after every child has been stopped).
+    """
+    env = dict(child_env(plan.domain_id, plan.out / "log" / "ros"), **plan.env)
+    recorders_n = sum(1 for p in plan.processes if p.progress)
+    progress = Progress(recorders_n)
+    with sigterm_as_keyboard_interrupt():
+        t0 = time.monotonic()
+        with ProcessGroup(env, plan.out / "log") as group:
+            recorders: list[Child] = []
+            plants: list[Child] = []
+            for p in plan.processes:
+                for path, text in p.files:
+                    Path(path).parent.mkdir(parents=True, exist_ok=True)
+                    Path(path).write_text(text, encoding="utf-8")
+                extra = {**plan.groups[p.group].env, **p.env}
+                listener = progress.listener(len(recorders)) if p.progress else None
+                child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
+                                    finishes=p.finishes)
+                if p.role == "recorder":
+                    recorders.append(child)
+                elif p.finishes:
+                    plants.append(child)
+            t_first_record = supervise(group, recorders, plants, progress, bar, t0, plan.timeout_s)
+            t_end = time.monotonic()
+    return Supervised(t0, t_first_record, t_end)

@@ -1,0 +1,107 @@
+"""Run plans (``comems4build_ros.ros.plan``): built from launch options without starting a process."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+import pytest
+
+from comems4build_ros.ros.plan import (
+    DISCOVERY_PORT_BASE,
+    HOST_STEP_TIMEOUT_S,
+    STAGE_NODES,
+    STAGE_RECORDERS,
+    STAGE_SERVICES,
+    LaunchOptions,
+    plan_run,
+)
+from comems4build_ros.scenario.settings import load_scenario_settings
+
+
+def _param(argv: tuple[str, ...], name: str) -> str:
+    """Value of ``-p name:=value`` in a command line."""
+    for i, a in enumerate(argv):
+        if a == "-p" and argv[i + 1].startswith(f"{name}:="):
+            return argv[i + 1].split(":=", 1)[1]
+    raise AssertionError(f"no -p {name} in {argv}")
+
+
+def test_one_building_one_process_per_node(tmp_path: Path) -> None:
+    plan = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path / "run", weeks=1, steps=36), domain_id=42)
+    assert plan.layout == "node" and plan.domain_id == 42
+    assert [p.name for p in plan.processes] == ["recorder", "fuzzy_ems", "feed", "plant_sim"]
+    assert [b.namespace for b in plan.buildings] == ["/"] and plan.buildings[0].bag == tmp_path / "run" / "bag"
+    rec, ems, feed, plant = plan.processes
+    assert (rec.finishes, rec.progress, rec.stop_stage) == (True, True, STAGE_RECORDERS)
+    assert (plant.finishes, plant.stop_stage) == (True, STAGE_NODES)
+    assert not ems.finishes and not feed.finishes
+    assert _param(plant.argv, "wait_for_recorder") == "true"
+    assert _param(feed.argv, "weeks") == "1" and _param(feed.argv, "steps") == "36"
+    assert json.loads(json.loads(_param(rec.argv, "run_info")))["ems"] == "fuzzy"
+    assert [n.name for _, n in plan.nodes()] == ["recorder", "fuzzy_ems", "feed", "plant_sim"]
+    assert plan.nodes("ems")[0][1].namespace == "/"
+    assert "ROS_DISCOVERY_SERVER" not in plan.env and all(not p.env for p in plan.processes)
+    assert set(plan.groups) == {"local"} and all(p.group == "local" for p in plan.processes)
+
+
+def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
+    opts = LaunchOptions(ems="rbc", out=tmp_path / "run", weeks=1, buildings=5, buildings_per_recorder=2)
+    plan = plan_run(opts, domain_id=7)
+    assert plan.layout == "role"
+    assert [p.name for p in plan.processes] == [
+        "host_recorder_0", "host_recorder_1", "host_recorder_2", "host_ems", "host_feed", "host_plant"]
+    seed = load_scenario_settings().seed
+    assert [b.seed for b in plan.buildings] == [seed + i for i in range(5)]
+    assert [str(b.bag.relative_to(tmp_path)) for b in plan.buildings] == [
+        f"run/bag/building_{i}" for i in range(5)]
+    feed = plan.process("host_feed")
+    assert [n.params["seed"] for n in feed.nodes] == [seed + i for i in range(5)]
+    ((path, text),) = feed.files
+    assert Path(path) == tmp_path / "run" / "host" / "host_feed.json"
+    spec = json.loads(text)
+    assert spec["ems"] == "rbc" and [n["namespace"] for n in spec["nodes"]] == [f"/building_{i}" for i in range(5)]
+    assert str(path) in feed.argv
+    plant = plan.process("host_plant")
+    assert plant.finishes and all(n.params["step_timeout_s"] == HOST_STEP_TIMEOUT_S for n in plant.nodes)
+    assert [n.namespace for n in plan.process("host_recorder_2").nodes] == ["/building_4"]
+    assert not any(p.role == "discovery" for p in plan.processes)
+    with pytest.raises(KeyError, match="no process 'nope'.*host_feed"):
+        plan.process("nope")
+
+
+def test_plant_params_override_host_defaults(tmp_path: Path) -> None:
+    opts = LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, plant_params={"step_timeout_s": 3.0})
+    plant = plan_run(opts, domain_id=1).process("host_plant")
+    assert [n.params["step_timeout_s"] for n in plant.nodes] == [3.0, 3.0]
+
+
+def test_discovery_server_is_an_option_of_the_plan(tmp_path: Path) -> None:
+    opts = LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, host_mode=False)
+    plan = plan_run(opts, domain_id=9)
+    first, *rest = plan.processes
+    if first.role != "discovery":
+        pytest.skip("fast-discovery-server is not installed with the ROS wheels here")
+    assert first.stop_stage == STAGE_SERVICES and str(DISCOVERY_PORT_BASE + 9) in first.argv
+    assert [p.name for p in rest] == [
+        "building_0/recorder", "building_1/recorder", "building_0/fuzzy_ems", "building_0/feed",
+        "building_0/plant_sim", "building_1/fuzzy_ems", "building_1/feed", "building_1/plant_sim"]
+    assert all(p.env["ROS_DISCOVERY_SERVER"] == f"127.0.0.1:{DISCOVERY_PORT_BASE + 9}" for p in rest)
+    assert "ROS_DISCOVERY_SERVER" not in first.env
+    assert [p.nodes[0].namespace for p in rest if p.role == "plant"] == ["/building_0", "/building_1"]
+
+
+def test_describe_and_json(tmp_path: Path) -> None:
+    plan = plan_run(LaunchOptions(ems="mpc", out=tmp_path, buildings=2, timeout_s=30), domain_id=3)
+    text = plan.describe()
+    assert "layout 'role'" in text and "time limit 30 s" in text and "/building_1/mpc_ems" in text
+    data = json.loads(json.dumps(plan.to_dict()))
+    assert data["domain_id"] == 3 and data["processes"][-1]["name"] == "host_plant"
+    assert [b["namespace"] for b in data["buildings"]] == ["/building_0", "/building_1"]
+
+
+def test_bad_options_name_the_option(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match="--buildings must be >= 1"):
+        plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=0), domain_id=1)
+    with pytest.raises(ValueError, match="buildings_per_recorder"):
+        plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, buildings_per_recorder=0), domain_id=1)
