@@ -22,6 +22,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "evaluate": ("evaluate", "compute weekly KPIs and summary from a recorded bag"),
     "compare": ("compare", "run RBC, fuzzy and MPC on one scenario and write the comparison report"),
     "sweep": ("sweep", "run a grid of parameter variations and tabulate the KPIs"),
+    "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
 }
 
 

@@ -153,10 +153,11 @@ Frac = Field(ge=0, le=1)
 
 
 class SimulationParams(_Section):
-    """Run settings: step [h], horizon [h] and initial states."""
+    """Run settings: step [h], horizon [h], H2 season [weeks] and initial states."""
 
     time_step_h: float = Pos
     horizon_h: int = Field(gt=0)
+    season_weeks: float = Pos
     soc_init: float = Frac
     loh_init: float = Frac
     t_air_init_c: float
@@ -317,9 +318,10 @@ class BuildingParams(_Section):
 
 
 class GridParams(_Section):
-    """Tariff: ``p_buy = spot + surcharge`` [EUR/kWh]; constant sell price."""
+    """Tariff: ``p_buy = a + b * spot`` [EUR/kWh] (spot in EUR/kWh); constant sell price ``eq:costs``."""
 
-    surcharge_eur_per_kwh: float
+    buy_offset_eur_per_kwh: float
+    buy_spot_factor: float = Pos
     price_sell_eur_per_kwh: float = NonNeg
 
 
@@ -333,6 +335,7 @@ class ComfortParams(_Section):
     home_hours_weekend: list[int]
     holidays_country: str
     holidays_subdivision: str
+    discomfort_sample: Literal["end", "start", "mean"] = "end"
 
     @model_validator(mode="after")
     def _check(self) -> ComfortParams:

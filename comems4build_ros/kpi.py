@@ -27,6 +27,11 @@ HOURS_PER_WEEK = 168.0
 DISCOMFORT_TOL_KH = 0.01
 #: The H2 store counts as empty within this fraction of LOH_min. [-]
 LOH_EMPTY_TOL = 1e-6
+#: When within a step the air temperature is compared with the comfort band
+#: (``eq:discomfort`` samples ``T_air[k]`` without saying where in step ``k``):
+#: ``end`` = the state at the end of the step (the plant's ``T_air[k]``), ``start`` = the
+#: state at its start (``T_air[k-1]``, what the EMS saw), ``mean`` = the mean of both.
+DISCOMFORT_SAMPLES = ("end", "start", "mean")
 
 #: Timeseries columns the KPIs read.
 REQUIRED_COLUMNS = (
@@ -93,15 +98,40 @@ def fc_toggles(fc_start: np.ndarray) -> int:
     return int(np.count_nonzero(fc_start))
 
 
-def _week_kpis(ts: pd.DataFrame, dt_h: float) -> dict[str, float]:
-    """All per-period KPIs of the rows ``ts`` (one week or any slice)."""
+def comfort_sample_c(ts: pd.DataFrame, sample: str = "end", t_air_init_c: float | None = None) -> np.ndarray:
+    """Air temperature compared with the comfort band in each step [degC] (:data:`DISCOMFORT_SAMPLES`).
+
+    Parameters
+    ----------
+    ts : per-step timeseries (``t_air_c`` = state at the end of each step)
+    sample : ``end``, ``start`` or ``mean``
+    t_air_init_c : air temperature before the first step [degC] (``start``/``mean``;
+        default: the first end-of-step value)
+    """
+    end = ts["t_air_c"].to_numpy(dtype=float)
+    if sample == "end":
+        return end
+    if sample not in DISCOMFORT_SAMPLES:
+        raise ValueError(f"unknown discomfort sample '{sample}' (known: {', '.join(DISCOMFORT_SAMPLES)})")
+    first = end[0] if t_air_init_c is None else float(t_air_init_c)
+    start = np.concatenate(([first], end[:-1])) if len(end) else end
+    return start if sample == "start" else 0.5 * (start + end)
+
+
+def _week_kpis(ts: pd.DataFrame, dt_h: float, t_comfort: np.ndarray | None = None) -> dict[str, float]:
+    """All per-period KPIs of the rows ``ts`` (one week or any slice).
+
+    ``t_comfort`` is the air temperature compared with the comfort band per row
+    (:func:`comfort_sample_c`; default: the end-of-step ``t_air_c``).
+    """
     col = {name: ts[name].to_numpy(dtype=float) for name in REQUIRED_COLUMNS if name != "time"}
     e = lambda name: _energy_kwh(col[name], dt_h)  # noqa: E731
     on = col["fc_on"] > 0.5
+    t_c = col["t_air_c"] if t_comfort is None else t_comfort
     return {
         "hours": float(len(ts) * dt_h),
-        "discomfort_kh": discomfort_kh(col["t_air_c"], col["t_min_c"], col["t_max_c"], dt_h),
-        "discomfort_h": discomfort_hours(col["t_air_c"], col["t_min_c"], col["t_max_c"], dt_h),
+        "discomfort_kh": discomfort_kh(t_c, col["t_min_c"], col["t_max_c"], dt_h),
+        "discomfort_h": discomfort_hours(t_c, col["t_min_c"], col["t_max_c"], dt_h),
         "cost_eur": cost_eur(col["price_buy_eur_per_kwh"], col["p_buy_w"], dt_h),
         "reimbursement_eur": cost_eur(col["price_sell_eur_per_kwh"], col["p_sell_w"], dt_h),
         "buy_kwh": e("p_buy_w"),
@@ -127,13 +157,16 @@ def _week_kpis(ts: pd.DataFrame, dt_h: float) -> dict[str, float]:
     }
 
 
-def weekly_kpis(ts: pd.DataFrame, dt_h: float = 1.0) -> pd.DataFrame:
+def weekly_kpis(
+    ts: pd.DataFrame, dt_h: float = 1.0, discomfort_sample: str = "end", t_air_init_c: float | None = None
+) -> pd.DataFrame:
     """One row of KPIs per week of the run (a last partial week gets its own row).
 
     Parameters
     ----------
     ts : per-step timeseries with at least :data:`REQUIRED_COLUMNS`
     dt_h : step length [h]
+    discomfort_sample, t_air_init_c : see :func:`comfort_sample_c`
 
     Returns
     -------
@@ -145,10 +178,12 @@ def weekly_kpis(ts: pd.DataFrame, dt_h: float = 1.0) -> pd.DataFrame:
     if missing:
         raise ValueError(f"timeseries lacks column(s): {', '.join(missing)}")
     steps_per_week = int(round(HOURS_PER_WEEK / dt_h))
+    t_comfort = comfort_sample_c(ts, discomfort_sample, t_air_init_c)
     rows = []
     for w, start in enumerate(range(0, len(ts), steps_per_week)):
         part = ts.iloc[start : start + steps_per_week]
-        rows.append({"week": w + 1, "start": str(part["time"].iloc[0]), **_week_kpis(part, dt_h)})
+        t_part = t_comfort[start : start + steps_per_week]
+        rows.append({"week": w + 1, "start": str(part["time"].iloc[0]), **_week_kpis(part, dt_h, t_part)})
     return pd.DataFrame(rows)
 
 
@@ -162,12 +197,30 @@ def h2_empty_at(ts: pd.DataFrame, loh_min: float, dt_h: float = 1.0) -> str | No
     return (start + pd.Timedelta(hours=dt_h)).isoformat()
 
 
+def h2_left_value_eur(loh_end: float, loh_min: float, e_h2_max_kwh: float, price_eur_per_kwh: float) -> float:
+    """Value of the usable H2 left at the end [EUR] (paper ``sec:results``).
+
+    ``(LOH_end - LOH_min) * E_H2,max * p_buy,avg``: the paper values the H2 its EMS leave in
+    the store at the run's mean buy price (68.68 / 97.75 / 36.04 EUR for RBC /
+    ComEMS4Build / MPC).
+
+    Parameters
+    ----------
+    loh_end, loh_min : H2 level at the end and its lower bound [-]
+    e_h2_max_kwh : LHV energy of the full store [kWh]
+    price_eur_per_kwh : mean buy price of the run [EUR/kWh]
+    """
+    return max(loh_end - loh_min, 0.0) * e_h2_max_kwh * price_eur_per_kwh
+
+
 def summarize(
     ts: pd.DataFrame,
     weekly: pd.DataFrame,
     loh_min: float,
     dt_h: float = 1.0,
     extra: Mapping[str, Any] | None = None,
+    e_h2_max_kwh: float | None = None,
+    t_comfort: np.ndarray | None = None,
 ) -> dict[str, Any]:
     """Run summary (``summary.json``): weekly medians, extremes and run totals.
 
@@ -178,12 +231,18 @@ def summarize(
     loh_min : lower bound of the H2 store [-]
     dt_h : step length [h]
     extra : entries added as they are (e.g. ``ems``, ``scenario``, ``wall_s``)
+    e_h2_max_kwh : LHV energy of the full H2 store [kWh]; with it the summary values the
+        H2 left (:func:`h2_left_value_eur`) and gives the cost net of that value
+    t_comfort : air temperature compared with the comfort band per step
+        (:func:`comfort_sample_c`; default: end of step), as for ``weekly``
     """
     on = ts["fc_on"].to_numpy(dtype=float) > 0.5
     eta = ts["eta_fc_el"].to_numpy(dtype=float)
     fallback = int(ts["fallback"].astype(float).sum()) if "fallback" in ts else 0
     slack = int((ts["ems_slack_used"].astype(float) > 0.5).sum()) if "ems_slack_used" in ts else 0
-    total = _week_kpis(ts, dt_h)
+    total = _week_kpis(ts, dt_h, t_comfort)
+    price_mean = float(np.mean(ts["price_buy_eur_per_kwh"].to_numpy(dtype=float)))
+    loh_end = float(ts["loh"].iloc[-1])
     med = weekly.median(numeric_only=True)
     summary: dict[str, Any] = {
         "weeks": int(len(weekly)),
@@ -195,14 +254,18 @@ def summarize(
         "buy_kwh_week_median": float(med["buy_kwh"]),
         "sell_kwh_week_median": float(med["sell_kwh"]),
         "bess_charged_kwh_week_median": float(med["bess_charged_kwh"]),
+        # weekly H2 use as LHV energy drawn from the store and as the FC's electrical output
+        # (the paper's "H2 consumption" ranges fit the electrical output)
         "h2_kwh_week_min": float(weekly["h2_kwh"].min()),
         "h2_kwh_week_max": float(weekly["h2_kwh"].max()),
         "h2_kwh_week_std": float(weekly["h2_kwh"].std(ddof=0)),
+        "fc_kwh_week_min": float(weekly["fc_kwh"].min()),
+        "fc_kwh_week_max": float(weekly["fc_kwh"].max()),
         "fc_working_hours": total["fc_working_hours"],
         "fc_toggles": int(total["fc_toggles"]),
         "fc_mean_load_w": total["fc_mean_load_w"],
         "fc_mean_eta_el": float(np.mean(eta[on])) if on.any() else 0.0,
-        "loh_end": float(ts["loh"].iloc[-1]),
+        "loh_end": loh_end,
         "h2_empty_at": h2_empty_at(ts, loh_min, dt_h),
         "dhw_unmet_kwh": total["dhw_unmet_kwh"],
         "max_balance_residual_w": float(np.max(np.abs(ts["balance_residual_w"].to_numpy(dtype=float)))),
@@ -218,7 +281,15 @@ def summarize(
         "h2_kwh_total": total["h2_kwh"],
         "heat_recovered_kwh_total": total["heat_recovered_kwh"],
         "dhw_demand_kwh_total": total["dhw_demand_kwh"],
+        "fc_kwh_total": total["fc_kwh"],
+        "price_buy_mean_eur_per_kwh": price_mean,
+        "price_paid_mean_eur_per_kwh": total["cost_eur"] / total["buy_kwh"] if total["buy_kwh"] > 0 else None,
     }
+    if e_h2_max_kwh is not None:
+        value = h2_left_value_eur(loh_end, loh_min, e_h2_max_kwh, price_mean)
+        summary["h2_left_kwh"] = max(loh_end - loh_min, 0.0) * e_h2_max_kwh
+        summary["h2_left_value_eur"] = value
+        summary["cost_net_eur_total"] = total["cost_eur"] - total["reimbursement_eur"] - value
     if extra:
         summary.update(extra)
     return summary

@@ -34,6 +34,9 @@ from .types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, Flows, PlantSt
 PRICE_WINDOW = 24
 #: Comfort look-ahead of ComEMS4Build, ``eq:s_sh`` (k .. k+5).
 BOUNDS_AHEAD = 5
+#: Hours of a day and of a week [h].
+HOURS_PER_DAY = 24.0
+HOURS_PER_WEEK = 168.0
 
 #: End-of-step state columns of the timeseries (hp_mod and fc_on come with the flows).
 STATE_COLUMNS = ("soc", "loh", "t_air_c", "t_wall_in_c", "t_wall_out_c", "v_dhw_l")
@@ -45,16 +48,21 @@ EXO_COLUMNS = ("t_amb_c", "ghi_w_m2", "dhw_l_per_h", "t_min_c", "t_max_c", "spot
 TIMESERIES_COLUMNS = ("time", "step", *FLOW_FIELDS, *STATE_COLUMNS, *COMMAND_COLUMNS, *EXO_COLUMNS, "fallback")
 
 
-def dloh_per_day(params: PlantParams, n_steps: int) -> float:
+def dloh_per_day(params: PlantParams) -> float:
     """Daily permissible H2 use ``eq:deltaLOH``: ``24 h * LOH_init / N`` as a fraction/day.
+
+    ``N`` is the number of steps of the whole winter (``simulation.season_weeks``, the
+    paper's twelve weeks), not of the run: a run shorter than the season spends H2 at the
+    season's pace, so that the first weeks of a long run and a short run agree.
 
     Parameters
     ----------
-    params : plant parameters (initial LOH, step length)
-    n_steps : steps N of the whole run
+    params : plant parameters (initial LOH, step length, season length)
     """
-    steps_per_day = 24.0 / params.simulation.time_step_h
-    return params.simulation.loh_init * steps_per_day / n_steps
+    sim = params.simulation
+    steps_per_day = HOURS_PER_DAY / sim.time_step_h
+    season_steps = sim.season_weeks * HOURS_PER_WEEK / sim.time_step_h
+    return sim.loh_init * steps_per_day / season_steps
 
 
 def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]:
@@ -183,7 +191,7 @@ class ObservationBuilder:
             params.comfort.holidays_country, subdiv=params.comfort.holidays_subdivision, years=years
         )
         self._weekend = [wd >= 5 or t.date() in hol for wd, t in zip(self._weekday, scenario.time)]
-        self._dloh = dloh_per_day(params, scenario.n_steps)
+        self._dloh = dloh_per_day(params)
         self._forecast = ForecastModel(
             self._series,
             forecast or load_forecast_settings(),
@@ -265,8 +273,13 @@ class RunResult:
 def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[str, Any] | None = None) -> RunResult:
     """Weekly KPIs and summary of a timeseries (shared by in-process and bag evaluation)."""
     dt_h = params.simulation.time_step_h
-    weekly = kpi.weekly_kpis(ts, dt_h)
-    summary = kpi.summarize(ts, weekly, params.hydrogen.loh_min, dt_h, extra=extra)
+    sample, t0 = params.comfort.discomfort_sample, params.simulation.t_air_init_c
+    weekly = kpi.weekly_kpis(ts, dt_h, sample, t0)
+    summary = kpi.summarize(
+        ts, weekly, params.hydrogen.loh_min, dt_h, extra=extra, e_h2_max_kwh=params.hydrogen.e_max_kwh,
+        t_comfort=kpi.comfort_sample_c(ts, sample, t0),
+    )
+    summary["discomfort_sample"] = sample
     return RunResult(ts, weekly, summary)
 
 

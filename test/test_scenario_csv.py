@@ -63,8 +63,9 @@ def test_hand_made_values_and_tariff(tmp_path, params):
     assert r.n_steps == HOURS  # shorter than a week: all rows run
     assert r.time[0] == pd.Timestamp("2022-12-01 00:00", tz="Europe/Berlin")
     assert r.spot_eur_per_mwh[3] == 103.0
-    # buy = spot / 1000 + 0.22 (plant.yaml): 103 EUR/MWh -> 0.103 + 0.22
-    assert r.price_buy_eur_per_kwh[3] == pytest.approx(0.323)
+    # buy = a + b * spot / 1000 (plant.yaml grid): 103 EUR/MWh -> a + b * 0.103
+    g = params.grid
+    assert r.price_buy_eur_per_kwh[3] == pytest.approx(g.buy_offset_eur_per_kwh + g.buy_spot_factor * 0.103)
     assert r.t_min_c[7] == 21.0 and r.t_min_c[10] == 18.0  # Thursday 07:00 home, 10:00 away
 
 

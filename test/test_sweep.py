@@ -36,7 +36,7 @@ def test_tiny_sweep(tmp_path: Path) -> None:
 
 def test_parse_param() -> None:
     assert parse_param("battery.e_max_kwh=5,6.5, 10") == ("battery.e_max_kwh", [5, 6.5, 10])
-    assert parse_param("grid.surcharge_eur_per_kwh=0.2") == ("grid.surcharge_eur_per_kwh", [0.2])
+    assert parse_param("grid.buy_offset_eur_per_kwh=0.2") == ("grid.buy_offset_eur_per_kwh", [0.2])
     for bad in ("battery.e_max_kwh", "e_max_kwh=5", "battery.e_max_kwh=", "battery.e_max_kwh=5,5"):
         with pytest.raises(ValueError, match="--param"):
             parse_param(bad)

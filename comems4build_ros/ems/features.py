@@ -176,7 +176,28 @@ def update_modulation(eta_prev: float, alpha_hp: float, mod_min: float) -> float
     alpha_hp : FLC_flex output [-], in [-1, 1]
     mod_min : smallest non-zero modulation (0.2 in the paper) [-]
     """
-    eta = min(1.0, max(0.0, eta_prev + alpha_hp))
+    return _snap_modulation(eta_prev + alpha_hp, mod_min)
+
+
+def modulation_level(alpha_hp: float, mod_min: float) -> float:
+    """The other reading of the FLC_flex output: alpha_HP as the modulation level itself [-].
+
+    ``eta_HP[k] = Q(clip(alpha_HP, 0, 1))`` with the snapping of :func:`update_modulation`:
+    "zero" and every negative term switch the HP off, so the rules whose output is "Z"
+    mean "saving mode" as the paper says of its rule 2 (``tab:FLCflex_rules``), and the
+    previous modulation plays no role.
+
+    Parameters
+    ----------
+    alpha_hp : FLC_flex output [-], in [-1, 1]
+    mod_min : smallest non-zero modulation [-]
+    """
+    return _snap_modulation(alpha_hp, mod_min)
+
+
+def _snap_modulation(eta_raw: float, mod_min: float) -> float:
+    """``eta_raw`` clipped to [0, 1] and snapped to {0} U [mod_min, 1] (nearest of 0 and mod_min below it)."""
+    eta = min(1.0, max(0.0, eta_raw))
     if eta < mod_min:
         return mod_min if eta >= 0.5 * mod_min else 0.0
     return eta

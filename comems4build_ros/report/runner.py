@@ -35,6 +35,8 @@ class RunTask:
     via : ``inprocess`` or ``ros``
     timeseries : write timeseries.csv (in-process runs)
     ems_options : options passed to the controller
+    scenario_overrides : dotted settings of ``config/scenario.yaml`` for an embedded scenario
+        (``{"scenario.load.annual_kwh": 4000}``; in-process runs)
     """
 
     ems: str
@@ -47,6 +49,7 @@ class RunTask:
     via: str = "inprocess"
     timeseries: bool = True
     ems_options: dict[str, Any] = field(default_factory=dict)
+    scenario_overrides: dict[str, Any] = field(default_factory=dict)
 
 
 class RunFailedError(RuntimeError):
@@ -73,7 +76,8 @@ def _run_inprocess(task: RunTask) -> dict[str, Any]:
     from ..sim import simulate, write_run
 
     params = load_plant_params(task.config, task.overrides)
-    scenario = resolve_scenario(task.scenario, params, start=task.start, weeks=task.weeks)
+    scenario = resolve_scenario(task.scenario, params, start=task.start, weeks=task.weeks,
+                                settings_overrides=task.scenario_overrides or None)
     result = simulate(task.ems, scenario, params, ems_options=task.ems_options)
     result.summary["eta_sys"] = params.fuel_cell.eta_sys
     write_run(result, task.out_dir, timeseries=task.timeseries)
@@ -93,6 +97,8 @@ def _run_ros(task: RunTask) -> dict[str, Any]:
     from ..ros.launcher import LaunchError, LaunchOptions, launch
 
     out = Path(task.out_dir)
+    if task.scenario_overrides:
+        raise RunFailedError(f"{out}: scenario settings overrides are not supported over ROS")
     opts = LaunchOptions(ems=task.ems, out=out, scenario=task.scenario, weeks=task.weeks, start=task.start,
                          config_files=list(task.config), overrides=dict(task.overrides),
                          ems_options=[f"{k}={v}" for k, v in task.ems_options.items()])

@@ -3,7 +3,7 @@
 The paper names a sensitivity analysis of the components as future work
 (``sec:conclusion``). A sweep varies any dotted plant parameter of ``config/plant.yaml``
 (battery size ``battery.e_max_kwh``, H2 store ``hydrogen.e_max_kwh``, FC efficiency
-``fuel_cell.eta_sys``, tariff ``grid.surcharge_eur_per_kwh``, building resistances
+``fuel_cell.eta_sys``, tariff ``grid.buy_offset_eur_per_kwh``, building resistances
 ``building.r_*``) over the given values, for every EMS, in parallel processes.
 """
 

@@ -2,7 +2,9 @@
 
 Public API
 ----------
-- :func:`default_scenario` : the generated 12-week winter scenario (``config/scenario.yaml``)
+- :func:`default_scenario` : the embedded default, the paper's winter from measured data
+  (``config/scenario.yaml`` section ``measured``, :mod:`.measured`)
+- :func:`synthetic_scenario` : the seeded synthetic generator (section ``scenario``)
 - :func:`load_scenario_csv` / :func:`write_scenario_csv` : the scenario CSV format
 - :func:`resolve_scenario` : ``"default"`` or a CSV path, with ``start`` / ``weeks`` cuts
 - :func:`comfort_bounds` : ``eq:T_min`` with public holidays counted as weekend days
@@ -11,7 +13,9 @@ Public API
 from __future__ import annotations
 
 import warnings
+from collections.abc import Mapping
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -20,13 +24,20 @@ from ..config import PlantParams
 from .base import CSV_COLUMNS, OPTIONAL_CSV_COLUMNS, SERIES, Scenario
 from .comfort import comfort_bounds, is_off_day
 from .csvio import ScenarioError, ScenarioWarning, read_scenario_frame, write_scenario_csv
-from .settings import ScenarioSettings, load_scenario_settings
+from .settings import (
+    MeasuredSettings,
+    ScenarioSettings,
+    load_measured_settings,
+    load_scenario_settings,
+    split_overrides,
+)
 
 __all__ = [
     "CSV_COLUMNS",
     "OPTIONAL_CSV_COLUMNS",
     "SERIES",
     "HOURS_PER_WEEK",
+    "MeasuredSettings",
     "Scenario",
     "ScenarioError",
     "ScenarioWarning",
@@ -34,10 +45,12 @@ __all__ = [
     "comfort_bounds",
     "default_scenario",
     "is_off_day",
+    "load_measured_settings",
     "load_scenario_csv",
     "load_scenario_settings",
     "resolve_scenario",
     "scenario_from_frame",
+    "synthetic_scenario",
     "write_scenario_csv",
 ]
 
@@ -47,6 +60,8 @@ HOURS_PER_WEEK = 168
 KWH_PER_MWH = 1000.0
 
 _CACHE: dict[tuple, object] = {}
+#: Names of the embedded scenarios (``--scenario``).
+EMBEDDED = ("default", "synthetic")
 
 
 def steps_of_weeks(weeks: float, name: str) -> int:
@@ -66,8 +81,13 @@ _CACHE_MAX = 16
 
 
 def _tariff(spot_eur_per_mwh: np.ndarray, params: PlantParams) -> tuple[np.ndarray, np.ndarray]:
-    """Buy price ``spot / 1000 + surcharge`` and the constant sell price [EUR/kWh] (paper ``eq:costs``)."""
-    buy = spot_eur_per_mwh / KWH_PER_MWH + params.grid.surcharge_eur_per_kwh
+    """Buy price ``a + b * spot / 1000`` and the constant sell price [EUR/kWh] (paper ``eq:costs``).
+
+    ``a`` = ``grid.buy_offset_eur_per_kwh``, ``b`` = ``grid.buy_spot_factor`` (derivation in
+    ``config/plant.yaml``).
+    """
+    g = params.grid
+    buy = g.buy_offset_eur_per_kwh + g.buy_spot_factor * spot_eur_per_mwh / KWH_PER_MWH
     sell = np.full(len(spot_eur_per_mwh), params.grid.price_sell_eur_per_kwh)
     return buy, sell
 
@@ -78,7 +98,7 @@ def scenario_from_frame(
     """Build a :class:`Scenario` from a frame with the CSV columns (index: tz-aware hourly time).
 
     The time is converted to the site's zone; the tariff comes from ``price_buy_eur_per_kwh``
-    when present, else ``spot / 1000 + grid.surcharge_eur_per_kwh``; comfort bounds from
+    when present, else ``a + b * spot / 1000`` (``grid``); comfort bounds from
     ``params.comfort`` (``eq:T_min``).
     """
     time = pd.DatetimeIndex(frame.index).tz_convert(params.site.timezone)
@@ -129,10 +149,10 @@ def _generated_frame(params: PlantParams, settings: ScenarioSettings, n_steps: i
     return _CACHE[key].copy()
 
 
-def default_scenario(
+def synthetic_scenario(
     params: PlantParams, weeks: float = 12, seed: int | None = None, settings: ScenarioSettings | None = None
 ) -> Scenario:
-    """The embedded default winter scenario (generated, deterministic, no network).
+    """The synthetic winter scenario (generated, deterministic, no network; ``--scenario synthetic``).
 
     Parameters
     ----------
@@ -144,13 +164,13 @@ def default_scenario(
 
     Returns
     -------
-    Scenario named ``default`` with ``n_steps = weeks * 168``.
+    Scenario named ``synthetic`` with ``n_steps = weeks * 168``.
     """
     settings = settings or load_scenario_settings()
-    n_steps = steps_of_weeks(weeks, "default scenario")
+    n_steps = steps_of_weeks(weeks, "synthetic scenario")
     if weeks > settings.weeks:
         warnings.warn(
-            f"default scenario: {weeks} weeks requested, the generator is calibrated for {settings.weeks} weeks "
+            f"synthetic scenario: {weeks} weeks requested, the generator is calibrated for {settings.weeks} weeks "
             "from its start; the price level is held flat beyond its last anchor",
             ScenarioWarning,
             stacklevel=2,
@@ -159,10 +179,81 @@ def default_scenario(
     # The generator's series depend on its length (calibration anchors, smoothing), so
     # always generate at least the configured period and cut: a shorter run is then
     # exactly the beginning of the full default scenario.
-    n_gen = max(n_steps, steps_of_weeks(settings.weeks, "default scenario"))
+    n_gen = max(n_steps, steps_of_weeks(settings.weeks, "synthetic scenario"))
     frame = _generated_frame(params, settings, n_gen, seed).iloc[: n_steps + settings.lookahead_h]
     meta = {"source": "generator", "seed": seed, "settings": "config/scenario.yaml", "weeks": weeks}
-    return scenario_from_frame("default", frame, params, n_steps, meta)
+    return scenario_from_frame("synthetic", frame, params, n_steps, meta)
+
+
+def _measured_frame(
+    params: PlantParams, measured: MeasuredSettings, settings: ScenarioSettings, seed: int, fill: str | None
+) -> tuple[pd.DataFrame, dict]:
+    """The measured frame (all covered hours), cached in memory on everything it depends on."""
+    from .measured import measured_frame
+
+    key = (
+        "measured",
+        measured.model_dump_json(),
+        settings.model_dump_json(),
+        params.site.model_dump_json(),
+        params.comfort.model_dump_json(),
+        seed,
+        fill,
+    )
+    if key not in _CACHE:
+        if len(_CACHE) >= _CACHE_MAX:
+            _CACHE.pop(next(iter(_CACHE)))
+        _CACHE[key] = measured_frame(params, measured, settings, seed, fill)
+    frame, meta = _CACHE[key]
+    return frame.copy(), dict(meta)
+
+
+def default_scenario(
+    params: PlantParams,
+    weeks: float | None = None,
+    seed: int | None = None,
+    settings: ScenarioSettings | None = None,
+    measured: MeasuredSettings | None = None,
+    fill: str | None = None,
+) -> Scenario:
+    """The embedded default scenario: the paper's winter from measured data (no network).
+
+    Prices, ambient temperature and hot-water draws are measured (package data; the
+    temperature after the end of its record is filled and flagged in
+    ``meta["t_amb_filled"]``); radiation and appliance load are modelled with ``seed``.
+    See :mod:`.measured`.
+
+    Parameters
+    ----------
+    params : plant parameters (site, tariff, comfort)
+    weeks : run length [weeks] (default ``measured.weeks`` = 12; fractions allowed when
+        they give whole hours); the arrays hold ``weeks * 168 + lookahead_h`` hours
+    seed : seed of the modelled radiation and load (default ``measured.seed``)
+    settings : synthetic generator settings (its ``solar`` and ``load`` models)
+    measured : the ``measured`` settings (default ``config/scenario.yaml``)
+    fill : temperature fill method (default ``measured.temperature.fill``)
+
+    Raises
+    ------
+    ScenarioError
+        If the run and its look-ahead need more hours than the data cover.
+    """
+    measured = measured or load_measured_settings()
+    settings = settings or load_scenario_settings()
+    weeks = measured.weeks if weeks is None else weeks
+    n_steps = steps_of_weeks(weeks, "default scenario")
+    seed = measured.seed if seed is None else int(seed)
+    frame, meta = _measured_frame(params, measured, settings, seed, fill)
+    need = n_steps + measured.lookahead_h
+    if need > len(frame):
+        max_weeks = (len(frame) - measured.lookahead_h) / HOURS_PER_WEEK
+        raise ScenarioError(
+            f"default scenario: {weeks} week(s) need {need} hours with the {measured.lookahead_h} h look-ahead; "
+            f"the measured data cover {len(frame)} hours from {measured.start.isoformat()} "
+            f"(at most {max_weeks:.2f} weeks); use --scenario synthetic for longer runs"
+        )
+    meta["weeks"] = weeks
+    return scenario_from_frame("default", frame.iloc[:need], params, n_steps, meta)
 
 
 def _window(
@@ -225,21 +316,44 @@ def load_scenario_csv(
 
 
 def resolve_scenario(
-    spec: str | Path, params: PlantParams, start: str | None = None, weeks: float | None = None
+    spec: str | Path,
+    params: PlantParams,
+    start: str | None = None,
+    weeks: float | None = None,
+    seed: int | None = None,
+    settings_overrides: Mapping[str, Any] | None = None,
 ) -> Scenario:
-    """``"default"`` (the generated scenario) or a scenario CSV path, cut to ``start`` and ``weeks``.
+    """``"default"`` (measured), ``"synthetic"`` (generated) or a scenario CSV path, cut to ``start`` and ``weeks``.
 
-    For the default scenario without ``start`` the generator runs for ``weeks`` (default:
-    the configured 12); with ``start`` the configured period is generated and cut.
+    Without ``start`` both embedded scenarios run ``weeks`` (default: the configured 12)
+    from their start; with ``start`` the configured period is built and cut. ``seed``
+    seeds the synthetic generator, or the modelled radiation and load of the default
+    scenario; ``settings_overrides`` are dotted keys of ``config/scenario.yaml``
+    (``{"measured.temperature.fill": "synthetic", "scenario.load.annual_kwh": 4000}``).
+    Both are refused for a CSV file.
     """
-    if str(spec) == "default":
-        settings = load_scenario_settings()
+    if str(spec) in EMBEDDED:
+        parts = split_overrides(settings_overrides)
+        settings = load_scenario_settings(overrides=parts["scenario"])
+        if str(spec) == "default":
+            measured = load_measured_settings(overrides=parts["measured"])
+
+            def make(params: PlantParams, weeks: float, settings: ScenarioSettings) -> Scenario:
+                return default_scenario(params, weeks=weeks, seed=seed, settings=settings, measured=measured)
+        else:
+            if parts["measured"]:
+                raise ScenarioError("scenario 'synthetic': 'measured.*' settings apply to the default scenario only")
+
+            def make(params: PlantParams, weeks: float, settings: ScenarioSettings) -> Scenario:
+                return synthetic_scenario(params, weeks=weeks, seed=seed, settings=settings)
         if start is None:
-            return default_scenario(params, weeks=weeks or settings.weeks, settings=settings)
-        full = default_scenario(params, weeks=settings.weeks, settings=settings)
+            return make(params, weeks=weeks or settings.weeks, settings=settings)
+        full = make(params, weeks=settings.weeks, settings=settings)
         frame = pd.DataFrame({c: getattr(full, c) for c in CSV_COLUMNS[1:]}, index=full.time.tz_convert("UTC"))
-        return _window("default", frame, params, start, weeks, settings.lookahead_h, dict(full.meta))
+        return _window(full.name, frame, params, start, weeks, settings.lookahead_h, dict(full.meta))
+    if seed is not None or settings_overrides:
+        raise ScenarioError(f"scenario '{spec}': a seed or scenario settings apply to the embedded scenarios only")
     path = Path(spec)
     if not path.is_file():
-        raise ScenarioError(f"scenario '{spec}': no such file (use 'default' or a scenario CSV)")
+        raise ScenarioError(f"scenario '{spec}': no such file (use 'default', 'synthetic' or a scenario CSV)")
     return load_scenario_csv(path, params, start=start, weeks=weeks)

@@ -8,12 +8,15 @@ and the parameter path.
 
 from __future__ import annotations
 
+import copy
+from collections.abc import Mapping
 from datetime import date, datetime
 from pathlib import Path
+from typing import Any
 
 from pydantic import BaseModel, ConfigDict, Field, model_validator
 
-from ..config import ConfigError, config_dir, read_ros_params, validate
+from ..config import ConfigError, config_dir, read_ros_params, set_dotted, validate
 
 HOURS_PER_DAY = 24
 
@@ -180,21 +183,113 @@ class ScenarioSettings(_Section):
         return self
 
 
-def default_scenario_file() -> Path:
-    """Path of the default ``scenario.yaml``."""
-    return config_dir() / "scenario.yaml"
+class MeasuredTemperatureSettings(_Section):
+    """How the measured temperature record is extended past its last hour."""
+
+    file: str
+    fill: str
+    fill_reference_days: int = Field(ge=1, le=60)
+    fill_seam_h: int = Field(ge=0, le=240)
+
+    @model_validator(mode="after")
+    def _check(self) -> MeasuredTemperatureSettings:
+        if self.fill not in FILL_METHODS:
+            raise ValueError(f"fill '{self.fill}' is not one of {', '.join(FILL_METHODS)}")
+        return self
 
 
-def load_scenario_settings(path: str | Path | None = None) -> ScenarioSettings:
-    """Read and validate the ``scenario`` section of a parameter file.
+class MeasuredSettings(_Section):
+    """The ``measured`` section of ``config/scenario.yaml``: the embedded default scenario.
+
+    Measured prices, temperature and hot-water draws of the paper's winter (package data,
+    ``comems4build_ros/data``), radiation and appliance load modelled with the generator's
+    ``solar`` and ``load`` settings and the seed given here.
+    """
+
+    start: datetime
+    weeks: int = Field(ge=1)
+    lookahead_h: int = Field(ge=0)
+    seed: int = Field(ge=0)
+    prices_file: str
+    prices_column: str
+    temperature: MeasuredTemperatureSettings
+    dhw_file: str
+    dhw_day1_weekday: int = Field(ge=0, le=6)
+    kc_from_temperature_amplitude: bool
+
+    @model_validator(mode="after")
+    def _check(self) -> MeasuredSettings:
+        if self.start.tzinfo is not None:
+            raise ValueError("start is a local time of the site: give it without UTC offset")
+        return self
+
+
+#: Methods that fill the hours after the end of the measured temperature record.
+FILL_METHODS = ("repeat", "synthetic")
+
+
+def _section(path: str | Path | None, name: str, overrides: Mapping[str, Any] | None) -> tuple[dict, str]:
+    """Section ``name`` of a scenario parameter file with dotted ``overrides`` applied, and its label."""
+    path = Path(path) if path is not None else default_scenario_file()
+    data = read_ros_params(path)
+    if name not in data:
+        raise ConfigError(f"{path}: no '{name}' section under ros__parameters")
+    section = copy.deepcopy(data[name])
+    for key, value in (overrides or {}).items():
+        set_dotted(section, str(key), value)
+    label = f"{path} + overrides ({', '.join(f'{name}.{k}' for k in overrides)})" if overrides else str(path)
+    return section, label
+
+
+def load_measured_settings(
+    path: str | Path | None = None, overrides: Mapping[str, Any] | None = None
+) -> MeasuredSettings:
+    """Read and validate the ``measured`` section of a parameter file (default ``config/scenario.yaml``).
+
+    ``overrides`` are dotted keys inside the section (``{"temperature.fill": "synthetic"}``).
 
     Raises
     ------
     ConfigError
         Naming the file and the parameter if the section is missing or invalid.
     """
-    path = Path(path) if path is not None else default_scenario_file()
-    data = read_ros_params(path)
-    if "scenario" not in data:
-        raise ConfigError(f"{path}: no 'scenario' section under ros__parameters")
-    return validate(ScenarioSettings, data["scenario"], str(path))
+    section, label = _section(path, "measured", overrides)
+    return validate(MeasuredSettings, section, label)
+
+
+def default_scenario_file() -> Path:
+    """Path of the default ``scenario.yaml``."""
+    return config_dir() / "scenario.yaml"
+
+
+def load_scenario_settings(
+    path: str | Path | None = None, overrides: Mapping[str, Any] | None = None
+) -> ScenarioSettings:
+    """Read and validate the ``scenario`` section (the synthetic generator) of a parameter file.
+
+    ``overrides`` are dotted keys inside the section (``{"load.annual_kwh": 4000}``).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the parameter if the section is missing or invalid.
+    """
+    section, label = _section(path, "scenario", overrides)
+    return validate(ScenarioSettings, section, label)
+
+
+def split_overrides(overrides: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
+    """Dotted overrides ``{"scenario.load.annual_kwh": 4000, "measured.seed": 3}`` per section.
+
+    Raises
+    ------
+    ConfigError
+        For a key outside the sections ``scenario`` and ``measured``.
+    """
+    out: dict[str, dict[str, Any]] = {"scenario": {}, "measured": {}}
+    for key, value in (overrides or {}).items():
+        head, _, rest = str(key).partition(".")
+        if head not in out or not rest:
+            raise ConfigError(f"scenario override '{key}': must start with 'scenario.' or 'measured.'")
+        out[head][rest] = value
+    return out

@@ -1,8 +1,15 @@
-"""Statistics of a scenario next to the FACTS.md figures (for docs/scenario.md and tests).
+"""Statistics of the embedded scenarios next to reference figures (for the README, docs/scenario.md and tests).
+
+The reference figures are statistics of the measured data of the paper's winter: ENTSO-E
+day-ahead prices DE-LU (2022-12-01..2023-02-28; the 12-week mean 170 EUR/MWh), DWD hourly
+air temperature of station 4177 Rheinstetten (2022-12-01..2023-02-14), the DHWcalc
+settings (200 l/day, weekend draws 120 % of weekdays) and the appliance energy of a
+4-person family (4,000-4,500 kWh/a; a synPRO family profile has 4,174 kWh/a).
 
 ``python -m comems4build_ros.scenario.stats`` prints the Markdown table of the default
-scenario; ``--rank-seeds N`` ranks seeds 0..N-1 by their misfit to the FACTS statistics
-(how the default seed in config/scenario.yaml was chosen).
+(measured) and the synthetic scenario; ``--rank-seeds N`` ranks the synthetic generator's
+seeds 0..N-1 by their misfit to the reference statistics (how its seed in
+config/scenario.yaml was chosen).
 """
 
 from __future__ import annotations
@@ -17,10 +24,10 @@ import pandas as pd
 from .base import Scenario
 from .generator import dynamisation_factor
 
-#: FACTS: temperature statistics cover 2022-12-01 .. 2023-02-14 (DWD Rheinstetten).
+#: The reference temperature statistics cover 2022-12-01 .. 2023-02-14 (DWD Rheinstetten).
 TEMPERATURE_END = "2023-02-15"
-#: FACTS: hour-of-day mean spot price 00..23 local [EUR/MWh].
-FACTS_HOUR_PROFILE = (133, 126, 123, 118, 119, 129, 153, 182, 199, 197, 190, 185,
+#: ENTSO-E DE-LU hour-of-day mean spot price 00..23 local, 2022-12-01..2023-02-28 [EUR/MWh].
+REFERENCE_HOUR_PROFILE = (133, 126, 123, 118, 119, 129, 153, 182, 199, 197, 190, 185,
                       178, 173, 178, 185, 193, 210, 210, 198, 180, 163, 154, 137)
 HOURS_PER_YEAR = 8760.0
 KWH_PER_WH = 1e-3
@@ -29,15 +36,15 @@ DAYS_PER_WEEK = 7
 
 @dataclass(frozen=True)
 class Stat:
-    """One statistic: key, label, unit, FACTS value (None if FACTS has none), misfit scale, tolerance."""
+    """One statistic: key, label, unit, reference value (None if none), misfit scale, tolerance."""
 
     key: str
     label: str
     unit: str
-    facts: float | None
-    facts_text: str
+    ref: float | None
+    ref_text: str
     scale: float | None = None  # misfit scale (about the spread across seeds); None = not in the misfit
-    tol: float | None = None  # acceptance band used by the tests: |generated - facts| <= tol
+    tol: float | None = None  # acceptance band of the synthetic generator in the tests: |generated - ref| <= tol
 
 
 #: The compared statistics. ``scale`` is about one standard deviation across 24 seeds;
@@ -58,8 +65,8 @@ STATS: tuple[Stat, ...] = (
     Stat("spot_spread_p90", "daily spread p90", "EUR/MWh", 212, "212", None, 50),
     Stat("spot_daily_min", "daily mean, min", "EUR/MWh", -1, "-1", 8, 25),
     Stat("spot_daily_max", "daily mean, max", "EUR/MWh", 444, "444", 40, 100),
-    Stat("spot_hour_corr", "hour-of-day profile, correlation with FACTS", "-", 1.0, "1", None, 0.05),
-    Stat("buy_mean", "buy price mean (spot + surcharge)", "EUR/kWh", 0.39, "0.39 (paper)", None, 0.03),
+    Stat("spot_hour_corr", "hour-of-day profile, correlation with ENTSO-E", "-", 1.0, "1", None, 0.05),
+    Stat("buy_mean", "buy price mean (a + b * spot)", "EUR/kWh", 0.384, "0.384 (paper, H2 value)", None, 0.03),
     Stat("t_mean", "temperature mean (to Feb 14)", "degC", 4.2, "4.2", 0.5, 1.0),
     # known bias: no extra radiative cooling in clear cold nights, the generated minimum is
     # about 1.5-3.5 K too mild (ensemble mean -10.6 degC); the band says so openly
@@ -69,7 +76,7 @@ STATS: tuple[Stat, ...] = (
     Stat("t_daily_min", "daily mean, min", "degC", -7.2, "-7.2", 1.0, 3.0),
     Stat("t_daily_max", "daily mean, max", "degC", 16.0, "16.0", 1.0, 3.0),
     Stat("t_daily_std", "daily mean, std", "K", 4.8, "4.8", 0.5, 1.0),
-    Stat("t_cold_spell_max", "warmest daily mean Dec 10-19", "degC", 0.0, "< 0"),
+    Stat("t_cold_spell_max", "warmest daily mean Dec 10-19", "degC", 0.0, "0.9 (cold spell)"),
     Stat("t_new_year_max", "warmest daily mean Dec 28 - Jan 7", "degC", None, "mild"),
     Stat("ghi_dec", "GHI December", "kWh/m2/d", None, "-"),
     Stat("ghi_jan", "GHI January", "kWh/m2/d", None, "-"),
@@ -120,7 +127,7 @@ def scenario_stats(scenario: Scenario, off_day: np.ndarray | None = None,
         "spot_spread_p90": spread.quantile(0.9),
         "spot_daily_min": daily.mean().min(),
         "spot_daily_max": daily.mean().max(),
-        "spot_hour_corr": float(np.corrcoef(hour, FACTS_HOUR_PROFILE)[0, 1]),
+        "spot_hour_corr": float(np.corrcoef(hour, REFERENCE_HOUR_PROFILE)[0, 1]),
         "buy_mean": float(np.mean(scenario.price_buy_eur_per_kwh[:n])),
     }
     t_end = pd.Timestamp(TEMPERATURE_END).tz_localize(time.tz)
@@ -171,19 +178,34 @@ def scenario_stats(scenario: Scenario, off_day: np.ndarray | None = None,
 
 
 def misfit(stats: dict[str, float]) -> float:
-    """Sum of squared, scaled deviations from the FACTS figures (statistics with a ``scale``)."""
-    return float(sum(((stats[s.key] - s.facts) / s.scale) ** 2 for s in STATS if s.scale is not None))
+    """Sum of squared, scaled deviations from the reference figures (statistics with a ``scale``)."""
+    return float(sum(((stats[s.key] - s.ref) / s.scale) ** 2 for s in STATS if s.scale is not None))
 
 
-def default_stats(params=None, seed: int | None = None) -> dict[str, float]:
-    """Statistics of the default scenario (plant parameters and settings from config/)."""
+def _stats_of(sc: Scenario, params) -> dict[str, float]:
+    from . import is_off_day, load_scenario_settings
+
+    coef = load_scenario_settings().load.dynamisation_coef
+    return scenario_stats(sc, is_off_day(sc.time, params.comfort), coef)
+
+
+def synthetic_stats(params=None, seed: int | None = None) -> dict[str, float]:
+    """Statistics of the synthetic scenario (plant parameters and settings from config/)."""
     from ..config import load_plant_params
-    from . import default_scenario, is_off_day, load_scenario_settings
+    from . import load_scenario_settings, synthetic_scenario
 
     params = params or load_plant_params()
     settings = load_scenario_settings()
-    sc = default_scenario(params, weeks=settings.weeks, seed=seed, settings=settings)
-    return scenario_stats(sc, is_off_day(sc.time, params.comfort), settings.load.dynamisation_coef)
+    return _stats_of(synthetic_scenario(params, weeks=settings.weeks, seed=seed, settings=settings), params)
+
+
+def default_stats(params=None, seed: int | None = None) -> dict[str, float]:
+    """Statistics of the embedded default scenario (measured data; ``seed`` of the modelled parts)."""
+    from ..config import load_plant_params
+    from . import default_scenario
+
+    params = params or load_plant_params()
+    return _stats_of(default_scenario(params, seed=seed), params)
 
 
 def _fmt(value: float) -> str:
@@ -198,11 +220,14 @@ def _fmt(value: float) -> str:
     return f"{value:.2f}"
 
 
-def markdown_table(stats: dict[str, float]) -> str:
-    """Markdown table of the generated statistics next to the FACTS figures."""
-    lines = ["| statistic | unit | generated | FACTS.md |", "|---|---|---|---|"]
+def markdown_table(default: dict[str, float], synthetic: dict[str, float]) -> str:
+    """Markdown table: the default (measured) and synthetic scenario next to the reference figures."""
+    lines = [
+        "| statistic | unit | default (measured) | synthetic | reference |",
+        "|---|---|---:|---:|---|",
+    ]
     for s in STATS:
-        lines.append(f"| {s.label} | {s.unit} | {_fmt(stats[s.key])} | {s.facts_text} |")
+        lines.append(f"| {s.label} | {s.unit} | {_fmt(default[s.key])} | {_fmt(synthetic[s.key])} | {s.ref_text} |")
     return "\n".join(lines)
 
 
@@ -224,14 +249,14 @@ def update_doc(path: str, table: str) -> None:
 
 def rank_seeds(n: int, params=None) -> list[tuple[int, float]]:
     """``(seed, misfit)`` for seeds ``0..n-1``, best first."""
-    return sorted(((seed, misfit(default_stats(params, seed))) for seed in range(n)), key=lambda x: x[1])
+    return sorted(((seed, misfit(synthetic_stats(params, seed))) for seed in range(n)), key=lambda x: x[1])
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print the statistics table of the default scenario, or rank seeds."""
+    """Print the statistics table of the embedded scenarios, or rank the generator's seeds."""
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--seed", type=int, default=None, help="seed (default: config/scenario.yaml)")
-    parser.add_argument("--rank-seeds", type=int, default=0, metavar="N", help="rank seeds 0..N-1 by misfit")
+    parser.add_argument("--seed", type=int, default=None, help="synthetic seed (default: config/scenario.yaml)")
+    parser.add_argument("--rank-seeds", type=int, default=0, metavar="N", help="rank synthetic seeds 0..N-1 by misfit")
     parser.add_argument("--update-doc", metavar="MD", help="replace the table between the stats markers of MD")
     args = parser.parse_args(argv)
     if args.rank_seeds:
@@ -240,12 +265,13 @@ def main(argv: list[str] | None = None) -> int:
             print(f"seed {seed:6d}  misfit {m:8.2f}")
         print(f"median misfit over {len(ranked)} seeds: {np.median([m for _, m in ranked]):.2f}")
         return 0
-    stats = default_stats(seed=args.seed)
-    print(markdown_table(stats))
+    synthetic = synthetic_stats(seed=args.seed)
+    table = markdown_table(default_stats(), synthetic)
+    print(table)
     if args.update_doc:
-        update_doc(args.update_doc, markdown_table(stats))
+        update_doc(args.update_doc, table)
         print(f"updated {args.update_doc}")
-    print(f"\nmisfit to FACTS: {misfit(stats):.2f}")
+    print(f"\nmisfit of the synthetic scenario to the reference: {misfit(synthetic):.2f}")
     return 0
 
 

@@ -32,7 +32,15 @@ from ...config import ConfigError, PlantParams, config_dir, set_dotted
 from ...models.battery import power_limits_w
 from ...types import HP_DHW, HP_OFF, HP_SH, Action
 from ..base import Observation
-from ..features import DailyH2Allowance, chi_dhw, chi_sh, edf_price, hp_p_el_ref_w, update_modulation
+from ..features import (
+    DailyH2Allowance,
+    chi_dhw,
+    chi_sh,
+    edf_price,
+    hp_p_el_ref_w,
+    modulation_level,
+    update_modulation,
+)
 from .engine import FuzzySystem, load_system
 
 #: Controller section of each data file and the option key of its file / overrides.
@@ -41,6 +49,10 @@ FLC_FILES: dict[str, tuple[str, str]] = {
     "fc": ("fc.yaml", "flc_fc"),
     "battery": ("battery.yaml", "flc_b"),
 }
+
+
+#: Readings of the FLC_flex output (``hp.update`` in ``config/fuzzy/flex.yaml``).
+HP_UPDATES = ("increment", "level")
 
 
 def fuzzy_config_dir() -> Path:
@@ -124,6 +136,11 @@ class FuzzyEMS:
             params.heat_pump, _option(flex_sec, "hp", "p_el_ref_t_amb_c", self.flex.source, float)
         )
         self._dhw_prio = _option(flex_sec, "hp", "dhw_priority_chi", self.flex.source, float)
+        update = _option(flex_sec, "hp", "update", self.flex.source, str)
+        if update not in HP_UPDATES:
+            raise ConfigError(f"{self.flex.source}: option 'hp.update' must be one of {', '.join(HP_UPDATES)}, "
+                              f"got {update!r}")
+        self._hp_level = update == "level"
         self._cap_fc = _option(fc_sec, "fc", "cap_to_demand", self.fc.source, bool)
         self._stop_fc = _option(fc_sec, "fc", "stop_when_allowance_used", self.fc.source, bool)
         self._absorb = _option(bat_sec, "battery", "absorb_surplus", self.battery.source, bool)
@@ -152,7 +169,10 @@ class FuzzyEMS:
         c_sh = chi_sh(obs.t_air_c, obs.t_min_5h_c, obs.t_max_c)
         c_dhw = chi_dhw(obs.v_dhw_l, dhw.v_min_l, dhw.v_max_l)
         alpha = self.flex(min(c_sh, c_dhw), obs.loh, obs.soc, edf, obs.ghi_w_m2)
-        eta = update_modulation(obs.hp_mod_prev, alpha, self._mod_min)
+        if self._hp_level:
+            eta = modulation_level(alpha, self._mod_min)
+        else:
+            eta = update_modulation(obs.hp_mod_prev, alpha, self._mod_min)
         if eta <= 0.0:
             return 0.0, HP_OFF, alpha, c_sh, c_dhw
         mode = HP_DHW if (c_dhw <= c_sh or c_dhw < self._dhw_prio) else HP_SH

@@ -1,4 +1,4 @@
-"""The embedded default scenario: shape, determinism, tariff, comfort and calibration to FACTS.md."""
+"""The synthetic scenario generator: shape, determinism, tariff, comfort and calibration to the reference statistics."""
 
 import re
 from pathlib import Path
@@ -22,7 +22,8 @@ def params():
 
 @pytest.fixture(scope="module")
 def default(params):
-    return sc.default_scenario(params)
+    """The synthetic scenario with the configured seed (named after the fixture of the measured tests)."""
+    return sc.synthetic_scenario(params)
 
 
 @pytest.fixture(scope="module")
@@ -42,7 +43,8 @@ def test_shape_and_time(default):
 
 
 def test_tariff_and_comfort(params, default):
-    expected_buy = default.spot_eur_per_mwh / 1000.0 + params.grid.surcharge_eur_per_kwh
+    g = params.grid
+    expected_buy = g.buy_offset_eur_per_kwh + g.buy_spot_factor * default.spot_eur_per_mwh / 1000.0
     np.testing.assert_allclose(default.price_buy_eur_per_kwh, expected_buy)
     assert (default.price_sell_eur_per_kwh == 0.0794).all()
     t_min, t_max = sc.comfort_bounds(default.time, params.comfort)
@@ -61,28 +63,28 @@ def test_physical_ranges(default):
 
 def test_deterministic_same_seed(params, default):
     sc._CACHE.clear()
-    again = sc.default_scenario(params)
+    again = sc.synthetic_scenario(params)
     for name in sc.SERIES:
         np.testing.assert_array_equal(getattr(again, name), getattr(default, name))
 
 
 def test_other_seed_differs_and_cache_returns_copies(params, default):
-    other = sc.default_scenario(params, weeks=2, seed=1)
+    other = sc.synthetic_scenario(params, weeks=2, seed=1)
     assert other.n_steps == 336 and len(other.time) == 360
     assert not np.allclose(other.spot_eur_per_mwh[:336], default.spot_eur_per_mwh[:336])
-    first = sc.default_scenario(params, weeks=2, seed=1)
+    first = sc.synthetic_scenario(params, weeks=2, seed=1)
     first.t_amb_c[:] = 99.0
-    assert sc.default_scenario(params, weeks=2, seed=1).t_amb_c[0] != 99.0
+    assert sc.synthetic_scenario(params, weeks=2, seed=1).t_amb_c[0] != 99.0
 
 
 def test_resolve_default_window(params, default):
-    w = sc.resolve_scenario("default", params, start="2022-12-10", weeks=2)
+    w = sc.resolve_scenario("synthetic", params, start="2022-12-10", weeks=2)
     assert w.time[0] == pd.Timestamp("2022-12-10", tz="Europe/Berlin")
     assert w.n_steps == 336 and len(w.time) == 360
     k = 9 * 24
     np.testing.assert_array_equal(w.spot_eur_per_mwh, default.spot_eur_per_mwh[k : k + 360])
     with pytest.raises(sc.ScenarioError, match="only"):
-        sc.resolve_scenario("default", params, start="2023-02-01", weeks=4)
+        sc.resolve_scenario("synthetic", params, start="2023-02-01", weeks=4)
 
 
 def test_resolve_missing_file(params):
@@ -90,19 +92,19 @@ def test_resolve_missing_file(params):
         sc.resolve_scenario("/nonexistent/scenario.csv", params)
 
 
-# Acceptance bands around the FACTS figures (tol of each statistic in stats.STATS).
+# Acceptance bands around the reference figures (tol of each statistic in stats.STATS).
 BANDED = [s for s in st.STATS if s.tol is not None]
 
 
 @pytest.mark.parametrize("stat", BANDED, ids=[s.key for s in BANDED])
-def test_statistics_within_facts_bands(stats, stat):
-    assert abs(stats[stat.key] - stat.facts) <= stat.tol, f"{stat.label}: {stats[stat.key]:.3g} vs {stat.facts}"
+def test_statistics_within_reference_bands(stats, stat):
+    assert abs(stats[stat.key] - stat.ref) <= stat.tol, f"{stat.label}: {stats[stat.key]:.3g} vs {stat.ref}"
 
 
 def test_qualitative_facts(stats):
     assert stats["spot_workday"] > stats["spot_offday"]
     assert stats["spot_dec"] > stats["spot_feb"] and stats["spot_dec"] > stats["spot_jan"]
-    assert stats["t_cold_spell_max"] < 0.0  # FACTS: daily means below 0 in the cold spell
+    assert stats["t_cold_spell_max"] < 0.0  # DWD: daily means below 0 in the cold spell
     assert stats["t_new_year_max"] > 10.0  # mild around New Year
     assert 6 <= stats["load_morning_peak_h"] <= 9 and 17 <= stats["load_evening_peak_h"] <= 21
     assert stats["diffuse_share"] > 0.5  # overcast winter
@@ -120,27 +122,27 @@ def test_opendhw_weekend_factor_correction():
 
 
 @pytest.mark.parametrize("doc", [DOCS, DOCS.parents[1] / "README.md"], ids=["docs", "readme"])
-def test_docs_table_matches_generator(stats, doc):
+def test_docs_table_matches_the_scenarios(params, stats, doc):
     text = doc.read_text(encoding="utf-8")
     m = re.search(r"<!-- stats:begin -->\n(.*?)\n<!-- stats:end -->", text, re.S)
     assert m, f"{doc.name} lacks the stats markers"
-    assert m.group(1).strip() == st.markdown_table(stats).strip()
+    assert m.group(1).strip() == st.markdown_table(st.default_stats(params), stats).strip()
 
 
 def test_fractional_weeks(params):
-    two_days = sc.default_scenario(params, weeks=2 / 7)
+    two_days = sc.synthetic_scenario(params, weeks=2 / 7)
     assert two_days.n_steps == 48 and len(two_days.time) == 72
     with pytest.raises(sc.ScenarioError, match="whole number"):
-        sc.default_scenario(params, weeks=0.3)  # 50.4 h
-    w = sc.resolve_scenario("default", params, start="2022-12-05T06:00", weeks=0.5)
+        sc.synthetic_scenario(params, weeks=0.3)  # 50.4 h
+    w = sc.resolve_scenario("synthetic", params, start="2022-12-05T06:00", weeks=0.5)
     assert w.n_steps == 84 and w.time[0].hour == 6
 
 
-def test_short_default_run_is_the_start_of_the_full_scenario() -> None:
-    """--weeks cuts the default scenario; it does not generate a different one."""
+def test_short_synthetic_run_is_the_start_of_the_full_scenario() -> None:
+    """--weeks cuts the synthetic scenario; it does not generate a different one."""
     params = load_plant_params()
-    full = sc.default_scenario(params, weeks=12)
-    short = sc.default_scenario(params, weeks=1)
+    full = sc.synthetic_scenario(params, weeks=12)
+    short = sc.synthetic_scenario(params, weeks=1)
     assert short.n_steps == 168
     n = len(short.time)
     assert (short.time == full.time[:n]).all()

@@ -1,0 +1,56 @@
+"""``comems4build reproduce``: the paper's table beside ours, its findings and the interpretation study."""
+
+from __future__ import annotations
+
+import argparse
+import sys
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``reproduce``."""
+    parser.add_argument("--out", required=True, help="output directory (reproduce.md, reproduce.html, "
+                                                     "reproduce.json, runs/)")
+    parser.add_argument("--no-study", action="store_true",
+                        help="only the three default runs, the table and the findings (no interpretation study)")
+    parser.add_argument("--only", default=None, metavar="KEY[,KEY...]",
+                        help="study only these ambiguities of config/reproduce.yaml")
+    parser.add_argument("--jobs", type=int, default=None, help="parallel runs (default: CPU count)")
+    parser.add_argument("--weeks", type=float, default=None,
+                        help="run length in weeks (default 12, the paper's; shorter runs are quick checks that "
+                             "do not compare with the paper's table)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the reproduction and print where the report is."""
+    from ..cli import UsageError
+    from ..report.reproduce import reproduce
+
+    if args.jobs is not None and args.jobs < 1:
+        raise UsageError(f"--jobs: {args.jobs} is below 1")
+    if args.weeks is not None and not (0 < args.weeks <= 12):
+        raise UsageError(f"--weeks: {args.weeks} outside (0, 12] (the default scenario's twelve weeks)")
+    only = [k for k in args.only.split(",") if k] if args.only else None
+    bar = None
+    if sys.stderr.isatty():
+        from tqdm import tqdm
+
+        bar = tqdm(total=0, desc="reproduce", unit="run", file=sys.stderr)
+
+    def progress(done: int, total: int, name: str) -> None:
+        if bar is not None:
+            bar.total = total
+            bar.set_postfix_str(name)
+            bar.update(done - bar.n)
+
+    try:
+        res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
+                        progress=progress)
+    finally:
+        if bar is not None:
+            bar.close()
+    held = sum(c["held"] for c in res.checks)
+    print(f"median relative error {100 * res.median_rel_error:.1f} %; cost ratios "
+          + ", ".join(f"{k} {v:.2f}" for k, v in res.ratios.items())
+          + f"; findings held {held} of {len(res.checks)}")
+    print(f"{res.runs_made} runs in {res.wall_s:.0f} s; wrote {res.markdown}, {res.html}, {res.json}")
+    return 0

@@ -1,0 +1,43 @@
+"""The measured data shipped as package data: unchanged files with their provenance beside them."""
+
+import hashlib
+
+import numpy as np
+import pytest
+
+from comems4build_ros.scenario.measured import data_dir
+
+#: SHA-256 of each shipped data file (sources in comems4build_ros/data/README.md).
+CHECKSUMS = {
+    "DE_LU_day_ahead_EURperMWh_2022-12-01_2023-02-28_hourly.csv":
+        "7067e5caaba2a6d0a5c053cfa7bd0abcc9b6a152774c59e9bed5670c4a9be92a",
+    "DWD_04177_Rheinstetten_tu_stunde_2022110100_2023021423.txt":
+        "5858bd724324d29d184ce666aace58e9352c850e17c9553e115c6f0bbcb533cd",
+    "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200.txt":
+        "52192ec1aedda0324945f65d98cfcfef8f3cb72032428e5730427f8e1fb1fa34",
+    "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200_log.txt":
+        "d8eb7072a66e8e5479bb5ec4114312531a4e0c249e77cdf06d84d5bc1dffcaa5",
+}
+
+
+@pytest.mark.parametrize("name", sorted(CHECKSUMS))
+def test_checksum(name):
+    assert hashlib.sha256((data_dir() / name).read_bytes()).hexdigest() == CHECKSUMS[name]
+
+
+def test_shapes():
+    lines = (data_dir() / "DE_LU_day_ahead_EURperMWh_2022-12-01_2023-02-28_hourly.csv").read_text().splitlines()
+    assert lines[0] == "utc_start,local_start_Europe_Berlin,price_EUR_per_MWh" and len(lines) == 2161
+    dwd = (data_dir() / "DWD_04177_Rheinstetten_tu_stunde_2022110100_2023021423.txt").read_text().splitlines()
+    assert dwd[0] == "STATIONS_ID;MESS_DATUM;QN_9;TT_TU;RF_TU;eor" and len(dwd) == 1 + 106 * 24
+    dhw = np.loadtxt(data_dir() / "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200.txt")
+    assert dhw.shape == (8760,) and dhw.mean() * 24 == pytest.approx(200.0, abs=0.5)
+
+
+def test_provenance_and_licences_beside_the_data():
+    text = (data_dir() / "README.md").read_text(encoding="utf-8")
+    for name in CHECKSUMS:
+        if not name.endswith("_log.txt"):
+            assert f"`{name}`" in text
+    for source in ("ENTSO-E Transparency Platform", "Deutscher Wetterdienst", "CC BY 4.0", "OpenDHW", "MIT"):
+        assert source in text
