@@ -117,3 +117,39 @@ def test_missing_column_is_named() -> None:
     ts = make_ts(3).drop(columns=["p_buy_w"])
     with pytest.raises(ValueError, match="p_buy_w"):
         kpi.weekly_kpis(ts, 1.0)
+
+
+def test_h2_value_net_cost_and_mean_price_hand_computed() -> None:
+    # LOH ends at 0.1414 of a 1800 kWh store (the paper's ComEMS4Build); mean buy price
+    # (0.30 + 0.468) / 2 = 0.384 EUR/kWh -> 0.1414 * 1800 * 0.384 = 97.74 EUR (paper 97.75)
+    ts = make_ts(2, price_buy_eur_per_kwh=[0.30, 0.468], p_buy_w=[1000.0, 0.0], p_sell_w=[0.0, 1000.0],
+                 price_sell_eur_per_kwh=0.0794, loh=[0.5, 0.1414], p_fc_w=[500.0, 700.0], p_h2_w=[1000.0, 1500.0])
+    w = kpi.weekly_kpis(ts, 1.0)
+    s = kpi.summarize(ts, w, loh_min=0.0, e_h2_max_kwh=1800.0)
+    assert s["price_buy_mean_eur_per_kwh"] == pytest.approx(0.384)
+    assert s["h2_left_kwh"] == pytest.approx(254.52)
+    assert s["h2_left_value_eur"] == pytest.approx(0.1414 * 1800 * 0.384)
+    # cost 0.30 EUR, reimbursement 0.0794 EUR
+    assert s["cost_net_eur_total"] == pytest.approx(0.30 - 0.0794 - 0.1414 * 1800 * 0.384)
+    assert s["price_paid_mean_eur_per_kwh"] == pytest.approx(0.30)
+    # weekly H2 use: FC electrical 1.2 kWh, LHV 2.5 kWh
+    assert (s["fc_kwh_week_min"], s["fc_kwh_week_max"]) == (pytest.approx(1.2), pytest.approx(1.2))
+    assert (s["h2_kwh_week_min"], s["h2_kwh_week_max"]) == (pytest.approx(2.5), pytest.approx(2.5))
+    # the usable H2 is counted above LOH_min
+    assert kpi.h2_left_value_eur(0.25, 0.05, 1000.0, 0.4) == pytest.approx(0.2 * 1000 * 0.4)
+    assert kpi.h2_left_value_eur(0.02, 0.05, 1000.0, 0.4) == 0.0
+    assert "h2_left_value_eur" not in kpi.summarize(ts, w, loh_min=0.0)
+
+
+@pytest.mark.parametrize("sample, expected", [("end", 1.0), ("start", 3.0), ("mean", 2.0)])
+def test_discomfort_sample_within_the_step(sample, expected) -> None:
+    # T_min 21 degC all along; T_air 19 before the first step, 20, 21, 21 at the ends of steps 0..2.
+    # end: 20, 21, 21 -> 1 Kh; start: 19, 20, 21 -> 2 + 1 = 3 Kh; mean: 19.5, 20.5, 21 -> 1.5 + 0.5 = 2 Kh
+    ts = make_ts(3, t_air_c=[20.0, 21.0, 21.0], t_min_c=21.0)
+    w = kpi.weekly_kpis(ts, 1.0, discomfort_sample=sample, t_air_init_c=19.0)
+    assert w.loc[0, "discomfort_kh"] == pytest.approx(expected)
+    t = kpi.comfort_sample_c(ts, sample, t_air_init_c=19.0)
+    s = kpi.summarize(ts, w, loh_min=0.0, t_comfort=t)
+    assert s["discomfort_kh_total"] == pytest.approx(expected)
+    with pytest.raises(ValueError, match="unknown discomfort sample"):
+        kpi.comfort_sample_c(ts, "middle")

@@ -44,17 +44,17 @@ def test_steady_state_is_fixed_point(bp):
 
 
 def test_heat_loss_coefficient(bp):
-    # H = 1/R_air,amb + 1/(R_w,air + R_w + R_w,amb) = 1/0.055 + 1/0.03172 = 18.18 + 31.53 W/K
+    # H = 1/R_air,amb + 1/(R_w,air + R_w + R_w,amb) = 1/0.0275 + 1/0.01586 = 36.36 + 63.05 W/K
     h = building.heat_loss_coefficient_w_per_k(bp)
-    assert h == pytest.approx(1 / 0.055 + 1 / 0.03172, rel=1e-9)
-    assert h == pytest.approx(49.71, abs=0.01)
+    assert h == pytest.approx(1 / 0.0275 + 1 / 0.01586, rel=1e-9)
+    assert h == pytest.approx(99.42, abs=0.01)
     # All heat into the air node (f_conv = 1): H * 20 K holds the air 20 K above ambient.
     conv = bp.model_copy(update={"f_conv": 1.0})
     assert building.steady_state_c(h * 20.0, 0.0, 0.0, conv)[0] == pytest.approx(20.0, rel=1e-9)
     # With f_conv = 0.4, 60 % enters the inner wall node and part of it leaves through the
     # envelope without passing the air: T_air = 20 K * (f + (1 - f) G_wa / (G_wa + G_out)),
-    # G_wa = 1/0.00132 = 757.6 W/K, G_out = 1/(0.0165 + 0.0139) = 32.89 W/K -> 20 * 0.975 = 19.50 K.
-    g_wa, g_out = 1 / 0.00132, 1 / 0.0304
+    # G_wa = 1/0.00066 = 1515 W/K, G_out = 1/(0.00825 + 0.00695) = 65.79 W/K -> 20 * 0.975 = 19.50 K.
+    g_wa, g_out = 1 / 0.00066, 1 / 0.0152
     expected = 20.0 * (0.4 + 0.6 * g_wa / (g_wa + g_out))
     assert building.steady_state_c(h * 20.0, 0.0, 0.0, bp)[0] == pytest.approx(expected, rel=1e-9)
 

@@ -64,9 +64,9 @@ def test_initial_state(params, plant):
     s = plant.initial_state()
     assert (s.soc, s.loh, s.t_air_c, s.v_dhw_l) == (0.5, 1.0, 21.0, 200.0)
     # Wall nodes on the resistor chain between 21 degC and t_amb_init 4.2 degC:
-    # T_w,in = 21 - 16.8 * 0.00132 / 0.03172, T_w,out = 21 - 16.8 * 0.01782 / 0.03172
-    assert s.t_wall_in_c == pytest.approx(21 - 16.8 * 0.00132 / 0.03172)
-    assert s.t_wall_out_c == pytest.approx(21 - 16.8 * 0.01782 / 0.03172)
+    # T_w,in = 21 - 16.8 * 0.00066 / 0.01586, T_w,out = 21 - 16.8 * 0.00891 / 0.01586
+    assert s.t_wall_in_c == pytest.approx(21 - 16.8 * 0.00066 / 0.01586)
+    assert s.t_wall_out_c == pytest.approx(21 - 16.8 * 0.00891 / 0.01586)
     assert not s.fc_on
 
 
