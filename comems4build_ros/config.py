@@ -24,7 +24,7 @@ from pathlib import Path
 from typing import Any, Literal, TypeVar
 
 import yaml
-from pydantic import BaseModel, ConfigDict, Field, ValidationError, model_validator
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
 PACKAGE = "comems4build_ros"
 
@@ -59,16 +59,52 @@ def default_plant_file() -> Path:
 
 
 def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError) -> Any:
-    """Parse a YAML file; ``error`` names the file (and ``what`` it is) when that fails."""
+    """Parse a YAML file; ``error`` names the file (and ``what`` it is) when that fails.
+
+    A directory, a device, a file that is not UTF-8 text (e.g. binary) and invalid YAML are
+    each reported as such.
+    """
     path = Path(path)
+    kind = path_kind(path)
+    if kind:
+        raise error(f"{path}: cannot read {what}: {kind}")
     try:
         text = path.read_text(encoding="utf-8")
     except OSError as exc:
         raise error(f"{path}: cannot read {what}: {exc.strerror}") from exc
+    except UnicodeDecodeError as exc:
+        raise error(
+            f"{path}: cannot read {what}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
+            f"{exc.start}); a binary file?"
+        ) from None
     try:
         return yaml.safe_load(text)
     except yaml.YAMLError as exc:
         raise error(f"{path}: invalid YAML: {exc}") from exc
+
+
+def path_kind(path: str | Path) -> str:
+    """Why ``path`` cannot be read as a data file (``""`` if it is an existing regular file).
+
+    ``"no such file"``, ``"is a directory"`` or ``"is not a regular file (a device, FIFO or
+    socket)"``, e.g. for ``/dev/null``.
+    """
+    p = Path(path)
+    if p.is_dir():
+        return "is a directory"
+    if not p.exists():
+        return "no such file"
+    if not p.is_file():
+        return "is not a regular file (a device, FIFO or socket)"
+    return ""
+
+
+def check_input_file(path: str | Path, what: str) -> Path:
+    """``path`` if it is a readable regular file, else :class:`ConfigError` naming ``what`` (e.g. ``--config``)."""
+    kind = path_kind(path)
+    if kind:
+        raise ConfigError(f"{what} {path}: {kind}")
+    return Path(path)
 
 
 def read_ros_params(path: str | Path, node: str | None = None) -> dict[str, Any]:
@@ -136,7 +172,7 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
         lines = []
         for err in exc.errors():
             loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
-            msg = err["msg"]
+            msg = err["msg"].removeprefix("Value error, ")
             if err["type"] == "extra_forbidden":
                 msg = "unknown parameter"
             lines.append(f"{source}: parameter '{loc}': {msg}")
@@ -144,7 +180,21 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
 
 
 class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    """A parameter section: unknown keys, booleans as numbers and inf/NaN are refused."""
+
+    model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
+
+    @field_validator("*", mode="before")
+    @classmethod
+    def _no_bool_numbers(cls, value: Any, info: ValidationInfo) -> Any:
+        """``e_max_kwh: true`` must not become 1.0 (YAML ``true``/``yes``/``on`` are booleans)."""
+        field = cls.model_fields.get(info.field_name or "")
+        if field is None or field.annotation is bool:
+            return value
+        items = value if isinstance(value, list) else [value]
+        if any(isinstance(v, bool) for v in items):
+            raise ValueError(f"expected a number, got the boolean {value!r}")
+        return value
 
 
 Pos = Field(gt=0)
@@ -171,6 +221,18 @@ class SiteParams(_Section):
     longitude_deg: float = Field(ge=-180, le=180)
     altitude_m: float
     timezone: str
+
+    @field_validator("timezone")
+    @classmethod
+    def _known_zone(cls, value: str) -> str:
+        """An IANA time zone name the tz database knows (e.g. ``Europe/Berlin``)."""
+        import zoneinfo
+
+        try:
+            zoneinfo.ZoneInfo(value)
+        except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+            raise ValueError(f"unknown IANA time zone '{value}' (e.g. Europe/Berlin)") from None
+        return value
 
 
 class PVParams(_Section):
@@ -381,6 +443,29 @@ class PlantParams(_Section):
 
 
 PLANT_SECTIONS = tuple(PlantParams.model_fields)
+#: Sections of the other parameter files, which a plant parameter file (``--config``,
+#: ``--set``) does not read: section -> where its values go instead.
+OTHER_SECTIONS = {
+    "mpc": "MPC options: --ems-option KEY=VALUE (defaults in config/mpc.yaml)",
+    "mpc_qp": "QP-MPC options: --ems-option KEY=VALUE (defaults in config/mpc.yaml)",
+    "rbc": "RBC options: --ems-option KEY=VALUE (defaults in config/rbc.yaml)",
+    "flc_flex": "fuzzy options: --ems-option flex.KEY=VALUE or flex_file=FILE (config/fuzzy/flex.yaml)",
+    "flc_fc": "fuzzy options: --ems-option fc.KEY=VALUE or fc_file=FILE (config/fuzzy/fc.yaml)",
+    "flc_b": "fuzzy options: --ems-option battery.KEY=VALUE or battery_file=FILE (config/fuzzy/battery.yaml)",
+    "forecast": "forecast mode: --forecast perfect|imperfect (settings in config/forecast.yaml)",
+    "scenario": "scenario generator settings: config/scenario.yaml",
+}
+
+
+def unknown_section_text(key: str) -> str:
+    """Message for a section that is not a plant section: what it is, or the closest plant section."""
+    import difflib
+
+    if key in OTHER_SECTIONS:
+        return f"section '{key}' is not a plant section and is not read here; {OTHER_SECTIONS[key]}"
+    close = difflib.get_close_matches(key, PLANT_SECTIONS, n=1)
+    hint = f"did you mean '{close[0]}'? " if close else ""
+    return f"unknown section '{key}' ({hint}plant sections: {', '.join(PLANT_SECTIONS)})"
 
 
 def load_plant_params(
@@ -402,17 +487,21 @@ def load_plant_params(
     """
     files = [default_plant_file(), *(Path(p) for p in (paths or []))]
     merged: dict[str, Any] = {}
-    for path in files:
+    for i, path in enumerate(files):
         data = read_ros_params(path)
-        deep_merge(merged, {k: v for k, v in data.items() if k in PLANT_SECTIONS})
         unknown_plant = [k for k in data if k not in PLANT_SECTIONS and not isinstance(data[k], Mapping)]
         if unknown_plant:
             raise ConfigError(f"{path}: unknown top-level parameter(s): {', '.join(unknown_plant)}")
+        if i > 0:  # a user's file: every section must be one that is read
+            for key in data:
+                if key not in PLANT_SECTIONS:
+                    raise ConfigError(f"{path}: {unknown_section_text(key)}")
+        deep_merge(merged, {k: v for k, v in data.items() if k in PLANT_SECTIONS})
     source = " + ".join(str(f) for f in files)
     if overrides:
         for key, value in overrides.items():
             if key.split(".")[0] not in PLANT_SECTIONS:
-                raise ConfigError(f"overrides: parameter '{key}': unknown section")
+                raise ConfigError(f"overrides: parameter '{key}': {unknown_section_text(key.split('.')[0])}")
             set_dotted(merged, key, value)
         source += " + overrides"
     return validate(PlantParams, merged, source)

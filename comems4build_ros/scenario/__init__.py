@@ -20,7 +20,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from ..config import PlantParams
+from ..config import PlantParams, path_kind
 from .base import CSV_COLUMNS, OPTIONAL_CSV_COLUMNS, SERIES, Scenario
 from .comfort import comfort_bounds, is_off_day
 from .csvio import ScenarioError, ScenarioWarning, read_scenario_frame, write_scenario_csv
@@ -44,6 +44,7 @@ __all__ = [
     "ScenarioSettings",
     "comfort_bounds",
     "default_scenario",
+    "run_steps",
     "is_off_day",
     "load_measured_settings",
     "load_scenario_csv",
@@ -73,10 +74,14 @@ def steps_of_weeks(weeks: float, name: str) -> int:
         If ``weeks * 168`` is below 1 or not a whole number of hours.
     """
     hours = float(weeks) * HOURS_PER_WEEK
+    if not np.isfinite(hours):
+        raise ScenarioError(f"{name}: weeks={weeks}: the run length must be a finite number > 0")
     n = round(hours)
     if n < 1 or abs(hours - n) > 1e-6:
         raise ScenarioError(f"{name}: weeks={weeks} gives {hours:g} h; it must give a whole number >= 1 of hours")
     return int(n)
+
+
 _CACHE_MAX = 16
 
 
@@ -256,12 +261,81 @@ def default_scenario(
     return scenario_from_frame("default", frame.iloc[:need], params, n_steps, meta)
 
 
+#: ``extend`` values of :func:`resolve_scenario`: how a run longer than its data is filled.
+EXTEND_METHODS = ("synthetic",)
+
+
+def run_steps(weeks: float | None, hours: int | None, name: str) -> int | None:
+    """Run length [steps at 1 h] of ``weeks`` or ``hours`` (at most one given; None = the scenario's default).
+
+    Raises
+    ------
+    ScenarioError
+        If both are given, ``hours`` is not an integer >= 1, or ``weeks`` does not give a
+        whole number >= 1 of hours.
+    """
+    if weeks is not None and hours is not None:
+        raise ScenarioError(f"{name}: give the run length as weeks or as hours, not both")
+    if hours is not None:
+        if isinstance(hours, bool) or int(hours) != hours or hours < 1:
+            raise ScenarioError(f"{name}: hours={hours}: the run length must be an integer >= 1 of hours")
+        return int(hours)
+    if weeks is not None:
+        return steps_of_weeks(weeks, name)
+    return None
+
+
+def check_time_step(params: PlantParams, name: str) -> None:
+    """Refuse a plant step that differs from the scenario's hourly rows.
+
+    Every scenario (generated or CSV) has one row per hour; a ``simulation.time_step_h``
+    of 2 would integrate 2 h of physics per 1 h row and report twice the weeks.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the parameter, its value and the data's step.
+    """
+    dt_h = params.simulation.time_step_h
+    if abs(dt_h - 1.0) > 1e-9:
+        raise ScenarioError(
+            f"{name}: parameter simulation.time_step_h = {dt_h:g} h does not match the scenario's 1 h rows "
+            "(the plant would integrate that step over each hourly row); use 1"
+        )
+
+
+def _synthetic_extension(
+    params: PlantParams, after: pd.Timestamp, rows: int, seed: int | None, settings: ScenarioSettings | None = None
+) -> tuple[pd.DataFrame, int]:
+    """``rows`` generated hours starting one hour after ``after`` (UTC index, the CSV columns) and the seed used."""
+    from .generator import generate
+
+    settings = settings or load_scenario_settings()
+    seed = settings.seed if seed is None else int(seed)
+    start = (after + pd.Timedelta(hours=1)).tz_convert(params.site.timezone)
+    g = generate(settings, params.site, params.comfort.holidays_country, params.comfort.holidays_subdivision,
+                 rows, seed, start=start)
+    frame = pd.DataFrame({c: getattr(g, c) for c in CSV_COLUMNS[1:]}, index=g.time.tz_convert("UTC"))
+    return frame, seed
+
+
 def _window(
-    name: str, frame: pd.DataFrame, params: PlantParams, start: str | None, weeks: float | None, lookahead_h: int,
-    meta: dict,
+    name: str, frame: pd.DataFrame, params: PlantParams, start: str | None, n_steps: int | None, lookahead_h: int,
+    meta: dict, extend: str | None = None, seed: int | None = None, length_text: str = "",
+    keep_lookahead: bool = False, generator: ScenarioSettings | None = None,
 ) -> Scenario:
-    """Cut ``frame`` to start at ``start`` and run ``weeks`` weeks (plus available look-ahead)."""
+    """Cut ``frame`` to start at ``start`` and run ``n_steps`` steps (plus the available look-ahead).
+
+    The rows available to the run are those from ``start`` (less ``lookahead_h`` if
+    ``keep_lookahead``: the embedded scenarios keep their look-ahead in the data; a CSV
+    file's last rows may be run, its look-ahead then repeats the last row). A longer run
+    is refused unless ``extend="synthetic"``: then rows of the synthetic generator
+    (``generator`` settings, seed ``seed``) follow the data's last row, for the run and its
+    look-ahead, and ``meta["extended"]`` says from when and how many.
+    """
     tz = params.site.timezone
+    if extend is not None and extend not in EXTEND_METHODS:
+        raise ScenarioError(f"{name}: extend '{extend}' unknown (known: {', '.join(EXTEND_METHODS)})")
     if start is not None:
         try:
             t0 = pd.Timestamp(start)
@@ -276,23 +350,35 @@ def _window(
             )
         frame = frame.iloc[pos:]
         meta["start"] = t0.isoformat()
-    rows = len(frame)
-    if weeks is not None:
-        n_steps = steps_of_weeks(weeks, name)
-        if n_steps > rows:
+    rows = len(frame) - (lookahead_h if keep_lookahead else 0)
+    if n_steps is None:
+        n_steps = (rows // HOURS_PER_WEEK) * HOURS_PER_WEEK if rows >= HOURS_PER_WEEK else max(rows, 1)
+    if n_steps > rows:
+        last = frame.index[-1]
+        if extend is None:
+            ahead = f" and the {lookahead_h} h look-ahead" if keep_lookahead else ""
             raise ScenarioError(
-                f"{name}: {weeks} week(s) need {n_steps} hourly rows from "
-                f"{frame.index[0].tz_convert(tz).isoformat()}, only {rows} available"
+                f"{name}: the run ({length_text or f'{n_steps} h'}) needs {n_steps} hourly rows{ahead} from "
+                f"{frame.index[0].tz_convert(tz).isoformat()}, the data has only {rows} (until "
+                f"{(last + pd.Timedelta(hours=1)).tz_convert(tz).isoformat()}); shorten the run or allow "
+                "generated data after the end with extend 'synthetic' (--extend synthetic)"
             )
-    else:
-        n_steps = (rows // HOURS_PER_WEEK) * HOURS_PER_WEEK if rows >= HOURS_PER_WEEK else rows
+        ext, used_seed = _synthetic_extension(params, last, n_steps + lookahead_h - len(frame), seed, generator)
+        frame = pd.concat([frame, ext])
+        meta["extended"] = {
+            "method": extend,
+            "from": ext.index[0].tz_convert(tz).isoformat(),
+            "rows": len(ext),
+            "run_steps_extended": max(n_steps - len(frame), 0),
+            "seed": used_seed,
+        }
     frame = frame.iloc[: n_steps + lookahead_h]
     return scenario_from_frame(name, frame, params, n_steps, meta)
 
 
 def load_scenario_csv(
     path: str | Path, params: PlantParams, start: str | None = None, weeks: float | None = None,
-    lookahead_h: int = 24,
+    lookahead_h: int = 24, hours: int | None = None, extend: str | None = None, seed: int | None = None,
 ) -> Scenario:
     """Read a scenario CSV (see :mod:`.csvio` for the format and the checks).
 
@@ -304,6 +390,9 @@ def load_scenario_csv(
     weeks : run length [weeks] (fractions giving whole hours allowed); default: all whole weeks
         of the file (rows after them are look-ahead; a file shorter than one week runs all its rows)
     lookahead_h : rows kept after the run for the day-ahead window [h]
+    hours : run length [h] instead of ``weeks``
+    extend : ``"synthetic"`` allows a run longer than the file (generated rows after its end)
+    seed : generator seed of such an extension (default ``config/scenario.yaml``)
 
     Raises
     ------
@@ -311,8 +400,16 @@ def load_scenario_csv(
         Naming the file, line and column of bad input, or a window outside the file.
     """
     path = Path(path)
+    n_steps = run_steps(weeks, hours, path.name)
     frame = read_scenario_frame(path)
-    return _window(path.name, frame, params, start, weeks, lookahead_h, {"source": str(path)})
+    return _window(path.name, frame, params, start, n_steps, lookahead_h, {"source": str(path)}, extend, seed,
+                   _length_text(weeks, hours))
+
+
+def _length_text(weeks: float | None, hours: int | None) -> str:
+    if weeks is not None:
+        return f"{weeks:g} week(s)"
+    return f"{hours} h" if hours is not None else ""
 
 
 def resolve_scenario(
@@ -320,40 +417,69 @@ def resolve_scenario(
     params: PlantParams,
     start: str | None = None,
     weeks: float | None = None,
+    hours: int | None = None,
     seed: int | None = None,
+    extend: str | None = None,
     settings_overrides: Mapping[str, Any] | None = None,
 ) -> Scenario:
-    """``"default"`` (measured), ``"synthetic"`` (generated) or a scenario CSV path, cut to ``start`` and ``weeks``.
+    """The scenario of a run: ``"default"`` (measured), ``"synthetic"`` (generated) or a CSV path, cut to its window.
 
-    Without ``start`` both embedded scenarios run ``weeks`` (default: the configured 12)
-    from their start; with ``start`` the configured period is built and cut. ``seed``
-    seeds the synthetic generator, or the modelled radiation and load of the default
-    scenario; ``settings_overrides`` are dotted keys of ``config/scenario.yaml``
-    (``{"measured.temperature.fill": "synthetic", "scenario.load.annual_kwh": 4000}``).
-    Both are refused for a CSV file.
+    Parameters
+    ----------
+    spec : ``"default"``, ``"synthetic"`` or a CSV path
+    params : plant parameters (``simulation.time_step_h`` must be the data's 1 h)
+    start : ISO date/time of the first step (naive = site local time); default: the first row
+    weeks, hours : run length (at most one; default: the configured 12 weeks of an embedded
+        scenario, the whole weeks of a CSV file or of the data after ``start``)
+    seed : seed of generated data: the synthetic generator, the modelled radiation and load of
+        the default scenario, and any synthetic extension
+    extend : ``None`` refuses a run longer than the scenario's data; ``"synthetic"``
+        appends generated data after its end (recorded in ``meta["extended"]``)
+    settings_overrides : dotted keys of ``config/scenario.yaml`` for an embedded scenario
+        (``{"measured.temperature.fill": "synthetic", "scenario.load.annual_kwh": 4000}``)
+
+    The data of the default scenario are every hour its package data cover (2160 h from
+    2022-12-01); those of the synthetic one the generator's configured period (``weeks``
+    plus ``lookahead_h``). An embedded scenario's run must leave its look-ahead in the data
+    (or in the extension); a shorter run is exactly the beginning of the full one.
+
+    Raises
+    ------
+    ScenarioError
+        For a missing or invalid file, a window outside the data, a bad run length, a seed
+        or settings given for a CSV, or a plant step other than the data's.
     """
+    name = str(spec) if str(spec) in EMBEDDED else Path(spec).name
+    check_time_step(params, f"scenario '{name}'")
+    n_steps = run_steps(weeks, hours, f"scenario '{name}'")
+    length = _length_text(weeks, hours)
     if str(spec) in EMBEDDED:
         parts = split_overrides(settings_overrides)
         settings = load_scenario_settings(overrides=parts["scenario"])
         if str(spec) == "default":
             measured = load_measured_settings(overrides=parts["measured"])
-
-            def make(params: PlantParams, weeks: float, settings: ScenarioSettings) -> Scenario:
-                return default_scenario(params, weeks=weeks, seed=seed, settings=settings, measured=measured)
+            frame, meta = _measured_frame(params, measured, settings, measured.seed if seed is None else int(seed),
+                                          None)
+            lookahead_h, default_weeks = measured.lookahead_h, measured.weeks
         else:
             if parts["measured"]:
                 raise ScenarioError("scenario 'synthetic': 'measured.*' settings apply to the default scenario only")
-
-            def make(params: PlantParams, weeks: float, settings: ScenarioSettings) -> Scenario:
-                return synthetic_scenario(params, weeks=weeks, seed=seed, settings=settings)
-        if start is None:
-            return make(params, weeks=weeks or settings.weeks, settings=settings)
-        full = make(params, weeks=settings.weeks, settings=settings)
-        frame = pd.DataFrame({c: getattr(full, c) for c in CSV_COLUMNS[1:]}, index=full.time.tz_convert("UTC"))
-        return _window(full.name, frame, params, start, weeks, settings.lookahead_h, dict(full.meta))
-    if seed is not None or settings_overrides:
-        raise ScenarioError(f"scenario '{spec}': a seed or scenario settings apply to the embedded scenarios only")
+            full = synthetic_scenario(params, weeks=settings.weeks, seed=seed, settings=settings)
+            frame = pd.DataFrame({c: getattr(full, c) for c in CSV_COLUMNS[1:]}, index=full.time.tz_convert("UTC"))
+            meta = dict(full.meta)
+            lookahead_h, default_weeks = settings.lookahead_h, settings.weeks
+        meta.pop("weeks", None)
+        if n_steps is None and start is None:
+            n_steps = steps_of_weeks(default_weeks, f"scenario '{name}'")
+        return _window(name, frame, params, start, n_steps, lookahead_h, meta, extend, seed, length,
+                       keep_lookahead=True, generator=settings)
+    if settings_overrides:
+        raise ScenarioError(f"scenario '{spec}': scenario settings apply to the embedded scenarios only")
+    if seed is not None and extend is None:
+        raise ScenarioError(f"scenario '{name}': a seed applies to generated data only (the embedded scenarios or "
+                            "--extend synthetic), not to a CSV file")
     path = Path(spec)
-    if not path.is_file():
-        raise ScenarioError(f"scenario '{spec}': no such file (use 'default', 'synthetic' or a scenario CSV)")
-    return load_scenario_csv(path, params, start=start, weeks=weeks)
+    kind = path_kind(path)
+    if kind:
+        raise ScenarioError(f"scenario '{spec}': {kind} (use 'default', 'synthetic' or a scenario CSV file)")
+    return load_scenario_csv(path, params, start=start, weeks=weeks, hours=hours, extend=extend, seed=seed)

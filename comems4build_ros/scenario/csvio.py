@@ -25,6 +25,8 @@ Checks on reading (each error names the file, the line and the column):
 
 from __future__ import annotations
 
+import csv
+import io
 import re
 import warnings
 from pathlib import Path
@@ -206,6 +208,65 @@ def _check_values(path: Path, col: str, arr: np.ndarray) -> np.ndarray:
     return arr
 
 
+#: Separators other than the comma that a scenario CSV is checked for (name in messages).
+OTHER_SEPARATORS = {";": "semicolon", "\t": "tab", "|": "vertical bar"}
+
+
+def read_csv_text(path: str | Path) -> str:
+    """The text of a CSV file; :class:`ScenarioError` names a directory, a device, binary content or an empty file."""
+    from ..config import path_kind
+
+    path = Path(path)
+    kind = path_kind(path)
+    if kind:
+        raise ScenarioError(f"{path}: {kind} (a CSV file is needed)")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
+    if b"\0" in raw:
+        raise ScenarioError(f"{path}: binary content (NUL bytes), not a CSV text file")
+    try:
+        text = raw.decode("utf-8-sig")
+    except UnicodeDecodeError as exc:
+        raise ScenarioError(
+            f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}); a binary file?"
+        ) from None
+    if not text.strip():
+        raise ScenarioError(f"{path}: empty file (a header line and hourly rows are needed)")
+    return text
+
+
+def check_header(path: str | Path, text: str, required: tuple[str, ...]) -> list[str]:
+    """Column names of the header line (stripped), checked for separator, duplicates and ``required``.
+
+    Raises
+    ------
+    ScenarioError
+        For a file separated by another character than the comma (named), a column name
+        that appears twice, or a missing required column.
+    """
+    first = text.splitlines()[0]
+    header = [c.strip() for c in next(csv.reader([first]))]
+    if len(header) == 1:
+        for sep, sep_name in OTHER_SEPARATORS.items():
+            if sep in first:
+                raise ScenarioError(
+                    f"{path}: line 1 (header): the columns are separated by '{sep}' ({sep_name}), "
+                    f"found '{first[:80]}'; a scenario CSV is comma-separated"
+                )
+    seen: set[str] = set()
+    for name in header:
+        if name in seen:
+            raise ScenarioError(f"{path}: line 1 (header): column '{name}' appears twice")
+        seen.add(name)
+    missing = [c for c in required if c not in header]
+    if missing:
+        raise ScenarioError(f"{path}: line 1 (header): missing column(s) {', '.join(missing)} (found: "
+                            f"{', '.join(header) or 'none'})")
+    return header
+
+
 def read_scenario_frame(path: str | Path) -> pd.DataFrame:
     """Read and check a scenario CSV; return a frame indexed by UTC time with the known columns.
 
@@ -215,16 +276,13 @@ def read_scenario_frame(path: str | Path) -> pd.DataFrame:
         Naming the file, line and column (see the module docstring for the rules).
     """
     path = Path(path)
+    text = read_csv_text(path)
     try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False, skip_blank_lines=False)
-    except FileNotFoundError:
-        raise
-    except (OSError, UnicodeDecodeError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        df = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False, skip_blank_lines=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
         raise ScenarioError(f"{path}: cannot read CSV: {exc}") from exc
-    df.columns = [str(c).strip() for c in df.columns]
-    missing = [c for c in CSV_COLUMNS if c not in df.columns]
-    if missing:
-        raise ScenarioError(f"{path}: line 1 (header): missing column(s) {', '.join(missing)}")
+    header = check_header(path, text, CSV_COLUMNS)
+    df.columns = header
     if len(df) == 0:
         raise ScenarioError(f"{path}: no data rows")
     time = _parse_time(path, df["time"])

@@ -1,0 +1,99 @@
+"""Shared option types and checks of the command line.
+
+Every numeric option of every subcommand is parsed by one of the types below, so that a
+value outside its allowed range (``--weeks 0``, ``--weeks inf``, ``--jobs -1``) ends in
+argparse's usage error (exit code 2) naming the option, the value and the allowed range,
+before any work starts. The ranges are stated in the option's help text by
+:func:`range_text`.
+
+Output paths are checked before a run starts with :func:`comems4build_ros.fileio.check_out_dir`
+and :func:`~comems4build_ros.fileio.check_out_file`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable
+
+#: Largest ROS 2 domain id (the DDS port formula of ROS 2 allows 0..232).
+ROS_DOMAIN_ID_MAX = 232
+#: Largest seed of numpy's generators accepted here (unsigned 32 bit, like the ROS parameter).
+SEED_MAX = 2**32 - 1
+
+
+def range_text(lo: float | None = None, hi: float | None = None, lo_open: bool = False, hi_open: bool = False) -> str:
+    """Human text of an interval: ``> 0``, ``>= 1``, ``in [0, 1]``, ``in (0, 1]``."""
+    if lo is not None and hi is not None:
+        return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+    if lo is not None:
+        return f"{'>' if lo_open else '>='} {lo:g}"
+    if hi is not None:
+        return f"{'<' if hi_open else '<='} {hi:g}"
+    return "finite"
+
+
+def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> Callable[[str], float]:
+    what = "an integer" if kind is int else "a finite number"
+    allowed = range_text(lo, hi, lo_open, hi_open)
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except (TypeError, ValueError):
+            raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})") from None
+        if kind is float and not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})")
+        low_bad = lo is not None and (value <= lo if lo_open else value < lo)
+        high_bad = hi is not None and (value >= hi if hi_open else value > hi)
+        if low_bad or high_bad:
+            raise argparse.ArgumentTypeError(f"{text} is outside the allowed range: {what} {allowed}")
+        return value
+
+    parse.__name__ = "integer" if kind is int else "number"  # argparse names the type in its messages
+    return parse
+
+
+def real(lo: float | None = None, hi: float | None = None, lo_open: bool = False,
+         hi_open: bool = False) -> Callable[[str], float]:
+    """argparse type: a finite float within the interval (``lo_open``: ``lo`` itself excluded)."""
+    return _number(float, lo, hi, lo_open, hi_open)
+
+
+def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
+    """argparse type: an integer within ``[lo, hi]``."""
+    return _number(int, lo, hi, False, False)  # type: ignore[return-value]
+
+
+#: Run length in weeks: finite and > 0 (whole hours are checked with the scenario).
+WEEKS = real(0, lo_open=True)
+#: Run length in hours: an integer >= 1.
+HOURS = integer(1)
+#: A count of runs, buildings, steps or repeats: an integer >= 1.
+COUNT = integer(1)
+#: A duration in seconds: finite and > 0.
+SECONDS = real(0, lo_open=True)
+#: A seed: 0 .. 2**32-1.
+SEED = integer(0, SEED_MAX)
+#: A ROS 2 domain id: 0 .. 232.
+DOMAIN_ID = integer(0, ROS_DOMAIN_ID_MAX)
+#: A fraction: finite, in [0, 1].
+FRACTION = real(0, 1)
+
+
+def add_run_length(parser: argparse.ArgumentParser, hours: bool = True) -> None:
+    """``--weeks`` and (optionally) ``--hours``, mutually exclusive."""
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
+                       help="run length in weeks, > 0 (fractions giving whole hours allowed; default: the "
+                            "scenario's whole weeks)")
+    if hours:
+        group.add_argument("--hours", type=HOURS, default=None, metavar="H",
+                           help="run length in hours, integer >= 1 (short tries; instead of --weeks)")
+
+
+def add_extend(parser: argparse.ArgumentParser) -> None:
+    """``--extend synthetic``: allow a run longer than its scenario."""
+    parser.add_argument("--extend", choices=("synthetic",), default=None,
+                        help="a run longer than the scenario's data is refused unless this is given: 'synthetic' "
+                             "appends generated data after the data's end (seeded; said so in summary.json)")
