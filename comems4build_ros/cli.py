@@ -3,7 +3,8 @@
 Each subcommand lives in ``comems4build_ros/commands/<module>.py`` exposing
 ``add_arguments(parser)`` and ``run(args) -> int``; heavy imports happen inside ``run``
 so that ``comems4build --help`` stays fast. Exit codes: 0 success, 1 failure of the
-job, 2 invalid usage or input (unknown EMS, unreadable file, invalid option).
+job, 2 invalid usage or input (unknown EMS, unreadable file, invalid option, an output
+that cannot be written).
 """
 
 from __future__ import annotations
@@ -57,6 +58,11 @@ def main(argv: list[str] | None = None) -> int:
         return int(args._run(args) or 0)
     except (UsageError, ConfigError, FileNotFoundError, ValueError) as exc:
         print(f"comems4build {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # an output that cannot be written (full disk, read-only, removed directory)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"comems4build {args.command}: error: {where}{exc.strerror or exc}; nothing partial was kept",
+              file=sys.stderr)
         return 2
     except KeyboardInterrupt:
         print(f"comems4build {args.command}: interrupted", file=sys.stderr)

@@ -82,9 +82,11 @@ def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-
             fh.flush()
             os.fsync(fh.fileno())
         os.replace(tmp, path)
-    except BaseException:
+    except BaseException as exc:
         with contextlib.suppress(OSError):
             os.unlink(tmp)
+        if isinstance(exc, OSError):
+            raise _named(exc, path) from exc
         raise
 
 
@@ -102,9 +104,11 @@ def atomic_dir(path: str | Path) -> Iterator[Path]:
     The caller writes every result file into the yielded directory. Only when all of them
     are written are they renamed into ``path`` (renames within one file system need no
     space and do not fail half-way), so a failure while writing leaves none of the new
-    files in ``path``. The temporary directory is removed in any case.
+    files in ``path`` (and removes ``path`` again if it created it and it is empty). The
+    temporary directory is removed in any case.
     """
     path = Path(path)
+    created = not path.exists()
     path.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=".partial.", dir=path))
     try:
@@ -114,5 +118,20 @@ def atomic_dir(path: str | Path) -> Iterator[Path]:
                 dest = path / f.relative_to(tmp)
                 dest.parent.mkdir(parents=True, exist_ok=True)
                 os.replace(f, dest)
-    finally:
+    except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
+        if created:
+            with contextlib.suppress(OSError):
+                path.rmdir()  # only if still empty
+        if isinstance(exc, OSError):
+            raise _named(exc, path) from exc
+        raise
+    shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _named(exc: OSError, path: Path) -> OSError:
+    """``exc`` naming the destination ``path`` instead of no file or a temporary one."""
+    name = str(exc.filename or "")
+    if name and ".partial." not in name and not Path(name).name.endswith(".tmp"):
+        return exc
+    return OSError(exc.errno, exc.strerror or str(exc), str(path))

@@ -33,6 +33,23 @@ LOH_EMPTY_TOL = 1e-6
 #: state at its start (``T_air[k-1]``, what the EMS saw), ``mean`` = the mean of both.
 DISCOMFORT_SAMPLES = ("end", "start", "mean")
 
+#: Resolution at which every KPI is reported, by unit: values are rounded to it, so a
+#: magnitude below it is 0 (a 1-week MPC run sums 1.6e-14 K*h of float noise as
+#: discomfort; reported, that is 0). Stated in every summary as ``kpi_resolution``.
+KPI_RESOLUTION: dict[str, float] = {
+    "K*h": 1e-6,  # discomfort
+    "h": 1e-6,  # hours (outside the band, FC working hours)
+    "EUR": 1e-6,  # costs and reimbursements
+    "kWh": 1e-6,  # energies
+    "W": 1e-6,  # mean powers
+    "-": 1e-9,  # fractions (LOH, efficiency)
+}
+#: Key tokens -> unit of :data:`KPI_RESOLUTION`, tried in order (``h2_kwh_week_min`` -> kWh).
+_UNIT_TOKENS = (("kh", "K*h"), ("kwh", "kWh"), ("eur", "EUR"), ("w", "W"), ("hours", "h"), ("h", "h"),
+                ("loh", "-"), ("eta", "-"))
+#: Checks of the numerics that are reported unrounded (their size is the point).
+UNROUNDED_KEYS = ("max_balance_residual_w",)
+
 #: Timeseries columns the KPIs read.
 REQUIRED_COLUMNS = (
     "time",
@@ -157,10 +174,31 @@ def _week_kpis(ts: pd.DataFrame, dt_h: float, t_comfort: np.ndarray | None = Non
     }
 
 
+def kpi_unit(key: str) -> str | None:
+    """Unit (a key of :data:`KPI_RESOLUTION`) of a KPI key by its name, None for counts and text."""
+    tokens = key.split("_")
+    for token, unit in _UNIT_TOKENS:
+        if token in tokens:
+            return unit
+    return None
+
+
+def at_resolution(key: str, value: Any) -> Any:
+    """``value`` rounded to the resolution of its unit (:data:`KPI_RESOLUTION`); ints, text and None unchanged."""
+    unit = kpi_unit(key)
+    if unit is None or key in UNROUNDED_KEYS or isinstance(value, bool | int | str) or value is None:
+        return value
+    value = float(value)
+    if not np.isfinite(value):
+        return value
+    decimals = int(round(-np.log10(KPI_RESOLUTION[unit])))
+    return round(value, decimals) + 0.0  # + 0.0 turns -0.0 into 0.0
+
+
 def weekly_kpis(
     ts: pd.DataFrame, dt_h: float = 1.0, discomfort_sample: str = "end", t_air_init_c: float | None = None
 ) -> pd.DataFrame:
-    """One row of KPIs per week of the run (a last partial week gets its own row).
+    """One row of KPIs per week of the run; a last partial week gets its own row, marked.
 
     Parameters
     ----------
@@ -171,8 +209,10 @@ def weekly_kpis(
     Returns
     -------
     DataFrame
-        Columns ``week`` (1-based), ``start`` (ISO time of the week's first step) and
-        the keys of the per-period KPIs (units in the names: kh = K*h, eur, kwh, h, w).
+        Columns ``week`` (1-based), ``start`` (ISO time of the week's first step),
+        ``full_week`` (False for a last week shorter than 168 h, which the weekly medians
+        leave out) and the keys of the per-period KPIs (units in the names: kh = K*h, eur,
+        kwh, h, w), each at its :data:`KPI_RESOLUTION`.
     """
     missing = [c for c in REQUIRED_COLUMNS if c not in ts.columns]
     if missing:
@@ -183,8 +223,22 @@ def weekly_kpis(
     for w, start in enumerate(range(0, len(ts), steps_per_week)):
         part = ts.iloc[start : start + steps_per_week]
         t_part = t_comfort[start : start + steps_per_week]
-        rows.append({"week": w + 1, "start": str(part["time"].iloc[0]), **_week_kpis(part, dt_h, t_part)})
+        kpis = {k: at_resolution(k, v) for k, v in _week_kpis(part, dt_h, t_part).items()}
+        rows.append({"week": w + 1, "start": str(part["time"].iloc[0]), "full_week": len(part) == steps_per_week,
+                     **kpis})
     return pd.DataFrame(rows)
+
+
+def median_weeks(weekly: pd.DataFrame) -> pd.DataFrame:
+    """The weeks the weekly medians and extremes are taken over: the full weeks.
+
+    A run shorter than one week has no full week; then its one partial week is used
+    (and :func:`summarize` says so in ``week_medians_over``).
+    """
+    if "full_week" not in weekly:
+        return weekly
+    full = weekly[weekly["full_week"].astype(bool)]
+    return full if len(full) else weekly
 
 
 def h2_empty_at(ts: pd.DataFrame, loh_min: float, dt_h: float = 1.0) -> str | None:
@@ -224,6 +278,13 @@ def summarize(
 ) -> dict[str, Any]:
     """Run summary (``summary.json``): weekly medians, extremes and run totals.
 
+    Medians, minima, maxima and the spread over weeks are taken over the full weeks
+    (:func:`median_weeks`); ``weeks`` counts every row of ``weekly`` (a last partial week
+    included), ``full_weeks`` and ``partial_week_h`` say which. ``fallback_steps`` counts
+    the steps on a safe fallback action, whether the plant applied it (no valid command in
+    time, column ``fallback``) or the EMS did (no solution, column ``ems_fallback``);
+    ``ems_fallback_steps`` the latter alone. KPIs are rounded to :data:`KPI_RESOLUTION`.
+
     Parameters
     ----------
     ts : per-step timeseries
@@ -238,14 +299,22 @@ def summarize(
     """
     on = ts["fc_on"].to_numpy(dtype=float) > 0.5
     eta = ts["eta_fc_el"].to_numpy(dtype=float)
-    fallback = int(ts["fallback"].astype(float).sum()) if "fallback" in ts else 0
+    plant_fb = ts["fallback"].astype(float).to_numpy() > 0.5 if "fallback" in ts else np.zeros(len(ts), bool)
+    ems_fb = ts["ems_fallback"].astype(float).to_numpy() > 0.5 if "ems_fallback" in ts else np.zeros(len(ts), bool)
     slack = int((ts["ems_slack_used"].astype(float) > 0.5).sum()) if "ems_slack_used" in ts else 0
     total = _week_kpis(ts, dt_h, t_comfort)
     price_mean = float(np.mean(ts["price_buy_eur_per_kwh"].to_numpy(dtype=float)))
     loh_end = float(ts["loh"].iloc[-1])
-    med = weekly.median(numeric_only=True)
+    weeks = median_weeks(weekly)
+    full = int(weekly["full_week"].astype(bool).sum()) if "full_week" in weekly else len(weekly)
+    partial_h = float(weekly["hours"].iloc[-1]) if full < len(weekly) else 0.0
+    med = weeks.median(numeric_only=True)
     summary: dict[str, Any] = {
         "weeks": int(len(weekly)),
+        "full_weeks": full,
+        "partial_week_h": partial_h,
+        "week_medians_over": (f"{full} full week(s)" if full else
+                              f"the partial week ({partial_h:g} h; the run is shorter than a week)"),
         "steps": int(len(ts)),
         "cost_eur_week_median": float(med["cost_eur"]),
         "reimbursement_eur_week_median": float(med["reimbursement_eur"]),
@@ -255,12 +324,12 @@ def summarize(
         "sell_kwh_week_median": float(med["sell_kwh"]),
         "bess_charged_kwh_week_median": float(med["bess_charged_kwh"]),
         # weekly H2 use as LHV energy drawn from the store and as the FC's electrical output
-        # (the paper's "H2 consumption" ranges fit the electrical output)
-        "h2_kwh_week_min": float(weekly["h2_kwh"].min()),
-        "h2_kwh_week_max": float(weekly["h2_kwh"].max()),
-        "h2_kwh_week_std": float(weekly["h2_kwh"].std(ddof=0)),
-        "fc_kwh_week_min": float(weekly["fc_kwh"].min()),
-        "fc_kwh_week_max": float(weekly["fc_kwh"].max()),
+        # (the paper's "H2 consumption" ranges fit the electrical output), over the full weeks
+        "h2_kwh_week_min": float(weeks["h2_kwh"].min()),
+        "h2_kwh_week_max": float(weeks["h2_kwh"].max()),
+        "h2_kwh_week_std": float(weeks["h2_kwh"].std(ddof=0)),
+        "fc_kwh_week_min": float(weeks["fc_kwh"].min()),
+        "fc_kwh_week_max": float(weeks["fc_kwh"].max()),
         "fc_working_hours": total["fc_working_hours"],
         "fc_toggles": int(total["fc_toggles"]),
         "fc_mean_load_w": total["fc_mean_load_w"],
@@ -270,7 +339,8 @@ def summarize(
         "dhw_unmet_kwh": total["dhw_unmet_kwh"],
         "max_balance_residual_w": float(np.max(np.abs(ts["balance_residual_w"].to_numpy(dtype=float)))),
         "clipped_actions": int(total["clipped_steps"]),
-        "fallback_steps": fallback,
+        "fallback_steps": int(np.count_nonzero(plant_fb | ems_fb)),
+        "ems_fallback_steps": int(np.count_nonzero(ems_fb)),
         "slack_steps": slack,
         "cost_eur_total": total["cost_eur"],
         "reimbursement_eur_total": total["reimbursement_eur"],
@@ -290,6 +360,8 @@ def summarize(
         summary["h2_left_kwh"] = max(loh_end - loh_min, 0.0) * e_h2_max_kwh
         summary["h2_left_value_eur"] = value
         summary["cost_net_eur_total"] = total["cost_eur"] - total["reimbursement_eur"] - value
+    summary = {k: at_resolution(k, v) for k, v in summary.items()}
+    summary["kpi_resolution"] = dict(KPI_RESOLUTION)
     if extra:
         summary.update(extra)
     return summary

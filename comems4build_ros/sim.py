@@ -25,6 +25,7 @@ from . import kpi
 from .config import PlantParams, config_dir, read_ros_params, validate
 from .ems import make_controller
 from .ems.base import FORECAST_KEYS, INFO_LEVELS, Controller, Observation
+from .fileio import atomic_dir
 from .models.pv import pv_power_w
 from .plant import Plant
 from .scenario.base import Scenario
@@ -343,6 +344,8 @@ def simulate(
         "ems_s": ems_s,
         "forecast": forecast.mode if ctrl.info_level == "mpc" else None,
     }
+    if scenario.meta.get("extended"):
+        extra["scenario_extended"] = dict(scenario.meta["extended"])
     return evaluate_timeseries(ts, params, extra)
 
 
@@ -353,12 +356,17 @@ def _json_default(value: Any) -> Any:
 
 
 def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
-    """Write ``timeseries.csv`` (optional), ``weekly.csv`` and ``summary.json`` to ``out_dir``."""
+    """Write ``timeseries.csv`` (optional), ``weekly.csv`` and ``summary.json`` to ``out_dir``.
+
+    All or nothing: the files are written into a temporary directory inside ``out_dir``
+    and renamed into place only when every one was written (:func:`~.fileio.atomic_dir`),
+    so a failure (e.g. a full disk) leaves no partial result.
+    """
     out = Path(out_dir)
-    out.mkdir(parents=True, exist_ok=True)
-    if timeseries:
-        result.timeseries.to_csv(out / "timeseries.csv", index=False)
-    result.weekly.to_csv(out / "weekly.csv", index=False)
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.summary.items()}
-    (out / "summary.json").write_text(json.dumps(clean, indent=2, default=_json_default) + "\n", encoding="utf-8")
+    with atomic_dir(out) as tmp:
+        if timeseries:
+            result.timeseries.to_csv(tmp / "timeseries.csv", index=False)
+        result.weekly.to_csv(tmp / "weekly.csv", index=False)
+        (tmp / "summary.json").write_text(json.dumps(clean, indent=2, default=_json_default) + "\n", encoding="utf-8")
     return out

@@ -14,7 +14,12 @@ from __future__ import annotations
 
 import argparse
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+from ..cli import UsageError
+
+__all__ = ["UsageError"]  # re-exported for the commands
 
 #: Largest ROS 2 domain id (the DDS port formula of ROS 2 allows 0..232).
 ROS_DOMAIN_ID_MAX = 232
@@ -24,12 +29,15 @@ SEED_MAX = 2**32 - 1
 
 def range_text(lo: float | None = None, hi: float | None = None, lo_open: bool = False, hi_open: bool = False) -> str:
     """Human text of an interval: ``> 0``, ``>= 1``, ``in [0, 1]``, ``in (0, 1]``."""
+    def num(x: float) -> str:
+        return str(int(x)) if float(x).is_integer() else f"{x:g}"
+
     if lo is not None and hi is not None:
-        return f"in {'(' if lo_open else '['}{lo:g}, {hi:g}{')' if hi_open else ']'}"
+        return f"in {'(' if lo_open else '['}{num(lo)}, {num(hi)}{')' if hi_open else ']'}"
     if lo is not None:
-        return f"{'>' if lo_open else '>='} {lo:g}"
+        return f"{'>' if lo_open else '>='} {num(lo)}"
     if hi is not None:
-        return f"{'<' if hi_open else '<='} {hi:g}"
+        return f"{'<' if hi_open else '<='} {num(hi)}"
     return "finite"
 
 
@@ -81,8 +89,11 @@ DOMAIN_ID = integer(0, ROS_DOMAIN_ID_MAX)
 FRACTION = real(0, 1)
 
 
-def add_run_length(parser: argparse.ArgumentParser, hours: bool = True) -> None:
-    """``--weeks`` and (optionally) ``--hours``, mutually exclusive."""
+def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,
+                         extend: bool = True) -> None:
+    """``--scenario``, ``--start``, ``--weeks`` / ``--hours``, ``--seed`` and ``--extend`` of a run."""
+    parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
+    parser.add_argument("--start", default=None, help="first step of the window (ISO date/time; naive = site time)")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
                        help="run length in weeks, > 0 (fractions giving whole hours allowed; default: the "
@@ -90,10 +101,37 @@ def add_run_length(parser: argparse.ArgumentParser, hours: bool = True) -> None:
     if hours:
         group.add_argument("--hours", type=HOURS, default=None, metavar="H",
                            help="run length in hours, integer >= 1 (short tries; instead of --weeks)")
+    if seed:
+        parser.add_argument("--seed", type=SEED, default=None,
+                            help="seed of the generated scenario data (default scenario, --extend synthetic; "
+                                 "default: config/scenario.yaml)")
+    if extend:
+        parser.add_argument("--extend", choices=("synthetic",), default=None,
+                            help="a run longer than the scenario's data is refused unless this is given: "
+                                 "'synthetic' appends generated data after the data's end (summary.json "
+                                 "says so under scenario_extended)")
 
 
-def add_extend(parser: argparse.ArgumentParser) -> None:
-    """``--extend synthetic``: allow a run longer than its scenario."""
-    parser.add_argument("--extend", choices=("synthetic",), default=None,
-                        help="a run longer than the scenario's data is refused unless this is given: 'synthetic' "
-                             "appends generated data after the data's end (seeded; said so in summary.json)")
+def check_config_files(paths: Sequence[str], option: str = "--config") -> None:
+    """Each ``--config`` file exists and is a regular file (a directory or device is named as such)."""
+    from ..config import check_input_file
+
+    for path in paths:
+        check_input_file(path, option)
+
+
+def load_params(config: Sequence[str], overrides: Mapping[str, Any] | None = None) -> Any:
+    """Plant parameters of ``--config`` files and ``--set`` overrides, the files checked first."""
+    from ..config import load_plant_params
+
+    check_config_files(config)
+    return load_plant_params(config, overrides)
+
+
+def scenario_of(args: argparse.Namespace, params: Any) -> Any:
+    """The run's scenario from the options of :func:`add_scenario_options`."""
+    from ..scenario import resolve_scenario
+
+    return resolve_scenario(args.scenario, params, start=args.start, weeks=args.weeks,
+                            hours=getattr(args, "hours", None), seed=getattr(args, "seed", None),
+                            extend=getattr(args, "extend", None))

@@ -5,15 +5,14 @@ from __future__ import annotations
 import argparse
 import json
 import sys
-from pathlib import Path
+
+from .options import add_scenario_options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``simulate``."""
     parser.add_argument("--ems", required=True, help="EMS name: thermostat, rbc, fuzzy, mpc, mpc-qp")
-    parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
-    parser.add_argument("--start", default=None, help="first step of the window (ISO date/time), CSV only")
-    parser.add_argument("--weeks", type=float, default=None, help="run length in weeks (default: 12 / whole CSV)")
+    add_scenario_options(parser)
     parser.add_argument(
         "--config", action="append", default=[], metavar="FILE",
         help="parameter file merged over config/plant.yaml (repeatable)",
@@ -47,21 +46,18 @@ def parse_assignments(items: list[str], what: str) -> dict[str, object]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulation and write timeseries.csv, weekly.csv and summary.json."""
-    from ..cli import UsageError
-    from ..config import load_plant_params
     from ..ems import UnknownEMSError, controller_class
-    from ..scenario import resolve_scenario
+    from ..fileio import check_out_dir
     from ..sim import load_forecast_settings, simulate, write_run
+    from .options import UsageError, load_params, scenario_of
 
-    for path in args.config:
-        if not Path(path).is_file():
-            raise UsageError(f"--config {path}: no such file")
-    params = load_plant_params(args.config, parse_assignments(args.set, "--set"))
     try:
         controller_class(args.ems)
     except UnknownEMSError as exc:
         raise UsageError(str(exc)) from None
-    scenario = resolve_scenario(args.scenario, params, start=args.start, weeks=args.weeks)
+    params = load_params(args.config, parse_assignments(args.set, "--set"))
+    check_out_dir(args.out)
+    scenario = scenario_of(args, params)
     result = simulate(
         args.ems, scenario, params,
         ems_options=parse_assignments(args.ems_option, "--ems-option"),
@@ -76,4 +72,19 @@ def run(args: argparse.Namespace) -> int:
     )
     print(json.dumps({k: s[k] for k in keys}, indent=1))
     print(f"wrote {out / 'timeseries.csv'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
+    warn_run(s, "simulate")
     return 0
+
+
+def warn_run(summary: dict, command: str) -> None:
+    """Warnings at the end of a run: fallback steps, a synthetic extension, a partial week."""
+    n, steps = summary.get("fallback_steps") or 0, summary.get("steps") or 0
+    if n:
+        ems_n = summary.get("ems_fallback_steps") or 0
+        print(f"comems4build {command}: warning: {n} of {steps} steps ran on the safe fallback action "
+              f"({ems_n} because the EMS found no solution or failed, {n - ems_n} because no valid command "
+              "came in time); see fallback_steps in summary.json", file=sys.stderr)
+    ext = summary.get("scenario_extended")
+    if ext:
+        print(f"comems4build {command}: note: the scenario was extended with {ext['rows']} generated hours from "
+              f"{ext['from']} ({ext['method']}, seed {ext['seed']})", file=sys.stderr)
