@@ -22,26 +22,33 @@ def run(args: argparse.Namespace) -> int:
     """Read the bag, compute the KPIs, write the files."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..ros.bag import bag_set, evaluate_bag, read_run_info
+    from ..fileio import check_out_dir
+    from ..ros.bag import evaluate_bag, read_run_info
+    from .options import check_config_files
     from .simulate import parse_assignments
 
     bag = Path(args.bag)
     if not bag.exists():
         raise UsageError(f"bag {bag}: no such file or directory")
+    check_out_dir(args.out)
     params = None
     if args.config is not None or args.set:
-        for path in args.config or []:
-            if not Path(path).is_file():
-                raise UsageError(f"--config {path}: no such file")
+        check_config_files(args.config or [])
         info = read_run_info(bag)
         files = args.config if args.config is not None else info.get("config_files") or []
         overrides = dict(info.get("overrides") or {}) if args.config is None else {}
         overrides.update(parse_assignments(args.set, "--set"))
         params = load_plant_params(files, overrides)
     summaries = evaluate_bag(bag, args.out, params=params, timeseries=not args.no_timeseries)
-    complete = all(p.is_dir() and (p / "metadata.yaml").is_file() for p in bag_set(bag))
-    state = "complete" if complete else "no metadata.yaml (recorder killed?); read the .mcap directly"
-    print(f"bag {bag}: {state}")
+    damaged = [s["bag_incomplete"] for s in summaries.values() if "bag_incomplete" in s]
+    if damaged:
+        d = damaged[0]
+        why = "; ".join(d["damage"]) or ("no metadata.yaml (recorder killed?); read the .mcap directly"
+                                          if not d["metadata_yaml"] else "")
+        print(f"bag {bag}: incomplete: {d['steps_recorded']} of {d['steps_expected'] or '?'} steps recorded"
+              + (f"; {why}" if why else ""))
+    else:
+        print(f"bag {bag}: complete")
     keys = ("weeks", "steps", "cost_eur_week_median", "discomfort_kh_week_median", "loh_end", "fallback_steps")
     for ns, s in summaries.items():
         print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **({"bag_incomplete": s["bag_incomplete"]}

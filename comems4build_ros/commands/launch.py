@@ -6,18 +6,21 @@ import argparse
 import json
 import sys
 from pathlib import Path
+from typing import Any
+
+from .options import COUNT, DOMAIN_ID, SECONDS, SEED, add_scenario_options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``launch``."""
     parser.add_argument("--ems", required=True, help="EMS node: fuzzy, rbc, mpc (also thermostat, mpc-qp)")
-    parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
-    parser.add_argument("--start", default=None, help="first step of the window (ISO date/time)")
-    parser.add_argument("--weeks", type=float, default=None, help="run length in weeks (default: 12 / whole CSV)")
-    parser.add_argument("--steps", type=int, default=None, help="cut the run to its first N steps (short runs)")
-    parser.add_argument("--buildings", type=int, default=1,
-                        help="independent buildings under /building_<i>/, scenario seed + i (default 1)")
-    parser.add_argument("--seed", type=int, default=None, help="scenario seed of building 0 (default scenario)")
+    add_scenario_options(parser, hours=False, seed=False, extend=False)
+    parser.add_argument("--steps", type=COUNT, default=None,
+                        help="cut the run to its first N steps, integer >= 1 (short runs)")
+    parser.add_argument("--buildings", type=COUNT, default=1,
+                        help="independent buildings under /building_<i>/, scenario seed + i, integer >= 1 (default 1)")
+    parser.add_argument("--seed", type=SEED, default=None,
+                        help="scenario seed of building 0 (default scenario; 0 .. 2^32-1)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -26,11 +29,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="option passed to the EMS (repeatable)")
     parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
                         help="forecasts given to the MPC (default: config/forecast.yaml)")
-    parser.add_argument("--domain-id", type=int, default=None,
-                        help="ROS_DOMAIN_ID of the run (default: a free id, locked for the run)")
-    parser.add_argument("--step-timeout", type=float, default=None,
-                        help="plant_sim's wait for a command before its safe fallback [s]")
-    parser.add_argument("--timeout", type=float, default=None, help="give up after this wall time [s]")
+    parser.add_argument("--domain-id", type=DOMAIN_ID, default=None,
+                        help="ROS_DOMAIN_ID of the run, 0 .. 232 (default: a free id, locked for the run)")
+    parser.add_argument("--step-timeout", type=SECONDS, default=None,
+                        help="plant_sim's wait for a command before its safe fallback [s], > 0")
+    parser.add_argument("--timeout", type=SECONDS, default=None, help="give up after this wall time [s], > 0")
     parser.add_argument("--out", required=True, help="output directory (bag/, log/, weekly.csv, summary.json)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--print-plan", action="store_true",
@@ -38,25 +41,24 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Launch, wait, evaluate; print the main figures."""
-    from ..cli import UsageError
+    """Validate every input, then launch, wait, evaluate; print the main figures."""
     from ..ems import UnknownEMSError, controller_class
+    from ..fileio import check_out_dir
     from ..ros.launcher import LaunchError, LaunchOptions, launch
-    from .simulate import parse_assignments
+    from .options import UsageError, load_params
+    from .simulate import parse_assignments, warn_run
 
     try:
         controller_class(args.ems)
     except UnknownEMSError as exc:
         raise UsageError(str(exc)) from None
-    for path in args.config:
-        if not Path(path).is_file():
-            raise UsageError(f"--config {path}: no such file")
-    if args.buildings < 1:
-        raise UsageError(f"--buildings must be >= 1, got {args.buildings}")
-    if args.steps is not None and args.steps < 1:
-        raise UsageError(f"--steps must be >= 1, got {args.steps}")
-    if args.scenario != "default" and not Path(args.scenario).is_file():
-        raise UsageError(f"--scenario {args.scenario}: no such file (use 'default' or a scenario CSV)")
+    overrides = parse_assignments(args.set, "--set")
+    params = load_params(args.config, overrides)
+    parse_assignments(args.ems_option, "--ems-option")
+    check_out_dir(args.out)
+    if (Path(args.out) / "bag").exists():
+        raise UsageError(f"--out {args.out}: {Path(args.out) / 'bag'} exists (choose another --out or remove it)")
+    check_feed_scenario(args, params)
     opts = LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
@@ -67,7 +69,7 @@ def run(args: argparse.Namespace) -> int:
         buildings=args.buildings,
         seed=args.seed,
         config_files=list(args.config),
-        overrides=parse_assignments(args.set, "--set"),
+        overrides=overrides,
         ems_options=list(args.ems_option),
         forecast=args.forecast,
         domain_id=args.domain_id,
@@ -92,4 +94,21 @@ def run(args: argparse.Namespace) -> int:
     print(f"ROS domain {result.domain_id}: {len(result.summaries)} building(s), wall {result.wall_s:.1f} s "
           f"(run {result.run_s:.1f} s after the first record)")
     print(f"wrote {result.bag}, {result.out / 'weekly.csv'}, {result.out / 'summary.json'}")
+    for s in result.summaries.values():
+        warn_run(s, "launch")
     return 0
+
+
+def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
+    """Build building 0's scenario exactly as its ``feed`` node will, before any node starts.
+
+    The feed's own loader and checks run here (a bad file, a window outside the data, a
+    run longer than the scenario, missing values the feed refuses), so that a bad
+    scenario ends the launch with exit code 2 instead of a feed exiting after start-up.
+    """
+    from ..ros.launcher import _feed_window
+    from ..ros.nodes.feed import check_scenario, load_scenario
+
+    weeks, steps = _feed_window(args.weeks, args.steps)
+    scenario = load_scenario(args.scenario, params, args.start, weeks or None, args.seed, steps or None)
+    check_scenario(scenario, params.simulation.time_step_h)

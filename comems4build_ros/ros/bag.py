@@ -16,7 +16,9 @@ truncated record.
 
 Reading (:func:`iter_messages`) uses rosbags' ``AnyReader`` for complete bags (a
 ``metadata.yaml`` is present) and the ``mcap`` stream reader otherwise; messages are
-decoded with the Jazzy typestore of rosbags.
+decoded with the Jazzy typestore of rosbags. A bag whose ``metadata.yaml`` or ``.mcap``
+file cannot be read whole (malformed YAML, a truncated or corrupt file) is salvaged the
+same way: everything before the damage is read, and :class:`BagInfo` says what was lost.
 """
 
 from __future__ import annotations
@@ -180,6 +182,9 @@ class BagInfo:
     topics : topic -> message type
     message_count : messages read
     truncated : the last MCAP file ended inside a record (writer was killed)
+    damage : what could not be read (unreadable ``metadata.yaml``, a corrupt or truncated
+        ``.mcap`` record), one text per problem, naming the file; what came before it
+        was salvaged
     """
 
     path: Path
@@ -188,6 +193,7 @@ class BagInfo:
     topics: dict[str, str] = field(default_factory=dict)
     message_count: int = 0
     truncated: bool = False
+    damage: list[str] = field(default_factory=list)
 
 
 def _locate(path: str | Path) -> tuple[Path, list[Path], bool]:
@@ -235,23 +241,36 @@ def iter_messages(
         return
     root, files, complete = _locate(path)
     wanted = None if topics is None else set(topics)
-    if info is not None:
-        first = not info.mcap_files
-        info.path = root
-        info.mcap_files.extend(files)
-        info.complete = complete if first else (info.complete and complete)
+    info = info if info is not None else BagInfo(root, [], False)
+    first = not info.mcap_files
+    info.path = root
+    info.mcap_files.extend(files)
+    info.complete = complete if first else (info.complete and complete)
+    seen: set[tuple[str, int, bytes]] = set()
     if complete:
         from rosbags.highlevel import AnyReader
 
-        with AnyReader([root], default_typestore=typestore()) as reader:
-            conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
-            if info is not None:
+        try:
+            with AnyReader([root], default_typestore=typestore()) as reader:
+                conns = [c for c in reader.connections if wanted is None or c.topic in wanted]
                 info.topics.update({c.topic: c.msgtype for c in reader.connections})
-            for conn, t_ns, raw in reader.messages(connections=conns):
-                if info is not None:
+                for conn, t_ns, raw in reader.messages(connections=conns):
+                    seen.add((conn.topic, t_ns, bytes(raw)))
                     info.message_count += 1
-                yield conn.topic, conn.msgtype, t_ns, raw
-        return
+                    yield conn.topic, conn.msgtype, t_ns, raw
+            return
+        except Exception as exc:  # noqa: BLE001 (rosbags, yaml, struct and decompression errors alike)
+            # Salvage: read the .mcap records sequentially (as for a killed recorder),
+            # skipping the messages already yielded.
+            info.complete = False
+            info.damage.append(f"{root}: not readable as a complete bag ({_brief(exc)}); salvaged record by record")
+    yield from _stream_messages(files, wanted, info, seen)
+
+
+def _stream_messages(
+    files: list[Path], wanted: set[str] | None, info: BagInfo, seen: set[tuple[str, int, bytes]]
+) -> Iterator[tuple[str, str, int, bytes]]:
+    """Records of ``.mcap`` files read in file order, up to the first truncated or corrupt record."""
     from mcap.exceptions import EndOfFile
     from mcap.records import Channel, Message, Schema
     from mcap.stream_reader import StreamReader
@@ -267,22 +286,35 @@ def iter_messages(
                 except StopIteration:
                     break
                 except EndOfFile:
-                    if info is not None:
-                        info.truncated = True
+                    info.truncated = True
+                    info.damage.append(f"{f}: ends inside a record (truncated); read up to there")
+                    break
+                except Exception as exc:  # noqa: BLE001 (corrupt record: bad magic, length, CRC, compression)
+                    info.truncated = True
+                    info.damage.append(f"{f}: corrupt record before byte {fh.tell()} ({_brief(exc)}); "
+                                       "read up to there")
                     break
                 if isinstance(rec, Schema):
                     schemas[rec.id] = rec.name
                 elif isinstance(rec, Channel):
                     channels[rec.id] = (rec.topic, schemas.get(rec.schema_id, ""))
-                    if info is not None:
-                        info.topics[rec.topic] = schemas.get(rec.schema_id, "")
+                    info.topics[rec.topic] = schemas.get(rec.schema_id, "")
                 elif isinstance(rec, Message):
+                    if rec.channel_id not in channels:
+                        continue
                     topic, msgtype = channels[rec.channel_id]
                     if wanted is not None and topic not in wanted:
                         continue
-                    if info is not None:
-                        info.message_count += 1
+                    if seen and (topic, rec.log_time, bytes(rec.data)) in seen:
+                        continue
+                    info.message_count += 1
                     yield topic, msgtype, rec.log_time, rec.data
+
+
+def _brief(exc: Exception) -> str:
+    """``Type: first line of the message`` (at most 160 characters)."""
+    text = (str(exc).strip().splitlines() or [""])[0]
+    return f"{type(exc).__name__}: {text[:160]}"
 
 
 def bag_info(path: str | Path) -> BagInfo:
@@ -418,7 +450,8 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
             n_steps[ns] = int(decode(msgtype, raw).data[n_idx])
     if not records:
         topics = ", ".join(sorted(info.topics)) or "none"
-        raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages (topics: {topics})")
+        damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
+        raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
     columns = [c for c in TIMESERIES_COLUMNS if c != "time"]
     counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands")
     runs: dict[str, BagRun] = {}
@@ -509,9 +542,12 @@ def evaluate_bag(
 
     Summary entries besides the KPIs (as in-process): ``ems``, ``scenario``, ``forecast``
     from ``run_info.json`` (None without it), ``wall_s``, and ``ems_s`` = None (the
-    controller's own compute time is not in the bag). An incomplete run adds
-    ``bag_incomplete`` (steps recorded and expected); fault counters of the plant other
-    than fallback steps are added as ``ros_faults`` when non-zero.
+    controller's own compute time is not in the bag). An incomplete run or bag adds
+    ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
+    read, whether an ``.mcap`` file ended early, and the damage found, see
+    :class:`BagInfo`); a partial last week is left out of the weekly medians like any
+    partial week. Fault counters of the plant other than fallback steps are added as
+    ``ros_faults`` when non-zero. Every file is written all-or-nothing.
 
     Returns
     -------
@@ -522,6 +558,7 @@ def evaluate_bag(
     import pandas as pd
 
     from ..config import load_plant_params
+    from ..fileio import atomic_dir
     from ..sim import evaluate_timeseries, write_run
 
     out = Path(out)
@@ -541,12 +578,13 @@ def evaluate_bag(
             "ems_s": None,
             "forecast": run_info.get("forecast"),
         }
-        if not run.complete:
+        if not run.complete or not info.complete or info.damage:
             extra["bag_incomplete"] = {
                 "steps_recorded": len(run.timeseries),
                 "steps_expected": run.n_steps,
                 "metadata_yaml": info.complete,
                 "truncated_mcap": info.truncated,
+                "damage": list(info.damage),
             }
         faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
         if faults:
@@ -558,9 +596,10 @@ def evaluate_bag(
     if len(runs) > 1 or "/" not in runs:
         weekly = pd.concat(weekly_parts, ignore_index=True)
         weekly = weekly[["building", *[c for c in weekly.columns if c != "building"]]]
-        weekly.to_csv(out / "weekly.csv", index=False)
         combined = {"buildings": {ns.strip("/"): s for ns, s in summaries.items()}}
-        (out / "summary.json").write_text(json.dumps(combined, indent=2, default=_json_default) + "\n", "utf-8")
+        with atomic_dir(out) as tmp:
+            weekly.to_csv(tmp / "weekly.csv", index=False)
+            (tmp / "summary.json").write_text(json.dumps(combined, indent=2, default=_json_default) + "\n", "utf-8")
     return summaries
 
 

@@ -361,7 +361,7 @@ def _window(
                 f"{name}: the run ({length_text or f'{n_steps} h'}) needs {n_steps} hourly rows{ahead} from "
                 f"{frame.index[0].tz_convert(tz).isoformat()}, the data has only {rows} (until "
                 f"{(last + pd.Timedelta(hours=1)).tz_convert(tz).isoformat()}); shorten the run or allow "
-                "generated data after the end with extend 'synthetic' (--extend synthetic)"
+                "generated data after the end with extend 'synthetic' (simulate, compare, sweep: --extend synthetic)"
             )
         ext, used_seed = _synthetic_extension(params, last, n_steps + lookahead_h - len(frame), seed, generator)
         frame = pd.concat([frame, ext])
