@@ -29,6 +29,8 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
+from ..commands.options import COUNT, SECONDS, WEEKS, real
+
 #: Options of the exact reference solve (best known solution): full binaries, gap 0.
 REFERENCE = {"integer_steps": 24, "mip_rel_gap": 0.0, "warm_start": False, "time_limit_s": 120.0}
 #: HiGHS defaults restored (the config file turns some heuristics off).
@@ -57,14 +59,14 @@ KPI_KEYS = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench mpc``."""
-    parser.add_argument("--weeks", type=float, default=12.0, help="length of the closed-loop run [weeks]")
-    parser.add_argument("--days-per-kind", type=int, default=1,
+    parser.add_argument("--weeks", type=WEEKS, default=12.0, help="length of the closed-loop run [weeks], > 0")
+    parser.add_argument("--days-per-kind", type=COUNT, default=1,
                         help="days taken per kind (cold, mild, sunny); 24 problems each (default 1 -> 72)")
     parser.add_argument("--configs", default="all",
                         help="comma-separated config numbers/labels prefixes (default all available)")
-    parser.add_argument("--time-limit", type=float, default=30.0, help="time limit per benchmark solve [s]")
-    parser.add_argument("--kpi-weeks", type=float, default=0.0,
-                        help="also compare KPIs of W weeks at default settings with a gap-0 run (0: skip)")
+    parser.add_argument("--time-limit", type=SECONDS, default=30.0, help="time limit per benchmark solve [s], > 0")
+    parser.add_argument("--kpi-weeks", type=real(0), default=0.0,
+                        help="also compare KPIs of W weeks at default settings with a gap-0 run, >= 0 (0: skip)")
     parser.add_argument("--skip-full-run", action="store_true",
                         help="take the problems from a run of --weeks with the default settings without timing")
     parser.add_argument("--out", default=None, help="directory for per-problem results (CSV/JSON)")

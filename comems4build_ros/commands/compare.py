@@ -10,6 +10,8 @@ import sys
 import time
 from pathlib import Path
 
+from .options import COUNT, add_scenario_options
+
 #: EMS compared by default (the paper's three schedulers).
 DEFAULT_EMS = "rbc,fuzzy,mpc"
 #: FC system efficiencies by default (paper sec:heat_recovery); the first is the base.
@@ -19,9 +21,7 @@ DEFAULT_ETAS = "0.75,0.90"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``compare``."""
     parser.add_argument("--ems", default=DEFAULT_EMS, help=f"comma-separated EMS names (default {DEFAULT_EMS})")
-    parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
-    parser.add_argument("--start", default=None, help="first step of the window (ISO date/time), CSV only")
-    parser.add_argument("--weeks", type=float, default=None, help="run length in weeks (default: 12 / whole CSV)")
+    add_scenario_options(parser, hours=False)
     parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
                         help="run in-process or through the ROS 2 node set (bags evaluated)")
     parser.add_argument("--fc-efficiency", default=DEFAULT_ETAS, metavar="ETA[,ETA...]",
@@ -31,8 +31,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run, e.g. --set battery.e_max_kwh=10")
-    parser.add_argument("--jobs", type=int, default=None,
-                        help="parallel runs (default: CPU count in-process, 1 with --via ros)")
+    parser.add_argument("--jobs", type=COUNT, default=None,
+                        help="parallel runs, integer >= 1 (default: CPU count in-process, 1 with --via ros)")
     parser.add_argument("--from-runs", default=None, metavar="DIR",
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
     parser.add_argument("--out", default=None, help="output directory (default with --from-runs: that DIR)")
@@ -66,9 +66,11 @@ def run(args: argparse.Namespace) -> int:
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..ems import UnknownEMSError, controller_class
+    from ..fileio import check_out_dir
     from ..report.build import build_report
     from ..report.runner import RunTask, run_tasks
     from ..report.runs import RUNS_DIR, Manifest, RunDirError, RunSpec, write_manifest
+    from .options import check_config_files, scenario_of
     from .simulate import parse_assignments
 
     if args.from_runs:
@@ -90,12 +92,14 @@ def run(args: argparse.Namespace) -> int:
         except UnknownEMSError as exc:
             raise UsageError(f"--ems {ems}: {exc}") from None
     etas = parse_etas(args.fc_efficiency)
-    for path in args.config:
-        if not Path(path).is_file():
-            raise UsageError(f"--config {path}: no such file")
+    check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
     for eta in etas:  # validate every parameter set before starting any run
-        load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
+        params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
+    if args.extend and args.via == "ros":
+        raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")
+    scenario_of(args, params)  # the scenario and the run length, checked once before any run
+    check_out_dir(args.out)
     out = Path(args.out)
     base = etas[0]
     specs, tasks = [], []
@@ -105,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
             ov = {**overrides, "fuel_cell.eta_sys": eta}
             specs.append(RunSpec(name=name, ems=ems, eta_sys=eta, info_level=levels[ems], overrides=ov))
             tasks.append(RunTask(ems=ems, out_dir=str(out / RUNS_DIR / name), scenario=args.scenario,
-                                 start=args.start, weeks=args.weeks, overrides=ov,
+                                 start=args.start, weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=ov,
                                  config=[str(Path(c).resolve()) for c in args.config], via=args.via))
     jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
     out.mkdir(parents=True, exist_ok=True)

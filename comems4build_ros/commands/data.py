@@ -10,7 +10,8 @@
 from __future__ import annotations
 
 import argparse
-from pathlib import Path
+
+from .options import SEED, integer
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -27,13 +28,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     build.add_argument("--temperature", required=True, help="DWD air temperature, 10-minute (TT_10) or hourly (TT_TU)")
     build.add_argument("--solar", required=True, help="DWD 10-minute solar radiation (GS_10, DS_10 in J/cm2)")
     build.add_argument("--dhw", help="DHWCalc output (l/h per step, one year); default: generator")
-    build.add_argument("--dhw-year", type=int, help="calendar year of the DHWCalc file (default: first year built)")
+    build.add_argument("--dhw-year", type=integer(1900, 2200),
+                       help="calendar year of the DHWCalc file, 1900 .. 2200 (default: first year built)")
     build.add_argument("--load", help="household load CSV (time + power column); default: generator")
     build.add_argument("--load-column", help="power column of the load CSV")
     build.add_argument("--load-unit", choices=("W", "kW"), help="unit of the power column (default: from its name)")
     build.add_argument("--start", help="first hour (ISO; naive = site local time); default: first common hour")
     build.add_argument("--end", help="end, exclusive (ISO); default: last common hour + 1 h")
-    build.add_argument("--seed", type=int, help="seed of the generator for DHW/load not given")
+    build.add_argument("--seed", type=SEED, help="seed of the generator for DHW/load not given (0 .. 2^32-1)")
     build.add_argument("--config", action="append", default=[], help="extra plant parameter file (site, holidays)")
     build.add_argument("--out", required=True, help="scenario CSV to write")
 
@@ -42,15 +44,14 @@ def run(args: argparse.Namespace) -> int:
     """Run ``fetch-prices`` or ``build``."""
     import pandas as pd
 
-    from ..cli import UsageError
-    from ..config import load_plant_params
+    from ..config import check_input_file
+    from ..fileio import check_out_file, write_text_atomic
     from ..scenario import loaders
+    from .options import UsageError, load_params
 
-    for path in args.config:
-        if not Path(path).is_file():
-            raise UsageError(f"--config {path}: no such file")
-    params = load_plant_params(args.config)
+    params = load_params(args.config)
     tz = params.site.timezone
+    check_out_file(args.out)
 
     def when(text: str, option: str) -> pd.Timestamp:
         try:
@@ -70,17 +71,15 @@ def run(args: argparse.Namespace) -> int:
         except (urllib.error.URLError, TimeoutError, OSError) as exc:
             print(f"comems4build data fetch-prices: download failed: {exc}")
             return 1
-        out = Path(args.out)
-        out.parent.mkdir(parents=True, exist_ok=True)
-        out.write_text(text, encoding="utf-8")
+        out = write_text_atomic(args.out, text)
         series = loaders.read_awattar_json(out)
         print(f"wrote {out}: {len(series)} hourly prices {series.index[0]} .. {series.index[-1]}")
         return 0
 
     for option in ("prices", "temperature", "solar", "dhw", "load"):
         path = getattr(args, option)
-        if path is not None and not Path(path).is_file():
-            raise UsageError(f"--{option} {path}: no such file")
+        if path is not None:
+            check_input_file(path, f"--{option}")
     prices = (args.prices, loaders.read_awattar_json(args.prices))
     temperature = (args.temperature, loaders.read_dwd_temperature(args.temperature))
     solar = (args.solar, loaders.read_dwd_solar(args.solar))

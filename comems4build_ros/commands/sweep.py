@@ -8,6 +8,8 @@ import sys
 import time
 from pathlib import Path
 
+from .options import COUNT, add_scenario_options
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sweep``."""
@@ -15,12 +17,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="dotted plant parameter and its values, e.g. battery.e_max_kwh=5,6.5,10 (repeatable; "
                              "the grid is the product of all)")
     parser.add_argument("--ems", required=True, help="comma-separated EMS names")
-    parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
-    parser.add_argument("--start", default=None, help="first step of the window (ISO date/time), CSV only")
-    parser.add_argument("--weeks", type=float, default=None, help="run length in weeks (default: 12 / whole CSV)")
+    add_scenario_options(parser, hours=False)
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
-    parser.add_argument("--jobs", type=int, default=None, help="parallel runs (default and maximum: CPU count)")
+    parser.add_argument("--jobs", type=COUNT, default=None,
+                        help="parallel runs, integer >= 1 (default and maximum: CPU count)")
     parser.add_argument("--timeseries", action="store_true", help="also write each run's timeseries.csv")
     parser.add_argument("--out", required=True, help="output directory")
 
@@ -30,8 +31,10 @@ def run(args: argparse.Namespace) -> int:
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..ems import UnknownEMSError, controller_class
+    from ..fileio import check_out_dir
     from ..report.runner import RunTask, run_tasks
     from ..report.sweep import SWEEP_KPIS, grid, markdown_table, parse_param, plot_kpi, table
+    from .options import check_config_files, scenario_of
 
     params: dict[str, list] = {}
     for text in args.param:
@@ -48,17 +51,16 @@ def run(args: argparse.Namespace) -> int:
             controller_class(ems)
         except UnknownEMSError as exc:
             raise UsageError(f"--ems {ems}: {exc}") from None
-    for cfg in args.config:
-        if not Path(cfg).is_file():
-            raise UsageError(f"--config {cfg}: no such file")
-    if args.jobs is not None and args.jobs < 1:
-        raise UsageError("--jobs must be at least 1")
+    check_config_files(args.config)
     cases = grid(params, emss)
     for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
-        load_plant_params(args.config, case.values)
+        plant = load_plant_params(args.config, case.values)
+    scenario_of(args, plant)  # the scenario and the run length, checked once before any run
+    check_out_dir(args.out)
     out = Path(args.out)
     tasks = [RunTask(ems=c.ems, out_dir=str(out / "runs" / c.name), scenario=args.scenario, start=args.start,
-                     weeks=args.weeks, overrides=dict(c.values), config=[str(Path(p).resolve()) for p in args.config],
+                     weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=dict(c.values),
+                     config=[str(Path(p).resolve()) for p in args.config],
                      timeseries=args.timeseries) for c in cases]
     print(f"sweep: {len(cases)} runs ({len(emss)} EMS x {len(cases) // len(emss)} parameter sets)", file=sys.stderr)
     t0 = time.perf_counter()

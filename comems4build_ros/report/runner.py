@@ -30,6 +30,8 @@ class RunTask:
     out_dir : run directory to write (timeseries.csv, weekly.csv, summary.json, bag/)
     scenario : ``default`` or a scenario CSV
     start, weeks : window of the scenario (None = its default)
+    seed : seed of generated scenario data (None = config/scenario.yaml)
+    extend : ``"synthetic"`` allows a run longer than the scenario's data (in-process only)
     overrides : dotted plant-parameter overrides
     config : parameter files merged over ``config/plant.yaml``
     via : ``inprocess`` or ``ros``
@@ -44,6 +46,8 @@ class RunTask:
     scenario: str = "default"
     start: str | None = None
     weeks: float | None = None
+    seed: int | None = None
+    extend: str | None = None
     overrides: dict[str, Any] = field(default_factory=dict)
     config: list[str] = field(default_factory=list)
     via: str = "inprocess"
@@ -76,8 +80,8 @@ def _run_inprocess(task: RunTask) -> dict[str, Any]:
     from ..sim import simulate, write_run
 
     params = load_plant_params(task.config, task.overrides)
-    scenario = resolve_scenario(task.scenario, params, start=task.start, weeks=task.weeks,
-                                settings_overrides=task.scenario_overrides or None)
+    scenario = resolve_scenario(task.scenario, params, start=task.start, weeks=task.weeks, seed=task.seed,
+                                extend=task.extend, settings_overrides=task.scenario_overrides or None)
     result = simulate(task.ems, scenario, params, ems_options=task.ems_options)
     result.summary["eta_sys"] = params.fuel_cell.eta_sys
     write_run(result, task.out_dir, timeseries=task.timeseries)
@@ -99,9 +103,11 @@ def _run_ros(task: RunTask) -> dict[str, Any]:
     out = Path(task.out_dir)
     if task.scenario_overrides:
         raise RunFailedError(f"{out}: scenario settings overrides are not supported over ROS")
+    if task.extend:
+        raise RunFailedError(f"{out}: extend '{task.extend}' applies to in-process runs only")
     opts = LaunchOptions(ems=task.ems, out=out, scenario=task.scenario, weeks=task.weeks, start=task.start,
-                         config_files=list(task.config), overrides=dict(task.overrides),
-                         ems_options=[f"{k}={v}" for k, v in task.ems_options.items()])
+                         seed=task.seed, config_files=list(task.config), overrides=dict(task.overrides),
+                         ems_options=[f"{k}={json.dumps(v)}" for k, v in task.ems_options.items()])
     try:
         result = launch(opts)
     except LaunchError as exc:

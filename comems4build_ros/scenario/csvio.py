@@ -309,8 +309,9 @@ def write_scenario_csv(scenario: Scenario, path: str | Path) -> Path:
     the tariff it was built with. Times are written in the scenario's (local) zone with
     their UTC offset.
     """
+    from ..fileio import atomic_write
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     df = pd.DataFrame(
         {
             "time": [t.isoformat() for t in scenario.time],
@@ -318,5 +319,6 @@ def write_scenario_csv(scenario: Scenario, path: str | Path) -> Path:
             "price_buy_eur_per_kwh": scenario.price_buy_eur_per_kwh,
         }
     )
-    df.to_csv(path, index=False, float_format="%.10g")
+    with atomic_write(path) as fh:
+        df.to_csv(fh, index=False, float_format="%.10g")
     return path

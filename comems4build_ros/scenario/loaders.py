@@ -26,6 +26,7 @@ Time conventions (documented choices):
 from __future__ import annotations
 
 import json
+import re
 import urllib.parse
 import urllib.request
 from pathlib import Path
@@ -35,7 +36,7 @@ import pandas as pd
 
 from ..config import PlantParams
 from .base import CSV_COLUMNS
-from .csvio import MISSING_MARKER, ScenarioError, fill_gaps
+from .csvio import MISSING_MARKER, ScenarioError, fill_gaps, read_csv_text
 
 #: aWATTar market data endpoint (FACTS.md).
 AWATTAR_URL = "https://api.awattar.de/v1/marketdata"
@@ -78,7 +79,7 @@ def read_awattar_json(path: str | Path) -> pd.Series:
     """
     path = Path(path)
     try:
-        doc = json.loads(path.read_text(encoding="utf-8"))
+        doc = json.loads(read_csv_text(path))
     except json.JSONDecodeError as exc:
         raise ScenarioError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("data"), list):
@@ -148,12 +149,7 @@ def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame
         non-numeric value, a row without ``eor`` or with the wrong number of fields.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="latin-1").splitlines()
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
-    if not lines:
-        raise ScenarioError(f"{path}: empty file")
+    lines = _read_text_lines(path)
     header = [h.strip() for h in lines[0].split(";")]
     for col in ("MESS_DATUM", *columns):
         if col not in header:
@@ -188,6 +184,12 @@ def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame
     if not rows:
         raise ScenarioError(f"{path}: no data rows")
     df = pd.DataFrame(rows, index=pd.DatetimeIndex(times, name="time"), columns=list(columns))
+    for col in columns:
+        if df[col].isna().all():
+            raise ScenarioError(
+                f"{path}: column '{col}': every one of the {len(df)} values is missing ({MISSING_MARKER:g}); "
+                "no data to build from"
+            )
     dup = df.index.duplicated()
     if dup.any() or not df.index.is_monotonic_increasing:
         i = int(np.flatnonzero(dup)[0]) if dup.any() else int(np.flatnonzero(np.diff(df.index.asi8) < 0)[0]) + 1
@@ -209,8 +211,7 @@ def _hourly_from_10min(df: pd.DataFrame, end_stamped: bool) -> pd.DataFrame:
 def read_dwd_temperature(path: str | Path) -> pd.Series:
     """Hourly air temperature [degC] from a DWD 10-minute (``TT_10``) or hourly (``TT_TU``) file."""
     path = Path(path)
-    with path.open(encoding="latin-1") as fh:
-        header = fh.readline().upper()
+    header = _read_text_lines(path)[0].upper()
     if "TT_10" in header:
         df = read_dwd_product(path, ("TT_10",))
         return _hourly_from_10min(df, end_stamped=False)["TT_10"].rename("t_amb_c")
@@ -237,9 +238,39 @@ def read_dwd_solar(path: str | Path) -> pd.DataFrame:
 # --------------------------------------------------------------------------- DHWCalc, load
 
 
+def _read_text_lines(path: Path) -> list[str]:
+    """Lines of a Latin-1 text source file; :class:`ScenarioError` names a directory, a device, binary or empty file."""
+    from ..config import path_kind
+
+    kind = path_kind(path)
+    if kind:
+        raise ScenarioError(f"{path}: {kind} (a text file is needed)")
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
+    if b"\0" in raw:
+        raise ScenarioError(f"{path}: binary content (NUL bytes), not a text file")
+    lines = raw.decode("latin-1").splitlines()
+    if not any(line.strip() for line in lines):
+        raise ScenarioError(f"{path}: empty file")
+    return lines
+
+
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
 def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
     """Hourly hot-water draws [l/h] from a DHWCalc output file (one value in l/h per line, one year).
 
+    A file with two columns (separated by ``;``, ``,`` or blanks) must hold a step counter
+    (consecutive integers) and the draw: the draw column is read, never the counter; more
+    columns, or a first column that is not such a counter, are refused.
     The number of rows gives the step (8760 -> 1 h, 35040 -> 15 min, ... 525600 -> 1 min);
     step ``i`` starts at ``year``-01-01 00:00 local time + ``i`` steps (DHWCalc ignores
     daylight saving). A header line that is not a number is skipped.
@@ -247,17 +278,34 @@ def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
     path = Path(path)
     values: list[float] = []
     first_data_line = 1
-    for n, line in enumerate(path.read_text(encoding="latin-1").splitlines(), start=1):
-        text = line.strip().split(";")[0].split(",")[0].split()[0] if line.strip() else ""
-        if not text:
+    n_fields = 0
+    counter0 = 0.0  # first step counter of a two-column file
+    for n, line in enumerate(_read_text_lines(path), start=1):
+        fields = re.split(r"[;,\s]+", line.strip()) if line.strip() else []
+        if not fields:
             continue
+        if not values and n == 1 and not _is_number(fields[-1]):
+            first_data_line = 2  # a header line
+            continue
+        if not n_fields:
+            n_fields = len(fields)
+            if n_fields > 2:
+                raise ScenarioError(
+                    f"{path}: line {n}: {n_fields} columns; a DHWCalc file has one column of draws in l/h "
+                    "(or two: a step counter and the draw)"
+                )
+            counter0 = float(fields[0]) if n_fields == 2 and _is_number(fields[0]) else 0.0
+        if len(fields) != n_fields:
+            raise ScenarioError(f"{path}: line {n}: {len(fields)} column(s), line {first_data_line} has {n_fields}")
+        if n_fields == 2 and not (_is_number(fields[0]) and float(fields[0]) == counter0 + len(values)):
+            raise ScenarioError(
+                f"{path}: line {n}, column 1: '{fields[0]}' is not the step counter of a two-column DHWCalc file "
+                f"(expected {counter0 + len(values):g}); a two-column file must hold a counter and the draws in l/h"
+            )
         try:
-            values.append(float(text))
+            values.append(float(fields[-1]))
         except ValueError:
-            if not values and n == 1:
-                first_data_line = 2
-                continue
-            raise ScenarioError(f"{path}: line {n}, column 1: '{text}' is not a number (l/h)") from None
+            raise ScenarioError(f"{path}: line {n}, column {n_fields}: '{fields[-1]}' is not a number (l/h)") from None
     arr = np.asarray(values)
     if len(arr) not in DHWCALC_STEPS:
         raise ScenarioError(
@@ -439,10 +487,12 @@ def build_scenario_frame(
 
 
 def write_frame_csv(frame: pd.DataFrame, path: str | Path, timezone: str) -> Path:
-    """Write a scenario frame (UTC index) as a scenario CSV with local times and offsets."""
+    """Write a scenario frame (UTC index) as a scenario CSV with local times and offsets (all or nothing)."""
+    from ..fileio import atomic_write
+
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
     out = frame.copy()
     out.insert(0, "time", [t.tz_convert(timezone).isoformat() for t in frame.index])
-    out.to_csv(path, index=False, float_format="%.10g")
+    with atomic_write(path) as fh:
+        out.to_csv(fh, index=False, float_format="%.10g")
     return path
