@@ -55,6 +55,34 @@ _POINT_RE = re.compile(
 )
 
 
+#: Plant parameters each device quantity of :func:`device_quantities` is computed from.
+QUANTITY_PARAMS: dict[str, tuple[str, ...]] = {
+    "soc_min": ("battery.soc_min",),
+    "soc_mid": ("battery.soc_min", "battery.soc_max"),
+    "soc_max": ("battery.soc_max",),
+    "loh_min": ("hydrogen.loh_min",),
+    "loh_mid": ("hydrogen.loh_min", "hydrogen.loh_max"),
+    "loh_max": ("hydrogen.loh_max",),
+    "dp_fc": ("fuel_cell.zeta", "fuel_cell.p_max_w"),
+    "dp_fc_bess": ("fuel_cell.zeta", "fuel_cell.p_max_w", "battery.p_d_max_w"),
+    "p_ch": ("battery.p_ch_max_w",),
+    "p_d": ("battery.p_d_max_w",),
+}
+
+
+class QuantityError(ConfigError):
+    """A membership function that is invalid because of the plant parameters its points come from.
+
+    Attributes
+    ----------
+    plant_params : the dotted plant parameters behind the device quantities of the points
+    """
+
+    def __init__(self, message: str, plant_params: tuple[str, ...]) -> None:
+        super().__init__(message)
+        self.plant_params = plant_params
+
+
 def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, float]:
     """Named device quantities that membership points may refer to.
 
@@ -368,14 +396,21 @@ def _variable(name: str, spec: Any, quantities: Mapping[str, float], where: str)
         pts = [_point(p, quantities, tw) for p in raw]
         if len(pts) == 3:
             pts = [pts[0], pts[1], pts[1], pts[2]]
+        problem = ""
         if any(q < p for p, q in zip(pts, pts[1:])):
-            raise ConfigError(f"{tw}: points must not decrease, got {[round(p, 6) for p in pts]}")
-        if pts[0] < lo - 1e-12 or pts[3] > hi + 1e-12:
-            raise ConfigError(f"{tw}: points {[round(p, 6) for p in pts]} leave the universe [{lo}, {hi}]")
-        if pts[0] == pts[1] and pts[0] != lo:
-            raise ConfigError(f"{tw}: a left shoulder (a == b) is allowed only at the universe's lower end")
-        if pts[2] == pts[3] and pts[3] != hi:
-            raise ConfigError(f"{tw}: a right shoulder (c == d) is allowed only at the universe's upper end")
+            problem = f"points must not decrease, got {[round(p, 6) for p in pts]}"
+        elif pts[0] < lo - 1e-12 or pts[3] > hi + 1e-12:
+            problem = f"points {[round(p, 6) for p in pts]} leave the universe [{lo}, {hi}]"
+        elif pts[0] == pts[1] and pts[0] != lo:
+            problem = "a left shoulder (a == b) is allowed only at the universe's lower end"
+        elif pts[2] == pts[3] and pts[3] != hi:
+            problem = "a right shoulder (c == d) is allowed only at the universe's upper end"
+        if problem:
+            used = [q for p in raw if isinstance(p, str) for q in QUANTITY_PARAMS if re.search(rf"\b{q}\b", p)]
+            if used:
+                plant = tuple(dict.fromkeys(x for q in used for x in QUANTITY_PARAMS[q]))
+                raise QuantityError(f"{tw}: {problem} (points from {', '.join(used)})", plant)
+            raise ConfigError(f"{tw}: {problem}")
         names.append(str(term))
         rows.append(pts)
     return Variable(name, lo, hi, tuple(names), np.array(rows, dtype=float))
@@ -499,5 +534,22 @@ def load_system(path: str | Path, name: str, params: PlantParams, overrides: Map
         raise ConfigError(f"{path}: no section '{name}'")
     section = deep_merge(deep_merge({}, data[name]), overrides or {})
     scale = float(section.get("load_scale_w", 10_000.0))
-    system = build_system(name, section, device_quantities(params, scale), str(path))
+    try:
+        system = build_system(name, section, device_quantities(params, scale), str(path))
+    except QuantityError as exc:
+        values = {p: _param_value(params, p) for p in exc.plant_params}
+        zero = [p for p, v in values.items() if v == 0.0]
+        blamed = zero or list(values)
+        text = ", ".join(f"{p} = {values[p]:g}" for p in blamed)
+        others = ", ".join(f"{p} = {v:g}" for p, v in values.items() if p not in blamed)
+        raise ConfigError(
+            f"plant parameter{'s' if len(blamed) > 1 else ''} {text}: the fuzzy EMS cannot work with "
+            f"{'this value' if len(blamed) == 1 else 'these values'}: it makes a membership function degenerate "
+            f"({exc}{'; also from ' + others if others else ''})"
+        ) from None
     return system, section
+
+
+def _param_value(params: PlantParams, dotted: str) -> float:
+    section, key = dotted.split(".")
+    return float(getattr(getattr(params, section), key))
