@@ -15,14 +15,19 @@ import sys
 
 #: subcommand -> (module under comems4build_ros.commands, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
-    "simulate": ("simulate", "run one EMS in-process over a scenario and write timeseries, weekly KPIs and summary"),
+    "simulate": ("simulate", "one EMS in-process over a scenario; writes DIR/timeseries.csv (every state, command "
+                             "and flow per step), DIR/weekly.csv (one row per week, a partial week marked) and "
+                             "DIR/summary.json"),
     "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros"),
     "data": ("data", "build scenario CSVs from real sources (aWATTar, DWD, DHWCalc, load CSV)"),
     "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D)"),
-    "launch": ("launch", "run the ROS 2 node set (plant_sim, feed, EMS, recorder) as separate processes"),
-    "evaluate": ("evaluate", "compute weekly KPIs and summary from a recorded bag"),
-    "compare": ("compare", "run RBC, fuzzy and MPC on one scenario and write the comparison report"),
-    "sweep": ("sweep", "run a grid of parameter variations and tabulate the KPIs"),
+    "launch": ("launch", "the ROS 2 node set (plant_sim, feed, EMS, recorder) as separate processes over DDS on an "
+                         "isolated domain; writes DIR/bag/ (MCAP), DIR/weekly.csv and DIR/summary.json from the bag"),
+    "evaluate": ("evaluate", "weekly KPIs and summary from any recorded bag (a damaged bag is salvaged and marked "
+                             "incomplete)"),
+    "compare": ("compare", "RBC, fuzzy and MPC on one scenario; DIR/report.md, DIR/report.html and the paper-style "
+                           "figures"),
+    "sweep": ("sweep", "sensitivity grid in parallel processes; one table and one plot per KPI"),
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
 }
 

@@ -29,9 +29,10 @@ TARGET_RUN_S = 2.0
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench ems``."""
     parser.add_argument("--ems", choices=("fuzzy", "rbc"), default="fuzzy", help="controller to time (default fuzzy)")
-    parser.add_argument("--weeks", type=COUNT, default=12, help="run length [weeks], integer >= 1 (default 12)")
+    parser.add_argument("--weeks", metavar="N", type=COUNT, default=12,
+                        help="run length [weeks], integer >= 1 (default 12)")
     parser.add_argument(
-        "--skfuzzy-steps", type=integer(0), default=300,
+        "--skfuzzy-steps", metavar="N", type=integer(0), default=300,
         help="steps replayed with skfuzzy.control for the comparison, integer >= 0 (fuzzy only, default 300)",
     )
     parser.add_argument("--config", action="append", default=[], metavar="FILE", help="extra plant parameter file")

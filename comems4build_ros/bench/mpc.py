@@ -59,17 +59,19 @@ KPI_KEYS = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench mpc``."""
-    parser.add_argument("--weeks", type=WEEKS, default=12.0, help="length of the closed-loop run [weeks], > 0")
-    parser.add_argument("--days-per-kind", type=COUNT, default=1,
+    parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12.0,
+                        help="length of the closed-loop run [weeks], > 0")
+    parser.add_argument("--days-per-kind", metavar="N", type=COUNT, default=1,
                         help="days taken per kind (cold, mild, sunny); 24 problems each (default 1 -> 72)")
-    parser.add_argument("--configs", default="all",
+    parser.add_argument("--configs", metavar="LIST", default="all",
                         help="comma-separated config numbers/labels prefixes (default all available)")
-    parser.add_argument("--time-limit", type=SECONDS, default=30.0, help="time limit per benchmark solve [s], > 0")
-    parser.add_argument("--kpi-weeks", type=real(0), default=0.0,
+    parser.add_argument("--time-limit", metavar="S", type=SECONDS, default=30.0,
+                        help="time limit per benchmark solve [s], > 0")
+    parser.add_argument("--kpi-weeks", metavar="W", type=real(0), default=0.0,
                         help="also compare KPIs of W weeks at default settings with a gap-0 run, >= 0 (0: skip)")
     parser.add_argument("--skip-full-run", action="store_true",
                         help="take the problems from a run of --weeks with the default settings without timing")
-    parser.add_argument("--out", default=None, help="directory for per-problem results (CSV/JSON)")
+    parser.add_argument("--out", metavar="DIR", default=None, help="directory for per-problem results (CSV/JSON)")
 
 
 def _closed_loop(ctrl: Any, scenario: Any, params: Any, n_steps: int) -> Any:

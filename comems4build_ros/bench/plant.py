@@ -27,9 +27,12 @@ TARGET_STEPS_PER_S = 20_000.0
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench plant``."""
-    parser.add_argument("--weeks", type=COUNT, default=12, help="run length [weeks], integer >= 1 (default 12)")
-    parser.add_argument("--repeats", type=COUNT, default=20, help="times the run is stepped through, >= 1 (default 20)")
-    parser.add_argument("--seed", type=SEED, default=0, help="seed of the random actions, 0 .. 2^32-1 (default 0)")
+    parser.add_argument("--weeks", metavar="N", type=COUNT, default=12,
+                        help="run length [weeks], integer >= 1 (default 12)")
+    parser.add_argument("--repeats", metavar="N", type=COUNT, default=20,
+                        help="times the run is stepped through, >= 1 (default 20)")
+    parser.add_argument("--seed", metavar="N", type=SEED, default=0,
+                        help="seed of the random actions, 0 .. 2^32-1 (default 0)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE", help="extra plant parameter file")
     parser.add_argument("--no-sizing", action="store_true", help="skip the H2 sizing check")
 

@@ -39,11 +39,14 @@ TIMING_KEYS = ("wall_s", "ems_s")
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench ros``."""
-    parser.add_argument("--weeks", type=WEEKS, default=12, help="run length [weeks], > 0 (default 12)")
-    parser.add_argument("--buildings", default="1,4,16", help="building counts of the throughput runs (default 1,4,16)")
-    parser.add_argument("--ems", default="fuzzy", help="EMS of every run (default fuzzy)")
-    parser.add_argument("--out", default=None, help="keep the runs in this directory (default: a temporary one)")
-    parser.add_argument("--timeout", type=SECONDS, default=600.0, help="give up a throughput run after this [s], > 0")
+    parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12, help="run length [weeks], > 0 (default 12)")
+    parser.add_argument("--buildings", metavar="N[,N...]", default="1,4,16",
+                        help="building counts of the throughput runs (default 1,4,16)")
+    parser.add_argument("--ems", metavar="NAME", default="fuzzy", help="EMS of every run (default fuzzy)")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="keep the runs in this directory (default: a temporary one)")
+    parser.add_argument("--timeout", metavar="S", type=SECONDS, default=600.0,
+                        help="give up a throughput run after this [s], > 0")
 
 
 def plant_stats(bag: Path) -> dict[str, dict[str, float]]:

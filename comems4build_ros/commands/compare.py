@@ -20,7 +20,8 @@ DEFAULT_ETAS = "0.75,0.90"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``compare``."""
-    parser.add_argument("--ems", default=DEFAULT_EMS, help=f"comma-separated EMS names (default {DEFAULT_EMS})")
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", default=DEFAULT_EMS,
+                        help=f"comma-separated EMS names (default {DEFAULT_EMS})")
     add_scenario_options(parser, hours=False)
     parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
                         help="run in-process or through the ROS 2 node set (bags evaluated)")
@@ -31,11 +32,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run, e.g. --set battery.e_max_kwh=10")
-    parser.add_argument("--jobs", type=COUNT, default=None,
+    parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
                         help="parallel runs, integer >= 1 (default: CPU count in-process, 1 with --via ros)")
     parser.add_argument("--from-runs", default=None, metavar="DIR",
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
-    parser.add_argument("--out", default=None, help="output directory (default with --from-runs: that DIR)")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="output directory (default with --from-runs: that DIR)")
 
 
 def parse_etas(text: str) -> list[float]:

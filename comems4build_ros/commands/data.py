@@ -18,26 +18,34 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Subcommands ``fetch-prices`` and ``build``."""
     sub = parser.add_subparsers(dest="data_command", metavar="ACTION", required=True)
     fetch = sub.add_parser("fetch-prices", help="download aWATTar day-ahead prices as JSON (needs internet)")
-    fetch.add_argument("--start", required=True, help="first hour, ISO date/time (naive = site local time)")
-    fetch.add_argument("--end", required=True, help="end (exclusive), ISO date/time")
-    fetch.add_argument("--out", required=True, help="JSON file to write")
-    fetch.add_argument("--config", action="append", default=[], help="extra plant parameter file (site time zone)")
+    fetch.add_argument("--start", metavar="ISO", required=True,
+                       help="first hour, ISO date/time (naive = site local time)")
+    fetch.add_argument("--end", metavar="ISO", required=True, help="end (exclusive), ISO date/time")
+    fetch.add_argument("--out", metavar="FILE.json", required=True, help="JSON file to write")
+    fetch.add_argument("--config", metavar="FILE", action="append", default=[],
+                       help="extra plant parameter file (site time zone)")
 
     build = sub.add_parser("build", help="combine price, weather, DHW and load sources into a scenario CSV")
-    build.add_argument("--prices", required=True, help="aWATTar marketdata JSON")
-    build.add_argument("--temperature", required=True, help="DWD air temperature, 10-minute (TT_10) or hourly (TT_TU)")
-    build.add_argument("--solar", required=True, help="DWD 10-minute solar radiation (GS_10, DS_10 in J/cm2)")
-    build.add_argument("--dhw", help="DHWCalc output (l/h per step, one year); default: generator")
-    build.add_argument("--dhw-year", type=integer(1900, 2200),
+    build.add_argument("--prices", metavar="FILE.json", required=True, help="aWATTar marketdata JSON")
+    build.add_argument("--temperature", metavar="FILE", required=True,
+                       help="DWD air temperature, 10-minute (TT_10) or hourly (TT_TU)")
+    build.add_argument("--solar", metavar="FILE", required=True,
+                       help="DWD 10-minute solar radiation (GS_10, DS_10 in J/cm2)")
+    build.add_argument("--dhw", metavar="FILE", help="DHWCalc output (l/h per step, one year); default: generator")
+    build.add_argument("--dhw-year", metavar="YEAR", type=integer(1900, 2200),
                        help="calendar year of the DHWCalc file, 1900 .. 2200 (default: first year built)")
-    build.add_argument("--load", help="household load CSV (time + power column); default: generator")
-    build.add_argument("--load-column", help="power column of the load CSV")
+    build.add_argument("--load", metavar="FILE.csv",
+                       help="household load CSV (time + power column); default: generator")
+    build.add_argument("--load-column", metavar="NAME", help="power column of the load CSV")
     build.add_argument("--load-unit", choices=("W", "kW"), help="unit of the power column (default: from its name)")
-    build.add_argument("--start", help="first hour (ISO; naive = site local time); default: first common hour")
-    build.add_argument("--end", help="end, exclusive (ISO); default: last common hour + 1 h")
-    build.add_argument("--seed", type=SEED, help="seed of the generator for DHW/load not given (0 .. 2^32-1)")
-    build.add_argument("--config", action="append", default=[], help="extra plant parameter file (site, holidays)")
-    build.add_argument("--out", required=True, help="scenario CSV to write")
+    build.add_argument("--start", metavar="ISO",
+                       help="first hour (ISO; naive = site local time); default: first common hour")
+    build.add_argument("--end", metavar="ISO", help="end, exclusive (ISO); default: last common hour + 1 h")
+    build.add_argument("--seed", metavar="N", type=SEED,
+                       help="seed of the generator for DHW/load not given (0 .. 2^32-1)")
+    build.add_argument("--config", metavar="FILE", action="append", default=[],
+                       help="extra plant parameter file (site, holidays)")
+    build.add_argument("--out", metavar="FILE.csv", required=True, help="scenario CSV to write")
 
 
 def run(args: argparse.Namespace) -> int:

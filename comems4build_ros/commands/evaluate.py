@@ -10,7 +10,8 @@ from pathlib import Path
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``evaluate``."""
     parser.add_argument("bag", help="rosbag2 directory (MCAP storage) or .mcap file; a bag cut by SIGKILL is read too")
-    parser.add_argument("--out", required=True, help="output directory (timeseries.csv, weekly.csv, summary.json)")
+    parser.add_argument("--out", metavar="DIR", required=True,
+                        help="output directory (timeseries.csv, weekly.csv, summary.json)")
     parser.add_argument("--config", action="append", default=None, metavar="FILE",
                         help="parameter file merged over config/plant.yaml (default: the bag's run_info.json)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",

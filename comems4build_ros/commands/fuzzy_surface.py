@@ -30,11 +30,11 @@ W_PER_KW = 1000.0
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``fuzzy-surface``."""
-    parser.add_argument("--out", required=True, help="output directory for the PNG files")
-    parser.add_argument("--chi", type=FRACTION, default=0.5,
+    parser.add_argument("--out", metavar="DIR", required=True, help="output directory for the PNG files")
+    parser.add_argument("--chi", metavar="X", type=FRACTION, default=0.5,
                         help="min(chi_SH, chi_DHW) of the FLC_flex map, in [0, 1] (default 0.5)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE", help="extra plant parameter file")
-    parser.add_argument("--dpi", type=integer(10, 2400), default=150,
+    parser.add_argument("--dpi", metavar="DPI", type=integer(10, 2400), default=150,
                         help="resolution of the PNG files, 10 .. 2400 (default 150)")
 
 

@@ -13,13 +13,14 @@ from .options import COUNT, DOMAIN_ID, SECONDS, SEED, add_scenario_options
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``launch``."""
-    parser.add_argument("--ems", required=True, help="EMS node: fuzzy, rbc, mpc (also thermostat, mpc-qp)")
+    parser.add_argument("--ems", metavar="NAME", required=True,
+                        help="EMS node: fuzzy, rbc, mpc (also thermostat, mpc-qp)")
     add_scenario_options(parser, hours=False, seed=False, extend=False)
-    parser.add_argument("--steps", type=COUNT, default=None,
+    parser.add_argument("--steps", metavar="N", type=COUNT, default=None,
                         help="cut the run to its first N steps, integer >= 1 (short runs)")
-    parser.add_argument("--buildings", type=COUNT, default=1,
+    parser.add_argument("--buildings", metavar="N", type=COUNT, default=1,
                         help="independent buildings under /building_<i>/, scenario seed + i, integer >= 1 (default 1)")
-    parser.add_argument("--seed", type=SEED, default=None,
+    parser.add_argument("--seed", metavar="N", type=SEED, default=None,
                         help="scenario seed of building 0 (default scenario; 0 .. 2^32-1)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
@@ -29,12 +30,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="option passed to the EMS (repeatable)")
     parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
                         help="forecasts given to the MPC (default: config/forecast.yaml)")
-    parser.add_argument("--domain-id", type=DOMAIN_ID, default=None,
+    parser.add_argument("--domain-id", metavar="ID", type=DOMAIN_ID, default=None,
                         help="ROS_DOMAIN_ID of the run, 0 .. 232 (default: a free id, locked for the run)")
-    parser.add_argument("--step-timeout", type=SECONDS, default=None,
+    parser.add_argument("--step-timeout", metavar="S", type=SECONDS, default=None,
                         help="plant_sim's wait for a command before its safe fallback [s], > 0")
-    parser.add_argument("--timeout", type=SECONDS, default=None, help="give up after this wall time [s], > 0")
-    parser.add_argument("--out", required=True, help="output directory (bag/, log/, weekly.csv, summary.json)")
+    parser.add_argument("--timeout", metavar="S", type=SECONDS, default=None,
+                        help="give up after this wall time [s], > 0")
+    parser.add_argument("--out", metavar="DIR", required=True,
+                        help="output directory (bag/, log/, weekly.csv, summary.json)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--print-plan", action="store_true",
                         help="print the run plan (processes, nodes, parameters) and exit without starting anything")

@@ -92,8 +92,10 @@ FRACTION = real(0, 1)
 def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,
                          extend: bool = True) -> None:
     """``--scenario``, ``--start``, ``--weeks`` / ``--hours``, ``--seed`` and ``--extend`` of a run."""
-    parser.add_argument("--scenario", default="default", help="'default' (embedded) or a scenario CSV file")
-    parser.add_argument("--start", default=None, help="first step of the window (ISO date/time; naive = site time)")
+    parser.add_argument("--scenario", metavar="default|FILE.csv", default="default",
+                        help="'default' (embedded) or a scenario CSV file")
+    parser.add_argument("--start", metavar="ISO", default=None,
+                        help="first step of the window (ISO date/time; naive = site time)")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
                        help="run length in weeks, > 0 (fractions giving whole hours allowed; default: the "
@@ -102,7 +104,7 @@ def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, se
         group.add_argument("--hours", type=HOURS, default=None, metavar="H",
                            help="run length in hours, integer >= 1 (short tries; instead of --weeks)")
     if seed:
-        parser.add_argument("--seed", type=SEED, default=None,
+        parser.add_argument("--seed", metavar="N", type=SEED, default=None,
                             help="seed of the generated scenario data (default scenario, --extend synthetic; "
                                  "default: config/scenario.yaml)")
     if extend:

@@ -5,30 +5,30 @@ from __future__ import annotations
 import argparse
 import sys
 
+from .options import COUNT, real
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``reproduce``."""
-    parser.add_argument("--out", required=True, help="output directory (reproduce.md, reproduce.html, "
+    parser.add_argument("--out", metavar="DIR", required=True, help="output directory (reproduce.md, reproduce.html, "
                                                      "reproduce.json, runs/)")
     parser.add_argument("--no-study", action="store_true",
                         help="only the three default runs, the table and the findings (no interpretation study)")
     parser.add_argument("--only", default=None, metavar="KEY[,KEY...]",
                         help="study only these ambiguities of config/reproduce.yaml")
-    parser.add_argument("--jobs", type=int, default=None, help="parallel runs (default: CPU count)")
-    parser.add_argument("--weeks", type=float, default=None,
-                        help="run length in weeks (default 12, the paper's; shorter runs are quick checks that "
-                             "do not compare with the paper's table)")
+    parser.add_argument("--jobs", type=COUNT, default=None, metavar="N",
+                        help="parallel runs, integer >= 1 (default: CPU count)")
+    parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
+                        help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
+                             "checks that do not compare with the paper's table)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the reproduction and print where the report is."""
-    from ..cli import UsageError
+    from ..fileio import check_out_dir
     from ..report.reproduce import reproduce
 
-    if args.jobs is not None and args.jobs < 1:
-        raise UsageError(f"--jobs: {args.jobs} is below 1")
-    if args.weeks is not None and not (0 < args.weeks <= 12):
-        raise UsageError(f"--weeks: {args.weeks} outside (0, 12] (the default scenario's twelve weeks)")
+    check_out_dir(args.out)
     only = [k for k in args.only.split(",") if k] if args.only else None
     bar = None
     if sys.stderr.isatty():

@@ -11,7 +11,7 @@ from .options import add_scenario_options
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``simulate``."""
-    parser.add_argument("--ems", required=True, help="EMS name: thermostat, rbc, fuzzy, mpc, mpc-qp")
+    parser.add_argument("--ems", metavar="NAME", required=True, help="EMS name: thermostat, rbc, fuzzy, mpc, mpc-qp")
     add_scenario_options(parser)
     parser.add_argument(
         "--config", action="append", default=[], metavar="FILE",
@@ -25,7 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="option passed to the EMS, e.g. --ems-option solver=CBC (repeatable)")
     parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
                         help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
-    parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
 

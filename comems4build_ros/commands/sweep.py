@@ -16,14 +16,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", required=True, metavar="PATH=V1,V2,...",
                         help="dotted plant parameter and its values, e.g. battery.e_max_kwh=5,6.5,10 (repeatable; "
                              "the grid is the product of all)")
-    parser.add_argument("--ems", required=True, help="comma-separated EMS names")
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help="comma-separated EMS names")
     add_scenario_options(parser, hours=False)
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
-    parser.add_argument("--jobs", type=COUNT, default=None,
+    parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
                         help="parallel runs, integer >= 1 (default and maximum: CPU count)")
     parser.add_argument("--timeseries", action="store_true", help="also write each run's timeseries.csv")
-    parser.add_argument("--out", required=True, help="output directory")
+    parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
 
 
 def run(args: argparse.Namespace) -> int:
