@@ -59,3 +59,18 @@ def test_simulate_thermostat_12_weeks_writes_three_files(tmp_path: Path) -> None
     # and buys what the house needs: weekly cost equals the sum of price x bought energy
     cost = (ts["price_buy_eur_per_kwh"] * ts["p_buy_w"]).sum() / 1000.0
     assert weekly["cost_eur"].sum() == pytest.approx(cost)
+
+
+def test_readme_command_table_is_generated_from_the_parsers() -> None:
+    """Every option of every subcommand is in the README (regenerate: python -m comems4build_ros.commands.table
+    --update-doc README.md)."""
+    from comems4build_ros.commands.table import BEGIN, END, command_table, rows
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
+    block = readme.split(BEGIN, 1)[1].split(END, 1)[0].strip()
+    assert block == command_table()
+    for name, options, _ in rows():
+        line = next(line for line in block.splitlines() if line.startswith(f"| `comems4build {name}` |"))
+        for opt in options:
+            for flag in opt.strip("[]").split(" | "):
+                assert flag.split()[0] in line, f"{name}: {flag}"

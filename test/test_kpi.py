@@ -153,3 +153,44 @@ def test_discomfort_sample_within_the_step(sample, expected) -> None:
     assert s["discomfort_kh_total"] == pytest.approx(expected)
     with pytest.raises(ValueError, match="unknown discomfort sample"):
         kpi.comfort_sample_c(ts, "middle")
+
+
+def test_kpis_are_reported_at_the_stated_resolution() -> None:
+    """Float noise (1.6e-14 K*h of "discomfort") is 0 at the resolution every summary states."""
+    t_air = np.full(168, 21.0)
+    t_min = np.full(168, 18.0)
+    t_air[5] = 18.0 - 1.6e-14
+    ts = make_ts(168, t_air_c=t_air, t_min_c=t_min, p_buy_w=1e-7, price_buy_eur_per_kwh=0.3)
+    w = kpi.weekly_kpis(ts, 1.0)
+    s = kpi.summarize(ts, w, loh_min=0.0)
+    assert w.loc[0, "discomfort_kh"] == 0.0 and s["discomfort_kh_week_median"] == 0.0
+    assert s["discomfort_kh_total"] == 0.0 and s["buy_kwh_total"] == 0.0 and s["cost_eur_total"] == 0.0
+    assert s["kpi_resolution"] == kpi.KPI_RESOLUTION and kpi.KPI_RESOLUTION["K*h"] == 1e-6
+    assert kpi.at_resolution("discomfort_kh", 0.1234567891) == 0.123457
+    assert kpi.at_resolution("loh_end", 0.1234567891234) == 0.123456789
+    assert kpi.at_resolution("fc_toggles", 3) == 3 and kpi.at_resolution("h2_empty_at", None) is None
+
+
+def test_medians_over_full_weeks_only() -> None:
+    """A last partial week has its own row, marked, and stays out of the weekly medians and extremes."""
+    n = 168 * 3 + 10
+    p_buy = np.concatenate([np.full(168, 100.0), np.full(168, 200.0), np.full(168, 300.0), np.full(10, 5000.0)])
+    ts = make_ts(n, p_buy_w=p_buy, price_buy_eur_per_kwh=1.0, p_h2_w=p_buy)
+    w = kpi.weekly_kpis(ts, 1.0)
+    assert list(w["full_week"]) == [True, True, True, False]
+    s = kpi.summarize(ts, w, loh_min=0.0)
+    assert s["buy_kwh_week_median"] == pytest.approx(33.6)  # median of 16.8, 33.6, 50.4: not of four rows
+    assert s["h2_kwh_week_max"] == pytest.approx(50.4) and s["h2_kwh_week_min"] == pytest.approx(16.8)
+    assert s["weeks"] == 4 and s["full_weeks"] == 3 and s["partial_week_h"] == 10.0
+    assert s["week_medians_over"] == "3 full week(s)"
+    short = make_ts(30)
+    s_short = kpi.summarize(short, kpi.weekly_kpis(short, 1.0), loh_min=0.0)
+    assert s_short["full_weeks"] == 0 and "shorter than a week" in s_short["week_medians_over"]
+
+
+def test_fallback_steps_count_the_ems_and_the_plant() -> None:
+    ts = make_ts(6)
+    ts["fallback"] = [False, True, False, False, False, False]
+    ts["ems_fallback"] = [0.0, 1.0, 1.0, 1.0, 0.0, 0.0]
+    s = kpi.summarize(ts, kpi.weekly_kpis(ts, 1.0), loh_min=0.0)
+    assert s["fallback_steps"] == 3 and s["ems_fallback_steps"] == 3

@@ -331,7 +331,8 @@ def _window(
     file's last rows may be run, its look-ahead then repeats the last row). A longer run
     is refused unless ``extend="synthetic"``: then rows of the synthetic generator
     (``generator`` settings, seed ``seed``) follow the data's last row, for the run and its
-    look-ahead, and ``meta["extended"]`` says from when and how many.
+    look-ahead, and ``meta["extended"]`` says from when and how many (a CSV's own buy-price
+    column continues with the configured tariff, ``eq:costs``).
     """
     tz = params.site.timezone
     if extend is not None and extend not in EXTEND_METHODS:
@@ -364,7 +365,9 @@ def _window(
                 "generated data after the end with extend 'synthetic' (simulate, compare, sweep: --extend synthetic)"
             )
         ext, used_seed = _synthetic_extension(params, last, n_steps + lookahead_h - len(frame), seed, generator)
-        frame = pd.concat([frame, ext])
+        if "price_buy_eur_per_kwh" in frame:  # a CSV's own tariff column: the configured tariff after its end
+            ext["price_buy_eur_per_kwh"] = _tariff(ext["spot_eur_per_mwh"].to_numpy(dtype=float), params)[0]
+        frame = pd.concat([frame, ext[list(frame.columns)]])
         meta["extended"] = {
             "method": extend,
             "from": ext.index[0].tz_convert(tz).isoformat(),
