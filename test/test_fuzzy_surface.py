@@ -1,6 +1,7 @@
 """``comems4build fuzzy-surface`` draws the fig:FLC_3D maps."""
 
 import numpy as np
+import pytest
 
 from comems4build_ros.cli import main
 from comems4build_ros.commands.fuzzy_surface import surfaces
@@ -18,8 +19,10 @@ def test_writes_four_pngs(tmp_path):
 
 
 def test_bad_chi_is_usage_error(tmp_path, capsys):
-    assert main(["fuzzy-surface", "--out", str(tmp_path), "--chi", "1.5"]) == 2
-    assert "--chi must lie in [0, 1]" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as exc:
+        main(["fuzzy-surface", "--out", str(tmp_path), "--chi", "1.5"])
+    assert exc.value.code == 2
+    assert "argument --chi: 1.5 is outside the allowed range: a finite number in [0, 1]" in capsys.readouterr().err
 
 
 def test_maps_show_the_papers_trends():

@@ -96,12 +96,9 @@ def run(args: argparse.Namespace) -> int:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    from ..cli import UsageError
     from ..config import load_plant_params
     from ..ems.fuzzy import load_flcs
 
-    if not 0.0 <= args.chi <= 1.0:
-        raise UsageError(f"--chi must lie in [0, 1], got {args.chi}")
     params = load_plant_params(args.config)
     systems = {}
     for key, (system, section) in load_flcs(params).items():
