@@ -106,14 +106,14 @@ def test_numeric_option_out_of_range_exits_2_naming_it(argv: list, option: str, 
 # ---------------------------------------------------------------------------- run length
 def test_run_longer_than_the_scenario_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run_cli(["simulate", "--ems", "thermostat", "--weeks", "13", "--out", tmp_path / "r"], capsys)
-    assert code == 2 and "only 2040" in err and "--extend synthetic" in err
+    assert code == 2 and "only 2136" in err and "--extend synthetic" in err
     assert not (tmp_path / "r").exists()
 
 
 def test_launch_longer_than_the_scenario_is_refused_before_any_node(tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:
     code, _, err = run_cli(["launch", "--ems", "rbc", "--weeks", "13", "--out", tmp_path / "r"], capsys)
-    assert code == 2 and "only 2040" in err
+    assert code == 2 and "only 2136" in err
     assert not (tmp_path / "r").exists()
 
 
@@ -133,13 +133,13 @@ def test_extend_synthetic_is_said_in_the_summary(good_csv: Path, tmp_path: Path,
 
 
 def test_seed_and_hours_of_simulate(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    def t_amb(seed: int | None, name: str) -> np.ndarray:
+    def load(seed: int | None, name: str) -> np.ndarray:
         argv = ["simulate", "--ems", "thermostat", "--hours", "30", "--no-progress", "--out", tmp_path / name]
         code, _, err = run_cli(argv + ([] if seed is None else ["--seed", str(seed)]), capsys)
         assert code == 0, err
-        return pd.read_csv(tmp_path / name / "timeseries.csv")["t_amb_c"].to_numpy()
+        return pd.read_csv(tmp_path / name / "timeseries.csv")["p_load_w"].to_numpy()  # modelled with the seed
 
-    default, s3, s3b = t_amb(None, "d"), t_amb(3, "a"), t_amb(3, "b")
+    default, s3, s3b = load(None, "d"), load(3, "a"), load(3, "b")
     assert len(default) == 30
     np.testing.assert_array_equal(s3, s3b)
     assert not np.allclose(s3, default)

@@ -58,9 +58,6 @@ def run(args: argparse.Namespace) -> int:
     overrides = parse_assignments(args.set, "--set")
     params = load_params(args.config, overrides)
     parse_assignments(args.ems_option, "--ems-option")
-    check_out_dir(args.out)
-    if (Path(args.out) / "bag").exists():
-        raise UsageError(f"--out {args.out}: {Path(args.out) / 'bag'} exists (choose another --out or remove it)")
     check_feed_scenario(args, params)
     opts = LaunchOptions(
         ems=args.ems,
@@ -85,6 +82,9 @@ def run(args: argparse.Namespace) -> int:
 
         print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
         return 0
+    check_out_dir(args.out)
+    if (Path(args.out) / "bag").exists():
+        raise UsageError(f"--out {args.out}: {Path(args.out) / 'bag'} exists (choose another --out or remove it)")
     try:
         result = launch(opts)
     except LaunchError as exc:
@@ -109,9 +109,9 @@ def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
     run longer than the scenario, missing values the feed refuses), so that a bad
     scenario ends the launch with exit code 2 instead of a feed exiting after start-up.
     """
-    from ..ros.launcher import _feed_window
     from ..ros.nodes.feed import check_scenario, load_scenario
+    from ..ros.plan import feed_window
 
-    weeks, steps = _feed_window(args.weeks, args.steps)
+    weeks, steps = feed_window(args.weeks, args.steps)
     scenario = load_scenario(args.scenario, params, args.start, weeks or None, args.seed, steps or None)
     check_scenario(scenario, params.simulation.time_step_h)

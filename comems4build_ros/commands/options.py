@@ -92,8 +92,9 @@ FRACTION = real(0, 1)
 def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,
                          extend: bool = True) -> None:
     """``--scenario``, ``--start``, ``--weeks`` / ``--hours``, ``--seed`` and ``--extend`` of a run."""
-    parser.add_argument("--scenario", metavar="default|FILE.csv", default="default",
-                        help="'default' (embedded) or a scenario CSV file")
+    parser.add_argument("--scenario", metavar="default|synthetic|FILE.csv", default="default",
+                        help="'default' (the paper's winter, measured data), 'synthetic' (the seeded generator) "
+                             "or a scenario CSV file")
     parser.add_argument("--start", metavar="ISO", default=None,
                         help="first step of the window (ISO date/time; naive = site time)")
     group = parser.add_mutually_exclusive_group()

@@ -357,11 +357,12 @@ def _window(
     if n_steps > rows:
         last = frame.index[-1]
         if extend is None:
-            ahead = f" and the {lookahead_h} h look-ahead" if keep_lookahead else ""
+            where = f"scenario '{name}'" if keep_lookahead else name
+            ahead = f", less the {lookahead_h} h look-ahead they keep" if keep_lookahead else ""
             raise ScenarioError(
-                f"{name}: the run ({length_text or f'{n_steps} h'}) needs {n_steps} hourly rows{ahead} from "
-                f"{frame.index[0].tz_convert(tz).isoformat()}, the data has only {rows} (until "
-                f"{(last + pd.Timedelta(hours=1)).tz_convert(tz).isoformat()}); shorten the run or allow "
+                f"{where}: the run ({length_text or f'{n_steps} h'}) needs {n_steps} hourly steps from "
+                f"{frame.index[0].tz_convert(tz).isoformat()}; the data allow only {rows} ({len(frame)} hours until "
+                f"{(last + pd.Timedelta(hours=1)).tz_convert(tz).isoformat()}{ahead}); shorten the run or allow "
                 "generated data after the end with extend 'synthetic' (simulate, compare, sweep: --extend synthetic)"
             )
         ext, used_seed = _synthetic_extension(params, last, n_steps + lookahead_h - len(frame), seed, generator)
@@ -372,7 +373,7 @@ def _window(
             "method": extend,
             "from": ext.index[0].tz_convert(tz).isoformat(),
             "rows": len(ext),
-            "run_steps_extended": max(n_steps - len(frame), 0),
+            "run_steps_extended": max(n_steps - (len(frame) - len(ext)), 0),
             "seed": used_seed,
         }
     frame = frame.iloc[: n_steps + lookahead_h]
