@@ -212,28 +212,34 @@ def _check_values(path: Path, col: str, arr: np.ndarray) -> np.ndarray:
 OTHER_SEPARATORS = {";": "semicolon", "\t": "tab", "|": "vertical bar"}
 
 
-def read_csv_text(path: str | Path) -> str:
-    """The text of a CSV file; :class:`ScenarioError` names a directory, a device, binary content or an empty file."""
+def read_text_file(path: str | Path, encoding: str = "utf-8-sig") -> str:
+    """The text of a data file; :class:`ScenarioError` names a directory, a device, binary content or an empty file.
+
+    Parameters
+    ----------
+    path : file to read
+    encoding : ``utf-8-sig`` (scenario CSV, JSON) or ``latin-1`` (DWD and DHWCalc text files)
+    """
     from ..config import path_kind
 
     path = Path(path)
     kind = path_kind(path)
     if kind:
-        raise ScenarioError(f"{path}: {kind} (a CSV file is needed)")
+        raise ScenarioError(f"{path}: {kind} (a text file is needed)")
     try:
         raw = path.read_bytes()
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
     if b"\0" in raw:
-        raise ScenarioError(f"{path}: binary content (NUL bytes), not a CSV text file")
+        raise ScenarioError(f"{path}: binary content (NUL bytes), not a text file")
     try:
-        text = raw.decode("utf-8-sig")
+        text = raw.decode(encoding)
     except UnicodeDecodeError as exc:
         raise ScenarioError(
             f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}); a binary file?"
         ) from None
     if not text.strip():
-        raise ScenarioError(f"{path}: empty file (a header line and hourly rows are needed)")
+        raise ScenarioError(f"{path}: empty file")
     return text
 
 
@@ -276,7 +282,7 @@ def read_scenario_frame(path: str | Path) -> pd.DataFrame:
         Naming the file, line and column (see the module docstring for the rules).
     """
     path = Path(path)
-    text = read_csv_text(path)
+    text = read_text_file(path)
     try:
         df = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False, skip_blank_lines=False)
     except (pd.errors.ParserError, pd.errors.EmptyDataError) as exc:

@@ -36,7 +36,7 @@ import pandas as pd
 
 from ..config import PlantParams
 from .base import CSV_COLUMNS
-from .csvio import MISSING_MARKER, ScenarioError, fill_gaps, read_csv_text
+from .csvio import MISSING_MARKER, ScenarioError, fill_gaps, read_text_file
 
 #: aWATTar market data endpoint (FACTS.md).
 AWATTAR_URL = "https://api.awattar.de/v1/marketdata"
@@ -79,7 +79,7 @@ def read_awattar_json(path: str | Path) -> pd.Series:
     """
     path = Path(path)
     try:
-        doc = json.loads(read_csv_text(path))
+        doc = json.loads(read_text_file(path))
     except json.JSONDecodeError as exc:
         raise ScenarioError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("data"), list):
@@ -239,22 +239,8 @@ def read_dwd_solar(path: str | Path) -> pd.DataFrame:
 
 
 def _read_text_lines(path: Path) -> list[str]:
-    """Lines of a Latin-1 text source file; :class:`ScenarioError` names a directory, a device, binary or empty file."""
-    from ..config import path_kind
-
-    kind = path_kind(path)
-    if kind:
-        raise ScenarioError(f"{path}: {kind} (a text file is needed)")
-    try:
-        raw = path.read_bytes()
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
-    if b"\0" in raw:
-        raise ScenarioError(f"{path}: binary content (NUL bytes), not a text file")
-    lines = raw.decode("latin-1").splitlines()
-    if not any(line.strip() for line in lines):
-        raise ScenarioError(f"{path}: empty file")
-    return lines
+    """Lines of a Latin-1 source file (DWD, DHWCalc), checked by :func:`~.csvio.read_text_file`."""
+    return read_text_file(path, "latin-1").splitlines()
 
 
 def _is_number(text: str) -> bool:
