@@ -11,7 +11,7 @@ from __future__ import annotations
 import json
 import math
 import time as _time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -289,7 +289,7 @@ def simulate(
     scenario: Scenario,
     params: PlantParams,
     ems_options: Mapping[str, Any] | None = None,
-    progress: bool = False,
+    progress: Callable[[int, int], None] | None = None,
     forecast: ForecastSettings | None = None,
 ) -> RunResult:
     """Run one EMS in closed loop with the plant over ``scenario.n_steps`` steps.
@@ -300,7 +300,8 @@ def simulate(
     scenario : inputs of the run
     params : plant parameters
     ems_options : options passed to the controller's constructor (name only)
-    progress : show a progress bar (tqdm, on stderr)
+    progress : called as ``progress(steps done, total steps)`` after every step (for a bar,
+        see :mod:`comems4build_ros.progress`); None = silent
     forecast : forecast settings for an MPC (default ``config/forecast.yaml``: perfect)
     """
     t_start = _time.perf_counter()
@@ -316,13 +317,9 @@ def simulate(
     state = plant.initial_state()
     rows: list[list[Any]] = []
     infos: list[dict[str, float]] = []
-    steps: Any = range(scenario.n_steps)
-    if progress:
-        from tqdm import tqdm
-
-        steps = tqdm(steps, desc=f"simulate {ctrl.name}", unit="h", mininterval=0.5, leave=False)
+    n_steps = scenario.n_steps
     ems_s = 0.0
-    for k in steps:
+    for k in range(n_steps):
         obs = builder.build(k, state)
         t0 = _time.perf_counter()
         action = ctrl.act(obs)
@@ -332,6 +329,8 @@ def simulate(
             infos.append(dict(info))
         state, flows = plant.step(state, action, exo[k])
         rows.append(record_row(times[k], k, flows, state, action, exo[k], (ghi[k], spot[k]), False))
+        if progress is not None:
+            progress(k + 1, n_steps)
     ts = pd.DataFrame(rows, columns=list(TIMESERIES_COLUMNS))
     if infos and len(infos) == len(ts):
         info_df = pd.DataFrame(infos).add_prefix("ems_")

@@ -30,6 +30,7 @@ import numpy as np
 import pandas as pd
 
 from ..commands.options import COUNT, SECONDS, WEEKS, real
+from ..progress import ProgressBar, ProgressCallback
 
 #: Options of the exact reference solve (best known solution): full binaries, gap 0.
 REFERENCE = {"integer_steps": 24, "mip_rel_gap": 0.0, "warm_start": False, "time_limit_s": 120.0}
@@ -74,7 +75,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", default=None, help="directory for per-problem results (CSV/JSON)")
 
 
-def _closed_loop(ctrl: Any, scenario: Any, params: Any, n_steps: int) -> Any:
+def _closed_loop(ctrl: Any, scenario: Any, params: Any, n_steps: int, progress: ProgressCallback | None = None) -> Any:
     """First ``n_steps`` steps of the closed loop (daily H2 allowance of the whole scenario)."""
     from ..plant import Plant
     from ..sim import TIMESERIES_COLUMNS, ObservationBuilder, evaluate_timeseries, exogenous_series, record_row
@@ -91,6 +92,8 @@ def _closed_loop(ctrl: Any, scenario: Any, params: Any, n_steps: int) -> Any:
         state, flows = plant.step(state, action, exo[k])
         rows.append(record_row(scenario.time[k].isoformat(), k, flows, state, action, exo[k],
                                (scenario.ghi_w_m2[k], scenario.spot_eur_per_mwh[k]), False))
+        if progress is not None:
+            progress(k + 1, n_steps)
     ts = pd.DataFrame(rows, columns=list(TIMESERIES_COLUMNS))
     ts = pd.concat([ts, pd.DataFrame(infos).add_prefix("ems_")], axis=1)
     return evaluate_timeseries(ts, params)
@@ -132,7 +135,8 @@ def problems_from_run(ts: pd.DataFrame, scenario: Any, params: Any, starts: Mapp
     return out
 
 
-def solve_set(params: Any, options: Mapping[str, Any], problems: Sequence[tuple]) -> list[dict[str, Any]]:
+def solve_set(params: Any, options: Mapping[str, Any], problems: Sequence[tuple],
+              progress: ProgressCallback | None = None) -> list[dict[str, Any]]:
     """Solve every problem in order; warm start chains within a day as in closed loop."""
     from ..ems.mpc import MPCController
 
@@ -148,6 +152,8 @@ def solve_set(params: Any, options: Mapping[str, Any], problems: Sequence[tuple]
         out.append({"kind": kind, "step": k, "solve_s": res.solve_s, "objective": res.objective,
                     "status": res.status, "first": first})
         prev_k = k
+        if progress is not None:
+            progress(len(out), len(problems))
     return out
 
 
@@ -198,7 +204,8 @@ def run(args: argparse.Namespace) -> int:
     print(f"solvers available: {', '.join(solvers)}" + ("" if "gurobi" in solvers else " (gurobipy not installed)"))
 
     t0 = time.perf_counter()
-    result = simulate("mpc", scenario, params)
+    with ProgressBar("full run", unit="step") as bar:
+        result = simulate("mpc", scenario, params, progress=bar)
     wall = time.perf_counter() - t0
     ts = result.timeseries
     print(f"\nfull run: {scenario.n_steps} steps ({scenario.n_steps / 168:.1f} weeks) with {defaults.solver}: "
@@ -213,11 +220,13 @@ def run(args: argparse.Namespace) -> int:
 
     configs = _pick_configs(args.configs, solvers)
     results: dict[str, list[dict[str, Any]]] = {}
-    ref = solve_set(params, {**REFERENCE, "time_limit_s": max(args.time_limit, 60.0)}, problems)
+    with ProgressBar("reference: tight, gap 0", unit="solve") as bar:
+        ref = solve_set(params, {**REFERENCE, "time_limit_s": max(args.time_limit, 60.0)}, problems, bar)
     results["reference: tight, gap 0"] = ref
     for label, (opts, _) in configs.items():
         t = time.perf_counter()
-        results[label] = solve_set(params, {"time_limit_s": args.time_limit, **opts}, problems)
+        with ProgressBar(label, unit="solve") as bar:
+            results[label] = solve_set(params, {"time_limit_s": args.time_limit, **opts}, problems, bar)
         print(f"  solved with '{label}' in {time.perf_counter() - t:.1f} s", flush=True)
     exact_labels = ["reference: tight, gap 0"] + [lb for lb, (_, ex) in configs.items() if ex]
     best = np.nanmin(np.array([[r["objective"] for r in results[lb]] for lb in exact_labels]), axis=0)
@@ -246,8 +255,11 @@ def run(args: argparse.Namespace) -> int:
     kpi_table = None
     if args.kpi_weeks > 0:
         n = int(round(args.kpi_weeks * 168))
-        chosen = _closed_loop(MPCController(params, {}), scenario, params, n)
-        exact = _closed_loop(MPCController(params, {**REFERENCE, "time_limit_s": 300.0}), scenario, params, n)
+        with ProgressBar("default settings", unit="step") as bar:
+            chosen = _closed_loop(MPCController(params, {}), scenario, params, n, bar)
+        with ProgressBar("exact, gap 0", unit="step") as bar:
+            exact = _closed_loop(MPCController(params, {**REFERENCE, "time_limit_s": 300.0}), scenario, params, n,
+                                 bar)
         kpi_rows = []
         for key in KPI_KEYS:
             a, b = float(chosen.summary[key]), float(exact.summary[key])

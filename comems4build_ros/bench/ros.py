@@ -77,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print the figures."""
     from ..cli import UsageError
     from ..config import load_plant_params
+    from ..progress import is_terminal
     from ..ros.bag import lost_messages
     from ..ros.launcher import LaunchError, LaunchOptions, launch
     from ..ros.nodes.feed import load_scenario
@@ -102,7 +103,7 @@ def run(args: argparse.Namespace) -> int:
         scenario = load_scenario("default", params, None, whole, None, steps if steps != whole * 168 else None)
         ref = simulate(args.ems, scenario, params)
     t_in = time.perf_counter() - t0
-    res = launch(LaunchOptions(ems=args.ems, out=root / f"{args.ems}_{weeks:g}w", weeks=weeks))
+    res = launch(LaunchOptions(ems=args.ems, out=root / f"{args.ems}_{weeks:g}w", weeks=weeks, progress=is_terminal()))
     summary = res.summaries["/"]
     diff = sorted(k for k in set(ref.summary) | set(summary) - set(TIMING_KEYS)
                   if k not in TIMING_KEYS and ref.summary.get(k) != summary.get(k))
@@ -128,7 +129,7 @@ def run(args: argparse.Namespace) -> int:
             print(f"   ({_load()})", flush=True)
             try:
                 results[n] = launch(LaunchOptions(ems=args.ems, out=root / f"{args.ems}_{weeks:g}w_x{n}", weeks=weeks,
-                                                  buildings=n, timeout_s=args.timeout))
+                                                  buildings=n, timeout_s=args.timeout, progress=is_terminal()))
             except LaunchError as exc:
                 print(f"{n:>9} FAILED: {str(exc).splitlines()[0]}", flush=True)
                 continue

@@ -38,6 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="output directory (default with --from-runs: that DIR)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
 
 def parse_etas(text: str) -> list[float]:
@@ -69,6 +70,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config import load_plant_params
     from ..ems import UnknownEMSError, controller_class
     from ..fileio import check_out_dir
+    from ..progress import echo
     from ..report.build import build_report
     from ..report.runner import RunTask, run_tasks
     from ..report.runs import RUNS_DIR, Manifest, RunDirError, RunSpec, write_manifest
@@ -120,12 +122,12 @@ def run(args: argparse.Namespace) -> int:
     def done(task: RunTask, summary: dict) -> None:
         name = Path(task.out_dir).name
         walls[name] = float(summary["task_wall_s"])
-        print(f"  run {name}: {summary['task_wall_s']:.1f} s, cost median {summary['cost_eur_week_median']:.2f} "
-              f"EUR/week", file=sys.stderr, flush=True)
+        echo(f"  run {name}: {summary['task_wall_s']:.1f} s, cost median {summary['cost_eur_week_median']:.2f} "
+             "EUR/week")
 
     print(f"compare: {len(tasks)} runs ({', '.join(s.name for s in specs)}) via {args.via}", file=sys.stderr)
     t0 = time.perf_counter()
-    run_tasks(tasks, jobs=jobs, on_done=done)
+    run_tasks(tasks, jobs=jobs, on_done=done, progress=False if args.no_progress else None)
     wall = time.perf_counter() - t0
     manifest = Manifest(scenario=args.scenario, weeks=args.weeks, via=args.via, base_eta=base, runs=specs,
                         overrides=overrides, config=[str(Path(c).resolve()) for c in args.config],

@@ -48,6 +48,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the simulation and write timeseries.csv, weekly.csv and summary.json."""
     from ..ems import UnknownEMSError, controller_class
     from ..fileio import check_out_dir
+    from ..progress import ProgressBar
     from ..sim import load_forecast_settings, simulate, write_run
     from .options import UsageError, load_params, scenario_of
 
@@ -58,12 +59,13 @@ def run(args: argparse.Namespace) -> int:
     params = load_params(args.config, parse_assignments(args.set, "--set"))
     check_out_dir(args.out)
     scenario = scenario_of(args, params)
-    result = simulate(
-        args.ems, scenario, params,
-        ems_options=parse_assignments(args.ems_option, "--ems-option"),
-        progress=not args.no_progress and sys.stderr.isatty(),
-        forecast=load_forecast_settings(**({"mode": args.forecast} if args.forecast else {})),
-    )
+    with ProgressBar(f"simulate {args.ems}", unit="h", enable=False if args.no_progress else None) as bar:
+        result = simulate(
+            args.ems, scenario, params,
+            ems_options=parse_assignments(args.ems_option, "--ems-option"),
+            progress=bar,
+            forecast=load_forecast_settings(**({"mode": args.forecast} if args.forecast else {})),
+        )
     out = write_run(result, args.out)
     s = result.summary
     keys = (

@@ -24,6 +24,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parallel runs, integer >= 1 (default and maximum: CPU count)")
     parser.add_argument("--timeseries", action="store_true", help="also write each run's timeseries.csv")
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -32,6 +33,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config import load_plant_params
     from ..ems import UnknownEMSError, controller_class
     from ..fileio import check_out_dir
+    from ..progress import echo
     from ..report.runner import RunTask, run_tasks
     from ..report.sweep import SWEEP_KPIS, grid, markdown_table, parse_param, plot_kpi, table
     from .options import check_config_files, scenario_of
@@ -66,9 +68,9 @@ def run(args: argparse.Namespace) -> int:
     t0 = time.perf_counter()
 
     def done(task: RunTask, summary: dict) -> None:
-        print(f"  {Path(task.out_dir).name}: {summary['task_wall_s']:.1f} s", file=sys.stderr, flush=True)
+        echo(f"  {Path(task.out_dir).name}: {summary['task_wall_s']:.1f} s")
 
-    summaries = run_tasks(tasks, jobs=args.jobs, on_done=done)
+    summaries = run_tasks(tasks, jobs=args.jobs, on_done=done, progress=False if args.no_progress else None)
     wall = time.perf_counter() - t0
     kpis = [k for k, _ in SWEEP_KPIS]
     df = table(cases, summaries, kpis)

@@ -3,7 +3,8 @@
 A :class:`RunTask` is a plain picklable record (EMS, scenario spec, overrides, output
 directory); :func:`run_task` executes it in a worker process (in-process simulation or
 the ROS 2 node set through the launcher) and returns the summary. :func:`run_tasks`
-spreads tasks over at most ``os.cpu_count()`` worker processes, longest first.
+spreads tasks over at most ``os.cpu_count()`` worker processes, longest first, with one
+progress bar per run on a terminal (:class:`comems4build_ros.progress.RunProgress`).
 """
 
 from __future__ import annotations
@@ -11,10 +12,12 @@ from __future__ import annotations
 import os
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_EXCEPTION, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
+
+from ..progress import ProgressCallback, RunProgress
 
 #: Relative cost of one step per EMS (orders tasks longest first; unknown EMS count 1).
 EMS_WEIGHT = {"mpc": 50.0, "mpc-qp": 10.0, "fuzzy": 2.0, "rbc": 1.0, "thermostat": 1.0}
@@ -60,13 +63,16 @@ class RunFailedError(RuntimeError):
     """A run ended without its outputs (message names the run directory and the cause)."""
 
 
-def run_task(task: RunTask) -> dict[str, Any]:
-    """Execute one task; return its summary (with ``wall_s`` of the whole task)."""
+def run_task(task: RunTask, progress: ProgressCallback | None = None) -> dict[str, Any]:
+    """Execute one task; return its summary (with ``task_wall_s`` of the whole task).
+
+    ``progress(done, total)`` is called as the run advances (simulated or recorded steps).
+    """
     t0 = time.perf_counter()
     if task.via == "ros":
-        summary = _run_ros(task)
+        summary = _run_ros(task, progress)
     elif task.via == "inprocess":
-        summary = _run_inprocess(task)
+        summary = _run_inprocess(task, progress)
     else:
         raise ValueError(f"unknown --via '{task.via}' (inprocess, ros)")
     summary = dict(summary)
@@ -74,7 +80,7 @@ def run_task(task: RunTask) -> dict[str, Any]:
     return summary
 
 
-def _run_inprocess(task: RunTask) -> dict[str, Any]:
+def _run_inprocess(task: RunTask, progress: ProgressCallback | None = None) -> dict[str, Any]:
     from ..config import load_plant_params
     from ..scenario import resolve_scenario
     from ..sim import simulate, write_run
@@ -82,13 +88,13 @@ def _run_inprocess(task: RunTask) -> dict[str, Any]:
     params = load_plant_params(task.config, task.overrides)
     scenario = resolve_scenario(task.scenario, params, start=task.start, weeks=task.weeks, seed=task.seed,
                                 extend=task.extend, settings_overrides=task.scenario_overrides or None)
-    result = simulate(task.ems, scenario, params, ems_options=task.ems_options)
+    result = simulate(task.ems, scenario, params, ems_options=task.ems_options, progress=progress)
     result.summary["eta_sys"] = params.fuel_cell.eta_sys
     write_run(result, task.out_dir, timeseries=task.timeseries)
     return result.summary
 
 
-def _run_ros(task: RunTask) -> dict[str, Any]:
+def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[str, Any]:
     """Run through the ROS 2 node set (:func:`comems4build_ros.ros.launcher.launch`).
 
     The launcher starts plant_sim, feed, the EMS node and the recorder as separate
@@ -107,7 +113,8 @@ def _run_ros(task: RunTask) -> dict[str, Any]:
         raise RunFailedError(f"{out}: extend '{task.extend}' applies to in-process runs only")
     opts = LaunchOptions(ems=task.ems, out=out, scenario=task.scenario, weeks=task.weeks, start=task.start,
                          seed=task.seed, config_files=list(task.config), overrides=dict(task.overrides),
-                         ems_options=[f"{k}={json.dumps(v)}" for k, v in task.ems_options.items()])
+                         ems_options=[f"{k}={json.dumps(v)}" for k, v in task.ems_options.items()],
+                         on_progress=progress)
     try:
         result = launch(opts)
     except LaunchError as exc:
@@ -129,27 +136,41 @@ def run_tasks(
     tasks: Sequence[RunTask],
     jobs: int | None = None,
     on_done: Callable[[RunTask, dict[str, Any]], None] | None = None,
+    progress: bool | None = None,
 ) -> list[dict[str, Any]]:
     """Run ``tasks`` in at most ``min(jobs, os.cpu_count(), len(tasks))`` processes.
 
-    Tasks start longest first (by :data:`EMS_WEIGHT`); summaries come back in task order.
-    The first failure cancels the tasks not yet started and is raised.
+    Tasks start longest first (by :data:`EMS_WEIGHT`); summaries come back in task order,
+    ``on_done`` is called as each run finishes. The first failure cancels the tasks not
+    yet started and is raised. ``progress``: one bar per run on stderr while it runs (None
+    = when stderr is a terminal, False = never); print from ``on_done`` with
+    :func:`comems4build_ros.progress.echo` to keep the bars intact.
     """
+    with RunProgress([Path(t.out_dir).name for t in tasks], enable=progress) as bars:
+        return _run_tasks(tasks, jobs, on_done, bars)
+
+
+def _run_tasks(
+    tasks: Sequence[RunTask],
+    jobs: int | None,
+    on_done: Callable[[RunTask, dict[str, Any]], None] | None,
+    bars: RunProgress,
+) -> list[dict[str, Any]]:
     cpus = os.cpu_count() or 1
     workers = max(1, min(jobs or cpus, cpus, len(tasks)))
     order = sorted(range(len(tasks)), key=lambda i: -EMS_WEIGHT.get(tasks[i].ems, 1.0))
     results: list[dict[str, Any] | None] = [None] * len(tasks)
     if workers == 1:
         for i in order:
-            results[i] = run_task(tasks[i])
+            results[i] = run_task(tasks[i], bars.callback(i))
             if on_done:
                 on_done(tasks[i], results[i])
         return [r for r in results if r is not None]
-    with ProcessPoolExecutor(max_workers=workers) as pool:
-        futures = {pool.submit(run_task, tasks[i]): i for i in order}
+    with ProcessPoolExecutor(max_workers=workers, initializer=bars.initializer, initargs=bars.initargs) as pool:
+        futures = {pool.submit(run_task, tasks[i], bars.reporter(i)): i for i in order}
         pending = set(futures)
         while pending:
-            done, pending = wait(pending, return_when=FIRST_EXCEPTION)
+            done, pending = wait(pending, return_when=FIRST_COMPLETED)
             for fut in done:
                 i = futures[fut]
                 exc = fut.exception()

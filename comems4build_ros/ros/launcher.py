@@ -23,6 +23,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from ..progress import ProgressBar
 from .plan import (  # noqa: F401  (re-exported)
     DISCOVERY_PORT_BASE,
     EMS_MODULE,
@@ -95,21 +96,17 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     if bag.exists():
         raise FileExistsError(f"{bag} exists: choose another --out or remove it")
     params = load_plant_params(opts.config_files, opts.overrides)
-    bar = None
-    if opts.progress:
-        from tqdm import tqdm
-
-        bar = tqdm(total=0, desc=f"launch {opts.ems} x{opts.buildings}", unit="step", mininterval=0.3, leave=False)
+    bar = ProgressBar(f"launch {opts.ems} x{opts.buildings}", unit="step",
+                      enable=bool(opts.progress) and opts.on_progress is None)
     try:
         with acquire_domain_id(opts.domain_id) as domain_id:
             plan = plan_run(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
             if len(plan.buildings) > 1:
                 bag.mkdir()
-            times = run_plan(plan, bar)
+            times = run_plan(plan, opts.on_progress or bar)
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     wall = times.t_end - times.t0
     run_s = times.t_end - (times.t_first_record or times.t0)
     summaries = evaluate_bag(bag, out, params=params, wall_s=wall)

@@ -28,7 +28,7 @@ import dataclasses
 import json
 import math
 import sys
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -89,7 +89,9 @@ class LaunchOptions:
     forecast : forecast mode of the MPC (None = ``config/forecast.yaml``)
     domain_id : ROS domain id (None = a free one)
     timeout_s : stop with an error after this wall time [s] (None = no limit)
-    progress : show a progress bar (tqdm on stderr)
+    progress : show a progress bar on stderr (:class:`comems4build_ros.progress.ProgressBar`)
+    on_progress : called as ``on_progress(recorded steps, total steps)`` while the run goes
+        (instead of the bar; e.g. a worker's reporter to a parent's bars)
     plant_params : extra ``-p`` parameters of plant_sim (e.g. ``step_timeout_s``)
     discovery_server : use a Fast DDS discovery server (None = with more than one building
         in process-per-node mode; never in host mode)
@@ -114,6 +116,7 @@ class LaunchOptions:
     domain_id: int | None = None
     timeout_s: float | None = None
     progress: bool = False
+    on_progress: Callable[[int, int], None] | None = None
     plant_params: dict[str, Any] = field(default_factory=dict)
     discovery_server: bool | None = None
     host_mode: bool | None = None

@@ -369,7 +369,7 @@ def supervise(
     recorders: list[Child],
     plants: list[Child],
     progress: Progress,
-    bar: Any,
+    report: Callable[[int, int], None] | None,
     t0: float,
     timeout_s: float | None,
 ) -> float | None:
@@ -387,11 +387,8 @@ def supervise(
         r, n = progress.get()
         if r and t_first_record is None:
             t_first_record = time.monotonic()
-        if bar is not None:
-            if n and bar.total != n:
-                bar.reset(total=n)
-            bar.n = r
-            bar.refresh()
+        if report is not None:
+            report(r, n)
         plants_done = all(p.proc.poll() == 0 for p in plants)
         for c in group.children:
             code = c.proc.poll()
@@ -426,13 +423,14 @@ class Supervised:
     t_end: float  # end of the run (before the processes were stopped)
 
 
-def run_plan(plan: RunPlan, bar: Any = None) -> Supervised:
+def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) -> Supervised:
     """Start every process of ``plan``, wait for the end of the run, stop them all.
 
     Parameters
     ----------
     plan : what to run (:func:`comems4build_ros.ros.plan.plan_run`)
-    bar : tqdm progress bar to update (None = no bar)
+    report : called as ``report(recorded steps, total steps)`` while the run goes (a progress
+        bar of :mod:`comems4build_ros.progress`; None = silent)
 
     Raises
     ------
@@ -461,6 +459,6 @@ def run_plan(plan: RunPlan, bar: Any = None) -> Supervised:
                     recorders.append(child)
                 elif p.finishes:
                     plants.append(child)
-            t_first_record = supervise(group, recorders, plants, progress, bar, t0, plan.timeout_s)
+            t_first_record = supervise(group, recorders, plants, progress, report, t0, plan.timeout_s)
             t_end = time.monotonic()
     return Supervised(t0, t_first_record, t_end)
