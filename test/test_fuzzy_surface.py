@@ -11,11 +11,34 @@ from comems4build_ros.ems.fuzzy import load_flcs
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
 
-def test_writes_four_pngs(tmp_path):
+def test_writes_four_figures_as_pdf_svg_png(tmp_path):
     assert main(["fuzzy-surface", "--out", str(tmp_path), "--dpi", "40"]) == 0
     for name in ("flc_flex", "flc_fc", "flc_b", "flc_3d"):
         data = (tmp_path / f"{name}.png").read_bytes()
         assert data[:8] == PNG_MAGIC and len(data) > 2000
+        assert (tmp_path / f"{name}.pdf").read_bytes()[:5] == b"%PDF-"
+        assert (tmp_path / f"{name}.svg").stat().st_size > 2000
+
+
+def test_figures_pass_the_layout_check():
+    import matplotlib.pyplot as plt
+
+    from comems4build_ros.commands.fuzzy_surface import surface_figure, surfaces_figure
+    from comems4build_ros.report.style import layout_problems, paper_style
+
+    maps = surfaces(_systems(), chi=0.5, n=11)
+    for fig in [*(surface_figure(s) for s in maps.values()), surfaces_figure(maps)]:
+        with paper_style():
+            assert layout_problems(fig) == []
+        plt.close(fig)
+
+
+def _systems():
+    systems = {}
+    for key, (system, section) in load_flcs(load_plant_params()).items():
+        system.load_scale_w = float(section.get("load_scale_w", 10_000.0))
+        systems[key] = system
+    return systems
 
 
 def test_bad_chi_is_usage_error(tmp_path, capsys):

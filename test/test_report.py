@@ -13,16 +13,20 @@ import re
 import shutil
 from pathlib import Path
 
+import matplotlib.pyplot as plt
 import numpy as np
 import pandas as pd
 import pytest
 
 from comems4build_ros.cli import main
+from comems4build_ros.config import load_plant_params
+from comems4build_ros.report import figures as rf
 from comems4build_ros.report import findings as fd
-from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, build_report
+from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, _by_ems, build_report
 from comems4build_ros.report.figures import select_windows
 from comems4build_ros.report.paper import DERIVED, load_paper_results
-from comems4build_ros.report.runs import SUMMARY_KEYS, RunDirError, read_run
+from comems4build_ros.report.runs import SUMMARY_KEYS, RunDirError, read_comparison, read_run
+from comems4build_ros.report.style import layout_problems, paper_style
 
 EMS = ("thermostat", "rbc", "fuzzy")
 FIGURES = (
@@ -78,18 +82,40 @@ def test_run_directories_written(comparison: Path) -> None:
         assert hi["heat_recovered_kwh_total"] > base["heat_recovered_kwh_total"]
 
 
-def test_every_figure_written_and_non_empty(comparison: Path) -> None:
+def test_every_figure_written_as_pdf_svg_and_300_dpi_png(comparison: Path) -> None:
+    from PIL import Image
+
     for key in FIGURES:
         png = comparison / "figures" / f"{key}.png"
         data = png.read_bytes()
         assert data[:8] == PNG_MAGIC, png
         assert len(data) > 5000, png
+        with Image.open(png) as im:
+            assert im.info["dpi"] == pytest.approx((300, 300), abs=0.5), png
+        assert (comparison / "figures" / f"{key}.pdf").read_bytes()[:5] == b"%PDF-", key
+        assert b"<svg" in (comparison / "figures" / f"{key}.svg").read_bytes()[:2000], key
 
 
-def test_html_is_self_contained(comparison: Path) -> None:
+def test_every_figure_passes_the_layout_check(comparison: Path) -> None:
+    """Nothing clipped or overlapping, no raw names or LaTeX labels, legends off the data, dates flat."""
+    manifest, run_list = read_comparison(comparison)
+    runs, variants = _by_ems(manifest, run_list)
+    params = load_plant_params()
+    inputs = rf.FigureInputs(runs, variants, {e: r.spec.info_level for e, r in runs.items()},
+                             params.site.timezone, manifest.base_eta, params.dhw.v_max_l)
+    with paper_style():
+        for key, fig in rf.iter_figures(inputs):
+            assert layout_problems(fig) == [], key
+            plt.close(fig)
+
+
+def test_html_is_self_contained_and_links_the_vector_figures(comparison: Path) -> None:
     text = (comparison / "report.html").read_text()
     assert text.count('src="data:image/png;base64,') == len(FIGURES)
     assert 'src="figures/' not in text
+    for key in FIGURES:
+        for ext in ("pdf", "svg", "png"):
+            assert f'href="figures/{key}.{ext}"' in text, (key, ext)
     # same numbers as the Markdown: the cost median of every EMS appears in both
     md = (comparison / "report.md").read_text()
     for ems in EMS:
@@ -101,10 +127,13 @@ def test_summary_table_equals_summaries(comparison: Path) -> None:
     md = (comparison / "report.md").read_text()
     rows = _md_table(md, "## Run summary")
     header = rows[0]
-    assert header[1:] == ["ComEMS4Build", "RBC", "Thermostat"]  # paper order (MPC, fuzzy, RBC), others after
-    by_label = {r[0]: r[1:] for r in rows[1:]}
+    assert header[2:] == ["ComEMS4Build", "RBC", "Thermostat"]  # paper order (MPC, fuzzy, RBC), others after
+    assert header[1] == "unit"
+    by_label = {r[0]: r[2:] for r in rows[1:]}
+    units = {r[0]: r[1] for r in rows[1:]}
     names = ["fuzzy", "rbc", "thermostat"]
-    for key, lab, digits in SUMMARY_TABLE:
+    for key, lab, unit, digits in SUMMARY_TABLE:
+        assert units[lab] == (unit or "")
         for col, ems in enumerate(names):
             value = _summary(comparison, ems).get(key)
             printed = by_label[lab][col]
@@ -123,13 +152,15 @@ def test_weekly_tables_equal_weekly_csv(comparison: Path) -> None:
         weekly = pd.read_csv(comparison / "runs" / ems / "weekly.csv")
         assert len(rows) == 1 + len(weekly) + 1  # header, weeks, median
         s = _summary(comparison, ems)
+        assert "cost [EUR]" in rows[0] and "FC hours [h]" in rows[0]  # units in the headers
         median = dict(zip(rows[0], rows[-1]))
         assert float(median["cost [EUR]"]) == pytest.approx(s["cost_eur_week_median"], abs=0.005)
         assert float(median["bought [kWh]"]) == pytest.approx(s["buy_kwh_week_median"], abs=0.005)
         assert float(median["discomfort [Kh]"]) == pytest.approx(s["discomfort_kh_week_median"], abs=0.005)
         first = dict(zip(rows[0], rows[1]))
-        for col, head, digits in WEEKLY_TABLE:
-            assert float(first[head]) == pytest.approx(weekly[col].iloc[0], abs=0.5 * 10**-digits + 1e-9)
+        for col, head, unit, digits in WEEKLY_TABLE:
+            assert float(first[f"{head} [{unit}]"]) == pytest.approx(weekly[col].iloc[0],
+                                                                   abs=0.5 * 10**-digits + 1e-9)
 
 
 def test_paper_table_measured_values(comparison: Path) -> None:
@@ -243,7 +274,8 @@ def test_missing_manifest(tmp_path: Path) -> None:
 
 def test_paper_results_file() -> None:
     data = load_paper_results()
-    assert "FACTS" in data["source"]
+    assert "sec:results" in data["source"]
+    assert all(row["where"].startswith("sec:results") for row in data["rows"])
     for row in data["rows"]:
         assert row["measure"] in DERIVED or row["measure"] in SUMMARY_KEYS, row["key"]
     cost = next(r for r in data["rows"] if r["key"] == "cost")
@@ -298,3 +330,24 @@ def test_h2_price_response_hand_made() -> None:
     hi, lo = fd.h2_price_response(pd.DataFrame({"price_buy_eur_per_kwh": price, "p_h2_w": h2}))
     assert hi == pytest.approx(1000.0)  # 75 % quantile 0.625 (linear): hours at 0.7 and 0.8
     assert lo == pytest.approx(0.0)  # 25 % quantile 0.275: hours at 0.1 and 0.2
+
+
+def test_report_text_has_table_of_contents_alignment_and_no_latex_labels(comparison: Path) -> None:
+    md = (comparison / "report.md").read_text()
+    html = (comparison / "report.html").read_text()
+    # table of contents: a link to every level-2 heading, in both files
+    for heading in re.findall(r"^## (.+)$", md, re.M):
+        anchor = re.sub(r"[^\w\- ]", "", heading.lower()).replace(" ", "-")
+        assert f"(#{anchor})" in md and f'href="#{anchor}"' in html and f'id="{anchor}"' in html, heading
+    # numbers right-aligned, text left-aligned (Markdown separator row and HTML classes)
+    rows = md[md.index("## Findings of the paper"):].splitlines()
+    sep = next(line for line in rows if line.startswith("|:") or line.startswith("|-"))
+    assert sep == "|---:|:---|:---|:---|:---|"  # '#' is a number column, the rest text
+    weekly = html[html.index('id="rbc-rbc'):]
+    row = re.search(r"<tbody>\n<tr>(.*?)</tr>", weekly).group(1)  # week 1: label and date left, KPIs right
+    cells = re.findall(r"<td( class=\"num\")?>", row)
+    assert cells[:2] == ["", ""] and all(c == ' class="num"' for c in cells[2:])
+    # figures named by what they show, not by the paper's LaTeX labels
+    for label in ("fig:", "tab:"):
+        assert label not in md, label
+        assert label not in re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]+", "", html), label

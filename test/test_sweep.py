@@ -9,7 +9,8 @@ import pandas as pd
 import pytest
 
 from comems4build_ros.cli import main
-from comems4build_ros.report.sweep import SWEEP_KPIS, grid, markdown_table, parse_param
+from comems4build_ros.report.style import layout_problems, paper_style
+from comems4build_ros.report.sweep import SWEEP_KPIS, grid, kpi_figure, markdown_table, param_label, parse_param
 
 
 def test_tiny_sweep(tmp_path: Path) -> None:
@@ -30,7 +31,10 @@ def test_tiny_sweep(tmp_path: Path) -> None:
     for key, _ in SWEEP_KPIS:
         png = out / "figures" / f"{key}.png"
         assert png.read_bytes()[:4] == b"\x89PNG" and png.stat().st_size > 3000
-        assert f"figures/{key}.png" in md
+        assert (out / "figures" / f"{key}.pdf").read_bytes()[:5] == b"%PDF-"
+        assert (out / "figures" / f"{key}.svg").stat().st_size > 3000
+        for ext in ("png", "pdf", "svg"):
+            assert f"figures/{key}.{ext}" in md
     assert not (out / "runs" / "thermostat__battery.e_max_kwh=5" / "timeseries.csv").exists()
 
 
@@ -68,3 +72,24 @@ def test_bad_input_exit_2(tmp_path: Path, capsys: pytest.CaptureFixture, argv: l
     assert main(["sweep", *argv, "--weeks", "1", "--out", str(tmp_path / "x")]) == 2
     assert message in capsys.readouterr().err
     assert not (tmp_path / "x" / "runs").exists()
+
+
+def test_sweep_figures_pass_the_layout_check() -> None:
+    """Parameter names become labels with units; legends above the data; nothing clipped."""
+    import matplotlib.pyplot as plt
+
+    rows = [{"ems": e, "battery.e_max_kwh": b, "grid.surcharge_eur_per_kwh": g, "cost_eur_week_median": c}
+            for e in ("rbc", "fuzzy") for b in (5, 10) for g in (0.2, 0.3) for c in (30.0 + b + 10 * g,)]
+    df = pd.DataFrame(rows)
+    fig = kpi_figure(df, ["battery.e_max_kwh", "grid.surcharge_eur_per_kwh"], "cost_eur_week_median",
+                     dict(SWEEP_KPIS)["cost_eur_week_median"])
+    with paper_style():
+        assert layout_problems(fig) == []
+    texts = [t.get_text() for t in fig.findobj(lambda a: hasattr(a, "get_text"))]
+    assert param_label("battery.e_max_kwh") in texts
+    plt.close(fig)
+
+
+def test_param_label_fallback_names_the_unit() -> None:
+    assert param_label("building.r_air_amb_k_per_w") == "building: r air amb [K/W]"
+    assert param_label("hydrogen.loh_min") == "hydrogen: loh min [–]"

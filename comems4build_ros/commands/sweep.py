@@ -28,7 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run every case of the grid and write sweep.csv, sweep.md, figures/<kpi>.png and runs/."""
+    """Run every case of the grid and write sweep.csv, sweep.md, figures/<kpi>.{png,pdf,svg} and runs/."""
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..ems import UnknownEMSError, controller_class
@@ -79,8 +79,9 @@ def run(args: argparse.Namespace) -> int:
           f"EMS: {', '.join(emss)}; scenario {args.scenario}, weeks {args.weeks or 'default'}; "
           f"{len(cases)} runs in {wall:.1f} s wall.", "", markdown_table(df), "## Figures", ""]
     for key, ylabel in SWEEP_KPIS:
-        png = plot_kpi(df, list(params), key, ylabel, out / "figures" / f"{key}.png")
-        md.append(f"![{key}](figures/{png.name})\n")
+        png = plot_kpi(df, list(params), key, ylabel, out / "figures" / key)
+        md.append(f"![{key} over {next(iter(params))}](figures/{png.name})\n\n`{key}` over "
+                  f"`{next(iter(params))}`; vector versions: [PDF](figures/{key}.pdf), [SVG](figures/{key}.svg)\n")
     (out / "sweep.md").write_text("\n".join(md), encoding="utf-8")
     (out / "sweep.json").write_text(json.dumps({"params": params, "ems": emss, "scenario": args.scenario,
                                                 "weeks": args.weeks, "wall_s": wall}, indent=2) + "\n",

@@ -1,19 +1,27 @@
-"""Paper-style figures of a comparison (matplotlib, Agg backend, PNG).
+"""Figures of a comparison, after the figures of the paper's ``sec:results``.
 
-One function per figure of the paper's ``sec:results``; each takes the runs (EMS name ->
-:class:`~comems4build_ros.report.runs.RunData`) and an output path and returns the path.
-Every EMS keeps one colour in every figure (:data:`EMS_COLOURS`).
+Each figure has a builder ``<name>_figure(...) -> Figure`` and a writer ``<name>(..., path)``
+that saves it with :func:`~comems4build_ros.report.style.save_figure` (PDF, SVG and a
+300 dpi PNG) and returns the PNG path. :data:`FIGURES` lists the figures of a report
+(built from :class:`FigureInputs`), :func:`iter_figures` yields them and
+:func:`all_figures` writes them, in parallel processes. The style (sizes of a two-column paper,
+colour-blind-safe colours, one colour per EMS, mathtext labels with units, legends outside
+the data) is :mod:`comems4build_ros.report.style`.
 
-Three-day windows for ``fig:performance_comparison`` (:func:`select_windows`): the
-candidates are all runs of three consecutive local days starting at midnight. The *cold
-high-price* window maximises ``z(mean buy price) - z(mean T_amb)`` (z-scores over the
-candidates); the *sunny* window maximises the mean global radiation among the candidates
-that do not overlap the first (any candidate when all overlap).
+Three-day windows of the time-series figures (:func:`select_windows`): the candidates are
+all runs of three consecutive local days starting at midnight. The *cold high-price*
+window maximises ``z(mean buy price) - z(mean T_amb)`` (z-scores over the candidates); the
+*sunny* window maximises the mean global radiation among the candidates that do not
+overlap the first (any candidate when all overlap).
 """
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+import multiprocessing
+import os
+from collections.abc import Callable, Iterator, Mapping, Sequence
+from concurrent.futures import ProcessPoolExecutor
+from dataclasses import dataclass
 from pathlib import Path
 
 import matplotlib
@@ -23,42 +31,34 @@ import matplotlib.dates as mdates  # noqa: E402
 import matplotlib.pyplot as plt  # noqa: E402
 import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
+from matplotlib.figure import Figure  # noqa: E402
+from matplotlib.lines import Line2D  # noqa: E402
+from matplotlib.patches import Patch  # noqa: E402
 
 from ..config import W_PER_KW  # noqa: E402
 from ..ems.base import INFO_LEVELS  # noqa: E402
+from . import style  # noqa: E402
 from .runs import RunData  # noqa: E402
+from .style import SIGNAL_COLOURS, axis_label, figsize, save_figure, styled  # noqa: E402
 
-#: One colour per EMS, used in every figure.
-EMS_COLOURS: dict[str, str] = {
-    "mpc": "#1f77b4",
-    "fuzzy": "#2ca02c",
-    "rbc": "#d62728",
-    "thermostat": "#7f7f7f",
-    "mpc-qp": "#9467bd",
-}
-#: Colours for EMS not listed above.
-_SPARE = ("#8c564b", "#e377c2", "#bcbd22", "#17becf", "#ff7f0e")
-#: Display names.
-EMS_LABELS: dict[str, str] = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC", "thermostat": "Thermostat",
-                              "mpc-qp": "MPC-QP"}
-#: Figure resolution [dpi].
-DPI = 110
+#: One colour per EMS (see :mod:`~comems4build_ros.report.style`).
+EMS_COLOURS = style.EMS_COLOURS
+#: Display names of the EMS.
+EMS_LABELS = style.EMS_LABELS
 #: Length of the time-series windows [d].
 WINDOW_DAYS = 3
+#: Longest span whose date axis labels every day [d].
+DAY_LABEL_MAX_DAYS = 8
 #: Percent per fraction.
 PERCENT = 100.0
+#: Head room above the tallest bar for its value label [fraction of the tallest bar].
+BAR_HEADROOM = 0.16
+#: Transparency of boxes and of the bars of the non-base FC efficiencies [-].
+BOX_ALPHA = 0.35
+OTHER_ETA_ALPHA = 0.35
 
-
-def colour(ems: str) -> str:
-    """The EMS's colour (stable for names outside :data:`EMS_COLOURS`)."""
-    if ems in EMS_COLOURS:
-        return EMS_COLOURS[ems]
-    return _SPARE[sum(map(ord, ems)) % len(_SPARE)]
-
-
-def label(ems: str) -> str:
-    """Display name of an EMS."""
-    return EMS_LABELS.get(ems, ems)
+colour = style.ems_colour
+label = style.ems_label
 
 
 def _local_naive(time: pd.Series, tz: str) -> np.ndarray:
@@ -66,128 +66,167 @@ def _local_naive(time: pd.Series, tz: str) -> np.ndarray:
     return time.dt.tz_convert(tz).dt.tz_localize(None).to_numpy()
 
 
-def _save(fig: plt.Figure, path: Path, tight_bbox: bool = False) -> Path:
-    """Write the PNG (the figures lay themselves out; ``tight_bbox`` for legends outside the axes)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=DPI, bbox_inches="tight" if tight_bbox else None)
-    plt.close(fig)
-    return path
+def _date_axis(ax: plt.Axes, days: float) -> None:
+    """Horizontal date ticks that never wrap or collide with a neighbour's.
+
+    Up to :data:`DAY_LABEL_MAX_DAYS` days: grid lines at midnight and the date written at
+    noon, inside its day (no label at the edges of the axes); longer spans: concise dates.
+    """
+    if days <= DAY_LABEL_MAX_DAYS:
+        ax.xaxis.set_major_locator(mdates.DayLocator())
+        ax.xaxis.set_major_formatter(plt.NullFormatter())
+        ax.xaxis.set_minor_locator(mdates.HourLocator(byhour=(12,)))
+        ax.xaxis.set_minor_formatter(mdates.DateFormatter("%-d %b"))
+        ax.tick_params(axis="x", which="minor", length=0)
+    else:
+        locator = mdates.AutoDateLocator(minticks=3, maxticks=8)
+        ax.xaxis.set_major_locator(locator)
+        ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator, show_offset=False))
+    for t in ax.get_xticklabels(which="both"):
+        t.set_rotation(0)
 
 
 def _boxes(ax: plt.Axes, runs: Mapping[str, RunData], column: str, ylabel: str, title: str) -> None:
     """Weekly box plot of one KPI, one box per EMS, weekly values as dots."""
     names = list(runs)
     data = [runs[e].weekly[column].to_numpy(float) for e in names]
-    bp = ax.boxplot(data, patch_artist=True, widths=0.55, medianprops={"color": "black"}, showfliers=False)
+    bp = ax.boxplot(data, patch_artist=True, widths=0.55, medianprops={"color": "black", "linewidth": 1.0},
+                    showfliers=False)
     for patch, e in zip(bp["boxes"], names):
         patch.set_facecolor(colour(e))
-        patch.set_alpha(0.45)
+        patch.set_alpha(BOX_ALPHA)
         patch.set_edgecolor(colour(e))
     rng = np.random.default_rng(0)
     for i, (e, vals) in enumerate(zip(names, data), start=1):
-        ax.scatter(i + rng.uniform(-0.12, 0.12, len(vals)), vals, s=14, color=colour(e), zorder=3)
+        ax.scatter(i + rng.uniform(-0.12, 0.12, len(vals)), vals, s=7, color=colour(e), zorder=3, linewidths=0)
     ax.set_xticks(range(1, len(names) + 1), [label(e) for e in names])
+    ax.tick_params(axis="x", length=0)
     ax.set_ylabel(ylabel)
-    ax.set_title(title, fontsize=10)
-    ax.grid(axis="y", alpha=0.3)
+    ax.set_title(title, loc="left")
+    ax.grid(axis="x", visible=False)
+
+
+@styled
+def quality_indicators_figure(runs: Mapping[str, RunData]) -> Figure:
+    """Weekly discomfort, electricity cost and reimbursement (after ``fig:quality_indicators_occupants``)."""
+    fig, axes = plt.subplots(1, 3, figsize=figsize("double", 62))
+    _boxes(axes[0], runs, "discomfort_kh", "discomfort [K h/week]", "(a) Thermal discomfort")
+    _boxes(axes[1], runs, "cost_eur", "cost [EUR/week]", "(b) Electricity cost")
+    _boxes(axes[2], runs, "reimbursement_eur", "reimbursement [EUR/week]", "(c) Reimbursement")
+    return fig
 
 
 def quality_indicators(runs: Mapping[str, RunData], path: Path) -> Path:
-    """``fig:quality_indicators_occupants``: weekly discomfort, cost and reimbursement."""
-    fig, axes = plt.subplots(1, 3, figsize=(12, 3.8))
-    _boxes(axes[0], runs, "discomfort_kh", "discomfort [K h/week]", "Thermal discomfort")
-    _boxes(axes[1], runs, "cost_eur", "electricity cost [EUR/week]", "Electricity cost")
-    _boxes(axes[2], runs, "reimbursement_eur", "reimbursement [EUR/week]", "Reimbursement")
-    fig.suptitle("Weekly occupant-oriented indicators", fontsize=11)
-    fig.tight_layout()
-    return _save(fig, path)
+    """Write :func:`quality_indicators_figure`; returns the PNG path."""
+    return save_figure(quality_indicators_figure(runs), path)
+
+
+@styled
+def hess_usage_figure(runs: Mapping[str, RunData]) -> Figure:
+    """Weekly BESS charged energy and H2 consumption (after ``fig:HESS_usage``)."""
+    fig, axes = plt.subplots(2, 1, figsize=figsize("single", 100), sharex=True)
+    _boxes(axes[0], runs, "bess_charged_kwh", "charged [kWh/week]", "(a) Battery charging")
+    _boxes(axes[1], runs, "h2_kwh", r"$\mathrm{H_2}$ consumed, LHV [kWh/week]", "(b) Hydrogen consumption")
+    return fig
 
 
 def hess_usage(runs: Mapping[str, RunData], path: Path) -> Path:
-    """``fig:HESS_usage``: weekly BESS charged energy and H2 consumption."""
-    fig, axes = plt.subplots(2, 1, figsize=(5.5, 6.5), sharex=True)
-    _boxes(axes[0], runs, "bess_charged_kwh", "BESS charged [kWh/week]", "Battery charging")
-    _boxes(axes[1], runs, "h2_kwh", "H\u2082 consumed, LHV [kWh/week]", "Hydrogen consumption")
-    fig.tight_layout()
-    return _save(fig, path)
+    """Write :func:`hess_usage_figure`; returns the PNG path."""
+    return save_figure(hess_usage_figure(runs), path)
+
+
+@styled
+def grid_usage_figure(runs: Mapping[str, RunData]) -> Figure:
+    """Weekly purchased and sold energy (after ``fig:grid_usage``)."""
+    fig, axes = plt.subplots(2, 1, figsize=figsize("single", 100), sharex=True)
+    _boxes(axes[0], runs, "buy_kwh", "purchased [kWh/week]", "(a) Energy bought from the grid")
+    _boxes(axes[1], runs, "sell_kwh", "sold [kWh/week]", "(b) Energy sold to the grid")
+    return fig
 
 
 def grid_usage(runs: Mapping[str, RunData], path: Path) -> Path:
-    """``fig:grid_usage``: weekly purchased and sold energy."""
-    fig, axes = plt.subplots(2, 1, figsize=(5.5, 6.5), sharex=True)
-    _boxes(axes[0], runs, "buy_kwh", "purchased [kWh/week]", "Energy bought from the grid")
-    _boxes(axes[1], runs, "sell_kwh", "sold [kWh/week]", "Energy sold to the grid")
-    fig.tight_layout()
-    return _save(fig, path)
+    """Write :func:`grid_usage_figure`; returns the PNG path."""
+    return save_figure(grid_usage_figure(runs), path)
+
+
+@styled
+def working_hours_fc_figure(runs: Mapping[str, RunData]) -> Figure:
+    """FC working hours and start-ups over the run (after ``fig:working_hours_FC``)."""
+    names = list(runs)
+    fig, axes = plt.subplots(1, 2, figsize=figsize("one-and-half", 55))
+    for ax, key, ylabel, title in (
+        (axes[0], "fc_working_hours", "working hours [h]", "(a) Fuel-cell working hours"),
+        (axes[1], "fc_toggles", "start-ups [–]", "(b) Fuel-cell start-ups"),
+    ):
+        vals = [float(runs[e].summary[key]) for e in names]
+        bars = ax.bar([label(e) for e in names], vals, color=[colour(e) for e in names], width=0.6)
+        ax.bar_label(bars, fmt="%.0f", padding=1.5, fontsize=7)
+        ax.set_ylim(0, max(max(vals), 1.0) * (1.0 + BAR_HEADROOM))
+        ax.set_ylabel(ylabel)
+        ax.set_title(title, loc="left")
+        ax.tick_params(axis="x", length=0)
+        ax.grid(axis="x", visible=False)
+    return fig
 
 
 def working_hours_fc(runs: Mapping[str, RunData], path: Path) -> Path:
-    """``fig:working_hours_FC``: FC working hours (left) and on-switchings (right) of the run."""
-    names = list(runs)
-    fig, axes = plt.subplots(1, 2, figsize=(9, 3.6))
-    for ax, key, ylabel in (
-        (axes[0], "fc_working_hours", "FC working hours [h]"),
-        (axes[1], "fc_toggles", "FC start-ups (toggles) [-]"),
-    ):
-        vals = [float(runs[e].summary[key]) for e in names]
-        bars = ax.bar([label(e) for e in names], vals, color=[colour(e) for e in names], alpha=0.8)
-        ax.bar_label(bars, fmt="%.0f", fontsize=9)
-        ax.set_ylabel(ylabel)
-        ax.grid(axis="y", alpha=0.3)
-    weeks = int(next(iter(runs.values())).summary["weeks"])
-    fig.suptitle(f"Fuel-cell operation over the evaluation period ({weeks} weeks)", fontsize=11)
-    fig.tight_layout()
-    return _save(fig, path)
+    """Write :func:`working_hours_fc_figure`; returns the PNG path."""
+    return save_figure(working_hours_fc_figure(runs), path)
 
 
-def hydrogen_timeseries(runs: Mapping[str, RunData], path: Path, tz: str) -> Path:
-    """``fig:hydrogen_timeseries``: LOH of every EMS, buy price and radiation over the run."""
-    fig, axes = plt.subplots(2, 1, figsize=(10, 6), sharex=True, gridspec_kw={"height_ratios": [3, 2]})
+@styled
+def hydrogen_timeseries_figure(runs: Mapping[str, RunData], tz: str) -> Figure:
+    """LOH of every EMS, buy price and global radiation over the run (after ``fig:hydrogen_timeseries``)."""
+    fig, axes = plt.subplots(2, 1, figsize=figsize("double", 105), sharex=True,
+                             gridspec_kw={"height_ratios": [3, 2]})
     for e, r in runs.items():
         t = _local_naive(r.timeseries["time"], tz)
-        axes[0].plot(t, PERCENT * r.timeseries["loh"], color=colour(e), label=label(e), lw=1.6)
-    axes[0].set_ylabel("level of hydrogen LOH [%]")
-    axes[0].set_ylim(bottom=0)
-    axes[0].legend(loc="lower left")
-    axes[0].grid(alpha=0.3)
-    axes[0].set_title("Hydrogen in the store over the evaluation period", fontsize=10)
+        axes[0].plot(t, PERCENT * r.timeseries["loh"], color=colour(e), label=label(e), lw=1.3)
+    axes[0].set_ylabel(axis_label("loh", "%"))
+    axes[0].set_ylim(0, 102)
+    style.outside_legend(axes[0])
     ts = next(iter(runs.values())).timeseries
     t = _local_naive(ts["time"], tz)
     ax = axes[1]
-    ax.plot(t, ts["price_buy_eur_per_kwh"], color="#444444", lw=0.8, label="buy price p_buy")
-    ax.set_ylabel("buy price [EUR/kWh]")
+    ax.plot(t, ts["price_buy_eur_per_kwh"], color=SIGNAL_COLOURS["main"], lw=0.7,
+            label="buy price " + axis_label("p_buy"))
+    ax.set_ylabel(axis_label("p_buy", "EUR_kWh"))
     ax2 = ax.twinx()
-    ax2.fill_between(t, ts["ghi_w_m2"], color="#f2b134", alpha=0.45, lw=0, label="global radiation q_s")
-    ax2.set_ylabel("global radiation [W/m\u00b2]")
+    style.no_twin_grid(ax2)
+    ax2.fill_between(t, ts["ghi_w_m2"], color=SIGNAL_COLOURS["radiation"], alpha=0.45, lw=0,
+                     label="global radiation " + axis_label("q_s"))
+    ax2.set_ylabel(axis_label("q_s", "W_m2"))
+    ax2.set_ylim(bottom=0)
     ax.set_zorder(ax2.get_zorder() + 1)  # price line over the radiation area
     ax.patch.set_visible(False)
     h1, l1 = ax.get_legend_handles_labels()
     h2, l2 = ax2.get_legend_handles_labels()
-    ax.legend(h1 + h2, l1 + l2, loc="upper right", fontsize=8)
+    style.outside_legend(ax, h1 + h2, l1 + l2)
     ax.set_xlabel(f"local time ({tz})")
-    ax.xaxis.set_major_locator(mdates.AutoDateLocator(maxticks=10))
-    ax.xaxis.set_major_formatter(mdates.DateFormatter("%d.%m.%Y"))
-    ax.grid(alpha=0.3)
-    fig.autofmt_xdate()
-    fig.tight_layout()
-    return _save(fig, path)
+    days = (t[-1] - t[0]) / np.timedelta64(1, "D") if len(t) > 1 else 1.0
+    _date_axis(ax, float(days))
+    return fig
 
 
-def heat_recovery(
-    variants: Mapping[tuple[str, float], RunData], path: Path, base_eta: float
-) -> Path:
-    """``fig:heat_recovery``: weekly recovered FC heat per EMS at each FC system efficiency.
+def hydrogen_timeseries(runs: Mapping[str, RunData], path: Path, tz: str) -> Path:
+    """Write :func:`hydrogen_timeseries_figure`; returns the PNG path."""
+    return save_figure(hydrogen_timeseries_figure(runs, tz), path)
+
+
+@styled
+def heat_recovery_figure(variants: Mapping[tuple[str, float], RunData], base_eta: float) -> Figure:
+    """Weekly recovered FC heat per EMS at each FC system efficiency (after ``fig:heat_recovery``).
 
     Bars at the base efficiency are opaque, bars at other efficiencies transparent and
-    drawn behind; a black tick over each bar group marks that run's weekly DHW demand
-    including the tank losses.
+    drawn behind; a black tick over each bar marks that run's weekly DHW demand including
+    the tank losses.
     """
     emss = ordered(list(dict.fromkeys(e for e, _ in variants)))
     etas = sorted({eta for _, eta in variants}, reverse=True)
     base = variants[(emss[0], base_eta)] if (emss[0], base_eta) in variants else next(iter(variants.values()))
     weeks = base.weekly["week"].to_numpy(int)
     width = 0.8 / len(emss)
-    fig, ax = plt.subplots(figsize=(11, 4.2))
+    fig, ax = plt.subplots(figsize=figsize("double", 72))
     for i, e in enumerate(emss):
         x = weeks - 0.4 + width * (i + 0.5)
         for eta in etas:
@@ -195,20 +234,29 @@ def heat_recovery(
             if run is None:
                 continue
             is_base = abs(eta - base_eta) < 1e-9
-            ax.bar(x, run.weekly["heat_recovered_kwh"], width=width * 0.95, color=colour(e),
-                   alpha=0.9 if is_base else 0.3, edgecolor=colour(e),
-                   label=f"{label(e)}, FC system efficiency {eta * PERCENT:.0f} %")
+            ax.bar(x, run.weekly["heat_recovered_kwh"], width=width * 0.92, color=colour(e),
+                   alpha=1.0 if is_base else OTHER_ETA_ALPHA, edgecolor=colour(e), linewidth=0.5)
         demand = variants.get((e, base_eta), next(r for (ee, _), r in variants.items() if ee == e))
-        ax.scatter(x, demand.weekly["dhw_demand_kwh"], marker="_", s=220, color="black", zorder=4,
-                   label="DHW demand incl. tank losses" if i == 0 else None)
+        ax.scatter(x, demand.weekly["dhw_demand_kwh"], marker="_", s=60, color="black", zorder=4, linewidths=1.2)
+    handles = [Patch(color=colour(e), label=label(e)) for e in emss]
+    for eta in etas:
+        is_base = abs(eta - base_eta) < 1e-9
+        handles.append(Patch(facecolor=style.GREY, alpha=1.0 if is_base else OTHER_ETA_ALPHA,
+                             label=f"{axis_label('eta_fc_sys')} = {eta * PERCENT:.0f} %"))
+    handles.append(Line2D([], [], color="black", marker="_", ls="none", markersize=9, markeredgewidth=1.2,
+                          label="DHW demand incl. tank losses"))
+    style.outside_legend(ax, handles, [h.get_label() for h in handles])
     ax.set_xticks(weeks)
+    ax.set_xlim(weeks[0] - 0.6, weeks[-1] + 0.6)
     ax.set_xlabel("week of the evaluation period")
-    ax.set_ylabel("heat [kWh/week]")
-    ax.set_title("Weekly heat recovered from the fuel cell against the DHW demand", fontsize=10)
-    ax.legend(fontsize=8, ncol=2, loc="upper left", bbox_to_anchor=(1.0, 1.0))
-    ax.grid(axis="y", alpha=0.3)
-    fig.tight_layout()
-    return _save(fig, path, tight_bbox=True)
+    ax.set_ylabel(f"recovered heat {axis_label('Q_fc_hr')} [kWh/week]")
+    ax.grid(axis="x", visible=False)
+    return fig
+
+
+def heat_recovery(variants: Mapping[tuple[str, float], RunData], path: Path, base_eta: float) -> Path:
+    """Write :func:`heat_recovery_figure`; returns the PNG path."""
+    return save_figure(heat_recovery_figure(variants, base_eta), path)
 
 
 def select_windows(ts: pd.DataFrame, tz: str, days: int = WINDOW_DAYS) -> dict[str, tuple[int, int]]:
@@ -237,97 +285,148 @@ def select_windows(ts: pd.DataFrame, tz: str, days: int = WINDOW_DAYS) -> dict[s
     return {"cold": (cold, cold + length), "sunny": (sunny, sunny + length)}
 
 
-def performance_comparison(
-    runs: Mapping[str, RunData], window: tuple[int, int], path: Path, tz: str, title: str, v_max_l: float
-) -> Path:
-    """``fig:performance_comparison``: a window of every EMS, one column per EMS.
+#: Fixed layout of the window figure [mm]: margins, gaps, the space for the twin axes'
+#: labels right of the last column and the legend column (no layout engine: fast and the
+#: same for every run).
+WINDOW_LAYOUT_MM = {"width": 190.0, "height": 225.0, "left": 14.0, "right": 1.0, "top": 7.0, "bottom": 11.0,
+                    "column_gap": 2.5, "row_gap": 2.5, "twin_labels": 11.5, "legend": 33.0}
+
+
+def _window_grid(fig: Figure, n: int) -> tuple[object, list[int], int]:
+    """Grid of the window figure: the grid spec, the grid columns of the EMS and of the legends."""
+    m = WINDOW_LAYOUT_MM
+    data_w = (m["width"] - m["left"] - m["right"] - m["column_gap"] * (n - 1) - m["twin_labels"] - m["legend"]) / n
+    ratios: list[float] = []
+    columns = []
+    for j in range(n):
+        columns.append(len(ratios))
+        ratios.append(data_w)
+        if j < n - 1:
+            ratios.append(m["column_gap"])
+    ratios += [m["twin_labels"], m["legend"]]
+    row_h = (m["height"] - m["top"] - m["bottom"] - 4 * m["row_gap"]) / 5
+    gs = fig.add_gridspec(5, len(ratios), width_ratios=ratios, wspace=0.0, hspace=m["row_gap"] / row_h,
+                          left=m["left"] / m["width"], right=1.0 - m["right"] / m["width"],
+                          top=1.0 - m["top"] / m["height"], bottom=m["bottom"] / m["height"])
+    return gs, columns, len(ratios) - 1
+
+
+def _step(ax: plt.Axes, t: np.ndarray, y: pd.Series | np.ndarray, **kwargs: object) -> None:
+    ax.step(t, y, where="post", **kwargs)
+
+
+@styled
+def performance_comparison_figure(
+    runs: Mapping[str, RunData], window: tuple[int, int], tz: str, v_max_l: float
+) -> Figure:
+    """A window of every EMS, one column per EMS (after ``fig:performance_comparison``).
 
     Rows: T_air with its bounds and V_DHW; PV and demand (appliances + HP); grid exchange
-    with the buy price; battery SOC and power; LOH and FC power.
+    with the buy price; battery SOC and power; LOH and FC power. Every row has one y scale
+    for all columns (shared axes); the legends of the rows are in a column of their own.
     """
     names = list(runs)
+    n = len(names)
     a, b = window
-    fig, axes = plt.subplots(5, len(names), figsize=(4.6 * len(names), 12), sharex="col", squeeze=False)
-    twins: list[list[plt.Axes]] = [[] for _ in range(5)]
+    m = WINDOW_LAYOUT_MM
+    fig = plt.figure(figsize=figsize(m["width"], m["height"]), layout="none")
+    gs, grid_columns, legend_column = _window_grid(fig, n)
+    axes: list[list[plt.Axes]] = [[] for _ in range(5)]
+    twins: list[list[plt.Axes | None]] = [[] for _ in range(5)]
     for j, e in enumerate(names):
         ts = runs[e].timeseries.iloc[a:b]
         t = _local_naive(ts["time"], tz)
-        c = colour(e)
-        ax = axes[0, j]
-        ax.plot(t, ts["t_air_c"], color=c, lw=1.6, label="T_air")
-        ax.step(t, ts["t_min_c"], where="post", color="grey", ls="--", lw=1, label="T_air,min, T_air,max")
-        ax.step(t, ts["t_max_c"], where="post", color="grey", ls="--", lw=1)
-        ax.set_ylabel("air temperature [°C]")
-        ax.set_title(label(e), color=c, fontsize=11, fontweight="bold")
-        axr = ax.twinx()
-        twins[0].append(axr)
-        axr.plot(t, PERCENT * ts["v_dhw_l"] / v_max_l, color="#17becf", lw=1, label="V_DHW")
-        axr.set_ylabel("DHW volume [% of V_max]")
-        axr.set_ylim(0, 105)
-        if j == 0:
-            h1, l1 = ax.get_legend_handles_labels()
-            h2, l2 = axr.get_legend_handles_labels()
-            ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="lower left")
-        ax = axes[1, j]
-        ax.fill_between(t, ts["p_pv_w"] / W_PER_KW, step="post", color="#f2b134", alpha=0.5, label="PV")
-        ax.step(t, (ts["p_load_w"] + ts["p_hp_el_w"]) / W_PER_KW, where="post", color="black", lw=1,
-                label="appliances + HP")
-        ax.step(t, ts["p_hp_el_w"] / W_PER_KW, where="post", color=c, lw=1, label="HP")
-        ax.set_ylabel("power [kW]")
-        if j == 0:
-            ax.legend(fontsize=7, loc="upper left")
-        ax = axes[2, j]
-        ax.step(t, ts["p_buy_w"] / W_PER_KW, where="post", color=c, lw=1.2, label="bought")
-        ax.step(t, -ts["p_sell_w"] / W_PER_KW, where="post", color="#ff7f0e", lw=1.2, label="sold (negative)")
-        ax.set_ylabel("grid power [kW]")
-        axr = ax.twinx()
-        twins[2].append(axr)
-        axr.step(t, ts["price_buy_eur_per_kwh"], where="post", color="grey", lw=0.9, ls=":", label="buy price")
-        axr.set_ylabel("buy price [EUR/kWh]")
-        if j == 0:
-            h1, l1 = ax.get_legend_handles_labels()
-            h2, l2 = axr.get_legend_handles_labels()
-            ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
-        ax = axes[3, j]
-        ax.plot(t, PERCENT * ts["soc"], color=c, lw=1.4, label="SOC")
-        ax.set_ylabel("battery SOC [%]")
+        col = []
+        for r in range(5):
+            ax = fig.add_subplot(gs[r, grid_columns[j]], sharex=col[0] if col else None,
+                                 sharey=axes[r][0] if j else None)
+            col.append(ax)
+            axes[r].append(ax)
+        ax = col[0]
+        ax.plot(t, ts["t_air_c"], color=SIGNAL_COLOURS["main"], lw=1.1, label=axis_label("t_air"))
+        _step(ax, t, ts["t_min_c"], color=SIGNAL_COLOURS["bound"], ls="--", lw=0.8,
+              label=f"{axis_label('t_air_min')}, {axis_label('t_air_max')}")
+        _step(ax, t, ts["t_max_c"], color=SIGNAL_COLOURS["bound"], ls="--", lw=0.8)
+        ax.set_title(label(e), color=colour(e), fontweight="bold")
+        twin = ax.twinx()
+        twin.plot(t, PERCENT * ts["v_dhw_l"] / v_max_l, color=SIGNAL_COLOURS["dhw"], lw=0.9,
+                  label=axis_label("v_dhw"))
+        twin.set_ylim(0, 105)
+        twins[0].append(twin)
+
+        ax = col[1]
+        ax.fill_between(t, ts["p_pv_w"] / W_PER_KW, step="post", color=SIGNAL_COLOURS["pv"], alpha=0.5, lw=0,
+                        label=axis_label("P_pv"))
+        _step(ax, t, (ts["p_load_w"] + ts["p_hp_el_w"]) / W_PER_KW, color=SIGNAL_COLOURS["main"], lw=0.9,
+              label=f"{axis_label('P_load')} + {axis_label('P_hp')}")
+        _step(ax, t, ts["p_hp_el_w"] / W_PER_KW, color=SIGNAL_COLOURS["hp"], lw=0.9, label=axis_label("P_hp"))
+        twins[1].append(None)
+
+        ax = col[2]
+        _step(ax, t, ts["p_buy_w"] / W_PER_KW, color=SIGNAL_COLOURS["main"], lw=0.9, label=axis_label("P_buy"))
+        _step(ax, t, -ts["p_sell_w"] / W_PER_KW, color=SIGNAL_COLOURS["sell"], lw=0.9,
+              label="$-$" + axis_label("P_sell"))
+        twin = ax.twinx()
+        _step(twin, t, ts["price_buy_eur_per_kwh"], color=SIGNAL_COLOURS["price"], lw=0.9, ls=":",
+              label=axis_label("p_buy"))
+        twins[2].append(twin)
+
+        ax = col[3]
+        ax.plot(t, PERCENT * ts["soc"], color=SIGNAL_COLOURS["main"], lw=1.1, label=axis_label("soc"))
         ax.set_ylim(0, 100)
-        axr = ax.twinx()
-        twins[3].append(axr)
-        axr.step(t, (ts["p_ch_w"] - ts["p_dis_w"]) / W_PER_KW, where="post", color="#8c564b", lw=0.9,
-                 label="BESS power (+ charge)")
-        axr.set_ylabel("BESS power [kW]")
-        if j == 0:
-            h1, l1 = ax.get_legend_handles_labels()
-            h2, l2 = axr.get_legend_handles_labels()
-            ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
-        ax = axes[4, j]
-        ax.plot(t, PERCENT * ts["loh"], color=c, lw=1.4, label="LOH")
-        ax.set_ylabel("LOH [%]")
+        twin = ax.twinx()
+        _step(twin, t, (ts["p_ch_w"] - ts["p_dis_w"]) / W_PER_KW, color=SIGNAL_COLOURS["battery"], lw=0.8,
+              label=f"{axis_label('P_b')} (charging > 0)")
+        twins[3].append(twin)
+
+        ax = col[4]
+        ax.plot(t, PERCENT * ts["loh"], color=SIGNAL_COLOURS["main"], lw=1.1, label=axis_label("loh"))
         ax.set_ylim(0, 100)
-        axr = ax.twinx()
-        twins[4].append(axr)
-        axr.step(t, ts["p_fc_w"] / W_PER_KW, where="post", color="#9467bd", lw=0.9, label="FC power")
-        axr.set_ylabel("FC power [kW]")
-        if j == 0:
-            h1, l1 = ax.get_legend_handles_labels()
-            h2, l2 = axr.get_legend_handles_labels()
-            ax.legend(h1 + h2, l1 + l2, fontsize=7, loc="upper left")
-        ax.set_xlabel(f"local time ({tz})")
-        ax.xaxis.set_major_locator(mdates.HourLocator(byhour=(0, 12)))
-        ax.xaxis.set_major_formatter(mdates.DateFormatter("%d.%m. %H:%M"))
-        for row in axes[:, j]:
-            row.grid(alpha=0.3)
-    for row in [list(axes[i, :]) for i in range(5)] + twins:  # same scale in every column
-        if len(row) > 1:
-            lo = min(ax.get_ylim()[0] for ax in row)
-            hi = max(ax.get_ylim()[1] for ax in row)
-            for ax in row:
-                ax.set_ylim(lo, hi)
-    fig.suptitle(title, fontsize=12)
-    fig.autofmt_xdate()
-    fig.tight_layout()
-    return _save(fig, path)
+        twin = ax.twinx()
+        _step(twin, t, ts["p_fc_w"] / W_PER_KW, color=SIGNAL_COLOURS["fc"], lw=0.8, label=axis_label("P_fc"))
+        twins[4].append(twin)
+        days = (b - a) / 24.0
+        col[4].set_xlim(t[0], t[-1] + np.timedelta64(1, "h"))
+        _date_axis(col[4], days)
+        for r, ax in enumerate(col):
+            if r < 4:
+                ax.tick_params(axis="x", which="both", labelbottom=False)
+            if j:
+                ax.tick_params(axis="y", which="both", labelleft=False)
+    labels = (
+        (axis_label("t_air", "degC"), f"{axis_label('v_dhw')} [% of {axis_label('v_dhw_max')}]"),
+        ("power [kW]", None),
+        ("grid power [kW]", axis_label("p_buy", "EUR_kWh")),
+        (axis_label("soc", "%"), axis_label("P_b", "kW")),
+        (axis_label("loh", "%"), axis_label("P_fc", "kW")),
+    )
+    for r, (left, right) in enumerate(labels):
+        axes[r][0].set_ylabel(left)
+        row_twins = [tw for tw in twins[r] if tw is not None]
+        for k, tw in enumerate(row_twins):
+            style.no_twin_grid(tw)
+            if k:
+                tw.sharey(row_twins[0])
+            if k < len(row_twins) - 1:
+                tw.tick_params(labelright=False)
+        if row_twins and right:
+            row_twins[-1].set_ylabel(right)
+        handles, texts = axes[r][0].get_legend_handles_labels()
+        if row_twins:
+            h2, t2 = row_twins[0].get_legend_handles_labels()
+            handles, texts = handles + h2, texts + t2
+        lax = fig.add_subplot(gs[r, legend_column])
+        lax.axis("off")
+        lax.legend(handles, texts, loc="center left", borderaxespad=0.0, handlelength=1.6)
+    fig.supxlabel(f"local time ({tz})", fontsize=8, y=0.004, va="bottom")
+    return fig
+
+
+def performance_comparison(
+    runs: Mapping[str, RunData], window: tuple[int, int], path: Path, tz: str, v_max_l: float
+) -> Path:
+    """Write :func:`performance_comparison_figure`; returns the PNG path."""
+    return save_figure(performance_comparison_figure(runs, window, tz, v_max_l), path)
 
 
 #: Paper's column groups of tab:level_of_information -> observation fields that carry them.
@@ -346,19 +445,24 @@ INFO_COLUMNS: tuple[tuple[str, tuple[str, ...]], ...] = (
 )
 
 
-#: Two-line column headers of the table figure (same order as :data:`INFO_COLUMNS`).
+#: Column headers of the table figure (same order as :data:`INFO_COLUMNS`), mathtext symbols.
 FIGURE_HEADERS = (
-    "forecasts\n(models, profiles)", "future temp.\nbounds", "24 h-ahead\ntariffs", "T_amb", "solar\nradiation",
-    "T_air", "V_DHW", "SOC", "LOH", "permissible\nH2 (dLOH)", "FC previous\non/off",
+    "forecasts\n(models,\nprofiles)", "comfort\nbounds\n5 h ahead", "24 h-ahead\ntariffs", axis_label("t_amb"),
+    axis_label("q_s"), axis_label("t_air"), axis_label("v_dhw"), axis_label("soc"), axis_label("loh"),
+    "daily\npermissible\n" + axis_label("dloh"), "FC on/off\nat $k-1$",
 )
+#: Share of the table width of the first column [-].
+TABLE_FIRST_COLUMN = 0.17
+#: Height of the header row over a body row [-].
+TABLE_HEADER_ROWS = 3.2
 
 
 def level_of_information_rows(levels: Mapping[str, str]) -> tuple[list[str], list[list[str]]]:
-    """Header and rows of ``tab:level_of_information`` from :data:`INFO_LEVELS`.
+    """Header and rows of the paper's table of inputs per EMS (``tab:level_of_information``).
 
     Parameters
     ----------
-    levels : EMS name -> its information level
+    levels : EMS name -> its information level (:data:`~comems4build_ros.ems.base.INFO_LEVELS`)
     """
     header = ["EMS (level)", *(c for c, _ in INFO_COLUMNS)]
     rows = []
@@ -369,62 +473,113 @@ def level_of_information_rows(levels: Mapping[str, str]) -> tuple[list[str], lis
     return header, rows
 
 
-def level_of_information(levels: Mapping[str, str], path: Path) -> Path:
-    """``tab:level_of_information`` drawn as a table figure."""
-    header, rows = level_of_information_rows(levels)
-    fig, ax = plt.subplots(figsize=(14, 0.9 + 0.5 * (len(rows) + 1)))
+@styled
+def level_of_information_figure(levels: Mapping[str, str]) -> Figure:
+    """The inputs each EMS may use, as a table figure (after ``tab:level_of_information``)."""
+    _, rows = level_of_information_rows(levels)
+    fig, ax = plt.subplots(figsize=figsize("double", 16 + 6.5 * len(rows)))
     ax.axis("off")
     cells = [[("\u2713" if v == "yes" else "") if i else v for i, v in enumerate(r)] for r in rows]
     short = ["EMS\n(information level)", *FIGURE_HEADERS]
-    widths = [0.16, *([0.84 / len(FIGURE_HEADERS)] * len(FIGURE_HEADERS))]
-    table = ax.table(cellText=cells, colLabels=short, colWidths=widths, loc="center", cellLoc="center")
+    rest = (1.0 - TABLE_FIRST_COLUMN) / len(FIGURE_HEADERS)
+    table = ax.table(cellText=cells, colLabels=short, colWidths=[TABLE_FIRST_COLUMN, *([rest] * len(FIGURE_HEADERS))],
+                     cellLoc="center", bbox=[0.0, 0.0, 1.0, 1.0])
     table.auto_set_font_size(False)
-    table.set_fontsize(8)
-    table.scale(1, 2.6)
+    table.set_fontsize(7)
     for (r, _c), cell in table.get_celld().items():
+        cell.set_linewidth(0.5)
+        cell.set_height(TABLE_HEADER_ROWS if r == 0 else 1.0)
         if r == 0:
-            cell.set_facecolor("#dddddd")
+            cell.set_facecolor("#E8E8E8")
     for i, ems in enumerate(levels, start=1):
         table[i, 0].get_text().set_color(colour(ems))
         table[i, 0].get_text().set_fontweight("bold")
-    ax.set_title("Inputs each EMS may use (tab:level_of_information, enforced by the observation)", fontsize=10)
-    return _save(fig, path, tight_bbox=True)
+    return fig
 
 
-def all_figures(
-    runs: Mapping[str, RunData],
-    variants: Mapping[tuple[str, float], RunData],
-    levels: Mapping[str, str],
-    out_dir: Path,
-    tz: str,
-    base_eta: float,
-    v_max_l: float,
-) -> dict[str, Path]:
-    """Every figure of the report; returns figure key -> PNG path."""
-    first = next(iter(runs.values()))
-    windows = select_windows(first.timeseries, tz)
-    t = first.timeseries["time"].dt.tz_convert(tz)
+def level_of_information(levels: Mapping[str, str], path: Path) -> Path:
+    """Write :func:`level_of_information_figure`; returns the PNG path."""
+    return save_figure(level_of_information_figure(levels), path)
 
-    def span(key: str) -> str:
-        a, b = windows[key]
-        return f"{t.iloc[a]:%Y-%m-%d %H:%M} to {t.iloc[b - 1] + pd.Timedelta(hours=1):%Y-%m-%d %H:%M}"
 
-    out = {
-        "quality_indicators_occupants": quality_indicators(runs, out_dir / "quality_indicators_occupants.png"),
-        "HESS_usage": hess_usage(runs, out_dir / "HESS_usage.png"),
-        "working_hours_FC": working_hours_fc(runs, out_dir / "working_hours_FC.png"),
-        "hydrogen_timeseries": hydrogen_timeseries(runs, out_dir / "hydrogen_timeseries.png", tz),
-        "grid_usage": grid_usage(runs, out_dir / "grid_usage.png"),
-        "heat_recovery": heat_recovery(variants, out_dir / "heat_recovery.png", base_eta),
-        "performance_comparison": performance_comparison(
-            runs, windows["cold"], out_dir / "performance_comparison.png", tz,
-            f"Cold, high-price window: {span('cold')}", v_max_l),
-        "performance_comparison_highSolar": performance_comparison(
-            runs, windows["sunny"], out_dir / "performance_comparison_highSolar.png", tz,
-            f"Sunny window: {span('sunny')}", v_max_l),
-        "level_of_information": level_of_information(levels, out_dir / "level_of_information.png"),
-    }
-    return out
+@dataclass
+class FigureInputs:
+    """What the figures of a report are drawn from.
+
+    Attributes
+    ----------
+    runs : EMS name -> run at the base FC system efficiency (in display order)
+    variants : (EMS name, eta_sys) -> run, every efficiency
+    levels : EMS name -> information level
+    tz : local time zone of the site
+    base_eta : FC system efficiency of the base runs [-]
+    v_max_l : DHW tank volume [l]
+    """
+
+    runs: Mapping[str, RunData]
+    variants: Mapping[tuple[str, float], RunData]
+    levels: Mapping[str, str]
+    tz: str
+    base_eta: float
+    v_max_l: float
+
+    def window(self, kind: str) -> tuple[int, int]:
+        """Step range of the ``cold`` or ``sunny`` window (:func:`select_windows`)."""
+        return select_windows(next(iter(self.runs.values())).timeseries, self.tz)[kind]
+
+
+#: Figure key (file stem) -> builder; the report shows them in this order.
+FIGURES: dict[str, Callable[[FigureInputs], Figure]] = {
+    "quality_indicators_occupants": lambda f: quality_indicators_figure(f.runs),
+    "HESS_usage": lambda f: hess_usage_figure(f.runs),
+    "working_hours_FC": lambda f: working_hours_fc_figure(f.runs),
+    "hydrogen_timeseries": lambda f: hydrogen_timeseries_figure(f.runs, f.tz),
+    "grid_usage": lambda f: grid_usage_figure(f.runs),
+    "heat_recovery": lambda f: heat_recovery_figure(f.variants, f.base_eta),
+    "performance_comparison": lambda f: performance_comparison_figure(f.runs, f.window("cold"), f.tz, f.v_max_l),
+    "performance_comparison_highSolar": lambda f: performance_comparison_figure(
+        f.runs, f.window("sunny"), f.tz, f.v_max_l),
+    "level_of_information": lambda f: level_of_information_figure(f.levels),
+}
+#: Figures that take longest to draw (started first when drawing in parallel).
+SLOW_FIGURES = ("performance_comparison", "performance_comparison_highSolar", "hydrogen_timeseries")
+
+
+def iter_figures(inputs: FigureInputs) -> Iterator[tuple[str, Figure]]:
+    """Every figure of the report as ``(key, figure)``, built one at a time (close each after use)."""
+    for key, build in FIGURES.items():
+        yield key, build(inputs)
+
+
+#: Inputs of the figures being written by forked worker processes (set only while they run).
+_FORKED: tuple[FigureInputs, Path] | None = None
+
+
+def _write_forked(key: str) -> Path:
+    assert _FORKED is not None
+    inputs, out_dir = _FORKED
+    return save_figure(FIGURES[key](inputs), out_dir / key)
+
+
+def all_figures(inputs: FigureInputs, out_dir: Path, jobs: int | None = None) -> dict[str, Path]:
+    """Write every figure as ``<key>.pdf/.svg/.png`` into ``out_dir``; returns key -> PNG path.
+
+    The figures are drawn in up to ``jobs`` (default: CPU count) forked processes, which
+    inherit the inputs instead of receiving a copy; one job (or no ``fork``) draws them here.
+    """
+    global _FORKED
+    out_dir = Path(out_dir)
+    workers = min(jobs or os.cpu_count() or 1, len(FIGURES))
+    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+        return {key: save_figure(fig, out_dir / key) for key, fig in iter_figures(inputs)}
+    order = [*SLOW_FIGURES, *(k for k in FIGURES if k not in SLOW_FIGURES)]
+    _FORKED = (inputs, out_dir)
+    try:
+        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
+            written = dict(zip(order, pool.map(_write_forked, order)))
+    finally:
+        _FORKED = None
+    return {key: written[key] for key in FIGURES}
 
 
 def window_spans(runs: Mapping[str, RunData], tz: str) -> dict[str, tuple[str, str]]:

@@ -21,7 +21,8 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from . import figures  # noqa: E402
+from . import style  # noqa: E402
+from .style import figsize, save_figure, styled  # noqa: E402
 
 #: KPIs tabulated and plotted by default: (summary.json key, axis label with unit).
 SWEEP_KPIS: tuple[tuple[str, str], ...] = (
@@ -32,13 +33,57 @@ SWEEP_KPIS: tuple[tuple[str, str], ...] = (
     ("buy_kwh_week_median", "bought, weekly median [kWh/week]"),
     ("sell_kwh_week_median", "sold, weekly median [kWh/week]"),
     ("bess_charged_kwh_week_median", "BESS charged, weekly median [kWh/week]"),
-    ("h2_kwh_total", "H2 consumed, total [kWh]"),
-    ("loh_end", "LOH at the end [-]"),
+    ("h2_kwh_total", r"$\mathrm{H_2}$ consumed, LHV, total [kWh]"),
+    ("loh_end", r"$\mathit{LOH}$ at the end [–]"),
     ("fc_working_hours", "FC working hours [h]"),
-    ("fc_toggles", "FC start-ups [-]"),
-    ("heat_recovered_kwh_total", "FC heat recovered, total [kWh]"),
+    ("fc_toggles", "FC start-ups [–]"),
+    ("heat_recovered_kwh_total", r"recovered FC heat $\dot{Q}_\mathrm{FC,hr}$, total [kWh]"),
     ("dhw_unmet_kwh", "unmet DHW [kWh]"),
 )
+
+#: Axis labels of common sweep parameters (dotted path of ``config/plant.yaml`` -> label with unit).
+PARAM_LABELS: dict[str, str] = {
+    "battery.e_max_kwh": r"battery capacity $E_\mathrm{B,max}$ [kWh]",
+    "battery.p_ch_max_w": r"battery charging power $P_\mathrm{B,ch,max}$ [W]",
+    "battery.p_d_max_w": r"battery discharging power $P_\mathrm{B,d,max}$ [W]",
+    "hydrogen.e_max_kwh": r"$\mathrm{H_2}$ store, LHV [kWh]",
+    "fuel_cell.eta_sys": r"FC system efficiency $\eta_\mathrm{sys,FC}$ [–]",
+    "fuel_cell.p_max_w": r"FC maximal power $P_\mathrm{FC,max}$ [W]",
+    "fuel_cell.zeta": r"FC security factor $\zeta$ [–]",
+    "pv.n_modules": r"PV modules $N_\mathrm{PV}$ [–]",
+    "dhw.v_max_l": r"DHW tank $V_\mathrm{DHW,max}$ [l]",
+    "grid.surcharge_eur_per_kwh": "tariff surcharge [EUR/kWh]",
+    "grid.price_sell_eur_per_kwh": r"sell price $p_\mathrm{sell}$ [EUR/kWh]",
+    "heat_pump.p_el_max_w": r"HP maximal power $P_\mathrm{el,HP,max}$ [W]",
+}
+#: Unit suffixes of parameter names -> unit as printed (longest first).
+UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (
+    ("_eur_per_kwh", "EUR/kWh"), ("_eur_per_h", "EUR/h"), ("_k_per_w", "K/W"), ("_j_per_k", "J/K"),
+    ("_w_m2", r"W/m$^2$"), ("_kwh", "kWh"), ("_eur", "EUR"), ("_deg", "°"), ("_w", "W"), ("_l", "l"),
+    ("_c", "°C"), ("_h", "h"), ("_m2", r"m$^2$"),
+)
+
+
+def param_label(path: str) -> str:
+    """Axis label of a swept parameter: :data:`PARAM_LABELS`, else its words and the unit of its suffix."""
+    if path in PARAM_LABELS:
+        return PARAM_LABELS[path]
+    section, _, key = path.partition(".")
+    unit = "–"
+    for suffix, printed in UNIT_SUFFIXES:
+        if key.endswith(suffix):
+            key, unit = key[: -len(suffix)], printed
+            break
+    return f"{section.replace('_', ' ')}: {key.replace('_', ' ')} [{unit}]"
+
+
+def _value_text(path: str, value: Any) -> str:
+    """``label = value unit`` for legends (symbol only when the label has one)."""
+    lab = param_label(path)
+    name, _, unit = lab.rpartition(" [")
+    unit = unit.rstrip("]")
+    unit = "" if unit in ("–", "-") else f" {unit}"
+    return f"{name} = {value}{unit}"
 
 
 @dataclass
@@ -114,11 +159,12 @@ def markdown_table(df: pd.DataFrame, digits: int = 3) -> str:
     return "\n".join(lines) + "\n"
 
 
-def plot_kpi(df: pd.DataFrame, params: Sequence[str], kpi: str, ylabel: str, path: Path) -> Path:
+@styled
+def kpi_figure(df: pd.DataFrame, params: Sequence[str], kpi: str, ylabel: str) -> plt.Figure:
     """KPI over the first swept parameter; one line per EMS and combination of the others."""
     x = params[0]
     rest = list(params[1:])
-    fig, ax = plt.subplots(figsize=(6.5, 4))
+    fig, ax = plt.subplots(figsize=figsize("one-and-half", 70))
     styles = ["-", "--", ":", "-."]
     markers = ["o", "s", "^", "D", "v"]
     for ems, sub in df.groupby("ems", sort=False):
@@ -126,16 +172,16 @@ def plot_kpi(df: pd.DataFrame, params: Sequence[str], kpi: str, ylabel: str, pat
         for i, (key, g) in enumerate(groups):
             key = key if isinstance(key, tuple) else (key,)
             g = g.sort_values(x)
-            lab = figures.label(str(ems)) + "".join(f", {k}={v}" for k, v in zip(rest, key))
-            ax.plot(g[x], g[kpi], color=figures.colour(str(ems)), ls=styles[i % len(styles)],
+            lab = style.ems_label(str(ems)) + "".join(f", {_value_text(k, v)}" for k, v in zip(rest, key))
+            ax.plot(g[x], g[kpi], color=style.ems_colour(str(ems)), ls=styles[i % len(styles)],
                     marker=markers[i % len(markers)], label=lab)
-    ax.set_xlabel(x)
+    ax.set_xlabel(param_label(x))
     ax.set_ylabel(ylabel)
-    ax.grid(alpha=0.3)
-    ax.legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0))
-    ax.set_title(f"{kpi} over {x}", fontsize=10)
-    fig.tight_layout()
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=figures.DPI, bbox_inches="tight")
-    plt.close(fig)
-    return path
+    n = len(ax.get_legend_handles_labels()[0])
+    style.outside_legend(ax, ncol=n if n <= 3 and not rest else 2)
+    return fig
+
+
+def plot_kpi(df: pd.DataFrame, params: Sequence[str], kpi: str, ylabel: str, path: Path) -> Path:
+    """Write :func:`kpi_figure` as PDF, SVG and 300 dpi PNG (``path`` without or with suffix); returns the PNG."""
+    return save_figure(kpi_figure(df, params, kpi, ylabel), path)
