@@ -1,6 +1,6 @@
 """Speed of the ROS 2 node set: step round trip, 12-week fuzzy run, throughput with N buildings.
 
-``comems4build bench ros`` prints, in one run (issue "distributed system", section 5):
+``comems4build bench ros`` prints, in one run:
 
 1. the 12-week fuzzy run over ROS (``comems4build launch``: plant_sim, feed, fuzzy_ems
    and the recorder as separate processes over Fast DDS) next to the same run

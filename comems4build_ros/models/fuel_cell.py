@@ -3,7 +3,8 @@
 The paper writes the molar hydrogen flow as a function of the electrical output,
 ``n_FC = f(P_el,FC)`` (``eq:molar_flows``), and the electrical efficiency from it with
 Faraday's law and the lower heating value (``eq:efficiency_FC``). Here ``f`` comes from a
-cell polarization curve (FACTS: Horizon H-2000 stack, 48 cells, 2000 W at 28.8 V / 70 A):
+cell polarization curve (Horizon H-2000 PEM stack datasheet: 48 cells, 2000 W at about
+28.8 V / 70 A, about 26 l/min H2 at full power):
 
     V_cell(i) = E_ocv - A * ln(1 + i / i_T) - R_ohm * i                  [V]
     P_el(i)   = N_cells * V_cell(i) * i                                   [W]
@@ -30,7 +31,8 @@ from comems4build_ros.config import FuelCellParams
 
 #: Faraday constant [C/mol] (CODATA 2018, exact).
 FARADAY_C_PER_MOL = 96485.33212
-#: Lower heating value of hydrogen [J/mol] (FACTS: 241.8 kJ/mol).
+#: Lower heating value of hydrogen [J/mol]: the enthalpy of formation of water vapour, 241.8 kJ/mol
+#: (NIST Chemistry WebBook).
 LHV_H2_J_PER_MOL = 241.8e3
 #: Electrons transferred per H2 molecule.
 ELECTRONS_PER_H2 = 2
@@ -212,7 +214,7 @@ def efficiency_summary(fc: FuelCellParams) -> dict[str, float]:
         "p_max": fc.p_max_w,
     }
     out = {f"eta_el_{k}": operating_point(v, fc)[1] for k, v in points.items()}
-    i_ds = 70.0  # FACTS: H-2000 datasheet point, 70 A
+    i_ds = 70.0  # Horizon H-2000 datasheet point, 70 A
     out["eta_el_datasheet_70a"] = float(cell_voltage_v(i_ds, fc)) / V_LHV_V
     grid = np.linspace(fc.p_min_w, fc.zeta * fc.p_max_w, 201)
     out["eta_el_mean_operating_range"] = float(np.mean(operating_point(grid, fc)[1]))

@@ -1,10 +1,11 @@
 """The paper's qualitative findings, each checked by a small function over the runs.
 
-Sources: ``shared/FACTS.md`` ("Qualitative findings"), the paper's ``sec:results`` and
-``sec:discussion``, and the findings the EMS issues ask the default run to show (fuzzy/RBC
-issue section 4, MPC issue section 3). Every function computes its verdict from the run
-summaries, weekly tables and timeseries; nothing is hard-coded. A finding whose EMS were not
-run is reported as ``n/a``.
+Sources: the paper's ``sec:results`` (its parts on the time series comparison, the
+occupant-oriented metrics, the HESS utilization and the grid utilization),
+``sec:heat_recovery`` and ``sec:discussion``; each finding names the part it is stated in,
+and numbers quoted in a claim are the paper's. Every function computes its verdict from the
+run summaries, weekly tables and timeseries; nothing is hard-coded. A finding whose EMS
+were not run is reported as ``n/a``.
 
 Thresholds used by the checks (named constants below): a week "without discomfort" has
 at most :data:`~comems4build_ros.kpi.DISCOMFORT_TOL_KH`; H2 "left" means more than
@@ -142,7 +143,8 @@ def _med_tot(vals: dict[str, tuple[float, float]], unit: str) -> str:
 # ---------------------------------------------------------------- occupants (comfort, cost)
 
 
-@finding("fuzzy_discomfort_free", "issue 3 §4; paper sec:results", "ComEMS4Build: no discomfort in at "
+@finding("fuzzy_discomfort_free", "paper sec:results (occupant-oriented metrics), sec:discussion",
+         "ComEMS4Build: no discomfort in at "
          "least 10 of 12 weeks (scaled to the run length)", ("fuzzy",))
 def _fuzzy_discomfort_free(ctx: Context) -> Verdict:
     w = ctx.runs["fuzzy"].weekly
@@ -154,7 +156,7 @@ def _fuzzy_discomfort_free(ctx: Context) -> Verdict:
               + (f"; {', '.join(bad)}" if bad else ""))
 
 
-@finding("rbc_largest_discomfort", "issue 3 §4; paper sec:results", "RBC has the largest median weekly "
+@finding("rbc_largest_discomfort", "paper sec:results (occupant-oriented metrics)", "RBC has the largest median weekly "
          "discomfort (larger than ComEMS4Build's)", ("rbc", "fuzzy"))
 def _rbc_largest_discomfort(ctx: Context) -> Verdict:
     m = {e: ctx.s(e, "discomfort_kh_week_median") for e in ctx.runs}
@@ -162,28 +164,31 @@ def _rbc_largest_discomfort(ctx: Context) -> Verdict:
     return _v(ok, "median " + _listing(ctx, "discomfort_kh_week_median", "Kh/week"))
 
 
-@finding("fuzzy_cheaper_than_rbc", "issue 3 §4; FACTS table", "weekly cost median lower for ComEMS4Build "
+@finding("fuzzy_cheaper_than_rbc", "paper sec:results (occupant-oriented metrics)",
+         "weekly cost median lower for ComEMS4Build "
          "than for RBC", ("rbc", "fuzzy"))
 def _fuzzy_cheaper(ctx: Context) -> Verdict:
     ok = ctx.s("fuzzy", "cost_eur_week_median") < ctx.s("rbc", "cost_eur_week_median")
     return _v(ok, "median " + _listing(ctx, "cost_eur_week_median", "EUR/week"))
 
 
-@finding("fuzzy_buys_less_than_rbc", "issue 3 §4; FACTS table", "purchased energy median lower for "
+@finding("fuzzy_buys_less_than_rbc", "paper sec:results (grid utilization)", "purchased energy median lower for "
          "ComEMS4Build than for RBC", ("rbc", "fuzzy"))
 def _fuzzy_buys_less(ctx: Context) -> Verdict:
     ok = ctx.s("fuzzy", "buy_kwh_week_median") < ctx.s("rbc", "buy_kwh_week_median")
     return _v(ok, "median " + _listing(ctx, "buy_kwh_week_median", "kWh/week"))
 
 
-@finding("mpc_cheapest", "issue 4 §3; FACTS table", "MPC has the lowest weekly cost median", ("mpc",))
+@finding("mpc_cheapest", "paper sec:results (occupant-oriented metrics)",
+         "MPC has the lowest weekly cost median", ("mpc",))
 def _mpc_cheapest(ctx: Context) -> Verdict:
     m = {e: ctx.s(e, "cost_eur_week_median") for e in ctx.runs}
     ok = all(m["mpc"] < v for e, v in m.items() if e != "mpc") and len(m) > 1
     return _v(ok, "median " + _listing(ctx, "cost_eur_week_median", "EUR/week"))
 
 
-@finding("mpc_no_discomfort", "issue 4 §3; paper sec:results", "MPC: zero discomfort in every week (or a "
+@finding("mpc_no_discomfort", "paper sec:results (occupant-oriented metrics)",
+         "MPC: zero discomfort in every week (or a "
          "comfort slack reported in every step with discomfort)", ("mpc",))
 def _mpc_no_discomfort(ctx: Context) -> Verdict:
     run = ctx.runs["mpc"]
@@ -198,7 +203,8 @@ def _mpc_no_discomfort(ctx: Context) -> Verdict:
               f"band, {int(slack.sum())} steps with slack reported, {uncovered} outside the band without slack")
 
 
-@finding("rbc_hysteresis", "FACTS; paper sec:results", "RBC heats as a hysteresis between T_air,min and "
+@finding("rbc_hysteresis", "paper sec:results (time series comparison), sec:discussion",
+         "RBC heats as a hysteresis between T_air,min and "
          "T_air,max (more full swings per week than the other EMS)", ("rbc",))
 def _rbc_hysteresis(ctx: Context) -> Verdict:
     swings = {e: hysteresis_swings_per_week(r.timeseries) for e, r in ctx.runs.items()}
@@ -228,7 +234,8 @@ def hysteresis_swings_per_week(ts: pd.DataFrame) -> float:
     return count / (len(t) / HOURS_PER_WEEK)
 
 
-@finding("mpc_at_lower_bound", "paper sec:results", "MPC keeps T_air closest to T_air,min (smallest mean "
+@finding("mpc_at_lower_bound", "paper sec:results (time series comparison)",
+         "MPC keeps T_air closest to T_air,min (smallest mean "
          "excess over the lower bound)", ("mpc",))
 def _mpc_at_lower_bound(ctx: Context) -> Verdict:
     ex = {e: float((r.timeseries["t_air_c"] - r.timeseries["t_min_c"]).mean()) for e, r in ctx.runs.items()}
@@ -252,7 +259,8 @@ def heat_shift_ratio(ts: pd.DataFrame, tz: str) -> float:
     return float(sh[fav].mean() / rest) if rest and rest > 0 else float("nan")
 
 
-@finding("fuzzy_stores_heat", "FACTS; paper sec:discussion", "ComEMS4Build stores heat in the building mass "
+@finding("fuzzy_stores_heat", "paper sec:results (time series comparison), sec:discussion",
+         "ComEMS4Build stores heat in the building mass "
          "when prices are low or PV is high (more SH heat in those hours than in the others, more so than RBC)",
          ("fuzzy", "rbc"))
 def _fuzzy_stores_heat(ctx: Context) -> Verdict:
@@ -271,35 +279,35 @@ def _sells(vals: dict[str, tuple[float, float]], a: str, b: str) -> bool:
     return vals[a] > vals[b]
 
 
-@finding("rbc_sells_more_than_fuzzy", "issue 3 §4; FACTS table", "RBC sells more energy than ComEMS4Build "
+@finding("rbc_sells_more_than_fuzzy", "paper sec:results (grid utilization)", "RBC sells more energy than ComEMS4Build "
          "(weekly median; equal medians compared by total)", ("rbc", "fuzzy"))
 def _rbc_sells_more(ctx: Context) -> Verdict:
     vals = _ordered(ctx, "sell_kwh")
     return _v(_sells(vals, "rbc", "fuzzy"), _med_tot(vals, "kWh"))
 
 
-@finding("rbc_sells_most", "FACTS; paper sec:discussion", "RBC sells the most energy of all EMS", ("rbc",))
+@finding("rbc_sells_most", "paper sec:discussion", "RBC sells the most energy of all EMS", ("rbc",))
 def _rbc_sells_most(ctx: Context) -> Verdict:
     vals = _ordered(ctx, "sell_kwh")
     ok = len(vals) > 1 and all(_sells(vals, "rbc", e) for e in vals if e != "rbc")
     return _v(ok, _med_tot(vals, "kWh"))
 
 
-@finding("mpc_sells_least", "issue 4 §3; FACTS table", "MPC sells the least energy", ("mpc",))
+@finding("mpc_sells_least", "paper sec:results (grid utilization)", "MPC sells the least energy", ("mpc",))
 def _mpc_sells_least(ctx: Context) -> Verdict:
     vals = _ordered(ctx, "sell_kwh")
     ok = len(vals) > 1 and all(_sells(vals, e, "mpc") for e in vals if e != "mpc")
     return _v(ok, _med_tot(vals, "kWh"))
 
 
-@finding("rbc_charges_more", "issue 3 §4; FACTS table", "RBC charges the battery more than ComEMS4Build",
+@finding("rbc_charges_more", "paper sec:results (HESS utilization)", "RBC charges the battery more than ComEMS4Build",
          ("rbc", "fuzzy"))
 def _rbc_charges_more(ctx: Context) -> Verdict:
     ok = ctx.s("rbc", "bess_charged_kwh_week_median") > ctx.s("fuzzy", "bess_charged_kwh_week_median")
     return _v(ok, "median " + _listing(ctx, "bess_charged_kwh_week_median", "kWh/week"))
 
 
-@finding("fuzzy_bess_like_mpc", "paper sec:results (fig:HESS_usage)", "ComEMS4Build's weekly BESS charging is "
+@finding("fuzzy_bess_like_mpc", "paper sec:results (HESS utilization)", "ComEMS4Build's weekly BESS charging is "
          "closer to the MPC's than to the RBC's", ("fuzzy", "mpc", "rbc"))
 def _fuzzy_bess_like_mpc(ctx: Context) -> Verdict:
     m = {e: ctx.s(e, "bess_charged_kwh_week_median") for e in ctx.runs}
@@ -310,7 +318,8 @@ def _fuzzy_bess_like_mpc(ctx: Context) -> Verdict:
 # ---------------------------------------------------------------- hydrogen
 
 
-@finding("rbc_empties_early", "issue 3 §4; FACTS table", "RBC reaches LOH_min at least a week before the "
+@finding("rbc_empties_early", "paper sec:results (time series comparison), sec:heat_recovery",
+         "RBC reaches LOH_min at least a week before the "
          "end", ("rbc",))
 def _rbc_empties_early(ctx: Context) -> Verdict:
     days = h2_empty_days_before_end(ctx.runs["rbc"], ctx.params.hydrogen.loh_min)
@@ -326,7 +335,7 @@ def _empty_text(ctx: Context, ems: str, days: float | None) -> str:
             f"exactly LOH_min reached at {exact or 'never'}")
 
 
-@finding("fuzzy_h2_left", "issue 3 §4; FACTS table", "ComEMS4Build ends with H2 left", ("fuzzy",))
+@finding("fuzzy_h2_left", "paper sec:results (HESS utilization)", "ComEMS4Build ends with H2 left", ("fuzzy",))
 def _fuzzy_h2_left(ctx: Context) -> Verdict:
     loh_min = ctx.params.hydrogen.loh_min
     end = ctx.s("fuzzy", "loh_end")
@@ -334,7 +343,7 @@ def _fuzzy_h2_left(ctx: Context) -> Verdict:
         f"{e} {_f(100 * ctx.s(e, 'loh_end'), 1)} %" for e in ctx.runs) + f" (LOH_min {_f(100 * loh_min, 1)} %)")
 
 
-@finding("fuzzy_most_h2_left", "FACTS table; paper sec:results", "ComEMS4Build ends with the most H2 left",
+@finding("fuzzy_most_h2_left", "paper sec:results (HESS utilization)", "ComEMS4Build ends with the most H2 left",
          ("fuzzy",))
 def _fuzzy_most_h2_left(ctx: Context) -> Verdict:
     end = {e: ctx.s(e, "loh_end") for e in ctx.runs}
@@ -342,7 +351,7 @@ def _fuzzy_most_h2_left(ctx: Context) -> Verdict:
     return _v(ok, "LOH at the end: " + ", ".join(f"{e} {_f(100 * v, 1)} %" for e, v in end.items()))
 
 
-@finding("fuzzy_h2_even", "issue 3 §4; FACTS", "ComEMS4Build spends H2 nearly evenly: the smallest "
+@finding("fuzzy_h2_even", "paper sec:results (HESS utilization)", "ComEMS4Build spends H2 nearly evenly: the smallest "
          "spread (max - min) of weekly H2 use of all EMS", ("fuzzy",))
 def _fuzzy_h2_even(ctx: Context) -> Verdict:
     spread = {}
@@ -365,7 +374,8 @@ def h2_price_response(ts: pd.DataFrame) -> tuple[float, float]:
     return float(hi), float(lo)
 
 
-@finding("mpc_h2_at_high_prices", "issue 4 §3; FACTS", "MPC spends H2 more when (absolute) prices are high than "
+@finding("mpc_h2_at_high_prices", "paper sec:results (HESS utilization)",
+         "MPC spends H2 more when (absolute) prices are high than "
          "when they are low", ("mpc",))
 def _mpc_h2_high_prices(ctx: Context) -> Verdict:
     resp = {e: h2_price_response(r.timeseries) for e, r in ctx.runs.items()}
@@ -374,7 +384,8 @@ def _mpc_h2_high_prices(ctx: Context) -> Verdict:
         f"{e} {_f(h, 0)} / {_f(low, 0)} W" for e, (h, low) in resp.items()))
 
 
-@finding("mpc_h2_not_emptied_early", "issue 4 §3", "MPC does not empty the H2 store before the last day",
+@finding("mpc_h2_not_emptied_early", "paper sec:results (HESS utilization), eq:LOHmin_MPC",
+         "MPC does not empty the H2 store before the last day",
          ("mpc",))
 def _mpc_h2_kept(ctx: Context) -> Verdict:
     days = h2_empty_days_before_end(ctx.runs["mpc"], ctx.params.hydrogen.loh_min)
@@ -385,21 +396,24 @@ def _mpc_h2_kept(ctx: Context) -> Verdict:
 # ---------------------------------------------------------------- fuel cell
 
 
-@finding("fuzzy_fc_longer_than_rbc", "issue 3 §4", "ComEMS4Build runs the FC more hours than RBC",
+@finding("fuzzy_fc_longer_than_rbc", "paper sec:results (HESS utilization)",
+         "ComEMS4Build runs the FC more hours than RBC",
          ("fuzzy", "rbc"))
 def _fuzzy_fc_longer(ctx: Context) -> Verdict:
     return _v(ctx.s("fuzzy", "fc_working_hours") > ctx.s("rbc", "fc_working_hours"),
               "FC working hours: " + _listing(ctx, "fc_working_hours", "h", 0))
 
 
-@finding("fuzzy_fc_lower_load", "issue 3 §4; FACTS", "ComEMS4Build runs the FC at a lower mean load than "
+@finding("fuzzy_fc_lower_load", "paper sec:results (HESS utilization), sec:heat_recovery",
+         "ComEMS4Build runs the FC at a lower mean load than "
          "RBC", ("fuzzy", "rbc"))
 def _fuzzy_fc_lower_load(ctx: Context) -> Verdict:
     return _v(ctx.s("fuzzy", "fc_mean_load_w") < ctx.s("rbc", "fc_mean_load_w"),
               "mean FC load when on: " + _listing(ctx, "fc_mean_load_w", "W", 0))
 
 
-@finding("fuzzy_fc_higher_eta", "issue 3 §4; FACTS", "ComEMS4Build runs the FC at a higher mean "
+@finding("fuzzy_fc_higher_eta", "paper sec:results (HESS utilization), eq:efficiency_FC",
+         "ComEMS4Build runs the FC at a higher mean "
          "electrical efficiency than RBC", ("fuzzy", "rbc"))
 def _fuzzy_fc_higher_eta(ctx: Context) -> Verdict:
     return _v(ctx.s("fuzzy", "fc_mean_eta_el") > ctx.s("rbc", "fc_mean_eta_el"),
@@ -407,7 +421,8 @@ def _fuzzy_fc_higher_eta(ctx: Context) -> Verdict:
                   f"{e} {_f(100 * ctx.s(e, 'fc_mean_eta_el'), 1)} %" for e in ctx.runs))
 
 
-@finding("rbc_fc_full_power", "FACTS; paper sec:results", "RBC runs the FC at its full permissible power "
+@finding("rbc_fc_full_power", "paper sec:RBC, sec:results (HESS utilization)",
+         "RBC runs the FC at its full permissible power "
          "zeta * P_FC,max", ("rbc",))
 def _rbc_full_power(ctx: Context) -> Verdict:
     fc = ctx.params.fuel_cell
@@ -417,7 +432,7 @@ def _rbc_full_power(ctx: Context) -> Verdict:
               f"{_f(100 * load / full, 1)} % of zeta * P_FC,max = {_f(full, 0)} W")
 
 
-@finding("fuzzy_fc_more_than_mpc", "paper sec:results (fig:working_hours_FC)", "ComEMS4Build has more FC working "
+@finding("fuzzy_fc_more_than_mpc", "paper sec:results (HESS utilization)", "ComEMS4Build has more FC working "
          "hours and toggles than MPC (paper: +48.44 %, +6.09 %)", ("fuzzy", "mpc"))
 def _fuzzy_vs_mpc(ctx: Context) -> Verdict:
     h = ctx.s("fuzzy", "fc_working_hours") > ctx.s("mpc", "fc_working_hours")
@@ -426,7 +441,7 @@ def _fuzzy_vs_mpc(ctx: Context) -> Verdict:
               + _listing(ctx, "fc_toggles", "", 0))
 
 
-@finding("rbc_fc_less_than_mpc", "paper sec:results (fig:working_hours_FC)", "RBC has fewer FC working hours and "
+@finding("rbc_fc_less_than_mpc", "paper sec:results (HESS utilization)", "RBC has fewer FC working hours and "
          "toggles than MPC (paper: -7.59 %, -3.48 %)", ("rbc", "mpc"))
 def _rbc_vs_mpc(ctx: Context) -> Verdict:
     h = ctx.s("rbc", "fc_working_hours") < ctx.s("mpc", "fc_working_hours")
@@ -435,7 +450,7 @@ def _rbc_vs_mpc(ctx: Context) -> Verdict:
               + _listing(ctx, "fc_toggles", "", 0))
 
 
-@finding("fuzzy_least_heat_recovered", "FACTS; paper sec:heat_recovery", "ComEMS4Build recovers the least FC "
+@finding("fuzzy_least_heat_recovered", "paper sec:heat_recovery", "ComEMS4Build recovers the least FC "
          "heat (weekly median)", ("fuzzy",))
 def _fuzzy_least_heat(ctx: Context) -> Verdict:
     m = {e: float(r.weekly["heat_recovered_kwh"].median()) for e, r in ctx.runs.items()}
@@ -452,7 +467,7 @@ def covered_weeks(run: RunData) -> list[int]:
     return [int(r.week) for r in w.itertuples() if r.heat_recovered_kwh >= r.dhw_demand_kwh]
 
 
-@finding("no_dhw_cover_at_75", "FACTS; paper sec:heat_recovery", "at 75 % FC system efficiency no EMS covers a "
+@finding("no_dhw_cover_at_75", "paper sec:heat_recovery", "at 75 % FC system efficiency no EMS covers a "
          "whole week's DHW demand with FC heat", ())
 def _no_cover_75(ctx: Context) -> Verdict:
     runs = {e: r for (e, eta), r in ctx.variants.items() if abs(eta - 0.75) < 1e-9}
@@ -479,7 +494,8 @@ def share_above_half(run: RunData, v_max_l: float) -> float:
     return float((run.timeseries["v_dhw_l"] > DHW_HALF * v_max_l).mean())
 
 
-@finding("dhw_tank_kept_high", "paper sec:results", "ComEMS4Build and RBC keep the DHW tank above 50 % most of "
+@finding("dhw_tank_kept_high", "paper sec:results (time series comparison, occupant-oriented metrics)",
+         "ComEMS4Build and RBC keep the DHW tank above 50 % most of "
          "the time; MPC keeps it lower", ("fuzzy", "rbc", "mpc"))
 def _dhw_tank(ctx: Context) -> Verdict:
     v_max = ctx.params.dhw.v_max_l
@@ -489,7 +505,8 @@ def _dhw_tank(ctx: Context) -> Verdict:
                                                                      for e, v in sh.items()))
 
 
-@finding("dhw_demand_met", "paper sec:results", "every EMS meets the DHW demand in every step", ())
+@finding("dhw_demand_met", "paper sec:results (occupant-oriented metrics)",
+         "every EMS meets the DHW demand in every step", ())
 def _dhw_met(ctx: Context) -> Verdict:
     if not ctx.runs:
         return Verdict(NA, "no runs")

@@ -4,7 +4,7 @@ No rclpy here: the evaluator reads bags without a ROS graph.
 
 Writing (:class:`BagWriter`) goes through rosbags 0.11.9 (``Writer(path, version=8,
 storage_plugin=StoragePlugin.MCAP)``, metadata version 8 so that Jazzy's ``ros2 bag info``
-parses the QoS strings; TOOLCHAIN facts). rosbags keeps the pending MCAP chunk in memory
+parses the QoS strings). rosbags keeps the pending MCAP chunk in memory
 and writes it only when it exceeds 1 MiB; a recorder killed with SIGKILL would lose
 everything in that chunk. :class:`BagWriter` therefore closes the pending chunk itself when
 it holds ``chunk_max_bytes`` or is ``chunk_period_s`` old and then flushes the file to the
@@ -45,7 +45,7 @@ _TYPESTORE = None
 
 
 def typestore() -> Any:
-    """The rosbags typestore of ROS 2 Jazzy (type hashes match Jazzy's; TOOLCHAIN facts)."""
+    """The rosbags typestore of ROS 2 Jazzy (type hashes match Jazzy's)."""
     global _TYPESTORE
     if _TYPESTORE is None:
         _TYPESTORE = get_typestore(Stores.ROS2_JAZZY)

@@ -280,7 +280,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     SIGTERM (ExternalShutdownException) end the spin with exit code 0. A
     :class:`ConfigError`, :class:`ContractError` or ``ValueError`` raised while the node
     is created is reported on stderr with exit code :data:`EXIT_BAD_INPUT`.
-    Order of shutdown (TOOLCHAIN.md): executor shutdown, destroy node, rclpy shutdown.
+    Order of shutdown (as in the rclpy examples): executor shutdown, destroy node, rclpy shutdown.
     """
     rclpy.init(args=args)
     executor = SingleThreadedExecutor()

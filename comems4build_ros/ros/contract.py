@@ -37,7 +37,8 @@ from ..config import load_yaml
 PACKAGE = "comems4build_ros"
 CONTRACT_FILE = "topics.yaml"
 
-#: Interface types the contract may use (issue: std_msgs and rosgraph_msgs/Clock only).
+#: Interface types the contract may use: std_msgs and rosgraph_msgs/Clock only (installable from PyPI, readable
+#: by any ROS 2 tool without this package).
 ALLOWED_TYPES = frozenset(
     {
         "std_msgs/msg/Float64",

@@ -3,7 +3,8 @@
 Every series is drawn from a seeded ``numpy`` generator (one independent stream per
 component, derived with :class:`numpy.random.SeedSequence`), so the same settings and seed
 give bit-identical arrays. The settings live in ``config/scenario.yaml`` with their
-sources; docs/scenario.md compares the generated statistics with FACTS.md.
+sources; docs/scenario.md compares the generated statistics with those of the measured
+2022/23 winter (:mod:`comems4build_ros.scenario.stats`).
 
 Method (daily latent weather drives all components so that they stay consistent):
 
@@ -17,11 +18,12 @@ Method (daily latent weather drives all components so that they stay consistent)
    hourly temperature = daily means interpolated between noons + a diurnal cycle (half
    cosines, minimum around sunrise, maximum early afternoon) whose amplitude grows with
    ``kc_d`` (clear days have larger swings) + hourly AR(1) noise.
-4. Day-ahead spot price: daily level = fuel-cost level (FACTS monthly means at mid-month,
+4. Day-ahead spot price: daily level = fuel-cost level (monthly means of the DE-LU
+   day-ahead prices 2022/23 from the ENTSO-E Transparency Platform at mid-month,
    interpolated) times a residual-load factor (lower on windy, mild days, weekends and
-   public holidays; AR(1) remainder); hourly price = level * (1 + s(h)) with s(h) the FACTS
+   public holidays; AR(1) remainder); hourly price = level * (1 + s(h)) with s(h) the measured
    hour-of-day profile relative to its mean, plus AR(1) noise; negative values are
-   compressed (curtailment keeps German negative prices shallow, FACTS min -5 EUR/MWh).
+   compressed (curtailment keeps German negative prices shallow, measured min -5 EUR/MWh).
 5. Appliance load: expected power = annual energy * BDEW H0 dynamisation factor * hourly
    shape (workday / off day); split into a steady base, a log-normal activity part and
    Poisson appliance cycles (washer, dryer, dishwasher) started with the shape's probability.
@@ -30,7 +32,8 @@ Method (daily latent weather drives all components so that they stay consistent)
 
 richardsonpy was tried for the load (step 5): it takes about 8 s per year at 1 min, uses
 the global ``random`` module and gave about 11,000 kWh/a for 4 occupants with its default
-appliance set, far from the FACTS range, so the load model above is ours.
+appliance set, far from the 4,000-4,500 kWh/a of a 4-person household (a synPRO family
+profile sums to 4,174 kWh/a), so the load model above is ours.
 """
 
 from __future__ import annotations
@@ -262,7 +265,8 @@ def opendhw_offday_mass_ratio(step_s: int) -> float:
     OpenDHW 0.2.9 (building type SFH) multiplies its ``weekend_weekday_factor`` onto base
     profiles whose off-day mass is already about 1.22 times the workday mass, so a factor
     of 1.2 gives off-day draws about 1.46 times the workday draws. Dividing the wanted
-    factor (DHWCalc meaning: off-day volume / workday volume, FACTS 1.2) by this ratio
+    factor (DHWCalc meaning: off-day volume / workday volume, 1.2 in DHWCalc's single-family
+    profile) by this ratio
     gives the DHWCalc ratio in expectation.
     """
     import OpenDHW

@@ -1,6 +1,6 @@
 """Loaders for real data sources, resampled to 1 h, and the builder of a scenario CSV.
 
-Sources (formats in FACTS.md "Data formats"):
+Sources and their formats:
 
 - aWATTar market data API JSON (day-ahead price, EUR/MWh, net of taxes);
   :func:`fetch_awattar` downloads it (``comems4build data fetch-prices``).
@@ -38,7 +38,7 @@ from ..config import PlantParams
 from .base import CSV_COLUMNS
 from .csvio import MISSING_MARKER, ScenarioError, fill_gaps, read_text_file
 
-#: aWATTar market data endpoint (FACTS.md).
+#: aWATTar market data endpoint (aWATTar API documentation, api.awattar.de).
 AWATTAR_URL = "https://api.awattar.de/v1/marketdata"
 #: Milliseconds per hour (aWATTar time stamps are epoch milliseconds, UTC).
 MS_PER_HOUR = 3_600_000

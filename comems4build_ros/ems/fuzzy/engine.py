@@ -6,7 +6,7 @@ fuzzy set = max over the terms clipped at their strengths, crisp output = centro
 (centre of gravity). This module evaluates such a system for a batch of inputs with a
 handful of numpy array operations (no Python loop over rules), so one step of all three
 ComEMS4Build controllers costs some tens of microseconds instead of the ~11 ms per call of
-``skfuzzy.control`` (TOOLCHAIN.md). :meth:`FuzzySystem.to_skfuzzy` builds the equivalent
+``skfuzzy.control``. :meth:`FuzzySystem.to_skfuzzy` builds the equivalent
 ``skfuzzy.control`` system from the same data; the tests and ``comems4build bench ems``
 compare the two.
 
