@@ -25,6 +25,7 @@ Example, a pool of runs::
 from __future__ import annotations
 
 import multiprocessing
+import os
 import queue as _queue
 import sys
 import threading
@@ -41,6 +42,10 @@ REPORT_INTERVAL_S = 0.2
 REDRAW_INTERVAL_S = 0.2
 #: How often the parent's reader thread looks for reports [s].
 POLL_S = 0.1
+#: Size of a terminal that does not report it (a pseudo-terminal of a log): width of the
+#: bars [characters] and lines that may hold bars.
+DEFAULT_COLUMNS = 100
+DEFAULT_ROWS = 100
 
 
 def is_terminal(stream: IO[str] | None = None) -> bool:
@@ -56,11 +61,21 @@ def _shown(enable: bool | None, stream: IO[str]) -> bool:
     return is_terminal(stream) if enable is None else bool(enable)
 
 
+def _terminal_columns(stream: IO[str]) -> int:
+    """Width of the terminal behind ``stream`` (0 when unknown, e.g. a pseudo-terminal without a size)."""
+    try:
+        return os.get_terminal_size(stream.fileno()).columns
+    except (AttributeError, OSError, ValueError):
+        return 0
+
+
 def _new_bar(desc: str, unit: str, stream: IO[str], position: int | None, leave: bool) -> Any:
     from tqdm import tqdm
 
+    sized = _terminal_columns(stream) > 0  # follow resizes; a terminal without a size gets a fixed one
     return tqdm(total=None, desc=desc, unit=unit, file=stream, position=position, leave=leave,
-                mininterval=REDRAW_INTERVAL_S, dynamic_ncols=True)
+                mininterval=REDRAW_INTERVAL_S, dynamic_ncols=sized, ncols=None if sized else DEFAULT_COLUMNS,
+                nrows=None if sized else DEFAULT_ROWS)
 
 
 def echo(message: str, stream: IO[str] | None = None) -> None:

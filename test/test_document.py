@@ -70,3 +70,32 @@ def test_document_toc_anchors_and_figure_links(tmp_path: Path) -> None:
     assert 'src="data:image/png;base64,' in html
     assert 'style="width:90mm"' in html  # shown at its printed width
     assert "*Figure 1.* A line." in md
+
+
+def test_html_tags_are_balanced(tmp_path: Path) -> None:
+    from html.parser import HTMLParser
+
+    containers = {"ul", "li", "nav", "table", "thead", "tbody", "tr", "td", "th", "figure", "figcaption", "p"}
+
+    class Checker(HTMLParser):
+        def __init__(self) -> None:
+            super().__init__()
+            self.stack: list[str] = []
+
+        def handle_starttag(self, tag: str, attrs: object) -> None:
+            if tag in containers:
+                self.stack.append(tag)
+
+        def handle_endtag(self, tag: str) -> None:
+            if tag in containers:
+                assert self.stack and self.stack[-1] == tag, (tag, self.stack)
+                self.stack.pop()
+
+    doc = dm.Document("T")
+    for level, text in ((3, "orphan"), (2, "A"), (3, "a1"), (3, "a2"), (2, "B"), (2, "C"), (3, "c1")):
+        doc.h(level, text)
+        doc.table(["x", "y"], [["1", "a"]])
+    doc.figure(save_figure(_fig(), tmp_path / "f"), ".", "caption")
+    checker = Checker()
+    checker.feed(doc.html())
+    assert checker.stack == []

@@ -201,17 +201,18 @@ class Document:
         toc = self._toc()
         if toc:
             parts.append('<nav class="toc"><strong>Contents</strong><ul>')
-            open_sub = False
-            for lvl, text, anchor in toc:
-                if lvl == 3 and not open_sub:
-                    parts.append("<ul>")
-                    open_sub = True
-                elif lvl == 2 and open_sub:
-                    parts.append("</ul>")
-                    open_sub = False
-                parts.append(f'<li><a href="#{e(anchor)}">{e(text)}</a></li>')
-            if open_sub:
-                parts.append("</ul>")
+            nested = False  # inside the <ul> of a level-2 item
+            for i, (lvl, text, anchor) in enumerate(toc):
+                nxt = toc[i + 1][0] if i + 1 < len(toc) else 2
+                item = f'<li><a href="#{e(anchor)}">{e(text)}</a>'
+                if lvl == 2 and nxt == 3:
+                    parts.append(item + "<ul>")  # the following level-3 headings nest in this item
+                    nested = True
+                elif nested and nxt == 2:
+                    parts.append(item + "</li></ul></li>")
+                    nested = False
+                else:
+                    parts.append(item + "</li>")
             parts.append("</ul></nav>")
         for b in self.blocks:
             if b[0] == "h":

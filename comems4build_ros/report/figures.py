@@ -49,6 +49,10 @@ EMS_LABELS = style.EMS_LABELS
 WINDOW_DAYS = 3
 #: Longest span whose date axis labels every day [d].
 DAY_LABEL_MAX_DAYS = 8
+#: Longest span whose date axis writes day and month at about eight ticks [d].
+DATE_LABEL_MAX_DAYS = 42
+#: Longest span with ticks on the 1st and 15th of each month [d].
+HALF_MONTH_MAX_DAYS = 130
 #: Percent per fraction.
 PERCENT = 100.0
 #: Head room above the tallest bar for its value label [fraction of the tallest bar].
@@ -56,6 +60,8 @@ BAR_HEADROOM = 0.16
 #: Transparency of boxes and of the bars of the non-base FC efficiencies [-].
 BOX_ALPHA = 0.35
 OTHER_ETA_ALPHA = 0.35
+#: Neutral colour of the efficiency entries of the heat-recovery legend.
+ETA_LEGEND_COLOUR = "#333333"
 
 colour = style.ems_colour
 label = style.ems_label
@@ -70,7 +76,9 @@ def _date_axis(ax: plt.Axes, days: float) -> None:
     """Horizontal date ticks that never wrap or collide with a neighbour's.
 
     Up to :data:`DAY_LABEL_MAX_DAYS` days: grid lines at midnight and the date written at
-    noon, inside its day (no label at the edges of the axes); longer spans: concise dates.
+    noon, inside its day (no label at the edges of the axes); up to
+    :data:`DATE_LABEL_MAX_DAYS` days: about eight dated ticks; up to
+    :data:`HALF_MONTH_MAX_DAYS` days: the 1st and 15th of each month; longer: concise dates.
     """
     if days <= DAY_LABEL_MAX_DAYS:
         ax.xaxis.set_major_locator(mdates.DayLocator())
@@ -78,6 +86,12 @@ def _date_axis(ax: plt.Axes, days: float) -> None:
         ax.xaxis.set_minor_locator(mdates.HourLocator(byhour=(12,)))
         ax.xaxis.set_minor_formatter(mdates.DateFormatter("%-d %b"))
         ax.tick_params(axis="x", which="minor", length=0)
+    elif days <= DATE_LABEL_MAX_DAYS:
+        ax.xaxis.set_major_locator(mdates.DayLocator(interval=max(1, int(np.ceil(days / 8)))))
+        ax.xaxis.set_major_formatter(mdates.DateFormatter("%-d %b"))
+    elif days <= HALF_MONTH_MAX_DAYS:
+        ax.xaxis.set_major_locator(mdates.DayLocator(bymonthday=(1, 15)))
+        ax.xaxis.set_major_formatter(mdates.DateFormatter("%-d %b"))
     else:
         locator = mdates.AutoDateLocator(minticks=3, maxticks=8)
         ax.xaxis.set_major_locator(locator)
@@ -241,7 +255,7 @@ def heat_recovery_figure(variants: Mapping[tuple[str, float], RunData], base_eta
     handles = [Patch(color=colour(e), label=label(e)) for e in emss]
     for eta in etas:
         is_base = abs(eta - base_eta) < 1e-9
-        handles.append(Patch(facecolor=style.GREY, alpha=1.0 if is_base else OTHER_ETA_ALPHA,
+        handles.append(Patch(facecolor=ETA_LEGEND_COLOUR, alpha=1.0 if is_base else OTHER_ETA_ALPHA,
                              label=f"{axis_label('eta_fc_sys')} = {eta * PERCENT:.0f} %"))
     handles.append(Line2D([], [], color="black", marker="_", ls="none", markersize=9, markeredgewidth=1.2,
                           label="DHW demand incl. tank losses"))
