@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import sys
 
 from .options import COUNT, real
 
@@ -21,33 +20,23 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
                         help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
                              "checks that do not compare with the paper's table)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the reproduction and print where the report is."""
     from ..fileio import check_out_dir
+    from ..progress import echo
     from ..report.reproduce import reproduce
 
     check_out_dir(args.out)
     only = [k for k in args.only.split(",") if k] if args.only else None
-    bar = None
-    if sys.stderr.isatty():
-        from tqdm import tqdm
-
-        bar = tqdm(total=0, desc="reproduce", unit="run", file=sys.stderr)
 
     def progress(done: int, total: int, name: str) -> None:
-        if bar is not None:
-            bar.total = total
-            bar.set_postfix_str(name)
-            bar.update(done - bar.n)
+        echo(f"  run {done} of {total} done: {name}")
 
-    try:
-        res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
-                        progress=progress)
-    finally:
-        if bar is not None:
-            bar.close()
+    res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
+                    progress=progress, show_progress=False if args.no_progress else None)
     held = sum(c["held"] for c in res.checks)
     print(f"median relative error {100 * res.median_rel_error:.1f} %; cost ratios "
           + ", ".join(f"{k} {v:.2f}" for k, v in res.ratios.items())

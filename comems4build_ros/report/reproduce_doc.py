@@ -1,7 +1,8 @@
 """``reproduce.md`` and ``reproduce.html`` from the content of ``reproduce.json``.
 
-Both documents come from the same blocks (:class:`~comems4build_ros.report.build._Doc`),
-so they hold the same numbers; every number is read from the report mapping that
+Both documents come from the same blocks (:class:`~comems4build_ros.report.document.Document`:
+a table of contents, units in the headers, numbers right-aligned), so they hold the same
+numbers; every number is read from the report mapping that
 :func:`comems4build_ros.report.reproduce.reproduce` computed from its runs.
 """
 
@@ -11,8 +12,10 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from .build import _Doc
+from .document import Document
 
+#: Title of both documents.
+TITLE = "ComEMS4Build: reproducing the paper"
 EMS = ("mpc", "fuzzy", "rbc")
 EMS_LABEL = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC"}
 FIGURE_LABEL = {
@@ -38,12 +41,12 @@ def _num(x: float, digits: int = 2) -> str:
     return f"{x:.{digits}f}"
 
 
-def _table(doc: _Doc, report: Mapping[str, Any]) -> None:
+def _table(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "The paper's table beside ours")
     doc.p(f"Weekly medians over {report['weeks']:g} weeks of the default scenario "
           f"({report['scenario']}); relative error = |ours - paper| / paper, for the paper's nonzero "
-          "figures. Paper: sec:results (fig:quality_indicators_occupants, fig:grid_usage, fig:HESS_usage, "
-          "fig:hydrogen_timeseries).")
+          "figures. Paper: sec:results (the figures of the occupant-oriented metrics, the grid utilization, the "
+          "HESS utilization and the H2 over the period).")
     by = {(r["figure"], r["ems"]): r for r in report["table"]}
     header = ["figure", "unit"]
     for e in EMS:
@@ -77,7 +80,7 @@ def _table(doc: _Doc, report: Mapping[str, Any]) -> None:
     doc.table(["weekly cost median", "paper", "target band", "ours", "in band"], rows)
 
 
-def _h2(doc: _Doc, report: Mapping[str, Any]) -> None:
+def _h2(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "Hydrogen")
     doc.p("Weekly H2 use as the FC's electrical output and as the LHV energy drawn from the store "
           "(min..max over the weeks); the paper's \"H2 consumption\" ranges fit the electrical output. "
@@ -102,7 +105,7 @@ def _h2(doc: _Doc, report: Mapping[str, Any]) -> None:
                "net cost [EUR/week]"], rows)
 
 
-def _checks(doc: _Doc, report: Mapping[str, Any]) -> None:
+def _checks(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "The paper's findings")
     held = sum(c["held"] for c in report["checks"])
     doc.p(f"{held} of {len(report['checks'])} held.")
@@ -111,7 +114,7 @@ def _checks(doc: _Doc, report: Mapping[str, Any]) -> None:
                for c in report["checks"]])
 
 
-def _study(doc: _Doc, report: Mapping[str, Any]) -> None:
+def _study(doc: Document, report: Mapping[str, Any]) -> None:
     if not report["ambiguities"]:
         return
     doc.h(2, "Interpretation study")
@@ -146,10 +149,9 @@ def _study(doc: _Doc, report: Mapping[str, Any]) -> None:
                   fig_rows)
 
 
-def build_document(report: Mapping[str, Any]) -> _Doc:
+def build_document(report: Mapping[str, Any]) -> Document:
     """The blocks of the reproduction report."""
-    doc = _Doc()
-    doc.h(1, "ComEMS4Build: reproducing the paper")
+    doc = Document(TITLE)
     doc.p("Kovacevic et al., \"ComEMS4Build: Comfort-Oriented Energy Management System for Residential "
           "Buildings using Hydrogen for Seasonal Storage\", Applied Energy. Default scenario: the paper's "
           "winter from 2022-12-01 (ENTSO-E day-ahead prices DE-LU, DWD air temperature of station "
@@ -168,5 +170,5 @@ def write_documents(report: Mapping[str, Any], out: Path) -> tuple[Path, Path]:
     md = out / "reproduce.md"
     html_path = out / "reproduce.html"
     md.write_text(doc.markdown(), encoding="utf-8")
-    html_path.write_text(doc.html("ComEMS4Build: reproducing the paper"), encoding="utf-8")
+    html_path.write_text(doc.html(), encoding="utf-8")
     return md, html_path

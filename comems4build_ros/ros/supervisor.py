@@ -5,7 +5,7 @@ process in plan order with the plan's environment, waits for the end of the run 
 exit rule, and stops everything in the plan's stop stages.
 
 Isolation: the children get the parent's full environment (the ROS wheels' bootstrap
-needs its ``LD_LIBRARY_PATH``; TOOLCHAIN facts) plus ``ROS_DOMAIN_ID`` (a free id, see
+needs its ``LD_LIBRARY_PATH``) plus ``ROS_DOMAIN_ID`` (a free id, see
 :func:`acquire_domain_id`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, ``ROS_LOG_DIR``
 under the output directory, ``PYTHONPATH`` starting with the directory this package
 was imported from (the nodes run the same code as the launcher) and, unless set,
