@@ -19,13 +19,12 @@ import pandas as pd
 import pytest
 
 from comems4build_ros.cli import main
-from comems4build_ros.config import load_plant_params
 from comems4build_ros.report import figures as rf
 from comems4build_ros.report import findings as fd
-from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, _by_ems, build_report
+from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, build_report, read_report_inputs
 from comems4build_ros.report.figures import select_windows
 from comems4build_ros.report.paper import DERIVED, load_paper_results
-from comems4build_ros.report.runs import SUMMARY_KEYS, RunDirError, read_comparison, read_run
+from comems4build_ros.report.runs import SUMMARY_KEYS, RunDirError, read_run
 from comems4build_ros.report.style import layout_problems, paper_style
 
 EMS = ("thermostat", "rbc", "fuzzy")
@@ -98,13 +97,8 @@ def test_every_figure_written_as_pdf_svg_and_300_dpi_png(comparison: Path) -> No
 
 def test_every_figure_passes_the_layout_check(comparison: Path) -> None:
     """Nothing clipped or overlapping, no raw names or LaTeX labels, legends off the data, dates flat."""
-    manifest, run_list = read_comparison(comparison)
-    runs, variants = _by_ems(manifest, run_list)
-    params = load_plant_params()
-    inputs = rf.FigureInputs(runs, variants, {e: r.spec.info_level for e, r in runs.items()},
-                             params.site.timezone, manifest.base_eta, params.dhw.v_max_l)
     with paper_style():
-        for key, fig in rf.iter_figures(inputs):
+        for key, fig in rf.iter_figures(read_report_inputs(comparison).figures):
             assert layout_problems(fig) == [], key
             plt.close(fig)
 

@@ -15,10 +15,8 @@ import matplotlib.pyplot as plt
 import pytest
 
 from comems4build_ros.cli import main
-from comems4build_ros.config import load_plant_params
 from comems4build_ros.report import figures as rf
-from comems4build_ros.report.build import _by_ems
-from comems4build_ros.report.runs import read_comparison
+from comems4build_ros.report.build import read_report_inputs
 
 ROOT = Path(__file__).resolve().parents[1]
 #: Directories and files whose text ships with the project.
@@ -105,13 +103,8 @@ def test_compare_output_cites_no_issue_or_internal_note(short_comparison: Path) 
 
 
 def test_figure_texts_cite_no_issue_or_internal_note(short_comparison: Path) -> None:
-    manifest, run_list = read_comparison(short_comparison)
-    runs, variants = _by_ems(manifest, run_list)
-    params = load_plant_params()
-    inputs = rf.FigureInputs(runs, variants, {e: r.spec.info_level for e, r in runs.items()},
-                             params.site.timezone, manifest.base_eta, params.dhw.v_max_l)
     found = []
-    for key, fig in rf.iter_figures(inputs):
+    for key, fig in rf.iter_figures(read_report_inputs(short_comparison).figures):
         texts = [t.get_text() for t in fig.findobj(lambda a: hasattr(a, "get_text") and hasattr(a, "set_text"))]
         found += [f"{key}: {c}" for t in texts for c in citations(t)]
         plt.close(fig)

@@ -23,7 +23,7 @@ from . import figures
 from .document import Document
 from .findings import Context, evaluate_findings
 from .paper import fmt, paper_table
-from .runs import Manifest, RunData, read_comparison
+from .runs import Manifest, RunData, RunDirError, read_comparison
 
 #: Weekly table columns: (weekly.csv column, header, unit, decimals).
 WEEKLY_TABLE = (
@@ -133,6 +133,38 @@ def _by_ems(manifest: Manifest, runs: list[RunData]) -> tuple[dict[str, RunData]
     return {e: base[e] for e in order}, variants
 
 
+@dataclass
+class Comparison:
+    """A comparison directory read back: manifest, runs by EMS, plant parameters, figure inputs."""
+
+    manifest: Manifest
+    runs: dict[str, RunData]
+    variants: dict[tuple[str, float], RunData]
+    params: Any
+    figures: figures.FigureInputs
+
+
+def read_report_inputs(compare_dir: str | Path) -> Comparison:
+    """Read what the report of ``compare_dir`` is built from.
+
+    Raises
+    ------
+    RunDirError
+        If the manifest or a run directory is missing or corrupt, or no run is at the base
+        FC efficiency (the message names it).
+    """
+    root = Path(compare_dir)
+    manifest, run_list = read_comparison(root)
+    runs, variants = _by_ems(manifest, run_list)
+    if not runs:
+        raise RunDirError(f"{root / 'compare.json'}: no run at the base FC efficiency {manifest.base_eta}")
+    params = load_plant_params(manifest.config, {**manifest.overrides, "fuel_cell.eta_sys": manifest.base_eta})
+    levels = {e: (r.spec.info_level or _level_of(e)) for e, r in runs.items()}
+    inputs = figures.FigureInputs(runs, variants, levels, params.site.timezone, manifest.base_eta,
+                                  params.dhw.v_max_l)
+    return Comparison(manifest, runs, variants, params, inputs)
+
+
 def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> Report:
     """Write ``report.md``, ``report.html``, ``figures/*.{png,pdf,svg}``, ``findings.json`` from the runs.
 
@@ -149,18 +181,12 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     t0 = time.perf_counter()
     root = Path(compare_dir)
     out = Path(out_dir) if out_dir is not None else root
-    manifest, run_list = read_comparison(root)
-    out.mkdir(parents=True, exist_ok=True)
-    runs, variants = _by_ems(manifest, run_list)
-    if not runs:
-        from .runs import RunDirError
-
-        raise RunDirError(f"{root / 'compare.json'}: no run at the base FC efficiency {manifest.base_eta}")
-    params = load_plant_params(manifest.config, {**manifest.overrides, "fuel_cell.eta_sys": manifest.base_eta})
+    cmp = read_report_inputs(root)
+    manifest, runs, variants, params = cmp.manifest, cmp.runs, cmp.variants, cmp.params
+    levels = cmp.figures.levels
     tz = params.site.timezone
-    levels = {e: (r.spec.info_level or _level_of(e)) for e, r in runs.items()}
-    figs = figures.all_figures(figures.FigureInputs(runs, variants, levels, tz, manifest.base_eta, params.dhw.v_max_l),
-                               out / "figures")
+    out.mkdir(parents=True, exist_ok=True)
+    figs = figures.all_figures(cmp.figures, out / "figures")
     ctx = Context(runs=runs, variants=variants, params=params, base_eta=manifest.base_eta)
     verdicts = evaluate_findings(ctx)
     source, prows = paper_table(runs, params.hydrogen.loh_min)
