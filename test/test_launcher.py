@@ -51,7 +51,11 @@ def _same(a: dict, b: dict) -> None:
 
 def test_launch_fuzzy_equals_in_process_and_bag_opens(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=36, timeout_s=150))
+    seen: list[tuple[int, int]] = []  # progress reports (recorded steps, total steps; 0 = not known yet)
+    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=36, timeout_s=150,
+                               on_progress=lambda r, n: seen.append((r, n))))
+    assert seen and all(n in (0, 36) and 0 <= r <= 36 for r, n in seen)
+    assert [r for r, _ in seen] == sorted(r for r, _ in seen)
     summary = json.loads((out / "summary.json").read_text())
     _same(summary, _reference("fuzzy", 36))
     assert summary["steps"] == 36 and summary["ems"] == "fuzzy" and summary["ems_s"] is None
