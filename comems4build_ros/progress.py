@@ -207,10 +207,12 @@ class RunProgress:
     enable : None = shown when ``stream`` is a terminal; True / False = always / never
     stream : where the bars are drawn (default ``sys.stderr``)
 
-    For a :class:`~concurrent.futures.ProcessPoolExecutor` pass :attr:`initializer` and
-    :attr:`initargs`, and hand each run :meth:`reporter` (picklable). Runs executed in this
-    process take :meth:`callback` instead. When the bars are hidden no queue or thread is
-    created and both return None.
+    A run's bar appears with its first report and is removed when the run reaches its
+    total, so a study of many runs shows the running ones only (print a line per finished
+    run with :func:`echo`). For a :class:`~concurrent.futures.ProcessPoolExecutor` pass
+    :attr:`initializer` and :attr:`initargs`, and hand each run :meth:`reporter`
+    (picklable). Runs executed in this process take :meth:`callback` instead. When the
+    bars are hidden no queue or thread is created and both return None.
     """
 
     def __init__(self, names: Sequence[str], unit: str = "step", enable: bool | None = None,
@@ -219,7 +221,9 @@ class RunProgress:
         self.unit = unit
         self.stream = sys.stderr if stream is None else stream
         self.shown = _shown(enable, self.stream) and bool(self.names)
-        self._bars: list[_Bar] = []
+        self._width = max((len(n) for n in self.names), default=0)
+        self._bars: dict[int, _Bar] = {}
+        self._finished: set[int] = set()
         self._queue: Any = None
         self._thread: threading.Thread | None = None
         self._stop = threading.Event()
@@ -227,9 +231,6 @@ class RunProgress:
 
     def __enter__(self) -> RunProgress:
         if self.shown:
-            width = max(len(n) for n in self.names)
-            self._bars = [_Bar(_new_bar(n.ljust(width), self.unit, self.stream, i, leave=True))
-                          for i, n in enumerate(self.names)]
             self._queue = multiprocessing.get_context().Queue()
             self._thread = threading.Thread(target=self._read, name="progress-reader", daemon=True)
             self._thread.start()
@@ -243,9 +244,10 @@ class RunProgress:
             self._queue.close()
             self._queue.join_thread()
             self._thread = None
-        for bar in reversed(self._bars):
-            bar.close()
-        self._bars = []
+        with self._lock:
+            for bar in self._bars.values():
+                bar.close()
+            self._bars = {}
 
     @property
     def initializer(self) -> Callable[[Any], None] | None:
@@ -263,14 +265,28 @@ class RunProgress:
 
     def callback(self, slot: int) -> ProgressCallback | None:
         """Callback of run ``slot`` executed in this process (None when the bars are hidden)."""
-        if not self._bars:
+        if not self.shown:
             return None
 
         def report(done: int, total: int) -> None:
-            with self._lock:
-                self._bars[slot].report(done, total)
+            self._report(slot, done, total)
 
         return report
+
+    def _report(self, slot: int, done: int, total: int) -> None:
+        if not 0 <= slot < len(self.names):
+            return
+        with self._lock:
+            if slot in self._finished:
+                return
+            bar = self._bars.get(slot)
+            if bar is None:
+                bar = _Bar(_new_bar(self.names[slot].ljust(self._width), self.unit, self.stream, None, leave=False))
+                self._bars[slot] = bar
+            bar.report(done, total)
+            if bar.closed:
+                del self._bars[slot]
+                self._finished.add(slot)
 
     def _drain(self) -> None:
         while True:
@@ -278,9 +294,7 @@ class RunProgress:
                 slot, done, total = self._queue.get_nowait()
             except (_queue.Empty, OSError, ValueError, EOFError):
                 return
-            if 0 <= slot < len(self._bars):
-                with self._lock:
-                    self._bars[slot].report(done, total)
+            self._report(slot, done, total)
 
     def _read(self) -> None:
         while not self._stop.is_set():
@@ -290,6 +304,4 @@ class RunProgress:
                 continue
             except (OSError, ValueError, EOFError):
                 return
-            if 0 <= slot < len(self._bars):
-                with self._lock:
-                    self._bars[slot].report(done, total)
+            self._report(slot, done, total)
