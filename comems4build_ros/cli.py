@@ -20,14 +20,16 @@ COMMANDS: dict[str, tuple[str, str]] = {
                              "DIR/summary.json"),
     "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros"),
     "data": ("data", "build scenario CSVs from real sources (aWATTar, DWD, DHWCalc, load CSV)"),
-    "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D)"),
+    "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D) as "
+                                       "PDF, SVG and PNG"),
     "launch": ("launch", "the ROS 2 node set (plant_sim, feed, EMS, recorder) as separate processes over DDS on an "
                          "isolated domain; writes DIR/bag/ (MCAP), DIR/weekly.csv and DIR/summary.json from the bag"),
     "evaluate": ("evaluate", "weekly KPIs and summary from any recorded bag (a damaged bag is salvaged and marked "
                              "incomplete)"),
-    "compare": ("compare", "RBC, fuzzy and MPC on one scenario; DIR/report.md, DIR/report.html and the paper-style "
-                           "figures"),
-    "sweep": ("sweep", "sensitivity grid in parallel processes; one table and one plot per KPI"),
+    "compare": ("compare", "RBC, fuzzy and MPC on one scenario; DIR/report.md, DIR/report.html (contents, figures "
+                           "linked to their vector versions) and the paper-style figures as PDF, SVG and 300 dpi PNG; "
+                           "a progress bar per run on a terminal"),
+    "sweep": ("sweep", "sensitivity grid in parallel processes; one table and one plot per KPI (PDF, SVG, PNG)"),
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
 }
 
