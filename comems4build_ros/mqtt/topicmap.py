@@ -1,0 +1,358 @@
+"""Topic map of the MQTT bridge (``config/mqtt.yaml``): topics, units, scaling, limits.
+
+A value travels between the plant's units (the "SI" side: degC, l, W, fractions) and the
+device's units on MQTT as ``si = mqtt * scale + offset``. The conversion runs in decimal
+arithmetic on the payload text: with power-of-ten scales (%, kW) and decimal offsets a
+value sent by one side and read by the other comes back to the last bit, which lets the
+closed loop over MQTT reproduce the in-process run exactly.
+
+Payloads are a plain number (Home Assistant's default) or a JSON object (``json_key``),
+optionally with a step counter (``step_key``) used by the lock-step clock.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from decimal import Decimal, InvalidOperation, localcontext
+from pathlib import Path
+from typing import Any
+from urllib.parse import urlsplit
+
+from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+
+from ..config import ConfigError, PlantParams, config_dir, read_ros_params, validate
+from ..types import HP_DHW, HP_OFF, HP_SH, Action
+
+#: Measurements the bridge knows: SI name -> meaning [unit]. The first four are required.
+MEASUREMENTS: dict[str, str] = {
+    "t_air_c": "indoor air temperature [degC]",
+    "v_dhw_l": "usable hot-water volume at T_DHW [l]",
+    "soc": "battery state of charge [-]",
+    "loh": "level of hydrogen [-]",
+    "hp_mod": "heat-pump modulation applied in the last step [-]",
+    "fc_on": "fuel cell running in the last step [0/1]",
+    "t_wall_in_c": "inner wall node temperature of the 4R3C model [degC]",
+    "t_wall_out_c": "outer wall node temperature of the 4R3C model [degC]",
+    "p_pv_w": "PV AC output [W]",
+    "p_load_w": "appliance load [W]",
+    "t_amb_c": "outdoor air temperature [degC]",
+}
+REQUIRED_MEASUREMENTS = ("t_air_c", "v_dhw_l", "soc", "loh")
+#: Set-points, in the order of the ``ems/command`` layout (``types.Action`` fields).
+SETPOINTS = ("hp_mod", "hp_mode", "p_fc_w", "p_bess_w")
+#: Decimal precision of the unit conversion [digits]: far above float64's 17 digits.
+DECIMAL_PRECISION = 60
+TRUE_WORDS = frozenset({"on", "true", "yes"})
+FALSE_WORDS = frozenset({"off", "false", "no"})
+
+
+class PayloadError(ValueError):
+    """An MQTT payload cannot be read; the message names the topic."""
+
+
+class _Model(BaseModel):
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+
+class _Scaled(_Model):
+    topic: str = Field(min_length=1)
+    unit: str = ""
+    scale: float = 1.0
+    offset: float = 0.0
+    json_key: str = ""
+    step_key: str = ""
+
+    @field_validator("scale")
+    @classmethod
+    def _nonzero(cls, v: float) -> float:
+        if v == 0 or not math.isfinite(v):
+            raise ValueError("must be finite and non-zero")
+        return v
+
+    @field_validator("topic")
+    @classmethod
+    def _no_wildcards(cls, v: str) -> str:
+        if any(c in v for c in "+#") or v.startswith("/") or v.endswith("/"):
+            raise ValueError(f"'{v}' is not a plain MQTT topic (no wildcards, no leading or trailing '/')")
+        return v
+
+    # -- codec -------------------------------------------------------------------
+    def to_si(self, text: str) -> float:
+        """SI value of the device value ``text`` (``si = mqtt * scale + offset``, decimal)."""
+        with localcontext() as ctx:
+            ctx.prec = DECIMAL_PRECISION
+            d = Decimal(text)
+            if self.scale != 1.0 or self.offset != 0.0:
+                d = d * Decimal(repr(self.scale)) + Decimal(repr(self.offset))
+            return float(d)
+
+    def from_si(self, value: float) -> str:
+        """Device value text of the SI ``value`` (``(si - offset) / scale``, decimal)."""
+        if self.scale == 1.0 and self.offset == 0.0:
+            return repr(float(value))
+        with localcontext() as ctx:
+            ctx.prec = DECIMAL_PRECISION
+            d = (Decimal(repr(float(value))) - Decimal(repr(self.offset))) / Decimal(repr(self.scale))
+            text = format(d.normalize(), "f")
+        return text if text not in ("-0",) else "0"
+
+    def encode_text(self, text: str, step: int | None, raw_json: Any = None) -> bytes:
+        """Payload carrying the device value ``text`` (a number, or ``raw_json`` if given)."""
+        if not self.json_key:
+            return text.encode()
+        body = f'{{"{self.json_key}": {text if raw_json is None else json.dumps(raw_json)}'
+        if self.step_key and step is not None:
+            body += f', "{self.step_key}": {int(step)}'
+        return (body + "}").encode()
+
+    def _value_text(self, payload: bytes) -> tuple[Any, int | None]:
+        """The value (text or JSON scalar) and step tag of a payload."""
+        try:
+            text = payload.decode("utf-8").strip()
+        except UnicodeDecodeError:
+            raise PayloadError(f"topic '{self.topic}': payload is not UTF-8") from None
+        if not self.json_key:
+            return text, None
+        try:
+            obj = json.loads(text, parse_float=str, parse_int=str)
+        except json.JSONDecodeError as exc:
+            raise PayloadError(f"topic '{self.topic}': payload is not JSON ({exc.msg}): {text[:80]!r}") from None
+        if not isinstance(obj, dict) or self.json_key not in obj:
+            raise PayloadError(f"topic '{self.topic}': JSON payload has no key '{self.json_key}': {text[:80]!r}")
+        step = None
+        if self.step_key and self.step_key in obj:
+            try:
+                step = int(str(obj[self.step_key]))
+            except ValueError:
+                raise PayloadError(f"topic '{self.topic}': step '{obj[self.step_key]}' is not an integer") from None
+        return obj[self.json_key], step
+
+
+class MeasurementSpec(_Scaled):
+    """One building measurement on MQTT (``range`` and ``max_age_s`` feed the watchdog)."""
+
+    range: tuple[float, float]
+    max_age_s: float | None = Field(default=None, gt=0)
+    required: bool = True
+
+    @field_validator("range")
+    @classmethod
+    def _ordered(cls, v: tuple[float, float]) -> tuple[float, float]:
+        if not v[0] < v[1]:
+            raise ValueError(f"must be [low, high] with low < high, got {list(v)}")
+        return v
+
+    def decode(self, payload: bytes) -> tuple[float, int | None]:
+        """``(SI value, step tag or None)`` of a payload; ON/OFF/true/false read as 1/0.
+
+        Raises
+        ------
+        PayloadError
+            Naming the topic, for a payload that is not a number (or not the configured
+            JSON object).
+        """
+        value, step = self._value_text(payload)
+        if isinstance(value, bool):
+            return (1.0 if value else 0.0), step
+        text = str(value).strip()
+        if text.lower() in TRUE_WORDS:
+            return 1.0, step
+        if text.lower() in FALSE_WORDS:
+            return 0.0, step
+        try:
+            return self.to_si(text), step
+        except (InvalidOperation, ValueError):
+            raise PayloadError(f"topic '{self.topic}': {text[:40]!r} is not a number") from None
+
+    def encode(self, value: float, step: int | None = None) -> bytes:
+        """Payload of the SI ``value`` (the simulated building publishes with it)."""
+        return self.encode_text(self.from_si(value), step)
+
+
+class SetpointSpec(_Scaled):
+    """One device set-point on MQTT, with its device limits and ramp limit (SI side)."""
+
+    limits: tuple[float, float] | tuple[()] = ()
+    max_change_per_step: float = Field(default=0.0, ge=0)
+    values: dict[str, str] = Field(default_factory=dict)  # hp_mode: "0" -> "off" ...
+
+    def encode(self, value: float, step: int | None = None) -> bytes:
+        """Payload of the SI ``value`` (a mapped word if ``values`` is set)."""
+        if self.values:
+            word = self.values[str(int(value))]
+            return self.encode_text("", step, raw_json=word) if self.json_key else word.encode()
+        return self.encode_text(self.from_si(value), step)
+
+    def decode(self, payload: bytes) -> tuple[float, int | None]:
+        """``(SI value, step tag or None)``; a mapped word back to its number."""
+        value, step = self._value_text(payload)
+        text = str(value).strip()
+        if self.values:
+            for number, word in self.values.items():
+                if text == word:
+                    return float(number), step
+            raise PayloadError(f"topic '{self.topic}': {text[:40]!r} is not one of {sorted(self.values.values())}")
+        try:
+            return self.to_si(text), step
+        except (InvalidOperation, ValueError):
+            raise PayloadError(f"topic '{self.topic}': {text[:40]!r} is not a number") from None
+
+
+class BrokerSettings(_Model):
+    """Broker address and credentials (the password itself is never stored here)."""
+
+    url: str = Field(pattern=r"^mqtts?://[^/:]+(:\d+)?/?$")
+    username: str = ""
+    password_file: str = ""
+    password_env: str = ""
+    ca_file: str = ""
+    cert_file: str = ""
+    key_file: str = ""
+    tls_insecure: bool = False
+    keepalive_s: int = Field(default=10, ge=1)
+    qos: int = Field(default=1, ge=0, le=2)
+    reconnect_max_s: float = Field(default=2.0, gt=0)
+
+    @property
+    def host(self) -> str:
+        """Host name of :attr:`url`."""
+        return urlsplit(self.url).hostname or ""
+
+    @property
+    def port(self) -> int:
+        """Port of :attr:`url` (default 1883, 8883 for mqtts)."""
+        return urlsplit(self.url).port or (8883 if self.tls else 1883)
+
+    @property
+    def tls(self) -> bool:
+        """True for ``mqtts://``."""
+        return self.url.startswith("mqtts://")
+
+
+class DeviceInfo(_Model):
+    """Home Assistant device block of the discovery payloads."""
+
+    name: str
+    manufacturer: str = ""
+    model: str = ""
+
+
+class TopicMap(_Model):
+    """The whole ``mqtt`` section of ``config/mqtt.yaml``."""
+
+    broker: BrokerSettings
+    base_topic: str = Field(min_length=1)
+    node_id: str = Field(pattern=r"^[A-Za-z0-9_-]+$")
+    discovery_prefix: str = "homeassistant"
+    discovery: bool = True
+    device: DeviceInfo
+    max_age_s: float = Field(gt=0)
+    min_interval_s: float = Field(default=0.0, ge=0)
+    measurements: dict[str, MeasurementSpec]
+    setpoints: dict[str, SetpointSpec]
+    sim_record_topic: str = ""
+
+    @model_validator(mode="after")
+    def _check(self) -> TopicMap:
+        unknown = set(self.measurements) - set(MEASUREMENTS)
+        if unknown:
+            raise ValueError(f"unknown measurement(s) {sorted(unknown)}; known: {sorted(MEASUREMENTS)}")
+        missing = [m for m in REQUIRED_MEASUREMENTS if m not in self.measurements]
+        if missing:
+            raise ValueError(f"measurement(s) {missing} missing (required: {list(REQUIRED_MEASUREMENTS)})")
+        for m in REQUIRED_MEASUREMENTS:
+            if not self.measurements[m].required:
+                raise ValueError(f"measurement '{m}' cannot be optional")
+        if set(self.setpoints) != set(SETPOINTS):
+            raise ValueError(f"setpoints must be exactly {list(SETPOINTS)}, got {sorted(self.setpoints)}")
+        modes = self.setpoints["hp_mode"].values
+        if modes and set(modes) != {str(HP_OFF), str(HP_SH), str(HP_DHW)}:
+            raise ValueError(f"setpoints.hp_mode.values must map '0', '1' and '2', got {sorted(modes)}")
+        topics = [s.topic for s in (*self.measurements.values(), *self.setpoints.values())]
+        dup = sorted({t for t in topics if topics.count(t) > 1})
+        if dup:
+            raise ValueError(f"topic(s) used twice: {dup}")
+        return self
+
+    def max_age(self, name: str) -> float:
+        """Staleness limit of measurement ``name`` [s]."""
+        spec = self.measurements[name]
+        return spec.max_age_s if spec.max_age_s is not None else self.max_age_s
+
+    def device_limits(self, params: PlantParams) -> dict[str, tuple[float, float]]:
+        """Device limits of hp_mod [-], p_fc_w [W], p_bess_w [W]: the map's, else the plant's."""
+        plant = {
+            "hp_mod": (0.0, 1.0),
+            "p_fc_w": (0.0, params.fuel_cell.p_max_w),
+            "p_bess_w": (-params.battery.p_d_max_w, params.battery.p_ch_max_w),
+        }
+        out = {}
+        for name, default in plant.items():
+            lim = self.setpoints[name].limits
+            out[name] = (float(lim[0]), float(lim[1])) if lim else default
+        return out
+
+    def topic(self, *parts: str) -> str:
+        """``<base_topic>/<parts...>``: the EMS's own topics."""
+        return "/".join((self.base_topic, *parts))
+
+    # -- the EMS's own topics ----------------------------------------------------
+    @property
+    def availability_topic(self) -> str:
+        """``online`` / ``offline`` (retained; ``offline`` is the last will)."""
+        return self.topic("availability")
+
+    @property
+    def state_topic(self) -> str:
+        """JSON with the EMS sensors (KPIs, mode, next set-points, alarm), once per step."""
+        return self.topic("state")
+
+    @property
+    def alarm_topic(self) -> str:
+        """JSON alarm events (stale or out-of-range measurement, fallback)."""
+        return self.topic("alarm")
+
+    def switch_topics(self, name: str) -> tuple[str, str]:
+        """``(command_topic, state_topic)`` of the switch ``name`` (``ems``, ``fallback``)."""
+        return self.topic("switch", name, "set"), self.topic("switch", name, "state")
+
+    @property
+    def run_topic(self) -> str:
+        """Retained JSON of the running clock (start time, period), for a wall-clock building."""
+        return self.topic("run")
+
+    @property
+    def step_topic(self) -> str:
+        """The step the bridge announced last (the simulated building's acknowledgement)."""
+        return self.topic("step")
+
+
+def default_map_file() -> Path:
+    """``config/mqtt.yaml``."""
+    return config_dir() / "mqtt.yaml"
+
+
+def load_topic_map(path: str | Path | None = None, broker_url: str | None = None) -> TopicMap:
+    """Read and validate the ``mqtt`` section of ``config/mqtt.yaml`` (or ``path``).
+
+    ``broker_url`` replaces ``broker.url`` (the launcher's embedded broker).
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the parameter that is invalid.
+    """
+    path = Path(path) if path else default_map_file()
+    data = read_ros_params(path).get("mqtt")
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: no 'mqtt' section")
+    data = dict(data)
+    if broker_url:
+        data["broker"] = dict(data.get("broker", {}), url=broker_url)
+    return validate(TopicMap, data, str(path))
+
+
+def command_values(action: Action) -> dict[str, float]:
+    """Set-point values (SI) of an action, by set-point name."""
+    return {name: float(getattr(action, name)) for name in SETPOINTS}
