@@ -22,6 +22,8 @@ NODES = {
     "mpc_ems": "comems4build_ros.ros.nodes.ems_node:main_mpc",
     "recorder": "comems4build_ros.ros.nodes.recorder",
     "replay": "comems4build_ros.ros.nodes.replay",
+    "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
+    "mqtt_plant": "comems4build_ros.mqtt.building",
 }
 
 

@@ -151,7 +151,9 @@ class DiscoveryError(ValueError):
     """A discovery message breaks :data:`DISCOVERY_SCHEMA`; the message names topic and field."""
 
 
-def validate_discovery(topic: str, payload: dict[str, Any] | bytes | str, discovery_prefix: str = "homeassistant") -> str:
+def validate_discovery(
+    topic: str, payload: dict[str, Any] | bytes | str, discovery_prefix: str = "homeassistant"
+) -> str:
     """Check one discovery message; returns its component.
 
     Checks: the topic is ``<prefix>/<component>/<node_id>/<object_id>/config`` with a

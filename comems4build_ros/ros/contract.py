@@ -50,7 +50,7 @@ ALLOWED_TYPES = frozenset(
     }
 )
 ARRAY_TYPE = "std_msgs/msg/Float64MultiArray"
-NODE_ROLES = frozenset({"plant", "feed", "ems", "recorder", "replay"})
+NODE_ROLES = frozenset({"plant", "feed", "ems", "recorder", "replay", "bridge"})
 QOS_KEYS = frozenset({"reliability", "history", "depth", "durability"})
 TOPIC_KEYS = frozenset({"type", "unit", "publishers", "subscribers", "qos", "layout", "description"})
 _LABEL_RE = re.compile(

@@ -193,7 +193,12 @@ class Feed(ContractNode):
         sizes_ = layout_sizes(params)
         self._truth = ArrayPublisher(self, "feed/truth", sizes_)
         forecast_topics = tuple(t.name for t in self.contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
-        self._pubs = [ArrayPublisher(self, t, sizes_) for t in (*EMS_TOPICS, *forecast_topics)]
+        # With a building behind MQTT its own meters give the PV output and load: the
+        # mqtt_bridge publishes feed/measured and the feed leaves it out.
+        self.publish_measured = bool(param(self, "publish_measured", True))
+        ems_topics = [t for t in EMS_TOPICS if self.publish_measured or t != "feed/measured"]
+        self._pubs = [ArrayPublisher(self, t, sizes_) for t in (*ems_topics, *forecast_topics)]
+        self._events = self.contract_publisher("feed/events")
         self._pub_fields = [p.layout.fields for p in self._pubs]
         self.contract_subscription("plant/step", self._on_plant_step)
         self._check_payload_lengths()

@@ -1,0 +1,547 @@
+"""``mqtt_bridge``: the topic contract on one side, a building behind MQTT on the other.
+
+The bridge stands in for ``plant_sim``: it publishes the plant's topics (``state/*``,
+``plant/step``, ``plant/record``, ``clock``, ``plant/done``, ``plant/events``) from the
+building's MQTT measurements and forwards each ``ems/command`` as MQTT set-points
+(heat-pump mode and modulation, fuel-cell power, battery power) with the topics, units
+and scaling of the topic map (``config/mqtt.yaml``). With the map's PV and load meters it
+also publishes ``feed/measured`` (the feed then runs with ``publish_measured:=false``).
+The EMS nodes and the step protocol are those of the ROS-only loop.
+
+Clock (parameter ``clock``; :mod:`comems4build_ros.mqtt.clock`):
+
+* ``sim``: lock-step over MQTT. The bridge announces step ``k`` once every measurement
+  tagged ``k`` (and the building's record of ``k - 1``) has arrived, forwards the EMS's
+  command tagged ``k``, and repeats whatever the other side may have lost every
+  ``republish_period_s``, so a broker restart loses no step.
+* ``wall`` / ``wall:<factor>``: step ``k`` starts at ``t0 + k * period`` (``t0`` a
+  multiple of the period; ``wall`` steps start on the full hour). ``measure_delay_s``
+  later the bridge announces ``k`` with the latest measurements; the EMS's command is
+  forwarded as soon as it comes; without one by ``t0 + (k + 0.9) * period`` the bridge
+  sends the fallback. The run's ``t0`` and period go out retained on ``<base>/run``.
+
+Safety (:mod:`comems4build_ros.mqtt.safety`): before announcing a step the watchdog
+checks every measurement (missing, older than ``max_age_s`` of simulated time in the
+wall modes, outside its range, unreadable). On any finding, or while the EMS switch is
+off or the fallback switch on, the bridge does not hand the measurements to the EMS: it
+sends :func:`comems4build_ros.ems.fallback.safe_action` as the set-points of that very
+step and publishes an alarm on ``bridge/alarm`` (ROS) and ``<base>/alarm`` (MQTT). Every
+command is clamped to the device limits and ramp limits and rate-limited
+(``min_interval_s``); changes are logged on ``plant/events`` and counted. An EMS silent
+past ``step_timeout_s`` also gets the fallback, as with ``plant_sim``.
+
+Home Assistant: retained discovery configs (:mod:`comems4build_ros.mqtt.discovery`) and
+availability ``online`` on every (re)connect, ``offline`` as the last will; a retained
+JSON state per step (KPIs so far, mode, set-points, alarm); switches ``ems`` and
+``fallback``.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time
+from array import array
+from typing import Any
+
+import numpy as np
+from builtin_interfaces.msg import Time
+from rclpy.duration import Duration
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock as ClockMsg
+from std_msgs.msg import Bool, Float64MultiArray, String, UInt32
+
+from ... import kpi
+from ...config import W_PER_KW
+from ...ems.fallback import safe_action
+from ...mqtt.client import MqttLink
+from ...mqtt.clock import parse_clock
+from ...mqtt.discovery import AVAILABLE, NOT_AVAILABLE, PAYLOAD_OFF, PAYLOAD_ON, discovery_messages
+from ...mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
+from ...mqtt.topicmap import PayloadError, load_topic_map
+from ...types import ACTION_FIELDS, Action
+from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
+from .plant_sim import NS_PER_S, STATE_TOPICS
+
+NODE_NAME = "mqtt_bridge"
+STEP_TIMEOUT_S = 5.0
+STARTUP_TIMEOUT_S = 120.0
+REPUBLISH_PERIOD_S = 0.5
+WATCHDOG_PERIOD_S = 0.02
+#: Lock-step: alarm when the building has sent nothing for this long [s].
+BUILDING_TIMEOUT_S = 10.0
+#: Wall modes: announce a step this share of the period after its start (at most
+#: MEASURE_DELAY_MAX_S), so that measurements taken at the start of the step are in.
+MEASURE_DELAY_SHARE = 0.2
+MEASURE_DELAY_MAX_S = 5.0
+#: Wall modes: the EMS's command must arrive before this share of the period has passed.
+COMMAND_DEADLINE_SHARE = 0.9
+ACK_TIMEOUT_S = 5.0
+HP_MODE_WORDS = {0: "off", 1: "heating", 2: "dhw"}
+#: plant/record labels the bridge fills (the building does not know them).
+BRIDGE_LABELS = ("fallback", "fallback_steps", "rejected_commands", "wrong_step_commands")
+
+
+class MqttBridge(ContractNode):
+    """The bridge node (see the module docstring)."""
+
+    def __init__(self, **node_kwargs: Any) -> None:
+        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
+        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
+        self.params = plant_params_from_node(self)
+        self.map = load_topic_map(str(param(self, "topic_map", "")) or None, str(param(self, "broker_url", "")) or None)
+        self.clock = parse_clock(str(param(self, "clock", "sim")), self.params.simulation.time_step_h)
+        self.step_timeout_s = float(param(self, "step_timeout_s", STEP_TIMEOUT_S))
+        self.startup_timeout_s = float(param(self, "startup_timeout_s", STARTUP_TIMEOUT_S))
+        self.republish_period_s = float(param(self, "republish_period_s", REPUBLISH_PERIOD_S))
+        self.building_timeout_s = float(param(self, "building_timeout_s", BUILDING_TIMEOUT_S))
+        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
+        self.exit_when_done = bool(param(self, "exit_when_done", True))
+        self.watchdog_period_s = float(param(self, "watchdog_period_s", WATCHDOG_PERIOD_S))
+        delay = float(param(self, "measure_delay_s", -1.0))
+        self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
+                                                            MEASURE_DELAY_MAX_S)
+        client_id = str(param(self, "client_id", "comems4build_bridge"))
+        for name in ("step_timeout_s", "startup_timeout_s", "republish_period_s", "watchdog_period_s",
+                     "building_timeout_s"):
+            if not getattr(self, name) > 0:
+                raise ValueError(f"node '{NODE_NAME}': parameter '{name}' must be positive")
+        if self.clock.wall and self.measure_delay_s >= COMMAND_DEADLINE_SHARE * self.clock.period_s:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'measure_delay_s' must be below "
+                             f"{COMMAND_DEADLINE_SHARE:g} of the step period ({self.clock.period_s:g} s)")
+
+        self.dt_h = self.params.simulation.time_step_h
+        self.dt_ns = int(round(self.dt_h * 3600.0 * NS_PER_S))
+        sizes = layout_sizes(self.params)
+        m = self.map.measurements
+        self._state_pubs = [(ArrayPublisher(self, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()
+                            if t != "state/t_wall" or ("t_wall_in_c" in m and "t_wall_out_c" in m)]
+        self._measured = (ArrayPublisher(self, "feed/measured", sizes)
+                          if "p_pv_w" in m and "p_load_w" in m else None)
+        self._record = ArrayPublisher(self, "plant/record", sizes)
+        self._record_labels = self._record.layout.labels
+        self._step_pub = self.contract_publisher("plant/step")
+        self._clock_pub = self.contract_publisher("clock")
+        self._done_pub = self.contract_publisher("plant/done")
+        self._events_pub = self.contract_publisher("plant/events")
+        self._alarm_pub = self.contract_publisher("bridge/alarm")
+        self._cmd_layout = self.contract.topic("ems/command").layout(sizes)
+        self._truth_index = self.contract.topic("feed/truth").layout(sizes).index
+        self._cmd_sub = self.contract_subscription("ems/command", self._on_command)
+        self.contract_subscription("feed/truth", self._on_truth)
+        self.contract_subscription("recorder/ready", self._on_recorder_ready)
+
+        self.watchdog = MeasurementWatchdog(self.map)
+        self.limiter = CommandLimiter.from_map(self.map, self.params)
+        self._topic_measurement = {spec.topic: name for name, spec in m.items()}
+        self._switch_topics = {self.map.switch_topics(n)[0]: n for n in ("ems", "fallback")}
+        self.switches = {"ems": True, "fallback": False}
+
+        # run state
+        self.k = 0
+        self.phase = "measure"  # measure -> command -> sent (lock-step); command/sent per wall step
+        self.n_steps: int | None = None
+        self.t0_unix_s: float | None = None
+        self.started = False
+        self.done = False
+        self._recorder_ready = False
+        self._truth: dict[int, tuple[float, float]] = {}  # step -> (time_unix_s, t_min_c)
+        self._records: dict[int, dict[str, float]] = {}
+        self.next_record = 0
+        self.fallback_for: dict[int, bool] = {}
+        self.fallback_steps = 0
+        self.rejected_commands = 0
+        self.wrong_step_commands = 0
+        self.duplicate_commands = 0
+        self.bad_measurements = 0
+        self.alarms = 0
+        self._ever_commanded = False
+        self._last_cmd: list[float] | None = None
+        self._last_action = Action()
+        self._sent: list[tuple[str, bytes]] = []
+        self._held: tuple[int, Action, bool] | None = None
+        self._alarm_step = -1
+        self._building_alarmed = -1
+        self._t_created = time.monotonic()
+        self._t_phase = self._t_created
+        self._t_announce = 0.0
+        self._t_sent = 0.0
+        self._t_building = self._t_created
+        self.kpis = {"cost_eur": 0.0, "discomfort_kh": 0.0, "grid_import_kwh": 0.0, "grid_export_kwh": 0.0}
+        self._step_msg = UInt32()
+        self._clock_msg = ClockMsg()
+        self.finished = Future()
+
+        self._wake = self.create_guard_condition(self._on_mqtt)
+        subs = [*self._topic_measurement, *self._switch_topics]
+        if self.map.sim_record_topic:
+            subs.append(self.map.sim_record_topic)
+        self.link = MqttLink(self.map.broker, client_id, subs,
+                             will=(self.map.availability_topic, NOT_AVAILABLE),
+                             on_connect=self._on_connect, wake=self._wake.trigger)
+        self.link.start()
+        self.create_timer(self.watchdog_period_s, self._watchdog)
+        self.get_logger().info(
+            f"bridge to {self.map.broker.url} (user: {self.map.broker.username or 'anonymous'}, "
+            f"TLS: {self.map.broker.tls}), clock {self.clock.spec()}, {len(m)} measurements, "
+            f"device limits {self.limiter.limits}"
+        )
+
+    # ------------------------------------------------------------------ MQTT side
+    def _on_connect(self) -> None:
+        """(paho thread) Availability, discovery, switch states and the run message again."""
+        link = self.link
+        link.publish(self.map.availability_topic, AVAILABLE, retain=True)
+        if self.map.discovery:
+            for topic, payload in discovery_messages(self.map):
+                link.publish(topic, json.dumps(payload), retain=True)
+        for name, on in self.switches.items():
+            link.publish(self.map.switch_topics(name)[1], PAYLOAD_ON if on else PAYLOAD_OFF, retain=True)
+        if self.t0_unix_s is not None:
+            link.publish(self.map.run_topic, self._run_payload(), retain=True)
+
+    def _run_payload(self) -> str:
+        return json.dumps({"clock": self.clock.spec(), "t0_unix_s": self.t0_unix_s, "period_s": self.clock.period_s})
+
+    def _on_mqtt(self) -> None:
+        for msg in self.link.drain():
+            name = self._topic_measurement.get(msg.topic)
+            if name is not None:
+                try:
+                    value, step = self.map.measurements[name].decode(msg.payload)
+                except PayloadError as exc:
+                    self.bad_measurements += 1
+                    self._event("rejected", f"measurement '{name}': {exc}")
+                    value, step = math.nan, None
+                self.watchdog.update(name, value, step, msg.t_recv)
+                self._t_building = msg.t_recv
+            elif msg.topic == self.map.sim_record_topic:
+                self._on_record(msg.payload)
+                self._t_building = msg.t_recv
+            elif msg.topic in self._switch_topics:
+                self._on_switch(self._switch_topics[msg.topic], msg.payload)
+        self._advance()
+
+    def _on_record(self, payload: bytes) -> None:
+        try:
+            rec = json.loads(payload)
+            step = int(rec["step"])
+        except (ValueError, KeyError, TypeError):
+            self._event("rejected", f"topic '{self.map.sim_record_topic}': unreadable record")
+            return
+        if step >= self.next_record:
+            self._records[step] = rec
+
+    def _on_switch(self, name: str, payload: bytes) -> None:
+        text = payload.decode("utf-8", errors="replace").strip().upper()
+        if text not in (PAYLOAD_ON, PAYLOAD_OFF):
+            self._event("rejected", f"switch '{name}': payload {text[:20]!r} is not ON/OFF")
+            return
+        self.switches[name] = text == PAYLOAD_ON
+        self.link.publish(self.map.switch_topics(name)[1], text, retain=True)
+        self._event("switch", f"{name} {text}")
+
+    def _send_setpoints(self, k: int, action: Action, fallback: bool) -> None:
+        """Set-points of ``action`` tagged ``k`` (held back while the rate limit is in force)."""
+        now = time.monotonic()
+        if self.clock.wall and not self.limiter.may_send(now):
+            self._held = (k, action, fallback)
+            return
+        self._held = None
+        self._sent = [(spec.topic, spec.encode(float(getattr(action, name)), k))
+                      for name, spec in self.map.setpoints.items()]
+        for topic, payload in self._sent:
+            self.link.publish(topic, payload)
+        self.limiter.sent(now)
+        self._t_sent = now
+        self.fallback_for[k] = fallback
+        self._last_action = action
+        self.phase = "sent"
+        self._publish_ha_state(k)
+
+    def _publish_ha_state(self, k: int) -> None:
+        a = self._last_action
+        state = {
+            "step": k,
+            "hp_mode": HP_MODE_WORDS.get(a.hp_mode, str(a.hp_mode)),
+            "hp_mod_pct": round(100.0 * a.hp_mod, 3),
+            "p_fc_w": round(a.p_fc_w, 3),
+            "p_bess_w": round(a.p_bess_w, 3),
+            **{key: round(v, 6) for key, v in self.kpis.items()},
+            "fallback_steps": self.fallback_steps,
+            "clamped_commands": self.limiter.counters.clamped_commands,
+            "alarm": PAYLOAD_ON if self._alarm_step == k else PAYLOAD_OFF,
+        }
+        self.link.publish(self.map.state_topic, json.dumps(state), retain=True)
+
+    # ------------------------------------------------------------------ ROS side
+    def _event(self, kind: str, detail: str) -> None:
+        line = f"{self.k} {kind} {detail}"
+        self.get_logger().warning(line)
+        self._events_pub.publish(String(data=line))
+
+    def _alarm(self, k: int, kind: str, detail: str, action: Action | None) -> None:
+        payload = {"step": k, "kind": kind, "detail": detail, "time_unix_s": time.time()}
+        if action is not None:
+            payload["action"] = {f: getattr(action, f) for f in ACTION_FIELDS}
+        text = json.dumps(payload)
+        self.alarms += 1
+        self._alarm_step = k
+        self._alarm_pub.publish(String(data=text))
+        self.link.publish(self.map.alarm_topic, text)
+        self.get_logger().error(f"alarm at step {k}: {kind}: {detail}")
+
+    def _on_recorder_ready(self, msg: Bool) -> None:
+        self._recorder_ready = bool(msg.data)
+
+    def _on_truth(self, msg: Float64MultiArray) -> None:
+        d = msg.data
+        ti = self._truth_index
+        if len(d) <= max(ti.values()):
+            return
+        step = int(d[0])
+        self._truth[step] = (d[ti["time_unix_s"]], d[ti["t_min_c"]])
+        if self.n_steps is None:
+            self.n_steps = int(d[ti["n_steps"]])
+        for s in [s for s in self._truth if s < self.k - 1]:
+            del self._truth[s]
+        self._advance()
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        data = list(msg.data)
+        if len(data) != self._cmd_layout.length or not all(math.isfinite(v) for v in data) \
+                or data[0] != int(data[0]) or data[2] != int(data[2]):
+            self.rejected_commands += 1
+            self._event("rejected", f"topic 'ems/command': malformed command {data[:6]}")
+            return
+        step = int(data[0])
+        if step == self.k - 1 and data == self._last_cmd:
+            self.duplicate_commands += 1
+            return
+        if not self.started or self.done or step != self.k or self.phase != "command":
+            if not (self.phase == "sent" and step == self.k):  # an answer to a repeated announcement
+                self.wrong_step_commands += 1
+                self._event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
+            return
+        raw = Action(hp_mod=data[1], hp_mode=int(data[2]), p_fc_w=data[3], p_bess_w=data[4])
+        action, notes = self.limiter.limit(raw)
+        if notes:
+            self._event("clamped", "; ".join(notes))
+        self._last_cmd = data
+        self._ever_commanded = True
+        self._send_setpoints(step, action, fallback=False)
+        self._advance()
+
+    def _announce(self, k: int) -> None:
+        w = self.watchdog
+        kf = float(k)
+        for pub, attrs in self._state_pubs:
+            values = []
+            for a in attrs:
+                if a in self.map.measurements:
+                    values.append(w.value(a))
+                elif a == "hp_mod":  # not metered: the modulation the bridge last sent
+                    values.append(float(self._last_action.hp_mod) if k else 0.0)
+                else:  # fc_on not metered: the fuel cell was asked to run
+                    values.append(1.0 if k and self._last_action.p_fc_w > 0 else 0.0)
+            pub.publish(array("d", [kf, *values]))
+        if self._measured is not None:
+            self._measured.publish(array("d", [kf, w.value("p_pv_w"), w.value("p_load_w")]))
+        self._publish_step(k)
+        self._t_announce = time.monotonic()
+
+    def _publish_step(self, k: int) -> None:
+        self._step_msg.data = k
+        self._step_pub.publish(self._step_msg)
+        self.link.publish(self.map.step_topic, str(k), retain=True)
+
+    def _fallback(self, k: int, kind: str, detail: str) -> None:
+        w = self.watchdog
+        bad = {p.measurement for p in w.check(time.monotonic(), check_age=False)}
+        t_air = math.nan if "t_air_c" in bad else w.value("t_air_c")
+        v_dhw = math.nan if "v_dhw_l" in bad else w.value("v_dhw_l")
+        t_min = self._truth.get(k, (0.0, math.nan))[1]
+        if math.isnan(t_min) and self._truth:
+            t_min = self._truth[max(self._truth)][1]
+        action = safe_action(t_air, v_dhw, t_min, self.params)
+        self.fallback_steps += 1
+        self._event("fallback", f"{kind}: {detail}: safe action hp_mode={action.hp_mode} hp_mod={action.hp_mod} "
+                                f"(fallback steps: {self.fallback_steps})")
+        self._alarm(k, kind, detail, action)
+        self._send_setpoints(k, action, fallback=True)
+
+    def _begin_step(self, k: int, problems: list[Problem]) -> None:
+        """Announce step ``k`` to the EMS, or send the fallback at once (problem or switch)."""
+        self.phase = "command"
+        self._t_phase = time.monotonic()
+        if problems:
+            self._publish_step(k)  # the feed keeps pace; the EMS gets no state for k
+            self._fallback(k, problems[0].kind, "; ".join(str(p) for p in problems))
+        elif not self.switches["ems"] or self.switches["fallback"]:
+            self._publish_step(k)
+            self._fallback(k, "forced", "EMS switched off" if not self.switches["ems"] else "fallback switched on")
+        else:
+            self._announce(k)
+
+    # ------------------------------------------------------------------ stepping
+    def _forward_records(self) -> None:
+        while self.next_record in self._records:
+            k = self.next_record
+            rec = self._records.pop(k)
+            fb = self.fallback_for.pop(k, False)
+            extra = {"fallback": 1.0 if fb else 0.0, "fallback_steps": float(self.fallback_steps),
+                     "rejected_commands": float(self.rejected_commands),
+                     "wrong_step_commands": float(self.wrong_step_commands)}
+            try:
+                row = array("d", [float(extra[lab]) if lab in extra else float(rec[lab])
+                                  for lab in self._record_labels])
+            except (KeyError, TypeError, ValueError) as exc:
+                self._event("rejected", f"topic '{self.map.sim_record_topic}': record {k} lacks {exc}")
+                row = None
+            if row is not None:
+                self._record.publish(row)
+                self._update_kpis(rec)
+                end_ns = int(round(float(rec["time_unix_s"]) * NS_PER_S)) + self.dt_ns
+                self._clock_msg.clock = Time(sec=end_ns // NS_PER_S, nanosec=end_ns % NS_PER_S)
+                self._clock_pub.publish(self._clock_msg)
+            self.next_record = k + 1
+            if self.n_steps is None and "n_steps" in rec:
+                self.n_steps = int(rec["n_steps"])
+
+    def _update_kpis(self, rec: dict[str, float]) -> None:
+        one = np.ones(1)
+        self.kpis["cost_eur"] += (kpi.cost_eur(rec["price_buy_eur_per_kwh"] * one, rec["p_buy_w"] * one, self.dt_h)
+                                  - kpi.cost_eur(rec["price_sell_eur_per_kwh"] * one, rec["p_sell_w"] * one,
+                                                 self.dt_h))
+        self.kpis["discomfort_kh"] += kpi.discomfort_kh(rec["t_air_c"] * one, rec["t_min_c"] * one,
+                                                        rec["t_max_c"] * one, self.dt_h)
+        self.kpis["grid_import_kwh"] += rec["p_buy_w"] * self.dt_h / W_PER_KW
+        self.kpis["grid_export_kwh"] += rec["p_sell_w"] * self.dt_h / W_PER_KW
+
+    def _advance(self) -> None:
+        if not self.started or self.done:
+            return
+        self._forward_records()
+        records = bool(self.map.sim_record_topic)
+        if self.n_steps is not None and ((records and self.next_record >= self.n_steps)
+                                         or (not records and self.k >= self.n_steps and self.phase == "sent")):
+            self._finish()
+            return
+        if self.clock.wall:
+            return  # the wall clock drives the steps (watchdog timer)
+        if self.phase == "sent" and (not records or self.next_record > self.k):
+            if self.n_steps is not None and self.k + 1 >= self.n_steps:
+                return  # the last record completes the run
+            if self.watchdog.complete_for(self.k + 1):
+                self.k += 1
+                self.phase = "measure"
+                self._t_phase = time.monotonic()
+        if self.phase == "measure" and self.watchdog.complete_for(self.k):
+            self._begin_step(self.k, self.watchdog.check(time.monotonic(), check_age=False))
+
+    def _start(self) -> None:
+        self.started = True
+        if self.clock.wall:
+            self.t0_unix_s = self.clock.first_boundary(time.time(), lead_s=min(1.0, self.clock.period_s))
+        else:
+            self.t0_unix_s = time.time()
+        self.link.publish(self.map.run_topic, self._run_payload(), retain=True)
+        self._t_phase = time.monotonic()
+        self.get_logger().info(f"starting the run (clock {self.clock.spec()}, t0 {self.t0_unix_s:.3f})")
+        self._advance()
+
+    def _wall_tick(self, now: float) -> None:
+        """Wall modes: the command deadline of the current step; begin the next step when due."""
+        period = self.clock.period_s
+        t0 = self.t0_unix_s if self.t0_unix_s is not None else 0.0
+        unix = time.time()
+        if self.phase == "command" and unix > t0 + (self.k + COMMAND_DEADLINE_SHARE) * period:
+            self._fallback(self.k, "ems_silent", f"no valid command on 'ems/command' for step {self.k} in time")
+        due = math.floor((unix - t0 - self.measure_delay_s) / period)
+        nk = self.k if self.phase == "measure" else self.k + 1
+        if due < nk or self.phase == "command" or (self.n_steps is not None and nk >= self.n_steps):
+            return
+        self.k = nk
+        problems = self.watchdog.check(now, check_age=False)
+        for name in self.map.measurements:  # max_age_s is simulated time: scale wall ages by the factor
+            r = self.watchdog.latest.get(name)
+            age = (now - r.t_recv) * self.clock.factor if r is not None else 0.0
+            if age > self.map.max_age(name):
+                problems.append(Problem(name, "stale", f"last value {age:.0f} s (simulated time) old, limit "
+                                                       f"{self.map.max_age(name):g} s"))
+        self._begin_step(nk, problems)
+
+    def _watchdog(self) -> None:
+        now = time.monotonic()
+        if self.done:
+            return
+        if not self.started:
+            ready = self.link.connected.is_set() and (not self.wait_for_recorder or self._recorder_ready) and (
+                self._cmd_sub.get_publisher_count() > 0 or now - self._t_created > self.startup_timeout_s)
+            if ready:
+                self._start()
+            return
+        if self._held is not None and self.limiter.may_send(now):
+            self._send_setpoints(*self._held)
+        if self.clock.wall:
+            self._wall_tick(now)
+        elif self.phase == "command":
+            first = not self._ever_commanded and self.fallback_steps == 0
+            if now - self._t_phase > (self.startup_timeout_s if first else self.step_timeout_s):
+                self._fallback(self.k, "ems_silent", "no valid command on 'ems/command' within the timeout")
+        if self.phase == "command" and now - self._t_announce > self.republish_period_s and self._t_announce:
+            self._announce(self.k)
+        elif self.phase == "sent" and not self.clock.wall and now - self._t_sent > self.republish_period_s:
+            for topic, payload in self._sent:  # the building may have lost them (broker restart)
+                self.link.publish(topic, payload)
+            self._t_sent = now
+        if not self.clock.wall and now - self._t_building > self.building_timeout_s and self._building_alarmed != \
+                self.k:
+            self._building_alarmed = self.k
+            self._alarm(self.k, "building_silent", f"nothing from the building for {now - self._t_building:.1f} s "
+                                                   f"(broker {self.map.broker.url}, connected: "
+                                                   f"{self.link.connected.is_set()})", None)
+        self._advance()
+
+    def stats(self) -> dict[str, float]:
+        """Run statistics (fault and limiter counters, MQTT reconnects)."""
+        c = self.limiter.counters
+        return {
+            "steps": float(self.next_record if self.map.sim_record_topic else self.k),
+            "fallback_steps": float(self.fallback_steps),
+            "rejected_commands": float(self.rejected_commands),
+            "wrong_step_commands": float(self.wrong_step_commands),
+            "duplicate_commands": float(self.duplicate_commands),
+            "clamped_commands": float(c.clamped_commands),
+            "rate_limited": float(c.rate_limited),
+            "bad_measurements": float(self.bad_measurements),
+            "alarms": float(self.alarms),
+            "mqtt_connects": float(self.link.connects),
+        }
+
+    def _finish(self) -> None:
+        self.done = True
+        line = " ".join(f"{k}={v:.6g}" for k, v in self.stats().items())
+        self.get_logger().info(f"run done: {line}")
+        self._publish_step(self.n_steps or self.k)  # the building's acknowledgement
+        self.link.publish(self.map.run_topic, "", retain=True)
+        self._done_pub.publish(Bool(data=True))
+        self._events_pub.publish(String(data=f"{self.k} stats {line}"))
+        for pub in (self._record.publisher, self._done_pub, self._events_pub):
+            pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * NS_PER_S)))
+        if self.exit_when_done:
+            self.finished.set_result(0)
+
+    def destroy_node(self) -> None:  # noqa: D102
+        self.link.stop(final=(self.map.availability_topic, NOT_AVAILABLE))
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> int:
+    """Entry point of ``mqtt_bridge`` (``ros2 run comems4build_ros mqtt_bridge``)."""
+    return run_node(MqttBridge, args, NODE_NAME)
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
+
