@@ -170,7 +170,11 @@ def run(building: SimBuilding, link: MqttLink, clock: Clock, republish_s: float 
 
     last_record: tuple[str, bytes] | None = None
     if clock.wall:
-        while run_msg is None:
+        t_sent = -1.0
+        while run_msg is None:  # the bridge starts once it has heard from the building
+            if time.monotonic() - t_sent > republish_s:
+                _publish_all(link, building.measurement_payloads(0))
+                t_sent = time.monotonic()
             handle()
             time.sleep(0.01)
         t0, period = float(run_msg["t0_unix_s"]), float(run_msg["period_s"])

@@ -476,8 +476,10 @@ class MqttBridge(ContractNode):
         if self.done:
             return
         if not self.started:
+            late = now - self._t_created > self.startup_timeout_s
+            heard = all(m in self.watchdog.latest for m in self.map.measurements if self.map.measurements[m].required)
             ready = self.link.connected.is_set() and (not self.wait_for_recorder or self._recorder_ready) and (
-                self._cmd_sub.get_publisher_count() > 0 or now - self._t_created > self.startup_timeout_s)
+                self._cmd_sub.get_publisher_count() > 0 or late) and (heard or late)
             if ready:
                 self._start()
             return
@@ -495,8 +497,9 @@ class MqttBridge(ContractNode):
             for topic, payload in self._sent:  # the building may have lost them (broker restart)
                 self.link.publish(topic, payload)
             self._t_sent = now
-        if not self.clock.wall and now - self._t_building > self.building_timeout_s and self._building_alarmed != \
-                self.k:
+        # before the building's first message the start-up timeout applies (scenario, imports)
+        silent_limit = self.building_timeout_s if self.watchdog.latest else self.startup_timeout_s
+        if not self.clock.wall and now - self._t_building > silent_limit and self._building_alarmed != self.k:
             self._building_alarmed = self.k
             self._alarm(self.k, "building_silent", f"nothing from the building for {now - self._t_building:.1f} s "
                                                    f"(broker {self.map.broker.url}, connected: "
