@@ -64,6 +64,11 @@ def j_per_cm2_10min_to_w_m2(value_j_cm2: np.ndarray | float) -> np.ndarray:
 
 
 def read_awattar_json(path: str | Path) -> pd.Series:
+    """Day-ahead prices of an aWATTar ``/v1/marketdata`` answer file (see :func:`parse_awattar`)."""
+    return parse_awattar(read_text_file(path), str(Path(path)))
+
+
+def parse_awattar(text: str, source: str) -> pd.Series:
     """Day-ahead prices of an aWATTar ``/v1/marketdata`` answer as an hourly series.
 
     Returns
@@ -74,12 +79,12 @@ def read_awattar_json(path: str | Path) -> pd.Series:
     Raises
     ------
     ScenarioError
-        Naming the file and the entry (``data[i]``) for bad JSON, a wrong unit, missing
-        fields, duplicate/overlapping/decreasing intervals or gaps.
+        Naming the source (file or URL) and the entry (``data[i]``) for bad JSON, a wrong
+        unit, missing fields, duplicate/overlapping/decreasing intervals or gaps.
     """
-    path = Path(path)
+    path = source
     try:
-        doc = json.loads(read_text_file(path))
+        doc = json.loads(text)
     except json.JSONDecodeError as exc:
         raise ScenarioError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
     if not isinstance(doc, dict) or not isinstance(doc.get("data"), list):

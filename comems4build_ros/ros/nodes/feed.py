@@ -37,7 +37,7 @@ from array import array
 from typing import Any
 
 import numpy as np
-from std_msgs.msg import UInt32
+from std_msgs.msg import String, UInt32
 
 from ...config import SECONDS_PER_HOUR
 from ...scenario.base import SERIES, Scenario
@@ -156,13 +156,90 @@ def load_scenario(
     return out
 
 
+class LiveFeed:
+    """Live prices and weather for the feed (parameter ``inputs:=live``; docs/real_building.md).
+
+    The run's steps are laid on the wall-clock hours from the current hour
+    (:func:`comems4build_ros.live_inputs.live_scenario`). Prices and weather are fetched
+    once, blocking, on start, then by a worker thread on their schedule; new values are
+    taken into the steps not yet published. A failed fetch keeps the last valid values
+    and is published as a ``warning`` on ``feed/events``.
+
+    Parameters of the feed: ``live_config`` (default ``config/live_inputs.yaml``) and
+    ``live_cache_dir`` (directory of the cache files, default ``~/.cache/comems4build_ros``).
+    """
+
+    POLL_S = 1.0
+
+    def __init__(self, feed: Feed, base: Scenario, params: Any) -> None:
+        import queue
+        import threading
+        from pathlib import Path
+
+        import pandas as pd
+
+        from ...live_inputs import PriceSource, WeatherSource, load_live_settings
+
+        self.feed = feed
+        self.base = base
+        self.params = params
+        settings = load_live_settings(str(param(feed, "live_config", "")) or None)
+        cache_dir = Path(str(param(feed, "live_cache_dir", "")) or Path.home() / ".cache" / "comems4build_ros")
+        tz = params.site.timezone
+        self.warnings: queue.SimpleQueue[str] = queue.SimpleQueue()
+        price_cache = Path(settings.prices.cache_file or cache_dir / "live_prices.json")
+        self.prices = PriceSource(settings.prices, tz, price_cache, self.warnings.put)
+        self.weather = WeatherSource(settings.weather, tz,
+                                     Path(settings.weather.cache_file or cache_dir / "live_weather.json"),
+                                     self.warnings.put)
+        self.start_time = pd.Timestamp.now(tz=tz).floor("h")
+        self.lock = threading.Lock()
+        self.changed = threading.Event()
+        self.stop = threading.Event()
+        self.prices.refresh(force=True)
+        self.weather.refresh(force=True)
+        self.thread = threading.Thread(target=self._work, name="live-inputs", daemon=True)
+
+    def scenario(self) -> Scenario:
+        """The run's scenario with the live values known now."""
+        from ...live_inputs import live_scenario
+
+        with self.lock:
+            return live_scenario(self.base, self.params, self.start_time, self.prices, self.weather)
+
+    def start(self) -> None:
+        """Start the worker thread and the feed's timer that takes new values in."""
+        self.thread.start()
+        self.feed.create_timer(0.25, self._tick)
+        self._tick()
+
+    def _work(self) -> None:
+        while not self.stop.wait(self.POLL_S):
+            with self.lock:
+                new = self.prices.refresh() | self.weather.refresh()
+            if new:
+                self.changed.set()
+
+    def _tick(self) -> None:
+        while True:
+            try:
+                text = self.warnings.get_nowait()
+            except Exception:  # queue.Empty
+                break
+            self.feed.event("warning", text)
+        if self.changed.is_set():
+            self.changed.clear()
+            self.feed._use_scenario(self.scenario())
+            self.feed.event("live", f"new live inputs taken in from step {self.feed._next}: {self.prices.describe()}")
+
+
 class Feed(ContractNode):
     """Scenario publisher node (see the module docstring)."""
 
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
-        from ...sim import ObservationBuilder, exogenous_series, load_forecast_settings
+        from ...sim import load_forecast_settings
 
         params = plant_params_from_node(self)
         spec = str(param(self, "scenario", "default"))
@@ -180,12 +257,16 @@ class Feed(ContractNode):
             self.get_logger().warning(note)
         check_scenario(scenario, params.simulation.time_step_h)
         self.n_steps = scenario.n_steps
-        exo = exogenous_series(scenario, params)
-        forecast = load_forecast_settings(**({"mode": mode} if mode else {}))
-        self._builder = ObservationBuilder(scenario, params, "mpc", exo, forecast)
-        self._exo = exo
-        self._time_s = [t.timestamp() for t in scenario.time]
-        self._spot = scenario.spot_eur_per_mwh.tolist()
+        self._params = params
+        self._forecast = load_forecast_settings(**({"mode": mode} if mode else {}))
+        self.inputs = str(param(self, "inputs", "scenario"))
+        if self.inputs not in ("scenario", "live"):
+            raise ValueError(f"node '{NODE_NAME}': parameter 'inputs': '{self.inputs}' is not 'scenario' or 'live'")
+        self._live: LiveFeed | None = None
+        if self.inputs == "live":
+            self._live = LiveFeed(self, scenario, params)
+            scenario = self._live.scenario()
+        self._use_scenario(scenario)
         # The builder's state-dependent fields are not published by the feed (plant_sim
         # publishes the state); a neutral state fills them.
         self._blank = PlantState(soc=0.0, loh=0.0, t_air_c=0.0, t_wall_in_c=0.0, t_wall_out_c=0.0, v_dhw_l=0.0)
@@ -204,10 +285,29 @@ class Feed(ContractNode):
         self._check_payload_lengths()
         self._next = 0  # first step not yet published
         self._last_request = -1
+        if self._live is not None:
+            self._live.start()
         self.get_logger().info(
             f"scenario '{scenario.name}': {self.n_steps} steps from {scenario.time[0].isoformat()}, "
-            f"forecast {forecast.mode}, {self.lookahead} steps ahead"
+            f"forecast {self._forecast.mode}, {self.lookahead} steps ahead, inputs: {self.inputs}"
         )
+
+    def _use_scenario(self, scenario: Scenario) -> None:
+        """Build the observation values of every step from ``scenario`` (again when live inputs change)."""
+        from ...sim import ObservationBuilder, exogenous_series
+
+        exo = exogenous_series(scenario, self._params)
+        self._builder = ObservationBuilder(scenario, self._params, "mpc", exo, self._forecast)
+        self._exo = exo
+        self._time_s = [t.timestamp() for t in scenario.time]
+        self._spot = scenario.spot_eur_per_mwh.tolist()
+        self.scenario = scenario
+
+    def event(self, kind: str, detail: str) -> None:
+        """Log an input event and publish it on feed/events (``<step> <kind> <detail>``)."""
+        line = f"{self._next} {kind} {detail}"
+        self.get_logger().warning(line)
+        self._events.publish(String(data=line))
 
     # ------------------------------------------------------------------ publishing
     def payloads(self, k: int) -> list[array]:
