@@ -41,8 +41,9 @@ MEASUREMENTS: dict[str, str] = {
 REQUIRED_MEASUREMENTS = ("t_air_c", "v_dhw_l", "soc", "loh")
 #: Set-points, in the order of the ``ems/command`` layout (``types.Action`` fields).
 SETPOINTS = ("hp_mod", "hp_mode", "p_fc_w", "p_bess_w")
-#: Decimal precision of the unit conversion [digits]: far above float64's 17 digits.
-DECIMAL_PRECISION = 60
+#: Decimal precision of the unit conversion [digits]: enough for a float64 (17 significant digits,
+#: exponents down to 1e-324) next to an offset, so that conversions are exact.
+DECIMAL_PRECISION = 400
 TRUE_WORDS = frozenset({"on", "true", "yes"})
 FALSE_WORDS = frozenset({"off", "false", "no"})
 
