@@ -1,0 +1,369 @@
+"""The MQTT bridge with real brokers (amqtt processes) and real rclpy nodes in processes.
+
+* ``launch --plant mqtt`` (embedded broker): EMS -> mqtt_bridge -> MQTT -> simulated
+  building -> MQTT -> mqtt_bridge -> EMS gives the in-process KPIs exactly over 2 weeks;
+  a 1-week ``wall:3600`` run gives them within 1 %.
+* The broker is killed and restarted mid-run: the bridge and the building reconnect and
+  the run completes with no step lost, equal to in-process.
+* Safety, with a scripted building (MQTT client in this test) and a scripted EMS (rclpy
+  node in this test) around a real bridge process: an out-of-range measurement gets the
+  fallback set-points and an alarm (MQTT and ROS) in the same step, a command beyond the
+  device limits is clamped and counted, a measurement that stops updating is flagged
+  stale and gets the fallback within one step; the retained Home Assistant discovery
+  messages on the broker validate against the documented schema.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import signal
+import subprocess
+import sys
+import threading
+import time
+import warnings
+from collections.abc import Callable, Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+rclpy = pytest.importorskip("rclpy")
+
+from rclpy.executors import SingleThreadedExecutor  # noqa: E402
+from rclpy.node import Node  # noqa: E402
+from std_msgs.msg import Float64MultiArray, String, UInt32  # noqa: E402
+
+from comems4build_ros.config import load_plant_params  # noqa: E402
+from comems4build_ros.mqtt.broker import free_port  # noqa: E402
+from comems4build_ros.mqtt.client import MqttLink  # noqa: E402
+from comems4build_ros.mqtt.discovery import DISCOVERY_SCHEMA, validate_discovery  # noqa: E402
+from comems4build_ros.mqtt.topicmap import SETPOINTS, load_topic_map  # noqa: E402
+from comems4build_ros.ros.contract import load_contract  # noqa: E402
+from comems4build_ros.ros.launcher import LaunchOptions, acquire_domain_id, launch, ros_args  # noqa: E402
+from comems4build_ros.sim import simulate  # noqa: E402
+
+pytestmark = pytest.mark.ros
+TIMING_KEYS = ("wall_s", "ems_s")
+#: KPIs compared for the wall-clock run (summary keys).
+KPI_KEYS = ("cost_eur_week_median", "discomfort_kh_week_median", "buy_kwh_week_median", "sell_kwh_week_median",
+            "loh_end")
+
+
+def _reference(weeks: int, steps: int | None = None) -> dict:
+    from comems4build_ros.ros.nodes.feed import load_scenario
+
+    params = load_plant_params()
+    scenario = load_scenario("default", params, None, weeks, None, steps)
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return simulate("fuzzy", scenario, params).summary
+
+
+def _same(a: dict, b: dict) -> None:
+    keys = set(a) - set(TIMING_KEYS)
+    assert keys == set(b) - set(TIMING_KEYS)
+    for k in sorted(keys):
+        if isinstance(a[k], float) and math.isnan(a[k]):
+            assert math.isnan(b[k]), k
+        else:
+            assert a[k] == b[k], k
+
+
+class Broker:
+    """An amqtt broker process on a fixed port (restartable)."""
+
+    def __init__(self, tmp: Path, port: int | None = None) -> None:
+        self.port = port or free_port()
+        self.url = f"mqtt://127.0.0.1:{self.port}"
+        self.tmp = tmp
+        self.proc: subprocess.Popen | None = None
+        self.starts = 0
+
+    def start(self) -> None:
+        self.starts += 1
+        log = open(self.tmp / f"broker.{self.starts}.log", "w")  # noqa: SIM115
+        self.proc = subprocess.Popen([sys.executable, "-m", "comems4build_ros.mqtt.broker", "--port", str(self.port)],
+                                     stdout=subprocess.PIPE, stderr=log, text=True, start_new_session=True)
+        log.close()
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        assert line.startswith("broker ready"), line
+
+    def kill(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.kill()
+            self.proc.wait(10)
+
+    def stop(self) -> None:
+        if self.proc is not None and self.proc.poll() is None:
+            self.proc.send_signal(signal.SIGINT)
+            try:
+                self.proc.wait(10)
+            except subprocess.TimeoutExpired:
+                self.kill()
+
+
+@pytest.fixture()
+def broker(tmp_path: Path) -> Iterator[Broker]:
+    b = Broker(tmp_path)
+    b.start()
+    yield b
+    b.stop()
+
+
+# ---------------------------------------------------------------------- launcher runs
+def test_launch_mqtt_plant_two_weeks_equals_in_process(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    launch(LaunchOptions(ems="fuzzy", out=out, weeks=2, plant="mqtt", timeout_s=900))
+    summary = json.loads((out / "summary.json").read_text())
+    _same(summary, _reference(2))
+    assert summary["steps"] == 336 and summary["fallback_steps"] == 0
+    log = (out / "log" / "mqtt_bridge.log").read_text()
+    assert "run done: steps=336 fallback_steps=0" in log and "clamped_commands=0" in log
+
+
+def test_launch_wall_clock_one_week_within_one_percent(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, plant="mqtt", clock="wall:3600", timeout_s=900))
+    summary = json.loads((out / "summary.json").read_text())
+    ref = _reference(1)
+    assert summary["steps"] == 168
+    for k in KPI_KEYS:
+        assert summary[k] == pytest.approx(ref[k], rel=0.01, abs=1e-9), k
+    print("wall:3600 fallback steps:", summary["fallback_steps"], {k: (summary[k], ref[k]) for k in KPI_KEYS})
+
+
+def test_broker_restart_mid_run_loses_no_step(tmp_path: Path, broker: Broker) -> None:
+    out = tmp_path / "run"
+    steps_seen: list[int] = []
+    watch = MqttLink(load_topic_map(broker_url=broker.url).broker, "test_watch", ["comems4build/step"])
+    watch.start(wait_s=10)
+    result: dict[str, Any] = {}
+
+    def run() -> None:
+        try:
+            result["res"] = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=96, plant="mqtt",
+                                                 broker_url=broker.url, timeout_s=600))
+        except BaseException as exc:  # reported below
+            result["error"] = exc
+
+    th = threading.Thread(target=run)
+    th.start()
+    try:
+        deadline = time.monotonic() + 300
+        while time.monotonic() < deadline and not (steps_seen and steps_seen[-1] >= 30):
+            steps_seen.extend(int(m.payload) for m in watch.drain() if m.payload)
+            time.sleep(0.02)
+        assert steps_seen and steps_seen[-1] >= 30, "run did not get going"
+        broker.kill()  # mid-run, no goodbye
+        time.sleep(1.0)
+        broker.start()
+    finally:
+        th.join(600)
+        watch.stop()
+    assert "error" not in result, result.get("error")
+    summary = json.loads((out / "summary.json").read_text())
+    _same(summary, _reference(1, 96))
+    assert summary["steps"] == 96
+    log = (out / "log" / "mqtt_bridge.log").read_text()
+    connects = int(float(log.split("mqtt_connects=")[1].split()[0]))
+    assert connects >= 2, "the bridge did not reconnect"
+
+
+# ---------------------------------------------------------------------- scripted building and EMS
+class Rig:
+    """A real bridge process between a scripted building (MQTT) and a scripted EMS (rclpy)."""
+
+    def __init__(self, tmp: Path, domain_id: int, broker: Broker, clock: str, command: Callable[[int], list[float]]):
+        import yaml
+
+        from comems4build_ros.mqtt.topicmap import default_map_file
+
+        # a real building: no simulator record topic
+        doc = yaml.safe_load(default_map_file().read_text())
+        doc["/**"]["ros__parameters"]["mqtt"]["sim_record_topic"] = ""
+        map_file = tmp / "map.yaml"
+        map_file.write_text(yaml.safe_dump(doc))
+        self.map = load_topic_map(map_file, broker_url=broker.url)
+        self.contract = load_contract()
+        env = {**os.environ, "ROS_DOMAIN_ID": str(domain_id), "ROS_LOG_DIR": str(tmp / "ros_log"),
+               "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONUNBUFFERED": "1"}
+        self.log = tmp / "bridge.log"
+        with open(self.log, "w") as fh:
+            params = {"broker_url": broker.url, "clock": clock, "startup_timeout_s": 60.0, "step_timeout_s": 5.0,
+                      "topic_map": str(map_file)}
+            self.proc = subprocess.Popen(
+                [sys.executable, "-m", "comems4build_ros.ros.nodes.mqtt_bridge", *ros_args("", params)],
+                env=env, stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
+        os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
+        self.ctx = rclpy.context.Context()
+        rclpy.init(context=self.ctx, domain_id=domain_id)
+        self.node = Node("test_ems", context=self.ctx)
+        self.executor = SingleThreadedExecutor(context=self.ctx)
+        self.executor.add_node(self.node)
+        c = self.contract
+        self.announced: list[int] = []  # steps whose state reached the EMS
+        self.ros_alarms: list[dict] = []
+        self.events: list[str] = []
+        self.plant_steps: list[int] = []
+        self.command = command
+        self.cmd_pub = self.node.create_publisher(Float64MultiArray, "ems/command",
+                                                  c.topic("ems/command").qos_profile())
+
+        def on_state(msg: Float64MultiArray) -> None:
+            k = int(msg.data[0])
+            if k not in self.announced:
+                self.announced.append(k)
+                self.cmd_pub.publish(Float64MultiArray(data=[float(k), *self.command(k)]))
+
+        self.node.create_subscription(Float64MultiArray, "state/t_air_c", on_state,
+                                      c.topic("state/t_air_c").qos_profile())
+        self.node.create_subscription(String, "bridge/alarm", lambda m: self.ros_alarms.append(json.loads(m.data)),
+                                      c.topic("bridge/alarm").qos_profile())
+        self.node.create_subscription(String, "plant/events", lambda m: self.events.append(m.data),
+                                      c.topic("plant/events").qos_profile())
+        self.node.create_subscription(UInt32, "plant/step", lambda m: self.plant_steps.append(int(m.data)),
+                                      c.topic("plant/step").qos_profile())
+        sp = [s.topic for s in self.map.setpoints.values()]
+        self.link = MqttLink(self.map.broker, "test_building", [*sp, self.map.alarm_topic, self.map.run_topic,
+                                                                 "homeassistant/#", self.map.state_topic])
+        assert self.link.start(wait_s=10)
+        self.setpoints: dict[int, dict[str, float]] = {}
+        self.latest_setpoints: dict[str, float] = {}
+        self.mqtt_alarms: list[dict] = []
+        self.discovery: dict[str, bytes] = {}
+        self.ha_states: list[dict] = []
+        self.run_msg: dict | None = None
+
+    def pump(self, seconds: float = 0.01) -> None:
+        self.executor.spin_once(timeout_sec=seconds)
+        by_topic = {s.topic: n for n, s in self.map.setpoints.items()}
+        for m in self.link.drain():
+            if m.topic in by_topic:
+                name = by_topic[m.topic]
+                value, step = self.map.setpoints[name].decode(m.payload)
+                self.latest_setpoints[name] = value
+                if step is not None:
+                    self.setpoints.setdefault(step, {})[name] = value
+            elif m.topic == self.map.alarm_topic:
+                self.mqtt_alarms.append(json.loads(m.payload))
+            elif m.topic == self.map.state_topic:
+                self.ha_states.append(json.loads(m.payload))
+            elif m.topic == self.map.run_topic:
+                self.run_msg = json.loads(m.payload) if m.payload else None
+            elif m.topic.startswith("homeassistant/"):
+                self.discovery[m.topic] = m.payload
+
+    def measure(self, values: dict[str, float], step: int | None, skip: tuple[str, ...] = ()) -> None:
+        for name, spec in self.map.measurements.items():
+            if name not in skip:
+                self.link.publish(spec.topic, spec.encode(values[name], step))
+
+    def close(self) -> None:
+        self.proc.send_signal(signal.SIGINT)
+        try:
+            self.proc.wait(15)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(5)
+        self.link.stop()
+        self.executor.shutdown()
+        self.node.destroy_node()
+        rclpy.try_shutdown(context=self.ctx)
+
+
+GOOD = {"t_air_c": 20.5, "v_dhw_l": 200.0, "soc": 0.5, "loh": 0.9, "hp_mod": 0.0, "fc_on": 0.0,
+        "t_wall_in_c": 19.0, "t_wall_out_c": 5.0, "p_pv_w": 0.0, "p_load_w": 400.0, "t_amb_c": 2.0}
+#: The scripted EMS: hp_mod, hp_mode, p_fc_w, p_bess_w; step 1 asks the battery for 5 kW.
+NORMAL = [0.6, 1.0, 0.0, 200.0]
+
+
+@pytest.fixture()
+def domain_id() -> Iterator[int]:
+    with acquire_domain_id() as did:
+        yield did
+
+
+def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_and_commands_are_clamped(
+        tmp_path: Path, domain_id: int, broker: Broker) -> None:
+    rig = Rig(tmp_path, domain_id, broker, "sim", lambda k: [0.6, 1.0, 0.0, 5000.0] if k == 1 else NORMAL)
+    try:
+        k, t_pub = 0, 0.0
+        deadline = time.monotonic() + 120
+        while k < 4 and time.monotonic() < deadline:
+            rig.pump()
+            if len(rig.setpoints.get(k, {})) == len(SETPOINTS):
+                k += 1
+                t_pub = 0.0
+            elif time.monotonic() - t_pub > 0.5:  # (re)send the measurements of step k
+                rig.measure(dict(GOOD, t_air_c=80.0) if k == 2 else GOOD, k)
+                t_pub = time.monotonic()
+        assert k == 4, f"stuck at step {k}: {rig.proc.poll()} {(tmp_path / 'bridge.log').read_text()[-2000:]}"
+        for _ in range(50):
+            rig.pump()
+        # step 0: the EMS's command as sent
+        assert rig.setpoints[0] == {"hp_mod": 0.6, "hp_mode": 1.0, "p_fc_w": 0.0, "p_bess_w": 200.0}
+        # step 1: 5 kW battery power clamped to the device limit (battery.p_ch_max_w), counted, logged
+        p_ch_max = load_plant_params().battery.p_ch_max_w
+        assert rig.setpoints[1]["p_bess_w"] == p_ch_max
+        assert any("clamped" in e and "p_bess_w 5000 clamped to 1000" in e for e in rig.events)
+        # step 2: T_air 80 degC out of range -> no state to the EMS, the safe action (rooms at
+        # full power: the room temperature is unknown), alarm on MQTT and ROS for step 2
+        assert 2 not in rig.announced and 2 in rig.plant_steps
+        assert rig.setpoints[2] == {"hp_mod": 1.0, "hp_mode": 1.0, "p_fc_w": 0.0, "p_bess_w": 0.0}
+        assert [(a["step"], a["kind"]) for a in rig.mqtt_alarms] == [(2, "out_of_range")]
+        assert [(a["step"], a["kind"]) for a in rig.ros_alarms] == [(2, "out_of_range")]
+        assert "t_air_c" in rig.mqtt_alarms[0]["detail"] and rig.mqtt_alarms[0]["action"]["hp_mode"] == 1
+        assert any(s["step"] == 2 and s["alarm"] == "ON" for s in rig.ha_states)
+        # step 3: back to the EMS
+        assert 3 in rig.announced and rig.setpoints[3]["hp_mod"] == 0.6
+        last = [s for s in rig.ha_states if s["step"] == 3][-1]
+        assert last["clamped_commands"] == 1 and last["fallback_steps"] == 1 and last["alarm"] == "OFF"
+        # Home Assistant discovery: retained configs on the broker, valid against the schema
+        comps = {validate_discovery(t, p) for t, p in rig.discovery.items()}
+        assert comps == set(DISCOVERY_SCHEMA) and len(rig.discovery) == 14
+    finally:
+        rig.close()
+
+
+def test_stale_measurement_gets_fallback_within_one_step_wall_clock(
+        tmp_path: Path, domain_id: int, broker: Broker) -> None:
+    rig = Rig(tmp_path, domain_id, broker, "wall:3600", lambda k: NORMAL)
+    try:
+        max_age_wall = rig.map.max_age("soc") / 3600.0  # 2 s at one simulated hour per second
+        t_last_soc = None
+        t_next = 0.0
+        deadline = time.monotonic() + 120
+        while time.monotonic() < deadline:
+            rig.pump()
+            now = time.time()
+            if rig.run_msg is not None:
+                t0 = rig.run_msg["t0_unix_s"]
+                if now > t0 + 12:
+                    break
+                stop_soc = now > t0 + 3.0
+            else:
+                stop_soc = False
+            if now >= t_next:  # a real building: plain values every 0.5 s, no step tags
+                rig.measure(GOOD, None, skip=("soc",) if stop_soc else ())
+                if not stop_soc:
+                    t_last_soc = now
+                t_next = now + 0.5
+        assert rig.run_msg is not None and t_last_soc is not None
+        t0, period = rig.run_msg["t0_unix_s"], rig.run_msg["period_s"]
+        delay = 0.2 * period
+        # first step whose announcement (t0 + k*period + delay) sees soc older than its limit
+        expected = math.ceil((t_last_soc + max_age_wall - t0 - delay) / period)
+        stale = [a for a in rig.mqtt_alarms if a["kind"] == "stale"]
+        assert stale and expected <= stale[0]["step"] <= expected + 1, (expected, stale[:2])
+        k = stale[0]["step"]
+        assert "soc" in stale[0]["detail"] and any(a["step"] == k and a["kind"] == "stale" for a in rig.ros_alarms)
+        # the safe action; without a feed the comfort bound is unknown, so it heats the rooms
+        assert rig.setpoints[k] == {"hp_mod": 1.0, "hp_mode": 1.0, "p_fc_w": 0.0, "p_bess_w": 0.0}
+        assert k not in rig.announced and all(s in rig.announced for s in range(k))
+        assert all(rig.setpoints[s]["hp_mod"] == 0.6 for s in range(k))  # the EMS before
+    finally:
+        rig.close()
