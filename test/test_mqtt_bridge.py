@@ -367,3 +367,81 @@ def test_stale_measurement_gets_fallback_within_one_step_wall_clock(
         assert all(rig.setpoints[s]["hp_mod"] == 0.6 for s in range(k))  # the EMS before
     finally:
         rig.close()
+
+
+# ---------------------------------------------------------------------- TLS and credentials
+def _self_signed(tmp: Path) -> tuple[Path, Path]:
+    import shutil
+
+    if shutil.which("openssl") is None:
+        pytest.skip("openssl not installed (needed to make a test certificate)")
+    cert, key = tmp / "cert.pem", tmp / "key.pem"
+    subprocess.run(["openssl", "req", "-x509", "-newkey", "rsa:2048", "-nodes", "-keyout", str(key), "-out", str(cert),
+                    "-days", "2", "-subj", "/CN=localhost", "-addext", "subjectAltName=IP:127.0.0.1,DNS:localhost"],
+                   check=True, capture_output=True)
+    return cert, key
+
+
+def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, domain_id: int,
+                                                               monkeypatch: pytest.MonkeyPatch) -> None:
+    import yaml
+
+    from comems4build_ros.mqtt.broker import write_password_file
+    from comems4build_ros.mqtt.client import BrokerConfigError, read_password
+    from comems4build_ros.mqtt.topicmap import default_map_file
+
+    secret = "s3cret-Pa55-for-the-test"
+    cert, key = _self_signed(tmp_path)
+    users = write_password_file(tmp_path / "users", {"ems": secret})
+    port = free_port()
+    log = open(tmp_path / "broker.log", "w")  # noqa: SIM115
+    proc = subprocess.Popen([sys.executable, "-m", "comems4build_ros.mqtt.broker", "--port", str(port), "--users",
+                             str(users), "--cert", str(cert), "--key", str(key)], stdout=subprocess.PIPE,
+                            stderr=log, text=True, start_new_session=True)
+    log.close()
+    bridge = None
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().startswith("broker ready")
+        pw_file = tmp_path / "pw"
+        pw_file.write_text(secret + "\n")
+        doc = yaml.safe_load(default_map_file().read_text())
+        doc["/**"]["ros__parameters"]["mqtt"]["broker"].update(
+            url=f"mqtts://127.0.0.1:{port}", username="ems", password_file=str(pw_file), ca_file=str(cert))
+        map_file = tmp_path / "map.yaml"
+        map_file.write_text(yaml.safe_dump(doc))
+        tmap = load_topic_map(map_file)
+        # the test's own client: password from an environment variable
+        env_settings = tmap.broker.model_copy(update={"password_file": "", "password_env": "TEST_MQTT_PW"})
+        monkeypatch.setenv("TEST_MQTT_PW", secret)
+        monkeypatch.setenv("TEST_MQTT_WRONG", "not-the-password")
+        watch = MqttLink(env_settings, "test_watch", [tmap.availability_topic])
+        assert watch.start(wait_s=15), watch.last_error
+        wrong = MqttLink(env_settings.model_copy(update={"password_env": "TEST_MQTT_WRONG"}), "test_wrong")
+        assert not wrong.start(wait_s=3)
+        wrong.stop()
+        with pytest.raises(BrokerConfigError, match="TEST_MQTT_UNSET is not set") as info:
+            read_password(env_settings.model_copy(update={"password_env": "TEST_MQTT_UNSET"}), environ={})
+        assert secret not in str(info.value)
+        # the bridge: password from the file, TLS with the test CA
+        env = {**os.environ, "ROS_DOMAIN_ID": str(domain_id), "ROS_LOG_DIR": str(tmp_path / "ros_log"),
+               "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONUNBUFFERED": "1"}
+        with open(tmp_path / "bridge.log", "w") as fh:
+            bridge = subprocess.Popen([sys.executable, "-m", "comems4build_ros.ros.nodes.mqtt_bridge",
+                                       *ros_args("", {"topic_map": str(map_file)})],
+                                      env=env, stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
+        deadline = time.monotonic() + 60
+        online = False
+        while time.monotonic() < deadline and not online:
+            online = any(m.payload == b"online" for m in watch.drain())
+            time.sleep(0.05)
+        assert online, (tmp_path / "bridge.log").read_text()[-2000:]
+        watch.stop()
+    finally:
+        if bridge is not None:
+            bridge.send_signal(signal.SIGINT)
+            bridge.wait(15)
+        proc.send_signal(signal.SIGINT)
+        proc.wait(15)
+    logs = [tmp_path / "bridge.log", *(tmp_path / "ros_log").rglob("*")]
+    text = "".join(p.read_text(errors="replace") for p in logs if p.is_file())
+    assert "user: ems, TLS: True" in text and secret not in text
