@@ -189,3 +189,77 @@ def test_weather_forecast_and_live_scenario(server, tmp_path):
     assert live.t_amb_c[24:30].tolist() == base.t_amb_c[24:30].tolist()  # beyond the forecast: the scenario
     assert np.all(live.dhi_w_m2 <= live.ghi_w_m2)
     assert live.p_load_w.tolist() == base.p_load_w.tolist()
+
+
+@pytest.mark.ros
+def test_feed_node_live_inputs_publishes_warning_and_uses_last_valid_prices(server, tmp_path):
+    """The feed process with inputs:=live: the cache holds valid prices, the server answers
+    garbage -> a warning on feed/events and feed/prices carry the cached prices."""
+    import os
+    import signal
+    import subprocess
+    import sys
+
+    import rclpy
+    import yaml
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_msgs.msg import Float64MultiArray, String, UInt32
+
+    from comems4build_ros.config import config_dir
+    from comems4build_ros.ros.contract import load_contract
+    from comems4build_ros.ros.launcher import acquire_domain_id, ros_args
+
+    now = pd.Timestamp.now(tz=TZ).floor("h")
+    day = now.normalize()
+    warnings_: list[str] = []
+    # a valid fetch fills the cache (as a run on an earlier day would have done)
+    server.responses = [(200, awattar_answer(day, 48, 200.0), 0.0)]
+    src = _source(server, tmp_path, [now.timestamp()], warnings_)
+    assert src.refresh()
+    server.responses = [(200, '{"object": "list", "data": [{"start_timestamp": ', 0.0)]
+    doc = yaml.safe_load((config_dir() / "live_inputs.yaml").read_text())
+    doc["/**"]["ros__parameters"]["live_inputs"]["prices"].update(url=server.url, retries=1, timeout_s=2.0,
+                                                                   cache_file=str(tmp_path / "cache.json"))
+    cfg = tmp_path / "live.yaml"
+    cfg.write_text(yaml.safe_dump(doc))
+    contract = load_contract()
+    params = load_plant_params()
+    with acquire_domain_id() as did:
+        env = {**os.environ, "ROS_DOMAIN_ID": str(did), "ROS_LOG_DIR": str(tmp_path / "ros_log"),
+               "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+        with open(tmp_path / "feed.log", "w") as fh:
+            proc = subprocess.Popen([sys.executable, "-m", "comems4build_ros.ros.nodes.feed", *ros_args("", {
+                "weeks": 1, "steps": 24, "inputs": "live", "live_config": str(cfg),
+                "live_cache_dir": str(tmp_path)})], env=env, stdout=fh, stderr=subprocess.STDOUT,
+                start_new_session=True)
+        ctx = Context()
+        rclpy.init(context=ctx, domain_id=did)
+        node = Node("test_observer", context=ctx)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        events: list[str] = []
+        prices: dict[int, list[float]] = {}
+        node.create_subscription(String, "feed/events", lambda m: events.append(m.data),
+                                 contract.topic("feed/events").qos_profile())
+        node.create_subscription(Float64MultiArray, "feed/prices", lambda m: prices.setdefault(int(m.data[0]),
+                                 list(m.data)), contract.topic("feed/prices").qos_profile())
+        step_pub = node.create_publisher(UInt32, "plant/step", contract.topic("plant/step").qos_profile())
+        try:
+            deadline = time.monotonic() + 120
+            while time.monotonic() < deadline and not (0 in prices and events):
+                ex.spin_once(timeout_sec=0.05)
+                step_pub.publish(UInt32(data=0))
+            assert 0 in prices and events, (tmp_path / "feed.log").read_text()[-2000:]
+        finally:
+            proc.send_signal(signal.SIGINT)
+            proc.wait(15)
+            ex.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown(context=ctx)
+    assert any(" warning day-ahead prices: " in e and "invalid JSON" in e and "using the last valid prices" in e
+               for e in events), events
+    # step 0 is the current hour; its buy price comes from the cached spot price
+    spot0 = src.values(pd.DatetimeIndex([now]))[0]
+    assert prices[0][1] == pytest.approx(spot0 / 1000.0 + params.grid.surcharge_eur_per_kwh, abs=1e-12)
