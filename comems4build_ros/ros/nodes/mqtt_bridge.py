@@ -212,7 +212,9 @@ class MqttBridge(ContractNode):
                 except PayloadError as exc:
                     self.bad_measurements += 1
                     self._event("rejected", f"measurement '{name}': {exc}")
-                    value, step = math.nan, None
+                    # lock-step: the building sends only the step the bridge waits for, so
+                    # the unreadable value stands for it (and gets the fallback)
+                    value, step = math.nan, (self.k if self.phase == "measure" and not self.clock.wall else None)
                 self.watchdog.update(name, value, step, msg.t_recv)
                 self._t_building = msg.t_recv
             elif msg.topic == self.map.sim_record_topic:
