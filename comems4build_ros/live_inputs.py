@@ -57,20 +57,23 @@ class _Model(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
 
 
-class PriceSettings(_Model):
+class _FetchSettings(_Model):
+    timeout_s: float = Field(gt=0)  # per attempt [s]
+    retries: int = Field(ge=1)  # attempts per fetch
+    retry_delay_s: float = Field(ge=0)  # wait between attempts [s]
+    cache_file: str = ""
+
+
+class PriceSettings(_FetchSettings):
     """``live_inputs.prices`` of ``config/live_inputs.yaml``."""
 
     url: str = Field(pattern=r"^https?://")
     publication_time: str = Field(pattern=r"^([01]\d|2[0-3]):[0-5]\d$")
     days_ahead: int = Field(ge=1, le=7)
-    timeout_s: float = Field(gt=0)
-    retries: int = Field(ge=1)
-    retry_delay_s: float = Field(ge=0)
     retry_later_s: float = Field(gt=0)
-    cache_file: str = ""
 
 
-class WeatherSettings(_Model):
+class WeatherSettings(_FetchSettings):
     """``live_inputs.weather`` of ``config/live_inputs.yaml``."""
 
     url: str = ""
@@ -79,10 +82,6 @@ class WeatherSettings(_Model):
     t_amb_key: str
     ghi_key: str
     refresh_s: float = Field(gt=0)
-    timeout_s: float = Field(gt=0)
-    retries: int = Field(ge=1)
-    retry_delay_s: float = Field(ge=0)
-    cache_file: str = ""
 
 
 class LiveSettings(_Model):

@@ -61,13 +61,9 @@ from ...mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
 from ...mqtt.topicmap import PayloadError, load_topic_map
 from ...types import ACTION_FIELDS, Action
 from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
-from .plant_sim import NS_PER_S, STATE_TOPICS
+from .plant_sim import NS_PER_S, STATE_TOPICS, set_loop_params
 
 NODE_NAME = "mqtt_bridge"
-STEP_TIMEOUT_S = 5.0
-STARTUP_TIMEOUT_S = 120.0
-REPUBLISH_PERIOD_S = 0.5
-WATCHDOG_PERIOD_S = 0.02
 #: Lock-step: alarm when the building has sent nothing for this long [s].
 BUILDING_TIMEOUT_S = 10.0
 #: Wall modes: announce a step this share of the period after its start (at most
@@ -91,21 +87,11 @@ class MqttBridge(ContractNode):
         self.params = plant_params_from_node(self)
         self.map = load_topic_map(str(param(self, "topic_map", "")) or None, str(param(self, "broker_url", "")) or None)
         self.clock = parse_clock(str(param(self, "clock", "sim")), self.params.simulation.time_step_h)
-        self.step_timeout_s = float(param(self, "step_timeout_s", STEP_TIMEOUT_S))
-        self.startup_timeout_s = float(param(self, "startup_timeout_s", STARTUP_TIMEOUT_S))
-        self.republish_period_s = float(param(self, "republish_period_s", REPUBLISH_PERIOD_S))
-        self.building_timeout_s = float(param(self, "building_timeout_s", BUILDING_TIMEOUT_S))
-        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
-        self.exit_when_done = bool(param(self, "exit_when_done", True))
-        self.watchdog_period_s = float(param(self, "watchdog_period_s", WATCHDOG_PERIOD_S))
+        set_loop_params(self, NODE_NAME, {"building_timeout_s": BUILDING_TIMEOUT_S})
         delay = float(param(self, "measure_delay_s", -1.0))
         self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
                                                             MEASURE_DELAY_MAX_S)
         client_id = str(param(self, "client_id", "comems4build_bridge"))
-        for name in ("step_timeout_s", "startup_timeout_s", "republish_period_s", "watchdog_period_s",
-                     "building_timeout_s"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"node '{NODE_NAME}': parameter '{name}' must be positive")
         if self.clock.wall and self.measure_delay_s >= COMMAND_DEADLINE_SHARE * self.clock.period_s:
             raise ValueError(f"node '{NODE_NAME}': parameter 'measure_delay_s' must be below "
                              f"{COMMAND_DEADLINE_SHARE:g} of the step period ({self.clock.period_s:g} s)")

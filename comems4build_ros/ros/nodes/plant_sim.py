@@ -80,6 +80,27 @@ STATE_TOPICS: dict[str, tuple[str, ...]] = {
 }
 
 
+#: Timing parameters of the step loop [s] and their defaults (also used by mqtt_bridge).
+LOOP_PARAMS = {
+    "step_timeout_s": STEP_TIMEOUT_S,
+    "startup_timeout_s": STARTUP_TIMEOUT_S,
+    "republish_period_s": REPUBLISH_PERIOD_S,
+    "watchdog_period_s": WATCHDOG_PERIOD_S,
+}
+
+
+def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] | None = None) -> None:
+    """Read the loop's timing parameters (:data:`LOOP_PARAMS` plus ``extra``), each positive,
+    and ``wait_for_recorder`` / ``exit_when_done`` into attributes of ``node``."""
+    for name, default in {**LOOP_PARAMS, **(extra or {})}.items():
+        value = float(param(node, name, default))
+        if not value > 0:
+            raise ValueError(f"node '{node_name}': parameter '{name}' must be positive")
+        setattr(node, name, value)
+    node.wait_for_recorder = bool(param(node, "wait_for_recorder", False))
+    node.exit_when_done = bool(param(node, "exit_when_done", True))
+
+
 class PlantSim(ContractNode):
     """Plant simulator node (see the module docstring)."""
 
@@ -87,15 +108,7 @@ class PlantSim(ContractNode):
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         self.params = plant_params_from_node(self)
-        self.step_timeout_s = float(param(self, "step_timeout_s", STEP_TIMEOUT_S))
-        self.startup_timeout_s = float(param(self, "startup_timeout_s", STARTUP_TIMEOUT_S))
-        self.republish_period_s = float(param(self, "republish_period_s", REPUBLISH_PERIOD_S))
-        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
-        self.exit_when_done = bool(param(self, "exit_when_done", True))
-        self.watchdog_period_s = float(param(self, "watchdog_period_s", WATCHDOG_PERIOD_S))
-        for name in ("step_timeout_s", "startup_timeout_s", "republish_period_s", "watchdog_period_s"):
-            if not getattr(self, name) > 0:
-                raise ValueError(f"node '{NODE_NAME}': parameter '{name}' must be positive")
+        set_loop_params(self, NODE_NAME)
 
         self.plant = Plant(self.params)
         self.state: PlantState = self.plant.initial_state()
