@@ -14,7 +14,8 @@ from comems4build_ros.ros.launcher import ProcessGroup, acquire_domain_id, child
 
 PACKAGE = "comems4build_ros"
 #: Every executable ``ros2 run comems4build_ros <exe>`` must find (setup.py NODES).
-EXECUTABLES = ("plant_sim", "feed", "fuzzy_ems", "rbc_ems", "mpc_ems", "recorder", "replay", "mqtt_bridge", "mqtt_plant")
+EXECUTABLES = ("plant_sim", "feed", "fuzzy_ems", "rbc_ems", "mpc_ems", "recorder", "replay", "mqtt_bridge",
+               "mqtt_plant")
 
 
 @pytest.fixture

@@ -445,3 +445,20 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
     logs = [tmp_path / "bridge.log", *(tmp_path / "ros_log").rglob("*")]
     text = "".join(p.read_text(errors="replace") for p in logs if p.is_file())
     assert "user: ems, TLS: True" in text and secret not in text
+
+
+@pytest.mark.parametrize(
+    ("args", "message"),
+    [
+        (["--clock", "wall"], "--clock wall, --broker and --topic-map need --plant mqtt"),
+        (["--plant", "mqtt", "--clock", "wall:0"], "--clock: clock 'wall:0'"),
+        (["--plant", "mqtt", "--buildings", "2"], "--plant mqtt runs one building"),
+        (["--plant", "mqtt", "--topic-map", "/nonexistent/m.yaml"], "--topic-map /nonexistent/m.yaml: no such file"),
+    ],
+)
+def test_launch_refuses_bad_plant_options_with_exit_2(tmp_path: Path, args: list[str], message: str) -> None:
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+    proc = subprocess.run([*cli, "launch", "--ems", "fuzzy", *args, "--out", str(tmp_path / "x")],
+                          capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and message in proc.stderr, proc.stderr
+    assert not (tmp_path / "x").exists()
