@@ -229,7 +229,9 @@ class Rig:
                                       c.topic("plant/step").qos_profile())
         sp = [s.topic for s in self.map.setpoints.values()]
         self.link = MqttLink(self.map.broker, "test_building", [*sp, self.map.alarm_topic, self.map.run_topic,
-                                                                 "homeassistant/#", self.map.state_topic])
+                                                                 "homeassistant/#", self.map.state_topic,
+                                                                 self.map.availability_topic])
+        self.availability: list[bytes] = []
         assert self.link.start(wait_s=10)
         self.setpoints: dict[int, dict[str, float]] = {}
         self.latest_setpoints: dict[str, float] = {}
@@ -254,6 +256,8 @@ class Rig:
                 self.ha_states.append(json.loads(m.payload))
             elif m.topic == self.map.run_topic:
                 self.run_msg = json.loads(m.payload) if m.payload else None
+            elif m.topic == self.map.availability_topic:
+                self.availability.append(m.payload)
             elif m.topic.startswith("homeassistant/"):
                 self.discovery[m.topic] = m.payload
 
@@ -287,21 +291,25 @@ def domain_id() -> Iterator[int]:
         yield did
 
 
-def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_and_commands_are_clamped(
+def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_switch_and_last_will(
         tmp_path: Path, domain_id: int, broker: Broker) -> None:
     rig = Rig(tmp_path, domain_id, broker, "sim", lambda k: [0.6, 1.0, 0.0, 5000.0] if k == 1 else NORMAL)
     try:
         k, t_pub = 0, 0.0
         deadline = time.monotonic() + 120
-        while k < 4 and time.monotonic() < deadline:
+        while k < 5 and time.monotonic() < deadline:
             rig.pump()
             if len(rig.setpoints.get(k, {})) == len(SETPOINTS):
                 k += 1
                 t_pub = 0.0
+                if k == 4:  # Home Assistant's switch: EMS off
+                    rig.link.publish(rig.map.switch_topics("ems")[0], "OFF")
+                    for _ in range(30):
+                        rig.pump(0.01)
             elif time.monotonic() - t_pub > 0.5:  # (re)send the measurements of step k
                 rig.measure(dict(GOOD, t_air_c=80.0) if k == 2 else GOOD, k)
                 t_pub = time.monotonic()
-        assert k == 4, f"stuck at step {k}: {rig.proc.poll()} {(tmp_path / 'bridge.log').read_text()[-2000:]}"
+        assert k == 5, f"stuck at step {k}: {rig.proc.poll()} {(tmp_path / 'bridge.log').read_text()[-2000:]}"
         for _ in range(50):
             rig.pump()
         # step 0: the EMS's command as sent
@@ -314,17 +322,28 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_and_commands_are_
         # full power: the room temperature is unknown), alarm on MQTT and ROS for step 2
         assert 2 not in rig.announced and 2 in rig.plant_steps
         assert rig.setpoints[2] == {"hp_mod": 1.0, "hp_mode": 1.0, "p_fc_w": 0.0, "p_bess_w": 0.0}
-        assert [(a["step"], a["kind"]) for a in rig.mqtt_alarms] == [(2, "out_of_range")]
-        assert [(a["step"], a["kind"]) for a in rig.ros_alarms] == [(2, "out_of_range")]
+        assert [(a["step"], a["kind"]) for a in rig.mqtt_alarms][:1] == [(2, "out_of_range")]
+        assert [(a["step"], a["kind"]) for a in rig.ros_alarms][:1] == [(2, "out_of_range")]
         assert "t_air_c" in rig.mqtt_alarms[0]["detail"] and rig.mqtt_alarms[0]["action"]["hp_mode"] == 1
         assert any(s["step"] == 2 and s["alarm"] == "ON" for s in rig.ha_states)
         # step 3: back to the EMS
         assert 3 in rig.announced and rig.setpoints[3]["hp_mod"] == 0.6
         last = [s for s in rig.ha_states if s["step"] == 3][-1]
         assert last["clamped_commands"] == 1 and last["fallback_steps"] == 1 and last["alarm"] == "OFF"
+        # step 4: EMS switched off in Home Assistant -> the safe action (here: rooms within
+        # 0.5 K of an unknown bound -> heat), a 'forced' alarm, no state to the EMS
+        assert 4 not in rig.announced and rig.setpoints[4]["hp_mode"] == 1.0 and rig.setpoints[4]["hp_mod"] == 1.0
+        assert (4, "forced") in [(a["step"], a["kind"]) for a in rig.mqtt_alarms]
         # Home Assistant discovery: retained configs on the broker, valid against the schema
         comps = {validate_discovery(t, p) for t, p in rig.discovery.items()}
         assert comps == set(DISCOVERY_SCHEMA) and len(rig.discovery) == 14
+        # availability: online while running; the last will says offline when the bridge dies
+        assert rig.availability[-1] == b"online"
+        rig.proc.kill()
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline and rig.availability[-1] != b"offline":
+            rig.pump(0.05)
+        assert rig.availability[-1] == b"offline"
     finally:
         rig.close()
 
