@@ -114,6 +114,7 @@ class MqttLink:
         self.connected = threading.Event()
         self.connects = 0  # successful connects (1 + reconnects)
         self.disconnects = 0
+        self.last_error = ""  # reason of the last refused connect or disconnect (never a password)
         self._on_connect_cb = on_connect
         self._wake = wake
         self.client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=True)
@@ -154,8 +155,6 @@ class MqttLink:
         self.inbox.put(Message(msg.topic, bytes(msg.payload), bool(msg.retain), time.monotonic()))
         if self._wake is not None:
             self._wake()
-
-    last_error: str = ""
 
     # ------------------------------------------------------------------ use
     def start(self, wait_s: float | None = None) -> bool:
