@@ -148,7 +148,26 @@ def _series_from_doc(doc: Any, name: str) -> pd.Series:
     return pd.Series([float(v) for v in doc.values()], index=index, name=name).sort_index()
 
 
-class PriceSource:
+class _CachedSource:
+    """What both sources share: settings, time zone, cache file, warning callback, clock."""
+
+    def __init__(self, settings: Any, timezone: str, cache_path: Path, warn: Callable[[str], None],
+                 now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
+        self.settings = settings
+        self.tz = timezone
+        self.cache_path = Path(cache_path)
+        self.warn = warn
+        self.now = now
+        self.sleep = sleep
+        self.last_attempt: float | None = None
+        self.warnings = 0
+
+    def _warn(self, text: str) -> None:
+        self.warnings += 1
+        self.warn(text)
+
+
+class PriceSource(_CachedSource):
     """aWATTar day-ahead prices with retries, a daily schedule and a cache (module docstring).
 
     Parameters
@@ -163,26 +182,15 @@ class PriceSource:
 
     def __init__(self, settings: PriceSettings, timezone: str, cache_path: Path, warn: Callable[[str], None],
                  now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
-        self.settings = settings
-        self.tz = timezone
-        self.cache_path = Path(cache_path)
-        self.warn = warn
-        self.now = now
-        self.sleep = sleep
+        super().__init__(settings, timezone, cache_path, warn, now, sleep)
         self.prices = pd.Series(dtype=float, name="spot_eur_per_mwh")
         self.last_success: float | None = None
-        self.last_attempt: float | None = None
-        self.warnings = 0
         if self.cache_path.is_file():
             try:
                 doc = json.loads(self.cache_path.read_text(encoding="utf-8"))
                 self.prices = _series_from_doc(doc["prices"], "spot_eur_per_mwh")
             except (OSError, ValueError, KeyError, TypeError) as exc:
                 self._warn(f"cache {self.cache_path} unreadable ({exc}); starting without cached prices")
-
-    def _warn(self, text: str) -> None:
-        self.warnings += 1
-        self.warn(text)
 
     def _local_midnight(self, t: float) -> pd.Timestamp:
         return pd.Timestamp(t, unit="s", tz="UTC").tz_convert(self.tz).normalize()
@@ -304,27 +312,19 @@ def parse_weather(text: str, settings: WeatherSettings, timezone: str, source: s
     return frame.resample("1h").mean().dropna()
 
 
-class WeatherSource:
+class WeatherSource(_CachedSource):
     """HTTP JSON weather forecast with retries, periodic refresh and a cache (module docstring)."""
 
     def __init__(self, settings: WeatherSettings, timezone: str, cache_path: Path, warn: Callable[[str], None],
                  now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
-        self.settings = settings
-        self.tz = timezone
-        self.cache_path = Path(cache_path)
-        self.warn = warn
-        self.now = now
-        self.sleep = sleep
+        super().__init__(settings, timezone, cache_path, warn, now, sleep)
         self.frame = pd.DataFrame(columns=["t_amb_c", "ghi_w_m2"], dtype=float)
-        self.last_attempt: float | None = None
-        self.warnings = 0
         if self.cache_path.is_file():
             try:
                 doc = json.loads(self.cache_path.read_text(encoding="utf-8"))
                 self.frame = pd.DataFrame({k: _series_from_doc(doc[k], k) for k in ("t_amb_c", "ghi_w_m2")})
             except (OSError, ValueError, KeyError, TypeError) as exc:
-                self.warnings += 1
-                self.warn(f"weather cache {self.cache_path} unreadable ({exc}); starting without it")
+                self._warn(f"weather cache {self.cache_path} unreadable ({exc}); starting without it")
 
     @property
     def enabled(self) -> bool:
@@ -343,8 +343,7 @@ class WeatherSource:
             frame = parse_weather(http_get(s.url, s.timeout_s, s.retries, s.retry_delay_s, self.sleep), s, self.tz,
                                   s.url)
         except (FetchError, ScenarioError) as exc:
-            self.warnings += 1
-            self.warn(f"weather forecast: {exc}; using the last valid forecast "
+            self._warn(f"weather forecast: {exc}; using the last valid forecast "
                       f"({len(self.frame)} h known)")
             return False
         self.frame = frame.combine_first(self.frame).sort_index()
