@@ -481,3 +481,28 @@ def test_launch_refuses_bad_plant_options_with_exit_2(tmp_path: Path, args: list
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
     assert not (tmp_path / "x").exists()
+
+
+def test_plan_options_plant_mqtt_and_clock(tmp_path: Path) -> None:
+    from comems4build_ros.ros.plan import plan_run
+
+    plan = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, weeks=1, plant="mqtt", clock="wall:3600"), 7)
+    names = [p.name for p in plan.processes]
+    assert names == ["recorder", "fuzzy_ems", "feed", "broker", "mqtt_plant", "mqtt_bridge"]
+    assert plan.process("feed").nodes[0].params["publish_measured"] is False
+    bridge = plan.process("mqtt_bridge")
+    assert bridge.finishes and plan.process("mqtt_plant").finishes and not plan.process("broker").finishes
+    assert plan.process("broker").stop_stage > plan.process("recorder").stop_stage
+    url = bridge.nodes[0].params["broker_url"]
+    assert bridge.nodes[0].params["clock"] == "wall:3600" and url in plan.process("mqtt_plant").argv
+    assert url.endswith(plan.process("broker").argv[-1])
+    own = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, weeks=1, plant="mqtt", broker_url="mqtts://h:8883"), 7)
+    assert "broker" not in [p.name for p in own.processes]
+    live = plan_run(LaunchOptions(ems="rbc", out=tmp_path, weeks=1, inputs="live"), 7)
+    assert live.process("feed").nodes[0].params["inputs"] == "live"
+    assert "plant_sim" in [p.name for p in live.processes]
+    for bad, message in ((dict(clock="wall"), "need plant 'mqtt'"), (dict(plant="mqtt", buildings=2), "one building"),
+                         (dict(plant="ros"), "expected 'sim' or 'mqtt'"), (dict(plant="mqtt", clock="wall:-1"),
+                                                                           "wall:<factor>")):
+        with pytest.raises(ValueError, match=message):
+            plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, weeks=1, **bad), 7)

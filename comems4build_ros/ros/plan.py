@@ -16,7 +16,14 @@ Every way to run is an option of the plan, never a branch through the supervisor
   split by ``buildings_per_recorder``; the default for more buildings; see
   :mod:`comems4build_ros.ros.host`);
 * ``discovery_server``: a Fast DDS discovery server process and ``ROS_DISCOVERY_SERVER``
-  in every other process's environment.
+  in every other process's environment;
+* ``plant``: ``sim`` (``plant_sim`` on ROS) or ``mqtt``: the building behind MQTT, i.e.
+  an embedded amqtt broker process (unless ``broker_url``), ``mqtt_plant`` (the simulated
+  building) and ``mqtt_bridge`` in ``plant_sim``'s place, the feed with
+  ``publish_measured:=false`` (docs/real_building.md);
+* ``clock``: ``sim``, ``wall`` or ``wall:<factor>`` for the bridge and the building
+  (wall modes with ``plant="mqtt"`` only);
+* ``inputs``: ``scenario`` or ``live`` (the feed's live prices and weather).
 
 ``RunPlan.describe()`` prints the plan (``comems4build launch --print-plan``); the tests
 check plans without processes.
@@ -39,7 +46,11 @@ NODE_MODULES: dict[str, str] = {
     "feed": "comems4build_ros.ros.nodes.feed",
     "recorder": "comems4build_ros.ros.nodes.recorder",
     "replay": "comems4build_ros.ros.nodes.replay",
+    "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
+    "mqtt_plant": "comems4build_ros.mqtt.building",
 }
+#: Module of the embedded MQTT broker (``plant="mqtt"`` without a broker URL).
+BROKER_MODULE = "comems4build_ros.mqtt.broker"
 #: EMS name -> console script (EMS without one run as ``python -m ...ems_node --ems NAME``).
 EMS_SCRIPTS: dict[str, str] = {"fuzzy": "fuzzy_ems", "rbc": "rbc_ems", "mpc": "mpc_ems"}
 EMS_MODULE = "comems4build_ros.ros.nodes.ems_node"
@@ -99,6 +110,13 @@ class LaunchOptions:
         :mod:`comems4build_ros.ros.host`); None = with more than one building
         (``layout`` ``role``; False = ``node``)
     buildings_per_recorder : buildings recorded by one recorder process in host mode
+    plant : ``sim`` (``plant_sim`` on ROS) or ``mqtt`` (the simulated building behind MQTT,
+        reached through ``mqtt_bridge``; one building, one process per node)
+    clock : ``sim``, ``wall`` or ``wall:<factor>`` (wall modes need ``plant="mqtt"``)
+    broker_url : broker of the MQTT plant (None = an embedded amqtt broker on a free port)
+    topic_map : topic map of bridge and building (None = ``config/mqtt.yaml``)
+    inputs : ``scenario`` (default) or ``live`` (the feed's live prices and weather,
+        ``config/live_inputs.yaml``, cache files in ``out``)
     """
 
     ems: str
@@ -121,6 +139,11 @@ class LaunchOptions:
     discovery_server: bool | None = None
     host_mode: bool | None = None
     buildings_per_recorder: int = HOST_BUILDINGS_PER_RECORDER
+    plant: str = "sim"
+    clock: str = "sim"
+    broker_url: str | None = None
+    topic_map: str | None = None
+    inputs: str = "scenario"
 
     @property
     def layout(self) -> str:
@@ -420,6 +443,8 @@ def building_params(opts: LaunchOptions, seed: int | None, common: dict[str, Any
         feed_params["start"] = opts.start
     if opts.forecast:
         feed_params["forecast_mode"] = opts.forecast
+    if opts.inputs != "scenario":
+        feed_params.update(inputs=opts.inputs, live_cache_dir=str(Path(opts.out).resolve()))
     plant_params = dict(common, wait_for_recorder=True, **opts.plant_params)
     return {"ems": ems_params, "feed": feed_params, "plant": plant_params}
 
@@ -439,6 +464,54 @@ def ems_node_name(ems: str) -> str:
     from .contract import load_contract
 
     return load_contract().ems_node_name(ems)
+
+
+def check_plant_options(opts: LaunchOptions) -> None:
+    """The ``plant``, ``clock`` and ``inputs`` combinations a plan can run (ValueError names them)."""
+    from ..mqtt.clock import parse_clock
+
+    if opts.plant not in ("sim", "mqtt"):
+        raise ValueError(f"plant {opts.plant!r}: expected 'sim' or 'mqtt'")
+    if opts.inputs not in ("scenario", "live"):
+        raise ValueError(f"inputs {opts.inputs!r}: expected 'scenario' or 'live'")
+    clock = parse_clock(opts.clock)
+    if opts.plant != "mqtt" and (clock.wall or opts.broker_url or opts.topic_map):
+        raise ValueError("clock 'wall', a broker URL and a topic map need plant 'mqtt' (plant_sim runs lock-step)")
+    if opts.plant == "mqtt" and (opts.buildings > 1 or opts.layout != "node"):
+        raise ValueError("plant 'mqtt' runs one building, one process per node")
+
+
+def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]]) -> list[ProcessPlan]:
+    """``plant="mqtt"``: the embedded broker (unless ``broker_url``; a free port now), the
+    simulated building with the feed's scenario window, and ``mqtt_bridge`` in plant_sim's
+    place. Bridge and building finish (exit 0 at the end); the broker stops last."""
+    from ..mqtt.broker import free_port
+
+    out: list[ProcessPlan] = []
+    url = opts.broker_url
+    if url is None:
+        port = free_port()
+        url = f"mqtt://127.0.0.1:{port}"
+        out.append(ProcessPlan("broker", "broker", (sys.executable, "-m", BROKER_MODULE, "--port", str(port)),
+                               stop_stage=STAGE_SERVICES))
+    feed = params["feed"]
+    argv = [*node_command("mqtt_plant"), "--broker", url, "--clock", opts.clock, "--scenario", str(feed["scenario"])]
+    for key in ("weeks", "steps", "seed", "start"):
+        if feed.get(key):
+            argv += [f"--{key}", str(feed[key])]
+    for f in feed.get("config_files", []):
+        argv += ["--config", f]
+    for item in feed.get("overrides", []):
+        argv += ["--set", item]
+    bridge = dict(params["plant"], broker_url=url, clock=opts.clock)
+    if opts.topic_map:
+        topic_map = str(Path(opts.topic_map).resolve())
+        argv += ["--topic-map", topic_map]
+        bridge["topic_map"] = topic_map
+    out.append(ProcessPlan("mqtt_plant", "plant", tuple(argv), finishes=True))
+    out.append(ProcessPlan("mqtt_bridge", "plant", (*node_command("mqtt_bridge"), *ros_args("/", bridge)),
+                           nodes=(NodePlan("plant", "mqtt_bridge", "/", bridge),), finishes=True))
+    return out
 
 
 def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan:
@@ -462,6 +535,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     if params is None:
         params = load_plant_params(opts.config_files, opts.overrides)
     ns_list = namespaces(opts.buildings)
+    check_plant_options(opts)
     seeds = building_seeds(opts)
     info = run_info(opts, params, seeds)
     layout = opts.layout
@@ -525,8 +599,13 @@ def _node_processes(
         out.append(ProcessPlan(f"{prefix}{opts.ems}_ems", "ems",
                                (*node_command("ems", opts.ems), *ros_args(ns, params["ems"])),
                                nodes=(NodePlan("ems", ems_name, ns, params["ems"]),)))
+        if opts.plant == "mqtt":  # the building's meters give PV and load (mqtt_bridge)
+            params["feed"]["publish_measured"] = False
         out.append(ProcessPlan(f"{prefix}feed", "feed", (*node_command("feed"), *ros_args(ns, params["feed"])),
                                nodes=(NodePlan("feed", "feed", ns, params["feed"]),)))
+        if opts.plant == "mqtt":
+            out.extend(mqtt_plant_processes(opts, params))
+            continue
         out.append(ProcessPlan(f"{prefix}plant_sim", "plant",
                                (*node_command("plant_sim"), *ros_args(ns, params["plant"])),
                                nodes=(NodePlan("plant", "plant_sim", ns, params["plant"]),), finishes=True))
