@@ -130,6 +130,8 @@ def test_launch_wall_clock_one_week_within_one_percent(tmp_path: Path) -> None:
     launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, plant="mqtt", clock="wall:3600", timeout_s=900))
     summary = json.loads((out / "summary.json").read_text())
     ref = _reference(1)
+    for name in ("mqtt_bridge", "mqtt_plant"):
+        print([line for line in (out / "log" / f"{name}.log").read_text().splitlines() if "run done" in line])
     assert summary["steps"] == 168
     for k in KPI_KEYS:
         assert summary[k] == pytest.approx(ref[k], rel=0.01, abs=1e-9), k
@@ -177,7 +179,8 @@ def test_broker_restart_mid_run_loses_no_step(tmp_path: Path, broker: Broker) ->
 class Rig:
     """A real bridge process between a scripted building (MQTT) and a scripted EMS (rclpy)."""
 
-    def __init__(self, tmp: Path, domain_id: int, broker: Broker, clock: str, command: Callable[[int], list[float]]):
+    def __init__(self, tmp: Path, domain_id: int, broker: Broker, clock: str, command: Callable[[int], list[float]],
+                 tagged: bool = True):
         import yaml
 
         from comems4build_ros.mqtt.topicmap import default_map_file
@@ -185,6 +188,9 @@ class Rig:
         # a real building: no simulator record topic
         doc = yaml.safe_load(default_map_file().read_text())
         doc["/**"]["ros__parameters"]["mqtt"]["sim_record_topic"] = ""
+        if not tagged:  # measurements without step tags, as from real devices
+            for spec in doc["/**"]["ros__parameters"]["mqtt"]["measurements"].values():
+                spec["step_key"] = ""
         map_file = tmp / "map.yaml"
         map_file.write_text(yaml.safe_dump(doc))
         self.map = load_topic_map(map_file, broker_url=broker.url)
@@ -350,7 +356,7 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
 
 def test_stale_measurement_gets_fallback_within_one_step_wall_clock(
         tmp_path: Path, domain_id: int, broker: Broker) -> None:
-    rig = Rig(tmp_path, domain_id, broker, "wall:3600", lambda k: NORMAL)
+    rig = Rig(tmp_path, domain_id, broker, "wall:3600", lambda k: NORMAL, tagged=False)
     try:
         max_age_wall = rig.map.max_age("soc") / 3600.0  # 2 s at one simulated hour per second
         t_last_soc = None

@@ -73,6 +73,11 @@ MEASURE_DELAY_MAX_S = 5.0
 #: Wall modes: the EMS's command must arrive before this share of the period has passed.
 COMMAND_DEADLINE_SHARE = 0.9
 ACK_TIMEOUT_S = 5.0
+#: Wall modes with step-tagged measurements (the simulated building): wait for the
+#: measurements of step k up to this share of the period before announcing k with the
+#: latest ones. At wall:3600 a 0.1 s scheduling delay of a loaded machine is 6 simulated
+#: minutes; a real building sends no tags and is read at the announcement time.
+WALL_TAG_WAIT_SHARE = 0.5
 HP_MODE_WORDS = {0: "off", 1: "heating", 2: "dhw"}
 #: plant/record labels the bridge fills (the building does not know them).
 BRIDGE_LABELS = ("fallback", "fallback_steps", "rejected_commands", "wrong_step_commands")
@@ -140,6 +145,8 @@ class MqttBridge(ContractNode):
         self.wrong_step_commands = 0
         self.duplicate_commands = 0
         self.bad_measurements = 0
+        self.untagged_announcements = 0  # wall modes: steps announced without measurements tagged for them
+        self._tagged = all(spec.step_key for spec in m.values())
         self.alarms = 0
         self._ever_commanded = False
         self._last_cmd: list[float] | None = None
@@ -449,6 +456,11 @@ class MqttBridge(ContractNode):
         nk = self.k if self.phase == "measure" else self.k + 1
         if due < nk or self.phase == "command" or (self.n_steps is not None and nk >= self.n_steps):
             return
+        if self._tagged and not self.watchdog.complete_for(nk) \
+                and unix < t0 + (nk + WALL_TAG_WAIT_SHARE) * period:
+            return  # the building tags its measurements: give a late one a moment (machine jitter)
+        if self._tagged and not self.watchdog.complete_for(nk):
+            self.untagged_announcements += 1
         self.k = nk
         problems = self.watchdog.check(now, check_age=False)
         for name in self.map.measurements:  # max_age_s is simulated time: scale wall ages by the factor
@@ -506,6 +518,7 @@ class MqttBridge(ContractNode):
             "clamped_commands": float(c.clamped_commands),
             "rate_limited": float(c.rate_limited),
             "bad_measurements": float(self.bad_measurements),
+            "untagged_announcements": float(self.untagged_announcements),
             "alarms": float(self.alarms),
             "mqtt_connects": float(self.link.connects),
         }
