@@ -36,11 +36,51 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="plant_sim's wait for a command before its safe fallback [s], > 0")
     parser.add_argument("--timeout", metavar="S", type=SECONDS, default=None,
                         help="give up after this wall time [s], > 0")
+    parser.add_argument("--plant", choices=("sim", "mqtt"), default="sim",
+                        help="sim: plant_sim on ROS; mqtt: the simulated building behind MQTT via mqtt_bridge")
+    parser.add_argument("--clock", metavar="sim|wall|wall:F", type=_clock, default="sim",
+                        help="sim (lock-step), wall (a step per hour), wall:<factor> (faster); wall needs --plant mqtt")
+    parser.add_argument("--broker", metavar="URL", type=_broker_url, default=None,
+                        help="MQTT broker, mqtt://host:port or mqtts://host:port (default: an embedded amqtt broker)")
+    parser.add_argument("--topic-map", metavar="FILE", default=None, help="MQTT topic map (default config/mqtt.yaml)")
+    parser.add_argument("--inputs", choices=("scenario", "live"), default="scenario",
+                        help="feed inputs: the scenario (default) or live aWATTar prices and weather (real buildings)")
     parser.add_argument("--out", metavar="DIR", required=True,
                         help="output directory (bag/, log/, weekly.csv, summary.json)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--print-plan", action="store_true",
                         help="print the run plan (processes, nodes, parameters) and exit without starting anything")
+
+
+def _clock(text: str) -> str:
+    """``--clock`` value, checked by :func:`comems4build_ros.mqtt.clock.parse_clock`."""
+    from ..mqtt.clock import ClockError, parse_clock
+
+    try:
+        return parse_clock(text).spec()
+    except ClockError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _broker_url(text: str) -> str:
+    """``--broker`` value: ``mqtt://host[:port]`` or ``mqtts://host[:port]``."""
+    import re
+
+    if not re.fullmatch(r"mqtts?://[^/:\s]+(:\d{1,5})?/?", text):
+        raise argparse.ArgumentTypeError(f"{text!r} is not mqtt://host[:port] or mqtts://host[:port]")
+    return text
+
+
+def check_plant_options(args: argparse.Namespace) -> None:
+    """``--plant``, ``--clock``, ``--broker``, ``--topic-map`` combinations (UsageError names them)."""
+    from .options import UsageError
+
+    if args.topic_map is not None and not Path(args.topic_map).is_file():
+        raise UsageError(f"--topic-map {args.topic_map}: no such file")
+    if args.plant != "mqtt" and (args.clock != "sim" or args.broker or args.topic_map):
+        raise UsageError("--clock wall, --broker and --topic-map need --plant mqtt")
+    if args.plant == "mqtt" and args.buildings != 1:
+        raise UsageError("--plant mqtt runs one building (--buildings 1)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -59,6 +99,7 @@ def run(args: argparse.Namespace) -> int:
     params = load_params(args.config, overrides)
     parse_assignments(args.ems_option, "--ems-option")
     check_feed_scenario(args, params)
+    check_plant_options(args)
     opts = LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
@@ -76,6 +117,11 @@ def run(args: argparse.Namespace) -> int:
         timeout_s=args.timeout,
         progress=not args.no_progress and sys.stderr.isatty(),
         plant_params={} if args.step_timeout is None else {"step_timeout_s": float(args.step_timeout)},
+        plant=args.plant,
+        clock=args.clock,
+        broker_url=args.broker,
+        topic_map=args.topic_map,
+        inputs=args.inputs,
     )
     if args.print_plan:
         from ..ros.plan import plan_run
