@@ -46,7 +46,6 @@ from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time
-from rclpy.duration import Duration
 from rclpy.task import Future
 from rosgraph_msgs.msg import Clock as ClockMsg
 from std_msgs.msg import Bool, Float64MultiArray, String, UInt32
@@ -61,7 +60,7 @@ from ...mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
 from ...mqtt.topicmap import PayloadError, load_topic_map
 from ...types import ACTION_FIELDS, Action
 from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
-from .plant_sim import NS_PER_S, STATE_TOPICS, set_loop_params
+from .plant_sim import NS_PER_S, STATE_TOPICS, finish_run, set_loop_params
 
 NODE_NAME = "mqtt_bridge"
 #: Lock-step: alarm when the building has sent nothing for this long [s].
@@ -525,16 +524,12 @@ class MqttBridge(ContractNode):
 
     def _finish(self) -> None:
         self.done = True
-        line = " ".join(f"{k}={v:.6g}" for k, v in self.stats().items())
-        self.get_logger().info(f"run done: {line}")
-        self._publish_step(self.n_steps or self.k)  # the building's acknowledgement
-        self.link.publish(self.map.run_topic, "", retain=True)
-        self._done_pub.publish(Bool(data=True))
-        self._events_pub.publish(String(data=f"{self.k} stats {line}"))
-        for pub in (self._record.publisher, self._done_pub, self._events_pub):
-            pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * NS_PER_S)))
-        if self.exit_when_done:
-            self.finished.set_result(0)
+
+        def tell_building() -> None:
+            self._publish_step(self.n_steps or self.k)  # the building's acknowledgement
+            self.link.publish(self.map.run_topic, "", retain=True)
+
+        finish_run(self, tell_building)
 
     def destroy_node(self) -> None:  # noqa: D102
         self.link.stop(final=(self.map.availability_topic, NOT_AVAILABLE))

@@ -101,6 +101,25 @@ def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] 
     node.exit_when_done = bool(param(node, "exit_when_done", True))
 
 
+def finish_run(node: Any, before_done: Any = None) -> None:
+    """End of a run (plant_sim, mqtt_bridge): log the statistics line, publish plant/done and
+    the line on plant/events, wait for their acknowledgement, then finish if ``exit_when_done``.
+
+    The line is logged first: whoever sees plant/done can rely on it being in the log.
+    ``before_done`` (optional) is called between the log line and plant/done.
+    """
+    line = " ".join(f"{k}={v:.6g}" for k, v in node.stats().items())
+    node.get_logger().info(f"run done: {line}")
+    if before_done is not None:
+        before_done()
+    node._done_pub.publish(Bool(data=True))
+    node._events_pub.publish(String(data=f"{node.k} stats {line}"))
+    for pub in (node._record.publisher, node._done_pub, node._events_pub):
+        pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * NS_PER_S)))
+    if node.exit_when_done:
+        node.finished.set_result(0)
+
+
 class PlantSim(ContractNode):
     """Plant simulator node (see the module docstring)."""
 
@@ -307,16 +326,7 @@ class PlantSim(ContractNode):
 
     def _finish(self) -> None:
         self.done = True
-        st = self.stats()
-        line = " ".join(f"{k}={v:.6g}" for k, v in st.items())
-        # log first: whoever sees plant/done can rely on the final line being in the log
-        self.get_logger().info(f"run done: {line}")
-        self._done_pub.publish(Bool(data=True))
-        self._events_pub.publish(String(data=f"{self.k} stats {line}"))
-        for pub in (self._record.publisher, self._done_pub, self._events_pub):
-            pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * NS_PER_S)))
-        if self.exit_when_done:
-            self.finished.set_result(0)
+        finish_run(self)
 
     # ------------------------------------------------------------------ watchdog
     def _watchdog(self) -> None:
