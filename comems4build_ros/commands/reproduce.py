@@ -21,14 +21,36 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
                              "checks that do not compare with the paper's table)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
+    parser.add_argument("--update-doc", default=None, metavar="MD",
+                        help="also write the tables between the reproduce markers of MD (docs/calibration.md)")
+    parser.add_argument("--from-json", default=None, metavar="FILE",
+                        help="no runs: write the documents (and --update-doc) from an earlier reproduce.json")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run the reproduction and print where the report is."""
+    from ..cli import UsageError
     from ..fileio import check_out_dir
     from ..progress import echo
     from ..report.reproduce import reproduce
 
+    if args.from_json:
+        import json
+        from pathlib import Path
+
+        from ..report.reproduce_doc import update_doc, write_documents
+
+        try:
+            report = json.loads(Path(args.from_json).read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise UsageError(f"--from-json {args.from_json}: {exc}") from None
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        md, html = write_documents(report, out)
+        print(f"wrote {md}, {html}")
+        if args.update_doc:
+            print(f"updated {update_doc(args.update_doc, report)}")
+        return 0
     check_out_dir(args.out)
     only = [k for k in args.only.split(",") if k] if args.only else None
 
@@ -42,4 +64,10 @@ def run(args: argparse.Namespace) -> int:
           + ", ".join(f"{k} {v:.2f}" for k, v in res.ratios.items())
           + f"; findings held {held} of {len(res.checks)}")
     print(f"{res.runs_made} runs in {res.wall_s:.0f} s; wrote {res.markdown}, {res.html}, {res.json}")
+    if args.update_doc:
+        import json
+
+        from ..report.reproduce_doc import update_doc
+
+        print(f"updated {update_doc(args.update_doc, json.loads(res.json.read_text(encoding='utf-8')))}")
     return 0

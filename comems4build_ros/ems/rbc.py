@@ -10,8 +10,9 @@ The RBC follows the ComEMS4Build workflow with crisp rules and the "basic" input
    ``dhw_off_chi``. When both want heat, DHW goes first. The HP runs at ``hp_mod_on``.
 2. dP = P_PV - P_el,HP - P_el,load, P_el,HP estimated as eta_HP * P_el,max(t_ref).
 3. FC at P_el,FC = zeta * P_el,FC,max when dP < 0 and the EDF price ``eq:EDF_prices``
-   is in the upper quartile (and the store is above LOH_min; the RBC does not know how
-   much H2 it may use per day, so it empties the store early).
+   is in the upper quartile and the store is above the RBC's own lower limit
+   ``loh_reserve`` (the RBC does not know how much H2 it may use per day, so it reaches
+   that limit early).
 4. Battery: in the lowest EDF quartile it charges at full power (the grid buys the load
    and the charge); otherwise it takes the residual dP_new = dP + P_el,FC: charging with
    surplus, discharging to cover demand, within its power and SOC limits.
@@ -44,6 +45,7 @@ class RBCOptions(BaseModel):
     p_el_ref_t_amb_c: float
     edf_upper_quartile: float = Field(ge=0, le=1)
     edf_lower_quartile: float = Field(ge=0, le=1)
+    loh_reserve: float = Field(ge=0, le=1)
 
 
 def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCOptions:
@@ -55,6 +57,15 @@ def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCOptions:
         set_dotted(extra, str(key), value)
     deep_merge(data, extra)
     return validate(RBCOptions, data, f"{path} + options" if extra else str(path))
+
+
+def loh_floor(params: PlantParams, options: Mapping[str, Any] | None = None) -> float:
+    """Lowest H2 level the RBC runs its FC at [-]: the plant's LOH_min or its own ``loh_reserve``.
+
+    Reports count the RBC's store as empty when it reaches this level (``sec:results``:
+    the RBC "has depleted the H2 storage to the LOH_min").
+    """
+    return max(params.hydrogen.loh_min, load_rbc_options(options).loh_reserve)
 
 
 class RuleBasedController:
@@ -107,7 +118,7 @@ class RuleBasedController:
         dp_w = obs.p_pv_w - eta * self._p_hp_ref_w - obs.p_load_w
         edf = edf_price(obs.price_buy_eur_per_kwh, obs.prices_buy_24h)
         p_fc = 0.0
-        if dp_w < 0.0 and edf > o.edf_upper_quartile and obs.loh > p.hydrogen.loh_min:
+        if dp_w < 0.0 and edf > o.edf_upper_quartile and obs.loh > max(o.loh_reserve, p.hydrogen.loh_min):
             p_fc = self._p_fc_w
         dp_new_w = dp_w + p_fc
         b = p.battery

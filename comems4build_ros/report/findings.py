@@ -25,7 +25,7 @@ import pandas as pd
 
 from ..config import PlantParams
 from ..kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
-from .paper import H2_EMPTY_TOL, h2_empty_days_before_end
+from .paper import H2_EMPTY_TOL, h2_empty_days_before_end, h2_floor
 from .runs import RunData
 
 #: "H2 left" at the end: LOH above LOH_min by more than this fraction of the store [-]
@@ -322,7 +322,7 @@ def _fuzzy_bess_like_mpc(ctx: Context) -> Verdict:
          "RBC reaches LOH_min at least a week before the "
          "end", ("rbc",))
 def _rbc_empties_early(ctx: Context) -> Verdict:
-    days = h2_empty_days_before_end(ctx.runs["rbc"], ctx.params.hydrogen.loh_min)
+    days = h2_empty_days_before_end(ctx.runs["rbc"], h2_floor("rbc", ctx.params.hydrogen.loh_min))
     ok = days is not None and days >= EARLY_EMPTY_DAYS
     return _v(ok, f"rbc: {_empty_text(ctx, 'rbc', days)}")
 

@@ -76,6 +76,19 @@ def _loh_end_pct(run: RunData, _: Mapping[str, RunData], __: float) -> str:
 H2_EMPTY_TOL = 0.01
 
 
+def h2_floor(ems: str, loh_min: float) -> float:
+    """The H2 level at which the store of ``ems`` counts as empty [-].
+
+    The plant's ``loh_min``, except for the RBC, which stops its FC at its own limit
+    (``rbc.loh_reserve`` in ``config/rbc.yaml``; :func:`comems4build_ros.ems.rbc.loh_floor`).
+    """
+    if ems != "rbc":
+        return loh_min
+    from ..ems.rbc import load_rbc_options
+
+    return max(loh_min, load_rbc_options().loh_reserve)
+
+
 def h2_empty_days_before_end(run: RunData, loh_min: float, tol: float = H2_EMPTY_TOL) -> float | None:
     """Days between the H2 store first falling to ``LOH_min + tol`` and the end of the run, or None [d]."""
     loh = run.timeseries["loh"].to_numpy(dtype=float)
@@ -88,7 +101,7 @@ def h2_empty_days_before_end(run: RunData, loh_min: float, tol: float = H2_EMPTY
 
 
 def _h2_empty(run: RunData, _: Mapping[str, RunData], loh_min: float) -> str:
-    days = h2_empty_days_before_end(run, loh_min)
+    days = h2_empty_days_before_end(run, h2_floor(run.spec.ems, loh_min))
     return "never" if days is None else fmt(days, 1)
 
 

@@ -164,6 +164,34 @@ def build_document(report: Mapping[str, Any]) -> Document:
     return doc
 
 
+#: Markers of the generated part of docs/calibration.md (``reproduce --update-doc``).
+DOC_BEGIN = "<!-- reproduce:begin -->"
+DOC_END = "<!-- reproduce:end -->"
+
+
+def doc_section(report: Mapping[str, Any]) -> str:
+    """The tables of the report as Markdown for docs/calibration.md (headings one level down)."""
+    doc = _Doc()
+    _table(doc, report)
+    _h2(doc, report)
+    _checks(doc, report)
+    _study(doc, report)
+    text = doc.markdown().strip()
+    return "\n".join(("#" + line) if line.startswith("#") else line for line in text.splitlines())
+
+
+def update_doc(path: str | Path, report: Mapping[str, Any]) -> Path:
+    """Replace the text between :data:`DOC_BEGIN` and :data:`DOC_END` of ``path`` with :func:`doc_section`."""
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    head, sep, rest = text.partition(DOC_BEGIN)
+    _, sep2, tail = rest.partition(DOC_END)
+    if not sep or not sep2:
+        raise ValueError(f"{path}: markers {DOC_BEGIN} / {DOC_END} not found")
+    path.write_text(f"{head}{DOC_BEGIN}\n{doc_section(report)}\n{DOC_END}{tail}", encoding="utf-8")
+    return path
+
+
 def write_documents(report: Mapping[str, Any], out: Path) -> tuple[Path, Path]:
     """Write ``reproduce.md`` and ``reproduce.html`` into ``out``; return their paths."""
     doc = build_document(report)
