@@ -118,7 +118,7 @@ def test_three_step_optimum_matches_enumeration(params3, prices, formulation, fc
 def test_three_step_running_fc_is_kept_on(params3):
     """With the FC on before the horizon, stopping costs sigma_off (eq:on_off_logic)."""
     prices, load = (0.2, 0.2, 0.1), 2500.0
-    ctrl = MPCController(params3, {"mip_rel_gap": 0.0, "warm_start": False})
+    ctrl = MPCController(params3, {"mip_rel_gap": 0.0, "warm_start": False, "fc_lifecycle_eta": "one"})
     ctrl.act(mpc_obs(3, prices=prices, load_w=load, fc_on_prev=True))
     costs = fc_enumeration(prices, load, params3, fc_on_prev=True)
     best = min(costs, key=costs.get)

@@ -6,6 +6,7 @@ same code as ``comems4build reproduce --no-study``); the tests read its ``reprod
 
 from __future__ import annotations
 
+import html as html_lib
 import json
 import re
 import subprocess
@@ -80,7 +81,7 @@ def test_h2_figures_reported(base):
 def test_markdown_and_html_written(base):
     out, report = base
     md = (out / "reproduce.md").read_text(encoding="utf-8")
-    html = (out / "reproduce.html").read_text(encoding="utf-8")
+    html = html_lib.unescape((out / "reproduce.html").read_text(encoding="utf-8"))
     for text in (md, html):
         assert "The paper's table beside ours" in text and "The paper's findings" in text
     assert f"{100 * report['median_rel_error']:.1f} %" in md

@@ -171,13 +171,14 @@ DOC_END = "<!-- reproduce:end -->"
 
 def doc_section(report: Mapping[str, Any]) -> str:
     """The tables of the report as Markdown for docs/calibration.md (headings one level down)."""
-    doc = _Doc()
+    doc = Document(TITLE)
     _table(doc, report)
     _h2(doc, report)
     _checks(doc, report)
     _study(doc, report)
-    text = doc.markdown().strip()
-    return "\n".join(("#" + line) if line.startswith("#") else line for line in text.splitlines())
+    text = doc.markdown()
+    body = text[text.index("\n## "):].strip()  # without the title and the table of contents
+    return "\n".join(("#" + line) if line.startswith("#") else line for line in body.splitlines())
 
 
 def update_doc(path: str | Path, report: Mapping[str, Any]) -> Path:
