@@ -11,6 +11,7 @@ from __future__ import annotations
 import json
 import re
 import shutil
+from dataclasses import replace
 from pathlib import Path
 
 import matplotlib.pyplot as plt
@@ -21,7 +22,7 @@ import pytest
 from comems4build_ros.cli import main
 from comems4build_ros.report import figures as rf
 from comems4build_ros.report import findings as fd
-from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, build_report, read_report_inputs
+from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, build_report, read_report_inputs, weekly_rows
 from comems4build_ros.report.figures import select_windows
 from comems4build_ros.report.paper import DERIVED, load_paper_results
 from comems4build_ros.report.runs import SUMMARY_KEYS, RunDirError, read_run
@@ -345,3 +346,16 @@ def test_report_text_has_table_of_contents_alignment_and_no_latex_labels(compari
     for label in ("fig:", "tab:"):
         assert label not in md, label
         assert label not in re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]+", "", html), label
+
+
+def test_weekly_rows_median_over_full_weeks_and_partial_week_marked(comparison: Path) -> None:
+    run = read_run(comparison / "runs" / "fuzzy")
+    full = run.weekly.iloc[0].to_dict()
+    partial = {**full, "week": 2, "full_week": False, "cost_eur": 1000.0}
+    second = {**full, "week": 3, "cost_eur": float(full["cost_eur"]) + 2.0}
+    weekly = pd.DataFrame([{**full, "full_week": True}, partial, {**second, "full_week": True}])
+    rows = weekly_rows(replace(run, weekly=weekly))
+    assert [r[0] for r in rows] == ["1", "2 (partial)", "3", "median"]
+    col = 2 + [c for c, _, _, _ in WEEKLY_TABLE].index("cost_eur")
+    # over all three rows (the 1000 EUR partial week among them) the median would be cost + 2
+    assert float(rows[-1][col]) == pytest.approx(float(full["cost_eur"]) + 1.0, abs=0.01)

@@ -19,6 +19,7 @@ from typing import Any
 import pandas as pd
 
 from ..config import load_plant_params
+from ..kpi import median_weeks
 from . import figures
 from .document import Document
 from .findings import Context, evaluate_findings
@@ -111,13 +112,20 @@ def _cell(value: Any, digits: int | None) -> str:
 
 
 def weekly_rows(run: RunData) -> list[list[str]]:
-    """Rows of the weekly KPI table of one run, a median row last."""
+    """Rows of the weekly KPI table of one run, a median row last.
+
+    The median is taken over the full weeks only (:func:`kpi.median_weeks`); a partial
+    last week keeps its own row, its week number marked "(partial)".
+    """
     rows = []
     for r in run.weekly.itertuples(index=False):
         d = r._asdict()
-        rows.append([str(int(d["week"])), str(d["start"])[:10],
+        week = str(int(d["week"]))
+        if not bool(d.get("full_week", True)):
+            week += " (partial)"
+        rows.append([week, str(d["start"])[:10],
                      *(_cell(d[c], digits) for c, _, _, digits in WEEKLY_TABLE)])
-    med = run.weekly.median(numeric_only=True)
+    med = median_weeks(run.weekly).median(numeric_only=True)
     rows.append(["median", "", *(_cell(med[c], digits) for c, _, _, digits in WEEKLY_TABLE)])
     return rows
 
