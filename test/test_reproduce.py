@@ -168,6 +168,24 @@ def test_cli_study_on_one_week(tmp_path):
     assert start["values"] == end["values"]  # same runs, only the discomfort changes
     md = (out / "reproduce.md").read_text(encoding="utf-8")
     assert "Interpretation study" in md and "(default)" in md
+    # an evaluation-only reading keeps what the controller reported (the RBC's own H2 limit)
+    rbc = rp.read_run(out / "runs" / "base_rbc")
+    rbc.summary["rbc_loh_floor"] = 0.1
+    again = rp.reevaluate(rbc, load_plant_params(overrides={"comfort.discomfort_sample": "start"}))
+    assert again.summary["rbc_loh_floor"] == 0.1
+    # the same study evaluated again from its run directories, without simulating
+    out2 = tmp_path / "again"
+    proc = subprocess.run([*CLI, "reproduce", "--from-runs", str(out), "--out", str(out2), "--only",
+                           "discomfort_sample,h2_carry_over"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    assert "evaluated again" in proc.stdout and not (out2 / "runs").exists()
+    report2 = json.loads((out2 / "reproduce.json").read_text(encoding="utf-8"))
+    assert report2["study"] == report["study"] and report2["table"] == report["table"]
+    assert report2["runs_made"] == 4 and report2["runs_from"] == str(out)
+    # a study that needs a run the directory does not hold is refused, naming it
+    proc = subprocess.run([*CLI, "reproduce", "--from-runs", str(out), "--out", str(tmp_path / "r3"),
+                           "--only", "hp_zero"], capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 2 and "hp_zero__level__fuzzy" in proc.stderr
 
 
 @pytest.mark.parametrize("args, message", [

@@ -25,6 +25,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="also write the tables between the reproduce markers of MD (docs/calibration.md)")
     parser.add_argument("--from-json", default=None, metavar="FILE",
                         help="no runs: write the documents (and --update-doc) from an earlier reproduce.json")
+    parser.add_argument("--from-runs", default=None, metavar="DIR",
+                        help="no runs: evaluate the run directories of an earlier reproduce --out DIR of the same "
+                             "study again (after a change to the evaluation); the runs must come from the same "
+                             "code and config/")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -34,6 +38,8 @@ def run(args: argparse.Namespace) -> int:
     from ..progress import echo
     from ..report.reproduce import reproduce
 
+    if args.from_json and args.from_runs:
+        raise UsageError("--from-json and --from-runs exclude each other")
     if args.from_json:
         import json
         from pathlib import Path
@@ -51,6 +57,11 @@ def run(args: argparse.Namespace) -> int:
         if args.update_doc:
             print(f"updated {update_doc(args.update_doc, report)}")
         return 0
+    if args.from_runs:
+        from pathlib import Path
+
+        if not (Path(args.from_runs) / "runs").is_dir():
+            raise UsageError(f"--from-runs {args.from_runs}: no runs/ directory (the --out of an earlier reproduce)")
     check_out_dir(args.out)
     only = [k for k in args.only.split(",") if k] if args.only else None
 
@@ -58,12 +69,15 @@ def run(args: argparse.Namespace) -> int:
         echo(f"  run {done} of {total} done: {name}")
 
     res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
-                    progress=progress, show_progress=False if args.no_progress else None)
+                    progress=progress, show_progress=False if args.no_progress else None,
+                    from_runs=args.from_runs)
     held = sum(c["held"] for c in res.checks)
     print(f"median relative error {100 * res.median_rel_error:.1f} %; cost ratios "
           + ", ".join(f"{k} {v:.2f}" for k, v in res.ratios.items())
           + f"; findings held {held} of {len(res.checks)}")
-    print(f"{res.runs_made} runs in {res.wall_s:.0f} s; wrote {res.markdown}, {res.html}, {res.json}")
+    made = (f"runs of {args.from_runs} evaluated again" if args.from_runs
+            else f"{res.runs_made} runs in {res.wall_s:.0f} s")
+    print(f"{made}; wrote {res.markdown}, {res.html}, {res.json}")
     if args.update_doc:
         import json
 

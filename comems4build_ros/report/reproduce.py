@@ -297,7 +297,10 @@ def reevaluate(run: RunData, params: PlantParams) -> RunData:
     extra = {k: run.summary[k] for k in ("ems", "scenario") if k in run.summary}
     res = evaluate_timeseries(ts, params, extra)
     ts["time"] = pd.to_datetime(ts["time"], utc=True)
-    return RunData(spec=run.spec, path=run.path, summary=res.summary, weekly=res.weekly, timeseries=ts)
+    # what the evaluation does not compute (the controller's figures, e.g. the RBC's own H2
+    # limit ``rbc_loh_floor`` or the solve times) stays as the run reported it
+    summary = {**{k: v for k, v in run.summary.items() if k not in res.summary}, **res.summary}
+    return RunData(spec=run.spec, path=run.path, summary=summary, weekly=res.weekly, timeseries=ts)
 
 
 # --------------------------------------------------------------------------- evaluation
@@ -538,6 +541,7 @@ def reproduce(
     only: Sequence[str] | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     show_progress: bool | None = None,
+    from_runs: str | Path | None = None,
 ) -> ReproduceResult:
     """Run the reproduction and write ``reproduce.md``, ``reproduce.html`` and ``reproduce.json``.
 
@@ -552,6 +556,11 @@ def reproduce(
     only : ambiguity keys to study (default: all)
     progress : callback ``(done, total, name)`` after each run
     show_progress : one progress bar per run on stderr (None = when stderr is a terminal)
+    from_runs : no simulation: evaluate the run directories of an earlier ``reproduce`` of
+        the same study (``from_runs/runs/<name>``) again, e.g. after a change to the
+        evaluation; the runs are taken as they are (they must come from the same code and
+        configuration). Wall time and run count are those of the earlier command, read
+        from its ``reproduce.json``.
     """
     t0 = time.perf_counter()
     study = load_study(study_path)
@@ -571,15 +580,31 @@ def reproduce(
     if drift:
         raise ConfigError(f"{study.source}: default readings differ from config/: " + "; ".join(drift))
     out = Path(out_dir)
-    runs_dir = out / "runs"
-    runs_dir.mkdir(parents=True, exist_ok=True)
     tasks, cases = plan(study, with_study)
     names = list(tasks)
-    todo = []
-    for name in names:
-        task = tasks[name]
-        task.out_dir = str(runs_dir / name)
-        todo.append(task)
+    earlier: dict[str, Any] = {}
+    if from_runs is not None:
+        runs_dir = Path(from_runs) / "runs"
+        missing = [n for n in names if not (runs_dir / n / "summary.json").is_file()]
+        if missing:
+            raise ConfigError(f"{runs_dir}: no run directory with a summary.json for {', '.join(missing)} "
+                              f"(this study needs {len(names)} runs)")
+        earlier_json = Path(from_runs) / "reproduce.json"
+        if earlier_json.is_file():
+            try:
+                earlier = json.loads(earlier_json.read_text(encoding="utf-8"))
+            except json.JSONDecodeError as exc:
+                raise ConfigError(f"{earlier_json}: {exc}") from None
+        todo: list[RunTask] = []
+    else:
+        runs_dir = out / "runs"
+        runs_dir.mkdir(parents=True, exist_ok=True)
+        todo = []
+        for name in names:
+            task = tasks[name]
+            task.out_dir = str(runs_dir / name)
+            todo.append(task)
+    out.mkdir(parents=True, exist_ok=True)
     done = [0]
 
     def on_done(task: RunTask, _: dict[str, Any]) -> None:
@@ -587,7 +612,8 @@ def reproduce(
         if progress:
             progress(done[0], len(todo), Path(task.out_dir).name)
 
-    run_tasks(todo, jobs=jobs, on_done=on_done, progress=show_progress)
+    if todo:
+        run_tasks(todo, jobs=jobs, on_done=on_done, progress=show_progress)
     data = {name: read_run(runs_dir / name, RunSpec(name=name, ems=tasks[name].ems, eta_sys=study.eta_sys))
             for name in names}
     from ..ems.rbc import loh_floor
@@ -625,8 +651,9 @@ def reproduce(
              "readings": [{"name": r.name, "text": r.text} for r in a.readings]}
             for a in study.ambiguities
         ] if with_study else [],
-        "runs_made": len(todo),
-        "wall_s": time.perf_counter() - t0,
+        "runs_made": int(earlier.get("runs_made", 0)) if from_runs is not None else len(todo),
+        "wall_s": float(earlier.get("wall_s", 0.0)) if from_runs is not None else time.perf_counter() - t0,
+        "runs_from": str(from_runs) if from_runs is not None else None,
     }
     from .reproduce_doc import write_documents
 
@@ -635,4 +662,4 @@ def reproduce(
     json_path.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
     return ReproduceResult(out=out, markdown=md, html=html_path, json=json_path,
                            median_rel_error=report["median_rel_error"], ratios=report["ratios"], checks=checks,
-                           runs_made=len(todo), wall_s=report["wall_s"])
+                           runs_made=report["runs_made"], wall_s=report["wall_s"])

@@ -156,7 +156,8 @@ def build_document(report: Mapping[str, Any]) -> Document:
           "Buildings using Hydrogen for Seasonal Storage\", Applied Energy. Default scenario: the paper's "
           "winter from 2022-12-01 (ENTSO-E day-ahead prices DE-LU, DWD air temperature of station "
           "Rheinstetten, DHWcalc hot-water draws; radiation and appliance load modelled). "
-          f"{report['runs_made']} runs in {report['wall_s']:.0f} s.")
+          f"{report['runs_made']} runs in {report['wall_s']:.0f} s"
+          + (" (evaluated again from the run directories without simulating)." if report.get("runs_from") else "."))
     _table(doc, report)
     _h2(doc, report)
     _checks(doc, report)
