@@ -277,7 +277,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
 
     The node may expose ``finished: rclpy.task.Future``; spinning stops when it
     completes (its result is the exit code, default 0). Ctrl-C (KeyboardInterrupt) and
-    SIGTERM (ExternalShutdownException) end the spin with exit code 0. A
+    SIGTERM (ExternalShutdownException, or rclpy's error on the context the signal
+    handler has just shut down) end the spin with exit code 0. A
     :class:`ConfigError`, :class:`ContractError` or ``ValueError`` raised while the node
     is created is reported on stderr with exit code :data:`EXIT_BAD_INPUT`.
     Order of shutdown (as in the rclpy examples): executor shutdown, destroy node, rclpy shutdown.
@@ -298,6 +299,13 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
             executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
+    except RuntimeError:
+        # rclpy's SIGINT/SIGTERM handler shuts the context down from the signal; when that
+        # falls between the executor's check and its next wait set, rclpy raises RCLError
+        # (a RuntimeError: "the given context is not valid") instead of
+        # ExternalShutdownException. That is the same clean external shutdown.
+        if rclpy.ok():
+            raise
     except (ConfigError, ContractError, ValueError, FileNotFoundError) as exc:
         label = node.get_name() if node is not None else name
         print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
