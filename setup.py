@@ -56,6 +56,9 @@ setup(
         *_tree("lib_scripts", f"lib/{PACKAGE}"),
     ],
     install_requires=["setuptools"],
+    # Optional MILP solver for the MPC (``solver: gurobi``, config/mpc.yaml): ``pip install .[gurobi]``.
+    # The wheel's bundled restricted licence covers models up to 2000 variables / constraints.
+    extras_require={"gurobi": ["gurobipy==13.0.3"]},
     zip_safe=False,
     maintainer="comems4build_ros developers",
     maintainer_email="dev@comems4build.invalid",

@@ -1,19 +1,23 @@
-"""MPC solve times: the same horizon problems with every solver and formulation step, plus a full run.
+"""MPC solve times: closed loops side by side, the formulation and solver steps on fixed problems, a full run.
 
-1. Runs the MPC (default settings of ``config/mpc.yaml``) in closed loop over the default
-   scenario (12 weeks) and reports its wall time.
-2. Takes the horizon problems of whole days from that run: the coldest, the mildest and
-   the sunniest day (``--days-per-kind`` of each, 24 consecutive problems per day, so a
-   warm start from the previous plan is possible as in closed loop).
-3. Solves them with each configuration (formulation steps and solvers, see ``CONFIGS``)
-   and prints, per configuration, the median and p95 solve time and the objective gap
-   to the best known solution (the best objective any exact configuration reached,
-   including a gap-0 reference solve). For a relaxed-tail configuration the gap is that of
-   the exact problem with its first-step binaries fixed (the decision it applies).
-4. Optionally (``--kpi-weeks W``) runs the first W weeks in closed loop with the default
-   settings and with the exact gap-0 reference settings and compares their weekly KPIs.
+1. **Closed loops side by side** (``--loop-weeks``, default 1 week of a scenario of that
+   length, as ``simulate --ems mpc --weeks 1``): the default settings, the settings before
+   the solver model was kept in memory, Gurobi, CBC and the full MILP
+   (``integer_steps=24``), each with its own plant, stepped in turn so that all see the
+   same machine load. Prints per configuration the solve-time median / p95 and the KPIs.
+2. **Full run** (``--weeks``, default 12) with the default settings: wall time.
+3. **Problem set**: the horizon problems of whole days of that run (the coldest, the
+   mildest and the sunniest day, ``--days-per-kind`` of each, 24 consecutive problems per
+   day so that the warm start chains as in closed loop), solved by every configuration of
+   ``CONFIGS`` (formulation steps 1-9 and the solvers): median and p95 solve time and the
+   objective gap to the best known solution (the best objective of any exact
+   configuration, including a gap-0 reference). For a relaxed-tail configuration the gap
+   is that of the exact problem with its first-step binaries fixed (the decision it applies).
+4. Optionally (``--kpi-weeks W``) the first W weeks in closed loop with the default
+   settings and with the exact gap-0 MILP, and their KPIs.
 
-Solve time = wall time of one solve call including PuLP's hand-over to the solver.
+Solve time = ``ems_solve_s``: wall time of one solve call including passing the changes to
+the solver and reading the solution. Gurobi rows say "not installed" without gurobipy.
 """
 
 from __future__ import annotations
@@ -21,6 +25,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import os
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
@@ -34,24 +39,47 @@ from ..progress import ProgressBar, ProgressCallback
 
 #: Options of the exact reference solve (best known solution): full binaries, gap 0.
 REFERENCE = {"integer_steps": 24, "mip_rel_gap": 0.0, "warm_start": False, "time_limit_s": 120.0}
-#: HiGHS defaults restored (the config file turns some heuristics off).
-HIGHS_DEFAULTS = {"highs_options": {}}
+#: HiGHS options of the relaxed-tail default before the solver model was kept in memory.
+HIGHS_OPTIONS_BEFORE = {"mip_heuristic_run_rins": False, "mip_heuristic_run_rens": False,
+                        "mip_heuristic_run_root_reduced_cost": False}
+#: The default settings before: PuLP hands the model to HiGHS per solve, battery binary kept.
+BEFORE = {"solver": "highs_pulp", "relax_battery_binary": False, "highs_options": HIGHS_OPTIONS_BEFORE,
+          "threads": 1}
+_STEPS_1_4 = {"solver": "highs_pulp", "relax_battery_binary": False, "integer_steps": 24, "threads": 1}
 
-#: label -> (options over config/mpc.yaml, exact problem?) ; the formulation steps in order.
+#: label -> (options over config/mpc.yaml, exact problem?); the formulation steps in order, then solvers.
 CONFIGS: dict[str, tuple[dict[str, Any], bool]] = {
     "1 paper formulation, HiGHS defaults": (
-        {"formulation": "paper", "integer_steps": 24, "warm_start": False, **HIGHS_DEFAULTS}, True),
-    "2 tight big-M / fewer binaries": ({"integer_steps": 24, "warm_start": False, **HIGHS_DEFAULTS}, True),
-    "3 + HiGHS options": ({"integer_steps": 24, "warm_start": False}, True),
-    "4 + warm start": ({"integer_steps": 24, "warm_start": True}, True),
-    "5 + relaxed tail (default)": ({}, False),
-    "CBC, tight, warm start": ({"solver": "cbc", "integer_steps": 24, "warm_start": True}, True),
-    "CBC, relaxed tail": ({"solver": "cbc"}, False),
-    "Gurobi, tight, warm start": ({"solver": "gurobi", "integer_steps": 24, "warm_start": True}, True),
-    "Gurobi, relaxed tail": ({"solver": "gurobi"}, False),
+        {**_STEPS_1_4, "formulation": "paper", "warm_start": False, "highs_options": {}}, True),
+    "2 tight big-M / fewer binaries": ({**_STEPS_1_4, "warm_start": False, "highs_options": {}}, True),
+    "3 + HiGHS options (RINS, RENS, root red. cost off)": (
+        {**_STEPS_1_4, "warm_start": False, "highs_options": HIGHS_OPTIONS_BEFORE}, True),
+    "4 + warm start": ({**_STEPS_1_4, "highs_options": HIGHS_OPTIONS_BEFORE}, True),
+    "5 + relaxed tail (default before)": (BEFORE, False),
+    "6 + model kept in highspy, updated in place": (
+        {"relax_battery_binary": False, "highs_options": HIGHS_OPTIONS_BEFORE, "threads": 1}, False),
+    "7 + feasibility jump and restart off": ({"relax_battery_binary": False, "threads": 1}, False),
+    "8 + battery binary relaxed": ({"threads": 1}, False),
+    "9 + 2 threads (default)": ({}, False),
+    "HiGHS full MILP (integer_steps=24)": ({"integer_steps": 24}, True),
+    "CBC, full MILP, warm start": ({"solver": "cbc", "integer_steps": 24}, True),
+    "CBC, default settings": ({"solver": "cbc"}, False),
+    "Gurobi, full MILP, warm start": ({"solver": "gurobi", "integer_steps": 24}, True),
+    "Gurobi, default settings": ({"solver": "gurobi"}, False),
 }
 
-#: KPIs compared between the default and the gap-0 run (summary keys).
+#: Closed loops run side by side: label -> options over config/mpc.yaml.
+LOOP_CONFIGS: dict[str, dict[str, Any]] = {
+    "default (HiGHS, model kept in highspy)": {},
+    "default with 1 thread": {"threads": 1},
+    "before (HiGHS through PuLP per solve)": BEFORE,
+    "Gurobi, default settings": {"solver": "gurobi"},
+    "CBC, default settings": {"solver": "cbc"},
+    "HiGHS full MILP (integer_steps=24)": {"integer_steps": 24},
+    "Gurobi full MILP (integer_steps=24)": {"solver": "gurobi", "integer_steps": 24},
+}
+
+#: KPIs compared between closed loops (summary keys).
 KPI_KEYS = (
     "cost_eur_total", "reimbursement_eur_total", "discomfort_kh_total", "buy_kwh_total", "sell_kwh_total",
     "bess_charged_kwh_total", "h2_kwh_total", "fc_working_hours", "fc_toggles",
@@ -60,12 +88,14 @@ KPI_KEYS = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench mpc``."""
+    parser.add_argument("--loop-weeks", metavar="W", type=real(0), default=1.0,
+                        help="length of the side-by-side closed loops, scenario of that length, >= 0 (0: skip)")
     parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12.0,
-                        help="length of the closed-loop run [weeks], > 0")
+                        help="length of the full run [weeks], > 0")
     parser.add_argument("--days-per-kind", metavar="N", type=COUNT, default=1,
                         help="days taken per kind (cold, mild, sunny); 24 problems each (default 1 -> 72)")
     parser.add_argument("--configs", metavar="LIST", default="all",
-                        help="comma-separated config numbers/labels prefixes (default all available)")
+                        help="problem-set configurations: comma-separated label prefixes, 'all' or 'none'")
     parser.add_argument("--time-limit", metavar="S", type=SECONDS, default=30.0,
                         help="time limit per benchmark solve [s], > 0")
     parser.add_argument("--kpi-weeks", metavar="W", type=real(0), default=0.0,
@@ -75,28 +105,89 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", default=None, help="directory for per-problem results (CSV/JSON)")
 
 
+def load_text() -> str:
+    """``os.getloadavg()`` as ``uptime`` prints it, with the core count."""
+    one, five, fifteen = os.getloadavg()
+    return f"load average {one:.2f}, {five:.2f}, {fifteen:.2f} on {os.cpu_count()} cores"
+
+
+class ClosedLoop:
+    """One controller with its own plant, stepped from outside (``step(k)``)."""
+
+    def __init__(self, ctrl: Any, scenario: Any, params: Any) -> None:
+        from ..plant import Plant
+        from ..sim import ObservationBuilder, exogenous_series, load_forecast_settings
+
+        self.ctrl, self.scenario, self.params = ctrl, scenario, params
+        ctrl.reset()
+        self.plant = Plant(params)
+        self.exo = exogenous_series(scenario, params)
+        self.builder = ObservationBuilder(scenario, params, ctrl.info_level, self.exo, load_forecast_settings())
+        self.state = self.plant.initial_state()
+        self.rows: list[list[Any]] = []
+        self.infos: list[dict[str, float]] = []
+        self.ems_s = 0.0
+
+    def step(self, k: int) -> None:
+        """Step ``k``: observe, act, advance the plant, record."""
+        from ..sim import record_row
+
+        obs = self.builder.build(k, self.state)
+        t0 = time.perf_counter()
+        action = self.ctrl.act(obs)
+        self.ems_s += time.perf_counter() - t0
+        self.infos.append(dict(self.ctrl.step_info))
+        self.state, flows = self.plant.step(self.state, action, self.exo[k])
+        sc = self.scenario
+        self.rows.append(record_row(sc.time[k].isoformat(), k, flows, self.state, action, self.exo[k],
+                                    (sc.ghi_w_m2[k], sc.spot_eur_per_mwh[k]), False))
+
+    def result(self) -> Any:
+        """Timeseries with the ``ems_*`` columns, weekly KPIs and summary."""
+        from ..sim import TIMESERIES_COLUMNS, evaluate_timeseries
+
+        ts = pd.DataFrame(self.rows, columns=list(TIMESERIES_COLUMNS))
+        ts = pd.concat([ts, pd.DataFrame(self.infos).add_prefix("ems_")], axis=1)
+        return evaluate_timeseries(ts, self.params, {"ems_s": self.ems_s})
+
+
 def _closed_loop(ctrl: Any, scenario: Any, params: Any, n_steps: int, progress: ProgressCallback | None = None) -> Any:
     """First ``n_steps`` steps of the closed loop (daily H2 allowance of the whole scenario)."""
-    from ..plant import Plant
-    from ..sim import TIMESERIES_COLUMNS, ObservationBuilder, evaluate_timeseries, exogenous_series, record_row
-
-    ctrl.reset()
-    plant = Plant(params)
-    exo = exogenous_series(scenario, params)
-    builder = ObservationBuilder(scenario, params, ctrl.info_level, exo)
-    state = plant.initial_state()
-    rows, infos = [], []
+    loop = ClosedLoop(ctrl, scenario, params)
     for k in range(n_steps):
-        action = ctrl.act(builder.build(k, state))
-        infos.append(dict(ctrl.step_info))
-        state, flows = plant.step(state, action, exo[k])
-        rows.append(record_row(scenario.time[k].isoformat(), k, flows, state, action, exo[k],
-                               (scenario.ghi_w_m2[k], scenario.spot_eur_per_mwh[k]), False))
+        loop.step(k)
         if progress is not None:
             progress(k + 1, n_steps)
-    ts = pd.DataFrame(rows, columns=list(TIMESERIES_COLUMNS))
-    ts = pd.concat([ts, pd.DataFrame(infos).add_prefix("ems_")], axis=1)
-    return evaluate_timeseries(ts, params)
+    return loop.result()
+
+
+def side_by_side(params: Any, scenario: Any, configs: Mapping[str, Mapping[str, Any]], n_steps: int,
+                 solvers: Sequence[str], progress: ProgressCallback | None = None) -> pd.DataFrame:
+    """Closed loops of ``configs`` stepped in turn; one row per configuration (solve times and KPIs)."""
+    from ..ems.mpc import MPCController
+
+    loops: dict[str, ClosedLoop] = {}
+    rows: dict[str, dict[str, Any]] = {}
+    for label, opts in configs.items():
+        if opts.get("solver", "highs") not in solvers:
+            rows[label] = {"configuration": label, "note": "not installed"}
+        else:
+            loops[label] = ClosedLoop(MPCController(params, {**opts, "log_fallback": False}), scenario, params)
+    for k in range(n_steps):
+        for loop in loops.values():
+            loop.step(k)
+        if progress is not None:
+            progress(k + 1, n_steps)
+    for label, loop in loops.items():
+        res = loop.result()
+        ts = res.timeseries
+        st = ts["ems_solve_s"]
+        rows[label] = {"configuration": label, "median_ms": st.median() * 1e3, "p95_ms": st.quantile(0.95) * 1e3,
+                       "mean_ms": st.mean() * 1e3, "max_ms": st.max() * 1e3,
+                       "fallback": int(ts["ems_fallback"].sum()), "slack_steps": int(ts["ems_slack_used"].sum()),
+                       "objective_sum_eur": float(ts["ems_objective_eur"].sum()),
+                       **{key: float(res.summary[key]) for key in KPI_KEYS}}
+    return pd.DataFrame([rows[label] for label in configs])
 
 
 def select_days(scenario: Any, n_steps: int, per_kind: int) -> dict[str, list[int]]:
@@ -118,7 +209,6 @@ def select_days(scenario: Any, n_steps: int, per_kind: int) -> dict[str, list[in
 
 def problems_from_run(ts: pd.DataFrame, scenario: Any, params: Any, starts: Mapping[str, list[int]]) -> list[tuple]:
     """(kind, step, Observation) for 24 consecutive steps from each start, states from the run."""
-    from ..ems.base import INFO_LEVELS  # noqa: F401 - documents the level used
     from ..sim import ObservationBuilder, exogenous_series
     from ..types import PlantState
 
@@ -163,7 +253,7 @@ def exact_with_first_fixed(params: Any, problems: Sequence[tuple], firsts: Seque
     from ..ems.mpc import MPCController
 
     ctrl = MPCController(params, {**REFERENCE, "time_limit_s": time_limit, "mip_rel_gap": 1e-4,
-                                  "log_fallback": False})
+                                  "relax_battery_binary": False, "log_fallback": False})
     out = []
     for (_, _, obs), first in zip(problems, firsts):
         if first is None:
@@ -176,14 +266,15 @@ def exact_with_first_fixed(params: Any, problems: Sequence[tuple], firsts: Seque
     return out
 
 
-def _pick_configs(spec: str, available: Sequence[str]) -> dict[str, tuple[dict[str, Any], bool]]:
-    out = {}
-    for label, (opts, exact) in CONFIGS.items():
-        if opts.get("solver", "highs") not in available:
-            continue
-        if spec == "all" or any(label.startswith(s.strip()) for s in spec.split(",")):
-            out[label] = (opts, exact)
-    return out
+def _pick_configs(spec: str) -> dict[str, tuple[dict[str, Any], bool]]:
+    if spec == "none":
+        return {}
+    return {label: cfg for label, cfg in CONFIGS.items()
+            if spec == "all" or any(label.startswith(s.strip()) for s in spec.split(","))}
+
+
+def _print_table(table: pd.DataFrame, digits: int = 2) -> None:
+    print(table.to_string(index=False, na_rep="", float_format=lambda x: f"{x:.{digits}f}"))
 
 
 def run(args: argparse.Namespace) -> int:
@@ -196,63 +287,93 @@ def run(args: argparse.Namespace) -> int:
     from ..sim import simulate
 
     params = load_plant_params()
-    weeks = int(math.ceil(args.weeks))
-    scenario = default_scenario(params, weeks=weeks)
     defaults = load_options(MILPOptions, "mpc", {})
     print(f"bench mpc: default settings {defaults.model_dump()}")
     solvers = available_solvers()
     print(f"solvers available: {', '.join(solvers)}" + ("" if "gurobi" in solvers else " (gurobipy not installed)"))
+    print(f"start: {load_text()}", flush=True)
+    out = Path(args.out) if args.out else None
+    if out:
+        out.mkdir(parents=True, exist_ok=True)
 
-    t0 = time.perf_counter()
-    with ProgressBar("full run", unit="step") as bar:
-        result = simulate("mpc", scenario, params, progress=bar)
-    wall = time.perf_counter() - t0
-    ts = result.timeseries
-    print(f"\nfull run: {scenario.n_steps} steps ({scenario.n_steps / 168:.1f} weeks) with {defaults.solver}: "
-          f"wall {wall:.1f} s (EMS {result.summary.get('ems_s', math.nan):.1f} s), solve median "
-          f"{ts['ems_solve_s'].median() * 1e3:.1f} ms, p95 {ts['ems_solve_s'].quantile(0.95) * 1e3:.1f} ms, "
-          f"fallbacks {int(ts['ems_fallback'].sum())}, steps with slack {int(ts['ems_slack_used'].sum())}")
-
-    starts = select_days(scenario, scenario.n_steps, args.days_per_kind)
-    problems = problems_from_run(ts, scenario, params, starts)
-    print(f"\nproblem set: {len(problems)} horizon problems, days starting at steps "
-          + ", ".join(f"{kind} {v}" for kind, v in starts.items()))
-
-    configs = _pick_configs(args.configs, solvers)
-    results: dict[str, list[dict[str, Any]]] = {}
-    with ProgressBar("reference: tight, gap 0", unit="solve") as bar:
-        ref = solve_set(params, {**REFERENCE, "time_limit_s": max(args.time_limit, 60.0)}, problems, bar)
-    results["reference: tight, gap 0"] = ref
-    for label, (opts, _) in configs.items():
+    if args.loop_weeks > 0:
+        loop_scenario = default_scenario(params, weeks=int(math.ceil(args.loop_weeks)))
+        n = min(int(round(args.loop_weeks * 168)), loop_scenario.n_steps)
         t = time.perf_counter()
-        with ProgressBar(label, unit="solve") as bar:
-            results[label] = solve_set(params, {"time_limit_s": args.time_limit, **opts}, problems, bar)
-        print(f"  solved with '{label}' in {time.perf_counter() - t:.1f} s", flush=True)
-    exact_labels = ["reference: tight, gap 0"] + [lb for lb, (_, ex) in configs.items() if ex]
-    best = np.nanmin(np.array([[r["objective"] for r in results[lb]] for lb in exact_labels]), axis=0)
-    rows = []
-    for label, res in results.items():
-        exact = label in exact_labels
-        if exact:
-            obj = np.array([r["objective"] for r in res])
-        else:
-            obj = np.array(exact_with_first_fixed(params, problems, [r["first"] for r in res], args.time_limit))
-        gap = (obj - best) / np.maximum(np.abs(best), 1e-9)
-        st = np.array([r["solve_s"] for r in res])
-        rows.append({
-            "configuration": label,
-            "median_ms": np.median(st) * 1e3,
-            "p95_ms": np.quantile(st, 0.95) * 1e3,
-            "mean_gap_pct": np.nanmean(gap) * 100,
-            "max_gap_pct": np.nanmax(gap) * 100,
-            "no_solution": int(np.sum(~np.isfinite(obj))),
-        })
-    table = pd.DataFrame(rows)
-    print("\nsolve time and objective gap to the best known solution "
-          f"({len(problems)} problems; gap of relaxed-tail rows = exact problem with first step fixed):")
-    print(table.to_string(index=False, float_format=lambda x: f"{x:.2f}"))
+        with ProgressBar("closed loops side by side", unit="step") as bar:
+            loops = side_by_side(params, loop_scenario, LOOP_CONFIGS, n, solvers, bar)
+        print(f"\nclosed loops side by side: {n} steps of the default scenario of {math.ceil(args.loop_weeks)} "
+              f"week(s), stepped in turn ({time.perf_counter() - t:.0f} s; {load_text()}):")
+        _print_table(loops[["configuration", "median_ms", "p95_ms", "mean_ms", "max_ms", "fallback", "slack_steps"]
+                           + (["note"] if "note" in loops else [])], 1)
+        print("\nKPIs of these closed loops (totals over the run):")
+        _print_table(loops[["configuration", *KPI_KEYS, "objective_sum_eur"]], 3)
+        if out:
+            loops.to_csv(out / "bench_mpc_loops.csv", index=False)
 
-    kpi_table = None
+    weeks = int(math.ceil(args.weeks))
+    scenario = default_scenario(params, weeks=weeks)
+    configs = _pick_configs(args.configs)
+    wall = math.nan
+    if args.skip_full_run and not configs:
+        ts = None
+    else:
+        t0 = time.perf_counter()
+        with ProgressBar("full run", unit="step") as bar:
+            result = simulate("mpc", scenario, params, progress=bar)
+        wall = time.perf_counter() - t0
+        ts = result.timeseries
+    if not args.skip_full_run:
+        print(f"\nfull run: {scenario.n_steps} steps ({scenario.n_steps / 168:.1f} weeks) with {defaults.solver}: "
+              f"wall {wall:.1f} s (EMS {result.summary.get('ems_s', math.nan):.1f} s), solve median "
+              f"{ts['ems_solve_s'].median() * 1e3:.1f} ms, p95 {ts['ems_solve_s'].quantile(0.95) * 1e3:.1f} ms, "
+              f"fallbacks {int(ts['ems_fallback'].sum())}, steps with slack {int(ts['ems_slack_used'].sum())} "
+              f"({load_text()})", flush=True)
+
+    if configs:
+        starts = select_days(scenario, scenario.n_steps, args.days_per_kind)
+        problems = problems_from_run(ts, scenario, params, starts)
+        print(f"\nproblem set: {len(problems)} horizon problems, days starting at steps "
+              + ", ".join(f"{kind} {v}" for kind, v in starts.items()))
+        results: dict[str, list[dict[str, Any]]] = {}
+        ref_label = "reference: tight, gap 0"
+        with ProgressBar(ref_label, unit="solve") as bar:
+            results[ref_label] = solve_set(params, {**REFERENCE, "time_limit_s": max(args.time_limit, 60.0)},
+                                           problems, bar)
+        missing = []
+        for label, (opts, _) in configs.items():
+            if opts.get("solver", "highs") not in solvers:
+                missing.append(label)
+                continue
+            t = time.perf_counter()
+            with ProgressBar(label, unit="solve") as bar:
+                results[label] = solve_set(params, {"time_limit_s": args.time_limit, **opts}, problems, bar)
+            print(f"  solved with '{label}' in {time.perf_counter() - t:.1f} s", flush=True)
+        exact_labels = [ref_label] + [lb for lb, (_, ex) in configs.items() if ex and lb in results]
+        best = np.nanmin(np.array([[r["objective"] for r in results[lb]] for lb in exact_labels]), axis=0)
+        rows = []
+        for label, res in results.items():
+            if label in exact_labels:
+                obj = np.array([r["objective"] for r in res])
+            else:
+                obj = np.array(exact_with_first_fixed(params, problems, [r["first"] for r in res], args.time_limit))
+            gap = (obj - best) / np.maximum(np.abs(best), 1e-9)
+            st = np.array([r["solve_s"] for r in res])
+            rows.append({"configuration": label, "median_ms": np.median(st) * 1e3,
+                         "p95_ms": np.quantile(st, 0.95) * 1e3, "mean_gap_pct": np.nanmean(gap) * 100,
+                         "max_gap_pct": np.nanmax(gap) * 100, "no_solution": int(np.sum(~np.isfinite(obj)))})
+        rows += [{"configuration": label, "note": "not installed"} for label in missing]
+        table = pd.DataFrame(rows)
+        print("\nsolve time and objective gap to the best known solution "
+              f"({len(problems)} problems; gap of relaxed-tail rows = exact problem with first step fixed; "
+              f"{load_text()}):")
+        _print_table(table)
+        if out:
+            table.to_csv(out / "bench_mpc.csv", index=False)
+            per = [{"configuration": label, **{k: v for k, v in r.items() if k != "first"}}
+                   for label, res in results.items() for r in res]
+            pd.DataFrame(per).to_csv(out / "bench_mpc_problems.csv", index=False)
+
     if args.kpi_weeks > 0:
         n = int(round(args.kpi_weeks * 168))
         with ProgressBar("default settings", unit="step") as bar:
@@ -269,17 +390,11 @@ def run(args: argparse.Namespace) -> int:
         print(f"\nKPIs over the first {args.kpi_weeks:g} weeks: default settings vs exact MILP at gap 0 "
               f"(solve median {chosen.timeseries['ems_solve_s'].median() * 1e3:.0f} ms vs "
               f"{exact.timeseries['ems_solve_s'].median() * 1e3:.0f} ms):")
-        print(kpi_table.to_string(index=False, float_format=lambda x: f"{x:.3f}"))
-
-    if args.out:
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        table.to_csv(out / "bench_mpc.csv", index=False)
-        if kpi_table is not None:
+        _print_table(kpi_table, 3)
+        if out:
             kpi_table.to_csv(out / "bench_mpc_kpi.csv", index=False)
-        per = []
-        for label, res in results.items():
-            per.extend({"configuration": label, **{k: v for k, v in r.items() if k != "first"}} for r in res)
-        pd.DataFrame(per).to_csv(out / "bench_mpc_problems.csv", index=False)
+
+    if out:
         (out / "bench_mpc_run.json").write_text(json.dumps({"wall_s": wall, "steps": int(scenario.n_steps)}) + "\n")
+    print(f"\nend: {load_text()}")
     return 0

@@ -25,7 +25,7 @@ from ..fallback import safe_action
 from .horizon import HorizonData, PlantConstants, build_horizon
 from .milp import SLACKS, MILPModel, Penalties, SolveResult, shift_plan
 from .settings import MILPOptions, load_options
-from .solvers import make_solver
+from .solvers import make_backend
 
 #: Values below this are treated as zero when turning a plan into an action [W] / [-].
 POWER_EPS_W = 1e-3
@@ -100,9 +100,10 @@ class MPCController:
         self.options: MILPOptions = load_options(MILPOptions, "mpc", options)  # type: ignore[assignment]
         o = self.options
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
-        self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps)
-        self.solver = make_solver(o.solver, o.mip_rel_gap, o.time_limit_s, o.threads, o.warm_start,
-                                  highs_options=o.highs_options)
+        self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
+                               o.relax_battery_binary)
+        self.backend = make_backend(o.solver, self.model.form, o.mip_rel_gap, o.time_limit_s, o.threads,
+                                    o.warm_start, highs_options=o.highs_options, gurobi_options=o.gurobi_options)
         self.step_info: dict[str, float] = {}
         self.reset()
 
@@ -122,7 +123,7 @@ class MPCController:
         self.last_horizon = h
         self.model.update(h)
         self.model.set_start(shift_plan(self._prev_plan) if self.options.warm_start and self._prev_plan else None)
-        return self.model.solve(self.solver)
+        return self.model.solve(self.backend)
 
     def act(self, obs: Observation) -> Action:
         """Solve the horizon problem and return its first step (or the safe fallback)."""

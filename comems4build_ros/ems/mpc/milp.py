@@ -2,8 +2,10 @@
 
 Built once per controller (:class:`MILPModel`) and updated each step: the right-hand
 sides (initial states, forecasts, comfort bounds, LOH_min), the objective coefficients
-(buy and sell prices) and the coefficients that depend on the forecast ambient
-temperature (COP, P_el,HP,max) are changed in place; the structure never changes.
+(buy and sell prices), the bounds and the matrix coefficients that depend on the
+forecast ambient temperature (COP, P_el,HP,max) are changed in place; the structure never
+changes. The PuLP problem stays the source of the model: a solver backend
+(:mod:`.solvers`) reads its arrays once and, before each solve, passes on what changed.
 
 Per step ``t`` (0 = step k of the closed loop), powers in W, energies via ``dt_h``:
 
@@ -21,6 +23,11 @@ Per step ``t`` (0 = step k of the closed loop), powers in W, energies via ``dt_h
   for DHW, ``s_SH + s_DHW <= 1``; P_max = P_el,HP,max(T_amb[t]) is the tightest big-M.
   Battery (eq:bat_ch_dis_const, eq:s_summ): one binary ``b_ch`` (charge allowed) when the
   minimum powers are 0 (``P_ch <= P_ch,max b``, ``P_d <= P_d,max (1 - b)``), otherwise two.
+  With ``relax_battery_binary`` the single ``b_ch`` is relaxed to [0, 1] in every solve
+  whose sell price is >= 0: charging and discharging in the same hour is then never
+  optimal (lowering both so that the SOC path stays the same frees
+  ``(1 - eta_ch eta_d)`` of the charged power for sale and saves lifecycle cost), so the
+  optimum is the same; with a negative sell price ``b_ch`` is binary again.
   FC: ``P_min s_FC <= P_FC <= zeta P_max s_FC``; start/stop (eq:on_off_logic) as continuous
   ``s_on - s_off = s_FC[t] - s_FC[t-1]`` in [0, 1] (integral at the optimum since both
   carry positive costs).
@@ -36,14 +43,17 @@ Objective (eq:mpc_objective): ``sum_t dt (p_buy P_buy - p_sell P_sell) + dt (sig
 from __future__ import annotations
 
 import math
+import time
 from collections.abc import Mapping
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 import pulp
 
 from ...config import W_PER_KW
 from .horizon import HorizonData, PlantConstants
+from .solvers import MatrixForm
 
 #: Variables of the plan returned per step (continuous and binary), by name prefix.
 PLAN_VARS = (
@@ -80,7 +90,8 @@ class SolveResult:
     optimal : the solver proved optimality within the gap
     objective : objective value [EUR] (NaN without solution)
     plan : variable prefix -> values per horizon step (empty without solution)
-    solve_s : wall time of the solve call including the model hand-over [s]
+    solve_s : wall time of the solve call: passing the changes to the solver, the solve, reading the
+        solution [s]
     gap : relative MIP gap reported by the solver (NaN if unknown)
     """
 
@@ -104,6 +115,8 @@ class MILPModel:
     big_m_loose_w : big-M of the ``paper`` formulation [W]
     integer_steps : steps (from t = 0) whose binaries stay binary; the binaries of later
         steps are relaxed to [0, 1] ("relaxed tail"). ``None`` or ``>= n``: all binary.
+    relax_battery_binary : relax the single battery binary while the sell price is >= 0
+        (formulation ``tight``; see the module docstring)
     """
 
     def __init__(
@@ -113,6 +126,7 @@ class MILPModel:
         formulation: str = "tight",
         big_m_loose_w: float = 1e5,
         integer_steps: int | None = None,
+        relax_battery_binary: bool = False,
     ) -> None:
         if formulation not in ("tight", "paper"):
             raise ValueError(f"formulation: unknown value '{formulation}' (tight, paper)")
@@ -122,10 +136,16 @@ class MILPModel:
         self.big_m = big_m_loose_w
         self.n = const.n
         self.integer_steps = self.n if integer_steps is None else max(0, min(int(integer_steps), self.n))
+        self.relax_battery_binary = relax_battery_binary
         self.prob = pulp.LpProblem("mpc_horizon", pulp.LpMinimize)
         self.v: dict[str, list[pulp.LpVariable]] = {}
         self.c: dict[str, list[pulp.LpConstraint]] = {}
+        #: (constraint, variable) pairs whose coefficient update() changes
+        self.mutable: list[tuple[pulp.LpConstraint, pulp.LpVariable]] = []
         self._build()
+        self.two_bat = "b_dis" in self.v
+        self.form = MatrixForm(self.prob, self.mutable)
+        self._cols = {name: np.array([self.form.col_index[v.name] for v in vars_]) for name, vars_ in self.v.items()}
 
     # ----------------------------------------------------------------- building
     def _var(self, name: str, low: float | None = 0.0, up: float | None = None, binary: bool = False) -> None:
@@ -186,6 +206,7 @@ class MILPModel:
             cv = k.l_per_wh * k.dt_h
             self._con("dhw", t, V["v_dhw"][t] - prev("v_dhw") - cv * 1.0 * V["p_hp_dhw"][t]
                       - cv * k.k_fc_heat * V["p_fc"][t] + cv * V["q_dump"][t] == 0.0)
+            self.mutable.append((self.c["dhw"][t], V["p_hp_dhw"][t]))
             self._con("fc_heat_dump", t, V["q_dump"][t] - k.k_fc_heat * V["p_fc"][t] <= 0.0)
             # eq:state_update_bldgs; COP coefficient set by update
             states = ("t_air", "t_wall_in", "t_wall_out")
@@ -194,6 +215,7 @@ class MILPModel:
                 if t:
                     expr -= pulp.lpSum(k.ad[i, j] * V[states[j]][t - 1] for j in range(3) if k.ad[i, j] != 0.0)
                 self._con(cname, t, expr == 0.0)
+                self.mutable.append((self.c[cname][t], V["p_hp_sh"][t]))
             # soft bounds
             self._con("comfort_lo", t, V["t_air"][t] + V["sl_t_lo"][t] >= 0.0)
             self._con("comfort_hi", t, V["t_air"][t] - V["sl_t_hi"][t] <= 0.0)
@@ -244,11 +266,13 @@ class MILPModel:
                     self._con(f"hp_{mode}_bigm", t, p - m_loose * s <= 0.0)
                     self._con(f"hp_{mode}_le", t, p - 1.0 * eta <= 0.0)  # p <= P_max eta
                     self._con(f"hp_{mode}_ge", t, p - 1.0 * eta - m_loose * s >= -m_loose)
+                    self.mutable += [(self.c[f"hp_{mode}_le"][t], eta), (self.c[f"hp_{mode}_ge"][t], eta)]
             else:
                 for mode, s in (("sh", V["s_sh"][t]), ("dhw", V["s_dhw"][t])):
                     p = V[f"p_hp_{mode}"][t]
                     self._con(f"hp_{mode}_max", t, p - 1.0 * s <= 0.0)
                     self._con(f"hp_{mode}_min", t, p - 1.0 * s >= 0.0)
+                    self.mutable += [(self.c[f"hp_{mode}_max"][t], s), (self.c[f"hp_{mode}_min"][t], s)]
         # objective: structure now, price coefficients in update()
         c = k.costs
         obj = pulp.LpAffineExpression()
@@ -310,18 +334,25 @@ class MILPModel:
             C["fc_off_c"][0].changeRHS(fc_prev)
         else:
             C["fc_switch"][0].changeRHS(-fc_prev)
+        if self.relax_battery_binary and not paper and not self.two_bat:
+            cat = pulp.LpContinuous if h.price_sell_eur_per_kwh >= 0 else pulp.LpInteger  # bounds stay [0, 1]
+            for var in V["b_ch"][: self.integer_steps]:
+                var.cat = cat
 
     def binary_names(self) -> list[str]:
-        """Prefixes of the variables that are binary (at least in step 0)."""
-        return [name for name, vars_ in self.v.items() if vars_[0].cat == pulp.LpBinary]
+        """Prefixes of the variables that are binary (at least in step 0).
+
+        PuLP stores a binary as category ``LpInteger`` with bounds [0, 1].
+        """
+        return [name for name, vars_ in self.v.items() if vars_[0].cat in (pulp.LpInteger, pulp.LpBinary)]
 
     def fix_first_step(self, values: Mapping[str, float] | None) -> None:
-        """Fix the step-0 binaries to ``values`` (prefix -> 0/1); ``None`` frees them again."""
+        """Fix the step-0 binaries named in ``values`` (prefix -> 0/1); ``None`` frees them all again."""
         for name in self.binary_names():
             var = self.v[name][0]
             if values is None:
                 var.lowBound, var.upBound = 0, 1
-            else:
+            elif name in values:
                 val = float(round(values[name]))
                 var.lowBound, var.upBound = val, val
 
@@ -333,51 +364,26 @@ class MILPModel:
                 var.varValue = None if vals is None else float(vals[t])
 
     # ----------------------------------------------------------------- solving
-    def solve(self, solver: pulp.LpSolver) -> SolveResult:
-        """Solve with ``solver``; read the plan if a solution exists."""
-        import time
+    def solve(self, backend: Any) -> SolveResult:
+        """Solve with a backend of :mod:`.solvers`; read the plan if a solution exists.
 
+        The solution is also written into the PuLP variables (``varValue``).
+        """
         t0 = time.perf_counter()
-        try:
-            self.prob.solve(solver)
-            err = None
-        except pulp.PulpSolverError as exc:  # e.g. CBC killed or unreadable solution file
-            err = str(exc)
+        raw = backend.solve()
         solve_s = time.perf_counter() - t0
-        if err is not None:
-            return SolveResult(f"Solver error: {err}", False, False, math.nan, solve_s=solve_s)
-        status = pulp.LpSolution[self.prob.sol_status]
-        has = self.prob.sol_status in (pulp.LpSolutionOptimal, pulp.LpSolutionIntegerFeasible)
-        plan: dict[str, np.ndarray] = {}
-        if has:
-            for name, vars_ in self.v.items():
-                vals = [var.varValue for var in vars_]
-                if any(v is None or not math.isfinite(v) for v in vals):
-                    has = False
-                    break
-                plan[name] = np.asarray(vals, dtype=float)
-        if not has:
-            return SolveResult(status, False, False, math.nan, solve_s=solve_s, gap=math.nan)
-        objective = float(pulp.value(self.prob.objective))
-        return SolveResult(
-            status, True, self.prob.sol_status == pulp.LpSolutionOptimal, objective, plan, solve_s,
-            _mip_gap(self.prob),
-        )
-
-
-def _mip_gap(prob: pulp.LpProblem) -> float:
-    """Relative MIP gap reported by HiGHS or Gurobi (NaN for CBC)."""
-    model = getattr(prob, "solverModel", None)
-    if model is None:
-        return math.nan
-    try:
-        if hasattr(model, "getInfo"):  # highspy
-            return float(model.getInfo().mip_gap)
-        if hasattr(model, "MIPGap"):  # gurobipy
-            return float(model.MIPGap)
-    except Exception:  # noqa: BLE001 - a missing statistic must not stop the run
-        return math.nan
-    return math.nan
+        if raw.error:
+            self.form.set_values(None)
+            return SolveResult(f"Solver error: {raw.error}", False, False, math.nan, solve_s=solve_s)
+        status = pulp.LpSolution[raw.sol_status]
+        x = raw.x
+        if x is None or not np.all(np.isfinite(x)):
+            self.form.set_values(None)
+            return SolveResult(status, False, False, math.nan, solve_s=solve_s)
+        self.form.set_values(x)
+        plan = {name: x[cols] for name, cols in self._cols.items()}
+        return SolveResult(status, True, raw.sol_status == pulp.LpSolutionOptimal, raw.objective, plan, solve_s,
+                           raw.gap)
 
 
 def shift_plan(plan: Mapping[str, np.ndarray], steps: int = 1) -> dict[str, np.ndarray]:

@@ -17,9 +17,6 @@ from pydantic import BaseModel, ConfigDict, Field
 
 from ...config import W_PER_KW, ConfigError, PlantParams, config_dir, read_ros_params, validate
 
-#: Solvers the MILP controller knows (``gurobi`` only when gurobipy is importable).
-SOLVERS = ("highs", "cbc", "gurobi")
-
 
 class _Options(BaseModel):
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -36,16 +33,18 @@ class _Options(BaseModel):
 class MILPOptions(_Options):
     """Options of the MILP controller (``mpc`` section)."""
 
-    solver: Literal["highs", "cbc", "gurobi"] = "highs"
+    solver: Literal["highs", "highs_pulp", "cbc", "gurobi"] = "highs"
     mip_rel_gap: float = Field(default=0.005, ge=0, lt=1)
     time_limit_s: float = Field(default=10.0, ge=0)
     threads: int = Field(default=1, ge=1)
     warm_start: bool = True
     formulation: Literal["tight", "paper"] = "tight"
     integer_steps: int = Field(default=24, ge=1)
+    relax_battery_binary: bool = False
     big_m_loose_w: float = Field(default=1e5, gt=0)
     log_fallback: bool = True
     highs_options: dict[str, bool | int | float | str] = Field(default_factory=dict)
+    gurobi_options: dict[str, bool | int | float | str] = Field(default_factory=dict)
 
 
 class QPOptions(_Options):

@@ -1,0 +1,182 @@
+"""Solver backends of the MILP MPC: the solver model kept in memory and updated in place gives
+the same optimum as a model built afresh, the time-indexed names reach the solver, the
+battery binary relaxation keeps the optimum, and Gurobi (when gurobipy is installed) agrees
+with HiGHS."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from test_mpc import fc_enumeration, mpc_obs
+
+from comems4build_ros.config import ConfigError, load_plant_params
+from comems4build_ros.ems.mpc import MPCController
+from comems4build_ros.ems.mpc import solvers as solvers_mod
+from comems4build_ros.ems.mpc.solvers import gurobi_available
+
+needs_gurobi = pytest.mark.skipif(not gurobi_available(),
+                                  reason="gurobipy is not installed (optional extra: pip install .[gurobi])")
+EXACT = {"mip_rel_gap": 0.0, "time_limit_s": 60.0, "log_fallback": False}
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_plant_params()
+
+
+@pytest.fixture(scope="module")
+def params3():
+    """3-step horizon, battery without power (so only the FC and the grid matter)."""
+    return load_plant_params(overrides={"simulation.horizon_h": 3, "battery.p_ch_max_w": 0.0,
+                                        "battery.p_d_max_w": 0.0})
+
+
+def varied_observations(n: int, sell: float = 0.0794) -> list:
+    """Horizons that differ in every updated number: prices, loads, T_amb (COP, P_max), comfort
+    bounds, DHW draw, initial states, the FC's previous state, the day (LOH_min)."""
+    rng = np.random.default_rng(7)
+    out = []
+    for i in range(5):
+        prices = rng.uniform(0.1, 0.7, n)
+        obs = mpc_obs(n, prices=prices, load_w=rng.uniform(200.0, 2500.0, n), t_air=20.0 + 0.5 * i,
+                      t_min=rng.choice([18.0, 20.0], n), t_max=24.0, v_dhw=120.0 + 20 * i, soc=0.2 + 0.15 * i,
+                      loh=1.0 - 0.005 * i, fc_on_prev=bool(i % 2), dloh=1 / 84, t_amb=-5.0 + 4.0 * i,
+                      dhw_l=3.0 * i, day_index=i, step=i, t_wall_in=19.0 + 0.3 * i, t_wall_out=8.0 + i)
+        if sell != 0.0794:
+            data = obs.as_dict()
+            data["price_sell_eur_per_kwh"] = sell
+            obs = type(obs)("mpc", data)
+        out.append(obs)
+    return out
+
+
+@pytest.mark.parametrize("solver", ["highs", pytest.param("gurobi", marks=needs_gurobi)])
+@pytest.mark.parametrize("formulation", ["tight", "paper"])
+def test_model_updated_in_place_equals_fresh_model(params, solver, formulation):
+    """One controller solving a sequence of different horizons (its solver model updated in
+    place) reaches the same optimum as a new controller per horizon."""
+    opts = {**EXACT, "solver": solver, "formulation": formulation, "warm_start": False}
+    kept = MPCController(params, opts)
+    for obs in varied_observations(params.simulation.horizon_h):
+        kept.act(obs)
+        fresh = MPCController(params, opts)
+        fresh.act(obs)
+        assert kept.last_result.optimal and fresh.last_result.optimal
+        assert kept.last_result.objective == pytest.approx(fresh.last_result.objective, rel=1e-6, abs=1e-6)
+
+
+def test_fixing_the_first_step_is_passed_to_the_kept_model(params):
+    """Bounds changed through PuLP (fix_first_step) reach the highspy model and are released again."""
+    n = params.simulation.horizon_h
+    obs = varied_observations(n)[2]
+    ctrl = MPCController(params, {**EXACT, "warm_start": False})
+    free = ctrl.plan(obs).objective
+    ctrl.model.fix_first_step({name: 1.0 for name in ctrl.model.binary_names() if name == "s_fc"} | {
+        name: 0.0 for name in ctrl.model.binary_names() if name != "s_fc"})
+    fixed = ctrl.plan(obs)
+    assert fixed.plan["s_fc"][0] == pytest.approx(1.0) and fixed.plan["p_fc"][0] > 0
+    assert fixed.objective >= free - 1e-9
+    ctrl.model.fix_first_step(None)
+    assert ctrl.plan(obs).objective == pytest.approx(free, abs=1e-6)
+
+
+@pytest.mark.parametrize("sell", [0.0794, -0.05])
+def test_battery_binary_relaxation_keeps_the_optimum(params, sell):
+    """Relaxing b_ch (sell price >= 0) leaves the optimum unchanged; with a negative sell price
+    b_ch is binary again in the same kept model (integrality passed in place)."""
+    n = params.simulation.horizon_h
+    relaxed = MPCController(params, {**EXACT, "relax_battery_binary": True, "warm_start": False})
+    binary = MPCController(params, {**EXACT, "relax_battery_binary": False, "warm_start": False})
+    for obs in varied_observations(n, sell=sell)[:3]:
+        relaxed.act(obs)
+        binary.act(obs)
+        assert relaxed.model.v["b_ch"][0].cat == ("Continuous" if sell >= 0 else "Integer")
+        assert relaxed.last_result.objective == pytest.approx(binary.last_result.objective, rel=1e-6, abs=1e-6)
+        plan = relaxed.last_result.plan
+        if sell < 0:  # exclusion enforced: never both in one hour
+            assert np.all(np.minimum(plan["p_ch"][:6], plan["p_dis"][:6]) < 1e-6)
+
+
+@pytest.mark.parametrize("solver", ["highs", "highs_pulp", "cbc", pytest.param("gurobi", marks=needs_gurobi)])
+def test_every_solver_matches_the_enumeration(params3, solver):
+    """The 3-step FC case solved by hand (test_mpc.fc_enumeration), through every backend."""
+    prices, load = (0.2, 0.6, 0.5), 2500.0
+    costs = fc_enumeration(prices, load, params3)
+    best = min(costs, key=costs.get)
+    ctrl = MPCController(params3, {"solver": solver, "mip_rel_gap": 0.0, "warm_start": True, "integer_steps": 3})
+    for _ in range(2):  # the second solve is warm-started and runs on the updated model
+        ctrl.act(mpc_obs(3, prices=prices, load_w=load))
+        assert ctrl.last_result.objective == pytest.approx(costs[best], abs=1e-6)
+        assert tuple(int(round(v)) for v in ctrl.last_result.plan["s_fc"]) == best
+
+
+def test_highs_model_carries_the_time_indexed_names(params):
+    ctrl = MPCController(params, {})
+    lp = ctrl.backend.h.getLp()
+    assert list(lp.col_names_) == [v.name for v in ctrl.model.prob.variables()]
+    assert list(lp.row_names_) == list(ctrl.model.prob.constraints)
+    assert {"soc_0", "p_fc_23", "s_fc_5"} <= set(lp.col_names_)
+    assert {"balance_0", "comfort_lo_12", "fc_switch_23"} <= set(lp.row_names_)
+
+
+def test_model_fits_the_restricted_gurobi_licence(params):
+    """gurobipy's bundled licence solves models of up to 2000 variables and 2000 constraints."""
+    for formulation in ("tight", "paper"):
+        form = MPCController(params, {"formulation": formulation}).model.form
+        assert form.n_cols <= 2000 and form.n_rows <= 2000, (formulation, form.n_cols, form.n_rows)
+
+
+def test_gurobi_without_gurobipy_is_a_clear_error(params, monkeypatch):
+    monkeypatch.setattr(solvers_mod, "gurobi_available", lambda: False)
+    with pytest.raises(ConfigError, match="gurobipy is not installed"):
+        MPCController(params, {"solver": "gurobi"})
+
+
+def test_unknown_highs_option_is_a_clear_error(params):
+    with pytest.raises(ConfigError, match="no_such_option"):
+        MPCController(params, {"highs_options": {"no_such_option": 1}})
+
+
+@needs_gurobi
+def test_gurobi_model_carries_the_time_indexed_names(params):
+    ctrl = MPCController(params, {"solver": "gurobi"})
+    m = ctrl.backend.model
+    assert [v.VarName for v in m.getVars()] == [v.name for v in ctrl.model.prob.variables()]
+    assert [c.ConstrName for c in m.getConstrs()] == list(ctrl.model.prob.constraints)
+
+
+@needs_gurobi
+def test_gurobi_and_highs_agree_on_full_horizons(params):
+    """Exact optima of 24-step horizons with both solvers, warm-started chains."""
+    n = params.simulation.horizon_h
+    ctrls = {s: MPCController(params, {**EXACT, "solver": s}) for s in ("highs", "gurobi")}
+    for obs in varied_observations(n):
+        objs = {}
+        for s, ctrl in ctrls.items():
+            ctrl.act(obs)
+            assert ctrl.step_info["fallback"] == 0.0 and ctrl.step_info["status"] == 1.0
+            objs[s] = ctrl.last_result.objective
+        assert objs["gurobi"] == pytest.approx(objs["highs"], rel=1e-6, abs=1e-6)
+
+
+@needs_gurobi
+def test_gurobi_time_limit_zero_falls_back(params):
+    """A zero time limit stops Gurobi before any solution: safe fallback, as with HiGHS."""
+    n = params.simulation.horizon_h
+    ctrl = MPCController(params, {"solver": "gurobi", "time_limit_s": 0.0, "log_fallback": False})
+    ctrl.act(mpc_obs(n, prices=[0.4] * n, load_w=500.0, t_air=18.2, t_min=18.0, t_max=24.0, dloh=1 / 84))
+    assert ctrl.step_info["fallback"] == 1.0 and ctrl.n_fallback == 1
+
+
+def test_controllers_with_different_thread_counts_in_one_process(params3):
+    """HiGHS runs one task scheduler per process; the backends restart it when the thread count
+    changes, so controllers with 1 and 2 threads can alternate (no "Not Set" failure)."""
+    prices, load = (0.2, 0.6, 0.5), 2500.0
+    costs = fc_enumeration(prices, load, params3)
+    ctrls = [MPCController(params3, {"solver": s, "threads": t, "mip_rel_gap": 0.0, "integer_steps": 3})
+             for t in (2, 1) for s in ("highs", "highs_pulp")]
+    for _ in range(2):
+        for ctrl in ctrls:
+            ctrl.act(mpc_obs(3, prices=prices, load_w=load))
+            assert ctrl.step_info["fallback"] == 0.0
+            assert ctrl.last_result.objective == pytest.approx(min(costs.values()), abs=1e-6)
