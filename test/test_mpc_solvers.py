@@ -65,8 +65,8 @@ def test_model_updated_in_place_equals_fresh_model(params, solver, formulation):
         assert kept.last_result.objective == pytest.approx(fresh.last_result.objective, rel=1e-6, abs=1e-6)
 
 
-def test_fixing_the_first_step_is_passed_to_the_kept_model(params):
-    """Bounds changed through PuLP (fix_first_step) reach the highspy model and are released again."""
+def test_fixing_the_first_step_reaches_the_solver(params):
+    """Bounds changed through PuLP (fix_first_step) reach the HiGHS model and are released again."""
     n = params.simulation.horizon_h
     obs = varied_observations(n)[2]
     ctrl = MPCController(params, {**EXACT, "warm_start": False})
@@ -78,6 +78,22 @@ def test_fixing_the_first_step_is_passed_to_the_kept_model(params):
     assert fixed.objective >= free - 1e-9
     ctrl.model.fix_first_step(None)
     assert ctrl.plan(obs).objective == pytest.approx(free, abs=1e-6)
+
+
+@pytest.mark.parametrize("solver", ["highs", pytest.param("gurobi", marks=needs_gurobi)])
+def test_a_solve_does_not_depend_on_the_solves_before(params, solver):
+    """Default settings without warm start: the plan for a horizon is the same after a sequence
+    of other solves as from a new controller (no solver state carried between solves)."""
+    n = params.simulation.horizon_h
+    obs = varied_observations(n)
+    opts = {"solver": solver, "warm_start": False, "log_fallback": False}
+    kept = MPCController(params, opts)
+    for o in obs:
+        kept.act(o)
+    fresh = MPCController(params, opts)
+    fresh.act(obs[-1])
+    for name, vals in fresh.last_result.plan.items():
+        np.testing.assert_array_equal(kept.last_result.plan[name], vals, err_msg=name)
 
 
 @pytest.mark.parametrize("sell", [0.0794, -0.05])
@@ -112,6 +128,7 @@ def test_every_solver_matches_the_enumeration(params3, solver):
 
 def test_highs_model_carries_the_time_indexed_names(params):
     ctrl = MPCController(params, {})
+    ctrl.act(varied_observations(params.simulation.horizon_h)[0])
     lp = ctrl.backend.h.getLp()
     assert list(lp.col_names_) == [v.name for v in ctrl.model.prob.variables()]
     assert list(lp.row_names_) == list(ctrl.model.prob.constraints)

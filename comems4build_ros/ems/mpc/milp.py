@@ -26,8 +26,10 @@ Per step ``t`` (0 = step k of the closed loop), powers in W, energies via ``dt_h
   With ``relax_battery_binary`` the single ``b_ch`` is relaxed to [0, 1] in every solve
   whose sell price is >= 0: charging and discharging in the same hour is then never
   optimal (lowering both so that the SOC path stays the same frees
-  ``(1 - eta_ch eta_d)`` of the charged power for sale and saves lifecycle cost), so the
-  optimum is the same; with a negative sell price ``b_ch`` is binary again.
+  ``(1 - eta_ch eta_d)`` of the charged power, which ``P_sell`` (no upper bound) takes at
+  ``p_sell >= 0``, and saves lifecycle cost; once one of the two is 0 a binary ``b_ch``
+  fits the same powers), so the optimum is the same; with a negative sell price ``b_ch``
+  is binary again.
   FC: ``P_min s_FC <= P_FC <= zeta P_max s_FC``; start/stop (eq:on_off_logic) as continuous
   ``s_on - s_off = s_FC[t] - s_FC[t-1]`` in [0, 1] (integral at the optimum since both
   carry positive costs).

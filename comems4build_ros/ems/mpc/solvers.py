@@ -1,19 +1,20 @@
-"""MILP solvers behind the PuLP model: HiGHS and Gurobi kept in memory, CBC through PuLP.
+"""MILP solvers behind the PuLP model: HiGHS and Gurobi through their Python APIs, CBC through PuLP.
 
 The PuLP problem (:class:`.milp.MILPModel`) is the source of the model: it is built once,
 and every step changes its right-hand sides, objective coefficients, bounds and a few
 matrix coefficients in place. :class:`MatrixForm` reads the problem's arrays once, in a
 fixed column and row order with PuLP's time-indexed names (``soc_3``, ``balance_0``), and
-re-reads the parts that can change before each solve. A backend keeps one solver model
-for the whole run and passes only the entries that changed since its last solve:
+re-reads the parts that can change before each solve, so the PuLP objects are not walked
+and converted in full at every step (what PuLP's own solver interfaces do):
 
-- :class:`HighsBackend` (``highs``, default): a ``highspy.Highs`` object, updated with
-  ``changeRowsBounds``, ``changeColsCost``, ``changeColsBounds``, ``changeCoeff`` and
-  ``changeColsIntegrality``; MIP start with ``setSolution`` (integer values only, HiGHS
-  completes them by an LP).
+- :class:`HighsBackend` (``highs``, default): HiGHS through highspy; the cached arrays go
+  to a new ``highspy.Highs`` instance in one ``passModel`` call per solve (see the class for
+  why not one instance changed in place); MIP start with ``setSolution`` (integer values
+  only, HiGHS completes them by an LP).
 - :class:`GurobiBackend` (``gurobi``, optional, needs ``gurobipy``; ``pip install
-  .[gurobi]``): a ``gurobipy.Model`` updated through the ``RHS``, ``Obj``, ``LB``, ``UB``
-  and ``VType`` attributes and ``chgCoeff``; MIP start through ``Start``.
+  .[gurobi]``): one ``gurobipy.Model`` for the run, and only the entries that changed are
+  passed through the ``RHS``, ``Obj``, ``LB``, ``UB`` and ``VType`` attributes and
+  ``chgCoeff``; MIP start through ``Start``.
 - :class:`PulpBackend` (``cbc``, and ``highs_pulp`` for comparison): PuLP's solver
   interfaces, which hand the whole model to the solver at every solve: CBC through a
   subprocess and an .mst MIP start file, HiGHS through :class:`PulpHiGHS` (PuLP's HiGHS
@@ -103,6 +104,10 @@ class MatrixForm:
         self.mutable = [(row_of[id(con)], self.col_index[var.name], con, var) for con, var in mutable]
         self.mutable_rows = np.array([m[0] for m in self.mutable], dtype=np.int32)
         self.mutable_cols = np.array([m[1] for m in self.mutable], dtype=np.int32)
+        #: position of each mutable coefficient in ``row_val``
+        self.mutable_pos = np.array([self.row_start[r] + int(np.flatnonzero(self.row_col[self.row_start[r]:
+                                                                                    self.row_start[r + 1]] == j)[0])
+                                     for r, j, _, _ in self.mutable], dtype=np.int64)
 
     @property
     def n_cols(self) -> int:
@@ -174,8 +179,12 @@ class _Snapshot:
         self.integ = form.integrality()
         self.coef = form.mutable_values()
 
-    def diff(self) -> dict[str, Any]:
-        """Read the changing parts again; return the changed indices and new values, and keep them."""
+    def refresh(self) -> None:
+        """Read the changing parts of the PuLP problem again."""
+        self.diff()
+
+    def diff(self) -> dict[str, np.ndarray]:
+        """Read the changing parts again and keep them; return the indices that changed, per kind."""
         form = self.form
         cost = form.costs()
         lo, up = form.col_bounds()
@@ -191,6 +200,12 @@ class _Snapshot:
         }
         self.cost, self.col_lo, self.col_up, self.rhs, self.integ, self.coef = cost, lo, up, rhs, integ, coef
         return out
+
+    def values(self) -> np.ndarray:
+        """Row-wise matrix values with the current mutable coefficients."""
+        vals = self.form.row_val.copy()
+        vals[self.form.mutable_pos] = self.coef
+        return vals
 
 
 #: Thread count of HiGHS's process-wide task scheduler (set by the first solve; 0: not started).
@@ -211,8 +226,40 @@ def _highs_scheduler(highspy: Any, threads: int) -> None:
         _highs_scheduler_threads = threads
 
 
+def _highs_lp(highspy: Any, form: MatrixForm, snap: _Snapshot, names: bool = True) -> Any:
+    """A ``HighsLp`` of the problem's current arrays (``snap``)."""
+    inf = highspy.kHighsInf
+    lp = highspy.HighsLp()
+    lp.num_col_ = form.n_cols
+    lp.num_row_ = form.n_rows
+    lp.col_cost_ = snap.cost
+    lp.offset_ = form.offset()
+    lp.col_lower_ = np.clip(snap.col_lo, -inf, inf)
+    lp.col_upper_ = np.clip(snap.col_up, -inf, inf)
+    lp.row_lower_ = np.where(form.sense == pulp.LpConstraintLE, -inf, snap.rhs)
+    lp.row_upper_ = np.where(form.sense == pulp.LpConstraintGE, inf, snap.rhs)
+    lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
+    lp.a_matrix_.start_ = form.row_start
+    lp.a_matrix_.index_ = form.row_col
+    lp.a_matrix_.value_ = snap.values()
+    if names:
+        lp.col_names_ = form.col_names
+        lp.row_names_ = form.row_names
+    if snap.integ.any():
+        kint, kcont = highspy.HighsVarType.kInteger, highspy.HighsVarType.kContinuous
+        lp.integrality_ = [kint if f else kcont for f in snap.integ]
+    return lp
+
+
 class HighsBackend:
-    """The model kept in one ``highspy.Highs`` object, updated in place before each solve.
+    """HiGHS through highspy behind the PuLP model: cached arrays, one ``passModel`` per solve.
+
+    The arrays are read from the PuLP problem once and refreshed before each solve; each
+    solve passes them to a new ``highspy.Highs`` instance (about 0.4 ms). An instance kept
+    across solves and changed in place (``changeRowsBounds``, ``changeColsCost``, ...) was
+    as fast, but with HiGHS 1.15.1 its results depended on the solves before it (the same
+    sequence of horizons gave different solutions within the MIP gap from run to run), so
+    every solve starts from a clean instance and depends only on its problem and MIP start.
 
     Parameters
     ----------
@@ -234,70 +281,30 @@ class HighsBackend:
         self.form = form
         self.warm_start = warm_start
         self.threads = int(threads)
-        self.h = highspy.Highs()
-        opts: dict[str, Any] = {"output_flag": bool(msg), "mip_rel_gap": float(mip_rel_gap), "threads": int(threads)}
+        opts: dict[str, Any] = {"output_flag": bool(msg), "mip_rel_gap": float(mip_rel_gap), "threads": self.threads}
         if time_limit_s is not None:
             opts["time_limit"] = float(time_limit_s)
         opts.update(options or {})
+        probe = highspy.Highs()
         for key, val in opts.items():
-            if self.h.setOptionValue(key, val) != highspy.HighsStatus.kOk:
+            if probe.setOptionValue(key, val) != highspy.HighsStatus.kOk:
                 raise ConfigError(f"highs_options: HiGHS rejects option {key} = {val!r}")
-        snap = self.snapshot = _Snapshot(form)
-        inf = highspy.kHighsInf
-        lp = highspy.HighsLp()
-        lp.num_col_ = form.n_cols
-        lp.num_row_ = form.n_rows
-        lp.col_cost_ = snap.cost
-        lp.offset_ = form.offset()
-        lp.col_lower_ = np.clip(snap.col_lo, -inf, inf)
-        lp.col_upper_ = np.clip(snap.col_up, -inf, inf)
-        row_lo, row_up = form.row_bounds()
-        lp.row_lower_ = np.clip(row_lo, -inf, inf)
-        lp.row_upper_ = np.clip(row_up, -inf, inf)
-        lp.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
-        lp.a_matrix_.start_ = form.row_start
-        lp.a_matrix_.index_ = form.row_col
-        lp.a_matrix_.value_ = form.row_val
-        lp.col_names_ = form.col_names
-        lp.row_names_ = form.row_names
-        if snap.integ.any():
-            lp.integrality_ = [self._vtype(f) for f in snap.integ]
-        if self.h.passModel(lp) != highspy.HighsStatus.kOk:
-            raise RuntimeError("HiGHS refused the MPC model (passModel)")
-
-    def _vtype(self, integer: bool) -> Any:
-        t = self._hs.HighsVarType
-        return t.kInteger if integer else t.kContinuous
-
-    def sync(self) -> None:
-        """Pass the entries of the PuLP problem that changed since the last solve."""
-        form, h, d = self.form, self.h, self.snapshot.diff()
-        inf = self._hs.kHighsInf
-        snap = self.snapshot
-        if d["cost"].size:
-            idx = d["cost"].astype(np.int32)
-            h.changeColsCost(idx.size, idx, snap.cost[idx])
-        if d["bounds"].size:
-            idx = d["bounds"].astype(np.int32)
-            lo, up = np.clip(snap.col_lo[idx], -inf, inf), np.clip(snap.col_up[idx], -inf, inf)
-            h.changeColsBounds(idx.size, idx, lo, up)
-        if d["rhs"].size:
-            idx = d["rhs"].astype(np.int32)
-            rhs, sense = snap.rhs[idx], form.sense[idx]
-            lo = np.where(sense == pulp.LpConstraintLE, -inf, rhs)
-            up = np.where(sense == pulp.LpConstraintGE, inf, rhs)
-            h.changeRowsBounds(idx.size, idx, lo, up)
-        if d["integ"].size:
-            idx = d["integ"].astype(np.int32)
-            h.changeColsIntegrality(idx.size, idx, np.array([self._vtype(f) for f in snap.integ[idx]]))
-        for i in d["coef"]:
-            h.changeCoeff(int(form.mutable_rows[i]), int(form.mutable_cols[i]), float(snap.coef[i]))
+        self.options = opts
+        self.snapshot = _Snapshot(form)
+        #: the ``highspy.Highs`` instance of the last solve (solution, info, the model with its names)
+        self.h: Any = None
 
     def solve(self) -> RawSolution:
-        """Sync, set the MIP start, run HiGHS, read the solution."""
-        hs, h = self._hs, self.h
-        self.sync()
-        if self.warm_start and self.snapshot.integ.any():
+        """Refresh the arrays, pass them to a new HiGHS instance with the MIP start, run, read the solution."""
+        hs = self._hs
+        snap = self.snapshot
+        snap.refresh()
+        h = self.h = hs.Highs()
+        for key, val in self.options.items():
+            h.setOptionValue(key, val)
+        if h.passModel(_highs_lp(hs, self.form, snap)) != hs.HighsStatus.kOk:
+            return RawSolution(pulp.LpSolutionNoSolutionFound, None, error="HiGHS refused the model (passModel)")
+        if self.warm_start and snap.integ.any():
             idx, vals = self.form.start()
             if idx.size:
                 h.setSolution(int(idx.size), idx, vals)
@@ -314,7 +321,7 @@ class HighsBackend:
             return RawSolution(code, None)
         x = np.asarray(h.getSolution().col_value, dtype=float)
         code = pulp.LpSolutionOptimal if status == hs.HighsModelStatus.kOptimal else pulp.LpSolutionIntegerFeasible
-        gap = float(info.mip_gap) if self.snapshot.integ.any() else 0.0
+        gap = float(info.mip_gap) if snap.integ.any() else 0.0
         return RawSolution(code, x, float(info.objective_function_value), gap)
 
 
@@ -353,7 +360,7 @@ class GurobiBackend:
         # binaries keep their [0, 1] bounds through LB/UB (fixing the first step sets them equal)
         self.x = m.addMVar(form.n_cols, lb=snap.col_lo, ub=snap.col_up, obj=snap.cost, vtype=vtype,
                            name=form.col_names)
-        a = sp.csr_matrix((form.row_val, form.row_col, form.row_start), shape=(form.n_rows, form.n_cols))
+        a = sp.csr_matrix((snap.values(), form.row_col, form.row_start), shape=(form.n_rows, form.n_cols))
         sense = np.where(form.sense == pulp.LpConstraintLE, "<", np.where(form.sense == pulp.LpConstraintGE, ">", "="))
         self.rows = m.addMConstr(a, self.x, sense, snap.rhs, name=form.row_names)
         m.ObjCon = form.offset()
@@ -426,28 +433,11 @@ class PulpHiGHS(pulp.HiGHS):
             var.index = j  # PuLP's HiGHS class reads the solution by these indices
         for i, con in enumerate(form.constraints):
             con.index = i
-        inf = highspy.kHighsInf
-        model = highspy.HighsLp()
-        model.num_col_ = form.n_cols
-        model.num_row_ = form.n_rows
-        model.col_cost_ = form.costs()
-        model.offset_ = form.offset()
-        lo, up = form.col_bounds()
-        model.col_lower_ = np.clip(lo, -inf, inf)
-        model.col_upper_ = np.clip(up, -inf, inf)
-        lo, up = form.row_bounds()
-        model.row_lower_ = np.clip(lo, -inf, inf)
-        model.row_upper_ = np.clip(up, -inf, inf)
-        model.a_matrix_.format_ = highspy.MatrixFormat.kRowwise
-        model.a_matrix_.start_ = form.row_start
-        model.a_matrix_.index_ = form.row_col
-        model.a_matrix_.value_ = form.row_val
-        integ = form.integrality() & bool(self.mip)
-        if integ.any():
-            model.integrality_ = [highspy.HighsVarType.kInteger if f else highspy.HighsVarType.kContinuous
-                                  for f in integ]
-        lp.solverModel.passModel(model)
-        if self.warm_start and integ.any():
+        snap = _Snapshot(form)
+        if not self.mip:
+            snap.integ[:] = False
+        lp.solverModel.passModel(_highs_lp(highspy, form, snap, names=False))
+        if self.warm_start and snap.integ.any():
             idx, vals = form.start()
             if idx.size:
                 lp.solverModel.setSolution(int(idx.size), idx, vals)
