@@ -17,6 +17,8 @@ from comems4build_ros.ems.mpc.solvers import gurobi_available
 needs_gurobi = pytest.mark.skipif(not gurobi_available(),
                                   reason="gurobipy is not installed (optional extra: pip install .[gurobi])")
 EXACT = {"mip_rel_gap": 0.0, "time_limit_s": 60.0, "log_fallback": False}
+#: Lifecycle reading of the 3-step enumeration cases (the same in controller and enumeration).
+FC_ETA = "eta_sys"
 
 
 @pytest.fixture(scope="module")
@@ -117,9 +119,10 @@ def test_battery_binary_relaxation_keeps_the_optimum(params, sell):
 def test_every_solver_matches_the_enumeration(params3, solver):
     """The 3-step FC case solved by hand (test_mpc.fc_enumeration), through every backend."""
     prices, load = (0.2, 0.6, 0.5), 2500.0
-    costs = fc_enumeration(prices, load, params3)
+    costs = fc_enumeration(prices, load, params3, fc_eta=FC_ETA)
     best = min(costs, key=costs.get)
-    ctrl = MPCController(params3, {"solver": solver, "mip_rel_gap": 0.0, "warm_start": True, "integer_steps": 3})
+    ctrl = MPCController(params3, {"solver": solver, "mip_rel_gap": 0.0, "warm_start": True, "integer_steps": 3,
+                                   "fc_lifecycle_eta": FC_ETA})
     for _ in range(2):  # the second solve is warm-started and runs on the updated model
         ctrl.act(mpc_obs(3, prices=prices, load_w=load))
         assert ctrl.last_result.objective == pytest.approx(costs[best], abs=1e-6)
@@ -189,11 +192,31 @@ def test_controllers_with_different_thread_counts_in_one_process(params3):
     """HiGHS runs one task scheduler per process; the backends restart it when the thread count
     changes, so controllers with 1 and 2 threads can alternate (no "Not Set" failure)."""
     prices, load = (0.2, 0.6, 0.5), 2500.0
-    costs = fc_enumeration(prices, load, params3)
-    ctrls = [MPCController(params3, {"solver": s, "threads": t, "mip_rel_gap": 0.0, "integer_steps": 3})
+    costs = fc_enumeration(prices, load, params3, fc_eta=FC_ETA)
+    ctrls = [MPCController(params3, {"solver": s, "threads": t, "mip_rel_gap": 0.0, "integer_steps": 3,
+                                     "fc_lifecycle_eta": FC_ETA})
              for t in (2, 1) for s in ("highs", "highs_pulp")]
     for _ in range(2):
         for ctrl in ctrls:
             ctrl.act(mpc_obs(3, prices=prices, load_w=load))
             assert ctrl.step_info["fallback"] == 0.0
             assert ctrl.last_result.objective == pytest.approx(min(costs.values()), abs=1e-6)
+
+
+@pytest.mark.parametrize("solver", ["cbc", "highs_pulp", pytest.param("gurobi", marks=needs_gurobi)])
+def test_solvers_agree_within_the_mip_gap(params, solver):
+    """Default settings (relaxed tail, gap 1 %) on 24-step horizons: HiGHS and each other solver
+    return objectives within the relative gap of the same MILP's optimum (HiGHS at gap 0)."""
+    n = params.simulation.horizon_h
+    gap = 0.01
+    exact = MPCController(params, {**EXACT, "warm_start": False})
+    ctrls = {s: MPCController(params, {"solver": s, "mip_rel_gap": gap, "warm_start": False, "log_fallback": False})
+             for s in ("highs", solver)}
+    for obs in varied_observations(n)[:3]:
+        exact.act(obs)
+        best = exact.last_result.objective
+        for s, ctrl in ctrls.items():
+            ctrl.act(obs)
+            assert ctrl.step_info["fallback"] == 0.0, s
+            obj = ctrl.last_result.objective
+            assert best - 1e-6 <= obj <= best + gap * abs(best) + 1e-6, (s, obj, best)

@@ -328,6 +328,10 @@ class HighsBackend:
 class GurobiBackend:
     """The model kept in one ``gurobipy.Model``, updated in place before each solve (optional solver).
 
+    Before each solve the model is reset to an unsolved state (``Model.reset``): otherwise
+    Gurobi starts from the previous solve's basis and, within the MIP gap, returns plans
+    that depend on the solves before (tested); the MIP start is the only state carried over.
+
     Parameters as :class:`HighsBackend`; ``options`` are Gurobi parameters (name -> value).
     """
 
@@ -387,10 +391,11 @@ class GurobiBackend:
             m.chgCoeff(self.constrs[row], self.vars[col], float(snap.coef[i]))
 
     def solve(self) -> RawSolution:
-        """Sync, set the MIP start, optimise, read the solution."""
+        """Sync, reset, set the MIP start, optimise, read the solution."""
         gp, m = self._gp, self.model
         grb = gp.GRB
         self.sync()
+        m.reset()
         start = np.full(self.form.n_cols, grb.UNDEFINED)
         if self.warm_start:
             idx, vals = self.form.start()
