@@ -7,9 +7,10 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+import test_mpc
 from test_mpc import fc_enumeration, mpc_obs
 
-from comems4build_ros.config import ConfigError, load_plant_params
+from comems4build_ros.config import ConfigError
 from comems4build_ros.ems.mpc import MPCController
 from comems4build_ros.ems.mpc import solvers as solvers_mod
 from comems4build_ros.ems.mpc.solvers import gurobi_available
@@ -19,18 +20,8 @@ needs_gurobi = pytest.mark.skipif(not gurobi_available(),
 EXACT = {"mip_rel_gap": 0.0, "time_limit_s": 60.0, "log_fallback": False}
 #: Lifecycle reading of the 3-step enumeration cases (the same in controller and enumeration).
 FC_ETA = "eta_sys"
-
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
-
-
-@pytest.fixture(scope="module")
-def params3():
-    """3-step horizon, battery without power (so only the FC and the grid matter)."""
-    return load_plant_params(overrides={"simulation.horizon_h": 3, "battery.p_ch_max_w": 0.0,
-                                        "battery.p_d_max_w": 0.0})
+#: the plant parameters, full and 3-step (fixtures of test_mpc)
+params, params3 = test_mpc.params, test_mpc.params3
 
 
 def varied_observations(n: int, sell: float = 0.0794) -> list:
