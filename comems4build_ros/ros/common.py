@@ -12,8 +12,9 @@
   ``config_files`` parameter (or its ``--params-file`` files, see docs/ros_nodes.md).
 * :func:`command_to_action` validates an ``ems/command`` message (length, finiteness,
   ranges) and names the field it rejects.
-* :func:`run_node` is the body of every ``main()``: init, SingleThreadedExecutor, clean
-  shutdown on Ctrl-C / SIGTERM (executor shutdown, destroy node, ``rclpy.try_shutdown``).
+* :func:`run_node` is the body of every ``main()``: init, the lean single-threaded
+  executor (:mod:`comems4build_ros.ros.executor`), clean shutdown on Ctrl-C / SIGTERM
+  (executor shutdown, destroy node, ``rclpy.try_shutdown``).
 """
 
 from __future__ import annotations
@@ -88,6 +89,7 @@ class ContractNode(Node):
             raise ContractError(
                 f"node '{self.get_name()}' may not publish '{name}' ({self.contract.path} does not declare it)"
             )
+        kwargs.setdefault("event_callbacks", no_default_event_callbacks("publisher"))
         return super().create_publisher(msg_type, topic, *args, **kwargs)
 
     def create_subscription(self, msg_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
@@ -96,6 +98,7 @@ class ContractNode(Node):
             raise ContractError(
                 f"node '{self.get_name()}' may not subscribe to '{name}' ({self.contract.path} does not declare it)"
             )
+        kwargs.setdefault("event_callbacks", no_default_event_callbacks("subscription"))
         return super().create_subscription(msg_type, topic, *args, **kwargs)
 
     # -- contract-typed helpers --------------------------------------------------
@@ -272,8 +275,49 @@ def action_values(step: int, action: Action) -> list[float]:
     return [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS)]
 
 
+#: Environment variable choosing the executor of the node processes: ``lean`` (default,
+#: :class:`comems4build_ros.ros.executor.LeanExecutor`) or ``single`` (rclpy's
+#: ``SingleThreadedExecutor``, for comparison: ``comems4build bench ros`` measures both).
+EXECUTOR_ENV = "COMEMS4BUILD_EXECUTOR"
+EXECUTORS = ("lean", "single")
+
+
+def make_executor() -> Any:
+    """The executor of a node process, chosen by :data:`EXECUTOR_ENV` (default ``lean``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown executor name.
+    """
+    import os
+
+    name = os.environ.get(EXECUTOR_ENV, "lean") or "lean"
+    if name == "single":
+        return SingleThreadedExecutor()
+    if name == "lean":
+        from .executor import LeanExecutor
+
+        return LeanExecutor()
+    raise ValueError(f"environment variable {EXECUTOR_ENV}={name!r}: one of {', '.join(EXECUTORS)}")
+
+
+def no_default_event_callbacks(kind: str) -> Any:
+    """Event callbacks without rclpy's default QoS-incompatibility handlers.
+
+    rclpy adds two event handlers (waitables) to every publisher and subscription that
+    only log an incompatible QoS or type; the executor polls them at every wake-up. The
+    topic contract gives every endpoint of a topic the same QoS and type, so the nodes
+    leave them out (``kind``: ``publisher`` or ``subscription``).
+    """
+    from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+
+    cls = PublisherEventCallbacks if kind == "publisher" else SubscriptionEventCallbacks
+    return cls(use_default_callbacks=False)
+
+
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name: str = "node") -> int:
-    """Create a node, spin it on a SingleThreadedExecutor and always shut down cleanly.
+    """Create a node, spin it on :func:`make_executor`'s executor and always shut down cleanly.
 
     The node may expose ``finished: rclpy.task.Future``; spinning stops when it
     completes (its result is the exit code, default 0). Ctrl-C (KeyboardInterrupt) and
@@ -284,7 +328,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     Order of shutdown (as in the rclpy examples): executor shutdown, destroy node, rclpy shutdown.
     """
     rclpy.init(args=args)
-    executor = SingleThreadedExecutor()
+    executor = make_executor()
     node: Node | None = None
     code = 0
     try:

@@ -120,21 +120,22 @@ def node_factory(role: str, spec: dict[str, Any]) -> Any:
 
 
 def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> int:
-    """Create every node of ``spec`` and spin them on one SingleThreadedExecutor.
+    """Create every node of ``spec`` and spin them on one executor (:func:`~.common.make_executor`).
 
     Shutdown order as :func:`comems4build_ros.ros.common.run_node`: executor shutdown,
     destroy every node (a recorder closes its bag there), rclpy shutdown.
     """
     import rclpy
-    from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+    from rclpy.executors import ExternalShutdownException
     from rclpy.task import Future
 
     from ..config import ConfigError
+    from .common import make_executor
     from .contract import ContractError
 
     make = node_factory(role, spec)
     rclpy.init(args=args)
-    executor = SingleThreadedExecutor()
+    executor = make_executor()
     nodes: list[Any] = []
     code = 0
     current = "?"

@@ -47,7 +47,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Bool
 
 from ..bag import RECORD_TOPIC, TRUTH_TOPIC, BagWriter, decode, qos_for_bag
-from ..common import param, run_node
+from ..common import no_default_event_callbacks, param, run_node
 from ..contract import Contract, load_contract, resolve
 
 NODE_NAME = "recorder"
@@ -134,7 +134,7 @@ class Recorder(Node):
                 holder: list[Any] = []
                 sub = self.create_subscription(
                     spec.msg_class(), full, self._callback(ns, spec.name, full, holder), self._record_qos(spec.qos),
-                    raw=True,
+                    raw=True, event_callbacks=no_default_event_callbacks("subscription"),
                 )
                 holder.append(sub)
                 if spec.name in wait:
