@@ -75,7 +75,7 @@ def test_record_layout_is_the_in_process_timeseries_row(contract):
     assert set(STATE_FIELDS) <= set(names) and set(FLOW_FIELDS) <= set(names)
     assert {f"cmd_{a}" for a in ACTION_FIELDS} <= set(names)
     assert names[len(TIMESERIES_COLUMNS) - 1 :] == ("time_unix_s", "fallback_steps", "rejected_commands",
-                                                     "wrong_step_commands")
+                                                     "wrong_step_commands", "foreign_commands")
 
 
 def test_truth_layout_carries_every_exogenous_field(contract):
@@ -85,13 +85,14 @@ def test_truth_layout_carries_every_exogenous_field(contract):
 
 
 def test_command_layout_is_step_plus_action_fields(contract):
-    assert contract.topic("ems/command").field_names() == ("step", *ACTION_FIELDS)
+    assert contract.topic("ems/command").field_names() == ("step", *ACTION_FIELDS, "token")
 
 
 def test_layout_expansion_pack_unpack_roundtrip(contract):
     lay = contract.topic("feed/prices").layout(SIZES)
     assert lay.length == 1 + 2 + 24
     assert lay.labels[3] == "prices_buy_24h[0]" and lay.labels[-1] == "prices_buy_24h[23]"
+    assert lay.dim_label == "step,price_buy_eur_per_kwh,price_sell_eur_per_kwh,prices_buy_24h[24]"
     prices = [0.30 + 0.01 * i for i in range(24)]
     values = {"step": 7, "price_buy_eur_per_kwh": 0.3, "price_sell_eur_per_kwh": 0.0794, "prices_buy_24h": prices}
     data = lay.pack(values)

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 BIN = Path(sys.executable).parent
-WALL_KEYS = {"wall_s", "ems_s"}
+WALL_KEYS = {"wall_s", "ems_s", "bag_duration_s", "lost_messages"}
 
 
 def _env(tmp: Path) -> dict[str, str]:

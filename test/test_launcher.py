@@ -22,7 +22,7 @@ from comems4build_ros.ros.launcher import LaunchOptions, launch, processes_with_
 from comems4build_ros.sim import simulate
 
 pytestmark = pytest.mark.ros
-TIMING_KEYS = ("wall_s", "ems_s")
+TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # not in in-process summaries
 #: ``comems4build`` of this tree (``-m comems4build_ros.cli`` would define a second UsageError class).
 CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
 
@@ -59,6 +59,7 @@ def test_launch_fuzzy_equals_in_process_and_bag_opens(tmp_path: Path) -> None:
     summary = json.loads((out / "summary.json").read_text())
     _same(summary, _reference("fuzzy", 36))
     assert summary["steps"] == 36 and summary["ems"] == "fuzzy" and summary["ems_s"] is None
+    assert summary["lost_messages"] == {}
     assert (out / "weekly.csv").read_text().count("\n") == 2  # header + one (partial) week
     with AnyReader([res.bag]) as reader:
         assert sum(1 for c in reader.connections if c.topic == "/plant/record") == 1
@@ -185,3 +186,36 @@ def test_evaluate_refuses_a_missing_bag(tmp_path: Path) -> None:
     res = subprocess.run([*CLI, "evaluate", str(tmp_path / "nope"), "--out",
                           str(tmp_path / "e")], capture_output=True, text=True, timeout=60)
     assert res.returncode == 2 and "nope" in res.stderr
+
+
+def test_a_paused_recorder_cannot_hang_the_launcher(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """SIGSTOP on the recorder once the run started, never continued: the launcher still ends, by its
+    default overall time limit (made short here), with an error, and leaves no process behind."""
+    import threading
+
+    from comems4build_ros.ros import plan
+    from comems4build_ros.ros.launcher import LaunchError
+
+    monkeypatch.setattr(plan, "TIME_LIMIT_START_S", 25.0)
+    out = tmp_path / "run"
+    outcome: list[BaseException | None] = []
+
+    def run() -> None:
+        try:
+            launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=48))  # no timeout_s: the default applies
+            outcome.append(None)
+        except BaseException as exc:  # noqa: BLE001 - reported below
+            outcome.append(exc)
+
+    thread = threading.Thread(target=run, daemon=True)
+    thread.start()
+    _wait_for(lambda: _running(out))
+    os.kill(_pid_of(out, "recorder"), signal.SIGSTOP)
+    thread.join(timeout=120)
+    marker = str(out / "log" / "ros")
+    left = processes_with_env("ROS_LOG_DIR", marker)
+    for pid in left:  # never leave anything behind, even when the assertions below fail
+        os.kill(pid, signal.SIGKILL)
+    assert not thread.is_alive(), "the launcher did not return"
+    assert isinstance(outcome[0], LaunchError) and "time limit" in str(outcome[0])
+    assert left == []

@@ -35,7 +35,11 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
     rec, ems, feed, plant = plan.processes
     assert (rec.finishes, rec.progress, rec.stop_stage) == (True, True, STAGE_RECORDERS)
     assert (plant.finishes, plant.stop_stage) == (True, STAGE_NODES)
-    assert not ems.finishes and not feed.finishes
+    assert ems.finishes and feed.finishes  # every node exits 0 on plant/done
+    token = plan.buildings[0].token
+    assert 0 < token <= 2**48 and _param(ems.argv, "run_token") == str(token)
+    assert _param(plant.argv, "ems_token") == str(token)
+    assert plan.timeout_s == pytest.approx(300.0 + 0.1 * 36)  # default overall time limit
     assert _param(plant.argv, "wait_for_recorder") == "true"
     assert _param(feed.argv, "weeks") == "1" and _param(feed.argv, "steps") == "36"
     assert json.loads(json.loads(_param(rec.argv, "run_info")))["ems"] == "fuzzy"
@@ -89,6 +93,17 @@ def test_discovery_server_is_an_option_of_the_plan(tmp_path: Path) -> None:
     assert all(p.env["ROS_DISCOVERY_SERVER"] == f"127.0.0.1:{DISCOVERY_PORT_BASE + 9}" for p in rest)
     assert "ROS_DISCOVERY_SERVER" not in first.env
     assert [p.nodes[0].namespace for p in rest if p.role == "plant"] == ["/building_0", "/building_1"]
+
+
+def test_time_limit_defaults_and_can_be_switched_off(tmp_path: Path) -> None:
+    import math
+
+    plan = plan_run(LaunchOptions(ems="mpc", out=tmp_path, weeks=1, buildings=2), domain_id=1)
+    assert plan.timeout_s == pytest.approx(300.0 + 1.0 * 168 * 2)
+    assert plan_run(LaunchOptions(ems="fuzzy", out=tmp_path), domain_id=1).timeout_s == pytest.approx(300 + 201.6)
+    assert plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, timeout_s=math.inf), domain_id=1).timeout_s is None
+    tokens = {b.token for b in plan.buildings}
+    assert len(tokens) == 2  # each building's plant accepts its own EMS only
 
 
 def test_describe_and_json(tmp_path: Path) -> None:

@@ -45,6 +45,7 @@ def test_bag_writer_round_trip_rosbags_and_mcap(tmp_path: Path) -> None:
                                                                        "std_msgs/msg/UInt32")))
     meta = yaml.safe_load((bag / "metadata.yaml").read_text())["rosbag2_bagfile_information"]
     assert meta["version"] == 8
+    assert meta["ros_distro"] == "jazzy"  # rosbags writes its own name; the bag is for Jazzy
     assert meta["storage_identifier"] == "mcap"
     assert meta["message_count"] == 4
     assert meta["custom_data"] == {"comems4build.run_info": '{"ems":"fuzzy"}'}
@@ -221,3 +222,16 @@ def iter_messages_safe(bag: Path) -> list:
         return [m for m in iter_messages(bag) if m[0] == "/state/soc"]
     except (FileNotFoundError, ValueError):
         return []
+
+
+@pytest.mark.ros
+def test_recorder_waits_only_briefly_for_optional_ems_info(tmp_path: Path) -> None:
+    """No publisher of ems/info (an EMS without step info): ready about 1 s after the others, and said so."""
+    bag = tmp_path / "bag"
+    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
+        _start_recorder(group, bag, wait_for_topics=["state/soc", "ems/info"], ready_timeout_s=60.0)
+        _publish(group, 1, pause=30.0)
+        log = tmp_path / "log" / "recorder.log"
+        _wait_log(log, "optional topics without a publisher after 1 s, recorded if they appear: /ems/info", 30.0)
+        _wait_log(log, "ready: subscribed to every topic", 5.0)
+        assert "no publisher after 60" not in log.read_text()

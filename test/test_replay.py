@@ -25,6 +25,8 @@ from comems4build_ros.ros.launcher import (
 
 pytestmark = pytest.mark.ros
 STEPS = 24
+#: Topics the recorders publish themselves (never replayed).
+RECORDER_OWN = ("/recorder/ready", "/recorder/progress")
 
 
 @pytest.fixture(scope="module")
@@ -50,8 +52,8 @@ def test_full_replay_as_fast_as_possible_is_recorded_again(recorded: Path, tmp_p
         rep = group.start("replay", "replay", [*node_command("replay"), str(recorded), "--rate", "0"])
         assert _wait_exit(rep) == 0, rep.tail()
         assert _wait_exit(rec) == 0, rec.tail()  # stops by itself: plant/done was replayed
-    original = Counter((t, bytes(raw)) for t, _, _, raw in iter_messages(recorded) if t != "/recorder/ready")
-    again = Counter((t, bytes(raw)) for t, _, _, raw in iter_messages(bag) if t != "/recorder/ready")
+    original = Counter((t, bytes(raw)) for t, _, _, raw in iter_messages(recorded) if t not in RECORDER_OWN)
+    again = Counter((t, bytes(raw)) for t, _, _, raw in iter_messages(bag) if t not in RECORDER_OWN)
     assert again == original
 
 
@@ -78,6 +80,40 @@ def test_inputs_only_replay_drives_another_ems(recorded: Path, tmp_path: Path) -
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         ref = simulate("rbc", load_scenario("default", params, None, 1, None, STEPS), params).summary
-    for key in set(ref) - {"wall_s", "ems_s", "ems", "scenario"}:
+    for key in set(ref) - {"wall_s", "ems_s"}:  # ems and scenario too: announced in the bag (ems/info, feed/info)
         assert summary[key] == ref[key], key
+    assert summary["ems"] == "rbc" and summary["lost_messages"] == {}
     assert json.loads((tmp_path / "eval" / "summary.json").read_text())["fallback_steps"] == 0
+
+
+def test_evaluate_refuses_a_bag_with_gaps_unless_accepted(recorded: Path, tmp_path: Path) -> None:
+    """A copy of the recorded bag without three state/soc messages: exit 2 naming topic and steps."""
+    import subprocess
+    import sys
+
+    from comems4build_ros.ros.bag import BagWriter, bag_info, decode
+
+    info = bag_info(recorded)
+    gappy = tmp_path / "gappy"
+    with BagWriter(gappy) as w:
+        w.set_custom_data("comems4build.run_info", (recorded / "run_info.json").read_text())
+        for topic, msgtype in sorted(info.topics.items()):
+            w.add_topic(topic, msgtype)
+        for topic, msgtype, t_ns, raw in iter_messages(recorded):
+            if topic == "/state/soc" and int(decode(msgtype, raw).data[0]) in (3, 4, 9):
+                continue
+            w.write(topic, t_ns, raw)
+    (gappy / "run_info.json").write_text((recorded / "run_info.json").read_text())
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())", "evaluate"]
+    res = subprocess.run([*cli, str(gappy), "--out", str(tmp_path / "e1")], capture_output=True, text=True,
+                         timeout=120)
+    assert res.returncode == 2, res.stderr
+    assert "/state/soc: 3 step(s) missing (3-4, 9)" in res.stderr and "--accept-gaps" in res.stderr
+    assert not (tmp_path / "e1" / "summary.json").exists()
+    res = subprocess.run([*cli, str(gappy), "--out", str(tmp_path / "e2"), "--accept-gaps"], capture_output=True,
+                         text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    summary = json.loads((tmp_path / "e2" / "summary.json").read_text())
+    assert summary["lost_messages"] == {"/state/soc": 3}
+    assert "wrote 3 files:" in res.stdout and "timeseries.csv" in res.stdout
+    assert summary["wall_s"] is None and summary["bag_duration_s"] > 0  # the bag's duration is not a wall time

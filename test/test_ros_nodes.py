@@ -45,7 +45,7 @@ pytestmark = pytest.mark.ros
 STEPS = 48  # 2 days
 #: Wall-clock limit of one closed-loop run including process start-up [s].
 RUN_TIMEOUT_S = 150.0
-IGNORED_SUMMARY_KEYS = ("wall_s", "ems_s")
+IGNORED_SUMMARY_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 #: Controller step_info columns that hold wall-clock measurements (differ run to run).
 TIMING_COLUMNS = ("ems_solve_s",)
 
@@ -213,7 +213,7 @@ class Graph:
         if self.infos and all(k in self.infos for k in steps):
             ts = pd.concat([ts, pd.DataFrame([self.infos[k] for k in steps]).add_prefix("ems_")], axis=1)
         ts.attrs["counters"] = {c: int(rows[-1][c]) for c in ("fallback_steps", "rejected_commands",
-                                                              "wrong_step_commands")}
+                                                              "wrong_step_commands", "foreign_commands")}
         return ts
 
     def graph_topics(self, node: str, ns: str = "/") -> tuple[set[str], set[str]]:
@@ -297,8 +297,8 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
     except UnknownEMSError as exc:
         pytest.skip(str(exc))
     graph.collect()
-    graph.start_ems(ems)
-    graph.start_feed()
+    graph.start_ems(ems, exit_when_done=False)  # kept alive to check their endpoints after the run
+    graph.start_feed(exit_when_done=False)
     graph.start_plant(exit_when_done=False, wait_for_recorder=True)
     graph.ready(("plant/record", "plant/done", "ems/info"))
     ref = in_process(ems)
@@ -325,7 +325,8 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
         assert not any(t.startswith(("forecast/", "feed/solar", "feed/t_amb")) for t in want_sub)
 
     ts = graph.timeseries()
-    assert ts.attrs["counters"] == {"fallback_steps": 0, "rejected_commands": 0, "wrong_step_commands": 0}
+    assert ts.attrs["counters"] == {"fallback_steps": 0, "rejected_commands": 0, "wrong_step_commands": 0,
+                                    "foreign_commands": 0}
     assert_same_run(ts, ref)
     for name, sig in (("ems", signal.SIGINT), ("feed", signal.SIGTERM), ("plant_sim", signal.SIGINT)):
         assert graph.stop(name, sig) == 0, graph.log(name)  # clean shutdown on Ctrl-C and on SIGTERM
@@ -356,8 +357,8 @@ def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Gr
 
     graph.collect()
     graph.on_state = kill_on_step
-    graph.start_ems("thermostat")
-    graph.start_feed()
+    graph.start_ems("thermostat", exit_when_done=False)
+    graph.start_feed(exit_when_done=False)
     # 2 s: long enough that a loaded machine does not trigger a fallback before the kill
     graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=2.0, republish_period_s=0.2)
     graph.ready()
@@ -410,8 +411,8 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
     graph.ready()
     graph.spin_until(lambda: cmd_pub.get_subscription_count() > 0 and 0 in graph.states, 60.0, "step 0")
 
-    def send(*values: float) -> None:
-        cmd_pub.publish(Float64MultiArray(data=list(values)))
+    def send(*values: float, token: float = 5.0) -> None:
+        cmd_pub.publish(Float64MultiArray(data=[*values, token]))
 
     nan, inf = float("nan"), float("inf")
     send(0.0, 1.0, 1.0, 0.0)  # wrong length
@@ -427,6 +428,7 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
     assert (r0["rejected_commands"], r0["wrong_step_commands"]) == (5, 1)
 
     graph.spin_until(lambda: 1 in graph.states, 10.0, "step 1")
+    send(1.0, 0.0, 2.0, 0.0, 0.0, token=99.0)  # in range, right step, but another EMS's token: foreign
     send(1.0, 1.0, 1.0, 0.0, 0.0)  # valid: space heating at full power
     graph.spin_until(lambda: 2 in graph.states, 10.0, "step 2")
     send(2.0, 0.0, 0.0, 0.0, 0.0)
@@ -435,16 +437,19 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
     assert r1["fallback"] is False and (r1["cmd_hp_mode"], r1["cmd_hp_mod"]) == (1, 1.0)
     assert r1["hp_mode"] == 1 and r1["q_hp_sh_w"] > 0
     assert r2["fallback"] is False and r2["cmd_hp_mode"] == 0
+    assert r2["foreign_commands"] == 1 and r2["rejected_commands"] == 5
     assert graph.procs["plant_sim"].wait(30) == 0
     log = graph.log("plant_sim")
     for expected in (
-        "rejected topic 'ems/command' field '(length)': 4 elements",
+        "rejected topic 'ems/command' field '(length)': 5 elements",
         "rejected topic 'ems/command' field 'hp_mod': non-finite value nan",
         "rejected topic 'ems/command' field 'p_fc_w': non-finite value inf",
         "rejected topic 'ems/command' field 'p_bess_w': 500000.0 outside the accepted range",
         "rejected topic 'ems/command' field 'hp_mode': 7.0 is not one of",
         "wrong_step topic 'ems/command': command for step 5 ignored",
         "rejected_commands=5 wrong_step_commands=1",
+        "foreign topic 'ems/command': command for step 1 with token 99 ignored (the run's EMS has token 5)",
+        "foreign_commands=1",
     ):
         assert expected in log, expected
 
@@ -506,3 +511,29 @@ def _series_names() -> tuple[str, ...]:
     from comems4build_ros.scenario.base import SERIES
 
     return SERIES
+
+
+def test_nodes_started_by_hand_exit_at_the_end_and_the_bag_knows_ems_and_scenario(graph: Graph) -> None:
+    """Recorder, EMS, feed and plant with their default parameters all exit 0 by themselves after the
+    run (end-of-run signal plant/done), and the bag, recorded without the launcher's run_info, names
+    the EMS and the scenario."""
+    from comems4build_ros.ros.bag import evaluate_bag
+
+    bag = graph.tmp / "bag"
+    graph.start("recorder", ["-m", "comems4build_ros.ros.nodes.recorder", *_ros_args({"bag_path": str(bag)})])
+    graph.start_ems("rbc")
+    graph.start_feed(steps=24)
+    graph.start_plant(wait_for_recorder=True)
+    for name in ("plant_sim", "recorder", "feed", "ems"):
+        assert graph.procs[name].wait(RUN_TIMEOUT_S) == 0, graph.log(name)
+    assert "run done: exiting once the recorder has left" in graph.log("feed")
+    summary = evaluate_bag(bag, graph.tmp / "eval")["/"]
+    assert summary["ems"] == "rbc" and summary["scenario"] == in_process_scenario_name()
+    assert summary["steps"] == 24 and summary["lost_messages"] == {}
+
+
+def in_process_scenario_name() -> str:
+    """Name of the default scenario as the in-process summary reports it."""
+    from comems4build_ros.ros.nodes.feed import load_scenario
+
+    return load_scenario("default", load_plant_params(), None, 1, None, 24).name

@@ -108,6 +108,8 @@ def test_array_publisher_packs_in_layout_order(context, params):
         assert pub.layout.labels == ("step", "t_wall_in_c", "t_wall_out_c")
         pub.publish_values({"step": 4, "t_wall_in_c": 19.5, "t_wall_out_c": 3.25})
         assert list(pub._msg.data) == [4.0, 19.5, 3.25]
+        (dim,) = pub._msg.layout.dim  # any ROS tool shows what each element is
+        assert (dim.label, dim.size, dim.stride) == ("step,t_wall_in_c,t_wall_out_c", 3, 3)
     finally:
         node.destroy_node()
 
@@ -128,7 +130,7 @@ def cmd_layout(params):
 
 
 def test_valid_command_becomes_an_action(params, cmd_layout):
-    step, action = command_to_action([12.0, 0.6, 2.0, 800.0, -500.0], cmd_layout, command_bounds(params))
+    step, action = command_to_action([12.0, 0.6, 2.0, 800.0, -500.0, 7.0], cmd_layout, command_bounds(params))
     assert step == 12
     assert (action.hp_mod, action.hp_mode, action.p_fc_w, action.p_bess_w) == (0.6, HP_DHW, 800.0, -500.0)
     assert isinstance(action.hp_mode, int)
@@ -146,20 +148,23 @@ def test_command_bounds_are_device_limits_plus_tolerance(params):
 @pytest.mark.parametrize(
     "data, field, reason",
     [
-        ([1.0, 0.5, 1.0, 0.0], "(length)", "4 elements"),
-        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0], "(length)", "6 elements"),
-        ([1.0, math.nan, 1.0, 0.0, 0.0], "hp_mod", "non-finite"),
-        ([1.0, 0.5, 1.0, math.inf, 0.0], "p_fc_w", "non-finite"),
-        ([1.0, 0.5, 1.0, 0.0, -math.inf], "p_bess_w", "non-finite"),
-        ([math.nan, 0.5, 1.0, 0.0, 0.0], "step", "non-finite"),
-        ([1.5, 0.5, 1.0, 0.0, 0.0], "step", "not a non-negative integer"),
-        ([-1.0, 0.5, 1.0, 0.0, 0.0], "step", "not a non-negative integer"),
-        ([1.0, 0.5, 3.0, 0.0, 0.0], "hp_mode", "is not one of"),
-        ([1.0, 0.5, 1.5, 0.0, 0.0], "hp_mode", "is not one of"),
-        ([1.0, 1.5, 1.0, 0.0, 0.0], "hp_mod", "outside the accepted range"),
-        ([1.0, 0.5, 1.0, 5000.0, 0.0], "p_fc_w", "outside the accepted range"),
-        ([1.0, 0.5, 1.0, -100.0, 0.0], "p_fc_w", "outside the accepted range"),
-        ([1.0, 0.5, 1.0, 0.0, 1e6], "p_bess_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 0.0, 3.0], "(length)", "5 elements"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0, 3.0], "(length)", "7 elements"),
+        ([1.0, math.nan, 1.0, 0.0, 0.0, 3.0], "hp_mod", "non-finite"),
+        ([1.0, 0.5, 1.0, math.inf, 0.0, 3.0], "p_fc_w", "non-finite"),
+        ([1.0, 0.5, 1.0, 0.0, -math.inf, 3.0], "p_bess_w", "non-finite"),
+        ([math.nan, 0.5, 1.0, 0.0, 0.0, 3.0], "step", "non-finite"),
+        ([1.5, 0.5, 1.0, 0.0, 0.0, 3.0], "step", "not a non-negative integer"),
+        ([-1.0, 0.5, 1.0, 0.0, 0.0, 3.0], "step", "not a non-negative integer"),
+        ([1.0, 0.5, 3.0, 0.0, 0.0, 3.0], "hp_mode", "is not one of"),
+        ([1.0, 0.5, 1.5, 0.0, 0.0, 3.0], "hp_mode", "is not one of"),
+        ([1.0, 1.5, 1.0, 0.0, 0.0, 3.0], "hp_mod", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 5000.0, 0.0, 3.0], "p_fc_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, -100.0, 0.0, 3.0], "p_fc_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 0.0, 1e6, 3.0], "p_bess_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0], "token", "not an integer in 1..2^53-1"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 2.5], "token", "not an integer"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 2.0**53], "token", "not an integer"),
     ],
 )
 def test_invalid_command_names_the_field(params, cmd_layout, data, field, reason):

@@ -34,7 +34,7 @@ from ..commands.options import SECONDS, WEEKS
 TARGET_RTT_MEDIAN_MS = 2.0
 TARGET_FUZZY_12W_S = 20.0
 TARGET_16_BUILDINGS_S = 120.0
-TIMING_KEYS = ("wall_s", "ems_s")
+TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # only in summaries from a bag
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:

@@ -6,6 +6,9 @@ import argparse
 import json
 from pathlib import Path
 
+#: Files ``evaluate`` writes (per building and combined).
+WRITTEN = ("timeseries.csv", "weekly.csv", "summary.json")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``evaluate``."""
@@ -17,6 +20,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter (with --config or alone)")
     parser.add_argument("--no-timeseries", action="store_true", help="do not write timeseries.csv")
+    parser.add_argument("--accept-gaps", action="store_true",
+                        help="evaluate a bag that misses messages on some topic (default: refuse, exit 2)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -24,7 +29,7 @@ def run(args: argparse.Namespace) -> int:
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..fileio import check_out_dir
-    from ..ros.bag import evaluate_bag, read_run_info
+    from ..ros.bag import building_dir, evaluate_bag, read_run_info
     from .options import check_config_files
     from .simulate import parse_assignments
 
@@ -40,7 +45,8 @@ def run(args: argparse.Namespace) -> int:
         overrides = dict(info.get("overrides") or {}) if args.config is None else {}
         overrides.update(parse_assignments(args.set, "--set"))
         params = load_plant_params(files, overrides)
-    summaries = evaluate_bag(bag, args.out, params=params, timeseries=not args.no_timeseries)
+    summaries = evaluate_bag(bag, args.out, params=params, timeseries=not args.no_timeseries,
+                             accept_gaps=args.accept_gaps)
     damaged = [s["bag_incomplete"] for s in summaries.values() if "bag_incomplete" in s]
     if damaged:
         d = damaged[0]
@@ -54,5 +60,10 @@ def run(args: argparse.Namespace) -> int:
     for ns, s in summaries.items():
         print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **({"bag_incomplete": s["bag_incomplete"]}
                                                                                if "bag_incomplete" in s else {})}))
-    print(f"wrote {Path(args.out) / 'weekly.csv'}, {Path(args.out) / 'summary.json'}")
+    out = Path(args.out)
+    names = [n for n in WRITTEN if not (args.no_timeseries and n == "timeseries.csv")]
+    written = [building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names]
+    if len(summaries) > 1 or "/" not in summaries:
+        written += [out / "weekly.csv", out / "summary.json"]
+    print(f"wrote {len(written)} files: {', '.join(str(p) for p in written)}")
     return 0

@@ -23,6 +23,7 @@ same way: everything before the damage is read, and :class:`BagInfo` says what w
 
 from __future__ import annotations
 
+import re
 import time
 from collections.abc import Iterable, Iterator
 from dataclasses import dataclass, field
@@ -35,6 +36,8 @@ from rosbags.typesys import Stores, get_typestore
 
 #: rosbag2 metadata version that Jazzy reads (version 9 writes QoS as a list Jazzy rejects).
 METADATA_VERSION = 8
+#: ROS distribution the bags are written for (``ros_distro`` of metadata.yaml).
+ROS_DISTRO = "jazzy"
 #: Default: close the pending chunk when it is this old [s] ...
 DEFAULT_CHUNK_PERIOD_S = 1.0
 #: ... or when it holds this many bytes of records [byte].
@@ -162,12 +165,27 @@ class BagWriter:
             return
         self._writer.close()
         self.closed = True
+        set_ros_distro(self.path / "metadata.yaml")
 
     def __enter__(self) -> BagWriter:
         return self
 
     def __exit__(self, *exc: object) -> None:
         self.close()
+
+
+def set_ros_distro(metadata: Path, distro: str = ROS_DISTRO) -> None:
+    """Write ``ros_distro: <distro>`` into a bag's ``metadata.yaml`` (rosbags writes its own
+    name there); atomically (temporary file + rename)."""
+    import os
+
+    text = metadata.read_text(encoding="utf-8")
+    new = re.sub(r"(?m)^(\s*ros_distro:\s*).*$", lambda m: m.group(1) + distro, text, count=1)
+    if new == text:
+        return
+    tmp = metadata.with_name(metadata.name + ".tmp")
+    tmp.write_text(new, encoding="utf-8")
+    os.replace(tmp, metadata)
 
 
 @dataclass
@@ -337,6 +355,13 @@ RECORD_TOPIC = "plant/record"
 INFO_TOPIC = "ems/info"
 #: Topic carrying the run length (element ``n_steps``).
 TRUTH_TOPIC = "feed/truth"
+#: The plant's step announcements (data = step).
+STEP_TOPIC = "plant/step"
+#: The feed's scenario description (JSON, once).
+FEED_INFO_TOPIC = "feed/info"
+#: Steps before the last record of a cut bag that the gap check leaves out (feed
+#: look-ahead + 1) [steps].
+CUT_TAIL_STEPS = 5
 #: File the recorder writes next to the MCAP file with the run's description.
 RUN_INFO_FILE = "run_info.json"
 
@@ -353,6 +378,9 @@ class BagRun:
     n_steps : steps of the run according to ``feed/truth`` (None if never recorded)
     first_ns, last_ns : receive times of the first message and of the last ``plant/record`` [ns]
     counters : the plant's fault counters after the last recorded step
+    gaps : topic -> steps of the recorded run with no message on it (:func:`find_gaps`)
+    ems, scenario : EMS name (from ``ems/info``) and scenario description (``feed/info``)
+        as the nodes announced them, None if not recorded
     """
 
     namespace: str
@@ -361,6 +389,9 @@ class BagRun:
     first_ns: int
     last_ns: int
     counters: dict[str, int] = field(default_factory=dict)
+    gaps: dict[str, list[int]] = field(default_factory=dict)
+    ems: str | None = None
+    scenario: dict[str, Any] | None = None
 
     @property
     def complete(self) -> bool:
@@ -423,7 +454,10 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
     info = info if info is not None else BagInfo(Path(path), [], False)
     records: dict[str, dict[int, tuple[int, Any]]] = {}
     infos: dict[str, dict[int, dict[str, float]]] = {}
+    ems_names: dict[str, str] = {}
+    scenarios: dict[str, dict[str, Any]] = {}
     n_steps: dict[str, int] = {}
+    seen: dict[str, set[int]] = {}  # topic -> steps with a message (gap check)
     first_ns: int | None = None
     for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
         first_ns = t_ns if first_ns is None else min(first_ns, t_ns)
@@ -437,23 +471,42 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
             step = int(data[0])
             records.setdefault(ns, {}).setdefault(step, (t_ns, data))
             continue
+        if msgtype.endswith("Float64MultiArray"):
+            data = decode(msgtype, raw).data
+            if len(data):
+                seen.setdefault(topic, set()).add(int(data[0]))
+            ns = _split(topic, TRUTH_TOPIC)
+            if ns is not None and ns not in n_steps:
+                n_steps[ns] = int(data[n_idx])
+            continue
         ns = _split(topic, INFO_TOPIC)
         if ns is not None:
             try:
                 msg = json.loads(decode(msgtype, raw).data)
-                infos.setdefault(ns, {})[int(msg["step"])] = {k: float(v) for k, v in msg["info"].items()}
+                step = int(msg["step"])
+                infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
             except (ValueError, KeyError, TypeError) as exc:
                 raise ValueError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
+            seen.setdefault(topic, set()).add(step)
+            if isinstance(msg.get("ems"), str):
+                ems_names.setdefault(ns, msg["ems"])
             continue
-        ns = _split(topic, TRUTH_TOPIC)
-        if ns is not None and ns not in n_steps:
-            n_steps[ns] = int(decode(msgtype, raw).data[n_idx])
+        ns = _split(topic, STEP_TOPIC)
+        if ns is not None:
+            seen.setdefault(topic, set()).add(int(decode(msgtype, raw).data))
+            continue
+        ns = _split(topic, FEED_INFO_TOPIC)
+        if ns is not None:
+            try:
+                scenarios.setdefault(ns, dict(json.loads(decode(msgtype, raw).data)))
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"bag {path}: topic '{topic}': invalid JSON: {exc}") from None
     if not records:
         topics = ", ".join(sorted(info.topics)) or "none"
         damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
         raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
     columns = [c for c in TIMESERIES_COLUMNS if c != "time"]
-    counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands")
+    counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands", "foreign_commands")
     runs: dict[str, BagRun] = {}
     for ns in sorted(records, key=_ns_key):
         by_step = records[ns]
@@ -474,6 +527,8 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
         if step_infos and all(k in step_infos for k in steps):
             ts = pd.concat([ts, pd.DataFrame([step_infos[k] for k in steps]).add_prefix("ems_")], axis=1)
         last = rows[-1]
+        complete = n_steps.get(ns) is not None and len(steps) == n_steps[ns]
+        fallback = {k for k, r in zip(steps, rows) if r["fallback"]}
         runs[ns] = BagRun(
             namespace=ns,
             timeseries=ts,
@@ -481,8 +536,53 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
             first_ns=int(first_ns or 0),
             last_ns=max(t for t, _ in by_step.values()),
             counters={c: int(last[c]) for c in counter_names},
+            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete),
+            ems=ems_names.get(ns),
+            scenario=scenarios.get(ns),
         )
     return runs
+
+
+def find_gaps(
+    contract: Any, ns: str, n: int, fallback: set[int], seen: dict[str, set[int]], complete: bool
+) -> dict[str, list[int]]:
+    """Steps of a recorded run with no message, per topic of namespace ``ns``.
+
+    Checked: every ``Float64MultiArray`` topic of the contract (element 0 is the step),
+    ``plant/step`` and, if the EMS published it at all, ``ems/info``; steps ``0 .. n-1``
+    (``n`` = recorded ``plant/record`` steps), except the fallback steps for the EMS's
+    topics (no command is expected there). A bag cut short (recorder killed) is checked
+    up to :data:`CUT_TAIL_STEPS` steps before its last record (the feed runs ahead and
+    the last messages before the cut need not all be in).
+    """
+    roles = {name: spec.role for name, spec in contract.nodes.items()}
+    last = n if complete else max(0, n - CUT_TAIL_STEPS)
+    out: dict[str, list[int]] = {}
+    for spec in contract.topics.values():
+        if spec.name == RECORD_TOPIC:
+            continue
+        full = resolve_ns(ns, spec.name)
+        if spec.is_array or spec.name == STEP_TOPIC:
+            pass
+        elif spec.name == INFO_TOPIC and full in seen:
+            pass
+        else:
+            continue
+        from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
+        got = seen.get(full, set())
+        missing = [k for k in range(last) if k not in got and not (from_ems and k in fallback)]
+        if missing:
+            out[full] = missing
+    return out
+
+
+class BagGapError(ValueError):
+    """The bag misses messages in the middle of a run (names topics and steps)."""
+
+
+def describe_gaps(gaps: dict[str, list[int]]) -> str:
+    """``topic: N step(s) (ranges)`` per topic, one per line."""
+    return "\n".join(f"  {t}: {len(steps)} step(s) missing ({_ranges(steps)})" for t, steps in sorted(gaps.items()))
 
 
 def resolve_ns(ns: str, name: str) -> str:
@@ -523,6 +623,7 @@ def evaluate_bag(
     params: Any = None,
     wall_s: float | None = None,
     timeseries: bool = True,
+    accept_gaps: bool = False,
 ) -> dict[str, dict[str, Any]]:
     """Weekly KPIs and summary of every building in a bag, with the in-process KPI code.
 
@@ -537,17 +638,27 @@ def evaluate_bag(
     path : rosbag2 directory or ``.mcap`` file
     out : output directory
     params : plant parameters (default: those named in the bag's ``run_info.json``)
-    wall_s : wall time of the run [s] for the summary (default: receive time of the last
-        record minus that of the first message of the bag)
+    wall_s : wall time of the run [s] for the summary (the launcher's; None for a bag
+        evaluated on its own: the bag does not know it)
+    accept_gaps : evaluate a bag with messages missing on some topic (default: refuse)
 
     Summary entries besides the KPIs (as in-process): ``ems``, ``scenario``, ``forecast``
-    from ``run_info.json`` (None without it), ``wall_s``, and ``ems_s`` = None (the
-    controller's own compute time is not in the bag). An incomplete run or bag adds
+    from ``run_info.json`` or, without it, as the EMS (``ems/info``) and the feed
+    (``feed/info``) announced them in the bag; ``wall_s``; ``ems_s`` = None (the
+    controller's own compute time is not in the bag); ``bag_duration_s`` (receive time of
+    the last record minus that of the first message); ``lost_messages`` (topic -> steps
+    without a message, ``{}`` for a complete recording). An incomplete run or bag adds
     ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
     read, whether an ``.mcap`` file ended early, and the damage found, see
     :class:`BagInfo`); a partial last week is left out of the weekly medians like any
     partial week. Fault counters of the plant other than fallback steps are added as
     ``ros_faults`` when non-zero. Every file is written all-or-nothing.
+
+    Raises
+    ------
+    BagGapError
+        When some topic misses messages and ``accept_gaps`` is false (naming the
+        topics and the steps).
 
     Returns
     -------
@@ -567,16 +678,25 @@ def evaluate_bag(
         params = load_plant_params(run_info.get("config_files") or [], run_info.get("overrides") or {})
     info = BagInfo(Path(path), [], False)
     runs = read_runs(path, params.site.timezone, info)
+    gaps = {t: steps for run in runs.values() for t, steps in run.gaps.items()}
+    if gaps and not accept_gaps:
+        raise BagGapError(
+            f"bag {path}: messages missing (lost in the recording) on {len(gaps)} topic(s):\n{describe_gaps(gaps)}\n"
+            "KPIs from plant/record would still be exact, but the bag is not a complete record of the run; "
+            "evaluate it anyway with --accept-gaps"
+        )
     summaries: dict[str, dict[str, Any]] = {}
     weekly_parts = []
     for ns, run in runs.items():
-        wall = wall_s if wall_s is not None else (run.last_ns - run.first_ns) / NS_PER_S
+        scen = run.scenario or {}
         extra: dict[str, Any] = {
-            "ems": run_info.get("ems"),
-            "scenario": run_info.get("scenario"),
-            "wall_s": wall,
+            "ems": run_info.get("ems") or run.ems,
+            "scenario": run_info.get("scenario") or scenario_label(scen.get("scenario")),
+            "wall_s": wall_s,
             "ems_s": None,
-            "forecast": run_info.get("forecast"),
+            "forecast": run_info.get("forecast") if run_info else _forecast_of(run.ems, scen.get("forecast")),
+            "bag_duration_s": (run.last_ns - run.first_ns) / NS_PER_S,
+            "lost_messages": {t: len(steps) for t, steps in sorted(run.gaps.items())},
         }
         if not run.complete or not info.complete or info.damage:
             extra["bag_incomplete"] = {
@@ -615,24 +735,27 @@ def _json_default(value: Any) -> Any:
 
 
 def lost_messages(path: str | Path) -> dict[str, int]:
-    """Per array topic, steps of the run (``plant/record`` of its namespace) with no message.
+    """Per topic of every namespace, steps of the recorded run with no message (:func:`find_gaps`).
 
     A complete recording gives ``{}``; used by the tests and ``bench ros`` to show that
     the recorder kept up.
     """
-    from collections import defaultdict
+    runs = read_runs(path, "UTC")
+    return {t: len(steps) for run in runs.values() for t, steps in sorted(run.gaps.items())}
 
-    steps: dict[str, set[int]] = defaultdict(set)
-    for topic, msgtype, _t, raw in iter_messages(path):
-        if msgtype.endswith("Float64MultiArray"):
-            steps[topic].add(int(decode(msgtype, raw).data[0]))
-    out: dict[str, int] = {}
-    for topic, got in steps.items():
-        ns = topic.rsplit("/", 2)[0] if topic.count("/") > 2 else "/"
-        ref = steps.get(resolve_ns(ns, RECORD_TOPIC))
-        if ref is None:
-            continue
-        missing = len(set(range(max(ref) + 1)) - got)
-        if missing:
-            out[topic] = missing
-    return out
+
+def scenario_label(name: Any) -> str | None:
+    """The feed's scenario name (``Scenario.name``, as the in-process summary has it), None if absent."""
+    return name if isinstance(name, str) and name else None
+
+
+def _forecast_of(ems: str | None, mode: Any) -> str | None:
+    """Forecast mode of the summary: the feed's mode for an MPC-level EMS, else None (as in-process)."""
+    if ems is None or not isinstance(mode, str):
+        return None
+    from ..ems import UnknownEMSError, controller_class
+
+    try:
+        return mode if controller_class(ems).info_level == "mpc" else None
+    except UnknownEMSError:
+        return None

@@ -21,6 +21,7 @@ from __future__ import annotations
 
 import math
 import sys
+import time
 from collections.abc import Callable, Sequence
 from typing import Any
 
@@ -32,6 +33,7 @@ from rclpy.task import Future
 from ..config import ConfigError, PlantParams, load_plant_params
 from ..types import ACTION_FIELDS, HP_DHW, HP_OFF, HP_SH, Action
 from .contract import Contract, ContractError, Layout, load_contract, relative, sizes
+from .tokens import MAX_TOKEN
 
 #: Topics rclpy itself creates for every node (parameter events, logging); not in the contract.
 INFRASTRUCTURE_TOPICS = frozenset({"/parameter_events", "/rosout"})
@@ -42,6 +44,12 @@ INFRASTRUCTURE_TOPICS = frozenset({"/parameter_events", "/rosout"})
 COMMAND_RANGE_REL_TOL = 0.01
 #: Absolute tolerance on the command power range checks [W].
 COMMAND_RANGE_ABS_TOL_W = 1.0
+#: Longest wait of a finished node for the recorder to leave [s] (ContractNode.finish_when_recorded).
+LINGER_S = 30.0
+#: Period of that check [s].
+LINGER_CHECK_S = 0.05
+#: Node name of the recorder in the contract.
+RECORDER_NODE = "recorder"
 #: Exit code of a node that refused to start (bad parameters, scenario or contract).
 EXIT_BAD_INPUT = 2
 
@@ -112,6 +120,28 @@ class ContractNode(Node):
         spec = self.contract.topic(topic)
         return self.create_subscription(spec.msg_class(), topic, callback, spec.qos_profile(), raw=raw)
 
+    def finish_when_recorded(self, topic: str, code: int = 0, timeout_s: float | None = None) -> None:
+        """Complete ``self.finished`` with ``code`` once no recorder subscribes to ``topic``.
+
+        A DDS reader drops the samples of a writer that leaves before they were taken, so
+        a node that exited at once on ``plant/done`` could take its last messages out of
+        a busy recorder's queue. The node therefore stays until the recorder (node name
+        ``recorder``) has closed its bag and left, at most ``timeout_s``
+        (:data:`LINGER_S`); without a recorder it ends at the next check.
+        """
+        full = self.resolve_topic_name(topic)
+        limit = LINGER_S if timeout_s is None else timeout_s
+        t0 = time.monotonic()
+
+        def check() -> None:
+            if self.finished.done():
+                return
+            recorders = [i for i in self.get_subscriptions_info_by_topic(full) if i.node_name == RECORDER_NODE]
+            if not recorders or time.monotonic() - t0 > limit:
+                self.finished.set_result(code)
+
+        self.create_timer(LINGER_CHECK_S, check)
+
     def declared_topics(self) -> tuple[set[str], set[str]]:
         """Contract names of this node's actual publishers and subscriptions (infrastructure excluded)."""
         ns = self.get_namespace()
@@ -142,7 +172,7 @@ class ArrayPublisher:
         self.publisher = node.contract_publisher(topic)
         self._msg = Float64MultiArray()
         n = self.layout.length
-        self._msg.layout.dim = [MultiArrayDimension(label=topic, size=n, stride=n)]
+        self._msg.layout.dim = [MultiArrayDimension(label=self.layout.dim_label, size=n, stride=n)]
 
     def publish(self, data: Sequence[float]) -> None:
         """Publish ``data`` (``array('d')`` preferred: no per-element checks) as is."""
@@ -243,7 +273,7 @@ def command_to_action(
     Raises
     ------
     CommandError
-        For a wrong length, a non-finite value, a non-integral step or circuit, an
+        For a wrong length, a non-finite value, a non-integral step, circuit or token, an
         unknown circuit, or a value outside :func:`command_bounds`; ``field`` names it.
     """
     if len(data) != layout.length:
@@ -254,6 +284,9 @@ def command_to_action(
     step_f = data[0]
     if step_f < 0 or step_f != int(step_f):
         raise CommandError("step", f"not a non-negative integer: {step_f}")
+    token = data[layout.length - 1]
+    if not 0 < token < MAX_TOKEN or token != int(token):
+        raise CommandError("token", f"not an integer in 1..2^53-1: {token}")
     values = dict(zip(ACTION_FIELDS, data[1:]))
     mode = values["hp_mode"]
     if mode not in VALID_HP_MODES:
@@ -270,9 +303,9 @@ def command_to_action(
     )
 
 
-def action_values(step: int, action: Action) -> list[float]:
-    """``ems/command`` payload of ``action`` for ``step`` (layout: step, ACTION_FIELDS)."""
-    return [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS)]
+def action_values(step: int, action: Action, token: int) -> list[float]:
+    """``ems/command`` payload of ``action`` for ``step`` (layout: step, ACTION_FIELDS, token)."""
+    return [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS), float(token)]
 
 
 #: Environment variable choosing the executor of the node processes: ``lean`` (default,

@@ -123,6 +123,12 @@ class Layout:
         return tuple(out)
 
     @functools.cached_property
+    def dim_label(self) -> str:
+        """Label of the message's one ``MultiArrayDimension``: the field names in order,
+        comma-separated, vectors as ``name[size]`` (what ``ros2 topic echo`` shows)."""
+        return ",".join(f.name if f.size is None else f"{f.name}[{f.size}]" for f in self.fields)
+
+    @functools.cached_property
     def index(self) -> dict[str, int]:
         """Label -> element index (vectors: index of the first element under the bare name)."""
         out = {label: i for i, label in enumerate(self.labels)}

@@ -25,10 +25,10 @@ The recorders' own progress lines are replaced by one line ``progress <recorded>
 Parameter values: bool, int, float, str or a non-empty list of one of them (empty lists
 are left out: their type cannot be inferred, as with ``-p``).
 
-Exit codes: plant and recorder processes exit 0 once every node's ``finished`` future
-completed with 0 (the first non-zero result is the exit code); feed and EMS processes
-run until SIGINT/SIGTERM, and an EMS process exits with the code of the first EMS node
-whose controller failed. A bad parameter or scenario gives exit code 2 and a message
+Exit codes: a host process exits 0 once every node's ``finished`` future completed with
+0 (plants after their last step, recorders once their bags are complete, feed and EMS
+nodes on ``plant/done``); the first non-zero result is the exit code (an EMS node whose
+controller failed). A bad parameter or scenario gives exit code 2 and a message
 naming the namespace. Parameter services are not started for hosted nodes (fewer
 entities in the shared executor); ``ros2 param`` does not reach them.
 """
@@ -43,8 +43,9 @@ from typing import Any
 
 #: Roles a host process can run.
 ROLES = ("plant", "feed", "ems", "recorder")
-#: Roles whose process ends once all its nodes' ``finished`` futures are done.
-FINISHING_ROLES = ("plant", "recorder")
+#: Roles whose process ends once all its nodes' ``finished`` futures are done (every node
+#: finishes at the end of the run: feed and EMS on ``plant/done``).
+FINISHING_ROLES = ("plant", "recorder", "feed", "ems")
 #: Exit code for a bad spec, parameter or scenario.
 EXIT_BAD_INPUT = 2
 

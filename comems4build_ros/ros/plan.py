@@ -40,6 +40,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from .tokens import new_token
+
 #: Console script of each node and the module run with ``python -m`` when there is none.
 NODE_MODULES: dict[str, str] = {
     "plant_sim": "comems4build_ros.ros.nodes.plant_sim",
@@ -78,6 +80,13 @@ LAYOUTS = ("node", "role")
 STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES = 0, 1, 2
 #: Name of the host group of a plan that runs everything on this host as it is.
 LOCAL_GROUP = "local"
+#: Default overall time limit of a launch: this start-up allowance plus
+#: :data:`TIME_LIMIT_PER_STEP_S` per building-step (:data:`TIME_LIMIT_PER_STEP_MPC_S` for
+#: an MPC; plus the step period of a wall clock) [s]. A run that needs longer (a paused or
+#: hung node) is stopped with an error.
+TIME_LIMIT_START_S = 300.0
+TIME_LIMIT_PER_STEP_S = 0.1
+TIME_LIMIT_PER_STEP_MPC_S = 1.0
 
 
 @dataclass
@@ -99,7 +108,8 @@ class LaunchOptions:
     ems_options : options of the EMS (``key=value`` strings)
     forecast : forecast mode of the MPC (None = ``config/forecast.yaml``)
     domain_id : ROS domain id (None = a free one)
-    timeout_s : stop with an error after this wall time [s] (None = no limit)
+    timeout_s : stop with an error after this wall time [s] (None = :func:`default_time_limit`;
+        ``math.inf`` = no limit)
     progress : show a progress bar on stderr (:class:`comems4build_ros.progress.ProgressBar`)
     on_progress : called as ``on_progress(recorded steps, total steps)`` while the run goes
         (instead of the bar; e.g. a worker's reporter to a parent's bars)
@@ -184,8 +194,8 @@ class ProcessPlan:
     group : host group (:class:`HostGroup`) the process runs in
     files : ``(path, text)`` written before the start (host spec files)
     env : environment additions of this process (over the group's and the plan's)
-    finishes : exit code 0 at the end of its part of the run is normal (plants, recorders);
-        any other exit while the run is in progress fails the launch
+    finishes : exit code 0 at the end of its part of the run is normal (every node exits 0
+        on ``plant/done``); any other exit while the run is in progress fails the launch
     progress : the process prints ``progress <recorded> <total>`` lines on stdout
     stop_stage : order of stopping (:data:`STAGE_NODES`, :data:`STAGE_RECORDERS`,
         :data:`STAGE_SERVICES`)
@@ -219,11 +229,13 @@ class HostGroup:
 
 @dataclass(frozen=True)
 class BuildingPlan:
-    """One building: namespace, scenario seed (None = configured) and bag directory."""
+    """One building: namespace, scenario seed (None = configured), bag directory and the
+    run token its EMS puts in every command (plant_sim applies no other token's commands)."""
 
     namespace: str
     seed: int | None
     bag: Path
+    token: int = 0
 
 
 @dataclass(frozen=True)
@@ -430,10 +442,14 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
     }
 
 
-def building_params(opts: LaunchOptions, seed: int | None, common: dict[str, Any]) -> dict[str, dict[str, Any]]:
+def building_params(
+    opts: LaunchOptions, seed: int | None, common: dict[str, Any], token: int = 0
+) -> dict[str, dict[str, Any]]:
     """Parameters of the EMS, feed and plant of one building (role -> parameters)."""
     weeks, steps = feed_window(opts.weeks, opts.steps)
     ems_params = dict(common)
+    if token:
+        ems_params["run_token"] = token
     if opts.ems_options:
         ems_params["ems_options"] = list(opts.ems_options)
     feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps)
@@ -445,8 +461,27 @@ def building_params(opts: LaunchOptions, seed: int | None, common: dict[str, Any
         feed_params["forecast_mode"] = opts.forecast
     if opts.inputs != "scenario":
         feed_params.update(inputs=opts.inputs, live_cache_dir=str(Path(opts.out).resolve()))
-    plant_params = dict(common, wait_for_recorder=True, **opts.plant_params)
+    plant_params = dict(common, wait_for_recorder=True, **({"ems_token": token} if token else {}), **opts.plant_params)
     return {"ems": ems_params, "feed": feed_params, "plant": plant_params}
+
+
+def run_steps(opts: LaunchOptions) -> int:
+    """Steps per building of the run (12 weeks when the length is not given)."""
+    from ..scenario import HOURS_PER_WEEK
+
+    weeks, steps = feed_window(opts.weeks, opts.steps)
+    return steps or (weeks or 12) * HOURS_PER_WEEK
+
+
+def default_time_limit(opts: LaunchOptions) -> float:
+    """Overall time limit of a launch without ``timeout_s`` [s] (see :data:`TIME_LIMIT_START_S`)."""
+    from ..mqtt.clock import parse_clock
+
+    per = TIME_LIMIT_PER_STEP_MPC_S if opts.ems.startswith("mpc") else TIME_LIMIT_PER_STEP_S
+    clock = parse_clock(opts.clock)
+    if clock.wall:  # a wall clock paces the steps (hourly steps of the default time step)
+        per += clock.period_s
+    return TIME_LIMIT_START_S + per * run_steps(opts) * opts.buildings
 
 
 def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float) -> dict[str, Any]:
@@ -544,7 +579,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     common: dict[str, Any] = {"config_files": info["config_files"]}
     if opts.overrides:
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
-    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns)) for ns, seed in zip(ns_list, seeds))
+    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns), new_token()) for ns, seed in zip(ns_list, seeds))
 
     if layout == "role":
         processes = _role_processes(opts, buildings, common, bag, info, out / "host")
@@ -574,7 +609,8 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         groups={LOCAL_GROUP: HostGroup(LOCAL_GROUP)},
         processes=tuple(processes),
         run_info=info,
-        timeout_s=opts.timeout_s,
+        timeout_s=None if opts.timeout_s == math.inf else (
+            opts.timeout_s if opts.timeout_s is not None else default_time_limit(opts)),
     )
 
 
@@ -594,15 +630,15 @@ def _node_processes(
     ems_name = ems_node_name(opts.ems)
     for b in buildings:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = building_params(opts, b.seed, common)
+        params = building_params(opts, b.seed, common, b.token)
         ns = b.namespace
         out.append(ProcessPlan(f"{prefix}{opts.ems}_ems", "ems",
                                (*node_command("ems", opts.ems), *ros_args(ns, params["ems"])),
-                               nodes=(NodePlan("ems", ems_name, ns, params["ems"]),)))
+                               nodes=(NodePlan("ems", ems_name, ns, params["ems"]),), finishes=True))
         if opts.plant == "mqtt":  # the building's meters give PV and load (mqtt_bridge)
             params["feed"]["publish_measured"] = False
         out.append(ProcessPlan(f"{prefix}feed", "feed", (*node_command("feed"), *ros_args(ns, params["feed"])),
-                               nodes=(NodePlan("feed", "feed", ns, params["feed"]),)))
+                               nodes=(NodePlan("feed", "feed", ns, params["feed"]),), finishes=True))
         if opts.plant == "mqtt":
             out.extend(mqtt_plant_processes(opts, params))
             continue
@@ -644,7 +680,7 @@ def _role_processes(
     by_role: dict[str, list[NodePlan]] = {"ems": [], "feed": [], "plant": []}
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
     for b in buildings:
-        for role, params in building_params(opts, b.seed, common).items():
+        for role, params in building_params(opts, b.seed, common, b.token).items():
             if role == "plant":
                 params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S,
                           **params}
@@ -654,5 +690,5 @@ def _role_processes(
         spec = {"ems": opts.ems, "nodes": [{"namespace": n.namespace, "params": n.params} for n in by_role[role]]}
         path, files = spec_file(name, spec)
         out.append(ProcessPlan(name, role, tuple(host_command(role, path)), nodes=tuple(by_role[role]),
-                               files=files, finishes=role == "plant"))
+                               files=files, finishes=True))
     return out

@@ -19,11 +19,13 @@ SIGTERM (if the launcher itself is killed, the kernel stops the children). Stopp
 SIGINT (rclpy shuts down cleanly), then SIGTERM after ``grace_s``, then SIGKILL; the
 recorders are stopped after the nodes so that they close the bags, services last.
 
-Exit rule: a process marked ``finishes`` (plants, recorders) may exit 0 at the end of its
-part of the run; any other exit while the run is in progress (a crash, or a plant
-exiting with an error) stops the whole launch with :class:`LaunchError` naming the
-process, its exit code and its log file. The run is done when every finishing process
-has exited 0.
+Exit rule: a process marked ``finishes`` (every node process: nodes exit 0 on
+``plant/done``) may exit 0; any other exit while the run is in progress (a crash, or a
+plant exiting with an error) stops the whole launch with :class:`LaunchError` naming the
+process, its exit code and its log file. The run is done when every recorder has exited
+0 (the bags are closed), whatever the other processes do; then everything still running
+is stopped, a process that ignores SIGINT and SIGTERM (or is paused) is killed. The
+plan's overall time limit ends any run.
 """
 
 from __future__ import annotations
@@ -214,7 +216,10 @@ class ProcessGroup:
         return [c for c in self.children if c.proc.poll() is None]
 
     def stop(self, children: Sequence[Child], grace_s: float = GRACE_S) -> None:
-        """SIGINT, then SIGTERM after ``grace_s``, then SIGKILL; waits until all are gone."""
+        """SIGINT, then SIGTERM after ``grace_s``, then SIGKILL; waits until all are gone.
+
+        Each signal is followed by SIGCONT, so a stopped (SIGSTOP) process handles it too.
+        """
         for sig in (signal.SIGINT, signal.SIGTERM, signal.SIGKILL):
             alive = [c for c in children if c.proc.poll() is None]
             if not alive:
@@ -222,6 +227,7 @@ class ProcessGroup:
             for c in alive:
                 with contextlib.suppress(ProcessLookupError):
                     c.proc.send_signal(sig)
+                    c.proc.send_signal(signal.SIGCONT)
             deadline = time.monotonic() + grace_s
             while time.monotonic() < deadline and any(c.proc.poll() is None for c in alive):
                 time.sleep(0.02)
@@ -373,12 +379,19 @@ def supervise(
     t0: float,
     timeout_s: float | None,
 ) -> float | None:
-    """Wait until every plant and every recorder exited 0; returns when the first record came.
+    """Wait for the end of the run; returns when the first record came.
+
+    The run is done when every recorder has exited 0 (a recorder exits 0 once every plant
+    said ``plant/done`` and every record is written: the bags are closed), whatever the
+    other processes do (they are stopped afterwards); without recorders, when every plant
+    has exited 0. Recorders still running :data:`RECORDER_DRAIN_S` after the last plant
+    exited are stopped (SIGINT, SIGTERM, SIGKILL).
 
     Raises
     ------
     LaunchError
-        When any other exit happens first, or after ``timeout_s``.
+        When a process exits against the exit rule, a recorder had to be killed, or
+        ``timeout_s`` passes.
     """
     t_first_record: float | None = None
     t_plants_done: float | None = None
@@ -389,7 +402,6 @@ def supervise(
             t_first_record = time.monotonic()
         if report is not None:
             report(r, n)
-        plants_done = all(p.proc.poll() == 0 for p in plants)
         for c in group.children:
             code = c.proc.poll()
             # plants exit 0 after their last step; the recorder exits 0 once every plant said done
@@ -399,19 +411,31 @@ def supervise(
                 f"node '{c.name}' exited with code {code} while the run was in progress (log: {c.log_path}):\n"
                 f"{c.tail()}"
             )
-        running = [r for r in recorders if r.proc.poll() is None]
-        if plants_done and not running:
+        if recorders and all(c.proc.poll() == 0 for c in recorders):
+            return t_first_record
+        plants_done = all(p.proc.poll() == 0 for p in plants)
+        if plants_done and not recorders:
             return t_first_record
         if plants_done:
             t_plants_done = t_plants_done or time.monotonic()
             if time.monotonic() - t_plants_done > RECORDER_DRAIN_S:
+                running = [c for c in recorders if c.proc.poll() is None]
                 print(f"launcher: {len(running)} recorder(s) still running {RECORDER_DRAIN_S:g} s after the last "
                       "plant exited; stopping them (SIGINT closes the bag)", file=sys.stderr)
-                for r in running:
-                    r.proc.send_signal(signal.SIGINT)
-                t_plants_done = time.monotonic() + RECORDER_GRACE_S  # one signal, then wait
+                group.stop(running, RECORDER_GRACE_S)
+                bad = [c for c in running if c.proc.returncode != 0]
+                if bad:
+                    raise LaunchError(
+                        "recorder(s) " + ", ".join(f"'{c.name}' (exit {c.proc.returncode})" for c in bad)
+                        + " did not stop by themselves after the run and had to be stopped; the bag may lack "
+                        "its summary (evaluate reads it anyway)"
+                    )
+                return t_first_record
         if timeout_s is not None and time.monotonic() - t0 > timeout_s:
-            raise LaunchError(f"run not finished after {timeout_s} s (recorded {r} of {n} steps)")
+            raise LaunchError(
+                f"run not finished within the time limit of {timeout_s:g} s (recorded {r} of {n} steps; "
+                "a node hung, was paused or fell back at every step; --timeout sets the limit)"
+            )
 
 
 @dataclass
@@ -457,7 +481,7 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
                                     finishes=p.finishes)
                 if p.role == "recorder":
                     recorders.append(child)
-                elif p.finishes:
+                elif p.role == "plant":
                     plants.append(child)
             t_first_record = supervise(group, recorders, plants, progress, report, t0, plan.timeout_s)
             t_end = time.monotonic()

@@ -15,9 +15,14 @@ A repeated state announcement for a step already answered (the plant repeats whi
 waits, e.g. if the first command was lost during discovery) is answered with the same
 command again; the controller is never called twice for a step.
 
+Every command carries the node's run token (parameter ``run_token``; 0 = derived from
+the node's fully qualified name, so a restarted EMS keeps it): ``plant_sim`` applies
+commands of one token only and counts the others as foreign. The node exits with code 0
+on ``plant/done`` (end of the run).
+
 Parameters: ``ems`` (set by the entry point), ``ems_options`` (string array of
-``key=value``, as ``comems4build simulate --ems-option``), and the plant parameters
-(:func:`comems4build_ros.ros.common.plant_params_from_node`).
+``key=value``, as ``comems4build simulate --ems-option``), ``run_token`` and the plant
+parameters (:func:`comems4build_ros.ros.common.plant_params_from_node`).
 """
 
 from __future__ import annotations
@@ -34,8 +39,16 @@ from std_msgs.msg import Float64MultiArray, String
 from ...ems import make_controller
 from ...ems.base import Observation
 from ...types import ACTION_FIELDS
-from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
+from ..common import (
+    ArrayPublisher,
+    ContractNode,
+    layout_sizes,
+    param,
+    plant_params_from_node,
+    run_node,
+)
 from ..contract import ContractError, load_contract, nest
+from ..tokens import default_token
 
 #: Topic whose repeated message for an answered step triggers a re-send of the command.
 RESEND_TRIGGER_TOPIC = "state/t_air_c"
@@ -83,8 +96,12 @@ class EMSNode(ContractNode):
                 f"the contract says '{spec.info_level}'"
             )
         sizes = layout_sizes(params)
+        token = int(param(self, "run_token", 0))
+        self.token = float(token if token > 0 else default_token(self.get_fully_qualified_name()))
         self._cmd = ArrayPublisher(self, "ems/command", sizes)
         self._info_pub = self.contract_publisher("ems/info")
+        self._info_msg = String()
+        self.ems = ems
         self._inputs = [t for t in contract.subscribed_by(node_name) if t.is_array]
         self._full = (1 << len(self._inputs)) - 1
         self._pending: dict[int, list[Any]] = {}  # step -> [fields, bitmask of topics received]
@@ -93,6 +110,9 @@ class EMSNode(ContractNode):
         self.steps = 0
         for i, topic in enumerate(self._inputs):
             self.contract_subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name))
+        self.exit_when_done = bool(param(self, "exit_when_done", True))
+        self.contract_subscription("plant/done", self._on_done)
+        self._done = False
         self.finished = Future()
         self.get_logger().info(
             f"EMS '{ems}' (level '{self.level}') listening to {len(self._inputs)} topics: "
@@ -125,6 +145,13 @@ class EMSNode(ContractNode):
 
         return on_msg
 
+    def _on_done(self, msg: Any) -> None:
+        """End of the run (``plant/done``): the node exits with code 0."""
+        if msg.data and self.exit_when_done and not self._done:
+            self._done = True
+            self.get_logger().info(f"run done after {self.steps} decisions: exiting once the recorder has left")
+            self.finish_when_recorded("ems/command")
+
     def _decide(self, step: int, fields: dict[str, Any]) -> None:
         for s in [s for s in self._pending if s <= step]:
             del self._pending[s]
@@ -136,11 +163,12 @@ class EMSNode(ContractNode):
             self.get_logger().error(f"controller failed at step {step}: {type(exc).__name__}: {exc}")
             self.finished.set_result(EXIT_CONTROLLER_ERROR)
             return
-        info = getattr(self.controller, "step_info", None)
-        if info:  # before the command, so it is out before the plant records the step
-            payload_info = {"step": step, "info": {k: float(v) for k, v in info.items()}}
-            self._info_pub.publish(String(data=json.dumps(payload_info)))
-        payload = array("d", [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS)])
+        info = getattr(self.controller, "step_info", None) or {}
+        # before the command, so it is out before the plant records the step
+        payload_info = {"step": step, "ems": self.ems, "info": {k: float(v) for k, v in info.items()}}
+        self._info_msg.data = json.dumps(payload_info)
+        self._info_pub.publish(self._info_msg)
+        payload = array("d", [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS), self.token])
         self._cmd.publish(payload)
         self._answered = step
         self._last_cmd = payload

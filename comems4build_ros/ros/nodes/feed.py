@@ -8,7 +8,9 @@ For each step ``k`` the feed publishes (topics of ``msg_defs/topics.yaml``, elem
 * what an EMS may read, split by ``tab:level_of_information``: ``feed/calendar``,
   ``feed/measured``, ``feed/comfort``, ``feed/prices`` (every EMS);
   ``feed/comfort_ahead``, ``feed/solar``, ``feed/h2_allowance`` (fuzzy and MPC);
-  ``feed/t_amb`` and ``forecast/*`` (MPC only).
+  ``feed/t_amb`` and ``forecast/*`` (MPC only);
+* once at start-up ``feed/info`` (transient local): scenario name, start, steps, forecast
+  mode and seed as JSON, so that a bag recorded without the launcher knows its scenario.
 
 The values are those of :class:`comems4build_ros.sim.ObservationBuilder` (MPC level,
 which contains every other level), so an EMS node rebuilds exactly the observation of
@@ -16,6 +18,7 @@ the in-process loop. Pacing: the feed publishes when ``plant/step`` announces th
 the plant waits for, up to ``lookahead_steps`` steps ahead; a repeated announcement (the
 plant re-announces while it waits, e.g. for a restarted EMS) makes it publish the steps
 ``k .. k + lookahead_steps`` again. The feed is never on the critical path of a step.
+It exits with code 0 on ``plant/done`` (end of the run).
 
 Parameters: ``scenario`` (``default`` or a CSV path), ``weeks`` (whole weeks, 0 = the
 default length), ``steps`` (cut the run to its first N steps, 0 = all), ``start`` (ISO
@@ -32,11 +35,13 @@ from __future__ import annotations
 
 import dataclasses
 import inspect
+import json
 import warnings
 from array import array
 from typing import Any
 
 import numpy as np
+from rclpy.task import Future
 from std_msgs.msg import String, UInt32
 
 from ...config import SECONDS_PER_HOUR
@@ -282,7 +287,15 @@ class Feed(ContractNode):
         self._events = self.contract_publisher("feed/events")
         self._pub_fields = [p.layout.fields for p in self._pubs]
         self.contract_subscription("plant/step", self._on_plant_step)
+        self.exit_when_done = bool(param(self, "exit_when_done", True))
+        self.contract_subscription("plant/done", self._on_done)
+        self._done = False
+        self.finished = Future()
         self._check_payload_lengths()
+        self._info_pub = self.contract_publisher("feed/info")
+        self.info = {"scenario": scenario.name, "start": scenario.time[0].isoformat(), "n_steps": self.n_steps,
+                     "forecast": self._forecast.mode, "seed": None if seed < 0 else seed}
+        self._info_pub.publish(String(data=json.dumps(self.info)))
         self._next = 0  # first step not yet published
         self._last_request = -1
         if self._live is not None:
@@ -342,6 +355,13 @@ class Feed(ContractNode):
     def _publish_step(self, k: int) -> None:
         for pub, payload in zip((self._truth, *self._pubs), self.payloads(k)):
             pub.publish(payload)
+
+    def _on_done(self, msg: Any) -> None:
+        """End of the run (``plant/done``): the node exits with code 0."""
+        if msg.data and self.exit_when_done and not self._done:
+            self._done = True
+            self.get_logger().info("run done: exiting once the recorder has left")
+            self.finish_when_recorded("feed/truth")
 
     def _on_plant_step(self, msg: UInt32) -> None:
         k = int(msg.data)

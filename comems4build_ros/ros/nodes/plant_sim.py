@@ -62,6 +62,11 @@ STARTUP_TIMEOUT_S = 120.0
 REPUBLISH_PERIOD_S = 0.5
 #: Default period of the watchdog timer (timeouts, repeats; parameter ``watchdog_period_s``) [s].
 WATCHDOG_PERIOD_S = 0.02
+#: Default of ``record_window_steps``: with ``wait_for_recorder`` the plant announces no
+#: step more than this beyond the last step the recorder has written without a gap
+#: (``recorder/progress``); the contract's keep-last depth (1000) exceeds it, so no
+#: message can be overwritten before the recorder has it [steps].
+RECORD_WINDOW_STEPS = 256
 #: Wait for the acknowledgement of the last messages before exiting [s].
 ACK_TIMEOUT_S = 5.0
 #: Interval of the "waiting for feed/truth" warning [s].
@@ -91,7 +96,8 @@ LOOP_PARAMS = {
 
 def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] | None = None) -> None:
     """Read the loop's timing parameters (:data:`LOOP_PARAMS` plus ``extra``), each positive,
-    and ``wait_for_recorder`` / ``exit_when_done`` into attributes of ``node``."""
+    ``wait_for_recorder``, ``exit_when_done``, ``ems_token`` (0 = the token of the run's
+    first valid command) and ``record_window_steps`` (>= 1) into attributes of ``node``."""
     for name, default in {**LOOP_PARAMS, **(extra or {})}.items():
         value = float(param(node, name, default))
         if not value > 0:
@@ -99,11 +105,17 @@ def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] 
         setattr(node, name, value)
     node.wait_for_recorder = bool(param(node, "wait_for_recorder", False))
     node.exit_when_done = bool(param(node, "exit_when_done", True))
+    node.ems_token = int(param(node, "ems_token", 0))
+    node.record_window_steps = int(param(node, "record_window_steps", RECORD_WINDOW_STEPS))
+    if node.record_window_steps < 1:
+        raise ValueError(f"node '{node_name}': parameter 'record_window_steps' must be >= 1")
 
 
 def finish_run(node: Any, before_done: Any = None) -> None:
     """End of a run (plant_sim, mqtt_bridge): log the statistics line, publish plant/done and
-    the line on plant/events, wait for their acknowledgement, then finish if ``exit_when_done``.
+    the line on plant/events, wait for their acknowledgement, then, if ``exit_when_done``,
+    finish once the recorder has left (``finish_when_recorded``: a writer that left at once
+    could take its last messages out of a busy recorder's queue).
 
     The line is logged first: whoever sees plant/done can rely on it being in the log.
     ``before_done`` (optional) is called between the log line and plant/done.
@@ -117,7 +129,7 @@ def finish_run(node: Any, before_done: Any = None) -> None:
     for pub in (node._record.publisher, node._done_pub, node._events_pub):
         pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * NS_PER_S)))
     if node.exit_when_done:
-        node.finished.set_result(0)
+        node.finish_when_recorded("plant/record")
 
 
 class PlantSim(ContractNode):
@@ -147,6 +159,7 @@ class PlantSim(ContractNode):
         self._cmd_sub = self.contract_subscription("ems/command", self._on_command)
         self.contract_subscription("feed/truth", self._on_truth)
         self.contract_subscription("recorder/ready", self._on_recorder_ready)
+        self.contract_subscription("recorder/progress", self._on_recorder_progress)
 
         self.k = 0
         self.n_steps: int | None = None
@@ -160,6 +173,12 @@ class PlantSim(ContractNode):
         self.rejected_commands = 0
         self.wrong_step_commands = 0
         self.duplicate_commands = 0
+        self.foreign_commands = 0
+        self._token: float | None = float(self.ems_token) if self.ems_token > 0 else None
+        self._recorded = 0  # steps the recorder has written without a gap (recorder/progress)
+        self._held = False  # announcement of step k held back until the recorder catches up
+        self.held_s = 0.0  # time spent held [s]
+        self._t_held = 0.0
         self._cmd_data: list[float] | None = None  # payload of the pending command
         self._last_cmd: list[float] | None = None  # payload of the command applied in step k-1
         self._t_created = time.monotonic()
@@ -190,6 +209,18 @@ class PlantSim(ContractNode):
     def _on_recorder_ready(self, msg: Bool) -> None:
         self._recorder_ready = bool(msg.data)
 
+    def _on_recorder_progress(self, msg: UInt32) -> None:
+        self._recorded = max(self._recorded, int(msg.data))
+        if self._held and not self._behind():
+            self._held = False
+            self.held_s += time.monotonic() - self._t_held
+            self._t_wait = time.monotonic()
+            self._announce()
+
+    def _behind(self) -> bool:
+        """The recorder is more than ``record_window_steps`` steps behind step k (back-pressure)."""
+        return self.wait_for_recorder and self.k - self._recorded > self.record_window_steps
+
     def _on_truth(self, msg: Float64MultiArray) -> None:
         data = msg.data
         if len(data) != self._truth_layout.length:
@@ -209,6 +240,15 @@ class PlantSim(ContractNode):
         except CommandError as exc:
             self.rejected_commands += 1
             self._event("rejected", f"topic 'ems/command' {exc}")
+            return
+        token = msg.data[-1]
+        if self._token is None:
+            self._token = token  # the first valid command names the run's EMS
+            self.get_logger().info(f"commands of token {int(token)} accepted from now on")
+        elif token != self._token:
+            self.foreign_commands += 1
+            self._event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} ignored "
+                                   f"(the run's EMS has token {int(self._token)})")
             return
         if step == self.k - 1 and self._last_cmd is not None and list(msg.data) == self._last_cmd:
             # the EMS re-sent the command just applied (answer to a repeated announcement
@@ -282,12 +322,17 @@ class PlantSim(ContractNode):
         )
         row.append(1.0 if fallback else 0.0)
         t0 = t[ti["time_unix_s"]]
-        row.extend((t0, float(self.fallback_steps), float(self.rejected_commands), float(self.wrong_step_commands)))
+        row.extend((t0, float(self.fallback_steps), float(self.rejected_commands), float(self.wrong_step_commands),
+                    float(self.foreign_commands)))
         self.k = k + 1
         self._t_wait = time.monotonic()
         last = self.n_steps is not None and self.k >= self.n_steps
         if not last:
-            self._announce()  # first, so the EMS works on k + 1 while the record goes out
+            if self._behind():
+                self._held = True
+                self._t_held = self._t_wait
+            else:
+                self._announce()  # first, so the EMS works on k + 1 while the record goes out
         self._record.publish(row)
         end_ns = int(round(t0 * NS_PER_S)) + self.dt_ns
         self._clock_msg.clock = Time(sec=end_ns // NS_PER_S, nanosec=end_ns % NS_PER_S)
@@ -322,6 +367,8 @@ class PlantSim(ContractNode):
             "rejected_commands": float(self.rejected_commands),
             "wrong_step_commands": float(self.wrong_step_commands),
             "duplicate_commands": float(self.duplicate_commands),
+            "foreign_commands": float(self.foreign_commands),
+            "held_for_recorder_s": self.held_s,
         }
 
     def _finish(self) -> None:
@@ -331,7 +378,7 @@ class PlantSim(ContractNode):
     # ------------------------------------------------------------------ watchdog
     def _watchdog(self) -> None:
         now = time.monotonic()
-        if self.done:
+        if self.done or self._held:
             return
         if not self.started:
             ready = (not self.wait_for_recorder or self._recorder_ready) and (

@@ -14,8 +14,9 @@ from the ``.mcap`` file). SIGINT and SIGTERM close the bag cleanly.
 
 Readiness: once every subscription has matched a publisher (for the topics of
 ``wait_for_topics``, default all topics published by plant_sim, feed and the EMS) and
-``settle_s`` more seconds have passed, the node publishes ``recorder/ready`` = true
-(transient local) in every namespace; ``plant_sim`` with ``wait_for_recorder`` starts only
+``settle_s`` more seconds have passed (and, for the optional ``ems/info``, at most
+``optional_wait_s`` = 1 s more; it is recorded if it appears later), the node publishes
+``recorder/ready`` = true (transient local) in every namespace; ``plant_sim`` with ``wait_for_recorder`` starts only
 then, so the first step is recorded. After ``ready_timeout_s`` it declares ready anyway
 and names the topics without a publisher.
 
@@ -24,6 +25,12 @@ End of run: with ``stop_when_done`` (default) the node closes the bag and exits 
 (``n_steps`` from ``feed/truth``) is in, and ``done_grace_s`` has passed for late
 messages (``ems/info`` of the last step); after ``done_timeout_s`` it stops even if some
 records are missing, with a warning.
+
+Back-pressure: per namespace the node publishes ``recorder/progress``, the number of
+steps whose ``plant/record`` it has written without a gap (every 16 steps and every
+tick); ``plant_sim`` announces no step more than ``record_window_steps`` (256) beyond
+it, and every topic's keep-last depth (1000) exceeds that window, so a slow recorder
+slows the run down instead of losing messages.
 
 Progress: with ``progress_period_s`` > 0 the node prints ``progress <recorded> <total>``
 lines on stdout (plant/record messages recorded, steps of all namespaces; total 0 until
@@ -44,7 +51,7 @@ from typing import Any
 
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from std_msgs.msg import Bool
+from std_msgs.msg import Bool, UInt32
 
 from ..bag import RECORD_TOPIC, TRUTH_TOPIC, BagWriter, decode, qos_for_bag
 from ..common import no_default_event_callbacks, param, run_node
@@ -72,6 +79,15 @@ WAIT_ROLES = ("plant", "feed", "ems")
 RUN_INFO_KEY = "comems4build.run_info"
 RUN_INFO_FILE = "run_info.json"
 DONE_TOPIC = "plant/done"
+PROGRESS_TOPIC = "recorder/progress"
+#: recorder/progress is published when the gap-free record count grew by this many steps
+#: (and at every housekeeping tick) [steps].
+PROGRESS_EVERY_STEPS = 16
+#: Topics a run may lack (an EMS without step_info publishes no ems/info): the recorder
+#: waits for their publishers only ``optional_wait_s`` after the others matched.
+OPTIONAL_TOPICS = frozenset({"ems/info"})
+#: Default of ``optional_wait_s`` [s].
+OPTIONAL_WAIT_S = 1.0
 
 
 def default_wait_topics(contract: Contract) -> list[str]:
@@ -124,6 +140,8 @@ class Recorder(Node):
             self.writer.set_custom_data(RUN_INFO_KEY, json.dumps(info_obj, separators=(",", ":")))
 
         self._subs: list[tuple[str, Any]] = []  # (full topic, subscription) of the wait list
+        self._optional: list[tuple[str, Any]] = []  # ... of the optional topics of the wait list
+        self.optional_wait_s = float(param(self, "optional_wait_s", OPTIONAL_WAIT_S))
         self.records = dict.fromkeys(self.namespaces, 0)
         self.n_steps: dict[str, int] = {}
         self.done_at: dict[str, float] = {}
@@ -138,13 +156,22 @@ class Recorder(Node):
                 )
                 holder.append(sub)
                 if spec.name in wait:
-                    self._subs.append((full, sub))
+                    (self._optional if spec.name in OPTIONAL_TOPICS else self._subs).append((full, sub))
         self._ready_pubs = []
+        self._progress_pubs: dict[str, Any] = {}
         ready_spec = self.contract.topic("recorder/ready")
+        progress_spec = self.contract.topic(PROGRESS_TOPIC)
         for ns in self.namespaces:
             self._ready_pubs.append(
                 self.create_publisher(ready_spec.msg_class(), resolve(ns, ready_spec.name), ready_spec.qos_profile())
             )
+            self._progress_pubs[ns] = self.create_publisher(
+                progress_spec.msg_class(), resolve(ns, PROGRESS_TOPIC), progress_spec.qos_profile()
+            )
+        self.contiguous = dict.fromkeys(self.namespaces, 0)  # steps 0..c-1 of plant/record written
+        self._ahead: dict[str, set[int]] = {ns: set() for ns in self.namespaces}
+        self._published_progress = dict.fromkeys(self.namespaces, -1)
+        self._progress_msg = UInt32()
         self.ready = False
         self._t0 = time.monotonic()
         self._matched_at: float | None = None
@@ -210,6 +237,18 @@ class Recorder(Node):
         """Progress and end-of-run bookkeeping from plant/record, feed/truth, plant/done."""
         if name == RECORD_TOPIC:
             self.records[ns] += 1
+            step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
+            if step == self.contiguous[ns]:
+                c = step + 1
+                ahead = self._ahead[ns]
+                while c in ahead:
+                    ahead.discard(c)
+                    c += 1
+                self.contiguous[ns] = c
+                if c - self._published_progress[ns] >= PROGRESS_EVERY_STEPS:
+                    self._publish_progress(ns)
+            elif step > self.contiguous[ns]:
+                self._ahead[ns].add(step)
             self._last_record_at = time.monotonic()
             if ns not in self.done_at and self.records[ns] >= self.n_steps.get(ns, -1) > 0:
                 self.done_at[ns] = self._last_record_at  # every record in: done even if plant/done is lost
@@ -220,9 +259,18 @@ class Recorder(Node):
             self.done_at[ns] = time.monotonic()
 
     # ------------------------------------------------------------------ housekeeping
+    def _publish_progress(self, ns: str) -> None:
+        """``recorder/progress`` of ``ns``: steps written without a gap (plant_sim's back-pressure)."""
+        self._progress_msg.data = self.contiguous[ns]
+        self._progress_pubs[ns].publish(self._progress_msg)
+        self._published_progress[ns] = self.contiguous[ns]
+
     def _tick(self) -> None:
         now = time.monotonic()
         self.writer.tick()
+        for ns in self.namespaces:
+            if self.contiguous[ns] != self._published_progress[ns]:
+                self._publish_progress(ns)
         if not self.ready:
             self._check_ready(now)
         if self.progress_period_s > 0 and now - self._t_progress >= self.progress_period_s:
@@ -242,6 +290,7 @@ class Recorder(Node):
 
     def _check_ready(self, now: float) -> None:
         unmatched = [full for full, sub in self._subs if sub.get_publisher_count() == 0]
+        optional = [full for full, sub in self._optional if sub.get_publisher_count() == 0]
         if unmatched:
             self._matched_at = None
             if now - self._t0 > self.ready_timeout_s:
@@ -252,8 +301,16 @@ class Recorder(Node):
             return
         if self._matched_at is None:
             self._matched_at = now
-        if now - self._matched_at >= self.settle_s:
-            self._declare_ready()
+        if now - self._matched_at < self.settle_s:
+            return
+        if optional and now - self._matched_at < self.settle_s + self.optional_wait_s:
+            return
+        if optional:
+            self.get_logger().info(
+                f"optional topics without a publisher after {self.optional_wait_s:g} s, recorded if they appear: "
+                + ", ".join(optional)
+            )
+        self._declare_ready()
 
     def _declare_ready(self) -> None:
         self.ready = True

@@ -56,7 +56,7 @@ SETTLE_S = 0.3
 #: Contract node whose topics --inputs-only replays.
 INPUT_ROLE = "feed"
 #: Topics never replayed.
-SKIP_TOPICS = frozenset({"recorder/ready"})
+SKIP_TOPICS = frozenset({"recorder/ready", "recorder/progress"})
 
 
 def _split(topic: str, names: set[str]) -> tuple[str, str] | None:
@@ -116,6 +116,11 @@ class Replay(ContractNode):
             self._steps: dict[int, list[tuple[str, bytes]]] = {}
             seen: set[tuple[str, int]] = set()
             for name, _t, raw in messages:
+                if not contract.topic(name).is_array:  # feed/info: once, now (transient local)
+                    if (name, -1) not in seen:
+                        seen.add((name, -1))
+                        self._pubs[name].publish(raw)
+                    continue
                 step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
                 if (name, step) not in seen:
                     seen.add((name, step))
