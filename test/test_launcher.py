@@ -219,3 +219,40 @@ def test_a_paused_recorder_cannot_hang_the_launcher(tmp_path: Path, monkeypatch:
     assert not thread.is_alive(), "the launcher did not return"
     assert isinstance(outcome[0], LaunchError) and "time limit" in str(outcome[0])
     assert left == []
+
+
+def _netns_available() -> str | None:
+    """None if network namespaces can be made here, else the reason."""
+    import shutil
+
+    if shutil.which("ip") is None:
+        return "no 'ip' command (iproute2)"
+    if os.geteuid() != 0:
+        return "'ip netns' needs root"
+    name = f"c4bprobe{os.getpid() % 10000}"
+    res = subprocess.run(["ip", "netns", "add", name], capture_output=True, text=True)
+    if res.returncode != 0:
+        return f"'ip netns add' failed: {res.stderr.strip()}"
+    subprocess.run(["ip", "netns", "del", name], capture_output=True)
+    return None
+
+
+def test_two_network_namespaces_give_the_in_process_kpis(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    """Plant + feed and EMS + recorder on two 'hosts' (network namespaces, veth, UDP, unicast
+    discovery), netem 5 ms delay and 1 % loss where the kernel has it: the KPIs of the run equal
+    the in-process run exactly."""
+    reason = _netns_available()
+    if reason:
+        pytest.skip(f"network namespaces unavailable: {reason}")
+    out = tmp_path / "run"
+    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, network="netns",
+                               netem="delay 5ms loss 1%", timeout_s=240))
+    summary = json.loads((out / "summary.json").read_text())
+    _same(summary, _reference("fuzzy", 30))
+    assert summary["lost_messages"] == {} and summary["fallback_steps"] == 0
+    err = capfd.readouterr().err
+    netem = "netem" not in err  # the launcher says so when the kernel has no netem
+    print(f"netem applied: {netem}; round trip over the veth link: wall {res.wall_s:.1f} s")
+    ns_list = subprocess.run(["ip", "netns", "list"], capture_output=True, text=True).stdout
+    assert f"c4b{res.domain_id}p" not in ns_list and f"c4b{res.domain_id}e" not in ns_list  # torn down
+    assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []

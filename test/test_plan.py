@@ -120,3 +120,23 @@ def test_bad_options_name_the_option(tmp_path: Path) -> None:
         plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=0), domain_id=1)
     with pytest.raises(ValueError, match="buildings_per_recorder"):
         plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, buildings_per_recorder=0), domain_id=1)
+
+
+def test_netns_network_is_an_option_of_the_plan(tmp_path: Path) -> None:
+    opts = LaunchOptions(ems="rbc", out=tmp_path, weeks=1, network="netns", netem="delay 5ms loss 1%")
+    plan = plan_run(opts, domain_id=12)
+    assert set(plan.groups) == {"plant_host", "ems_host"}
+    groups = {p.name: p.group for p in plan.processes}
+    assert groups == {"recorder": "ems_host", "rbc_ems": "ems_host", "feed": "plant_host", "plant_sim": "plant_host"}
+    plant_host, ems_host = plan.groups["plant_host"], plan.groups["ems_host"]
+    assert (plant_host.netns, plant_host.address, ems_host.netns, ems_host.address) == (
+        "c4b12p", "10.231.12.1", "c4b12e", "10.231.12.2")
+    assert plant_host.env["ROS_STATIC_PEERS"] == "10.231.12.2" and ems_host.env["ROS_STATIC_PEERS"] == "10.231.12.1"
+    assert plant_host.env["FASTDDS_DEFAULT_PROFILES_FILE"].endswith("fastdds_profile_udp.xml")
+    assert plan.process("plant_sim").argv[:4] == ("ip", "netns", "exec", "c4b12p")
+    assert ("ip", "netns", "add", "c4b12p") in plan.setup and ("ip", "netns", "del", "c4b12e") in plan.teardown
+    assert all("netem" in cmd for cmd in plan.optional_setup) and len(plan.optional_setup) == 2
+    with pytest.raises(ValueError, match="network 'cloud': one of local, netns"):
+        plan_run(LaunchOptions(ems="rbc", out=tmp_path, network="cloud"), domain_id=1)
+    with pytest.raises(ValueError, match="netem applies to the 'netns' network only"):
+        plan_run(LaunchOptions(ems="rbc", out=tmp_path, netem="delay 5ms"), domain_id=1)

@@ -48,6 +48,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--out", metavar="DIR", required=True,
                         help="output directory (bag/, log/, weekly.csv, summary.json)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--network", choices=("local", "netns"), default="local",
+                        help="local (default) or netns: plant+feed and EMS+recorder in two network namespaces "
+                             "joined by a veth pair, DDS over UDP with unicast discovery (root, 'ip netns')")
+    parser.add_argument("--netem", default=None, metavar="ARGS",
+                        help="with --network netns: 'tc netem' arguments of the link, e.g. 'delay 5ms loss 1%%' "
+                             "(skipped with a note where the kernel lacks netem)")
     parser.add_argument("--print-plan", action="store_true",
                         help="print the run plan (processes, nodes, parameters) and exit without starting anything")
 
@@ -72,7 +78,7 @@ def _broker_url(text: str) -> str:
 
 
 def check_plant_options(args: argparse.Namespace) -> None:
-    """``--plant``, ``--clock``, ``--broker``, ``--topic-map`` combinations (UsageError names them)."""
+    """``--plant``, ``--clock``, ``--broker``, ``--topic-map``, ``--netem`` combinations (UsageError names them)."""
     from .options import UsageError
 
     if args.topic_map is not None and not Path(args.topic_map).is_file():
@@ -81,6 +87,10 @@ def check_plant_options(args: argparse.Namespace) -> None:
         raise UsageError("--clock wall, --broker and --topic-map need --plant mqtt")
     if args.plant == "mqtt" and args.buildings != 1:
         raise UsageError("--plant mqtt runs one building (--buildings 1)")
+    if args.netem is not None and args.network != "netns":
+        raise UsageError("--netem needs --network netns")
+    if args.broker and args.network != "local":
+        raise UsageError("--broker needs --network local (the netns namespaces reach no other host)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -122,6 +132,8 @@ def run(args: argparse.Namespace) -> int:
         broker_url=args.broker,
         topic_map=args.topic_map,
         inputs=args.inputs,
+        network=args.network,
+        netem=args.netem,
     )
     if args.print_plan:
         from ..ros.plan import plan_run

@@ -23,7 +23,13 @@ Every way to run is an option of the plan, never a branch through the supervisor
   ``publish_measured:=false`` (docs/real_building.md);
 * ``clock``: ``sim``, ``wall`` or ``wall:<factor>`` for the bridge and the building
   (wall modes with ``plant="mqtt"`` only);
-* ``inputs``: ``scenario`` or ``live`` (the feed's live prices and weather).
+* ``inputs``: ``scenario`` or ``live`` (the feed's live prices and weather);
+* ``network``: ``local`` (every process on this host as it is) or ``netns`` (separate
+  hosts: plant and feed in one Linux network namespace, EMS and recorder in another,
+  joined by a veth pair; UDP only, unicast discovery through ``ROS_STATIC_PEERS``;
+  optionally ``netem`` delay and loss on the link). The plan carries the commands that
+  set the namespaces up and tear them down; the supervisor runs them. With
+  ``plant="mqtt"`` the embedded broker, the building and the bridge are on the plant's side.
 
 ``RunPlan.describe()`` prints the plan (``comems4build launch --print-plan``); the tests
 check plans without processes.
@@ -75,6 +81,14 @@ HOST_WATCHDOG_PERIOD_S = 0.1
 HOST_RECORDER_TICK_S = 0.2
 #: Process layouts: one process per node, or one process per role for all buildings.
 LAYOUTS = ("node", "role")
+#: Networks: this host as it is, or two network namespaces joined by a veth pair.
+NETWORKS = ("local", "netns")
+#: Host group of each role in the ``netns`` network (the others: everything in ``local``).
+#: (An MQTT broker goes with the building it serves, on the plant's host.)
+NETNS_GROUP_OF_ROLE = {"plant": "plant_host", "feed": "plant_host", "broker": "plant_host", "ems": "ems_host",
+                       "recorder": "ems_host"}
+#: Fast DDS profile of the ``netns`` network: UDPv4 only (no shared memory across hosts).
+FASTDDS_UDP_PROFILE = "fastdds_profile_udp.xml"
 #: Stop stages: plant, feed and EMS first, then the recorders (they close the bags),
 #: then services (discovery server).
 STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES = 0, 1, 2
@@ -127,6 +141,10 @@ class LaunchOptions:
     topic_map : topic map of bridge and building (None = ``config/mqtt.yaml``)
     inputs : ``scenario`` (default) or ``live`` (the feed's live prices and weather,
         ``config/live_inputs.yaml``, cache files in ``out``)
+    network : ``local`` or ``netns`` (:data:`NETWORKS`; see the module docstring)
+    netem : ``tc netem`` arguments for both ends of the veth link in the ``netns`` network,
+        e.g. ``delay 5ms loss 1%`` (None = none; skipped with a message where the kernel
+        lacks netem)
     """
 
     ems: str
@@ -154,6 +172,8 @@ class LaunchOptions:
     broker_url: str | None = None
     topic_map: str | None = None
     inputs: str = "scenario"
+    network: str = "local"
+    netem: str | None = None
 
     @property
     def layout(self) -> str:
@@ -221,10 +241,14 @@ class HostGroup:
     ----------
     name : group name (``local`` = this host as it is)
     env : environment additions of every process of the group
+    netns : Linux network namespace the group's processes run in (None = the launcher's)
+    address : the group's IPv4 address on the link to the other group (None = local)
     """
 
     name: str
     env: dict[str, str] = field(default_factory=dict)
+    netns: str | None = None
+    address: str | None = None
 
 
 @dataclass(frozen=True)
@@ -255,6 +279,9 @@ class RunPlan:
         supervisor sets: domain id, discovery range, log directory)
     run_info : the run's description stored in every bag (``run_info.json``)
     timeout_s : overall wall-time limit [s] (None = none)
+    setup : commands run before the first process (network namespaces, link)
+    optional_setup : commands whose failure only prints a note (``tc netem``)
+    teardown : commands run after the last process stopped
     """
 
     ems: str
@@ -268,6 +295,9 @@ class RunPlan:
     env: dict[str, str] = field(default_factory=dict)
     run_info: dict[str, Any] = field(default_factory=dict)
     timeout_s: float | None = None
+    setup: tuple[tuple[str, ...], ...] = ()
+    optional_setup: tuple[tuple[str, ...], ...] = ()
+    teardown: tuple[tuple[str, ...], ...] = ()
 
     def process(self, name: str) -> ProcessPlan:
         """The process called ``name`` (KeyError naming the known ones)."""
@@ -288,15 +318,20 @@ class RunPlan:
             f"time limit {'none' if self.timeout_s is None else f'{self.timeout_s:g} s'}",
             f"bag: {self.bag}",
         ]
+        for cmd in (*self.setup, *self.optional_setup):
+            lines.append(f"setup $ {' '.join(cmd)}")
         for g in self.groups.values():
             env = " ".join(f"{k}={v}" for k, v in sorted(g.env.items()))
-            lines.append(f"group {g.name}" + (f": {env}" if env else ""))
+            where = f" (network namespace {g.netns}, {g.address})" if g.netns else ""
+            lines.append(f"group {g.name}{where}" + (f": {env}" if env else ""))
             for p in self.processes:
                 if p.group != g.name:
                     continue
                 nodes = ", ".join(f"{n.namespace.rstrip('/')}/{n.name}" for n in p.nodes) or "-"
                 lines.append(f"  process {p.name} [{p.role}, stop stage {p.stop_stage}]: {nodes}")
                 lines.append(f"    $ {' '.join(p.argv)}")
+        for cmd in self.teardown:
+            lines.append(f"teardown $ {' '.join(cmd)}")
         return "\n".join(lines)
 
     def to_dict(self) -> dict[str, Any]:
@@ -314,7 +349,10 @@ class RunPlan:
             "timeout_s": self.timeout_s,
             "env": self.env,
             "buildings": [{"namespace": b.namespace, "seed": b.seed, "bag": str(b.bag)} for b in self.buildings],
-            "groups": [{"name": g.name, "env": g.env} for g in self.groups.values()],
+            "groups": [{"name": g.name, "env": g.env, "netns": g.netns, "address": g.address}
+                       for g in self.groups.values()],
+            "setup": [list(c) for c in (*self.setup, *self.optional_setup)],
+            "teardown": [list(c) for c in self.teardown],
             "processes": [
                 {"name": p.name, "role": p.role, "group": p.group, "argv": list(p.argv),
                  "nodes": [node(n) for n in p.nodes], "files": [f for f, _ in p.files], "env": p.env,
@@ -514,6 +552,8 @@ def check_plant_options(opts: LaunchOptions) -> None:
         raise ValueError("clock 'wall', a broker URL and a topic map need plant 'mqtt' (plant_sim runs lock-step)")
     if opts.plant == "mqtt" and (opts.buildings > 1 or opts.layout != "node"):
         raise ValueError("plant 'mqtt' runs one building, one process per node")
+    if opts.plant == "mqtt" and opts.broker_url and opts.network != "local":
+        raise ValueError("a broker URL needs network 'local' (the 'netns' namespaces reach no other host)")
 
 
 def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]]) -> list[ProcessPlan]:
@@ -574,6 +614,8 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     seeds = building_seeds(opts)
     info = run_info(opts, params, seeds)
     layout = opts.layout
+    if opts.network not in NETWORKS:
+        raise ValueError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
     if layout == "role" and opts.buildings_per_recorder < 1:
         raise ValueError(f"buildings_per_recorder must be >= 1, got {opts.buildings_per_recorder}")
     common: dict[str, Any] = {"config_files": info["config_files"]}
@@ -587,7 +629,9 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         processes = _node_processes(opts, buildings, common, bag, info)
     use_server = opts.discovery_server
     if use_server is None:
-        use_server = opts.buildings > 1 and layout == "node"
+        use_server = opts.buildings > 1 and layout == "node" and opts.network == "local"
+    if use_server and opts.network != "local":
+        raise ValueError("a discovery server is not planned for the 'netns' network (unicast peers are used)")
     if use_server:
         port = DISCOVERY_PORT_BASE + domain_id
         argv = discovery_server_command(port)
@@ -599,6 +643,19 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
             ]
         else:
             print("launcher: fast-discovery-server not found, using simple discovery", file=sys.stderr)
+    groups = {LOCAL_GROUP: HostGroup(LOCAL_GROUP)}
+    setup: tuple[tuple[str, ...], ...] = ()
+    optional_setup: tuple[tuple[str, ...], ...] = ()
+    teardown: tuple[tuple[str, ...], ...] = ()
+    if opts.network == "netns":
+        groups, setup, optional_setup, teardown = netns_network(domain_id, opts.netem)
+        processes = [
+            dataclasses.replace(p, group=NETNS_GROUP_OF_ROLE[p.role],
+                                argv=("ip", "netns", "exec", str(groups[NETNS_GROUP_OF_ROLE[p.role]].netns), *p.argv))
+            for p in processes
+        ]
+    elif opts.netem:
+        raise ValueError("netem applies to the 'netns' network only")
     return RunPlan(
         ems=opts.ems,
         out=out,
@@ -606,7 +663,10 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         domain_id=domain_id,
         layout=layout,
         buildings=buildings,
-        groups={LOCAL_GROUP: HostGroup(LOCAL_GROUP)},
+        groups=groups,
+        setup=setup,
+        optional_setup=optional_setup,
+        teardown=teardown,
         processes=tuple(processes),
         run_info=info,
         timeout_s=None if opts.timeout_s == math.inf else (
@@ -692,3 +752,45 @@ def _role_processes(
         out.append(ProcessPlan(name, role, tuple(host_command(role, path)), nodes=tuple(by_role[role]),
                                files=files, finishes=True))
     return out
+
+
+def netns_network(
+    domain_id: int, netem: str | None
+) -> tuple[dict[str, HostGroup], tuple[tuple[str, ...], ...], tuple[tuple[str, ...], ...], tuple[tuple[str, ...], ...]]:
+    """Two network namespaces joined by a veth pair: host groups and set-up/tear-down commands.
+
+    Names carry the (locked) domain id, so concurrent launches do not collide: namespaces
+    ``c4b<id>p`` (plant host) and ``c4b<id>e`` (EMS host), link ``10.231.<id>.0/24`` with
+    ``.1`` on the plant side and ``.2`` on the EMS side. Each group's processes get UDP-only
+    Fast DDS (:data:`FASTDDS_UDP_PROFILE`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` and the
+    other side as ``ROS_STATIC_PEERS`` (unicast discovery, no multicast needed).
+    """
+    from .supervisor import fastdds_profile
+
+    profile = fastdds_profile(FASTDDS_UDP_PROFILE)
+    sides = {"plant_host": ("p", 1), "ems_host": ("e", 2)}
+    groups: dict[str, HostGroup] = {}
+    setup: list[tuple[str, ...]] = []
+    optional: list[tuple[str, ...]] = []
+    teardown: list[tuple[str, ...]] = []
+    addr = {g: f"10.231.{domain_id}.{n}" for g, (_, n) in sides.items()}
+    for g, (tag, _n) in sides.items():
+        other = next(o for o in sides if o != g)
+        env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_PEERS": addr[other]}
+        if profile is not None:
+            env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+        groups[g] = HostGroup(g, env, netns=f"c4b{domain_id}{tag}", address=addr[g])
+    ns_p, ns_e = groups["plant_host"].netns, groups["ems_host"].netns
+    dev_p, dev_e = f"{ns_p}0", f"{ns_e}0"
+    assert ns_p is not None and ns_e is not None
+    setup += [("ip", "netns", "add", ns_p), ("ip", "netns", "add", ns_e),
+              ("ip", "link", "add", dev_p, "type", "veth", "peer", "name", dev_e),
+              ("ip", "link", "set", dev_p, "netns", ns_p), ("ip", "link", "set", dev_e, "netns", ns_e)]
+    for ns, dev, g in ((ns_p, dev_p, "plant_host"), (ns_e, dev_e, "ems_host")):
+        setup += [("ip", "-n", ns, "addr", "add", f"{addr[g]}/24", "dev", dev),
+                  ("ip", "-n", ns, "link", "set", "lo", "up"), ("ip", "-n", ns, "link", "set", dev, "up")]
+        if netem:
+            optional.append(("ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", dev, "root", "netem",
+                             *netem.split()))
+    teardown += [("ip", "netns", "del", ns_p), ("ip", "netns", "del", ns_e)]
+    return groups, tuple(setup), tuple(optional), tuple(teardown)

@@ -333,13 +333,33 @@ def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = N
     return env
 
 
-def fastdds_profile() -> Path | None:
-    """``fastdds_profile.xml`` (deep shared-memory port queues): source tree, then installed share."""
-    src = Path(__file__).resolve().parents[2] / "launch_scripts" / FASTDDS_PROFILE
+def fastdds_profile(name: str = FASTDDS_PROFILE) -> Path | None:
+    """A Fast DDS profile of ``launch_scripts/`` (default ``fastdds_profile.xml``: deep
+    shared-memory port queues): source tree, then installed share."""
+    src = Path(__file__).resolve().parents[2] / "launch_scripts" / name
     if src.is_file():
         return src
-    installed = Path(sys.prefix) / "share" / "comems4build_ros" / "launch" / FASTDDS_PROFILE
+    installed = Path(sys.prefix) / "share" / "comems4build_ros" / "launch" / name
     return installed if installed.is_file() else None
+
+
+def run_commands(commands: Sequence[Sequence[str]], optional: bool = False) -> list[str]:
+    """Run set-up or tear-down commands in order; returns the notes of failed optional ones.
+
+    Raises
+    ------
+    LaunchError
+        When a required command fails (naming it and its error output).
+    """
+    notes = []
+    for cmd in commands:
+        res = subprocess.run(list(cmd), capture_output=True, text=True)
+        if res.returncode != 0:
+            msg = f"'{' '.join(cmd)}' failed ({res.returncode}): {res.stderr.strip()}"
+            if not optional:
+                raise LaunchError(msg)
+            notes.append(msg)
+    return notes
 
 
 class Progress:
@@ -466,7 +486,7 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
     env = dict(child_env(plan.domain_id, plan.out / "log" / "ros"), **plan.env)
     recorders_n = sum(1 for p in plan.processes if p.progress)
     progress = Progress(recorders_n)
-    with sigterm_as_keyboard_interrupt():
+    with sigterm_as_keyboard_interrupt(), _network(plan):
         t0 = time.monotonic()
         with ProcessGroup(env, plan.out / "log") as group:
             recorders: list[Child] = []
@@ -486,3 +506,22 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
             t_first_record = supervise(group, recorders, plants, progress, report, t0, plan.timeout_s)
             t_end = time.monotonic()
     return Supervised(t0, t_first_record, t_end)
+
+
+@contextlib.contextmanager
+def _network(plan: RunPlan) -> Iterator[None]:
+    """Run the plan's set-up commands, then always its tear-down commands.
+
+    A failed optional command (``tc netem`` where the kernel lacks it) is reported on
+    stderr and the run goes on without it.
+    """
+    if not plan.setup and not plan.optional_setup:
+        yield
+        return
+    try:
+        run_commands(plan.setup)
+        for note in run_commands(plan.optional_setup, optional=True):
+            print(f"launcher: note: {note}; running without it (the kernel offers no netem here)", file=sys.stderr)
+        yield
+    finally:
+        run_commands(plan.teardown, optional=True)
