@@ -388,8 +388,12 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
         print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
     finally:
+        from .host import ignore_sigint, print_cpu
+
+        ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
         executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        print_cpu(name)
     return code

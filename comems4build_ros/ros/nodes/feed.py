@@ -161,6 +161,36 @@ def load_scenario(
     return out
 
 
+#: Feed parameters that choose the scenario, with their defaults.
+SCENARIO_PARAMS: dict[str, Any] = {
+    "scenario": "default", "start": "", "weeks": 0, "seed": -1, "steps": 0, "allow_gap_fill": False,
+}
+
+
+def scenario_args(values: dict[str, Any], params: Any) -> tuple[Any, ...]:
+    """Positional arguments of :func:`load_scenario` from the feed's parameter values."""
+    seed = int(values["seed"])
+    return (str(values["scenario"]), params, str(values["start"]) or None, int(values["weeks"]) or None,
+            None if seed < 0 else seed, int(values["steps"]) or None, bool(values["allow_gap_fill"]))
+
+
+def prepare_scenario(node_params: dict[str, Any]) -> tuple[Scenario, list[str]]:
+    """The scenario a feed node with ROS parameters ``node_params`` (``config_files``,
+    ``overrides`` and :data:`SCENARIO_PARAMS`) loads, and the loader's notes; no rclpy."""
+    import yaml
+
+    from ...config import load_plant_params
+
+    overrides = {}
+    for item in node_params.get("overrides") or []:
+        key, _, value = str(item).partition("=")
+        overrides[key.strip()] = yaml.safe_load(value)
+    params = load_plant_params([f for f in node_params.get("config_files") or [] if f], overrides)
+    values = {name: node_params.get(name, default) for name, default in SCENARIO_PARAMS.items()}
+    notes: list[str] = []
+    return load_scenario(*scenario_args(values, params), notes=notes), notes
+
+
 class LiveFeed:
     """Live prices and weather for the feed (parameter ``inputs:=live``; docs/real_building.md).
 
@@ -241,23 +271,21 @@ class LiveFeed:
 class Feed(ContractNode):
     """Scenario publisher node (see the module docstring)."""
 
-    def __init__(self, **node_kwargs: Any) -> None:
-        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
+    def __init__(self, scenario: Scenario | None = None, **node_kwargs: Any) -> None:
+        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``;
+        ``scenario``: the scenario of the node's parameters prepared beforehand
+        (:func:`prepare_scenario`, used by the feed host to build many in parallel)."""
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         from ...sim import load_forecast_settings
 
         params = plant_params_from_node(self)
-        spec = str(param(self, "scenario", "default"))
-        weeks = int(param(self, "weeks", 0)) or None
-        steps = int(param(self, "steps", 0)) or None
-        start = str(param(self, "start", "")) or None
-        seed = int(param(self, "seed", -1))
+        values = {name: param(self, name, default) for name, default in SCENARIO_PARAMS.items()}
+        seed = int(values["seed"])
         mode = str(param(self, "forecast_mode", ""))
         self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
-
-        allow_fill = bool(param(self, "allow_gap_fill", False))
         notes: list[str] = []
-        scenario = load_scenario(spec, params, start, weeks, None if seed < 0 else seed, steps, allow_fill, notes)
+        if scenario is None:
+            scenario = load_scenario(*scenario_args(values, params), notes=notes)
         for note in notes:
             self.get_logger().warning(note)
         check_scenario(scenario, params.simulation.time_step_h)

@@ -334,7 +334,7 @@ class Recorder(Node):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``recorder`` (``ros2 run comems4build_ros recorder``)."""
-    return run_node(Recorder, args)
+    return run_node(Recorder, args, NODE_NAME)
 
 
 if __name__ == "__main__":
