@@ -292,3 +292,23 @@ def test_ready_cdr_bytes_equal_rclpy_serialisation(params) -> None:
         assert list(back.data) == list(data) and back.layout.data_offset == 0, spec.name
         (dim,) = back.layout.dim
         assert (dim.label, dim.size, dim.stride) == (lay.dim_label, lay.length, lay.length), spec.name
+
+
+@pytest.mark.parametrize("labels", [[], ["x"], ["step,t_air_c", "ab"], ["a" * 7]])
+def test_parse_array_reads_what_rclpy_serialises(labels) -> None:
+    from array import array
+
+    from rclpy.serialization import serialize_message
+    from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+    from comems4build_ros.ros.common import parse_array
+
+    values = array("d", [3.0, -0.1, 1e300, 7.25])
+    msg = Float64MultiArray(data=values)
+    msg.layout.dim = [MultiArrayDimension(label=lab, size=4, stride=4) for lab in labels]
+    raw = serialize_message(msg)
+    assert parse_array(raw) == values
+    with pytest.raises(ValueError, match="cut short"):
+        parse_array(raw[:-3])
+    with pytest.raises(ValueError, match="little-endian"):
+        parse_array(b"\x00\x00")

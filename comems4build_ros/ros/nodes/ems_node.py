@@ -34,7 +34,7 @@ from collections.abc import Callable
 from typing import Any
 
 from rclpy.task import Future
-from std_msgs.msg import Float64MultiArray, String
+from std_msgs.msg import String
 
 from ...ems import make_controller
 from ...ems.base import Observation
@@ -44,6 +44,7 @@ from ..common import (
     ContractNode,
     layout_sizes,
     param,
+    parse_array,
     plant_params_from_node,
     run_node,
 )
@@ -109,7 +110,7 @@ class EMSNode(ContractNode):
         self._last_cmd: array | None = None
         self.steps = 0
         for i, topic in enumerate(self._inputs):
-            self.contract_subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name))
+            self.contract_subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name), raw=True)
         self.exit_when_done = bool(param(self, "exit_when_done", True))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
@@ -119,12 +120,16 @@ class EMSNode(ContractNode):
             + ", ".join(t.name for t in self._inputs)
         )
 
-    def _callback(self, index: int, layout: Any, topic: str) -> Callable[[Float64MultiArray], None]:
+    def _callback(self, index: int, layout: Any, topic: str) -> Callable[[bytes], None]:
         bit = 1 << index
         resend = topic == RESEND_TRIGGER_TOPIC
 
-        def on_msg(msg: Float64MultiArray) -> None:
-            data = msg.data
+        def on_msg(raw: bytes) -> None:
+            try:
+                data = parse_array(raw)
+            except ValueError as exc:
+                self.get_logger().error(f"topic '{topic}': {exc}; message dropped")
+                return
             step = int(data[0]) if len(data) else -1
             if step <= self._answered:
                 if resend and step == self._answered and self._last_cmd is not None:
