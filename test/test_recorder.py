@@ -235,3 +235,34 @@ def test_recorder_waits_only_briefly_for_optional_ems_info(tmp_path: Path) -> No
         _wait_log(log, "optional topics without a publisher after 1 s, recorded if they appear: /ems/info", 30.0)
         _wait_log(log, "ready: subscribed to every topic", 5.0)
         assert "no publisher after 60" not in log.read_text()
+
+
+def test_bag_writer_writes_the_bytes_rosbags_writes(tmp_path: Path) -> None:
+    """BagWriter's own MCAP message records: the same .mcap and metadata.yaml as rosbags' Writer.write."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    from comems4build_ros.ros.bag import METADATA_VERSION, qos_for_bag, ros_type_to_bag_type, set_ros_distro
+
+    msgs = [("/state/soc", 1_000 + 7 * k, _array([k, 0.5])) for k in range(50)]
+    msgs += [("/plant/step", 5_000 + k, bytes(typestore().serialize_cdr(typestore().types["std_msgs/msg/UInt32"](k),
+                                                                        "std_msgs/msg/UInt32"))) for k in range(5)]
+    topics = {"/state/soc": ARRAY, "/plant/step": "std_msgs/msg/UInt32"}
+    ours = tmp_path / "ours" / "bag"
+    ours.parent.mkdir()
+    with BagWriter(ours, chunk_max_bytes=1 << 30) as w:
+        for t, typ in topics.items():
+            w.add_topic(t, typ)
+        for topic, t_ns, raw in msgs:
+            w.write(topic, t_ns, raw)
+    ref = tmp_path / "ref" / "bag"
+    ref.parent.mkdir()
+    writer = Writer(ref, version=METADATA_VERSION, storage_plugin=StoragePlugin.MCAP)
+    writer.open()
+    conns = {t: writer.add_connection(t, ros_type_to_bag_type(typ), typestore=typestore(),
+                                      offered_qos_profiles=[qos_for_bag()]) for t, typ in topics.items()}
+    for topic, t_ns, raw in msgs:
+        writer.write(conns[topic], t_ns, raw)
+    writer.close()
+    set_ros_distro(ref / "metadata.yaml")
+    assert (ours / "bag.mcap").read_bytes() == (ref / "bag.mcap").read_bytes()
+    assert (ours / "metadata.yaml").read_text() == (ref / "metadata.yaml").read_text()

@@ -111,6 +111,7 @@ class Replay(ContractNode):
         messages = sorted(by_ns[ns], key=lambda m: m[1])
         self._pubs = {name: self.contract_publisher(name) for name in sorted({m[0] for m in messages})}
         self.published = 0
+        self._finishing = False
         self.finished = Future()
         if self.inputs_only:
             self._steps: dict[int, list[tuple[str, bytes]]] = {}
@@ -162,10 +163,11 @@ class Replay(ContractNode):
             n += 1
             if n >= BURST:
                 break
-        if self._i >= len(self._messages):
+        if self._i >= len(self._messages) and not self._finishing:
+            self._finishing = True
             self._wait_acks()
-            self.get_logger().info(f"replay done: {self.published} messages")
-            self.finished.set_result(0)
+            self.get_logger().info(f"replay done: {self.published} messages; exiting once the recorder has left")
+            self.finish_when_recorded(next(iter(self._pubs)))
 
     def _subscribers_ready(self, now: float) -> bool:
         """Every topic has a subscriber (plus ``settle_s``), or ``wait_for_subscribers_s`` passed."""
@@ -196,10 +198,12 @@ class Replay(ContractNode):
                 self.published += 1
         self._next = max(self._next, last + 1)
         self._last_request = max(self._last_request, k)
-        if k >= self.last_step and not self.finished.done():
+        if k >= self.last_step and not self._finishing:
+            self._finishing = True
             self._wait_acks()
-            self.get_logger().info(f"inputs-only replay done: plant at step {k}, {self.published} messages")
-            self.finished.set_result(0)
+            self.get_logger().info(f"inputs-only replay done: plant at step {k}, {self.published} messages; "
+                                   "exiting once the recorder has left")
+            self.finish_when_recorded(next(iter(self._pubs)))
 
 
 def parse_cli(argv: list[str]) -> argparse.Namespace:
