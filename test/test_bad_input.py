@@ -479,7 +479,8 @@ def recorded_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
             row = ts.iloc[k]
             time_s = pd.Timestamp(row["time"]).timestamp()
             values = {c: row[c] for c in TIMESERIES_COLUMNS[1:]}
-            values.update(time_unix_s=time_s, fallback_steps=0, rejected_commands=0, wrong_step_commands=0)
+            values.update(time_unix_s=time_s, fallback_steps=0, rejected_commands=0, wrong_step_commands=0,
+                          foreign_commands=0)
             exo = dict.fromkeys(truth.index, 0.0)
             exo.update(step=k, n_steps=n, time_unix_s=time_s)
             w.write("/feed/truth", t0 + 2 * k, cdr(truth.pack(exo)))

@@ -572,7 +572,7 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
             first_ns=int(first_ns or 0),
             last_ns=max(t for t, _ in by_step.values()),
             counters={c: int(last[c]) for c in counter_names},
-            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete),
+            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete, set(info.topics)),
             ems=ems_names.get(ns),
             scenario=scenarios.get(ns),
         )
@@ -580,12 +580,20 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
 
 
 def find_gaps(
-    contract: Any, ns: str, n: int, fallback: set[int], seen: dict[str, set[int]], complete: bool
+    contract: Any,
+    ns: str,
+    n: int,
+    fallback: set[int],
+    seen: dict[str, set[int]],
+    complete: bool,
+    recorded: set[str] | None = None,
 ) -> dict[str, list[int]]:
     """Steps of a recorded run with no message, per topic of namespace ``ns``.
 
     Checked: every ``Float64MultiArray`` topic of the contract (element 0 is the step),
-    ``plant/step`` and, if the EMS published it at all, ``ems/info``; steps ``0 .. n-1``
+    ``plant/step`` and, if the EMS published it at all, ``ems/info``, among the topics the
+    bag records (``recorded``: its connections; None = all; a topic left out of a
+    recording is not a gap); steps ``0 .. n-1``
     (``n`` = recorded ``plant/record`` steps), except the fallback steps for the EMS's
     topics (no command is expected there). A bag cut short (recorder killed) is checked
     up to :data:`CUT_TAIL_STEPS` steps before its last record (the feed runs ahead and
@@ -598,6 +606,8 @@ def find_gaps(
         if spec.name == RECORD_TOPIC:
             continue
         full = resolve_ns(ns, spec.name)
+        if recorded is not None and full not in recorded:
+            continue
         if spec.is_array or spec.name == STEP_TOPIC:
             pass
         elif spec.name == INFO_TOPIC and full in seen:
