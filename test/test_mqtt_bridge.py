@@ -46,7 +46,7 @@ from comems4build_ros.ros.launcher import LaunchOptions, acquire_domain_id, laun
 from comems4build_ros.sim import simulate  # noqa: E402
 
 pytestmark = pytest.mark.ros
-TIMING_KEYS = ("wall_s", "ems_s")
+TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # only in summaries from a bag
 #: KPIs compared for the wall-clock run (summary keys).
 KPI_KEYS = ("cost_eur_week_median", "discomfort_kh_week_median", "buy_kwh_week_median", "sell_kwh_week_median",
             "loh_end")
@@ -120,7 +120,7 @@ def test_launch_mqtt_plant_two_weeks_equals_in_process(tmp_path: Path) -> None:
     launch(LaunchOptions(ems="fuzzy", out=out, weeks=2, plant="mqtt", timeout_s=900))
     summary = json.loads((out / "summary.json").read_text())
     _same(summary, _reference(2))
-    assert summary["steps"] == 336 and summary["fallback_steps"] == 0
+    assert summary["steps"] == 336 and summary["fallback_steps"] == 0 and summary["lost_messages"] == {}
     log = (out / "log" / "mqtt_bridge.log").read_text()
     assert "run done: steps=336 fallback_steps=0" in log and "clamped_commands=0" in log
 
@@ -169,7 +169,7 @@ def test_broker_restart_mid_run_loses_no_step(tmp_path: Path, broker: Broker) ->
     assert "error" not in result, result.get("error")
     summary = json.loads((out / "summary.json").read_text())
     _same(summary, _reference(1, 96))
-    assert summary["steps"] == 96
+    assert summary["steps"] == 96 and summary["lost_messages"] == {}
     log = (out / "log" / "mqtt_bridge.log").read_text()
     connects = int(float(log.split("mqtt_connects=")[1].split()[0]))
     assert connects >= 2, "the bridge did not reconnect"
@@ -223,7 +223,9 @@ class Rig:
             k = int(msg.data[0])
             if k not in self.announced:
                 self.announced.append(k)
-                self.cmd_pub.publish(Float64MultiArray(data=[float(k), *self.command(k)]))
+                if k == 3:  # another EMS on the topic first: its token is not the run's
+                    self.cmd_pub.publish(Float64MultiArray(data=[float(k), 0.0, 0.0, 0.0, 0.0, RIG_TOKEN + 1]))
+                self.cmd_pub.publish(Float64MultiArray(data=[float(k), *self.command(k), RIG_TOKEN]))
 
         self.node.create_subscription(Float64MultiArray, "state/t_air_c", on_state,
                                       c.topic("state/t_air_c").qos_profile())
@@ -287,6 +289,8 @@ class Rig:
 
 GOOD = {"t_air_c": 20.5, "v_dhw_l": 200.0, "soc": 0.5, "loh": 0.9, "hp_mod": 0.0, "fc_on": 0.0,
         "t_wall_in_c": 19.0, "t_wall_out_c": 5.0, "p_pv_w": 0.0, "p_load_w": 400.0, "t_amb_c": 2.0}
+#: Run token of the scripted EMS's commands (the last element of ems/command).
+RIG_TOKEN = 7.0
 #: The scripted EMS: hp_mod, hp_mode, p_fc_w, p_bess_w; step 1 asks the battery for 5 kW.
 NORMAL = [0.6, 1.0, 0.0, 200.0]
 
@@ -332,8 +336,9 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
         assert [(a["step"], a["kind"]) for a in rig.ros_alarms][:1] == [(2, "out_of_range")]
         assert "t_air_c" in rig.mqtt_alarms[0]["detail"] and rig.mqtt_alarms[0]["action"]["hp_mode"] == 1
         assert any(s["step"] == 2 and s["alarm"] == "ON" for s in rig.ha_states)
-        # step 3: back to the EMS
+        # step 3: back to the EMS; the other token's command of step 3 is ignored and counted
         assert 3 in rig.announced and rig.setpoints[3]["hp_mod"] == 0.6
+        assert any("foreign" in e and "token 8 ignored" in e for e in rig.events)
         last = [s for s in rig.ha_states if s["step"] == 3][-1]
         assert last["clamped_commands"] == 1 and last["fallback_steps"] == 1 and last["alarm"] == "OFF"
         # step 4: EMS switched off in Home Assistant -> the safe action (here: rooms within

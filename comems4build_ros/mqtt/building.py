@@ -52,7 +52,8 @@ POLL_S = 0.002
 #: of the step before applying the latest ones (tagged set-points only).
 WALL_SETPOINT_WAIT_SHARE = 0.3
 #: Record fields the bridge fills in (not known to the building).
-BRIDGE_RECORD_FIELDS = ("fallback", "fallback_steps", "rejected_commands", "wrong_step_commands")
+BRIDGE_RECORD_FIELDS = ("fallback", "fallback_steps", "rejected_commands", "wrong_step_commands",
+                        "foreign_commands")
 
 
 def record_fields(k: int, n_steps: int, t0_unix_s: float, flows: Flows, state: PlantState, action: Action,

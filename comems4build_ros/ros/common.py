@@ -337,6 +337,12 @@ def command_bounds(params: PlantParams) -> dict[str, tuple[float, float]]:
 VALID_HP_MODES = (HP_OFF, HP_SH, HP_DHW)
 
 
+def check_token(token: float) -> None:
+    """Raise :class:`CommandError` unless ``token`` is a run token (integer in 1 .. 2^53-1)."""
+    if not 0 < token < MAX_TOKEN or token != int(token):
+        raise CommandError("token", f"not an integer in 1..2^53-1: {token}")
+
+
 def command_to_action(
     data: Sequence[float], layout: Layout, bounds: dict[str, tuple[float, float]]
 ) -> tuple[int, Action]:
@@ -356,9 +362,7 @@ def command_to_action(
     step_f = data[0]
     if step_f < 0 or step_f != int(step_f):
         raise CommandError("step", f"not a non-negative integer: {step_f}")
-    token = data[layout.length - 1]
-    if not 0 < token < MAX_TOKEN or token != int(token):
-        raise CommandError("token", f"not an integer in 1..2^53-1: {token}")
+    check_token(data[layout.length - 1])
     values = dict(zip(ACTION_FIELDS, data[1:]))
     mode = values["hp_mode"]
     if mode not in VALID_HP_MODES:

@@ -6,7 +6,12 @@ building's MQTT measurements and forwards each ``ems/command`` as MQTT set-point
 (heat-pump mode and modulation, fuel-cell power, battery power) with the topics, units
 and scaling of the topic map (``config/mqtt.yaml``). With the map's PV and load meters it
 also publishes ``feed/measured`` (the feed then runs with ``publish_measured:=false``).
-The EMS nodes and the step protocol are those of the ROS-only loop.
+The EMS nodes and the step protocol are those of the ROS-only loop, with plant_sim's
+run contract: commands of one run token only (``ems_token``, else the first valid
+command's; others counted as ``foreign_commands``), in lock-step no step announced more
+than ``record_window_steps`` beyond ``recorder/progress`` (with ``wait_for_recorder``),
+and the end of the run through :func:`~comems4build_ros.ros.nodes.plant_sim.finish_run`
+(transient-local ``plant/done``, then the bridge stays until the recorder has left).
 
 Clock (parameter ``clock``; :mod:`comems4build_ros.mqtt.clock`):
 
@@ -53,14 +58,24 @@ from std_msgs.msg import Bool, Float64MultiArray, String, UInt32
 from ... import kpi
 from ...config import W_PER_KW
 from ...ems.fallback import safe_action
+from ...mqtt.building import BRIDGE_RECORD_FIELDS
 from ...mqtt.client import MqttLink
 from ...mqtt.clock import parse_clock
 from ...mqtt.discovery import AVAILABLE, NOT_AVAILABLE, PAYLOAD_OFF, PAYLOAD_ON, discovery_messages
 from ...mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
 from ...mqtt.topicmap import PayloadError, load_topic_map
 from ...types import ACTION_FIELDS, Action
-from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
-from .plant_sim import NS_PER_S, STATE_TOPICS, finish_run, set_loop_params
+from ..common import (
+    ArrayPublisher,
+    CommandError,
+    ContractNode,
+    check_token,
+    layout_sizes,
+    param,
+    plant_params_from_node,
+    run_node,
+)
+from .plant_sim import NS_PER_S, STATE_TOPICS, accept_token, finish_run, set_loop_params
 
 NODE_NAME = "mqtt_bridge"
 #: Lock-step: alarm when the building has sent nothing for this long [s].
@@ -78,8 +93,6 @@ ACK_TIMEOUT_S = 5.0
 #: minutes; a real building sends no tags and is read at the announcement time.
 WALL_TAG_WAIT_SHARE = 0.5
 HP_MODE_WORDS = {0: "off", 1: "heating", 2: "dhw"}
-#: plant/record labels the bridge fills (the building does not know them).
-BRIDGE_LABELS = ("fallback", "fallback_steps", "rejected_commands", "wrong_step_commands")
 
 
 class MqttBridge(ContractNode):
@@ -120,6 +133,7 @@ class MqttBridge(ContractNode):
         self._cmd_sub = self.contract_subscription("ems/command", self._on_command)
         self.contract_subscription("feed/truth", self._on_truth)
         self.contract_subscription("recorder/ready", self._on_recorder_ready)
+        self.contract_subscription("recorder/progress", self._on_recorder_progress)
 
         self.watchdog = MeasurementWatchdog(self.map)
         self.limiter = CommandLimiter.from_map(self.map, self.params)
@@ -143,6 +157,11 @@ class MqttBridge(ContractNode):
         self.rejected_commands = 0
         self.wrong_step_commands = 0
         self.duplicate_commands = 0
+        self.foreign_commands = 0
+        self._token: float | None = float(self.ems_token) if self.ems_token > 0 else None
+        self._recorded = 0  # steps the recorder has written without a gap (recorder/progress)
+        self.held_s = 0.0  # lock-step: time step k+1 waited for the recorder (back-pressure) [s]
+        self._t_held: float | None = None
         self.bad_measurements = 0
         self.untagged_announcements = 0  # wall modes: steps announced without measurements tagged for them
         self._tagged = all(spec.step_key for spec in m.values())
@@ -288,6 +307,10 @@ class MqttBridge(ContractNode):
     def _on_recorder_ready(self, msg: Bool) -> None:
         self._recorder_ready = bool(msg.data)
 
+    def _on_recorder_progress(self, msg: UInt32) -> None:
+        self._recorded = max(self._recorded, int(msg.data))
+        self._advance()
+
     def _on_truth(self, msg: Float64MultiArray) -> None:
         d = msg.data
         ti = self._truth_index
@@ -308,7 +331,15 @@ class MqttBridge(ContractNode):
             self.rejected_commands += 1
             self._event("rejected", f"topic 'ems/command': malformed command {data[:6]}")
             return
+        try:
+            check_token(data[-1])
+        except CommandError as exc:
+            self.rejected_commands += 1
+            self._event("rejected", f"topic 'ems/command' {exc}")
+            return
         step = int(data[0])
+        if not accept_token(self, data[-1], step):
+            return
         if step == self.k - 1 and data == self._last_cmd:
             self.duplicate_commands += 1
             return
@@ -383,9 +414,8 @@ class MqttBridge(ContractNode):
             k = self.next_record
             rec = self._records.pop(k)
             fb = self.fallback_for.pop(k, False)
-            extra = {"fallback": 1.0 if fb else 0.0, "fallback_steps": float(self.fallback_steps),
-                     "rejected_commands": float(self.rejected_commands),
-                     "wrong_step_commands": float(self.wrong_step_commands)}
+            extra = {f: float(getattr(self, f)) for f in BRIDGE_RECORD_FIELDS if f != "fallback"}
+            extra["fallback"] = 1.0 if fb else 0.0
             try:
                 row = array("d", [float(extra[lab]) if lab in extra else float(rec[lab])
                                   for lab in self._record_labels])
@@ -426,12 +456,27 @@ class MqttBridge(ContractNode):
         if self.phase == "sent" and (not records or self.next_record > self.k):
             if self.n_steps is not None and self.k + 1 >= self.n_steps:
                 return  # the last record completes the run
+            if self._behind(self.k + 1):
+                return  # back-pressure: the recorder catches up first (recorder/progress)
             if self.watchdog.complete_for(self.k + 1):
                 self.k += 1
                 self.phase = "measure"
                 self._t_phase = time.monotonic()
         if self.phase == "measure" and self.watchdog.complete_for(self.k):
             self._begin_step(self.k, self.watchdog.check(time.monotonic(), check_age=False))
+
+    def _behind(self, k: int) -> bool:
+        """Lock-step with ``wait_for_recorder``: announcing step ``k`` would run more than
+        ``record_window_steps`` beyond the gap-free recording (back-pressure, as plant_sim);
+        accumulates the held time. The wall clocks are paced by time, not held."""
+        behind = self.wait_for_recorder and k - self._recorded > self.record_window_steps
+        now = time.monotonic()
+        if behind and self._t_held is None:
+            self._t_held = now
+        elif not behind and self._t_held is not None:
+            self.held_s += now - self._t_held
+            self._t_held = None
+        return behind
 
     def _start(self) -> None:
         self.started = True
@@ -514,6 +559,8 @@ class MqttBridge(ContractNode):
             "rejected_commands": float(self.rejected_commands),
             "wrong_step_commands": float(self.wrong_step_commands),
             "duplicate_commands": float(self.duplicate_commands),
+            "foreign_commands": float(self.foreign_commands),
+            "held_for_recorder_s": self.held_s,
             "clamped_commands": float(c.clamped_commands),
             "rate_limited": float(c.rate_limited),
             "bad_measurements": float(self.bad_measurements),

@@ -132,6 +132,22 @@ def finish_run(node: Any, before_done: Any = None) -> None:
         node.finish_when_recorded("plant/record")
 
 
+def accept_token(node: Any, token: float, step: int) -> bool:
+    """Whether a valid command with run token ``token`` comes from the run's EMS
+    (plant_sim, mqtt_bridge): ``node._token`` is ``ems_token``, or else the token of the
+    run's first valid command; any other token is counted in ``node.foreign_commands``,
+    logged on plant/events and its command ignored."""
+    if node._token is None:
+        node._token = token  # the first valid command names the run's EMS
+        node.get_logger().info(f"commands of token {int(token)} accepted from now on")
+    elif token != node._token:
+        node.foreign_commands += 1
+        node._event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} ignored "
+                               f"(the run's EMS has token {int(node._token)})")
+        return False
+    return True
+
+
 class PlantSim(ContractNode):
     """Plant simulator node (see the module docstring)."""
 
@@ -241,14 +257,7 @@ class PlantSim(ContractNode):
             self.rejected_commands += 1
             self._event("rejected", f"topic 'ems/command' {exc}")
             return
-        token = msg.data[-1]
-        if self._token is None:
-            self._token = token  # the first valid command names the run's EMS
-            self.get_logger().info(f"commands of token {int(token)} accepted from now on")
-        elif token != self._token:
-            self.foreign_commands += 1
-            self._event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} ignored "
-                                   f"(the run's EMS has token {int(self._token)})")
+        if not accept_token(self, msg.data[-1], step):
             return
         if step == self.k - 1 and self._last_cmd is not None and list(msg.data) == self._last_cmd:
             # the EMS re-sent the command just applied (answer to a repeated announcement
