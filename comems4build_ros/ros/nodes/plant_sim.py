@@ -39,8 +39,7 @@ from std_msgs.msg import Bool, Float64MultiArray, String, UInt32
 
 from ...ems.fallback import safe_action
 from ...plant import Plant
-from ...sim import STATE_COLUMNS
-from ...types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, PlantState
+from ...types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, PlantState
 from ..common import (
     ArrayPublisher,
     CommandError,
@@ -67,8 +66,10 @@ WATCHDOG_PERIOD_S = 0.02
 #: (``recorder/progress``); the contract's keep-last depth (1000) exceeds it, so no
 #: message can be overwritten before the recorder has it [steps].
 RECORD_WINDOW_STEPS = 256
-#: Wait for the acknowledgement of the last messages before exiting [s].
+#: Wait for the acknowledgement of the last messages before exiting [s] ...
 ACK_TIMEOUT_S = 5.0
+#: ... checked this often [s].
+ACK_POLL_S = 0.02
 #: Interval of the "waiting for feed/truth" warning [s].
 FEED_WARN_PERIOD_S = 10.0
 NS_PER_S = 1_000_000_000
@@ -113,9 +114,14 @@ def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] 
 
 def finish_run(node: Any, before_done: Any = None) -> None:
     """End of a run (plant_sim, mqtt_bridge): log the statistics line, publish plant/done and
-    the line on plant/events, wait for their acknowledgement, then, if ``exit_when_done``,
-    finish once the recorder has left (``finish_when_recorded``: a writer that left at once
-    could take its last messages out of a busy recorder's queue).
+    the line on plant/events, wait (at most :data:`ACK_TIMEOUT_S`) for their acknowledgement,
+    then, if ``exit_when_done``, finish once the recorder has left (``finish_when_recorded``:
+    a writer that left at once could take its last messages out of a busy recorder's queue).
+
+    The acknowledgements are polled by a timer (:data:`ACK_POLL_S`), not awaited in the
+    callback: a host process spins every building's plant on one executor, and a blocking
+    wait (DDS acknowledges on the writer's heartbeat period, seconds) would stall the other
+    buildings' steps at every end of run.
 
     The line is logged first: whoever sees plant/done can rely on it being in the log.
     ``before_done`` (optional) is called between the log line and plant/done.
@@ -126,10 +132,20 @@ def finish_run(node: Any, before_done: Any = None) -> None:
         before_done()
     node._done_pub.publish(Bool(data=True))
     node._events_pub.publish(String(data=f"{node.k} stats {line}"))
-    for pub in (node._record.publisher, node._done_pub, node._events_pub):
-        pub.wait_for_all_acked(Duration(nanoseconds=int(ACK_TIMEOUT_S * NS_PER_S)))
-    if node.exit_when_done:
-        node.finish_when_recorded("plant/record")
+    pubs = (node._record.publisher, node._done_pub, node._events_pub)
+    t0 = time.monotonic()
+    now_only = Duration(nanoseconds=0)
+    timer: Any = None
+
+    def poll() -> None:
+        if not all(p.wait_for_all_acked(now_only) for p in pubs) and time.monotonic() - t0 < ACK_TIMEOUT_S:
+            return
+        timer.cancel()
+        node.destroy_timer(timer)
+        if node.exit_when_done:
+            node.finish_when_recorded("plant/record")
+
+    timer = node.create_timer(ACK_POLL_S, poll)
 
 
 def accept_token(node: Any, token: float, step: int) -> bool:
