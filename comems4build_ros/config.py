@@ -58,6 +58,11 @@ def default_plant_file() -> Path:
     return config_dir() / "plant.yaml"
 
 
+#: libyaml's safe loader where PyYAML has it (same documents, about 10x faster: every node
+#: process parses the contract and the plant parameters at start-up), else the Python one.
+SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
+
+
 def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError) -> Any:
     """Parse a YAML file; ``error`` names the file (and ``what`` it is) when that fails.
 
@@ -78,7 +83,7 @@ def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError)
             f"{exc.start}); a binary file?"
         ) from None
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=SAFE_LOADER)  # noqa: S506 (a safe loader)
     except yaml.YAMLError as exc:
         raise error(f"{path}: invalid YAML: {exc}") from exc
 

@@ -24,23 +24,17 @@ from pydantic import BaseModel, ConfigDict, Field
 from . import kpi
 from .config import PlantParams, config_dir, read_ros_params, validate
 from .ems import make_controller
-from .ems.base import FORECAST_KEYS, INFO_LEVELS, Controller, Observation
+from .ems.base import BOUNDS_AHEAD, FORECAST_KEYS, INFO_LEVELS, PRICE_WINDOW, Controller, Observation
 from .fileio import atomic_dir
 from .models.pv import pv_power_w
 from .plant import Plant
 from .scenario.base import Scenario
-from .types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, Flows, PlantState
+from .types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, Flows, PlantState
 
-#: Steps shown in the price window and forecasts (h at 1 h steps), ``eq:EDF_prices``.
-PRICE_WINDOW = 24
-#: Comfort look-ahead of ComEMS4Build, ``eq:s_sh`` (k .. k+5).
-BOUNDS_AHEAD = 5
 #: Hours of a day and of a week [h].
 HOURS_PER_DAY = 24.0
 HOURS_PER_WEEK = 168.0
 
-#: End-of-step state columns of the timeseries (hp_mod and fc_on come with the flows).
-STATE_COLUMNS = ("soc", "loh", "t_air_c", "t_wall_in_c", "t_wall_out_c", "v_dhw_l")
 #: Applied-command columns (what the EMS asked for, before the plant clipped it).
 COMMAND_COLUMNS = tuple(f"cmd_{name}" for name in ACTION_FIELDS)
 #: Exogenous columns not already among the flows.

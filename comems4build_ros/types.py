@@ -146,3 +146,5 @@ STATE_FIELDS = tuple(f.name for f in fields(PlantState))
 ACTION_FIELDS = tuple(f.name for f in fields(Action))
 EXOGENOUS_FIELDS = tuple(f.name for f in fields(Exogenous))
 FLOW_FIELDS = tuple(f.name for f in fields(Flows))
+#: End-of-step state columns of the timeseries (hp_mod and fc_on come with the flows).
+STATE_COLUMNS = ("soc", "loh", "t_air_c", "t_wall_in_c", "t_wall_out_c", "v_dhw_l")

@@ -32,6 +32,11 @@ from typing import Any, Protocol, runtime_checkable
 
 from ..types import Action
 
+#: Steps shown in the price window and forecasts (h at 1 h steps), ``eq:EDF_prices``.
+PRICE_WINDOW = 24
+#: Comfort look-ahead of ComEMS4Build, ``eq:s_sh`` (k .. k+5).
+BOUNDS_AHEAD = 5
+
 COMMON_FIELDS = frozenset(
     {
         "step",

@@ -23,7 +23,6 @@ import warnings
 
 import numpy as np
 import pandas as pd
-import pvlib
 
 from comems4build_ros.config import PVParams, SiteParams
 
@@ -112,6 +111,8 @@ def poa_irradiance_w_m2(time, ghi_w_m2, dhi_w_m2, pv: PVParams, site: SiteParams
 
 def _poa_from_horizontal(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.ndarray, pv: PVParams, site: SiteParams):
     """pvlib steps of :func:`poa_irradiance_w_m2` for validated inputs at mid-step times."""
+    import pvlib  # here, not at the top: node processes that build no scenario skip its ~1 s import
+
     solpos = pvlib.solarposition.get_solarposition(mid, site.latitude_deg, site.longitude_deg, site.altitude_m)
     zenith = solpos["apparent_zenith"]
     location = pvlib.location.Location(site.latitude_deg, site.longitude_deg, altitude=site.altitude_m)

@@ -258,7 +258,7 @@ def parse_array(raw: bytes) -> array:
 
 def layout_sizes(params: PlantParams) -> dict[str, int]:
     """Layout size symbols for ``params`` (horizon and comfort look-ahead of sim.py)."""
-    from ..sim import BOUNDS_AHEAD, PRICE_WINDOW
+    from ..ems.base import BOUNDS_AHEAD, PRICE_WINDOW
 
     out = sizes(params, comfort_ahead=BOUNDS_AHEAD + 1)
     out["horizon"] = PRICE_WINDOW  # the loop's price window and forecast length [steps]

@@ -141,6 +141,9 @@ def fetch_awattar(start: pd.Timestamp, end: pd.Timestamp, timeout_s: float = 30.
 
 # --------------------------------------------------------------------------- DWD
 
+#: ``MESS_DATUM`` formats by length (UTC): 10-minute and hourly products.
+DWD_TIME_FORMATS = {12: "%Y%m%d%H%M", 10: "%Y%m%d%H"}
+
 
 def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame:
     """Read a DWD open-data product (semicolon separated, ``MESS_DATUM`` UTC, rows end with ``eor``).
@@ -160,7 +163,7 @@ def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame
         if col not in header:
             raise ScenarioError(f"{path}: line 1 (header): column '{col}' missing (found {';'.join(header)})")
     pos = {c: header.index(c) for c in ("MESS_DATUM", *columns)}
-    times, rows = [], []
+    stamps, line_nos, rows = [], [], []
     for n, line in enumerate(lines[1:], start=2):
         if not line.strip():
             continue
@@ -169,14 +172,8 @@ def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame
             raise ScenarioError(f"{path}: line {n}: {len(fields)} fields, header has {len(header)}")
         if header[-1].lower() == "eor" and fields[-1].lower() != "eor":
             raise ScenarioError(f"{path}: line {n}, column 'eor': row does not end with 'eor'")
-        stamp = fields[pos["MESS_DATUM"]]
-        fmt = {12: "%Y%m%d%H%M", 10: "%Y%m%d%H"}.get(len(stamp))
-        try:
-            if fmt is None:
-                raise ValueError
-            times.append(pd.Timestamp(pd.to_datetime(stamp, format=fmt)).tz_localize("UTC"))
-        except ValueError:
-            raise ScenarioError(f"{path}: line {n}, column 'MESS_DATUM': '{stamp}' is not yyyymmddHH[MM]") from None
+        stamps.append(fields[pos["MESS_DATUM"]])
+        line_nos.append(n)
         row = []
         for col in columns:
             text = fields[pos[col]]
@@ -188,7 +185,7 @@ def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame
         rows.append(row)
     if not rows:
         raise ScenarioError(f"{path}: no data rows")
-    df = pd.DataFrame(rows, index=pd.DatetimeIndex(times, name="time"), columns=list(columns))
+    df = pd.DataFrame(rows, index=_dwd_times(path, stamps, line_nos), columns=list(columns))
     for col in columns:
         if df[col].isna().all():
             raise ScenarioError(
@@ -201,6 +198,24 @@ def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame
         kind = "duplicate" if dup.any() else "decreasing"
         raise ScenarioError(f"{path}: data row {i + 1}, column 'MESS_DATUM': {kind} time {df.index[i].isoformat()}")
     return df
+
+
+def _dwd_times(path: Path, stamps: list[str], line_nos: list[int]) -> pd.DatetimeIndex:
+    """UTC index of DWD ``MESS_DATUM`` stamps (one vectorised parse per stamp length);
+    :class:`ScenarioError` names the line of the first stamp that is not yyyymmddHH[MM]."""
+    lengths = np.array([len(s) for s in stamps])
+    ns = np.zeros(len(stamps), dtype="int64")
+    bad = ~np.isin(lengths, list(DWD_TIME_FORMATS)) | ~np.array([s.isdigit() for s in stamps], dtype=bool)
+    for length, fmt in DWD_TIME_FORMATS.items():
+        sel = np.flatnonzero((lengths == length) & ~bad)
+        if sel.size:
+            parsed = pd.to_datetime(pd.Index([stamps[i] for i in sel]), format=fmt, errors="coerce")
+            bad[sel[np.asarray(parsed.isna())]] = True
+            ns[sel] = parsed.as_unit("ns").asi8
+    if bad.any():
+        i = int(np.flatnonzero(bad)[0])
+        raise ScenarioError(f"{path}: line {line_nos[i]}, column 'MESS_DATUM': '{stamps[i]}' is not yyyymmddHH[MM]")
+    return pd.DatetimeIndex(ns.astype("datetime64[ns]"), name="time").tz_localize("UTC").as_unit("us")
 
 
 def _hourly_from_10min(df: pd.DataFrame, end_stamped: bool) -> pd.DataFrame:

@@ -283,27 +283,11 @@ class Feed(ContractNode):
         seed = int(values["seed"])
         mode = str(param(self, "forecast_mode", ""))
         self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
-        notes: list[str] = []
-        if scenario is None:
-            scenario = load_scenario(*scenario_args(values, params), notes=notes)
-        for note in notes:
-            self.get_logger().warning(note)
-        check_scenario(scenario, params.simulation.time_step_h)
-        self.n_steps = scenario.n_steps
-        self._params = params
-        self._forecast = load_forecast_settings(**({"mode": mode} if mode else {}))
         self.inputs = str(param(self, "inputs", "scenario"))
         if self.inputs not in ("scenario", "live"):
             raise ValueError(f"node '{NODE_NAME}': parameter 'inputs': '{self.inputs}' is not 'scenario' or 'live'")
-        self._live: LiveFeed | None = None
-        if self.inputs == "live":
-            self._live = LiveFeed(self, scenario, params)
-            scenario = self._live.scenario()
-        self._use_scenario(scenario)
-        # The builder's state-dependent fields are not published by the feed (plant_sim
-        # publishes the state); a neutral state fills them.
-        self._blank = PlantState(soc=0.0, loh=0.0, t_air_c=0.0, t_wall_in_c=0.0, t_wall_out_c=0.0, v_dhw_l=0.0)
-
+        # Publishers first: DDS discovery (its own threads) matches them with the recorder
+        # and the EMS while this thread builds the scenario, the longest part of start-up.
         sizes_ = layout_sizes(params)
         self._truth = ArrayPublisher(self, "feed/truth", sizes_)
         forecast_topics = tuple(t.name for t in self.contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
@@ -313,14 +297,32 @@ class Feed(ContractNode):
         ems_topics = [t for t in EMS_TOPICS if self.publish_measured or t != "feed/measured"]
         self._pubs = [ArrayPublisher(self, t, sizes_) for t in (*ems_topics, *forecast_topics)]
         self._events = self.contract_publisher("feed/events")
+        self._info_pub = self.contract_publisher("feed/info")
         self._pub_fields = [p.layout.fields for p in self._pubs]
+        # (an announcement that comes in meanwhile waits in the queue until the node spins)
         self.contract_subscription("plant/step", self._on_plant_step)
         self.exit_when_done = bool(param(self, "exit_when_done", True))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
         self.finished = Future()
+        notes: list[str] = []
+        if scenario is None:
+            scenario = load_scenario(*scenario_args(values, params), notes=notes)
+        for note in notes:
+            self.get_logger().warning(note)
+        check_scenario(scenario, params.simulation.time_step_h)
+        self.n_steps = scenario.n_steps
+        self._params = params
+        self._forecast = load_forecast_settings(**({"mode": mode} if mode else {}))
+        self._live: LiveFeed | None = None
+        if self.inputs == "live":
+            self._live = LiveFeed(self, scenario, params)
+            scenario = self._live.scenario()
+        self._use_scenario(scenario)
+        # The builder's state-dependent fields are not published by the feed (plant_sim
+        # publishes the state); a neutral state fills them.
+        self._blank = PlantState(soc=0.0, loh=0.0, t_air_c=0.0, t_wall_in_c=0.0, t_wall_out_c=0.0, v_dhw_l=0.0)
         self._check_payload_lengths()
-        self._info_pub = self.contract_publisher("feed/info")
         self.info = {"scenario": scenario.name, "start": scenario.time[0].isoformat(), "n_steps": self.n_steps,
                      "forecast": self._forecast.mode, "seed": None if seed < 0 else seed}
         self._info_pub.publish(String(data=json.dumps(self.info)))
