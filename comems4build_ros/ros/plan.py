@@ -363,6 +363,13 @@ class RunPlan:
 
 
 # ---------------------------------------------------------------------- command lines
+def python_module(module: str) -> list[str]:
+    """``python -m module`` with this interpreter, without the working directory on
+    ``sys.path`` (``-P``, Python >= 3.11): a launch started inside another checkout of the
+    package must not run that checkout's code in its children."""
+    return [sys.executable, *(("-P",) if sys.version_info >= (3, 11) else ()), "-m", module]
+
+
 def node_command(executable: str, ems: str | None = None) -> list[str]:
     """Command line of a node: the venv's console script if installed, else ``python -m``.
 
@@ -375,11 +382,11 @@ def node_command(executable: str, ems: str | None = None) -> list[str]:
         script = EMS_SCRIPTS.get(ems)
         if script and (bindir / script).is_file():
             return [str(bindir / script)]
-        return [sys.executable, "-m", EMS_MODULE, "--ems", ems]
+        return [*python_module(EMS_MODULE), "--ems", ems]
     module = NODE_MODULES[executable]
     if (bindir / executable).is_file():
         return [str(bindir / executable)]
-    return [sys.executable, "-m", module]
+    return python_module(module)
 
 
 def ros_args(namespace: str = "", params: dict[str, Any] | None = None, params_files: Sequence[str] = ()) -> list[str]:
@@ -410,7 +417,7 @@ def ros_args(namespace: str = "", params: dict[str, Any] | None = None, params_f
 
 def host_command(role: str, spec_path: Path) -> list[str]:
     """Command line of a host process (``python -m comems4build_ros.ros.host``)."""
-    return [sys.executable, "-m", HOST_MODULE, "--role", role, "--spec", str(spec_path)]
+    return [*python_module(HOST_MODULE), "--role", role, "--spec", str(spec_path)]
 
 
 def discovery_server_command(port: int) -> list[str] | None:
@@ -567,7 +574,7 @@ def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]])
     if url is None:
         port = free_port()
         url = f"mqtt://127.0.0.1:{port}"
-        out.append(ProcessPlan("broker", "broker", (sys.executable, "-m", BROKER_MODULE, "--port", str(port)),
+        out.append(ProcessPlan("broker", "broker", (*python_module(BROKER_MODULE), "--port", str(port)),
                                stop_stage=STAGE_SERVICES))
     feed = params["feed"]
     argv = [*node_command("mqtt_plant"), "--broker", url, "--clock", opts.clock, "--scenario", str(feed["scenario"])]
