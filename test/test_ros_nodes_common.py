@@ -294,6 +294,17 @@ def test_ready_cdr_bytes_equal_rclpy_serialisation(params) -> None:
         assert (dim.label, dim.size, dim.stride) == (lay.dim_label, lay.length, lay.length), spec.name
 
 
+@pytest.mark.parametrize("text", ["", "a", "abcd", '{"step": 3, "ems": "fuzzy", "info": {"h2": 0.5}}', "äöü"])
+def test_string_cdr_equals_rclpy_serialisation(text: str) -> None:
+    from rclpy.serialization import deserialize_message, serialize_message
+    from std_msgs.msg import String
+
+    from comems4build_ros.ros.common import string_cdr
+
+    assert string_cdr(text) == serialize_message(String(data=text))
+    assert deserialize_message(string_cdr(text), String).data == text
+
+
 @pytest.mark.parametrize("labels", [[], ["x"], ["step,t_air_c", "ab"], ["a" * 7]])
 def test_parse_array_reads_what_rclpy_serialises(labels) -> None:
     from array import array

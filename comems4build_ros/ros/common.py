@@ -220,6 +220,14 @@ def cdr_prefix(label: str, n: int) -> bytes:
     return b"\x00\x01\x00\x00" + bytes(body)
 
 
+def string_cdr(text: str) -> bytes:
+    """CDR bytes of a ``std_msgs/String`` holding ``text`` (encapsulation CDR_LE, length with
+    the NUL, UTF-8 bytes, NUL): what rclpy serialises, without building the message object
+    (test/test_ros_nodes_common.py)."""
+    raw = text.encode("utf-8")
+    return b"\x00\x01\x00\x00" + (len(raw) + 1).to_bytes(4, "little") + raw + b"\0"
+
+
 def parse_array(raw: bytes) -> array:
     """Values of a CDR-serialised ``Float64MultiArray`` (any layout dimensions), as ``array('d')``.
 

@@ -34,7 +34,6 @@ from collections.abc import Callable
 from typing import Any
 
 from rclpy.task import Future
-from std_msgs.msg import String
 
 from ...ems import make_controller
 from ...ems.base import Observation
@@ -47,6 +46,7 @@ from ..common import (
     parse_array,
     plant_params_from_node,
     run_node,
+    string_cdr,
 )
 from ..contract import ContractError, load_contract, nest
 from ..tokens import default_token
@@ -101,7 +101,6 @@ class EMSNode(ContractNode):
         self.token = float(token if token > 0 else default_token(self.get_fully_qualified_name()))
         self._cmd = ArrayPublisher(self, "ems/command", sizes)
         self._info_pub = self.contract_publisher("ems/info")
-        self._info_msg = String()
         self.ems = ems
         self._inputs = [t for t in contract.subscribed_by(node_name) if t.is_array]
         self._full = (1 << len(self._inputs)) - 1
@@ -171,8 +170,7 @@ class EMSNode(ContractNode):
         info = getattr(self.controller, "step_info", None) or {}
         # before the command, so it is out before the plant records the step
         payload_info = {"step": step, "ems": self.ems, "info": {k: float(v) for k, v in info.items()}}
-        self._info_msg.data = json.dumps(payload_info)
-        self._info_pub.publish(self._info_msg)
+        self._info_pub.publish(string_cdr(json.dumps(payload_info)))  # ready CDR bytes, as the arrays
         payload = array("d", [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS), self.token])
         self._cmd.publish(payload)
         self._answered = step
