@@ -61,10 +61,15 @@ class LeanExecutor(Executor):
     @staticmethod
     def _entity_signature(nodes: list[Any]) -> tuple[Any, ...]:
         """Cheap fingerprint of every node's entity lists (rclpy 7.1's ``Node`` keeps them in
-        the lists below; their public properties are generators)."""
+        the lists below; their public properties are generators): length and last entity of
+        each, so that destroying one entity and creating another (same length) counts too."""
+
+        def mark(entities: list[Any]) -> tuple[int, int]:
+            return len(entities), id(entities[-1]) if entities else 0
+
         return tuple(
-            (id(n), len(n._subscriptions), len(n._timers), len(n._guards), len(n._clients), len(n._services),
-             len(n._Node__waitables))
+            (id(n), mark(n._subscriptions), mark(n._timers), mark(n._guards), mark(n._clients), mark(n._services),
+             mark(n._Node__waitables))
             for n in nodes
         )
 

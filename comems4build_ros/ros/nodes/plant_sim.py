@@ -141,7 +141,6 @@ def finish_run(node: Any, before_done: Any = None) -> None:
         if not all(p.wait_for_all_acked(now_only) for p in pubs) and time.monotonic() - t0 < ACK_TIMEOUT_S:
             return
         timer.cancel()
-        node.destroy_timer(timer)
         if node.exit_when_done:
             node.finish_when_recorded("plant/record")
 
