@@ -54,7 +54,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Bool, UInt32
 
 from ..bag import RECORD_TOPIC, TRUTH_TOPIC, BagWriter, decode, qos_for_bag
-from ..common import no_default_event_callbacks, param, run_node
+from ..common import no_default_event_callbacks, param, parse_array, run_node
 from ..contract import Contract, load_contract, resolve
 
 NODE_NAME = "recorder"
@@ -237,7 +237,7 @@ class Recorder(Node):
         """Progress and end-of-run bookkeeping from plant/record, feed/truth, plant/done."""
         if name == RECORD_TOPIC:
             self.records[ns] += 1
-            step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
+            step = int(parse_array(raw)[0])
             if step == self.contiguous[ns]:
                 c = step + 1
                 ahead = self._ahead[ns]
@@ -254,7 +254,7 @@ class Recorder(Node):
                 self.done_at[ns] = self._last_record_at  # every record in: done even if plant/done is lost
         elif name == TRUTH_TOPIC:
             if ns not in self.n_steps:
-                self.n_steps[ns] = int(decode("std_msgs/msg/Float64MultiArray", raw).data[1])
+                self.n_steps[ns] = int(parse_array(raw)[1])
         elif name == DONE_TOPIC and decode("std_msgs/msg/Bool", raw).data and ns not in self.done_at:
             self.done_at[ns] = time.monotonic()
 
