@@ -32,12 +32,13 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+from pathlib import Path
 from typing import Any
 
 from rclpy.duration import Duration
 from rclpy.task import Future
 
-from ..bag import decode, iter_messages
+from ..bag import BagInfo, decode, iter_messages
 from ..common import ContractNode, param, run_node
 
 NODE_NAME = "replay"
@@ -91,7 +92,8 @@ class Replay(ContractNode):
         if self.inputs_only:
             names = {t.name for t in contract.published_by(INPUT_ROLE)}
         by_ns: dict[str, list[tuple[str, int, bytes]]] = {}
-        for topic, _msgtype, t_ns, raw in iter_messages(bag):
+        info = BagInfo(Path(bag), [], False)
+        for topic, _msgtype, t_ns, raw in iter_messages(bag, info=info):
             hit = _split(topic, names)
             if hit is not None:
                 by_ns.setdefault(hit[0], []).append((hit[1], t_ns, bytes(raw)))
@@ -109,7 +111,10 @@ class Replay(ContractNode):
                 "set 'source_namespace'"
             )
         messages = sorted(by_ns[ns], key=lambda m: m[1])
-        self._pubs = {name: self.contract_publisher(name) for name in sorted({m[0] for m in messages})}
+        # every recorded topic gets its publisher, also one without messages (feed/events of
+        # a run without input events): a recorder waits for the publishers of its topics
+        recorded = {hit[1] for hit in (_split(t, names) for t in info.topics) if hit is not None and hit[0] == ns}
+        self._pubs = {name: self.contract_publisher(name) for name in sorted(recorded | {m[0] for m in messages})}
         self.published = 0
         self._finishing = False
         self.finished = Future()
