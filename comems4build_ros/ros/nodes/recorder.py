@@ -22,9 +22,10 @@ and names the topics without a publisher.
 
 End of run: with ``stop_when_done`` (default) the node closes the bag and exits once
 ``plant/done`` (or the last ``plant/record``) arrived from every namespace, every ``plant/record`` of the run
-(``n_steps`` from ``feed/truth``) is in, and ``done_grace_s`` has passed for late
-messages (``ems/info`` of the last step); after ``done_timeout_s`` it stops even if some
-records are missing, with a warning.
+(``n_steps`` from ``feed/truth``) is in, and no message of any topic has come for
+``done_grace_s`` (its queues are drained; late ``ems/info`` of the last step); once done
+and ``done_timeout_s`` without any message, it stops even if some records are missing,
+with a warning.
 
 Back-pressure: per namespace the node publishes ``recorder/progress``, the number of
 steps whose ``plant/record`` it has written without a gap (every 16 steps and every
@@ -176,6 +177,7 @@ class Recorder(Node):
         self._t0 = time.monotonic()
         self._matched_at: float | None = None
         self._last_record_at = self._t0
+        self._last_msg_at = self._t0  # last message of any topic (end of run: the queues are drained)
         self._t_progress = 0.0
         self.finished = None
         from rclpy.task import Future
@@ -228,6 +230,7 @@ class Recorder(Node):
                 with sub.handle:
                     taken = sub.handle.take_message(sub.msg_type, True)
                 if taken is None:
+                    self._last_msg_at = time.monotonic()
                     return
                 raw, info = taken
 
@@ -279,8 +282,13 @@ class Recorder(Node):
         if self.stop_when_done and len(self.done_at) == len(self.namespaces) and not self.finished.done():
             complete = all(self.records[ns] >= self.n_steps.get(ns, 0) for ns in self.namespaces)
             first_done = min(self.done_at.values())
-            quiet = now - max(max(self.done_at.values()), self._last_record_at) >= self.done_grace_s
-            if (complete and quiet) or now - first_done > self.done_timeout_s:
+            # quiet: no message of any topic for done_grace_s. Every plant/record in does not
+            # mean every other topic is: under load the recorder's queues of the feed's and
+            # the EMS's topics can be hundreds of steps behind (their writers stay until the
+            # recorder has left, so waiting for them loses nothing)
+            last = max(max(self.done_at.values()), self._last_record_at, self._last_msg_at)
+            quiet = now - last >= self.done_grace_s
+            if (complete and quiet) or now - max(first_done, self._last_msg_at) > self.done_timeout_s:
                 if not complete:
                     missing = {ns: self.n_steps.get(ns, 0) - self.records[ns] for ns in self.namespaces}
                     self.get_logger().warning(f"stopping with plant/record messages missing: {missing}")
