@@ -266,3 +266,19 @@ def test_bag_writer_writes_the_bytes_rosbags_writes(tmp_path: Path) -> None:
     set_ros_distro(ref / "metadata.yaml")
     assert (ours / "bag.mcap").read_bytes() == (ref / "bag.mcap").read_bytes()
     assert (ours / "metadata.yaml").read_text() == (ref / "metadata.yaml").read_text()
+
+
+def test_gap_check_of_a_cut_bag_stops_at_each_topics_last_step() -> None:
+    """A killed recorder leaves topics cut at different steps (its queues were apart): a cut bag
+    is checked per topic up to its own last step; a complete bag up to the last record."""
+    from comems4build_ros.ros.bag import find_gaps
+    from comems4build_ros.ros.contract import load_contract
+
+    contract = load_contract()
+    n = 40
+    seen = {f"/{t.name}": set(range(n)) for t in contract.topics.values()}
+    seen["/feed/solar"] = set(range(20))  # its queue was 20 steps behind at the cut
+    seen["/state/soc"] = set(range(n)) - {7}  # a message lost inside the recorded span
+    assert find_gaps(contract, "/", n, set(), seen, complete=False) == {"/state/soc": [7]}
+    full = find_gaps(contract, "/", n, set(), seen, complete=True)
+    assert full == {"/feed/solar": list(range(20, n)), "/state/soc": [7]}

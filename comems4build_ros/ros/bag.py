@@ -597,7 +597,10 @@ def find_gaps(
     (``n`` = recorded ``plant/record`` steps), except the fallback steps for the EMS's
     topics (no command is expected there). A bag cut short (recorder killed) is checked
     up to :data:`CUT_TAIL_STEPS` steps before its last record (the feed runs ahead and
-    the last messages before the cut need not all be in).
+    the last messages before the cut need not all be in), and each topic with messages
+    only up to its own last recorded step: the recorder's queues of different topics can
+    be many steps apart when it is killed (what it had not written is the cut, reported
+    as ``bag_incomplete``; a step missing inside a topic's recorded span is a gap).
     """
     roles = {name: spec.role for name, spec in contract.nodes.items()}
     last = n if complete else max(0, n - CUT_TAIL_STEPS)
@@ -616,7 +619,8 @@ def find_gaps(
             continue
         from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
         got = seen.get(full, set())
-        missing = [k for k in range(last) if k not in got and not (from_ems and k in fallback)]
+        end = last if complete or not got else min(last, max(got) + 1)
+        missing = [k for k in range(end) if k not in got and not (from_ems and k in fallback)]
         if missing:
             out[full] = missing
     return out
