@@ -45,6 +45,8 @@ pytestmark = pytest.mark.ros
 STEPS = 48  # 2 days
 #: Wall-clock limit of one closed-loop run including process start-up [s].
 RUN_TIMEOUT_S = 150.0
+#: Wait between "the observer's readers matched" and saying ready (see Graph.ready) [s].
+OBSERVER_SETTLE_S = 1.0
 IGNORED_SUMMARY_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 #: Controller step_info columns that hold wall-clock measurements (differ run to run).
 TIMING_COLUMNS = ("ems_solve_s",)
@@ -185,6 +187,11 @@ class Graph:
         self.spin_until(
             lambda: all(self.subs[t].get_publisher_count() > 0 for t in topics), timeout, f"publishers of {topics}"
         )
+        # Our readers see the writers; the writers' side of discovery (which decides whether
+        # the first messages reach us) can lag on a loaded machine: settle like the recorder.
+        t_settle = time.monotonic() + OBSERVER_SETTLE_S
+        while time.monotonic() < t_settle:
+            self.executor.spin_once(timeout_sec=0.05)
         self._ready_pub.publish(Bool(data=True))
 
     def spin_until(self, cond: Callable[[], bool], timeout: float, what: str) -> None:
@@ -193,7 +200,8 @@ class Graph:
         while not cond():
             if time.monotonic() > t_end:
                 logs = "\n".join(f"--- {n}\n{self.log(n)[-3000:]}" for n in self.logs)
-                pytest.fail(f"timeout waiting for {what}\n{logs}")
+                got = f"got {len(self.records)} records, {len(self.infos)} step infos, done={self.done}"
+                pytest.fail(f"timeout waiting for {what} ({got})\n{logs}")
             for name, proc in self.procs.items():
                 if name not in self.may_fail and proc.poll() not in (None, 0):
                     pytest.fail(f"{name} exited with {proc.returncode} while waiting for {what}:\n{self.log(name)}")

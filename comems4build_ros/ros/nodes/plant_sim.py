@@ -405,7 +405,10 @@ class PlantSim(ContractNode):
         if self.done or self._held:
             return
         if not self.started:
-            ready = (not self.wait_for_recorder or self._recorder_ready) and (
+            # The recorder's ready says its readers matched our writers; the writer side of
+            # plant/record must have matched too, or the first records could go unsent.
+            recorder = self._recorder_ready and self._record.publisher.get_subscription_count() > 0
+            ready = (not self.wait_for_recorder or recorder) and (
                 self._cmd_sub.get_publisher_count() > 0 or now - self._t_created > self.startup_timeout_s
             )
             if ready:
