@@ -28,11 +28,22 @@ def test_load_spec_names_the_file_and_entry(tmp_path: Path) -> None:
         load_spec(_write(tmp_path, "{not json"))
     spec = load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "params": {"x": 1}}]}))
     assert spec["nodes"][0]["params"] == {"x": 1}
+    with pytest.raises(HostSpecError, match=r"nodes\[0\]\.role 'broker': one of plant, feed, ems, recorder"):
+        load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "role": "broker"}]}))
+    # a container runs one node per role and namespace
+    both = [{"namespace": "/a", "role": "plant"}, {"namespace": "/a", "role": "feed"}]
+    spec = load_spec(_write(tmp_path, {"nodes": both}))
+    assert [e["role"] for e in spec["nodes"]] == ["plant", "feed"]
+    with pytest.raises(HostSpecError, match=r"nodes\[1\]: namespace '/a' given twice"):
+        load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "role": "ems"}, {"namespace": "/a", "role": "ems"}]}))
 
 
 def test_main_exit_code_2_on_bad_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--role", "plant", "--spec", str(tmp_path / "missing.json")]) == 2
     assert "missing.json" in capsys.readouterr().err
+    spec = _write(tmp_path, {"nodes": [{"namespace": "/building_0"}]})
+    assert main(["--role", "container", "--spec", str(spec)]) == 2  # a container's entries name their role
+    assert "node '/building_0' of a container needs a 'role'" in capsys.readouterr().err
 
 
 def test_to_parameters_types() -> None:
@@ -53,21 +64,47 @@ def test_to_parameters_types() -> None:
 @pytest.mark.ros
 def test_three_buildings_in_host_mode_equal_in_process(tmp_path: Path) -> None:
     """3 buildings, 2 per recorder process: 5 node processes, each building equals its in-process run."""
-    from comems4build_ros.config import load_plant_params
-    from comems4build_ros.ros.bag import lost_messages
-    from comems4build_ros.ros.launcher import LaunchOptions, launch, processes_with_env
-    from comems4build_ros.ros.nodes.feed import load_scenario
-    from comems4build_ros.scenario.settings import load_scenario_settings
-    from comems4build_ros.sim import simulate
+    from comems4build_ros.ros.launcher import LaunchOptions, launch
 
     out = tmp_path / "run"
     launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, host_mode=True,
                          buildings_per_recorder=2, timeout_s=150))
     logs = sorted(p.name for p in (out / "log").glob("*.log"))
     assert logs == ["host_ems.log", "host_feed.log", "host_plant.log", "host_recorder_0.log", "host_recorder_1.log"]
+    assert_buildings_equal_in_process(out, 3)
+
+
+@pytest.mark.ros
+def test_three_buildings_in_two_containers_equal_in_process(tmp_path: Path) -> None:
+    """Layout ``building``: every node of buildings 0 and 2 in one container process, of
+    building 1 in another; each building equals its in-process run, nothing lost, and the
+    EMS and feed beside a finished recorder end at once (no linger for the recorder to leave)."""
+    from comems4build_ros.ros.common import LINGER_S
+    from comems4build_ros.ros.launcher import LaunchOptions, launch
+
+    out = tmp_path / "run"
+    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, containers=2, timeout_s=150))
+    assert sorted(p.name for p in (out / "log").glob("*.log")) == ["container_0.log", "container_1.log"]
+    log0 = (out / "log" / "container_0.log").read_text()
+    for ns in ("building_0", "building_2"):
+        for node in ("recorder", "fuzzy_ems", "feed", "plant_sim"):
+            assert f"[{ns}.{node}]" in log0, (ns, node)
+    assert_buildings_equal_in_process(out, 3)
+    assert res.run_s < LINGER_S  # the 30-step run did not wait out the linger for a recorder to leave
+
+
+def assert_buildings_equal_in_process(out: Path, n: int) -> None:
+    """Each building's summary of the launch in ``out`` equals its in-process run; complete bags."""
+    from comems4build_ros.config import load_plant_params
+    from comems4build_ros.ros.bag import lost_messages
+    from comems4build_ros.ros.launcher import processes_with_env
+    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.scenario.settings import load_scenario_settings
+    from comems4build_ros.sim import simulate
+
     params = load_plant_params()
     seed = load_scenario_settings().seed
-    for i in range(3):
+    for i in range(n):
         per = json.loads((out / f"building_{i}" / "summary.json").read_text())
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -78,6 +115,6 @@ def test_three_buildings_in_host_mode_equal_in_process(tmp_path: Path) -> None:
         for k in sorted(keys):
             assert per[k] == ref[k] or (per[k] != per[k] and ref[k] != ref[k]), (i, k)  # NaN == NaN
         assert per["steps"] == 30
-    assert (out / "bag" / "building_2" / "metadata.yaml").is_file()
+    assert (out / "bag" / f"building_{n - 1}" / "metadata.yaml").is_file()
     assert lost_messages(out / "bag") == {}  # no message lost on any topic of any building
     assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []

@@ -2,7 +2,9 @@
 
 from __future__ import annotations
 
+import dataclasses
 import json
+import os
 from pathlib import Path
 
 import pytest
@@ -50,7 +52,8 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
 
 
 def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
-    opts = LaunchOptions(ems="rbc", out=tmp_path / "run", weeks=1, buildings=5, buildings_per_recorder=2)
+    opts = LaunchOptions(ems="rbc", out=tmp_path / "run", weeks=1, buildings=5, buildings_per_recorder=2,
+                         host_mode=True)
     plan = plan_run(opts, domain_id=7)
     assert plan.layout == "role"
     assert [p.name for p in plan.processes] == [
@@ -76,7 +79,9 @@ def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
 
 def test_plant_params_override_host_defaults(tmp_path: Path) -> None:
     opts = LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, plant_params={"step_timeout_s": 3.0})
-    plant = plan_run(opts, domain_id=1).process("host_plant")
+    plants = [n for _, n in plan_run(opts, domain_id=1).nodes("plant")]  # containers
+    assert [n.params["step_timeout_s"] for n in plants] == [3.0, 3.0]
+    plant = plan_run(dataclasses.replace(opts, host_mode=True), domain_id=1).process("host_plant")
     assert [n.params["step_timeout_s"] for n in plant.nodes] == [3.0, 3.0]
 
 
@@ -109,9 +114,9 @@ def test_time_limit_defaults_and_can_be_switched_off(tmp_path: Path) -> None:
 def test_describe_and_json(tmp_path: Path) -> None:
     plan = plan_run(LaunchOptions(ems="mpc", out=tmp_path, buildings=2, timeout_s=30), domain_id=3)
     text = plan.describe()
-    assert "layout 'role'" in text and "time limit 30 s" in text and "/building_1/mpc_ems" in text
+    assert "layout 'building'" in text and "time limit 30 s" in text and "/building_1/mpc_ems" in text
     data = json.loads(json.dumps(plan.to_dict()))
-    assert data["domain_id"] == 3 and data["processes"][-1]["name"] == "host_plant"
+    assert data["domain_id"] == 3 and data["processes"][-1]["name"].startswith("container_")
     assert [b["namespace"] for b in data["buildings"]] == ["/building_0", "/building_1"]
 
 
@@ -119,7 +124,8 @@ def test_bad_options_name_the_option(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="--buildings must be >= 1"):
         plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=0), domain_id=1)
     with pytest.raises(ValueError, match="buildings_per_recorder"):
-        plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, buildings_per_recorder=0), domain_id=1)
+        plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, buildings_per_recorder=0, host_mode=True),
+                 domain_id=1)
 
 
 def test_netns_network_is_an_option_of_the_plan(tmp_path: Path) -> None:
@@ -140,3 +146,34 @@ def test_netns_network_is_an_option_of_the_plan(tmp_path: Path) -> None:
         plan_run(LaunchOptions(ems="rbc", out=tmp_path, network="cloud"), domain_id=1)
     with pytest.raises(ValueError, match="netem applies to the 'netns' network only"):
         plan_run(LaunchOptions(ems="rbc", out=tmp_path, netem="delay 5ms"), domain_id=1)
+
+
+def test_containers_compose_every_node_of_a_share_of_the_buildings(tmp_path: Path) -> None:
+    opts = LaunchOptions(ems="fuzzy", out=tmp_path / "run", weeks=1, buildings=5, containers=2)
+    plan = plan_run(opts, domain_id=9)
+    assert plan.layout == "building"
+    assert [p.name for p in plan.processes] == ["container_0", "container_1"]
+    c0, c1 = plan.processes
+    assert [(n.namespace, n.role) for n in c1.nodes] == [
+        (ns, role) for ns in ("/building_1", "/building_3") for role in ("recorder", "ems", "feed", "plant")]
+    assert {n.namespace for n in c0.nodes} == {"/building_0", "/building_2", "/building_4"}
+    assert all(p.role == "container" and p.finishes and p.progress and p.stop_stage == STAGE_RECORDERS
+               for p in plan.processes)
+    ((path, text),) = c0.files
+    spec = json.loads(text)
+    assert [e["role"] for e in spec["nodes"]][:4] == ["recorder", "ems", "feed", "plant"]
+    assert spec["ems"] == "fuzzy" and str(path) in c0.argv and "container" in c0.argv
+    assert "ROS_DISCOVERY_SERVER" not in plan.env and all(not p.env for p in plan.processes)
+    # the default for more buildings (one container per core); the role layout on request
+    default = plan_run(dataclasses.replace(opts, containers=None), domain_id=9)
+    assert default.layout == "building" and len(default.processes) == min(5, os.cpu_count() or 1)
+    assert plan_run(dataclasses.replace(opts, containers=None, host_mode=True), domain_id=9).layout == "role"
+    assert plan_run(dataclasses.replace(opts, containers=None, network="netns"), domain_id=9).layout == "role"
+    # at most one container per building; a single building composes into one process
+    one = plan_run(dataclasses.replace(opts, buildings=1, containers=4), domain_id=9)
+    assert [p.name for p in one.processes] == ["container_0"] and len(one.processes[0].nodes) == 4
+    assert "layout 'building'" in one.describe()
+    with pytest.raises(ValueError, match="containers must be >= 1"):
+        plan_run(dataclasses.replace(opts, containers=0), domain_id=9)
+    with pytest.raises(ValueError, match="network 'local'"):
+        plan_run(dataclasses.replace(opts, network="netns"), domain_id=9)

@@ -282,3 +282,50 @@ def test_gap_check_of_a_cut_bag_stops_at_each_topics_last_step() -> None:
     assert find_gaps(contract, "/", n, set(), seen, complete=False) == {"/state/soc": [7]}
     full = find_gaps(contract, "/", n, set(), seen, complete=True)
     assert full == {"/feed/solar": list(range(20, n)), "/state/soc": [7]}
+
+
+@pytest.mark.ros
+def test_recorder_ends_only_when_every_per_step_topic_is_complete(tmp_path: Path) -> None:
+    """plant/record complete and no message for done_grace_s is not the end while a topic
+    published once a step lacks steps (its writer may still be repairing a delivery);
+    EMS topics need every step but the fallback steps. recorder/progress is capped by the
+    slowest plant or feed topic, so plant_sim's back-pressure covers every topic."""
+    import rclpy
+
+    ctx = rclpy.context.Context()
+    with acquire_domain_id() as did:
+        rclpy.init(context=ctx, domain_id=did)
+        try:
+            _check_end_of_run(ctx, tmp_path)
+        finally:
+            rclpy.try_shutdown(context=ctx)
+
+
+def _check_end_of_run(ctx: object, tmp_path: Path) -> None:
+    from rclpy.parameter import Parameter
+
+    from comems4build_ros.ros.nodes.recorder import Recorder
+
+    rec = Recorder(context=ctx, namespace="/b", parameter_overrides=[
+        Parameter("bag_path", value=str(tmp_path / "bag")), Parameter("done_grace_s", value=0.0),
+        Parameter("done_timeout_s", value=3600.0)])
+    counters = {full: c for full, c in ((c[0], c) for c in rec.per_step["/b"])}
+    assert counters["/b/ems/command"][2] and not counters["/b/state/soc"][2]  # EMS topic or not
+    assert "/b/plant/step" in counters and "/b/ems/info" in counters and "/b/plant/events" not in counters
+    rec.n_steps["/b"], rec.records["/b"], rec.contiguous["/b"] = 10, 10, 10
+    rec.fallbacks["/b"] = 2
+    rec.done_at["/b"] = time.monotonic() - 1.0
+    for c in rec.per_step["/b"]:
+        c[1] = 8 if c[2] else 10  # EMS topics: 10 steps less 2 fallbacks
+    counters["/b/feed/prices"][1] = 7
+    assert rec.behind() == {"/b/feed/prices": 3}
+    assert rec.progress("/b") == 7
+    rec._last_msg_at = rec._last_record_at = time.monotonic() - 1.0
+    rec._tick()
+    assert not rec.finished.done()  # quiet, every record in, but a topic is short
+    counters["/b/feed/prices"][1] = 10
+    counters["/b/ems/info"][1] = 0  # a topic never seen (an EMS without step info) is not waited for
+    assert rec.behind() == {} and rec.progress("/b") == 10
+    rec._tick()
+    assert rec.finished.done() and rec.finished.result() == 0
+    rec.destroy_node()

@@ -9,8 +9,14 @@
    run, as measured by plant_sim (from the state announcement of step k to the arrival
    of the command for step k; ``plant/events`` "stats" line in the bag);
 3. the throughput with ``--buildings 1, 4, 16`` (N independent buildings under
-   ``/building_<i>``; N > 1 in the launcher's host mode, one process per role, see
-   :mod:`comems4build_ros.ros.host`): wall time and building-steps per second.
+   ``/building_<i>``; see :mod:`comems4build_ros.ros.host`): wall time and
+   building-steps per second.
+
+The one-building run goes twice: one OS process per node (the default of ``launch``) and
+composed into one container process (``launch --layout building``: recorder, EMS, feed
+and plant as four rclpy nodes of one process, still exchanging every message through
+DDS). Runs with more buildings use ``--layout`` (default ``building``, the launcher's
+default: one container per core, ``--containers`` to change).
 
 Targets on 2 cores: round trip median < 2 ms and p99 < 10 ms, 12-week fuzzy run over ROS
 < 10 s, 16 buildings x 12 weeks < 2 min, and no message lost by the recorder in any run.
@@ -30,7 +36,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from ..commands.options import SECONDS, WEEKS
+from ..commands.options import COUNT, SECONDS, WEEKS
 
 TARGET_RTT_MEDIAN_MS = 2.0
 TARGET_RTT_P99_MS = 10.0
@@ -47,6 +53,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ems", metavar="NAME", default="fuzzy", help="EMS of every run (default fuzzy)")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="keep the runs in this directory (default: a temporary one)")
+    parser.add_argument("--layout", choices=("building", "role", "node"), default="building",
+                        help="process layout of the runs with more than one building (launch --layout; default "
+                             "building, the launcher's default)")
+    parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
+                        help="container processes of the layout 'building' (default: one per core)")
     parser.add_argument("--timeout", metavar="S", type=SECONDS, default=600.0,
                         help="give up a throughput run after this [s], > 0")
 
@@ -75,13 +86,29 @@ def _mark(ok: bool) -> str:
     return "meets target" if ok else "MISSES target"
 
 
+def _options(args: argparse.Namespace, out: Path, weeks: float, buildings: int, layout: str) -> Any:
+    """LaunchOptions of one benchmark run in ``layout`` (node, building or role)."""
+    from ..progress import is_terminal
+    from ..ros.launcher import LaunchOptions
+
+    containers = (args.containers or os.cpu_count() or 1) if layout == "building" else None
+    return LaunchOptions(ems=args.ems, out=out, weeks=weeks, buildings=buildings, timeout_s=args.timeout,
+                         progress=is_terminal(), containers=containers,
+                         host_mode=None if layout == "building" else layout == "role")
+
+
+def _layout_label(opts: Any) -> str:
+    if opts.layout == "building":
+        return f"{opts.container_count} container process(es)"
+    return "one process per node" if opts.layout == "node" else "one process per role"
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print the figures."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..progress import is_terminal
     from ..ros.bag import lost_messages
-    from ..ros.launcher import LaunchError, LaunchOptions, launch
+    from ..ros.launcher import LaunchError, launch
     from ..ros.nodes.feed import load_scenario
     from ..sim import simulate
 
@@ -97,6 +124,7 @@ def run(args: argparse.Namespace) -> int:
     weeks = args.weeks
     whole = math.ceil(weeks - 1e-9)
     steps = int(round(weeks * 168))
+    many_layout = getattr(args, "layout", None) or "building"
 
     print(f"== 1. {args.ems}, {weeks:g} weeks ({steps} steps): ROS node set vs in-process   [{_load()}]")
     t0 = time.perf_counter()
@@ -105,57 +133,72 @@ def run(args: argparse.Namespace) -> int:
         scenario = load_scenario("default", params, None, whole, None, steps if steps != whole * 168 else None)
         ref = simulate(args.ems, scenario, params)
     t_in = time.perf_counter() - t0
-    res = launch(LaunchOptions(ems=args.ems, out=root / f"{args.ems}_{weeks:g}w", weeks=weeks, progress=is_terminal()))
-    summary = res.summaries["/"]
-    diff = sorted(k for k in set(ref.summary) | set(summary) - set(TIMING_KEYS)
-                  if k not in TIMING_KEYS and ref.summary.get(k) != summary.get(k))
-    lost = lost_messages(res.bag)
     print(f"in-process: {t_in:7.2f} s (scenario + run; run alone {ref.summary['wall_s']:.2f} s)")
-    print(f"over ROS:   {res.wall_s:7.2f} s (process start to end of run; {res.run_s:.2f} s after the first record)"
-          f"  -> {_mark(res.wall_s < TARGET_FUZZY_12W_S)} < {TARGET_FUZZY_12W_S:g} s")
-    print(f"summaries equal (timing aside): {'yes' if not diff else 'NO, differ in ' + ', '.join(diff)}; "
-          f"messages lost by the recorder: {sum(lost.values())}")
+    one: dict[str, Any] = {}
+    for layout in ("node", "building"):  # separate processes (the default), then composed into one container
+        opts = _options(args, root / f"{args.ems}_{weeks:g}w_{layout}", weeks, 1, layout)
+        res = one[layout] = launch(opts)
+        summary = res.summaries["/"]
+        diff = sorted(k for k in set(ref.summary) | set(summary) - set(TIMING_KEYS)
+                      if k not in TIMING_KEYS and ref.summary.get(k) != summary.get(k))
+        lost = lost_messages(res.bag)
+        print(f"over ROS, {_layout_label(opts)}: {res.wall_s:7.2f} s (process start to end of run; "
+              f"{res.run_s:.2f} s after the first record)  -> {_mark(res.wall_s < TARGET_FUZZY_12W_S)} "
+              f"< {TARGET_FUZZY_12W_S:g} s")
+        print(f"   summaries equal (timing aside): {'yes' if not diff else 'NO, differ in ' + ', '.join(diff)}; "
+              f"messages lost by the recorder: {sum(lost.values())}   ({_load()})")
 
-    stats = plant_stats(res.bag).get("/", {})
-    med, p99 = stats.get("rtt_median_ms", float("nan")), stats.get("rtt_p99_ms", float("nan"))
-    print(f"\n== 2. step round trip plant -> {args.ems}_ems -> plant over DDS (measured by plant_sim, "
-          f"{int(stats.get('steps', 0))} steps)")
-    print(f"median {med:.3f} ms -> {_mark(med < TARGET_RTT_MEDIAN_MS)} < {TARGET_RTT_MEDIAN_MS:g} ms; "
-          f"p99 {p99:.3f} ms -> {_mark(p99 < TARGET_RTT_P99_MS)} < {TARGET_RTT_P99_MS:g} ms")
-    print(f"   ({_load()})")
+    print(f"\n== 2. step round trip plant -> {args.ems}_ems -> plant over DDS (measured by plant_sim)")
+    for layout, res in one.items():
+        stats = plant_stats(res.bag).get("/", {})
+        med, p99 = stats.get("rtt_median_ms", float("nan")), stats.get("rtt_p99_ms", float("nan"))
+        print(f"{layout:>8} layout, {int(stats.get('steps', 0))} steps: median {med:.3f} ms -> "
+              f"{_mark(med < TARGET_RTT_MEDIAN_MS)} < {TARGET_RTT_MEDIAN_MS:g} ms; "
+              f"p99 {p99:.3f} ms -> {_mark(p99 < TARGET_RTT_P99_MS)} < {TARGET_RTT_P99_MS:g} ms")
 
-    print(f"\n== 3. throughput, {args.ems}, {weeks:g} weeks per building")
-    print(f"{'buildings':>9} {'procs':>5} {'wall_s':>8} {'run_s':>8} {'building-steps/s':>17} {'rtt_med_ms':>10} "
-          f"{'rtt_p99_ms':>10} {'fallback':>8} {'held_s':>7} {'lost':>5}  load after (1 min)")
-    results: dict[int, Any] = {1: res}
+    print(f"\n== 3. throughput, {args.ems}, {weeks:g} weeks per building; 1 building as above, more in layout "
+          f"'{many_layout}'")
+    print(f"{'buildings':>9} {'layout':>8} {'procs':>5} {'wall_s':>8} {'run_s':>8} {'building-steps/s':>17} "
+          f"{'rtt_med_ms':>10} {'rtt_p99_ms':>10} {'fallback':>8} {'held_s':>7} {'lost':>5}  load after (1 min)")
+    rows: list[tuple[int, str, Any]] = []
     for n in counts:
-        if n not in results:
-            print(f"   ({_load()})", flush=True)
-            try:
-                results[n] = launch(LaunchOptions(ems=args.ems, out=root / f"{args.ems}_{weeks:g}w_x{n}", weeks=weeks,
-                                                  buildings=n, timeout_s=args.timeout, progress=is_terminal()))
-            except LaunchError as exc:
-                print(f"{n:>9} FAILED: {str(exc).splitlines()[0]}", flush=True)
-                continue
-        r = results[n]
-        st = plant_stats(r.bag)
-
-        def mid(key: str, stats: dict[str, dict[str, float]] = st) -> float:
-            vals = sorted(v.get(key, float("nan")) for v in stats.values())
-            return vals[len(vals) // 2] if vals else float("nan")
-
-        lost_n = sum(lost_messages(r.bag).values())
-        procs = len(list((r.out / "log").glob("*.log")))
-        fb = sum(int(v.get("fallback_steps", 0)) for v in st.values())
-        held = max((v.get("held_for_recorder_s", 0.0) for v in st.values()), default=0.0)
-        print(f"{n:>9} {procs:>5} {r.wall_s:8.2f} {r.run_s:8.2f} {n * steps / r.wall_s:17.1f} "
-              f"{mid('rtt_median_ms'):10.3f} {mid('rtt_p99_ms'):10.3f} {fb:>8} {held:7.2f} {lost_n:>5}  "
-              f"{os.getloadavg()[0]:.2f}", flush=True)
-    if 16 in counts and 16 not in results:
+        if n == 1:
+            for layout, res in one.items():
+                rows.append((1, layout, res))
+                _print_row(*rows[-1], steps)
+            continue
+        print(f"   ({_load()})", flush=True)
+        try:
+            rows.append((n, many_layout, launch(_options(args, root / f"{args.ems}_{weeks:g}w_x{n}", weeks, n,
+                                                         many_layout))))
+        except LaunchError as exc:
+            print(f"{n:>9} {many_layout:>8} FAILED: {str(exc).splitlines()[0]}", flush=True)
+            continue
+        _print_row(*rows[-1], steps)
+    w16 = [r.wall_s for n, _, r in rows if n == 16]
+    if 16 in counts and not w16:
         print(f"16 buildings x {weeks:g} weeks: failed -> MISSES target < {TARGET_16_BUILDINGS_S:g} s")
-    if 16 in results:
-        w16 = results[16].wall_s
-        print(f"16 buildings x {weeks:g} weeks: {w16:.1f} s -> {_mark(w16 < TARGET_16_BUILDINGS_S)} "
+    if w16:
+        print(f"16 buildings x {weeks:g} weeks: {w16[0]:.1f} s -> {_mark(w16[0] < TARGET_16_BUILDINGS_S)} "
               f"< {TARGET_16_BUILDINGS_S:g} s")
     print(f"\nruns kept in {root}")
     return 0
+
+
+def _print_row(n: int, layout: str, r: Any, steps: int) -> None:
+    """One row of the throughput table (statistics from the bag)."""
+    from ..ros.bag import lost_messages
+
+    st = plant_stats(r.bag)
+    vals = {key: sorted(v.get(key, float("nan")) for v in st.values()) for key in ("rtt_median_ms", "rtt_p99_ms")}
+
+    def mid(key: str) -> float:
+        return vals[key][len(vals[key]) // 2] if vals[key] else float("nan")
+
+    lost_n = sum(lost_messages(r.bag).values())
+    procs = len(list((r.out / "log").glob("*.log")))
+    fb = sum(int(v.get("fallback_steps", 0)) for v in st.values())
+    held = max((v.get("held_for_recorder_s", 0.0) for v in st.values()), default=0.0)
+    print(f"{n:>9} {layout:>8} {procs:>5} {r.wall_s:8.2f} {r.run_s:8.2f} {n * steps / r.wall_s:17.1f} "
+          f"{mid('rtt_median_ms'):10.3f} {mid('rtt_p99_ms'):10.3f} {fb:>8} {held:7.2f} {lost_n:>5}  "
+          f"{os.getloadavg()[0]:.2f}", flush=True)

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -54,6 +55,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--netem", default=None, metavar="ARGS",
                         help="with --network netns: 'tc netem' arguments of the link, e.g. 'delay 5ms loss 1%%' "
                              "(skipped with a note where the kernel lacks netem)")
+    parser.add_argument("--layout", choices=("node", "building", "role"), default=None,
+                        help="processes: node = one per node (default for 1 building), building = container "
+                             "processes each running every node of some buildings (default for more), role = one "
+                             "per role for all buildings")
+    parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
+                        help="container processes of --layout building (implies it), building i in container "
+                             "i mod N (default: one per core)")
     parser.add_argument("--print-plan", action="store_true",
                         help="print the run plan (processes, nodes, parameters) and exit without starting anything")
 
@@ -89,6 +97,12 @@ def check_plant_options(args: argparse.Namespace) -> None:
         raise UsageError("--plant mqtt runs one building (--buildings 1)")
     if args.netem is not None and args.network != "netns":
         raise UsageError("--netem needs --network netns")
+    layout = getattr(args, "layout", None)
+    if layout in ("node", "role") and getattr(args, "containers", None) is not None:
+        raise UsageError(f"--containers needs --layout building, not --layout {layout}")
+    if (layout == "building" or getattr(args, "containers", None) is not None) and (
+            args.plant != "sim" or args.network != "local"):
+        raise UsageError("--layout building and --containers need --plant sim and --network local")
     if args.broker and args.network != "local":
         raise UsageError("--broker needs --network local (the netns namespaces reach no other host)")
 
@@ -134,6 +148,9 @@ def run(args: argparse.Namespace) -> int:
         inputs=args.inputs,
         network=args.network,
         netem=args.netem,
+        containers=(os.cpu_count() or 1) if args.layout == "building" and args.containers is None
+        else args.containers,  # one per core, at most one per building (LaunchOptions.container_count)
+        host_mode=None if args.layout in (None, "building") else args.layout == "role",
     )
     if args.print_plan:
         from ..ros.plan import plan_run

@@ -51,6 +51,10 @@ LINGER_S = 30.0
 LINGER_CHECK_S = 0.05
 #: Node name of the recorder in the contract.
 RECORDER_NODE = "recorder"
+#: ``(namespace, name)`` of the recorder nodes of this process that have closed their run
+#: (every message taken). In a container process (:mod:`comems4build_ros.ros.host`) such a
+#: recorder stays in the graph until the process ends; the nodes beside it need not wait.
+FINISHED_LOCAL_RECORDERS: set[tuple[str, str]] = set()
 #: Exit code of a node that refused to start (bad parameters, scenario or contract).
 EXIT_BAD_INPUT = 2
 
@@ -128,7 +132,8 @@ class ContractNode(Node):
         a node that exited at once on ``plant/done`` could take its last messages out of
         a busy recorder's queue. The node therefore stays until the recorder (node name
         ``recorder``) has closed its bag and left, at most ``timeout_s``
-        (:data:`LINGER_S`); without a recorder it ends at the next check.
+        (:data:`LINGER_S`); without a recorder, or once the recorders are finished ones of
+        this process (:data:`FINISHED_LOCAL_RECORDERS`), it ends at the next check.
         """
         full = self.resolve_topic_name(topic)
         limit = LINGER_S if timeout_s is None else timeout_s
@@ -137,7 +142,8 @@ class ContractNode(Node):
         def check() -> None:
             if self.finished.done():
                 return
-            recorders = [i for i in self.get_subscriptions_info_by_topic(full) if i.node_name == RECORDER_NODE]
+            recorders = [i for i in self.get_subscriptions_info_by_topic(full) if i.node_name == RECORDER_NODE
+                         and (i.node_namespace, i.node_name) not in FINISHED_LOCAL_RECORDERS]
             if not recorders or time.monotonic() - t0 > limit:
                 self.finished.set_result(code)
 

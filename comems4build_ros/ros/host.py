@@ -1,6 +1,6 @@
 """Host mode: one OS process per role runs that role's nodes of many buildings.
 
-``python -m comems4build_ros.ros.host --role plant|feed|ems|recorder --spec FILE.json``
+``python -m comems4build_ros.ros.host --role plant|feed|ems|recorder|container --spec FILE.json``
 
 With ``--buildings N`` the process-per-node launch starts 3N + N + 1 processes; with 16
 buildings Fast DDS discovery between ~65 participants and the per-process overhead
@@ -14,11 +14,20 @@ one ``SingleThreadedExecutor``. The nodes still talk over DDS (one participant p
 process, rclpy's default), so the lock-step protocol, the contract checks and the bags
 are those of the separate processes.
 
+Role ``container`` (the ROS 2 idea of composing nodes into one container process): one
+process runs every node of a few buildings (recorder, EMS, feed and plant), each spec
+entry naming its node role (``"role": "plant"``). Messages between the nodes of one
+process still go through the process's DDS participant, so the topics, the lock-step
+protocol and the bags stay those of separate processes; there is one process wake-up per
+step of a building instead of one in each of four processes.
+
 Spec file (JSON, written by the launcher)::
 
     {"ems": "fuzzy",                       # EMS name (role ems only)
      "progress_period_s": 0.25,            # recorder only: one summed progress line per period
-     "nodes": [{"namespace": "/building_0", "params": {"config_files": [...], ...}}, ...]}
+     "nodes": [{"namespace": "/building_0", "params": {"config_files": [...], ...},
+                "role": "plant"},      # container processes only
+               ...]}
 
 The recorders' own progress lines are replaced by one line ``progress <recorded>
 <total>`` summed over the process's recorders (give them ``progress_period_s`` 0).
@@ -41,11 +50,15 @@ import sys
 from pathlib import Path
 from typing import Any
 
+#: Roles of hosted nodes.
+NODE_ROLES = ("plant", "feed", "ems", "recorder")
+#: Role of a container process: every entry of its spec names its own node role.
+CONTAINER = "container"
 #: Roles a host process can run.
-ROLES = ("plant", "feed", "ems", "recorder")
+ROLES = (*NODE_ROLES, CONTAINER)
 #: Roles whose process ends once all its nodes' ``finished`` futures are done (every node
 #: finishes at the end of the run: feed and EMS on ``plant/done``).
-FINISHING_ROLES = ("plant", "recorder", "feed", "ems")
+FINISHING_ROLES = ROLES
 #: Exit code for a bad spec, parameter or scenario.
 EXIT_BAD_INPUT = 2
 
@@ -70,16 +83,28 @@ def load_spec(path: str | Path) -> dict[str, Any]:
     nodes = spec.get("nodes") if isinstance(spec, dict) else None
     if not isinstance(nodes, list) or not nodes:
         raise HostSpecError(f"host spec '{p}': 'nodes' must be a non-empty list")
-    seen: set[str] = set()
+    seen: set[tuple[Any, str]] = set()
     for i, entry in enumerate(nodes):
         if not isinstance(entry, dict) or not isinstance(entry.get("namespace"), str):
             raise HostSpecError(f"host spec '{p}': nodes[{i}] needs a string 'namespace'")
-        if entry["namespace"] in seen:
+        key = (entry.get("role"), entry["namespace"])  # a container has one node per role and namespace
+        if key in seen:
             raise HostSpecError(f"host spec '{p}': nodes[{i}]: namespace '{entry['namespace']}' given twice")
-        seen.add(entry["namespace"])
+        seen.add(key)
         if not isinstance(entry.get("params", {}), dict):
             raise HostSpecError(f"host spec '{p}': nodes[{i}].params must be an object")
+        if "role" in entry and entry["role"] not in NODE_ROLES:
+            raise HostSpecError(f"host spec '{p}': nodes[{i}].role '{entry['role']}': one of {', '.join(NODE_ROLES)}")
     return spec
+
+
+def entry_role(entry: dict[str, Any], role: str) -> str:
+    """Node role of one spec entry in a process of ``role`` (a container's entries name their own)."""
+    if role != CONTAINER:
+        return role
+    if "role" not in entry:
+        raise HostSpecError(f"host spec: node '{entry.get('namespace')}' of a container needs a 'role'")
+    return str(entry["role"])
 
 
 def to_parameters(params: dict[str, Any]) -> list[Any]:
@@ -134,8 +159,12 @@ def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> 
     from .common import make_executor
     from .contract import ContractError
 
-    make = node_factory(role, spec)
-    prepared = prepare_feed_scenarios(spec) if role == "feed" else {}
+    makers: dict[str, Any] = {}
+    roles = [entry_role(e, role) for e in spec["nodes"]]
+    for r in roles:
+        if r not in makers:
+            makers[r] = node_factory(r, spec)
+    prepared = prepare_feed_scenarios(spec, role)
     rclpy.init(args=args)
     executor = make_executor()
     nodes: list[Any] = []
@@ -143,11 +172,11 @@ def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> 
     current = "?"
     progress_nodes: list[Any] = []
     try:
-        for entry in spec["nodes"]:
+        for entry, r in zip(spec["nodes"], roles):
             current = entry["namespace"]
             params = dict(entry.get("params", {}))
-            extra = {"scenario": prepared[current]} if current in prepared else {}
-            node = make(
+            extra = {"scenario": prepared[current]} if r == "feed" and current in prepared else {}
+            node = makers[r](
                 namespace=current,
                 parameter_overrides=to_parameters(params),
                 start_parameter_services=False,
@@ -156,9 +185,10 @@ def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> 
             nodes.append(node)
             executor.add_node(node)
         period = float(spec.get("progress_period_s", 0.0))
-        if role == "recorder" and period > 0:
-            progress_nodes = list(nodes)
-            nodes[0].create_timer(period, lambda: print_progress(progress_nodes))
+        recorders = [n for n, r in zip(nodes, roles) if r == "recorder"]
+        if recorders and period > 0:
+            progress_nodes = recorders
+            recorders[0].create_timer(period, lambda: print_progress(progress_nodes))
         all_done = Future()
         futures = [f for f in (getattr(n, "finished", None) for n in nodes) if f is not None]
 
@@ -210,8 +240,9 @@ def print_cpu(label: str) -> None:
     print(f"[{label}] cpu_s user={ru.ru_utime:.2f} sys={ru.ru_stime:.2f}", file=sys.stderr, flush=True)
 
 
-def prepare_feed_scenarios(spec: dict[str, Any]) -> dict[str, Any]:
-    """Scenario of every feed node of ``spec``, built in parallel worker processes.
+def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str, Any]:
+    """Scenario of every feed node of ``spec`` (of a process of ``role``), built in parallel
+    worker processes.
 
     Generating one default scenario takes about 1.5 s of CPU; a feed host with 16
     buildings would spend 16 x that before the first step. The workers are forked before
@@ -224,7 +255,7 @@ def prepare_feed_scenarios(spec: dict[str, Any]) -> dict[str, Any]:
 
     from .nodes.feed import prepare_scenario
 
-    nodes = spec["nodes"]
+    nodes = [e for e in spec["nodes"] if entry_role(e, role) == "feed"]
     workers = min(len(nodes), os.cpu_count() or 1)
     if len(nodes) < 2 or workers < 2:
         return {}
@@ -257,6 +288,8 @@ def main(argv: list[str] | None = None) -> int:
     ns, rest = parser.parse_known_args(argv)
     try:
         spec = load_spec(ns.spec)
+        for entry in spec["nodes"]:
+            entry_role(entry, ns.role)
     except HostSpecError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT

@@ -11,10 +11,13 @@ launcher (:mod:`comems4build_ros.ros.launcher`) joins the two and evaluates the 
 
 Every way to run is an option of the plan, never a branch through the supervisor:
 
-* ``layout``: ``node`` (one OS process per node, the default for one building) or
-  ``role`` (one process per role hosting that role's nodes of every building, recorders
-  split by ``buildings_per_recorder``; the default for more buildings; see
-  :mod:`comems4build_ros.ros.host`);
+* ``layout``: ``node`` (one OS process per node, the default for one building),
+  ``building`` (``containers`` container processes, one per core by default, each
+  running every node, recorder included, of its share of the buildings: ROS 2
+  composition; the default for more buildings) or ``role`` (one process per role
+  hosting that role's nodes of every building, recorders split by
+  ``buildings_per_recorder``; the default for more buildings on the ``netns`` network);
+  see :mod:`comems4build_ros.ros.host`;
 * ``discovery_server``: a Fast DDS discovery server process and ``ROS_DISCOVERY_SERVER``
   in every other process's environment;
 * ``plant``: ``sim`` (``plant_sim`` on ROS) or ``mqtt``: the building behind MQTT, i.e.
@@ -79,8 +82,9 @@ HOST_STEP_TIMEOUT_S = 60.0
 #: (instead of 0.02 s and 0.05 s: N nodes' timers wake one shared executor N times as often).
 HOST_WATCHDOG_PERIOD_S = 0.1
 HOST_RECORDER_TICK_S = 0.2
-#: Process layouts: one process per node, or one process per role for all buildings.
-LAYOUTS = ("node", "role")
+#: Process layouts: one process per node, one process per role for all buildings, or
+#: container processes each running every node of a share of the buildings.
+LAYOUTS = ("node", "role", "building")
 #: Networks: this host as it is, or two network namespaces joined by a veth pair.
 NETWORKS = ("local", "netns")
 #: Host group of each role in the ``netns`` network (the others: everything in ``local``).
@@ -131,9 +135,15 @@ class LaunchOptions:
     discovery_server : use a Fast DDS discovery server (None = with more than one building
         in process-per-node mode; never in host mode)
     host_mode : one process per role hosting the nodes of all buildings (see
-        :mod:`comems4build_ros.ros.host`); None = with more than one building
-        (``layout`` ``role``; False = ``node``)
+        :mod:`comems4build_ros.ros.host`; ``layout`` ``role``; False = ``node``); None =
+        the default layout (``node`` for one building, ``building`` for more; ``role``
+        for more on the ``netns`` network)
     buildings_per_recorder : buildings recorded by one recorder process in host mode
+    containers : run every node of the buildings in this many container processes (layout
+        ``building``: recorder, EMS, feed and plant of building i in container i mod
+        ``containers``; at most one container per building); None = one container per
+        core when the layout is ``building`` by default (more than one building, no
+        ``host_mode``)
     plant : ``sim`` (``plant_sim`` on ROS) or ``mqtt`` (the simulated building behind MQTT,
         reached through ``mqtt_bridge``; one building, one process per node)
     clock : ``sim``, ``wall`` or ``wall:<factor>`` (wall modes need ``plant="mqtt"``)
@@ -167,6 +177,7 @@ class LaunchOptions:
     discovery_server: bool | None = None
     host_mode: bool | None = None
     buildings_per_recorder: int = HOST_BUILDINGS_PER_RECORDER
+    containers: int | None = None
     plant: str = "sim"
     clock: str = "sim"
     broker_url: str | None = None
@@ -177,9 +188,24 @@ class LaunchOptions:
 
     @property
     def layout(self) -> str:
-        """``role`` (host mode) or ``node`` (one process per node); see :data:`LAYOUTS`."""
-        host = self.host_mode if self.host_mode is not None else self.buildings > 1
-        return "role" if host else "node"
+        """``building`` (containers), ``role`` (host mode) or ``node`` (one process per node);
+        see :data:`LAYOUTS`."""
+        if self.containers is not None:
+            return "building"
+        if self.host_mode is not None:
+            return "role" if self.host_mode else "node"
+        if self.buildings == 1:
+            return "node"
+        return "building" if self.network == "local" else "role"  # containers cannot span two hosts
+
+    @property
+    def container_count(self) -> int:
+        """Container processes of layout ``building``: ``containers``, or one per core, at
+        most one per building."""
+        import os
+
+        n = self.containers if self.containers is not None else (os.cpu_count() or 1)
+        return max(1, min(n, self.buildings))
 
 
 # ---------------------------------------------------------------------- plan records
@@ -625,6 +651,10 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         raise ValueError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
     if layout == "role" and opts.buildings_per_recorder < 1:
         raise ValueError(f"buildings_per_recorder must be >= 1, got {opts.buildings_per_recorder}")
+    if layout == "building" and opts.containers is not None and opts.containers < 1:
+        raise ValueError(f"containers must be >= 1, got {opts.containers}")
+    if layout == "building" and opts.network != "local":
+        raise ValueError("containers run on this host (network 'local'): 'netns' splits plant and EMS between hosts")
     common: dict[str, Any] = {"config_files": info["config_files"]}
     if opts.overrides:
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
@@ -632,6 +662,8 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
 
     if layout == "role":
         processes = _role_processes(opts, buildings, common, bag, info, out / "host")
+    elif layout == "building":
+        processes = _container_processes(opts, buildings, common, bag, info, out / "host")
     else:
         processes = _node_processes(opts, buildings, common, bag, info)
     use_server = opts.discovery_server
@@ -758,6 +790,39 @@ def _role_processes(
         path, files = spec_file(name, spec)
         out.append(ProcessPlan(name, role, tuple(host_command(role, path)), nodes=tuple(by_role[role]),
                                files=files, finishes=True))
+    return out
+
+
+def _container_processes(
+    opts: LaunchOptions,
+    buildings: Sequence[BuildingPlan],
+    common: dict[str, Any],
+    bag: Path,
+    info: dict[str, Any],
+    spec_dir: Path,
+) -> list[ProcessPlan]:
+    """Layout ``building``: container process j runs recorder, EMS, feed and plant of every
+    building i with i mod n = j (n = ``containers``, at most the number of buildings)."""
+    n = opts.container_count
+    names = {"recorder": "recorder", "ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
+    out: list[ProcessPlan] = []
+    for j in range(n):
+        nodes: list[NodePlan] = []
+        for b in buildings[j::n]:
+            nodes.append(NodePlan("recorder", "recorder", b.namespace,
+                                  dict(recorder_params(b.namespace, bag, info, 0.0), tick_s=HOST_RECORDER_TICK_S)))
+            for role, params in building_params(opts, b.seed, common, b.token).items():
+                if role == "plant":
+                    params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S,
+                              **params}
+                nodes.append(NodePlan(role, names[role], b.namespace, params))
+        name = f"container_{j}"
+        spec = {"ems": opts.ems, "progress_period_s": PROGRESS_PERIOD_S,
+                "nodes": [{"role": nd.role, "namespace": nd.namespace, "params": nd.params} for nd in nodes]}
+        path = spec_dir / f"{name}.json"
+        out.append(ProcessPlan(name, "container", tuple(host_command("container", path)), nodes=tuple(nodes),
+                               files=((str(path), json.dumps(spec, indent=1) + "\n"),), finishes=True,
+                               progress=True, stop_stage=STAGE_RECORDERS))
     return out
 
 

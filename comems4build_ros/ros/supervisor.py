@@ -499,9 +499,9 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
                 listener = progress.listener(len(recorders)) if p.progress else None
                 child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
                                     finishes=p.finishes)
-                if p.role == "recorder":
+                if p.role in ("recorder", "container"):  # a container's recorders end with it
                     recorders.append(child)
-                elif p.role == "plant":
+                if p.role in ("plant", "container"):  # ... and so do its plants
                     plants.append(child)
             t_first_record = supervise(group, recorders, plants, progress, report, t0, plan.timeout_s)
             t_end = time.monotonic()
