@@ -302,6 +302,8 @@ def test_recorder_ends_only_when_every_per_step_topic_is_complete(tmp_path: Path
 
 
 def _check_end_of_run(ctx: object, tmp_path: Path) -> None:
+    import json
+
     from rclpy.parameter import Parameter
 
     from comems4build_ros.ros.nodes.recorder import Recorder
@@ -309,23 +311,53 @@ def _check_end_of_run(ctx: object, tmp_path: Path) -> None:
     rec = Recorder(context=ctx, namespace="/b", parameter_overrides=[
         Parameter("bag_path", value=str(tmp_path / "bag")), Parameter("done_grace_s", value=0.0),
         Parameter("done_timeout_s", value=3600.0)])
-    counters = {full: c for full, c in ((c[0], c) for c in rec.per_step["/b"])}
-    assert counters["/b/ems/command"][2] and not counters["/b/state/soc"][2]  # EMS topic or not
-    assert "/b/plant/step" in counters and "/b/ems/info" in counters and "/b/plant/events" not in counters
+    seen = {c.topic: c for c in rec.per_step["/b"]}
+    assert seen["/b/ems/command"].from_ems and not seen["/b/state/soc"].from_ems
+    assert "/b/plant/step" in seen and "/b/ems/info" in seen and "/b/plant/events" not in seen
     rec.n_steps["/b"], rec.records["/b"], rec.contiguous["/b"] = 10, 10, 10
-    rec.fallbacks["/b"] = 2
     rec.done_at["/b"] = time.monotonic() - 1.0
-    for c in rec.per_step["/b"]:
-        c[1] = 8 if c[2] else 10  # EMS topics: 10 steps less 2 fallbacks
-    counters["/b/feed/prices"][1] = 7
-    assert rec.behind() == {"/b/feed/prices": 3}
+    info = typestore().types["std_msgs/msg/String"]
+    for c in rec.per_step["/b"]:  # the steps as the real messages carry them
+        for k in range(10):
+            if c.from_ems and k in (3, 4):
+                continue  # fallback steps: no command
+            if c.topic.endswith("ems/info"):
+                raw = bytes(typestore().serialize_cdr(info(data=json.dumps({"step": k, "info": {}})),
+                                                      "std_msgs/msg/String"))
+            elif c.topic.endswith("plant/step"):
+                raw = bytes(typestore().serialize_cdr(typestore().types["std_msgs/msg/UInt32"](data=k),
+                                                      "std_msgs/msg/UInt32"))
+            else:
+                raw = _array([float(k), 0.5])
+            c.add(raw)
+    prices = seen["/b/feed/prices"]
+    prices.steps -= {7, 8, 9}
+    for _ in range(3):  # a repeated announcement: step 2 again, not three more steps
+        prices.add(_array([2.0, 0.1]))
+    prices.add(b"\x00\x01garbage")  # malformed: recorded, not counted
+    assert rec.behind() == {"/b/feed/prices": 3, "/b/ems/command": 2, "/b/ems/info": 2}
+    for k in range(2):  # two fallback events (plant/events "<step> fallback ...")
+        rec._special("/b", "plant/events", bytes(typestore().serialize_cdr(
+            info(data=f"{3 + k} fallback no command within 5 s"), "std_msgs/msg/String")))
+    assert rec.fallbacks["/b"] == 2 and rec.behind() == {"/b/feed/prices": 3}
     assert rec.progress("/b") == 7
     rec._last_msg_at = rec._last_record_at = time.monotonic() - 1.0
     rec._tick()
     assert not rec.finished.done()  # quiet, every record in, but a topic is short
-    counters["/b/feed/prices"][1] = 10
-    counters["/b/ems/info"][1] = 0  # a topic never seen (an EMS without step info) is not waited for
+    for k in (7, 8, 9):
+        prices.add(_array([float(k), 0.2]))
+    seen["/b/ems/info"].steps.clear()  # a topic never seen (an EMS without step info) is not waited for
     assert rec.behind() == {} and rec.progress("/b") == 10
+    late = seen["/b/forecast/t_min_c"]
+    late.steps.clear()
+    late.add(_array([6.0, 1.0]))  # a topic first seen at step 6 counts from there
+    assert rec.progress("/b") == 7
+    for k in (7, 8, 9):
+        late.add(_array([float(k), 1.0]))
+    assert rec.progress("/b") == 10 and rec.behind() == {"/b/forecast/t_min_c": 6}  # steps 0..5 are a gap
+    rec._tick()
+    assert not rec.finished.done()  # waits (done_timeout_s) in case they still come
+    late.steps |= set(range(6))
     rec._tick()
     assert rec.finished.done() and rec.finished.result() == 0
     rec.destroy_node()

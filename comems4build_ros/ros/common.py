@@ -234,6 +234,39 @@ def string_cdr(text: str) -> bytes:
     return b"\x00\x01\x00\x00" + (len(raw) + 1).to_bytes(4, "little") + raw + b"\0"
 
 
+def _array_data(raw: bytes) -> tuple[int, int]:
+    """``(byte offset, count)`` of the values of a CDR ``Float64MultiArray`` (labels skipped).
+
+    Raises
+    ------
+    ValueError
+        For bytes that are not a little-endian ``Float64MultiArray`` or are cut short.
+    """
+    import struct
+
+    if len(raw) < 8 or raw[1] != 1:
+        raise ValueError("not a little-endian CDR Float64MultiArray")
+    unpack = struct.unpack_from
+    try:
+        pos = 4
+        (ndim,) = unpack("<I", raw, pos)
+        pos += 4
+        for _ in range(ndim):
+            (n_label,) = unpack("<I", raw, pos)
+            pos += 4 + n_label
+            pos += -(pos - 4) % 4
+            pos += 8  # size, stride
+        pos += 4  # data_offset
+        (n,) = unpack("<I", raw, pos)
+    except struct.error:
+        raise ValueError(f"Float64MultiArray cut short ({len(raw)} bytes)") from None
+    pos += 4
+    pos += -(pos - 4) % 8
+    if pos + 8 * n > len(raw):
+        raise ValueError(f"Float64MultiArray of {n} values cut short ({len(raw)} bytes)")
+    return pos, n
+
+
 def parse_array(raw: bytes) -> array:
     """Values of a CDR-serialised ``Float64MultiArray`` (any layout dimensions), as ``array('d')``.
 
@@ -246,28 +279,26 @@ def parse_array(raw: bytes) -> array:
     ValueError
         For bytes that are not a little-endian ``Float64MultiArray`` or are cut short.
     """
-    import struct
-
-    if len(raw) < 8 or raw[1] != 1:
-        raise ValueError("not a little-endian CDR Float64MultiArray")
-    unpack = struct.unpack_from
-    pos = 4
-    (ndim,) = unpack("<I", raw, pos)
-    pos += 4
-    for _ in range(ndim):
-        (n_label,) = unpack("<I", raw, pos)
-        pos += 4 + n_label
-        pos += -(pos - 4) % 4
-        pos += 8  # size, stride
-    pos += 4  # data_offset
-    (n,) = unpack("<I", raw, pos)
-    pos += 4
-    pos += -(pos - 4) % 8
-    if pos + 8 * n > len(raw):
-        raise ValueError(f"Float64MultiArray of {n} values cut short ({len(raw)} bytes)")
+    pos, n = _array_data(raw)
     out = array("d")
     out.frombytes(raw[pos:pos + 8 * n])
     return out
+
+
+def array_step(raw: bytes) -> int:
+    """Element 0 (the step of every contract array topic) of a CDR ``Float64MultiArray``.
+
+    Raises
+    ------
+    ValueError
+        For bytes that are not such an array, or an empty one.
+    """
+    import struct
+
+    pos, n = _array_data(raw)
+    if n < 1:
+        raise ValueError("empty Float64MultiArray: no step")
+    return int(struct.unpack_from("<d", raw, pos)[0])
 
 
 def layout_sizes(params: PlantParams) -> dict[str, int]:

@@ -30,7 +30,7 @@ and ``done_timeout_s`` without any message, it stops even if some records are mi
 with a warning.
 
 Back-pressure: per namespace the node publishes ``recorder/progress``, the number of
-steps whose ``plant/record`` it has written without a gap, capped by the message count of
+steps whose ``plant/record`` it has written without a gap, capped by the steps recorded of
 every plant and feed topic published once a step (every 16 steps and every tick);
 ``plant_sim`` announces no step more than ``record_window_steps`` (256) beyond it, and
 every topic's keep-last depth (1000) exceeds that window, so a slow recorder slows the
@@ -50,6 +50,7 @@ from __future__ import annotations
 import json
 import sys
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -58,7 +59,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Bool, UInt32
 
 from ..bag import INFO_TOPIC, RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, BagWriter, decode, qos_for_bag
-from ..common import FINISHED_LOCAL_RECORDERS, no_default_event_callbacks, param, parse_array, run_node
+from ..common import FINISHED_LOCAL_RECORDERS, array_step, no_default_event_callbacks, param, parse_array, run_node
 from ..contract import Contract, load_contract, resolve
 
 NODE_NAME = "recorder"
@@ -93,6 +94,51 @@ PROGRESS_EVERY_STEPS = 16
 OPTIONAL_TOPICS = frozenset({"ems/info"})
 #: Default of ``optional_wait_s`` [s].
 OPTIONAL_WAIT_S = 1.0
+
+
+class StepsSeen:
+    """Steps recorded so far of one topic published once a step.
+
+    Counted by step, not by message: plant_sim repeats its announcement while it waits
+    (and the feed and EMS answer it again), so a topic can carry a step twice.
+    """
+
+    __slots__ = ("topic", "from_ems", "step_of", "steps", "first")
+
+    def __init__(self, topic: str, from_ems: bool, step_of: Callable[[bytes], int]) -> None:
+        self.topic = topic
+        self.from_ems = from_ems  # no message is expected at a fallback step
+        self.step_of = step_of
+        self.steps: set[int] = set()
+        self.first = 0  # first step seen: a topic that starts late does not hold the progress back
+
+    def add(self, raw: bytes) -> None:
+        """Note the step of one message (a malformed one is recorded, not counted)."""
+        try:
+            k = self.step_of(raw)
+        except (ValueError, KeyError, TypeError):
+            return
+        if not self.steps:
+            self.first = k
+        self.steps.add(k)
+
+
+def _uint32_step(raw: bytes) -> int:
+    """The value of a CDR ``std_msgs/UInt32`` (``plant/step``)."""
+    import struct
+
+    try:
+        return int(struct.unpack_from("<I", raw, 4)[0])
+    except struct.error:
+        raise ValueError("UInt32 cut short") from None
+
+
+def _info_step(raw: bytes) -> int:
+    """``step`` of an ``ems/info`` JSON string."""
+    try:
+        return int(json.loads(decode("std_msgs/msg/String", raw).data)["step"])
+    except Exception as exc:  # noqa: BLE001 - anything malformed is "no step"
+        raise ValueError(f"ems/info without a step: {exc}") from None
 
 
 def default_wait_topics(contract: Contract) -> list[str]:
@@ -151,7 +197,7 @@ class Recorder(Node):
         # Messages per topic published once a step (what the bag's gap check expects):
         # the end of the run waits until each topic seen has every step (EMS topics: every
         # step without a fallback), not only plant/record.
-        self.per_step: dict[str, list[Any]] = {ns: [] for ns in self.namespaces}  # [full, count, from_ems]
+        self.per_step: dict[str, list[StepsSeen]] = {ns: [] for ns in self.namespaces}
         self.fallbacks = dict.fromkeys(self.namespaces, 0)
         roles = {n.name: n.role for n in self.contract.nodes.values()}
         self.n_steps: dict[str, int] = {}
@@ -163,7 +209,8 @@ class Recorder(Node):
                 holder: list[Any] = []
                 counter = None
                 if spec.is_array or spec.name in (STEP_TOPIC, INFO_TOPIC):
-                    counter = [full, 0, any(roles.get(p) == "ems" for p in spec.publishers)]
+                    step_of = array_step if spec.is_array else _uint32_step if spec.name == STEP_TOPIC else _info_step
+                    counter = StepsSeen(full, any(roles.get(p) == "ems" for p in spec.publishers), step_of)
                     self.per_step[ns].append(counter)
                 sub = self.create_subscription(
                     spec.msg_class(), full, self._callback(ns, spec.name, full, holder, counter),
@@ -224,8 +271,8 @@ class Recorder(Node):
         return qos_for_bag(spec.reliability == "reliable", spec.durability == "transient_local", spec.depth)
 
     # ------------------------------------------------------------------ callbacks
-    def _callback(self, ns: str, name: str, full: str, holder: list[Any], counter: list[Any] | None) -> Any:
-        """Callback of one subscription: write the message (count it in ``counter[1]``), then
+    def _callback(self, ns: str, name: str, full: str, holder: list[Any], counter: StepsSeen | None) -> Any:
+        """Callback of one subscription: write the message (note its step in ``counter``), then
         drain the queue.
 
         The executor wakes up once per message it hands over; taking every queued
@@ -241,7 +288,7 @@ class Recorder(Node):
                 t_ns = info.get("received_timestamp") or time.time_ns()
                 write(full, t_ns, raw)
                 if counter is not None:
-                    counter[1] += 1
+                    counter.add(raw)
                 if special:
                     self._special(ns, name, raw)
                 sub = holder[0]
@@ -267,7 +314,7 @@ class Recorder(Node):
                     c += 1
                 self.contiguous[ns] = c
                 if c - self._published_progress[ns] >= PROGRESS_EVERY_STEPS:
-                    self._publish_progress(ns)
+                    self._publish_progress(ns, PROGRESS_EVERY_STEPS)  # one message per 16 steps
             elif step > self.contiguous[ns]:
                 self._ahead[ns].add(step)
             self._last_record_at = time.monotonic()
@@ -293,23 +340,24 @@ class Recorder(Node):
         out: dict[str, int] = {}
         for ns in self.namespaces:
             n = self.n_steps.get(ns, 0)
-            for full, count, from_ems in self.per_step[ns]:
-                need = n - (self.fallbacks[ns] if from_ems else 0)
-                if 0 < count < need:
-                    out[full] = need - count
+            for c in self.per_step[ns]:
+                need = n - (self.fallbacks[ns] if c.from_ems else 0)
+                if 0 < len(c.steps) < need:
+                    out[c.topic] = need - len(c.steps)
         return out
 
     # ------------------------------------------------------------------ housekeeping
     def progress(self, ns: str) -> int:
         """Steps of ``ns`` written: plant/record without a gap, and no plant or feed topic
         (per step, seen so far) with fewer messages (each writer's samples come in order)."""
-        return min([self.contiguous[ns], *(count for _, count, from_ems in self.per_step[ns]
-                                           if count > 0 and not from_ems)])
+        return min([self.contiguous[ns], *(c.first + len(c.steps) for c in self.per_step[ns]
+                                           if c.steps and not c.from_ems)])
 
-    def _publish_progress(self, ns: str) -> None:
-        """``recorder/progress`` of ``ns`` (:meth:`progress`; plant_sim's back-pressure)."""
+    def _publish_progress(self, ns: str, every: int = 1) -> None:
+        """``recorder/progress`` of ``ns`` (:meth:`progress`; plant_sim's back-pressure) if it
+        grew by ``every`` steps since the last one published."""
         value = self.progress(ns)
-        if value == self._published_progress[ns]:
+        if value - self._published_progress[ns] < every:
             return
         self._progress_msg.data = value
         self._progress_pubs[ns].publish(self._progress_msg)
