@@ -47,6 +47,9 @@ STEPS = 48  # 2 days
 RUN_TIMEOUT_S = 150.0
 #: Wait between "the observer's readers matched" and saying ready (see Graph.ready) [s].
 OBSERVER_SETTLE_S = 1.0
+#: Node name of the observer. It plays the recorder's part (collect() reads every topic):
+#: plant_sim with wait_for_recorder gets it as ``recorder_node``.
+OBSERVER = "test_observer"
 IGNORED_SUMMARY_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 #: Controller step_info columns that hold wall-clock measurements (differ run to run).
 TIMING_COLUMNS = ("ems_solve_s",)
@@ -86,7 +89,7 @@ class Graph:
         os.environ["ROS_AUTOMATIC_DISCOVERY_RANGE"] = "LOCALHOST"
         self.ctx = rclpy.context.Context()
         rclpy.init(context=self.ctx, domain_id=domain_id)
-        self.node = Node("test_observer", context=self.ctx)
+        self.node = Node(OBSERVER, context=self.ctx)
         self.executor = SingleThreadedExecutor(context=self.ctx)
         self.executor.add_node(self.node)
         self.contract = load_contract()
@@ -97,6 +100,8 @@ class Graph:
         self.states: dict[int, float] = {}
         self.done = False
         self.on_state: Callable[[int], None] | None = None  # hook called for each state/t_air_c message
+        self.subs: dict[str, Any] = {}
+        self._extra: list[Any] = []
         self.may_fail: set[str] = set()  # processes a test kills or expects to fail
 
     # -- processes
@@ -113,6 +118,8 @@ class Graph:
         return proc
 
     def start_plant(self, **params: Any) -> subprocess.Popen:
+        if params.get("wait_for_recorder") and self.subs:  # the observer is the recorder
+            params = {"recorder_node": OBSERVER, **params}
         return self.start("plant_sim", ["-m", "comems4build_ros.ros.nodes.plant_sim", *_ros_args(params)])
 
     def start_feed(self, **params: Any) -> subprocess.Popen:
@@ -177,6 +184,12 @@ class Graph:
             ("state/t_air_c", Float64MultiArray, on_state),
         ):
             self.subs[topic] = self.node.create_subscription(typ, topic, cb, c.topic(topic).qos_profile())
+        # The rest, as the recorder reads them, until the run has started (the plant's
+        # writers have matched them then); dropped at the first state so that the
+        # observer keeps up with the plant.
+        self._extra = [self.node.create_subscription(spec.msg_class(), spec.name, lambda _raw: None,
+                                                     spec.qos_profile(), raw=True)
+                       for spec in c.topics.values() if spec.name not in self.subs and spec.publishers]
         self._ready_pub = self.node.create_publisher(Bool, "recorder/ready", c.topic("recorder/ready").qos_profile())
 
     def ready(self, topics: tuple[str, ...] = ("plant/record", "plant/done", "state/t_air_c"), timeout: float = 60.0):
@@ -206,6 +219,10 @@ class Graph:
                 if name not in self.may_fail and proc.poll() not in (None, 0):
                     pytest.fail(f"{name} exited with {proc.returncode} while waiting for {what}:\n{self.log(name)}")
             self.executor.spin_once(timeout_sec=0.05)
+            if self._extra and self.states:
+                for sub in self._extra:
+                    self.node.destroy_subscription(sub)
+                self._extra = []
 
     def timeseries(self) -> pd.DataFrame:
         """The recorded per-step table in sim.py's column order (time from time_unix_s)."""

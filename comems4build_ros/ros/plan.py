@@ -518,12 +518,12 @@ def building_params(
 ) -> dict[str, dict[str, Any]]:
     """Parameters of the EMS, feed and plant of one building (role -> parameters)."""
     weeks, steps = feed_window(opts.weeks, opts.steps)
-    ems_params = dict(common)
+    ems_params = dict(common, wait_for_recorder=True)  # first command once its writers matched the recorder
     if token:
         ems_params["run_token"] = token
     if opts.ems_options:
         ems_params["ems_options"] = list(opts.ems_options)
-    feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps)
+    feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps, wait_for_recorder=True)
     if seed is not None:
         feed_params["seed"] = int(seed)
     if opts.start:

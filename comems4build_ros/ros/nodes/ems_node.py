@@ -111,6 +111,7 @@ class EMSNode(ContractNode):
         for i, topic in enumerate(self._inputs):
             self.contract_subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name), raw=True)
         self.exit_when_done = bool(param(self, "exit_when_done", True))
+        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
         self.finished = Future()
@@ -157,6 +158,8 @@ class EMSNode(ContractNode):
             self.finish_when_recorded("ems/command")
 
     def _decide(self, step: int, fields: dict[str, Any]) -> None:
+        if not self.recorder_gate():  # not yet: the plant's repeated announcement comes back here
+            return
         for s in [s for s in self._pending if s <= step]:
             del self._pending[s]
         data = nest(fields)

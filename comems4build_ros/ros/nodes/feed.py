@@ -302,6 +302,7 @@ class Feed(ContractNode):
         # (an announcement that comes in meanwhile waits in the queue until the node spins)
         self.contract_subscription("plant/step", self._on_plant_step)
         self.exit_when_done = bool(param(self, "exit_when_done", True))
+        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
         self.finished = Future()
@@ -395,7 +396,7 @@ class Feed(ContractNode):
 
     def _on_plant_step(self, msg: UInt32) -> None:
         k = int(msg.data)
-        if k >= self.n_steps:
+        if k >= self.n_steps or not self.recorder_gate():  # not yet: the plant announces again
             return
         last = min(k + self.lookahead, self.n_steps - 1)
         first = k if k <= self._last_request else max(self._next, k)

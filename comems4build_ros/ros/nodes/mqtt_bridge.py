@@ -522,8 +522,8 @@ class MqttBridge(ContractNode):
         if not self.started:
             late = now - self._t_created > self.startup_timeout_s
             heard = all(m in self.watchdog.latest for m in self.map.measurements if self.map.measurements[m].required)
-            # recorder ready (its readers matched) and our plant/record writer matched it too
-            recorder = self._recorder_ready and self._record.publisher.get_subscription_count() > 0
+            # recorder ready (its readers matched) and our writers matched its readers too
+            recorder = self._recorder_ready and self.recorder_gate()
             ready = self.link.connected.is_set() and (not self.wait_for_recorder or recorder) and (
                 self._cmd_sub.get_publisher_count() > 0 or late) and (heard or late)
             if ready:

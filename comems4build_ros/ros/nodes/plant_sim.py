@@ -41,6 +41,7 @@ from ...ems.fallback import safe_action
 from ...plant import Plant
 from ...types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, PlantState
 from ..common import (
+    RECORDER_NODE,
     ArrayPublisher,
     CommandError,
     ContractNode,
@@ -97,7 +98,9 @@ LOOP_PARAMS = {
 
 def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] | None = None) -> None:
     """Read the loop's timing parameters (:data:`LOOP_PARAMS` plus ``extra``), each positive,
-    ``wait_for_recorder``, ``exit_when_done``, ``ems_token`` (0 = the token of the run's
+    ``wait_for_recorder``, ``recorder_node`` (the recorder's node name, see
+    :meth:`~comems4build_ros.ros.common.ContractNode.recorder_matched`), ``exit_when_done``,
+    ``ems_token`` (0 = the token of the run's
     first valid command) and ``record_window_steps`` (>= 1) into attributes of ``node``."""
     for name, default in {**LOOP_PARAMS, **(extra or {})}.items():
         value = float(param(node, name, default))
@@ -105,6 +108,7 @@ def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] 
             raise ValueError(f"node '{node_name}': parameter '{name}' must be positive")
         setattr(node, name, value)
     node.wait_for_recorder = bool(param(node, "wait_for_recorder", False))
+    node.recorder_node = str(param(node, "recorder_node", RECORDER_NODE))
     node.exit_when_done = bool(param(node, "exit_when_done", True))
     node.ems_token = int(param(node, "ems_token", 0))
     node.record_window_steps = int(param(node, "record_window_steps", RECORD_WINDOW_STEPS))
@@ -405,9 +409,9 @@ class PlantSim(ContractNode):
         if self.done or self._held:
             return
         if not self.started:
-            # The recorder's ready says its readers matched our writers; the writer side of
-            # plant/record must have matched too, or the first records could go unsent.
-            recorder = self._recorder_ready and self._record.publisher.get_subscription_count() > 0
+            # The recorder's ready says its readers matched our writers; our writers must
+            # have matched its readers too, or the first messages could go unsent.
+            recorder = self._recorder_ready and self.recorder_gate()
             ready = (not self.wait_for_recorder or recorder) and (
                 self._cmd_sub.get_publisher_count() > 0 or now - self._t_created > self.startup_timeout_s
             )
