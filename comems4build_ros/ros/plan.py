@@ -660,10 +660,8 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
     buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns), new_token()) for ns, seed in zip(ns_list, seeds))
 
-    if layout == "role":
-        processes = _role_processes(opts, buildings, common, bag, info, out / "host")
-    elif layout == "building":
-        processes = _container_processes(opts, buildings, common, bag, info, out / "host")
+    if layout in ("role", "building"):
+        processes = _host_processes(opts, buildings, common, bag, info, out / "host")
     else:
         processes = _node_processes(opts, buildings, common, bag, info)
     use_server = opts.discovery_server
@@ -747,53 +745,36 @@ def _node_processes(
     return out
 
 
-def _role_processes(
-    opts: LaunchOptions,
-    buildings: Sequence[BuildingPlan],
-    common: dict[str, Any],
-    bag: Path,
-    info: dict[str, Any],
-    spec_dir: Path,
-) -> list[ProcessPlan]:
-    """Layout ``role`` (host mode): recorder processes (one per ``buildings_per_recorder``),
-    then one EMS, one feed and one plant process for all buildings."""
-    out: list[ProcessPlan] = []
-
-    def spec_file(name: str, spec: dict[str, Any]) -> tuple[Path, tuple[tuple[str, str], ...]]:
-        path = spec_dir / f"{name}.json"
-        return path, ((str(path), json.dumps(spec, indent=1) + "\n"),)
-
-    per = opts.buildings_per_recorder
-    for j in range(0, len(buildings), per):
-        nodes = [
-            NodePlan("recorder", "recorder", b.namespace,
-                     dict(recorder_params(b.namespace, bag, info, 0.0), tick_s=HOST_RECORDER_TICK_S))
-            for b in buildings[j:j + per]
-        ]
-        name = f"host_recorder_{j // per}"
-        spec = {"progress_period_s": PROGRESS_PERIOD_S,
-                "nodes": [{"namespace": n.namespace, "params": n.params} for n in nodes]}
-        path, files = spec_file(name, spec)
-        out.append(ProcessPlan(name, "recorder", tuple(host_command("recorder", path)), nodes=tuple(nodes),
-                               files=files, finishes=True, progress=True, stop_stage=STAGE_RECORDERS))
-    by_role: dict[str, list[NodePlan]] = {"ems": [], "feed": [], "plant": []}
+def _hosted_nodes(
+    opts: LaunchOptions, b: BuildingPlan, common: dict[str, Any], bag: Path, info: dict[str, Any]
+) -> list[NodePlan]:
+    """Recorder, EMS, feed and plant of building ``b`` as hosted nodes (host and container
+    processes: the recorder's and the plant's timers slower, the plant's step timeout longer)."""
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
-    for b in buildings:
-        for role, params in building_params(opts, b.seed, common, b.token).items():
-            if role == "plant":
-                params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S,
-                          **params}
-            by_role[role].append(NodePlan(role, names[role], b.namespace, params))
-    for role in ("ems", "feed", "plant"):
-        name = f"host_{role}"
-        spec = {"ems": opts.ems, "nodes": [{"namespace": n.namespace, "params": n.params} for n in by_role[role]]}
-        path, files = spec_file(name, spec)
-        out.append(ProcessPlan(name, role, tuple(host_command(role, path)), nodes=tuple(by_role[role]),
-                               files=files, finishes=True))
-    return out
+    nodes = [NodePlan("recorder", "recorder", b.namespace,
+                      dict(recorder_params(b.namespace, bag, info, 0.0), tick_s=HOST_RECORDER_TICK_S))]
+    for role, params in building_params(opts, b.seed, common, b.token).items():
+        if role == "plant":
+            params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S, **params}
+        nodes.append(NodePlan(role, names[role], b.namespace, params))
+    return nodes
 
 
-def _container_processes(
+def _host_process(name: str, role: str, nodes: Sequence[NodePlan], spec_dir: Path, ems: str,
+                  progress: bool) -> ProcessPlan:
+    """A process of :mod:`comems4build_ros.ros.host` running ``nodes`` (its spec file written first)."""
+    path = spec_dir / f"{name}.json"
+    spec: dict[str, Any] = {"ems": ems, "nodes": [
+        {"namespace": n.namespace, "params": n.params, **({"role": n.role} if role == "container" else {})}
+        for n in nodes]}
+    if progress:
+        spec["progress_period_s"] = PROGRESS_PERIOD_S
+    return ProcessPlan(name, role, tuple(host_command(role, path)), nodes=tuple(nodes),
+                       files=((str(path), json.dumps(spec, indent=1) + "\n"),), finishes=True, progress=progress,
+                       stop_stage=STAGE_RECORDERS if progress else STAGE_NODES)
+
+
+def _host_processes(
     opts: LaunchOptions,
     buildings: Sequence[BuildingPlan],
     common: dict[str, Any],
@@ -801,28 +782,29 @@ def _container_processes(
     info: dict[str, Any],
     spec_dir: Path,
 ) -> list[ProcessPlan]:
-    """Layout ``building``: container process j runs recorder, EMS, feed and plant of every
-    building i with i mod n = j (n = ``containers``, at most the number of buildings)."""
-    n = opts.container_count
-    names = {"recorder": "recorder", "ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
-    out: list[ProcessPlan] = []
-    for j in range(n):
-        nodes: list[NodePlan] = []
-        for b in buildings[j::n]:
-            nodes.append(NodePlan("recorder", "recorder", b.namespace,
-                                  dict(recorder_params(b.namespace, bag, info, 0.0), tick_s=HOST_RECORDER_TICK_S)))
-            for role, params in building_params(opts, b.seed, common, b.token).items():
-                if role == "plant":
-                    params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S,
-                              **params}
-                nodes.append(NodePlan(role, names[role], b.namespace, params))
-        name = f"container_{j}"
-        spec = {"ems": opts.ems, "progress_period_s": PROGRESS_PERIOD_S,
-                "nodes": [{"role": nd.role, "namespace": nd.namespace, "params": nd.params} for nd in nodes]}
-        path = spec_dir / f"{name}.json"
-        out.append(ProcessPlan(name, "container", tuple(host_command("container", path)), nodes=tuple(nodes),
-                               files=((str(path), json.dumps(spec, indent=1) + "\n"),), finishes=True,
-                               progress=True, stop_stage=STAGE_RECORDERS))
+    """Processes of :mod:`comems4build_ros.ros.host` for the layouts ``role`` and ``building``.
+
+    ``role`` (host mode): recorder processes (one per ``buildings_per_recorder``), then one
+    EMS, one feed and one plant process for all buildings. ``building``: container process
+    j runs recorder, EMS, feed and plant of every building i with i mod n = j (n =
+    ``containers``, at most the number of buildings).
+    """
+    if opts.layout == "building":
+        n = opts.container_count
+        return [_host_process(f"container_{j}", "container",
+                              [node for b in buildings[j::n] for node in _hosted_nodes(opts, b, common, bag, info)],
+                              spec_dir, opts.ems, True)
+                for j in range(n)]
+    by_role: dict[str, list[NodePlan]] = {"recorder": [], "ems": [], "feed": [], "plant": []}
+    for b in buildings:
+        for node in _hosted_nodes(opts, b, common, bag, info):
+            by_role[node.role].append(node)
+    per = opts.buildings_per_recorder
+    recorders = by_role["recorder"]
+    out = [_host_process(f"host_recorder_{j // per}", "recorder", recorders[j:j + per], spec_dir, opts.ems, True)
+           for j in range(0, len(recorders), per)]
+    out += [_host_process(f"host_{role}", role, by_role[role], spec_dir, opts.ems, False)
+            for role in ("ems", "feed", "plant")]
     return out
 
 

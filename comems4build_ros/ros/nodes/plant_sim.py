@@ -101,7 +101,8 @@ def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] 
     ``wait_for_recorder``, ``recorder_node`` (the recorder's node name, see
     :meth:`~comems4build_ros.ros.common.ContractNode.recorder_matched`), ``exit_when_done``,
     ``ems_token`` (0 = the token of the run's
-    first valid command) and ``record_window_steps`` (>= 1) into attributes of ``node``."""
+    first valid command) and ``record_window_steps`` (>= 1) into attributes of ``node``, and
+    set the run's counters to zero (the lock-step masters plant_sim and mqtt_bridge share them)."""
     for name, default in {**LOOP_PARAMS, **(extra or {})}.items():
         value = float(param(node, name, default))
         if not value > 0:
@@ -114,6 +115,16 @@ def set_loop_params(node: ContractNode, node_name: str, extra: dict[str, float] 
     node.record_window_steps = int(param(node, "record_window_steps", RECORD_WINDOW_STEPS))
     if node.record_window_steps < 1:
         raise ValueError(f"node '{node_name}': parameter 'record_window_steps' must be >= 1")
+    # the run's counters (plant/record, the final "run done" line) and the recorder's state
+    node.fallback_steps = 0
+    node.rejected_commands = 0
+    node.wrong_step_commands = 0
+    node.duplicate_commands = 0
+    node.foreign_commands = 0
+    node._token = float(node.ems_token) if node.ems_token > 0 else None  # run token of accepted commands
+    node._recorder_ready = False
+    node._recorded = 0  # steps the recorder has written without a gap (recorder/progress)
+    node.held_s = 0.0  # lock-step: time the next announcement waited for the recorder (back-pressure) [s]
 
 
 def finish_run(node: Any, before_done: Any = None) -> None:
@@ -201,18 +212,9 @@ class PlantSim(ContractNode):
         self._truth: dict[int, Any] = {}
         self._cmd: Action | None = None
         self._ever_commanded = False
-        self._recorder_ready = False
         self.started = False
         self.done = False
-        self.fallback_steps = 0
-        self.rejected_commands = 0
-        self.wrong_step_commands = 0
-        self.duplicate_commands = 0
-        self.foreign_commands = 0
-        self._token: float | None = float(self.ems_token) if self.ems_token > 0 else None
-        self._recorded = 0  # steps the recorder has written without a gap (recorder/progress)
         self._held = False  # announcement of step k held back until the recorder catches up
-        self.held_s = 0.0  # time spent held [s]
         self._t_held = 0.0
         self._cmd_data: list[float] | None = None  # payload of the pending command
         self._last_cmd: list[float] | None = None  # payload of the command applied in step k-1
