@@ -579,6 +579,13 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
     return runs
 
 
+def is_per_step(spec: Any) -> bool:
+    """Whether a contract topic carries one message per step (its step in the message):
+    every ``Float64MultiArray`` topic (element 0), ``plant/step`` and ``ems/info``. The gap
+    check and the recorder's end of run expect each step of these."""
+    return bool(spec.is_array) or spec.name in (STEP_TOPIC, INFO_TOPIC)
+
+
 def find_gaps(
     contract: Any,
     ns: str,
@@ -611,11 +618,7 @@ def find_gaps(
         full = resolve_ns(ns, spec.name)
         if recorded is not None and full not in recorded:
             continue
-        if spec.is_array or spec.name == STEP_TOPIC:
-            pass
-        elif spec.name == INFO_TOPIC and full in seen:
-            pass
-        else:
+        if not is_per_step(spec) or (spec.name == INFO_TOPIC and full not in seen):
             continue
         from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
         got = seen.get(full, set())

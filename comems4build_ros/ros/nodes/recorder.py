@@ -58,7 +58,7 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, UInt32
 
-from ..bag import INFO_TOPIC, RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, BagWriter, decode, qos_for_bag
+from ..bag import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, BagWriter, decode, is_per_step, qos_for_bag
 from ..common import FINISHED_LOCAL_RECORDERS, array_step, no_default_event_callbacks, param, parse_array, run_node
 from ..contract import Contract, load_contract, resolve
 
@@ -194,9 +194,9 @@ class Recorder(Node):
         self._optional: list[tuple[str, Any]] = []  # ... of the optional topics of the wait list
         self.optional_wait_s = float(param(self, "optional_wait_s", OPTIONAL_WAIT_S))
         self.records = dict.fromkeys(self.namespaces, 0)
-        # Messages per topic published once a step (what the bag's gap check expects):
-        # the end of the run waits until each topic seen has every step (EMS topics: every
-        # step without a fallback), not only plant/record.
+        # Steps recorded of each topic published once a step (what the bag's gap check
+        # expects): the end of the run waits until each topic seen has every step (EMS
+        # topics: every step without a fallback), not only plant/record.
         self.per_step: dict[str, list[StepsSeen]] = {ns: [] for ns in self.namespaces}
         self.fallbacks = dict.fromkeys(self.namespaces, 0)
         roles = {n.name: n.role for n in self.contract.nodes.values()}
@@ -208,7 +208,7 @@ class Recorder(Node):
                 self.writer.add_topic(full, spec.type, self._bag_qos(spec.qos))
                 holder: list[Any] = []
                 counter = None
-                if spec.is_array or spec.name in (STEP_TOPIC, INFO_TOPIC):
+                if is_per_step(spec):
                     step_of = array_step if spec.is_array else _uint32_step if spec.name == STEP_TOPIC else _info_step
                     counter = StepsSeen(full, any(roles.get(p) == "ems" for p in spec.publishers), step_of)
                     self.per_step[ns].append(counter)
