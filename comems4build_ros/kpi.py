@@ -251,6 +251,25 @@ def h2_empty_at(ts: pd.DataFrame, loh_min: float, dt_h: float = 1.0) -> str | No
     return (start + pd.Timedelta(hours=dt_h)).isoformat()
 
 
+def heat_recovered_at(ts: pd.DataFrame, eta_sys: float, dt_h: float = 1.0) -> pd.Series:
+    """FC heat of each step at system efficiency ``eta_sys`` for the run's own dispatch [kWh].
+
+    ``eq:FC_sys_efficiency``: ``Q_hr = n_FC * LHV * (eta_sys - eta_el)``, i.e. the step's H2
+    power ``p_h2_w`` (LHV) times ``eta_sys - eta_el`` while the FC is on. The paper evaluates
+    the heat recovery "if the overall FC system efficiency could achieve 90 %"
+    (``sec:heat_recovery``); this is that evaluation without simulating the run again.
+
+    Parameters
+    ----------
+    ts : timeseries with ``p_h2_w`` [W], ``eta_fc_el`` [-] and ``fc_on``
+    eta_sys : FC system efficiency [-]
+    dt_h : step length [h]
+    """
+    on = ts["fc_on"].astype(bool).to_numpy()
+    q_w = ts["p_h2_w"].to_numpy(dtype=float) * np.maximum(eta_sys - ts["eta_fc_el"].to_numpy(dtype=float), 0.0)
+    return pd.Series(np.where(on, q_w, 0.0) * dt_h / W_PER_KW, index=ts.index)
+
+
 def h2_left_value_eur(loh_end: float, loh_min: float, e_h2_max_kwh: float, price_eur_per_kwh: float) -> float:
     """Value of the usable H2 left at the end [EUR] (paper ``sec:results``).
 

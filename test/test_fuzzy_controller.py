@@ -103,27 +103,45 @@ def test_preheats_before_home_period(params):
 
 def test_fuel_cell_only_with_demand_and_within_limits(params):
     ems = FuzzyEMS(params, {})
-    fc = params.fuel_cell
-    surplus = ems.act(fuzzy_obs(p_pv_w=4000.0, p_load_w=300.0))
+    fc, b = params.fuel_cell, params.battery
+    surplus = ems.act(fuzzy_obs(p_pv_w=4000.0, p_load_w=300.0, soc=b.soc_min))
     assert surplus.p_fc_w == 0.0
-    # 1.6 kW demand at the day's highest price, allowance untouched -> FC on, <= demand, within range
-    a = ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, hp_mod_prev=0.0))
+    # 1.6 kW demand at the day's highest price, empty battery, allowance untouched -> FC on within range
+    a = ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, hp_mod_prev=0.0, soc=b.soc_min))
     assert a.hp_mod == 0.0 and a.hp_mode == HP_OFF
-    assert fc.p_min_w <= a.p_fc_w <= min(1600.0, fc.zeta * fc.p_max_w)
+    assert fc.p_min_w <= a.p_fc_w <= fc.zeta * fc.p_max_w
     # low price -> grid, no FC
-    cheap = ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, prices_buy_24h=tuple([0.40] + [0.50] * 23)))
+    cheap = ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, soc=b.soc_min,
+                              prices_buy_24h=tuple([0.40] + [0.50] * 23)))
     assert cheap.p_fc_w == 0.0
+
+
+def test_battery_first_then_the_fuel_cell_holds(params):
+    """tab:FLCfc_rules: an off FC starts for a medium load only with an empty battery; a running FC holds."""
+    ems = FuzzyEMS(params, {})
+    b = params.battery
+    charged = ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, soc=0.8))
+    assert charged.p_fc_w == 0.0 and charged.p_bess_w < 0.0  # the battery covers the load
+    running = ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, soc=0.8, fc_on_prev=True))
+    assert running.p_fc_w >= params.fuel_cell.p_min_w  # an FC already on stays on
+    # at an average price an off FC stays off, a running one holds (rows 2 and 3)
+    avg = tuple([0.35] + [0.30] * 11 + [0.40] * 12)  # EDF 0.5: "average" only
+    assert ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, soc=b.soc_min, price_buy_eur_per_kwh=0.35,
+                             prices_buy_24h=avg)).p_fc_w == 0.0
+    assert ems.act(fuzzy_obs(p_load_w=1600.0, t_air_c=22.5, soc=b.soc_min, price_buy_eur_per_kwh=0.35,
+                             prices_buy_24h=avg, fc_on_prev=True)).p_fc_w > 0.0
 
 
 def test_fuel_cell_stops_when_daily_allowance_used(params):
     ems = FuzzyEMS(params, {})
     dloh = 1.0 / 84.0
-    ems.act(fuzzy_obs(step=0, day_index=3, loh=0.8, p_load_w=1600.0, t_air_c=22.5))
-    a = ems.act(fuzzy_obs(step=1, day_index=3, loh=0.8 - 1.01 * dloh, p_load_w=1600.0, t_air_c=22.5))
+    empty = params.battery.soc_min
+    ems.act(fuzzy_obs(step=0, day_index=3, loh=0.8, p_load_w=1600.0, t_air_c=22.5, soc=empty))
+    a = ems.act(fuzzy_obs(step=1, day_index=3, loh=0.8 - 1.01 * dloh, p_load_w=1600.0, t_air_c=22.5, soc=empty))
     assert ems.step_info["dloh_share"] == 0.0
     assert a.p_fc_w == 0.0
     # next day: renewed
-    b = ems.act(fuzzy_obs(step=2, day_index=4, loh=0.8 - 1.01 * dloh, p_load_w=1600.0, t_air_c=22.5))
+    b = ems.act(fuzzy_obs(step=2, day_index=4, loh=0.8 - 1.01 * dloh, p_load_w=1600.0, t_air_c=22.5, soc=empty))
     assert ems.step_info["dloh_share"] == pytest.approx(1.0)
     assert b.p_fc_w > 0.0
 
@@ -146,9 +164,12 @@ def test_battery_limits_and_signs(params):
 
 
 def test_options_override_and_errors(params):
-    ems = FuzzyEMS(params, {"fc.fc.cap_to_demand": False})
-    a = ems.act(fuzzy_obs(p_load_w=600.0, t_air_c=22.5))
-    assert a.p_fc_w > 600.0  # no cap: alpha_FC * zeta * P_max above the demand
+    ems = FuzzyEMS(params, {"fc.fc.cap_to_demand": True})
+    a = ems.act(fuzzy_obs(p_load_w=600.0, t_air_c=22.5, soc=params.battery.soc_min, fc_on_prev=True))
+    assert a.p_fc_w == pytest.approx(600.0)  # capped at the demand
+    b = FuzzyEMS(params, {}).act(fuzzy_obs(p_load_w=600.0, t_air_c=22.5, soc=params.battery.soc_min,
+                                           fc_on_prev=True))
+    assert b.p_fc_w > 600.0  # the default: alpha_FC * zeta * P_max, above the demand
     with pytest.raises(ConfigError, match="unknown option"):
         FuzzyEMS(params, {"fcc": {}})
     with pytest.raises(ConfigError, match="must be true or false"):

@@ -68,7 +68,7 @@ def test_rule_base_complete_on_dense_grid(flcs, flc):
     system = flcs[flc]
     axes = []
     for v in system.inputs:
-        n = 2 if v.name == "s_onoff" else 7
+        n = 2 if v.name == "s_onoff" else 9
         axes.append(np.union1d(np.linspace(v.lo, v.hi, n), v.points.ravel()))
     grid = np.array(list(itertools.product(*axes)))
     assert len(grid) > 1000

@@ -2,7 +2,7 @@
 
 One short comparison (1 week; thermostat, RBC and fuzzy at 75 % and 90 % FC system
 efficiency, in-process) is run once per module through the ``compare`` command; the tests
-read what it wrote. Window selection, hysteresis counting and the heat-recovery cover are
+read what it wrote. The paper's windows, hysteresis counting and the heat-recovery cover are
 checked on hand-made series.
 """
 
@@ -23,9 +23,9 @@ from comems4build_ros.cli import main
 from comems4build_ros.report import figures as rf
 from comems4build_ros.report import findings as fd
 from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, build_report, read_report_inputs, weekly_rows
-from comems4build_ros.report.figures import select_windows
-from comems4build_ros.report.paper import DERIVED, load_paper_results
-from comems4build_ros.report.runs import SUMMARY_KEYS, RunDirError, read_run
+from comems4build_ros.report.figures import CAPTIONS
+from comems4build_ros.report.paper import Windows, load_paper_results, paper_windows
+from comems4build_ros.report.runs import RunData, RunDirError, RunSpec, read_run
 from comems4build_ros.report.style import layout_problems, paper_style
 
 EMS = ("thermostat", "rbc", "fuzzy")
@@ -38,6 +38,7 @@ FIGURES = (
     "heat_recovery",
     "performance_comparison",
     "performance_comparison_highSolar",
+    "heatmap_comparison",
     "level_of_information",
 )
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
@@ -160,21 +161,24 @@ def test_weekly_tables_equal_weekly_csv(comparison: Path) -> None:
 
 def test_paper_table_measured_values(comparison: Path) -> None:
     md = (comparison / "report.md").read_text()
-    rows = _md_table(md, "## The paper's reported figures")
+    rows = _md_table(md, "## The paper's stated figures")
     header = rows[0]
-    by_key = {r[0]: dict(zip(header, r)) for r in rows[1:]}
-    cost = by_key["electricity cost [EUR/week, median]"]
-    assert cost["ComEMS4Build paper"] == "25.02"
-    assert cost["RBC paper"] == "43.10"
-    assert cost["MPC measured"] == "not run"
-    assert float(cost["ComEMS4Build measured"]) == pytest.approx(
-        _summary(comparison, "fuzzy")["cost_eur_week_median"], abs=0.005)
-    loh = by_key["LOH left at the end [%]"]
-    assert float(loh["RBC measured"]) == pytest.approx(100 * _summary(comparison, "rbc")["loh_end"], abs=0.005)
-    rng = by_key["H2 consumption range [kWh/week, min..max]"]["ComEMS4Build measured"]
-    lo, hi = (float(x) for x in rng.split(".."))
-    s = _summary(comparison, "fuzzy")
-    assert (lo, hi) == pytest.approx((s["h2_kwh_week_min"], s["h2_kwh_week_max"]), abs=0.005)
+    assert header == ["quantity", "unit", "source", "EMS", "paper", "measured", "error"]
+    by = {(r[0], r[3]): dict(zip(header, r)) for r in rows[1:]}
+    cost = by[("electricity cost, weekly median", "ComEMS4Build")]
+    assert cost["paper"] == "25.02"
+    measured = _summary(comparison, "fuzzy")["cost_eur_week_median"]
+    assert float(cost["measured"]) == pytest.approx(measured, abs=0.005)
+    assert cost["error"] == f"{100 * abs(measured - 25.02) / 25.02:.1f} %"
+    assert by[("electricity cost, weekly median", "MPC")]["measured"] == "not run"
+    loh = by[("LOH left after the 12 weeks", "RBC")]
+    assert float(loh["measured"]) == pytest.approx(100 * _summary(comparison, "rbc")["loh_end"], abs=0.005)
+    # the heat recovered at 90 % is measured on the runs at 90 %
+    heat = by[("heat recovered from the FC in week 5 (90 %)", "MPC")]
+    assert heat["measured"] == "not run"  # a one-week run has no week 5, and no MPC ran
+    # a figure locating a window is shown, not compared
+    trough = next(r for r in rows[1:] if r[0].startswith("lowest buy price in the high-PV window"))
+    assert trough[6] == "locates the window"
 
 
 def test_findings_follow_the_summaries(comparison: Path) -> None:
@@ -268,48 +272,74 @@ def test_missing_manifest(tmp_path: Path) -> None:
 
 
 def test_paper_results_file() -> None:
+    """Every statement names its source and sentence; at least 35 figures have a relative error."""
     data = load_paper_results()
-    assert "sec:results" in data["source"]
-    assert all(row["where"].startswith("sec:results") for row in data["rows"])
-    for row in data["rows"]:
-        assert row["measure"] in DERIVED or row["measure"] in SUMMARY_KEYS, row["key"]
-    cost = next(r for r in data["rows"] if r["key"] == "cost")
-    assert cost["paper"] == {"mpc": "12.96", "fuzzy": "25.02", "rbc": "43.10"}
+    assert "sec:results" in data.source and "abstract" in data.source
+    numeric = 0
+    for st in data.statements:
+        assert st.where.startswith(("sec:", "abstract", "fig:")), st.key
+        assert st.quote, st.key
+        numeric += sum(not isinstance(v, dict | list) and float(v) != 0.0 for v in st.paper.values())
+    assert numeric >= 35
+    assert data.get("cost").paper == {"mpc": 12.96, "fuzzy": 25.02, "rbc": 43.10}
+    assert data.get("cost").table and not data.get("cost_increase").table
+    assert data.windows.start == "2022-12-03T00:00"
+
+
+@pytest.mark.parametrize("edit, message", [
+    (lambda d: d["statements"][0]["measure"].update(of="nope"), "measure.of must be one of"),
+    (lambda d: d["statements"][0]["paper"].update(thermostat=1.0), "paper values for thermostat"),
+    (lambda d: d["statements"][0]["paper"].update(mpc=True), "must be a number"),
+    (lambda d: d["statements"][1].update(key="cost"), "key given twice"),
+    (lambda d: d["statements"][0].pop("quote"), "lacks quote"),
+    (lambda d: d.pop("windows"), "needs keys"),
+])
+def test_bad_paper_results_file_is_named(tmp_path: Path, edit, message: str) -> None:
+    import yaml
+
+    from comems4build_ros.report.paper import PAPER_RESULTS_FILE
+
+    data = yaml.safe_load(PAPER_RESULTS_FILE.read_text(encoding="utf-8"))
+    edit(data)
+    path = tmp_path / "paper_results.yaml"
+    path.write_text(yaml.safe_dump(data), encoding="utf-8")
+    with pytest.raises(ValueError, match=re.escape(message)):
+        load_paper_results(path)
 
 
 # ---------------------------------------------------------------- hand-made series
 
 
-def _series(days: int, tz: str = "Europe/Berlin") -> pd.DataFrame:
-    time = pd.date_range("2023-01-02 00:00", periods=24 * days, freq="h", tz=tz).tz_convert("UTC")
-    return pd.DataFrame({"time": time, "price_buy_eur_per_kwh": 0.3, "t_amb_c": 5.0, "ghi_w_m2": 50.0})
+def _series(days: int, start: str = "2023-01-02 00:00", tz: str = "Europe/Berlin") -> RunData:
+    time = pd.date_range(start, periods=24 * days, freq="h", tz=tz).tz_convert("UTC")
+    ts = pd.DataFrame({"time": time, "price_buy_eur_per_kwh": 0.3, "t_amb_c": 5.0, "ghi_w_m2": 50.0})
+    return RunData(RunSpec("x", "rbc", 0.75), Path("."), {}, pd.DataFrame(), ts)
 
 
-def test_select_windows_hand_made() -> None:
-    ts = _series(10)
-    ts.loc[48:48 + 72 - 1, "price_buy_eur_per_kwh"] = 0.6  # days 2-4 expensive ...
-    ts.loc[48:48 + 72 - 1, "t_amb_c"] = -3.0  # ... and cold
-    ts.loc[24 * 6:24 * 9 - 1, "ghi_w_m2"] = 300.0  # days 6-8 sunny
-    w = select_windows(ts, "Europe/Berlin")
-    assert w["cold"] == (48, 120)
-    assert w["sunny"] == (144, 216)
+WINDOWS = Windows(start="2022-12-03T00:00", days=3, after_days=4, trough=0.23, trough_tol=0.01)
 
 
-def test_select_windows_sunny_may_not_overlap_cold() -> None:
-    ts = _series(6)
-    ts.loc[24:96 - 1, "price_buy_eur_per_kwh"] = 0.6  # cold window days 1-3
-    ts.loc[24:96 - 1, "t_amb_c"] = -3.0
-    ts.loc[48:120 - 1, "ghi_w_m2"] = 400.0  # sunniest window overlaps it (days 2-4) ...
-    ts.loc[0:24 - 1, "ghi_w_m2"] = 100.0
-    w = select_windows(ts, "Europe/Berlin")
-    assert w["cold"] == (24, 96)
-    # candidates start at 0, 24, 48, 72; each overlaps [24, 96), so the sunniest of all is taken
-    assert w["sunny"] == (48, 120)
+def test_paper_windows_hand_made() -> None:
+    """The first window starts on the paper's date; the second is the sunniest with the paper's price trough."""
+    run = _series(12, start="2022-12-01 00:00")
+    ts = run.timeseries
+    ts.loc[24 * 5:24 * 8 - 1, "ghi_w_m2"] = 300.0  # days 5-7 sunny, but no trough of 0.23 ...
+    ts.loc[24 * 8:24 * 11 - 1, "ghi_w_m2"] = 200.0  # days 8-10 less sunny, with the trough
+    ts.loc[24 * 9 + 3, "price_buy_eur_per_kwh"] = 0.232
+    w = paper_windows(run, "Europe/Berlin", WINDOWS)
+    assert w["performance_comparison"] == (48, 120)  # 2022-12-03 00:00 local
+    assert w["high_pv"] == (24 * 8, 24 * 11)
+    ts.loc[24 * 9 + 3, "price_buy_eur_per_kwh"] = 0.3  # no window with the trough: the sunniest late one
+    assert paper_windows(run, "Europe/Berlin", WINDOWS)["high_pv"] == (24 * 5, 24 * 8)
 
 
-def test_select_windows_short_run() -> None:
-    ts = _series(2)
-    assert select_windows(ts, "Europe/Berlin") == {"cold": (0, 48), "sunny": (0, 48)}
+def test_paper_windows_other_period_and_short_run() -> None:
+    run = _series(10)
+    run.timeseries.loc[48:48 + 72 - 1, "price_buy_eur_per_kwh"] = 0.6  # days 2-4 expensive
+    w = paper_windows(run, "Europe/Berlin", WINDOWS)
+    assert w["performance_comparison"] == (48, 120)  # no 2022-12-03: the dearest days
+    assert paper_windows(_series(2), "Europe/Berlin", WINDOWS) == {"performance_comparison": (0, 48),
+                                                                    "high_pv": (0, 48)}
 
 
 def test_hysteresis_swings_hand_made() -> None:
@@ -342,10 +372,10 @@ def test_report_text_has_table_of_contents_alignment_and_no_latex_labels(compari
     row = re.search(r"<tbody>\n<tr>(.*?)</tr>", weekly).group(1)  # week 1: label and date left, KPIs right
     cells = re.findall(r"<td( class=\"num\")?>", row)
     assert cells[:2] == ["", ""] and all(c == ' class="num"' for c in cells[2:])
-    # figures named by what they show, not by the paper's LaTeX labels
-    for label in ("fig:", "tab:"):
-        assert label not in md, label
-        assert label not in re.sub(r"data:image/png;base64,[A-Za-z0-9+/=]+", "", html), label
+    # every figure captioned with the label of the paper's figure it redraws
+    for key, caption in CAPTIONS.items():
+        assert caption.startswith(("fig:", "tab:")), key
+        assert caption.split(".")[0] in md, key
 
 
 def test_weekly_rows_median_over_full_weeks_and_partial_week_marked(comparison: Path) -> None:

@@ -1,4 +1,4 @@
-"""``comems4build reproduce``: the paper's table beside ours, its findings and the interpretation study."""
+"""``comems4build reproduce``: the paper's stated figures beside ours, its findings, figures and the study."""
 
 from __future__ import annotations
 
@@ -10,9 +10,10 @@ from .options import COUNT, real
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``reproduce``."""
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory (reproduce.md, reproduce.html, "
-                                                     "reproduce.json, runs/)")
+                                                     "reproduce.json, figures/, runs/)")
     parser.add_argument("--no-study", action="store_true",
-                        help="only the three default runs, the table and the findings (no interpretation study)")
+                        help="only the default runs on every seed, the stated figures, the findings and the figures "
+                             "(no interpretation study)")
     parser.add_argument("--only", default=None, metavar="KEY[,KEY...]",
                         help="study only these ambiguities of config/reproduce.yaml")
     parser.add_argument("--jobs", type=COUNT, default=None, metavar="N",
@@ -20,6 +21,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
                         help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
                              "checks that do not compare with the paper's table)")
+    parser.add_argument("--seeds", default=None, metavar="N[,N...]",
+                        help="seeds of the modelled radiation and appliance load, integers in 0..2^32-1 (default: "
+                             "the study's, config/reproduce.yaml; the first is the default scenario's)")
+    parser.add_argument("--no-figures", action="store_true", help="do not draw the paper's figures")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
     parser.add_argument("--update-doc", default=None, metavar="MD",
                         help="also write the tables between the reproduce markers of MD (docs/calibration.md)")
@@ -52,10 +57,16 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--from-json {args.from_json}: {exc}") from None
         out = Path(args.out)
         out.mkdir(parents=True, exist_ok=True)
+        src = Path(args.from_json).parent
+        report = {**report, "figures": {k: v for k, v in report.get("figures", {}).items() if (src / v).is_file()}}
+        if report["figures"] and src.resolve() != out.resolve():
+            import shutil
+
+            shutil.copytree(src / "figures", out / "figures", dirs_exist_ok=True)
         md, html = write_documents(report, out)
         print(f"wrote {md}, {html}")
         if args.update_doc:
-            print(f"updated {update_doc(args.update_doc, report)}")
+            print(f"updated {update_doc(args.update_doc, report, out)}")
         return 0
     if args.from_runs:
         from pathlib import Path
@@ -64,17 +75,30 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--from-runs {args.from_runs}: no runs/ directory (the --out of an earlier reproduce)")
     check_out_dir(args.out)
     only = [k for k in args.only.split(",") if k] if args.only else None
+    seeds = None
+    if args.seeds is not None:
+        try:
+            seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
+        except ValueError:
+            raise UsageError(f"--seeds {args.seeds}: a comma-separated list of integers") from None
+        if not seeds or len(set(seeds)) != len(seeds) or not all(0 <= s < 2**32 for s in seeds):
+            raise UsageError(f"--seeds {args.seeds}: distinct integers in 0..2^32-1")
 
     def progress(done: int, total: int, name: str) -> None:
         echo(f"  run {done} of {total} done: {name}")
 
     res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
-                    progress=progress, show_progress=False if args.no_progress else None,
-                    from_runs=args.from_runs)
-    held = sum(c["held"] for c in res.checks)
-    print(f"median relative error {100 * res.median_rel_error:.1f} %; cost ratios "
-          + ", ".join(f"{k} {v:.2f}" for k, v in res.ratios.items())
-          + f"; findings held {held} of {len(res.checks)}")
+                    seeds=seeds, progress=progress, show_progress=False if args.no_progress else None,
+                    from_runs=args.from_runs, figures=not args.no_figures)
+
+    def pct(x: float | None) -> str:
+        return "-" if x is None else f"{100 * x:.1f} %"
+
+    print(f"seed-median relative error: every stated figure {pct(res.median_rel_error)}, headline table "
+          f"{pct(res.table_rel_error)}; cost ratios " + ", ".join(f"{k} {v:.2f}" for k, v in res.ratios.items())
+          + f"; ComEMS4Build's FC vs MPC: hours {res.fc['fuzzy_hours']:+.1f} %, "
+          f"toggles {res.fc['fuzzy_toggles']:+.1f} %"
+          + f"; findings held {res.findings_held} of {res.findings_total}")
     made = (f"runs of {args.from_runs} evaluated again" if args.from_runs
             else f"{res.runs_made} runs in {res.wall_s:.0f} s")
     print(f"{made}; wrote {res.markdown}, {res.html}, {res.json}")
@@ -83,5 +107,5 @@ def run(args: argparse.Namespace) -> int:
 
         from ..report.reproduce_doc import update_doc
 
-        print(f"updated {update_doc(args.update_doc, json.loads(res.json.read_text(encoding='utf-8')))}")
+        print(f"updated {update_doc(args.update_doc, json.loads(res.json.read_text(encoding='utf-8')), res.out)}")
     return 0

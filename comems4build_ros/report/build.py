@@ -22,8 +22,9 @@ from ..config import load_plant_params
 from ..kpi import median_weeks
 from . import figures
 from .document import Document
+from .figures import CAPTIONS
 from .findings import Context, evaluate_findings
-from .paper import fmt, paper_table
+from .paper import Evidence, evaluate_statements, fmt, load_paper_results, printed
 from .runs import Manifest, RunData, RunDirError, read_comparison
 
 #: Weekly table columns: (weekly.csv column, header, unit, decimals).
@@ -60,34 +61,6 @@ SUMMARY_TABLE = (
     ("dhw_unmet_kwh", "unmet DHW", "kWh", 2),
     ("wall_s", "run wall time", "s", 1),
 )
-#: Caption of each figure: what it shows and which figure of the paper it follows.
-CAPTIONS: dict[str, str] = {
-    "quality_indicators_occupants": "Weekly thermal discomfort, electricity cost and reimbursement, one box per EMS "
-                                    "(weeks as dots); after the paper's figure of comfort violation and costs "
-                                    "evaluated weekly (sec:results, occupant-oriented metrics).",
-    "HESS_usage": "Weekly energy charged into the BESS and H2 consumed (LHV); after the paper's figure of the weekly "
-                  "use of the renewables (sec:results, HESS utilization).",
-    "working_hours_FC": "FC working hours and start-ups over the run; after the paper's figure of the FC working "
-                        "hours and toggles (sec:results, HESS utilization).",
-    "hydrogen_timeseries": "Level of hydrogen (LOH) of every EMS (top) with the buy price and the global radiation "
-                           "(bottom); after the paper's figure of the H2 consumption over the evaluation period "
-                           "(sec:results, HESS utilization).",
-    "grid_usage": "Weekly energy bought from and sold to the grid; after the paper's figure of the weekly grid "
-                  "utilization (sec:results).",
-    "heat_recovery": "Weekly heat recovered from the FC at each FC system efficiency (opaque: base, transparent: the "
-                     "other) against the weekly DHW demand including the tank losses; after the paper's figure of "
-                     "the weekly heat recovery at 75 % and 90 % (sec:heat_recovery).",
-    "performance_comparison": "Three days of all EMS in the cold, high-price window {cold} (largest z(mean buy "
-                              "price) - z(mean ambient temperature) of all three-day windows); after the paper's "
-                              "three-day time series comparison (sec:results).",
-    "performance_comparison_highSolar": "Three days of all EMS in the sunny window {sunny} (largest mean radiation "
-                                        "of the windows not overlapping the first); after the paper's three-day "
-                                        "comparison with high PV generation (sec:results).",
-    "level_of_information": "Inputs each EMS may use, as enforced by its observation; after the paper's table of "
-                            "the level of information (sec:information).",
-}
-
-
 @dataclass
 class Report:
     """Paths written and the time taken."""
@@ -197,7 +170,10 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     figs = figures.all_figures(cmp.figures, out / "figures")
     ctx = Context(runs=runs, variants=variants, params=params, base_eta=manifest.base_eta)
     verdicts = evaluate_findings(ctx)
-    source, prows = paper_table(runs, params.hydrogen.loh_min)
+    statements = load_paper_results()
+    figs_paper = evaluate_statements(Evidence(runs=runs, params=params, base_eta=manifest.base_eta,
+                                              variants=variants), statements)
+    paper_rows = statement_rows(figs_paper, statements)
     spans = figures.window_spans(runs, tz)
     first = next(iter(runs.values()))
     t = first.timeseries["time"].dt.tz_convert(tz)
@@ -219,21 +195,12 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     doc.table(["#", "finding", "source", "verdict", "figures behind it"],
               [[str(i), f.claim, f.source, v.status, v.evidence] for i, (f, v) in enumerate(verdicts, start=1)])
 
-    doc.h(2, "The paper's reported figures and the measured ones")
-    doc.p(f"Paper: {source}. The measured scenario is this project's, so the numbers are expected to differ; "
-          "the comparison is about orders and shapes.")
-    cols = figures.ordered(list(dict.fromkeys([*runs, *(e for pr in prows for e in pr.paper)])))
-    header = ["quantity", "source"]
-    for e in cols:
-        header += [f"{figures.label(e)} paper", f"{figures.label(e)} measured"]
-    rows = []
-    for pr in prows:
-        row = [pr.label, pr.where]
-        for e in cols:
-            paper_val = pr.paper.get(e)
-            row += ["-" if paper_val is None else paper_val, pr.measured.get(e, "not run")]
-        rows.append(row)
-    doc.table(header, rows)
+    doc.h(2, "The paper's stated figures and the measured ones")
+    doc.p(f"Paper: {statements.source}. Every quantitative statement, with our value for the EMS that were run and "
+          "the relative error |ours - paper| / |paper| (for a bound or a set of weeks: whether it holds). The "
+          "statements and where the paper makes them are in comems4build_ros/report/paper_results.yaml; "
+          "`comems4build reproduce` evaluates them over several seeds of the modelled inputs.")
+    doc.table(["quantity", "unit", "source", "EMS", "paper", "measured", "error"], paper_rows)
 
     doc.h(2, "Run summary")
     doc.table(["quantity", "unit", *(figures.label(e) for e in runs)],
@@ -266,10 +233,28 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     found = [{"key": f.key, "claim": f.claim, "source": f.source, "verdict": v.status, "evidence": v.evidence}
              for f, v in verdicts]
     (out / "findings.json").write_text(json.dumps(found, indent=2) + "\n", encoding="utf-8")
-    pd.DataFrame([{"quantity": pr.label, **{f"{e}_paper": pr.paper.get(e) for e in runs},
-                   **{f"{e}_measured": pr.measured[e] for e in runs}} for pr in prows]).to_csv(
-        out / "paper_comparison.csv", index=False)
+    pd.DataFrame([dict(zip(["quantity", "unit", "source", "ems", "paper", "measured", "error"], row))
+                  for row in paper_rows]).to_csv(out / "paper_comparison.csv", index=False)
     return Report(md_path, html_path, figs, found, time.perf_counter() - t0)
+
+
+def statement_rows(figs: list, statements: Any) -> list[list[str]]:
+    """Table rows of the paper's statements: quantity, unit, source, EMS, paper, measured, error or verdict."""
+    info = {s.key: s for s in statements.statements}
+    rows = []
+    for f in figs:
+        s = info[f.key]
+        if f.ours is None:
+            verdict = "not run"
+        elif s.locates:
+            verdict = "locates the window"
+        elif f.rel_error is not None:
+            verdict = f"{100 * f.rel_error:.1f} %"
+        else:
+            verdict = "holds" if f.held else "does not hold"
+        rows.append([s.label, s.unit, s.where, "input" if f.ems == "input" else figures.label(f.ems),
+                     printed(f.paper, s.unit), printed(f.ours, s.unit), verdict])
+    return rows
 
 
 def _level_of(ems: str) -> str:

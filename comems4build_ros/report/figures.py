@@ -8,11 +8,11 @@ that saves it with :func:`~comems4build_ros.report.style.save_figure` (PDF, SVG 
 colour-blind-safe colours, one colour per EMS, mathtext labels with units, legends outside
 the data) is :mod:`comems4build_ros.report.style`.
 
-Three-day windows of the time-series figures (:func:`select_windows`): the candidates are
-all runs of three consecutive local days starting at midnight. The *cold high-price*
-window maximises ``z(mean buy price) - z(mean T_amb)`` (z-scores over the candidates); the
-*sunny* window maximises the mean global radiation among the candidates that do not
-overlap the first (any candidate when all overlap).
+Three-day windows of the time-series figures: the paper's, located as its text describes
+them (:func:`comems4build_ros.report.paper.paper_windows`): fig:performance_comparison from
+2022-12-03, fig:performance_comparison_highSolar after two months, with high PV and buy
+prices down to 0.23 EUR/kWh; other runs get the days of highest mean buy price and the
+sunniest days.
 """
 
 from __future__ import annotations
@@ -38,6 +38,7 @@ from matplotlib.patches import Patch  # noqa: E402
 from ..config import W_PER_KW  # noqa: E402
 from ..ems.base import INFO_LEVELS  # noqa: E402
 from . import style  # noqa: E402
+from .paper import paper_windows  # noqa: E402
 from .runs import RunData  # noqa: E402
 from .style import SIGNAL_COLOURS, axis_label, figsize, save_figure, styled  # noqa: E402
 
@@ -45,8 +46,6 @@ from .style import SIGNAL_COLOURS, axis_label, figsize, save_figure, styled  # n
 EMS_COLOURS = style.EMS_COLOURS
 #: Display names of the EMS.
 EMS_LABELS = style.EMS_LABELS
-#: Length of the time-series windows [d].
-WINDOW_DAYS = 3
 #: Longest span whose date axis labels every day [d].
 DAY_LABEL_MAX_DAYS = 8
 #: Longest span whose date axis writes day and month at about eight ticks [d].
@@ -273,32 +272,6 @@ def heat_recovery(variants: Mapping[tuple[str, float], RunData], path: Path, bas
     return save_figure(heat_recovery_figure(variants, base_eta), path)
 
 
-def select_windows(ts: pd.DataFrame, tz: str, days: int = WINDOW_DAYS) -> dict[str, tuple[int, int]]:
-    """Cold high-price and sunny windows as step ranges ``[start, stop)`` (criterion: module doc).
-
-    Runs shorter than ``days`` days give the whole run for both windows.
-    """
-    local = ts["time"].dt.tz_convert(tz)
-    n = len(ts)
-    starts = [i for i in range(n) if local.iloc[i].hour == 0 and i + 24 * days <= n]
-    if not starts:
-        return {"cold": (0, n), "sunny": (0, n)}
-    length = 24 * days
-    price = np.array([ts["price_buy_eur_per_kwh"].iloc[s : s + length].mean() for s in starts])
-    tamb = np.array([ts["t_amb_c"].iloc[s : s + length].mean() for s in starts])
-    ghi = np.array([ts["ghi_w_m2"].iloc[s : s + length].mean() for s in starts])
-
-    def z(x: np.ndarray) -> np.ndarray:
-        sd = x.std()
-        return (x - x.mean()) / sd if sd > 0 else np.zeros_like(x)
-
-    cold = starts[int(np.argmax(z(price) - z(tamb)))]
-    free = [j for j, s in enumerate(starts) if s + length <= cold or s >= cold + length]
-    pool = free or list(range(len(starts)))
-    sunny = starts[max(pool, key=lambda j: ghi[j])]
-    return {"cold": (cold, cold + length), "sunny": (sunny, sunny + length)}
-
-
 #: Fixed layout of the window figure [mm]: margins, gaps, the space for the twin axes'
 #: labels right of the last column and the legend column (no layout engine: fast and the
 #: same for every run).
@@ -516,6 +489,77 @@ def level_of_information(levels: Mapping[str, str], path: Path) -> Path:
     return save_figure(level_of_information_figure(levels), path)
 
 
+#: Criteria of the qualitative comparison (after ``fig:heatmap_comparison``): label, summary
+#: key (or ``inputs`` for the count of ``tab:level_of_information`` inputs), unit, and
+#: whether a lower value is better. The paper's text judges each of them: costs, comfort and
+#: grid exchange (abstract), H2 left (RBC "empties the H2 storage much earlier"), FC hours and
+#: toggles (degradation, sec:results), heat recovered (sec:heat_recovery) and the inputs
+#: needed (sec:discussion: fewer inputs favour real-world deployment).
+HEATMAP_CRITERIA: tuple[tuple[str, str, str, bool], ...] = (
+    ("electricity cost", "cost_eur_week_median", "EUR/week", True),
+    ("thermal discomfort", "discomfort_kh_week_median", "Kh/week", True),
+    ("energy bought", "buy_kwh_week_median", "kWh/week", True),
+    ("energy sold", "sell_kwh_week_median", "kWh/week", True),
+    ("H2 left at the end", "loh_end", "%", False),
+    ("FC working hours", "fc_working_hours", "h", True),
+    ("FC toggles", "fc_toggles", "-", True),
+    ("FC heat recovered", "heat_recovered_kwh_total", "kWh", False),
+    ("inputs required", "inputs", "-", True),
+)
+#: Values within this share of each other count as equal in the comparison [-].
+HEATMAP_TIE = 0.05
+
+
+def comparison_scores(runs: Mapping[str, RunData], levels: Mapping[str, str]) -> tuple[list[str], np.ndarray,
+                                                                                         np.ndarray]:
+    """Scores -1 (worst), 0, 1 (best) of every EMS per criterion of :data:`HEATMAP_CRITERIA`.
+
+    Per criterion the EMS are ranked by the measured value; the best gets 1, the worst -1,
+    the others 0; values within :data:`HEATMAP_TIE` of the best (worst) share its score.
+
+    Returns
+    -------
+    labels of the criteria, values (criteria x EMS), scores (criteria x EMS)
+    """
+    names = list(runs)
+    values = np.zeros((len(HEATMAP_CRITERIA), len(names)))
+    for i, (_, key, unit, _) in enumerate(HEATMAP_CRITERIA):
+        for j, e in enumerate(names):
+            if key == "inputs":
+                values[i, j] = sum(all(f in INFO_LEVELS[levels[e]] for f in fs) for _, fs in INFO_COLUMNS)
+            else:
+                values[i, j] = float(runs[e].summary[key]) * (PERCENT if unit == "%" else 1.0)
+    scores = np.zeros_like(values)
+    for i, (_, _, _, lower_better) in enumerate(HEATMAP_CRITERIA):
+        v = -values[i] if lower_better else values[i]
+        best, worst = v.max(), v.min()
+        tol = HEATMAP_TIE * max(abs(best), abs(worst), 1e-9)
+        if best - worst <= tol:
+            continue
+        scores[i] = np.where(v >= best - tol, 1.0, np.where(v <= worst + tol, -1.0, 0.0))
+    return [c[0] for c in HEATMAP_CRITERIA], values, scores
+
+
+@styled
+def heatmap_comparison_figure(runs: Mapping[str, RunData], levels: Mapping[str, str]) -> Figure:
+    """Qualitative comparison of the EMS from the measured figures (after ``fig:heatmap_comparison``)."""
+    labels, values, scores = comparison_scores(runs, levels)
+    names = list(runs)
+    fig, ax = plt.subplots(figsize=figsize("single", 18 + 7 * len(labels)))
+    ax.imshow(scores, cmap="RdYlGn", vmin=-1.5, vmax=1.5, aspect="auto")
+    for i in range(len(labels)):
+        unit = HEATMAP_CRITERIA[i][2]
+        for j in range(len(names)):
+            digits = 0 if abs(values[i, j]) >= 100 or unit in ("-", "h") else 1
+            ax.text(j, i, f"{scores[i, j]:+.0f}\n{values[i, j]:.{digits}f}", ha="center", va="center", fontsize=6.5)
+    ax.set_xticks(range(len(names)), [label(e) for e in names])
+    ax.set_yticks(range(len(labels)), [f"{lab} [{c[2]}]" for lab, c in zip(labels, HEATMAP_CRITERIA)])
+    ax.tick_params(length=0)
+    ax.grid(False)
+    ax.xaxis.tick_top()
+    return fig
+
+
 @dataclass
 class FigureInputs:
     """What the figures of a report are drawn from.
@@ -538,10 +582,41 @@ class FigureInputs:
     v_max_l: float
 
     def window(self, kind: str) -> tuple[int, int]:
-        """Step range of the ``cold`` or ``sunny`` window (:func:`select_windows`)."""
-        return select_windows(next(iter(self.runs.values())).timeseries, self.tz)[kind]
+        """Step range of the paper's window ``performance_comparison`` or ``high_pv`` (:func:`paper_windows`)."""
+        return paper_windows(next(iter(self.runs.values())), self.tz)[kind]
 
 
+#: Caption of each figure: the paper's figure it redraws (its label first), what it shows and
+#: where the paper discusses it. ``{performance_comparison}`` and ``{high_pv}`` are replaced
+#: by the windows' spans.
+CAPTIONS: dict[str, str] = {
+    "quality_indicators_occupants": "fig:quality_indicators_occupants. Weekly thermal discomfort, electricity cost "
+                                    "and reimbursement, one box per EMS (weeks as dots); sec:results, "
+                                    "occupant-oriented metrics.",
+    "HESS_usage": "fig:HESS_usage. Weekly energy charged into the BESS and H2 consumed (LHV); sec:results, HESS "
+                  "utilization.",
+    "working_hours_FC": "fig:working_hours_FC. FC working hours and toggles (start-ups) over the run; sec:results, "
+                        "HESS utilization.",
+    "hydrogen_timeseries": "fig:hydrogen_timeseries. Level of hydrogen (LOH) of every EMS (top) with the buy price "
+                           "and the global radiation (bottom) over the evaluation period; sec:results, HESS "
+                           "utilization.",
+    "grid_usage": "fig:grid_usage. Weekly energy bought from and sold to the grid; sec:results, grid utilization.",
+    "heat_recovery": "fig:heat_recovery. Weekly heat recovered from the FC at each FC system efficiency (opaque: "
+                     "base, transparent: the other) against the weekly DHW demand including the tank losses; "
+                     "sec:heat_recovery.",
+    "performance_comparison": "fig:performance_comparison. Three days of all EMS, {performance_comparison} (the "
+                              "days the paper describes, from 2022-12-03: high prices, low radiation); "
+                              "sec:results, time series comparison.",
+    "performance_comparison_highSolar": "fig:performance_comparison_highSolar. Three days of all EMS with high PV "
+                                        "generation, {high_pv} (two months into the period, buy prices down to "
+                                        "0.23 EUR/kWh, as the paper's caption describes); sec:results, time "
+                                        "series comparison.",
+    "heatmap_comparison": "fig:heatmap_comparison. Qualitative comparison of the EMS, computed from the runs: per "
+                          "criterion the best EMS scores 1 (green), the worst -1 (red), the other 0 (values within "
+                          "5 % share a score); each cell gives the score and the measured value; sec:discussion.",
+    "level_of_information": "tab:level_of_information. Inputs each EMS may use, as enforced by its observation; "
+                            "sec:information.",
+}
 #: Figure key (file stem) -> builder; the report shows them in this order.
 FIGURES: dict[str, Callable[[FigureInputs], Figure]] = {
     "quality_indicators_occupants": lambda f: quality_indicators_figure(f.runs),
@@ -550,9 +625,11 @@ FIGURES: dict[str, Callable[[FigureInputs], Figure]] = {
     "hydrogen_timeseries": lambda f: hydrogen_timeseries_figure(f.runs, f.tz),
     "grid_usage": lambda f: grid_usage_figure(f.runs),
     "heat_recovery": lambda f: heat_recovery_figure(f.variants, f.base_eta),
-    "performance_comparison": lambda f: performance_comparison_figure(f.runs, f.window("cold"), f.tz, f.v_max_l),
+    "performance_comparison": lambda f: performance_comparison_figure(
+        f.runs, f.window("performance_comparison"), f.tz, f.v_max_l),
     "performance_comparison_highSolar": lambda f: performance_comparison_figure(
-        f.runs, f.window("sunny"), f.tz, f.v_max_l),
+        f.runs, f.window("high_pv"), f.tz, f.v_max_l),
+    "heatmap_comparison": lambda f: heatmap_comparison_figure(f.runs, f.levels),
     "level_of_information": lambda f: level_of_information_figure(f.levels),
 }
 #: Figures that take longest to draw (started first when drawing in parallel).
@@ -599,7 +676,7 @@ def all_figures(inputs: FigureInputs, out_dir: Path, jobs: int | None = None) ->
 def window_spans(runs: Mapping[str, RunData], tz: str) -> dict[str, tuple[str, str]]:
     """ISO start and end of the selected windows (for the report text)."""
     first = next(iter(runs.values()))
-    windows = select_windows(first.timeseries, tz)
+    windows = paper_windows(first, tz)
     t = first.timeseries["time"].dt.tz_convert(tz)
     return {k: (t.iloc[a].isoformat(), (t.iloc[b - 1] + pd.Timedelta(hours=1)).isoformat())
             for k, (a, b) in windows.items()}

@@ -1,12 +1,15 @@
-"""``comems4build reproduce``: the paper's table beside ours, its findings, and the interpretation study.
+"""``comems4build reproduce``: every stated figure of the paper beside ours, its findings and the interpretation study.
 
-The paper (Kovacevic et al., Applied Energy) reports weekly medians of cost, purchased and
-sold energy, battery charging and the H2 left for its MPC, ComEMS4Build and RBC over twelve
-winter weeks (``sec:results``). :func:`reproduce` runs the three EMS on the default
-scenario (the paper's winter from measured data), puts every figure beside the paper's with
-its relative error, checks the paper's qualitative findings, and, for every ambiguity of
-``config/reproduce.yaml``, runs each reading on top of the defaults and reports the table's
-error under it (the interpretation study, docs/calibration.md).
+The paper (Kovacevic et al., Applied Energy) states its results in its abstract,
+``sec:results`` and ``sec:discussion``. :func:`reproduce` runs the three EMS on the default
+scenario (the paper's winter from measured data) for every seed of the modelled radiation
+and appliance load listed in ``config/reproduce.yaml``, measures every statement of
+``paper_results.yaml`` (:mod:`comems4build_ros.report.paper`) on each seed, and reports
+each figure as the median over the seeds with its range and the seed-median relative error;
+it checks every qualitative finding of :mod:`comems4build_ros.report.findings` on every
+seed; it draws the paper's figures from the runs of the default seed; and, for every
+ambiguity of ``config/reproduce.yaml``, it runs each reading on top of the defaults on all
+seeds and reports the same errors under it (the interpretation study, docs/calibration.md).
 
 All numbers come from runs made by this command (in parallel processes); nothing is typed
 in. ``reproduce.json`` holds everything the Markdown and HTML show.
@@ -27,8 +30,15 @@ from typing import Any
 import pandas as pd
 
 from ..config import ConfigError, PlantParams, config_dir, load_plant_params, read_ros_params
-from ..kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
-from .paper import PAPER_RESULTS_FILE, h2_empty_days_before_end, load_paper_results
+from ..kpi import heat_recovered_at
+from .paper import (
+    Evidence,
+    Statements,
+    aggregate,
+    evaluate_statements,
+    load_paper_results,
+    paper_windows,
+)
 from .runner import RunTask, run_tasks
 from .runs import RunData, RunSpec, read_run
 
@@ -36,23 +46,20 @@ from .runs import RunData, RunSpec, read_run
 EMS = ("mpc", "fuzzy", "rbc")
 #: Display names.
 EMS_LABEL = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC"}
-#: Figures whose relative error is measured: (paper_results.yaml key, summary key, scale, unit).
-ERROR_FIGURES: tuple[tuple[str, str, float, str], ...] = (
-    ("cost", "cost_eur_week_median", 1.0, "EUR/week"),
-    ("buy", "buy_kwh_week_median", 1.0, "kWh/week"),
-    ("sell", "sell_kwh_week_median", 1.0, "kWh/week"),
-    ("bess_charged", "bess_charged_kwh_week_median", 1.0, "kWh/week"),
-    ("loh_end", "loh_end", 100.0, "%"),
-)
-#: RBC "empties the store early": LOH_min reached at least this many days before the end [d]
-#: (paper: 16 days; the finding asks for at least a week).
-EARLY_EMPTY_DAYS = 7.0
-#: "Not empty at the end": LOH above LOH_min by more than this fraction of the store [-].
-H2_LEFT_TOL = 0.01
 #: Study file.
 STUDY_FILE = "reproduce.yaml"
-#: Run directory of the default runs.
+#: Run directory prefix of the default runs.
 BASE = "base"
+#: How the runs at the second FC efficiency of sec:heat_recovery are obtained.
+HEAT_MODES = ("posthoc", "rerun")
+#: The headline figures whose values the study tables list: (statement key, short label).
+TABLE_FIGURES = (
+    ("cost", "cost"),
+    ("buy", "bought"),
+    ("sell", "sold"),
+    ("bess_charged", "BESS charged"),
+    ("loh_end", "LOH left"),
+)
 
 
 # --------------------------------------------------------------------------- the study file
@@ -60,13 +67,19 @@ BASE = "base"
 
 @dataclass(frozen=True)
 class Reading:
-    """One reading of an ambiguity: the settings that differ from nothing (applied on the defaults)."""
+    """One reading of an ambiguity: the settings applied on top of the defaults.
+
+    ``heat`` (only for the ambiguity of sec:heat_recovery) says how the runs at the second
+    FC efficiency are obtained: ``posthoc`` evaluates the runs' own dispatch at that
+    efficiency, ``rerun`` simulates every EMS again at it.
+    """
 
     name: str
     text: str
     overrides: dict[str, Any] = field(default_factory=dict)
     scenario_overrides: dict[str, Any] = field(default_factory=dict)
     ems_options: dict[str, dict[str, Any]] = field(default_factory=dict)
+    heat: str | None = None
 
 
 @dataclass(frozen=True)
@@ -91,16 +104,49 @@ class Ambiguity:
 
 
 @dataclass(frozen=True)
+class Targets:
+    """What the reproduction aims at (``targets`` in ``config/reproduce.yaml``).
+
+    Attributes
+    ----------
+    median_error : seed-median relative error, median over every stated figure [-]
+    table_error : the same over the figures of the paper's headline table [-]
+    explain_above : figures off by more than this are explained in docs/calibration.md [-]
+    ratio_tolerance : cost ratios within this share of the paper's [-]
+    fuzzy_fc_hours : band of ComEMS4Build's FC working hours relative to the MPC's [%]
+    fuzzy_fc_toggles : band of ComEMS4Build's FC toggles relative to the MPC's [%]
+    findings_seeds : a finding holds when it holds on at least this many seeds
+    """
+
+    median_error: float
+    table_error: float
+    explain_above: float
+    ratio_tolerance: float
+    fuzzy_fc_hours: tuple[float, float]
+    fuzzy_fc_toggles: tuple[float, float]
+    findings_seeds: int
+
+
+@dataclass(frozen=True)
 class Study:
     """The contents of ``config/reproduce.yaml``."""
 
     weeks: float
     eta_sys: float
+    heat_eta: float
+    seeds: tuple[int, ...]
+    targets: Targets
     ambiguities: tuple[Ambiguity, ...]
-    ratio_tolerance: float
-    median_error_target: float
-    explain_above: float
     source: str
+
+    @property
+    def heat_mode(self) -> str:
+        """How the runs at :attr:`heat_eta` are obtained under the default readings."""
+        for a in self.ambiguities:
+            r = a.reading(a.default)
+            if r.heat:
+                return r.heat
+        return HEAT_MODES[0]
 
 
 def _need(data: Mapping[str, Any], key: str, where: str, kind: type | tuple[type, ...]) -> Any:
@@ -110,6 +156,46 @@ def _need(data: Mapping[str, Any], key: str, where: str, kind: type | tuple[type
     if not isinstance(value, kind) or isinstance(value, bool) and kind is not bool:
         raise ConfigError(f"{where}: '{key}' must be {getattr(kind, '__name__', kind)}, got {value!r}")
     return value
+
+
+def _band(data: Mapping[str, Any], key: str, where: str) -> tuple[float, float]:
+    value = _need(data, key, where, list)
+    if len(value) != 2 or not all(isinstance(v, int | float) and not isinstance(v, bool) for v in value) \
+            or value[0] > value[1]:
+        raise ConfigError(f"{where}: '{key}' must be [low, high] with low <= high, got {value!r}")
+    return float(value[0]), float(value[1])
+
+
+def _readings(a: Mapping[str, Any], ems: tuple[str, ...], where: str) -> tuple[Reading, ...]:
+    readings = []
+    for j, r in enumerate(_need(a, "readings", where, list)):
+        rwhere = f"{where}, readings[{j}]"
+        if not isinstance(r, dict):
+            raise ConfigError(f"{rwhere}: must be a mapping")
+        extra = set(r) - {"name", "text", "overrides", "scenario_overrides", "ems_options", "heat"}
+        if extra:
+            raise ConfigError(f"{rwhere}: unknown entries {', '.join(sorted(extra))}")
+        opts = dict(r.get("ems_options") or {})
+        bad = [e for e in opts if e not in ems]
+        if bad:
+            raise ConfigError(f"{rwhere}: ems_options for {', '.join(bad)}, not among the ambiguity's EMS")
+        heat = r.get("heat")
+        if heat is not None and heat not in HEAT_MODES:
+            raise ConfigError(f"{rwhere}: 'heat' must be one of {', '.join(HEAT_MODES)}, got {heat!r}")
+        readings.append(Reading(
+            name=_need(r, "name", rwhere, str),
+            text=_need(r, "text", rwhere, str),
+            overrides=dict(r.get("overrides") or {}),
+            scenario_overrides=dict(r.get("scenario_overrides") or {}),
+            ems_options={e: dict(v or {}) for e, v in opts.items()},
+            heat=heat,
+        ))
+    names = [r.name for r in readings]
+    if len(set(names)) != len(names) or len(names) < 2:
+        raise ConfigError(f"{where}: needs at least two readings with distinct names (got {names})")
+    if any(r.heat for r in readings) and not all(r.heat for r in readings):
+        raise ConfigError(f"{where}: either every reading or none gives 'heat'")
+    return tuple(readings)
 
 
 def load_study(path: str | Path | None = None) -> Study:
@@ -139,31 +225,11 @@ def load_study(path: str | Path | None = None) -> Study:
         unknown = [e for e in ems if e not in EMS]
         if unknown or not ems:
             raise ConfigError(f"{where}: 'ems' must list some of {', '.join(EMS)} (got {ems})")
-        readings = []
-        for j, r in enumerate(_need(a, "readings", where, list)):
-            rwhere = f"{where}, readings[{j}]"
-            if not isinstance(r, dict):
-                raise ConfigError(f"{rwhere}: must be a mapping")
-            extra = set(r) - {"name", "text", "overrides", "scenario_overrides", "ems_options"}
-            if extra:
-                raise ConfigError(f"{rwhere}: unknown entries {', '.join(sorted(extra))}")
-            opts = dict(r.get("ems_options") or {})
-            bad = [e for e in opts if e not in ems]
-            if bad:
-                raise ConfigError(f"{rwhere}: ems_options for {', '.join(bad)}, not among the ambiguity's EMS")
-            readings.append(Reading(
-                name=_need(r, "name", rwhere, str),
-                text=_need(r, "text", rwhere, str),
-                overrides=dict(r.get("overrides") or {}),
-                scenario_overrides=dict(r.get("scenario_overrides") or {}),
-                ems_options={e: dict(v or {}) for e, v in opts.items()},
-            ))
-        names = [r.name for r in readings]
-        if len(set(names)) != len(names) or len(names) < 2:
-            raise ConfigError(f"{where}: needs at least two readings with distinct names (got {names})")
+        readings = _readings(a, ems, where)
         default = _need(a, "default", where, str)
-        if default not in names:
-            raise ConfigError(f"{where}: default '{default}' is not one of its readings ({', '.join(names)})")
+        if default not in {r.name for r in readings}:
+            raise ConfigError(f"{where}: default '{default}' is not one of its readings "
+                              f"({', '.join(r.name for r in readings)})")
         kpi_only = bool(a.get("kpi_only", False))
         if kpi_only and any(r.scenario_overrides or r.ems_options for r in readings):
             raise ConfigError(f"{where}: a kpi_only ambiguity may only override plant (evaluation) parameters")
@@ -174,16 +240,35 @@ def load_study(path: str | Path | None = None) -> Study:
             ems=ems,
             default=default,
             reason=" ".join(_need(a, "reason", where, str).split()),
-            readings=tuple(readings),
+            readings=readings,
             kpi_only=kpi_only,
         ))
+    if sum(any(r.heat for r in a.readings) for a in ambiguities) > 1:
+        raise ConfigError(f"{path}: only one ambiguity may give 'heat' readings")
+    seeds = _need(data, "seeds", str(path), list)
+    if not seeds or len(set(seeds)) != len(seeds) or not all(
+            isinstance(s, int) and not isinstance(s, bool) and 0 <= s < 2**32 for s in seeds):
+        raise ConfigError(f"{path}: 'seeds' must list distinct integers in 0..2^32-1, got {seeds!r}")
+    t = _need(data, "targets", str(path), dict)
+    where = f"{path}: targets"
+    targets = Targets(
+        median_error=float(_need(t, "median_error", where, (int, float))),
+        table_error=float(_need(t, "table_error", where, (int, float))),
+        explain_above=float(_need(t, "explain_above", where, (int, float))),
+        ratio_tolerance=float(_need(t, "ratio_tolerance", where, (int, float))),
+        fuzzy_fc_hours=_band(t, "fuzzy_fc_hours_pct", where),
+        fuzzy_fc_toggles=_band(t, "fuzzy_fc_toggles_pct", where),
+        findings_seeds=int(_need(t, "findings_seeds", where, int)),
+    )
+    if not 1 <= targets.findings_seeds <= len(seeds):
+        raise ConfigError(f"{where}: 'findings_seeds' must lie in 1..{len(seeds)} (the number of seeds)")
     return Study(
         weeks=float(_need(data, "weeks", str(path), (int, float))),
         eta_sys=float(_need(data, "eta_sys", str(path), (int, float))),
+        heat_eta=float(_need(data, "heat_eta", str(path), (int, float))),
+        seeds=tuple(int(s) for s in seeds),
+        targets=targets,
         ambiguities=tuple(ambiguities),
-        ratio_tolerance=float(_need(data, "ratio_tolerance", str(path), (int, float))),
-        median_error_target=float(_need(data, "median_error_target", str(path), (int, float))),
-        explain_above=float(_need(data, "explain_above", str(path), (int, float))),
         source=str(path),
     )
 
@@ -222,13 +307,17 @@ def check_defaults(study: Study, params: PlantParams | None = None) -> list[str]
     """Differences between each ambiguity's default reading and the shipped configuration.
 
     Returns one message per setting of a default reading that is not what ``config/``
-    holds (empty when the study file and the defaults agree).
+    holds (empty when the study file and the defaults agree), and one if the first seed
+    is not the default scenario's.
     """
     from ..scenario import load_measured_settings, load_scenario_settings
 
     params = params or load_plant_params()
     sections = {"scenario": load_scenario_settings(), "measured": load_measured_settings()}
     problems = []
+    if sections["measured"].seed != study.seeds[0]:
+        problems.append(f"seeds: the first seed {study.seeds[0]} is not the default scenario's "
+                        f"(measured.seed {sections['measured'].seed} in config/scenario.yaml)")
     for a in study.ambiguities:
         r = a.reading(a.default)
         for key, want in r.overrides.items():
@@ -251,41 +340,75 @@ def check_defaults(study: Study, params: PlantParams | None = None) -> list[str]
 # --------------------------------------------------------------------------- runs
 
 
+def run_name(stem: str, seed: int) -> str:
+    """Directory name of the run ``stem`` on ``seed``."""
+    return f"{stem}_s{seed}"
+
+
 @dataclass(frozen=True)
 class Case:
-    """One reading evaluated: which run serves each EMS (a base run or a variant)."""
+    """One reading evaluated: which run serves each EMS on each seed.
+
+    Attributes
+    ----------
+    ambiguity, reading : names ("" and ``base`` for the defaults)
+    runs : seed -> EMS -> run directory name
+    overrides : evaluation-only overrides (``kpi_only`` ambiguities)
+    heat : how the runs at the second FC efficiency are obtained (``posthoc`` or ``rerun``)
+    """
 
     ambiguity: str
     reading: str
-    runs: dict[str, str]  # EMS -> run directory name
-    overrides: dict[str, Any]  # evaluation-only overrides (kpi_only ambiguities)
+    runs: dict[int, dict[str, str]]
+    overrides: dict[str, Any]
+    heat: str
+
+
+def _heat_stem(ems: str, heat_eta: float) -> str:
+    return f"{BASE}_{ems}_eta{round(100 * heat_eta)}"
 
 
 def plan(study: Study, with_study: bool = True) -> tuple[dict[str, RunTask], list[Case]]:
     """Runs to make (name -> task without ``out_dir``) and the cases of the study.
 
-    The base runs are ``base_<ems>``; a non-default reading adds a run for each EMS it
-    affects (``<ambiguity>__<reading>__<ems>``); other EMS and default readings reuse the
-    base run. ``kpi_only`` readings add no run.
+    The base runs are ``base_<ems>_s<seed>``; a non-default reading adds a run per EMS it
+    affects and seed (``<ambiguity>__<reading>__<ems>_s<seed>``); other EMS and default
+    readings reuse the base runs. ``kpi_only`` readings add no run; the ``rerun`` reading of
+    sec:heat_recovery adds the base runs at the second FC efficiency.
     """
     tasks: dict[str, RunTask] = {}
-    for e in EMS:
-        tasks[f"{BASE}_{e}"] = RunTask(ems=e, out_dir="", weeks=study.weeks)
-    cases = [Case("", BASE, {e: f"{BASE}_{e}" for e in EMS}, {})]
+    base_runs = {s: {e: run_name(f"{BASE}_{e}", s) for e in EMS} for s in study.seeds}
+
+    def add_heat_runs() -> None:
+        for s in study.seeds:
+            for e in EMS:
+                tasks[run_name(_heat_stem(e, study.heat_eta), s)] = RunTask(
+                    ems=e, out_dir="", weeks=study.weeks, seed=s, overrides={"fuel_cell.eta_sys": study.heat_eta})
+
+    for s in study.seeds:
+        for e in EMS:
+            tasks[base_runs[s][e]] = RunTask(ems=e, out_dir="", weeks=study.weeks, seed=s)
+    if study.heat_mode == "rerun":
+        add_heat_runs()
+    cases = [Case("", BASE, base_runs, {}, study.heat_mode)]
     if not with_study:
         return tasks, cases
     for a in study.ambiguities:
         for r in a.readings:
-            runs = {e: f"{BASE}_{e}" for e in EMS}
-            if r.name != a.default and not a.kpi_only:
-                for e in a.ems:
-                    name = f"{a.key}__{r.name}__{e}"
-                    tasks[name] = RunTask(
-                        ems=e, out_dir="", weeks=study.weeks, overrides=dict(r.overrides),
-                        scenario_overrides=dict(r.scenario_overrides), ems_options=dict(r.ems_options.get(e, {})),
-                    )
-                    runs[e] = name
-            cases.append(Case(a.key, r.name, runs, dict(r.overrides) if a.kpi_only else {}))
+            runs = {s: dict(base_runs[s]) for s in study.seeds}
+            if r.heat == "rerun":
+                add_heat_runs()
+            if r.name != a.default and not a.kpi_only and not r.heat:
+                for s in study.seeds:
+                    for e in a.ems:
+                        name = run_name(f"{a.key}__{r.name}__{e}", s)
+                        tasks[name] = RunTask(
+                            ems=e, out_dir="", weeks=study.weeks, seed=s, overrides=dict(r.overrides),
+                            scenario_overrides=dict(r.scenario_overrides), ems_options=dict(r.ems_options.get(e, {})),
+                        )
+                        runs[s][e] = name
+            cases.append(Case(a.key, r.name, runs, dict(r.overrides) if a.kpi_only else {},
+                              r.heat or study.heat_mode))
     return tasks, cases
 
 
@@ -303,47 +426,23 @@ def reevaluate(run: RunData, params: PlantParams) -> RunData:
     return RunData(spec=run.spec, path=run.path, summary=summary, weekly=res.weekly, timeseries=ts)
 
 
+def at_efficiency(run: RunData, eta_sys: float) -> RunData:
+    """``run``'s own dispatch evaluated at FC system efficiency ``eta_sys`` (sec:heat_recovery).
+
+    Only the recovered heat changes (``eq:FC_sys_efficiency``: the same H2 flow and
+    electrical efficiency, thermal efficiency ``eta_sys - eta_el``); the weekly
+    ``heat_recovered_kwh`` is recomputed from the timeseries.
+    """
+    heat = heat_recovered_at(run.timeseries, eta_sys)
+    week = (pd.RangeIndex(len(heat)) // 168) + 1
+    weekly = run.weekly.copy()
+    per_week = heat.groupby(week.to_numpy()).sum()
+    weekly["heat_recovered_kwh"] = [float(per_week.get(int(w), 0.0)) for w in weekly["week"]]
+    spec = dataclasses.replace(run.spec, eta_sys=eta_sys)
+    return RunData(spec=spec, path=run.path, summary=run.summary, weekly=weekly, timeseries=run.timeseries)
+
+
 # --------------------------------------------------------------------------- evaluation
-
-
-def paper_figures(path: str | Path = PAPER_RESULTS_FILE) -> dict[str, dict[str, float]]:
-    """The paper's values of :data:`ERROR_FIGURES` per figure and EMS (floats)."""
-    rows = {row["key"]: row for row in load_paper_results(path)["rows"]}
-    out: dict[str, dict[str, float]] = {}
-    for key, _, _, _ in ERROR_FIGURES:
-        out[key] = {e: float(rows[key]["paper"][e]) for e in EMS}
-    return out
-
-
-def ours(run: RunData, key: str) -> float:
-    """Our value of an error figure for one run (in the paper's unit)."""
-    for k, summary_key, scale, _ in ERROR_FIGURES:
-        if k == key:
-            return float(run.summary[summary_key]) * scale
-    raise KeyError(key)
-
-
-def relative_error(value: float, paper: float) -> float | None:
-    """``|value - paper| / |paper|``; ``None`` for a zero paper figure (no relative error)."""
-    return None if paper == 0 else abs(value - paper) / abs(paper)
-
-
-def table_rows(runs: Mapping[str, RunData], paper: Mapping[str, Mapping[str, float]]) -> list[dict[str, Any]]:
-    """The paper's table beside ours: one row per (figure, EMS) with the relative error."""
-    rows = []
-    for key, _, _, unit in ERROR_FIGURES:
-        for e in EMS:
-            value = ours(runs[e], key)
-            p = paper[key][e]
-            rows.append({"figure": key, "ems": e, "unit": unit, "paper": p, "ours": value,
-                         "rel_error": relative_error(value, p)})
-    return rows
-
-
-def median_error(rows: Sequence[Mapping[str, Any]]) -> float:
-    """Median relative error over the rows with a nonzero paper figure [-]."""
-    errs = [r["rel_error"] for r in rows if r["rel_error"] is not None]
-    return float(statistics.median(errs))
 
 
 def cost_ratios(runs: Mapping[str, RunData]) -> dict[str, float]:
@@ -352,133 +451,94 @@ def cost_ratios(runs: Mapping[str, RunData]) -> dict[str, float]:
     return {f"{e}/fuzzy": float(runs[e].summary["cost_eur_week_median"]) / fuzzy for e in ("rbc", "mpc")}
 
 
-def paper_ratios(paper: Mapping[str, Mapping[str, float]]) -> dict[str, float]:
+def paper_ratios(statements: Statements) -> dict[str, float]:
     """The paper's cost ratios (RBC / ComEMS4Build 1.72, MPC / ComEMS4Build 0.52)."""
-    c = paper["cost"]
-    return {f"{e}/fuzzy": c[e] / c["fuzzy"] for e in ("rbc", "mpc")}
+    c = statements.get("cost").paper
+    return {f"{e}/fuzzy": float(c[e]) / float(c["fuzzy"]) for e in ("rbc", "mpc")}
 
 
-def _weeks_full(run: RunData) -> pd.DataFrame:
-    w = run.weekly
-    return w[w["hours"] >= HOURS_PER_WEEK - 1e-9] if "hours" in w else w
-
-
-@dataclass(frozen=True)
-class Check:
-    """A qualitative finding of the paper that the reproduction must show."""
-
-    key: str
-    claim: str
-    source: str
-    test: Callable[[Mapping[str, RunData], PlantParams], tuple[bool, str]]
-
-
-def _s(runs: Mapping[str, RunData], e: str, key: str) -> float:
-    return float(runs[e].summary[key])
-
-
-def _cost_order(runs, _):
-    c = {e: _s(runs, e, "cost_eur_week_median") for e in EMS}
-    return c["mpc"] < c["fuzzy"] < c["rbc"], ", ".join(f"{EMS_LABEL[e]} {c[e]:.2f}" for e in EMS) + " EUR/week"
-
-
-def _mpc_comfort(runs, _):
-    n = int(_s(runs, "mpc", "discomfort_weeks_nonzero"))
-    return n == 0, f"MPC: {n} of {len(runs['mpc'].weekly)} weeks with discomfort"
-
-
-def _fuzzy_comfort(runs, _):
-    w = runs["fuzzy"].weekly
-    free = int((w["discomfort_kh"] <= DISCOMFORT_TOL_KH).sum())
-    need = math.ceil(10.0 / 12.0 * len(w))
-    return free >= need, f"ComEMS4Build: {free} of {len(w)} weeks without discomfort (at least {need})"
-
-
-def _rbc_discomfort(runs, _):
-    r, f = _s(runs, "rbc", "discomfort_kh_week_median"), _s(runs, "fuzzy", "discomfort_kh_week_median")
-    return r > f, f"median RBC {r:.2f}, ComEMS4Build {f:.2f} Kh/week"
-
-
-def _rbc_sells_most(runs, _):
-    s = {e: _s(runs, e, "sell_kwh_week_median") for e in EMS}
-    return all(s["rbc"] > s[e] for e in EMS if e != "rbc"), ", ".join(
-        f"{EMS_LABEL[e]} {s[e]:.2f}" for e in EMS) + " kWh/week"
-
-
-def _rbc_charges_most(runs, _):
-    b = {e: _s(runs, e, "bess_charged_kwh_week_median") for e in EMS}
-    return all(b["rbc"] > b[e] for e in EMS if e != "rbc"), ", ".join(
-        f"{EMS_LABEL[e]} {b[e]:.2f}" for e in EMS) + " kWh/week"
-
-
-def _rbc_empty_early(runs, params):
-    floor = float(runs["rbc"].summary.get("rbc_loh_floor", params.hydrogen.loh_min))
-    days = h2_empty_days_before_end(runs["rbc"], floor)
-    txt = "never empty" if days is None else f"empty {days:.1f} days before the end"
-    return days is not None and days >= EARLY_EMPTY_DAYS, (
-        f"RBC: {txt} (its LOH_min {100 * floor:.0f} %, LOH at the end "
-        f"{100 * float(runs['rbc'].summary['loh_end']):.2f} %; paper: 16 days, 9.94 % left)")
-
-
-def _fuzzy_h2_left(runs, params):
-    end = _s(runs, "fuzzy", "loh_end")
-    return end > params.hydrogen.loh_min + H2_LEFT_TOL, f"ComEMS4Build: LOH {100 * end:.2f} % at the end"
-
-
-def _fuzzy_h2_even(runs, _):
-    spread = {}
-    for e in EMS:
-        w = _weeks_full(runs[e])["h2_kwh"]
-        spread[e] = float(w.max() - w.min())
-    ok = all(spread["fuzzy"] < spread[e] for e in EMS if e != "fuzzy")
-    return ok, "weekly H2 use (LHV) max - min: " + ", ".join(f"{EMS_LABEL[e]} {spread[e]:.1f}" for e in EMS) + " kWh"
-
-
-def _fuzzy_fc_vs_mpc(runs, _):
-    h = {e: _s(runs, e, "fc_working_hours") for e in ("fuzzy", "mpc")}
-    load = {e: _s(runs, e, "fc_mean_load_w") for e in ("fuzzy", "mpc")}
-    ok = h["fuzzy"] > h["mpc"] and load["fuzzy"] < load["mpc"]
-    return ok, (f"FC hours ComEMS4Build {h['fuzzy']:.0f} vs MPC {h['mpc']:.0f} "
-                f"({100 * (h['fuzzy'] / h['mpc'] - 1):+.1f} %, paper +48.44 %); mean load "
-                f"{load['fuzzy']:.0f} vs {load['mpc']:.0f} W")
-
-
-#: The findings of ``sec:results`` / ``sec:discussion`` the reproduction must show.
-CHECKS: tuple[Check, ...] = (
-    Check("cost_order", "weekly cost median: MPC < ComEMS4Build < RBC", "sec:results (12.96 < 25.02 < 43.10 EUR)",
-          _cost_order),
-    Check("mpc_comfort", "MPC without discomfort in every week", "sec:results", _mpc_comfort),
-    Check("fuzzy_comfort", "ComEMS4Build without discomfort in at least 10 of 12 weeks", "sec:results, abstract",
-          _fuzzy_comfort),
-    Check("rbc_discomfort", "RBC's median discomfort above ComEMS4Build's", "sec:results (0.68 Kh)", _rbc_discomfort),
-    Check("rbc_sells_most", "RBC sells the most energy", "sec:results, sec:discussion", _rbc_sells_most),
-    Check("rbc_charges_most", "RBC charges the battery the most", "sec:results (HESS utilization)", _rbc_charges_most),
-    Check("rbc_empty_early", "RBC's H2 store empty at least 7 days before the end",
-          "sec:results (16 days before the end)", _rbc_empty_early),
-    Check("fuzzy_h2_left", "ComEMS4Build's H2 store not empty at the end", "sec:results (14.14 % left)",
-          _fuzzy_h2_left),
-    Check("fuzzy_h2_even", "ComEMS4Build's weekly H2 use the most even (smallest weekly range)",
-          "sec:results (HESS utilization)", _fuzzy_h2_even),
-    Check("fuzzy_fc_vs_mpc", "ComEMS4Build runs the FC more hours than MPC, at a lower mean load",
-          "sec:results (HESS utilization: FC working hours), sec:discussion", _fuzzy_fc_vs_mpc),
-)
-
-
-def evaluate_checks(runs: Mapping[str, RunData], params: PlantParams) -> list[dict[str, Any]]:
-    """Every :data:`CHECKS` entry with ``held`` and its evidence."""
-    out = []
-    for c in CHECKS:
-        ok, evidence = c.test(runs, params)
-        out.append({"key": c.key, "claim": c.claim, "source": c.source, "held": bool(ok), "evidence": evidence})
+def fc_operation(runs: Mapping[str, RunData]) -> dict[str, float]:
+    """FC working hours and toggles of ComEMS4Build and the RBC relative to the MPC's [%]."""
+    out = {}
+    for e in ("fuzzy", "rbc"):
+        for key, name in (("fc_working_hours", "hours"), ("fc_toggles", "toggles")):
+            ref = float(runs["mpc"].summary[key])
+            out[f"{e}_{name}"] = float("nan") if ref == 0 else 100.0 * (float(runs[e].summary[key]) / ref - 1.0)
     return out
+
+
+def _spread(values: Sequence[float]) -> dict[str, float]:
+    return {"median": statistics.median(values), "low": min(values), "high": max(values)}
+
+
+def _median_or_none(values: Sequence[float]) -> float | None:
+    return statistics.median(values) if values else None
+
+
+@dataclass
+class SeedRuns:
+    """The runs of one case on one seed."""
+
+    seed: int
+    runs: dict[str, RunData]
+    variants: dict[tuple[str, float], RunData]
+
+
+def case_result(
+    case: Case, per_seed: Sequence[SeedRuns], params: PlantParams, statements: Statements, study: Study,
+) -> dict[str, Any]:
+    """Every figure of one case over the seeds: errors, ratios, FC operation, findings."""
+    from .findings import Context, evaluate_findings
+
+    figures = []
+    findings: dict[str, dict[str, Any]] = {}
+    ratios, fc = [], []
+    for sr in per_seed:
+        ev = Evidence(runs=sr.runs, params=params, base_eta=study.eta_sys, variants=sr.variants)
+        figures.append(evaluate_statements(ev, statements))
+        ctx = Context(runs=dict(sr.runs), variants={**{(e, study.eta_sys): r for e, r in sr.runs.items()},
+                                                    **sr.variants}, params=params, base_eta=study.eta_sys)
+        for f, v in evaluate_findings(ctx):
+            entry = findings.setdefault(f.key, {"key": f.key, "claim": f.claim, "source": f.source,
+                                                "held": 0, "evidence": {}})
+            entry["held"] += v.status == "held"
+            entry["evidence"][str(sr.seed)] = v.evidence
+        ratios.append(cost_ratios(sr.runs))
+        fc.append(fc_operation(sr.runs))
+    agg = aggregate(figures)
+    table_keys = {s.key for s in statements.statements if s.table}
+    errs = [a.rel_error for a in agg if a.rel_error is not None]
+    table_errs = [a.rel_error for a in agg if a.rel_error is not None and a.key in table_keys]
+    values = {f"{a.key}/{a.ems}": a.ours for a in agg if a.key in dict(TABLE_FIGURES)}
+    return {
+        "ambiguity": case.ambiguity,
+        "reading": case.reading,
+        "figures": [dataclasses.asdict(a) for a in agg],
+        "median_rel_error": _median_or_none(errs),
+        "table_rel_error": _median_or_none(table_errs),
+        "max_rel_error": max(errs) if errs else None,
+        "ratios": {k: _spread([r[k] for r in ratios]) for k in ratios[0]},
+        "fc": {k: _spread([x[k] for x in fc]) for k in fc[0]},
+        "findings": list(findings.values()),
+        "findings_held": sum(f["held"] >= study.targets.findings_seeds for f in findings.values()),
+        "findings_total": len(findings),
+        "not_held": [f["key"] for f in findings.values() if f["held"] < study.targets.findings_seeds],
+        "values": values,
+        "discomfort": {e: {"median_kh": statistics.median(float(sr.runs[e].summary["discomfort_kh_week_median"])
+                                                          for sr in per_seed),
+                           "weeks": statistics.median(int(sr.runs[e].summary["discomfort_weeks_nonzero"])
+                                                      for sr in per_seed)} for e in EMS},
+    }
 
 
 def h2_figures(runs: Mapping[str, RunData]) -> list[dict[str, Any]]:
     """Weekly H2 use as FC electrical output and as LHV, the value of the H2 left and the net cost."""
+    from .paper import full_weeks
+
     rows = []
     for e in EMS:
         s = runs[e].summary
-        weeks = len(_weeks_full(runs[e])) or 1
+        weeks = len(full_weeks(runs[e])) or 1
         rows.append({
             "ems": e,
             "fc_kwh_week_min": s["fc_kwh_week_min"], "fc_kwh_week_max": s["fc_kwh_week_max"],
@@ -488,30 +548,17 @@ def h2_figures(runs: Mapping[str, RunData]) -> list[dict[str, Any]]:
             "h2_left_value_eur": s["h2_left_value_eur"],
             "cost_net_eur_total": s["cost_net_eur_total"],
             "cost_net_eur_week": s["cost_net_eur_total"] / weeks,
+            "fc_working_hours": s["fc_working_hours"], "fc_toggles": s["fc_toggles"],
+            "fc_mean_load_w": s["fc_mean_load_w"], "fc_mean_eta_el": s["fc_mean_eta_el"],
         })
     return rows
 
 
-def case_result(
-    case: Case, runs: Mapping[str, RunData], params: PlantParams, paper: Mapping[str, Mapping[str, float]]
-) -> dict[str, Any]:
-    """Table error, ratios and findings of one case."""
-    rows = table_rows(runs, paper)
-    errs = [r["rel_error"] for r in rows if r["rel_error"] is not None]
-    checks = evaluate_checks(runs, params)
-    return {
-        "ambiguity": case.ambiguity,
-        "reading": case.reading,
-        "median_rel_error": median_error(rows),
-        "max_rel_error": max(errs),
-        "ratios": cost_ratios(runs),
-        "findings_held": sum(c["held"] for c in checks),
-        "findings": len(checks),
-        "not_held": [c["key"] for c in checks if not c["held"]],
-        "values": {f"{r['figure']}/{r['ems']}": r["ours"] for r in rows},
-        "discomfort": {e: {"median_kh": float(runs[e].summary["discomfort_kh_week_median"]),
-                           "weeks": int(runs[e].summary["discomfort_weeks_nonzero"])} for e in EMS},
-    }
+def statement_info(statements: Statements) -> dict[str, dict[str, Any]]:
+    """What the report prints about each statement (label, unit, source, quote, flags)."""
+    return {s.key: {"label": s.label, "unit": s.unit, "where": s.where, "quote": s.quote, "table": s.table,
+                    "note": s.note, "locates": s.locates, "error_on": s.error_on, "eta": s.eta}
+            for s in statements.statements}
 
 
 # --------------------------------------------------------------------------- the command
@@ -525,11 +572,44 @@ class ReproduceResult:
     markdown: Path
     html: Path
     json: Path
-    median_rel_error: float
+    median_rel_error: float | None
+    table_rel_error: float | None
     ratios: dict[str, float]
-    checks: list[dict[str, Any]]
+    fc: dict[str, float]
+    findings_held: int
+    findings_total: int
     runs_made: int
     wall_s: float
+
+
+def _read_runs(runs_dir: Path, names: Sequence[str], tasks: Mapping[str, RunTask], study: Study,
+               params: PlantParams) -> dict[str, RunData]:
+    from ..ems.rbc import loh_floor
+
+    data = {}
+    for name in names:
+        task = tasks[name]
+        eta = float(task.overrides.get("fuel_cell.eta_sys", study.eta_sys))
+        run = read_run(runs_dir / name, RunSpec(name=name, ems=task.ems, eta_sys=eta))
+        if task.ems == "rbc":  # the RBC's store is empty at its own limit (config/rbc.yaml)
+            run.summary["rbc_loh_floor"] = loh_floor(params, task.ems_options)
+        data[name] = run
+    return data
+
+
+def _seed_runs(case: Case, data: Mapping[str, RunData], study: Study) -> list[SeedRuns]:
+    out = []
+    for seed, names in case.runs.items():
+        runs = {e: data[n] for e, n in names.items()}
+        if case.overrides:
+            p = load_plant_params(overrides=case.overrides)
+            runs = {e: reevaluate(r, p) for e, r in runs.items()}
+        if case.heat == "rerun":
+            variants = {(e, study.heat_eta): data[run_name(_heat_stem(e, study.heat_eta), seed)] for e in EMS}
+        else:
+            variants = {(e, study.heat_eta): at_efficiency(r, study.heat_eta) for e, r in runs.items()}
+        out.append(SeedRuns(seed, runs, variants))
+    return out
 
 
 def reproduce(
@@ -539,11 +619,13 @@ def reproduce(
     study_path: str | Path | None = None,
     weeks: float | None = None,
     only: Sequence[str] | None = None,
+    seeds: Sequence[int] | None = None,
     progress: Callable[[int, int, str], None] | None = None,
     show_progress: bool | None = None,
     from_runs: str | Path | None = None,
+    figures: bool = True,
 ) -> ReproduceResult:
-    """Run the reproduction and write ``reproduce.md``, ``reproduce.html`` and ``reproduce.json``.
+    """Run the reproduction and write ``reproduce.md``, ``reproduce.html``, ``reproduce.json``, ``figures/``.
 
     Parameters
     ----------
@@ -554,6 +636,8 @@ def reproduce(
     weeks : run length (default: the study's 12 weeks; shorter runs are for quick checks and
         do not compare with the paper's twelve weeks)
     only : ambiguity keys to study (default: all)
+    seeds : seeds of the modelled inputs (default: the study's; the first should be the
+        default scenario's)
     progress : callback ``(done, total, name)`` after each run
     show_progress : one progress bar per run on stderr (None = when stderr is a terminal)
     from_runs : no simulation: evaluate the run directories of an earlier ``reproduce`` of
@@ -561,26 +645,37 @@ def reproduce(
         evaluation; the runs are taken as they are (they must come from the same code and
         configuration). Wall time and run count are those of the earlier command, read
         from its ``reproduce.json``.
+    figures : draw the paper's figures from the default seed's runs
     """
     t0 = time.perf_counter()
     study = load_study(study_path)
     if weeks is not None:
         study = dataclasses.replace(study, weeks=float(weeks))
+    if seeds is not None:
+        n = len(study.seeds)
+        need = math.ceil(study.targets.findings_seeds * len(seeds) / n)  # the same share of fewer or more seeds
+        study = dataclasses.replace(study, seeds=tuple(int(s) for s in seeds),
+                                    targets=dataclasses.replace(study.targets, findings_seeds=need))
     if only:
         unknown = sorted(set(only) - {a.key for a in study.ambiguities})
         if unknown:
             raise ConfigError(f"{study.source}: no ambiguity {', '.join(unknown)} "
                               f"(known: {', '.join(a.key for a in study.ambiguities)})")
-        study = dataclasses.replace(study, ambiguities=tuple(a for a in study.ambiguities if a.key in only))
+        # the ambiguity of sec:heat_recovery stays: its default decides how every case is evaluated
+        study = dataclasses.replace(study, ambiguities=tuple(
+            a for a in study.ambiguities if a.key in only or any(r.heat for r in a.readings)))
     params = load_plant_params()
     if abs(params.fuel_cell.eta_sys - study.eta_sys) > 1e-12:
         raise ConfigError(f"{study.source}: eta_sys {study.eta_sys} differs from config/plant.yaml "
                           f"fuel_cell.eta_sys {params.fuel_cell.eta_sys}")
-    drift = check_defaults(study, params)
+    drift = [p for p in check_defaults(study, params) if seeds is None or not p.startswith("seeds:")]
     if drift:
         raise ConfigError(f"{study.source}: default readings differ from config/: " + "; ".join(drift))
+    statements = load_paper_results()
     out = Path(out_dir)
     tasks, cases = plan(study, with_study)
+    if only:
+        cases = [cases[0], *(c for c in cases[1:] if c.ambiguity in only)]
     names = list(tasks)
     earlier: dict[str, Any] = {}
     if from_runs is not None:
@@ -614,42 +709,39 @@ def reproduce(
 
     if todo:
         run_tasks(todo, jobs=jobs, on_done=on_done, progress=show_progress)
-    data = {name: read_run(runs_dir / name, RunSpec(name=name, ems=tasks[name].ems, eta_sys=study.eta_sys))
-            for name in names}
-    from ..ems.rbc import loh_floor
-
-    for name, run in data.items():
-        if tasks[name].ems == "rbc":  # the RBC's store is empty at its own limit (config/rbc.yaml)
-            run.summary["rbc_loh_floor"] = loh_floor(params, tasks[name].ems_options)
-    paper = paper_figures()
-    base_runs = {e: data[f"{BASE}_{e}"] for e in EMS}
-    rows = table_rows(base_runs, paper)
-    checks = evaluate_checks(base_runs, params)
-    results = []
-    for case in cases[1:]:
-        runs = {e: data[n] for e, n in case.runs.items()}
-        if case.overrides:
-            p = load_plant_params(overrides=case.overrides)
-            runs = {e: reevaluate(r, p) for e, r in runs.items()}
-        results.append(case_result(case, runs, params, paper))
+    data = _read_runs(runs_dir, names, tasks, study, params)
+    results = [case_result(c, _seed_runs(c, data, study), params, statements, study) for c in cases]
+    base = results[0]
+    default_seed = study.seeds[0]
+    base_runs = {e: data[run_name(f"{BASE}_{e}", default_seed)] for e in EMS}
+    written = _draw_figures(cases[0], data, study, params, out) if figures else {}
+    windows = paper_windows(base_runs["fuzzy"], params.site.timezone, statements.windows)
+    local = base_runs["fuzzy"].timeseries["time"].dt.tz_convert(params.site.timezone)
+    t = study.targets
     report = {
         "scenario": base_runs["fuzzy"].summary.get("scenario"),
         "weeks": study.weeks,
-        "table": rows,
-        "median_rel_error": median_error(rows),
-        "median_error_target": study.median_error_target,
-        "explain_above": study.explain_above,
-        "ratios": cost_ratios(base_runs),
-        "paper_ratios": paper_ratios(paper),
-        "ratio_tolerance": study.ratio_tolerance,
-        "checks": checks,
+        "seeds": list(study.seeds),
+        "eta_sys": study.eta_sys,
+        "heat_eta": study.heat_eta,
+        "heat_mode": study.heat_mode,
+        "targets": {"median_error": t.median_error, "table_error": t.table_error, "explain_above": t.explain_above,
+                    "ratio_tolerance": t.ratio_tolerance, "fuzzy_fc_hours_pct": list(t.fuzzy_fc_hours),
+                    "fuzzy_fc_toggles_pct": list(t.fuzzy_fc_toggles), "findings_seeds": t.findings_seeds},
+        "statements": statement_info(statements),
+        "source": statements.source,
+        "paper_ratios": paper_ratios(statements),
+        "base": base,
         "h2": h2_figures(base_runs),
-        "study": results,
+        "windows": {k: [local.iloc[a].isoformat(), (local.iloc[b - 1] + pd.Timedelta(hours=1)).isoformat()]
+                    for k, (a, b) in windows.items()},
+        "figures": {k: str(Path(p).relative_to(out)) for k, p in written.items()},
+        "study": results[1:],
         "ambiguities": [
             {"key": a.key, "title": a.title, "source": a.source, "ems": list(a.ems), "default": a.default,
              "reason": a.reason, "kpi_only": a.kpi_only,
              "readings": [{"name": r.name, "text": r.text} for r in a.readings]}
-            for a in study.ambiguities
+            for a in study.ambiguities if not only or a.key in only
         ] if with_study else [],
         "runs_made": int(earlier.get("runs_made", 0)) if from_runs is not None else len(todo),
         "wall_s": float(earlier.get("wall_s", 0.0)) if from_runs is not None else time.perf_counter() - t0,
@@ -660,6 +752,22 @@ def reproduce(
     md, html_path = write_documents(report, out)
     json_path = out / "reproduce.json"
     json_path.write_text(json.dumps(report, indent=2) + "\n", encoding="utf-8")
-    return ReproduceResult(out=out, markdown=md, html=html_path, json=json_path,
-                           median_rel_error=report["median_rel_error"], ratios=report["ratios"], checks=checks,
-                           runs_made=report["runs_made"], wall_s=report["wall_s"])
+    return ReproduceResult(
+        out=out, markdown=md, html=html_path, json=json_path, median_rel_error=base["median_rel_error"],
+        table_rel_error=base["table_rel_error"], ratios={k: v["median"] for k, v in base["ratios"].items()},
+        fc={k: v["median"] for k, v in base["fc"].items()}, findings_held=base["findings_held"],
+        findings_total=base["findings_total"], runs_made=report["runs_made"], wall_s=report["wall_s"])
+
+
+def _draw_figures(case: Case, data: Mapping[str, RunData], study: Study, params: PlantParams,
+                  out: Path) -> dict[str, Path]:
+    """The paper's figures from the default seed's runs of ``case`` (``out/figures``)."""
+    from ..ems import controller_class
+    from . import figures as fig
+
+    sr = _seed_runs(dataclasses.replace(case, runs={study.seeds[0]: case.runs[study.seeds[0]]}), data, study)[0]
+    variants = {**{(e, study.eta_sys): r for e, r in sr.runs.items()}, **sr.variants}
+    levels = {e: str(controller_class(e).info_level) for e in sr.runs}
+    inputs = fig.FigureInputs(dict(sr.runs), variants, levels, params.site.timezone, study.eta_sys,
+                              params.dhw.v_max_l)
+    return fig.all_figures(inputs, out / "figures")

@@ -8,119 +8,178 @@ numbers; every number is read from the report mapping that
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
 from .document import Document
+from .figures import CAPTIONS
+from .paper import printed
 
 #: Title of both documents.
 TITLE = "ComEMS4Build: reproducing the paper"
 EMS = ("mpc", "fuzzy", "rbc")
-EMS_LABEL = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC"}
-FIGURE_LABEL = {
-    "cost": "cost, weekly median",
-    "buy": "bought, weekly median",
-    "sell": "sold, weekly median",
-    "bess_charged": "BESS charged, weekly median",
-    "loh_end": "LOH left at the end",
-}
-#: The paper's H2 figures (sec:results): weekly "H2 consumption" ranges and the value of the H2 left.
-PAPER_H2 = {
-    "mpc": ("23.44..123.08", "36.04"),
-    "fuzzy": ("54.11..78.54", "97.75"),
-    "rbc": ("-", "68.68"),
-}
+EMS_LABEL = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC", "input": "input"}
+#: The headline figures listed per reading in the study tables: (statement key, short label).
+STUDY_FIGURES = (("cost", "cost"), ("buy", "bought"), ("sell", "sold"), ("bess_charged", "BESS charged"),
+                 ("loh_end", "LOH left"))
 
 
-def _pct(x: float | None) -> str:
-    return "-" if x is None else f"{100 * x:.1f} %"
+def _pct(x: float | None, digits: int = 1) -> str:
+    return "-" if x is None else f"{100 * x:.{digits}f} %"
 
 
-def _num(x: float, digits: int = 2) -> str:
-    return f"{x:.{digits}f}"
+def _num(x: float | None, digits: int = 2) -> str:
+    return "-" if x is None else f"{x:.{digits}f}"
 
 
-def _table(doc: Document, report: Mapping[str, Any]) -> None:
-    doc.h(2, "The paper's table beside ours")
-    doc.p(f"Weekly medians over {report['weeks']:g} weeks of the default scenario "
-          f"({report['scenario']}); relative error = |ours - paper| / paper, for the paper's nonzero "
-          "figures. Paper: sec:results (the figures of the occupant-oriented metrics, the grid utilization, the "
-          "HESS utilization and the H2 over the period).")
-    by = {(r["figure"], r["ems"]): r for r in report["table"]}
-    header = ["figure", "unit"]
-    for e in EMS:
-        header += [f"{EMS_LABEL[e]} paper", f"{EMS_LABEL[e]} ours", f"{EMS_LABEL[e]} error"]
+def _met(ok: bool) -> str:
+    return "met" if ok else "NOT MET"
+
+
+def _seeds(report: Mapping[str, Any]) -> str:
+    seeds = report["seeds"]
+    return f"{len(seeds)} seed{'s' if len(seeds) > 1 else ''} ({', '.join(str(s) for s in seeds)})"
+
+
+def _figure_rows(report: Mapping[str, Any], case: Mapping[str, Any]) -> list[list[str]]:
+    info = report["statements"]
+    n = len(report["seeds"])
     rows = []
-    for fig in FIGURE_LABEL:
-        row = [FIGURE_LABEL[fig], by[(fig, "mpc")]["unit"]]
-        for e in EMS:
-            r = by[(fig, e)]
-            row += [_num(r["paper"]), _num(r["ours"]), _pct(r["rel_error"])]
-        rows.append(row)
-    doc.table(header, rows)
-    target = report["median_error_target"]
-    med = report["median_rel_error"]
-    doc.p(f"Median relative error over the {sum(r['rel_error'] is not None for r in report['table'])} nonzero "
-          f"figures: {_pct(med)} (target at most {_pct(target)}: {'met' if med <= target else 'not met'}).")
-    above = [r for r in report["table"] if r["rel_error"] is not None and r["rel_error"] > report["explain_above"]]
-    if above:
-        doc.p(f"Figures off by more than {_pct(report['explain_above'])} (explained in docs/calibration.md): "
-              + "; ".join(f"{EMS_LABEL[r['ems']]} {FIGURE_LABEL[r['figure']]}: {_num(r['ours'])} vs "
-                          f"{_num(r['paper'])} ({_pct(r['rel_error'])})" for r in above) + ".")
-    tol = report["ratio_tolerance"]
-    rows = []
-    for key, value in report["ratios"].items():
-        p = report["paper_ratios"][key]
+    for f in case["figures"]:
+        s = info[f["key"]]
+        if f["ours"] is None:
+            ours, err = "not run", "-"
+        else:
+            ours = printed(f["ours"], s["unit"])
+            if f["low"] is not None and n > 1 and f["kind"] != "weeks":
+                ours += f" [{printed(f['low'], s['unit'])}..{printed(f['high'], s['unit'])}]"
+            if s["locates"]:
+                err = "locates the window"
+            elif f["rel_error"] is not None:
+                err = _pct(f["rel_error"])
+            else:
+                err = f"held on {f['held']} of {f['runs']}"
+        rows.append([s["label"] + (" *" if s["table"] else ""), s["unit"], s["where"], EMS_LABEL[f["ems"]],
+                     printed(f["paper"], s["unit"]), ours, err])
+    return rows
+
+
+def _summary(doc: Document, report: Mapping[str, Any]) -> None:
+    base, t = report["base"], report["targets"]
+    doc.h(2, "Summary")
+    ratios = base["ratios"]
+    tol = t["ratio_tolerance"]
+    rows = [
+        ["median relative error, every stated figure", f"at most {_pct(t['median_error'], 0)}",
+         _pct(base["median_rel_error"]), _met(base["median_rel_error"] <= t["median_error"])],
+        ["median relative error, the headline table (*)", f"at most {_pct(t['table_error'], 0)}",
+         _pct(base["table_rel_error"]), _met(base["table_rel_error"] <= t["table_error"])],
+    ]
+    for key, p in report["paper_ratios"].items():
         lo, hi = p * (1 - tol), p * (1 + tol)
         a, b = key.split("/")
-        rows.append([f"{EMS_LABEL[a]} / {EMS_LABEL[b]}", _num(p), f"{_num(lo)}..{_num(hi)}", _num(value),
-                     "yes" if lo <= value <= hi else "no"])
-    doc.h(3, "Cost ratios")
-    doc.table(["weekly cost median", "paper", "target band", "ours", "in band"], rows)
+        v = ratios[key]["median"]
+        rows.append([f"cost ratio {EMS_LABEL[a]} / {EMS_LABEL[b]} (paper {p:.2f})", f"{lo:.2f}..{hi:.2f}",
+                     f"{v:.2f} [{ratios[key]['low']:.2f}..{ratios[key]['high']:.2f}]", _met(lo <= v <= hi)])
+    fc = base["fc"]
+    for key, band, paper in (("fuzzy_hours", t["fuzzy_fc_hours_pct"], "+48.44 %"),
+                             ("fuzzy_toggles", t["fuzzy_fc_toggles_pct"], "+6.09 %")):
+        v = fc[key]["median"]
+        what = "working hours" if key.endswith("hours") else "toggles"
+        rows.append([f"ComEMS4Build's FC {what} vs MPC (paper {paper})", f"{band[0]:+.0f}..{band[1]:+.0f} %",
+                     f"{v:+.1f} % [{fc[key]['low']:+.1f}..{fc[key]['high']:+.1f}]", _met(band[0] <= v <= band[1])])
+    v = fc["rbc_hours"]["median"]
+    rows.append(["RBC's FC working hours vs MPC (paper -7.59 %)", "below 0 %",
+                 f"{v:+.1f} % [{fc['rbc_hours']['low']:+.1f}..{fc['rbc_hours']['high']:+.1f}]", _met(v < 0)])
+    rows.append([f"findings holding on at least {t['findings_seeds']} of {len(report['seeds'])} seeds", "all",
+                 f"{base['findings_held']} of {base['findings_total']}",
+                 _met(base["findings_held"] == base["findings_total"])])
+    doc.p(f"The three EMS on the default scenario over {report['weeks']:g} weeks, for {_seeds(report)} of the "
+          "modelled radiation and appliance load (the first is the default scenario's). Each figure is the median "
+          "over the seeds; its error is the median over the seeds of |ours - paper| / |paper|.")
+    doc.table(["target", "band", "ours: median [range over the seeds]", "status"], rows)
 
 
-def _h2(doc: Document, report: Mapping[str, Any]) -> None:
-    doc.h(2, "Hydrogen")
-    doc.p("Weekly H2 use as the FC's electrical output and as the LHV energy drawn from the store "
-          "(min..max over the weeks); the paper's \"H2 consumption\" ranges fit the electrical output. "
-          "Value of the H2 left = (LOH_end - LOH_min) x 1800 kWh x mean buy price of the run "
-          "(the paper's method, sec:results); net cost = cost - reimbursement - that value.")
+def _statements(doc: Document, report: Mapping[str, Any]) -> None:
+    doc.h(2, "Every stated figure of the paper beside ours")
+    doc.p(f"Paper: {report['source']}. One row per statement and EMS (`input`: a statement about the scenario's "
+          "inputs); ours is the median over the seeds with its range; error: the seed-median relative error, or "
+          "on how many seeds a bound or a set of weeks held. Weeks are the paper's: week 1 starts on 2022-12-01. "
+          "(*) marks the figures of the paper's headline table. \"x % more than the MPC\" is compared as the "
+          "ratio 1 + x / 100. The quoted sentences and the measure of each statement are in "
+          "comems4build_ros/report/paper_results.yaml.")
+    doc.table(["figure", "unit", "paper's source", "EMS", "paper", "ours", "error"],
+              _figure_rows(report, report["base"]))
+    above = [f for f in report["base"]["figures"] if f["rel_error"] is not None
+             and f["rel_error"] > report["targets"]["explain_above"]]
+    if above:
+        info = report["statements"]
+        doc.p(f"Figures off by more than {_pct(report['targets']['explain_above'], 0)} (explained in "
+              "docs/calibration.md): " + "; ".join(
+                  f"`{f['ems']}/{f['key']}` ({info[f['key']]['label']}: {printed(f['ours'], info[f['key']]['unit'])} "
+                  f"vs {printed(f['paper'], info[f['key']]['unit'])}, {_pct(f['rel_error'])})" for f in above) + ".")
+
+
+def _fc(doc: Document, report: Mapping[str, Any]) -> None:
+    doc.h(2, "Fuel cell and hydrogen (default seed)")
+    doc.p("Weekly H2 use as the FC's electrical output and as the LHV energy drawn from the store (min..max over "
+          "the weeks); the paper's \"H2 consumption\" ranges (MPC 23.44..123.08, ComEMS4Build 54.11..78.54 kWh/week) "
+          "fit the electrical output. Value of the H2 left = (LOH_end - LOH_min) x 1800 kWh x mean buy price of the "
+          "run (the paper's method, sec:results); net cost = cost - reimbursement - that value.")
     rows = []
     for r in report["h2"]:
-        paper_range, paper_value = PAPER_H2[r["ems"]]
         rows.append([
-            EMS_LABEL[r["ems"]],
+            EMS_LABEL[r["ems"]], _num(r["fc_working_hours"], 0), _num(r["fc_toggles"], 0),
+            _num(r["fc_mean_load_w"], 0), _num(r["fc_mean_eta_el"], 3),
             f"{_num(r['fc_kwh_week_min'], 1)}..{_num(r['fc_kwh_week_max'], 1)}",
             f"{_num(r['h2_kwh_week_min'], 1)}..{_num(r['h2_kwh_week_max'], 1)}",
-            paper_range,
-            _num(r["loh_end_pct"]),
-            _num(r["price_buy_mean_eur_per_kwh"], 3),
-            _num(r["h2_left_value_eur"]),
-            paper_value,
-            _num(r["cost_net_eur_week"]),
+            _num(r["loh_end_pct"]), _num(r["h2_left_value_eur"]), _num(r["cost_net_eur_week"]),
         ])
-    doc.table(["EMS", "FC electrical [kWh/week]", "H2 LHV [kWh/week]", "paper H2 [kWh/week]", "LOH left [%]",
-               "mean buy price [EUR/kWh]", "value of H2 left [EUR]", "paper value [EUR]",
+    doc.table(["EMS", "FC hours [h]", "FC toggles [-]", "FC mean load [W]", "FC mean eta_el [-]",
+               "FC electrical [kWh/week]", "H2 LHV [kWh/week]", "LOH left [%]", "value of H2 left [EUR]",
                "net cost [EUR/week]"], rows)
 
 
-def _checks(doc: Document, report: Mapping[str, Any]) -> None:
+def _findings(doc: Document, report: Mapping[str, Any]) -> None:
+    base = report["base"]
+    n, need = len(report["seeds"]), report["targets"]["findings_seeds"]
     doc.h(2, "The paper's findings")
-    held = sum(c["held"] for c in report["checks"])
-    doc.p(f"{held} of {len(report['checks'])} held.")
-    doc.table(["finding", "paper", "held", "evidence"],
-              [[c["claim"], c["source"], "held" if c["held"] else "NOT HELD", c["evidence"]]
-               for c in report["checks"]])
+    doc.p(f"Each finding is checked on every seed (comems4build_ros/report/findings.py); it holds when it holds on at "
+          f"least {need} of {n} seeds. {base['findings_held']} of {base['findings_total']} hold. Evidence: the "
+          f"default seed ({report['seeds'][0]}).")
+    first = str(report["seeds"][0])
+    doc.table(["finding", "paper", f"held on (of {n})", "evidence (default seed)"],
+              [[f["claim"], f["source"], f"{f['held']}" + ("" if f["held"] >= need else " NOT HELD"),
+                f["evidence"].get(first, "")] for f in base["findings"]])
+
+
+def _figures(doc: Document, report: Mapping[str, Any], where: tuple[Path, str]) -> None:
+    """The figure blocks; ``where``: the directory holding the PNGs and its path relative to the document."""
+    if not report.get("figures"):
+        return
+    png_dir, rel = where
+    doc.h(2, "The paper's figures from our runs")
+    w = report["windows"]
+    spans = {k: f"{a[:16]} to {b[:16]}" for k, (a, b) in w.items()}
+    doc.p(f"Drawn from the runs of the default seed ({report['seeds'][0]}); the heat recovery at "
+          f"{report['heat_eta'] * 100:.0f} % FC system efficiency is "
+          + ("each EMS's own dispatch evaluated at that efficiency." if report["heat_mode"] == "posthoc"
+             else "a run of each EMS at that efficiency.")
+          + " PDF and SVG beside each PNG.")
+    for key, path in report["figures"].items():
+        doc.figure(png_dir / Path(path).name, rel, CAPTIONS[key].format(**spans))
 
 
 def _study(doc: Document, report: Mapping[str, Any]) -> None:
     if not report["ambiguities"]:
         return
     doc.h(2, "Interpretation study")
-    doc.p("Each reading is run on top of the defaults (every other ambiguity at its default reading). "
-          "Columns: median and largest relative error over the paper's nonzero figures, the cost ratios "
-          "(paper: RBC / ComEMS4Build 1.72, MPC / ComEMS4Build 0.52) and the findings held.")
+    doc.p(f"Each reading is run on top of the defaults (every other ambiguity at its default reading) on "
+          f"{_seeds(report)}. Columns: the seed-median relative error, median over every stated figure and over the "
+          "headline table, the largest; the cost ratios (paper: RBC / ComEMS4Build 1.72, MPC / ComEMS4Build 0.52) "
+          "and ComEMS4Build's FC hours and toggles relative to the MPC's (paper +48.44 % and +6.09 %), medians over "
+          "the seeds; the findings holding.")
     results = {(r["ambiguity"], r["reading"]): r for r in report["study"]}
     for a in report["ambiguities"]:
         doc.h(3, f"{a['title']} ({a['key']})")
@@ -130,27 +189,40 @@ def _study(doc: Document, report: Mapping[str, Any]) -> None:
             r = results[(a["key"], rd["name"])]
             mark = " (default)" if rd["name"] == a["default"] else ""
             rows.append([
-                rd["name"] + mark, rd["text"], _pct(r["median_rel_error"]), _pct(r["max_rel_error"]),
-                _num(r["ratios"]["rbc/fuzzy"]), _num(r["ratios"]["mpc/fuzzy"]),
-                f"{r['findings_held']} of {r['findings']}" + (f" (not: {', '.join(r['not_held'])})"
-                                                               if r["not_held"] else ""),
+                rd["name"] + mark, rd["text"], _pct(r["median_rel_error"]), _pct(r["table_rel_error"]),
+                _pct(r["max_rel_error"], 0), _num(r["ratios"]["rbc/fuzzy"]["median"]),
+                _num(r["ratios"]["mpc/fuzzy"]["median"]), f"{r['fc']['fuzzy_hours']['median']:+.0f} %",
+                f"{r['fc']['fuzzy_toggles']['median']:+.0f} %",
+                f"{r['findings_held']} of {r['findings_total']}"
+                + (f" (not: {', '.join(r['not_held'])})" if r["not_held"] else ""),
             ])
-        doc.table(["reading", "what", "median error", "largest error", "RBC/fuzzy", "MPC/fuzzy", "findings held"],
-                  rows)
+        doc.table(["reading", "what", "median error", "table error", "largest error", "RBC/fuzzy", "MPC/fuzzy",
+                   "fuzzy FC hours", "fuzzy FC toggles", "findings held"], rows)
         doc.p(f"Chosen: {a['default']}. {a['reason']}")
         fig_rows = []
         for rd in a["readings"]:
             r = results[(a["key"], rd["name"])]
             for e in a["ems"]:
                 d = r["discomfort"][e]
-                fig_rows.append([rd["name"], EMS_LABEL[e]] + [_num(r["values"][f"{f}/{e}"]) for f in FIGURE_LABEL]
-                                + [_num(d["median_kh"]), str(d["weeks"])])
-        doc.table(["reading", "EMS", *FIGURE_LABEL.values(), "discomfort median [Kh/week]", "weeks with discomfort"],
-                  fig_rows)
+                fig_rows.append([rd["name"], EMS_LABEL[e]]
+                                + [_num(r["values"].get(f"{key}/{e}")) for key, _ in STUDY_FIGURES]
+                                + [_num(d["median_kh"]), _num(d["weeks"], 0)])
+        doc.table(["reading", "EMS", *(lab for _, lab in STUDY_FIGURES), "discomfort median [Kh/week]",
+                   "weeks with discomfort"], fig_rows)
 
 
-def build_document(report: Mapping[str, Any]) -> Document:
-    """The blocks of the reproduction report."""
+def _sections(doc: Document, report: Mapping[str, Any], figures: tuple[Path, str] | None) -> None:
+    _summary(doc, report)
+    _statements(doc, report)
+    _fc(doc, report)
+    _findings(doc, report)
+    if figures is not None:
+        _figures(doc, report, figures)
+    _study(doc, report)
+
+
+def build_document(report: Mapping[str, Any], out: Path) -> Document:
+    """The blocks of the reproduction report written into ``out`` (figures in ``out/figures``)."""
     doc = Document(TITLE)
     doc.p("Kovacevic et al., \"ComEMS4Build: Comfort-Oriented Energy Management System for Residential "
           "Buildings using Hydrogen for Seasonal Storage\", Applied Energy. Default scenario: the paper's "
@@ -158,10 +230,7 @@ def build_document(report: Mapping[str, Any]) -> Document:
           "Rheinstetten, DHWcalc hot-water draws; radiation and appliance load modelled). "
           f"{report['runs_made']} runs in {report['wall_s']:.0f} s"
           + (" (evaluated again from the run directories without simulating)." if report.get("runs_from") else "."))
-    _table(doc, report)
-    _h2(doc, report)
-    _checks(doc, report)
-    _study(doc, report)
+    _sections(doc, report, (out / "figures", "figures"))
     return doc
 
 
@@ -170,35 +239,82 @@ DOC_BEGIN = "<!-- reproduce:begin -->"
 DOC_END = "<!-- reproduce:end -->"
 
 
-def doc_section(report: Mapping[str, Any]) -> str:
-    """The tables of the report as Markdown for docs/calibration.md (headings one level down)."""
+#: Where docs/calibration.md keeps the figures of the reproduction (relative to it), and the
+#: width they are stored at [px] (the report's PNGs are 300 dpi).
+DOC_FIGURES = "figures/reproduce"
+DOC_FIGURE_WIDTH_PX = 1400
+
+
+def doc_section(report: Mapping[str, Any], figures: tuple[Path, str] | None = None) -> str:
+    """The tables of the report as Markdown for docs/calibration.md (headings one level down).
+
+    ``figures``: the directory holding the figures' PNGs and its path relative to the
+    document; None leaves the figures out.
+    """
     doc = Document(TITLE)
-    _table(doc, report)
-    _h2(doc, report)
-    _checks(doc, report)
-    _study(doc, report)
+    _sections(doc, report, figures)
     text = doc.markdown()
     body = text[text.index("\n## "):].strip()  # without the title and the table of contents
     return "\n".join(("#" + line) if line.startswith("#") else line for line in body.splitlines())
 
 
-def update_doc(path: str | Path, report: Mapping[str, Any]) -> Path:
-    """Replace the text between :data:`DOC_BEGIN` and :data:`DOC_END` of ``path`` with :func:`doc_section`."""
+def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path | None = None) -> Path:
+    """Replace the text between :data:`DOC_BEGIN` and :data:`DOC_END` of ``path`` with :func:`doc_section`.
+
+    ``figures_from``: the reproduction's output directory; its figures are copied (as PNG of
+    :data:`DOC_FIGURE_WIDTH_PX`) next to ``path`` under :data:`DOC_FIGURES` and shown.
+    """
     path = Path(path)
     text = path.read_text(encoding="utf-8")
     head, sep, rest = text.partition(DOC_BEGIN)
     _, sep2, tail = rest.partition(DOC_END)
     if not sep or not sep2:
         raise ValueError(f"{path}: markers {DOC_BEGIN} / {DOC_END} not found")
-    path.write_text(f"{head}{DOC_BEGIN}\n{doc_section(report)}\n{DOC_END}{tail}", encoding="utf-8")
+    figures = None
+    if figures_from is not None and report.get("figures"):
+        target = path.parent / DOC_FIGURES
+        target.mkdir(parents=True, exist_ok=True)
+        for rel in report["figures"].values():
+            _downscaled(Path(figures_from) / rel, target / Path(rel).name)
+        figures = (target, DOC_FIGURES)
+    path.write_text(f"{head}{DOC_BEGIN}\n{doc_section(report, figures)}\n{DOC_END}{tail}", encoding="utf-8")
     return path
+
+
+def _downscaled(src: Path, dst: Path) -> None:
+    """Copy the PNG ``src`` to ``dst`` at :data:`DOC_FIGURE_WIDTH_PX` wide (never wider than it is)."""
+    from PIL import Image
+
+    with Image.open(src) as im:
+        width = min(DOC_FIGURE_WIDTH_PX, im.width)
+        height = round(im.height * width / im.width)
+        im.convert("RGB").resize((width, height), Image.Resampling.LANCZOS).save(dst, optimize=True)
 
 
 def write_documents(report: Mapping[str, Any], out: Path) -> tuple[Path, Path]:
     """Write ``reproduce.md`` and ``reproduce.html`` into ``out``; return their paths."""
-    doc = build_document(report)
+    doc = build_document(report, out)
     md = out / "reproduce.md"
     html_path = out / "reproduce.html"
     md.write_text(doc.markdown(), encoding="utf-8")
     html_path.write_text(doc.html(), encoding="utf-8")
     return md, html_path
+
+
+def explained(doc_text: str) -> set[str]:
+    """``<ems>/<statement>`` names the explanation section of docs/calibration.md covers."""
+    import re
+
+    section = doc_text.split("## Figures off by more than 40 %", 1)
+    if len(section) < 2:
+        return set()
+    return set(re.findall(r"`(\w+/\w+)`", section[1].split("\n## ", 1)[0]))
+
+
+def unexplained(report: Mapping[str, Any], doc_text: str, keys: Sequence[str] | None = None) -> list[str]:
+    """Figures off by more than the study's limit that docs/calibration.md does not explain."""
+    names = explained(doc_text)
+    limit = report["targets"]["explain_above"]
+    return [f"{f['ems']}/{f['key']}" for f in report["base"]["figures"]
+            if f["rel_error"] is not None and f["rel_error"] > limit and f"{f['ems']}/{f['key']}" not in names
+            and (keys is None or f["key"] in keys)]

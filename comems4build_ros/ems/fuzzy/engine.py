@@ -99,6 +99,9 @@ def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, flo
             (peak of dP "big negative")
         p_ch, p_d : full battery charging / discharging power / scale [-]
             (peaks of dP_new "big positive" / "big negative"; half of them: "medium")
+        alpha_fc_min : the FC's minimum power as a share of zeta * P_FC,max [-]: below it
+            ``P_el,FC = alpha_FC * zeta * P_FC,max`` is under P_FC,min and the FC is off
+            (end of the alpha_FC "off" term)
     """
     if load_scale_w <= 0:
         raise ConfigError(f"load_scale_w must be positive, got {load_scale_w}")
@@ -115,6 +118,7 @@ def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, flo
         "dp_fc_bess": (p_fc + b.p_d_max_w) / load_scale_w,
         "p_ch": b.p_ch_max_w / load_scale_w,
         "p_d": b.p_d_max_w / load_scale_w,
+        "alpha_fc_min": fc.p_min_w / p_fc,
     }
 
 
