@@ -77,20 +77,27 @@ def _clock(text: str) -> str:
 
 
 def _broker_url(text: str) -> str:
-    """``--broker`` value: ``mqtt://host[:port]`` or ``mqtts://host[:port]``."""
-    import re
+    """``--broker`` value, checked by :func:`comems4build_ros.mqtt.topicmap.check_broker_url`."""
+    from ..mqtt.topicmap import check_broker_url
 
-    if not re.fullmatch(r"mqtts?://[^/:\s]+(:\d{1,5})?/?", text):
-        raise argparse.ArgumentTypeError(f"{text!r} is not mqtt://host[:port] or mqtts://host[:port]")
-    return text
+    try:
+        return check_broker_url(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def check_plant_options(args: argparse.Namespace) -> None:
-    """``--plant``, ``--clock``, ``--broker``, ``--topic-map``, ``--netem`` combinations (UsageError names them)."""
+    """``--plant``, ``--clock``, ``--broker``, ``--topic-map``, ``--netem`` and their combinations.
+
+    A bad combination raises :class:`UsageError` naming the options; with ``--plant mqtt``
+    the topic map is read and validated whole (:class:`~comems4build_ros.config.ConfigError`
+    naming the file and the parameter).
+    """
+    from ..config import check_input_file
     from .options import UsageError
 
-    if args.topic_map is not None and not Path(args.topic_map).is_file():
-        raise UsageError(f"--topic-map {args.topic_map}: no such file")
+    if args.topic_map is not None:
+        check_input_file(args.topic_map, "--topic-map")
     if args.plant != "mqtt" and (args.clock != "sim" or args.broker or args.topic_map):
         raise UsageError("--clock wall, --broker and --topic-map need --plant mqtt")
     if args.plant == "mqtt" and args.buildings != 1:
@@ -105,6 +112,10 @@ def check_plant_options(args: argparse.Namespace) -> None:
         raise UsageError("--layout building and --containers need --plant sim and --network local")
     if args.broker and args.network != "local":
         raise UsageError("--broker needs --network local (the netns namespaces reach no other host)")
+    if args.plant == "mqtt":  # the whole topic map, as bridge and building will read it, before they start
+        from ..mqtt.topicmap import load_topic_map
+
+        load_topic_map(args.topic_map, args.broker)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -112,18 +123,18 @@ def run(args: argparse.Namespace) -> int:
     from ..ems import UnknownEMSError, controller_class
     from ..fileio import check_out_dir
     from ..ros.launcher import LaunchError, LaunchOptions, launch
-    from .options import UsageError, load_params
+    from .options import UsageError, ems_controller, load_params
     from .simulate import parse_assignments, warn_run
 
     try:
         controller_class(args.ems)
     except UnknownEMSError as exc:
         raise UsageError(str(exc)) from None
+    check_plant_options(args)
     overrides = parse_assignments(args.set, "--set")
     params = load_params(args.config, overrides)
-    parse_assignments(args.ems_option, "--ems-option")
+    ems_controller(args.ems, params, args.ems_option)  # the EMS node's own checks, before any node starts
     check_feed_scenario(args, params)
-    check_plant_options(args)
     opts = LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
@@ -186,7 +197,9 @@ def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
     """
     from ..ros.nodes.feed import check_scenario, load_scenario
     from ..ros.plan import feed_window
+    from .options import check_start
 
+    check_start(args.start, params)
     weeks, steps = feed_window(args.weeks, args.steps)
     scenario = load_scenario(args.scenario, params, args.start, weeks or None, args.seed, steps or None)
     check_scenario(scenario, params.simulation.time_step_h)

@@ -131,10 +131,36 @@ def load_params(config: Sequence[str], overrides: Mapping[str, Any] | None = Non
     return load_plant_params(config, overrides)
 
 
+def ems_controller(name: str, params: Any, items: Sequence[str]) -> Any:
+    """The EMS ``name`` built with its ``--ems-option`` items by the constructor its node or loop uses.
+
+    So every option is checked by the controller's own rules (unknown keys, ranges, an
+    inverted hysteresis) before anything runs or starts; an unknown EMS is named as
+    ``--ems``, a bad option (:class:`~comems4build_ros.config.ConfigError`) by its key.
+    """
+    from ..config import parse_assignments
+    from ..ems import UnknownEMSError, make_controller
+
+    options = parse_assignments(items, "--ems-option")
+    try:
+        return make_controller(name, params, options)
+    except UnknownEMSError as exc:
+        raise UsageError(f"--ems {name}: {exc}") from None
+
+
+def check_start(start: str | None, params: Any) -> None:
+    """``--start``: ISO 8601, naive = site time, not in a DST gap nor ambiguous (the message names ``--start``)."""
+    from ..scenario.csvio import local_time
+
+    if start is not None:
+        local_time(start, params.site.timezone, "--start")
+
+
 def scenario_of(args: argparse.Namespace, params: Any) -> Any:
     """The run's scenario from the options of :func:`add_scenario_options`."""
     from ..scenario import resolve_scenario
 
+    check_start(args.start, params)
     return resolve_scenario(args.scenario, params, start=args.start, weeks=args.weeks,
                             hours=getattr(args, "hours", None), seed=getattr(args, "seed", None),
                             extend=getattr(args, "extend", None))
