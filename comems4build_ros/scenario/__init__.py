@@ -23,7 +23,7 @@ import pandas as pd
 from ..config import PlantParams, path_kind
 from .base import CSV_COLUMNS, OPTIONAL_CSV_COLUMNS, SERIES, Scenario
 from .comfort import comfort_bounds, is_off_day
-from .csvio import ScenarioError, ScenarioWarning, read_scenario_frame, write_scenario_csv
+from .csvio import ScenarioError, ScenarioWarning, local_time, read_scenario_frame, write_scenario_csv
 from .settings import (
     MeasuredSettings,
     ScenarioSettings,
@@ -338,11 +338,7 @@ def _window(
     if extend is not None and extend not in EXTEND_METHODS:
         raise ScenarioError(f"{name}: extend '{extend}' unknown (known: {', '.join(EXTEND_METHODS)})")
     if start is not None:
-        try:
-            t0 = pd.Timestamp(start)
-        except ValueError:
-            raise ScenarioError(f"{name}: start '{start}' is not an ISO date/time") from None
-        t0 = t0.tz_localize(tz) if t0.tzinfo is None else t0
+        t0 = local_time(start, tz, f"{name}: start")
         pos = frame.index.searchsorted(t0.tz_convert("UTC"))
         if pos >= len(frame) or frame.index[pos] != t0.tz_convert("UTC"):
             raise ScenarioError(
