@@ -244,11 +244,15 @@ class Section(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _no_bool_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        """``e_max_kwh: true`` must not become 1.0 (YAML ``true``/``yes``/``on`` are booleans)."""
+        """``e_max_kwh: true`` must not become 1.0 (YAML ``true``/``yes``/``on`` are booleans).
+
+        Text is parsed as a number (PyYAML reads ``7.27e6`` without a sign in the exponent as
+        text); text that is not a number is refused by the field's type.
+        """
         field = cls.model_fields.get(info.field_name or "")
         if field is None or field.annotation is bool:
             return value
-        items = value if isinstance(value, list) else [value]
+        items = value if isinstance(value, list | tuple) else [value]
         if any(isinstance(v, bool) for v in items):
             raise ValueError(f"expected a number, got the boolean {value!r}")
         return value

@@ -19,10 +19,10 @@ from typing import Any
 import holidays as _holidays
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from . import kpi
-from .config import PlantParams, config_dir, read_ros_params, validate
+from .config import PlantParams, Section, config_dir, read_ros_params, validate
 from .ems import make_controller
 from .ems.base import BOUNDS_AHEAD, FORECAST_KEYS, INFO_LEVELS, PRICE_WINDOW, Controller, Observation
 from .fileio import atomic_dir
@@ -79,10 +79,9 @@ def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]
     return [Exogenous(*c) for c in cols]
 
 
-class ForecastSettings(BaseModel):
+class ForecastSettings(Section):
     """Forecast settings (``config/forecast.yaml``); see that file for the sources."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
     mode: str = Field(pattern="^(perfect|imperfect)$")
     seed: int
     sigma_t_amb_k_24h: float = Field(ge=0)

@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from ..config import ConfigError, PlantParams, config_dir, read_ros_params, validate
+from ..config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
 from ..types import HP_DHW, HP_OFF, HP_SH, Action
 
 #: Measurements the bridge knows: SI name -> meaning [unit]. The first four are required.
@@ -52,8 +52,8 @@ class PayloadError(ValueError):
     """An MQTT payload cannot be read; the message names the topic."""
 
 
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+class _Model(Section):
+    """A topic-map section: the parameter rule of :class:`~comems4build_ros.config.Section`."""
 
 
 class _Scaled(_Model):
