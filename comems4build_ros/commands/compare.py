@@ -25,9 +25,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_scenario_options(parser, hours=False)
     parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
                         help="run in-process or through the ROS 2 node set (bags evaluated)")
-    parser.add_argument("--fc-efficiency", default=DEFAULT_ETAS, metavar="ETA[,ETA...]",
+    parser.add_argument("--fc-efficiency", default=None, metavar="ETA[,ETA...]",
                         help="FC system efficiencies (fuel_cell.eta_sys); the first gives runs/<ems>/, the others "
-                             f"runs/<ems>_eta<percent>/ for the heat-recovery figure (default {DEFAULT_ETAS})")
+                             f"runs/<ems>_eta<percent>/ for the heat-recovery figure (default {DEFAULT_ETAS}; "
+                             "fuel_cell.eta_sys from --set or --config instead runs that one efficiency, and "
+                             "giving both is refused)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -59,6 +61,30 @@ def parse_etas(text: str) -> list[float]:
     return etas
 
 
+def fc_efficiencies(option: str | None, config: list[str], overrides: dict) -> list[float]:
+    """FC system efficiencies of the comparison: the one rule for ``--fc-efficiency`` against ``eta_sys``.
+
+    ``--fc-efficiency`` gives them; without it, a ``fuel_cell.eta_sys`` from ``--set`` or a
+    ``--config`` file runs that one efficiency (it is never silently replaced by the
+    default); neither gives :data:`DEFAULT_ETAS`. Both at once are a conflict and refused.
+    """
+    from ..cli import UsageError
+    from ..config import load_plant_params, read_ros_params
+
+    eta = load_plant_params(config, overrides).fuel_cell.eta_sys  # every file and --set checked first
+    sources = [f"--set fuel_cell.eta_sys={overrides['fuel_cell.eta_sys']}"] if "fuel_cell.eta_sys" in overrides else []
+    sources += [f"--config {path} (fuel_cell.eta_sys)" for path in config
+                if "eta_sys" in (read_ros_params(path).get("fuel_cell") or {})]
+    if option is not None and sources:
+        raise UsageError(f"--fc-efficiency {option} and {sources[0]} both set the FC system efficiency; give it "
+                         "once (--fc-efficiency for the efficiencies the comparison runs)")
+    if option is not None:
+        return parse_etas(option)
+    if sources:
+        return [eta]
+    return parse_etas(DEFAULT_ETAS)
+
+
 def run_name(ems: str, eta: float, base_eta: float) -> str:
     """Run directory name: ``<ems>`` at the base efficiency, else ``<ems>_eta<percent>``."""
     return ems if abs(eta - base_eta) < 1e-9 else f"{ems}_eta{eta * 100:.0f}"
@@ -68,13 +94,13 @@ def run(args: argparse.Namespace) -> int:
     """Run the comparison (unless --from-runs) and write the report."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..ems import UnknownEMSError, controller_class
+    from ..ems import controller_class
     from ..fileio import check_out_dir
     from ..progress import echo
     from ..report.build import build_report
     from ..report.runner import RunTask, run_tasks
     from ..report.runs import RUNS_DIR, Manifest, RunDirError, RunSpec, write_manifest
-    from .options import check_config_files, scenario_of
+    from .options import check_config_files, ems_names, scenario_of
     from .simulate import parse_assignments
 
     if args.from_runs:
@@ -86,18 +112,11 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if not args.out:
         raise UsageError("--out is required (unless --from-runs)")
-    emss = [e.strip() for e in args.ems.split(",") if e.strip()]
-    if not emss:
-        raise UsageError("--ems: no EMS given")
-    levels = {}
-    for ems in emss:
-        try:
-            levels[ems] = str(controller_class(ems).info_level)
-        except UnknownEMSError as exc:
-            raise UsageError(f"--ems {ems}: {exc}") from None
-    etas = parse_etas(args.fc_efficiency)
+    emss = ems_names(args.ems)
+    levels = {ems: str(controller_class(ems).info_level) for ems in emss}
     check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
+    etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
     for eta in etas:  # validate every parameter set before starting any run
         params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
     if args.extend and args.via == "ros":

@@ -131,6 +131,23 @@ def load_params(config: Sequence[str], overrides: Mapping[str, Any] | None = Non
     return load_plant_params(config, overrides)
 
 
+def ems_names(text: str) -> list[str]:
+    """``--ems rbc,fuzzy,mpc`` of ``compare`` and ``sweep``: registered names, each once, at least one."""
+    from ..ems import UnknownEMSError, controller_class
+
+    names = [e.strip() for e in text.split(",") if e.strip()]
+    if not names:
+        raise UsageError(f"--ems '{text}': no EMS given")
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise UsageError(f"--ems {text}: '{name}' given twice (its runs would overwrite each other)")
+        try:
+            controller_class(name)
+        except UnknownEMSError as exc:
+            raise UsageError(f"--ems {name}: {exc}") from None
+    return names
+
+
 def ems_controller(name: str, params: Any, items: Sequence[str]) -> Any:
     """The EMS ``name`` built with its ``--ems-option`` items by the constructor its node or loop uses.
 

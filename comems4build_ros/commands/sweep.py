@@ -31,12 +31,11 @@ def run(args: argparse.Namespace) -> int:
     """Run every case of the grid and write sweep.csv, sweep.md, figures/<kpi>.{png,pdf,svg} and runs/."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..ems import UnknownEMSError, controller_class
     from ..fileio import check_out_dir
     from ..progress import echo
     from ..report.runner import RunTask, run_tasks
     from ..report.sweep import SWEEP_KPIS, grid, markdown_table, parse_param, plot_kpi, table
-    from .options import check_config_files, scenario_of
+    from .options import check_config_files, ems_names, scenario_of
 
     params: dict[str, list] = {}
     for text in args.param:
@@ -47,12 +46,7 @@ def run(args: argparse.Namespace) -> int:
         if path in params:
             raise UsageError(f"--param {path} given twice")
         params[path] = values
-    emss = [e.strip() for e in args.ems.split(",") if e.strip()]
-    for ems in emss:
-        try:
-            controller_class(ems)
-        except UnknownEMSError as exc:
-            raise UsageError(f"--ems {ems}: {exc}") from None
+    emss = ems_names(args.ems)
     check_config_files(args.config)
     cases = grid(params, emss)
     for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
