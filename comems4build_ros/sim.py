@@ -347,16 +347,21 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+#: Files of a run directory (:func:`write_run`).
+RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json")
+
+
 def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
     """Write ``timeseries.csv`` (optional), ``weekly.csv`` and ``summary.json`` to ``out_dir``.
 
     All or nothing: the files are written into a temporary directory inside ``out_dir``
     and renamed into place only when every one was written (:func:`~.fileio.atomic_dir`),
-    so a failure (e.g. a full disk) leaves no partial result.
+    so a failure (e.g. a full disk) leaves no partial result; a ``timeseries.csv`` of an
+    earlier run in ``out_dir`` is removed when this one writes none.
     """
     out = Path(out_dir)
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.summary.items()}
-    with atomic_dir(out) as tmp:
+    with atomic_dir(out, replaces=RUN_FILES) as tmp:  # no older timeseries.csv stays beside a run without one
         if timeseries:
             result.timeseries.to_csv(tmp / "timeseries.csv", index=False)
         result.weekly.to_csv(tmp / "weekly.csv", index=False)

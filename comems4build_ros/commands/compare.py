@@ -9,8 +9,12 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .options import COUNT, add_scenario_options
+
+if TYPE_CHECKING:
+    from ..report.build import Report
 
 #: EMS compared by default (the paper's three schedulers).
 DEFAULT_EMS = "rbc,fuzzy,mpc"
@@ -95,20 +99,21 @@ def run(args: argparse.Namespace) -> int:
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..ems import controller_class
-    from ..fileio import check_out_dir
-    from ..progress import echo
+    from ..fileio import atomic_dir, check_out_dir
     from ..report.build import build_report
-    from ..report.runner import RunTask, run_tasks
-    from ..report.runs import RUNS_DIR, Manifest, RunDirError, RunSpec, write_manifest
+    from ..report.runs import RunDirError
     from .options import check_config_files, ems_names, scenario_of
     from .simulate import parse_assignments
 
     if args.from_runs:
+        out = Path(args.out or args.from_runs)
+        check_out_dir(out)
         try:
-            rep = build_report(args.from_runs, args.out)
+            with atomic_dir(out) as stage:  # the report files replace the older ones only when all are written
+                rep = build_report(args.from_runs, stage)
         except RunDirError as exc:
             raise UsageError(str(exc)) from None
-        _print_report(rep)
+        _print_report(rep, stage, out)
         return 0
     if not args.out:
         raise UsageError("--out is required (unless --from-runs)")
@@ -124,6 +129,20 @@ def run(args: argparse.Namespace) -> int:
     scenario_of(args, params)  # the scenario and the run length, checked once before any run
     check_out_dir(args.out)
     out = Path(args.out)
+    with atomic_dir(out) as stage:  # runs/, manifest, report, figures replace an older comparison's when all are done
+        rep = _compare(args, emss, etas, levels, overrides, stage)
+    _print_report(rep, stage, out)
+    return 0
+
+
+def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], levels: dict[str, str],
+             overrides: dict, out: Path) -> Report:
+    """Run every EMS at every efficiency into ``out`` (runs/, compare.json) and build the report there."""
+    from ..progress import echo
+    from ..report.build import build_report
+    from ..report.runner import RunTask, run_tasks
+    from ..report.runs import RUNS_DIR, Manifest, RunSpec, write_manifest
+
     base = etas[0]
     specs, tasks = [], []
     for ems in emss:
@@ -135,7 +154,6 @@ def run(args: argparse.Namespace) -> int:
                                  start=args.start, weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=ov,
                                  config=[str(Path(c).resolve()) for c in args.config], via=args.via))
     jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
-    out.mkdir(parents=True, exist_ok=True)
     walls: dict[str, float] = {}
 
     def done(task: RunTask, summary: dict) -> None:
@@ -152,14 +170,14 @@ def run(args: argparse.Namespace) -> int:
                         overrides=overrides, config=[str(Path(c).resolve()) for c in args.config],
                         wall_s={**walls, "all_runs": wall})
     write_manifest(manifest, out)
-    rep = build_report(out)
     print(f"runs: {wall:.1f} s wall for {len(tasks)} runs", file=sys.stderr)
-    _print_report(rep)
-    return 0
+    return build_report(out)
 
 
-def _print_report(rep) -> None:  # noqa: ANN001
+def _print_report(rep: Report, stage: Path, out: Path) -> None:
+    """The findings count and the files written (``rep`` was built in ``stage``, now renamed to ``out``)."""
     held = sum(f["verdict"] == "held" for f in rep.findings)
     evaluated = sum(f["verdict"] != "n/a" for f in rep.findings)
     print(f"report: {held} of {evaluated} evaluated findings held; built in {rep.seconds:.2f} s")
-    print(f"wrote {rep.markdown}, {rep.html} and {len(rep.figures)} figures in {rep.markdown.parent / 'figures'}")
+    md, html = (out / Path(p).relative_to(stage) for p in (rep.markdown, rep.html))
+    print(f"wrote {md}, {html} and {len(rep.figures)} figures in {md.parent / 'figures'}")
