@@ -107,6 +107,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print the figures."""
     from ..cli import UsageError
     from ..config import load_plant_params
+    from ..fileio import check_out_dir
     from ..ros.bag import lost_messages
     from ..ros.launcher import LaunchError, launch
     from ..ros.nodes.feed import load_scenario
@@ -118,6 +119,8 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(f"--buildings: comma-separated integers expected, got '{args.buildings}'") from None
     if any(n < 1 for n in counts):
         raise UsageError(f"--buildings: counts must be >= 1, got {counts}")
+    if args.out:
+        check_out_dir(args.out)
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bench_ros_"))
     root.mkdir(parents=True, exist_ok=True)
     params = load_plant_params()

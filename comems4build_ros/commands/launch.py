@@ -52,7 +52,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--network", choices=("local", "netns"), default="local",
                         help="local (default) or netns: plant+feed and EMS+recorder in two network namespaces "
                              "joined by a veth pair, DDS over UDP with unicast discovery (root, 'ip netns')")
-    parser.add_argument("--netem", default=None, metavar="ARGS",
+    parser.add_argument("--netem", default=None, metavar="ARGS", type=_netem,
                         help="with --network netns: 'tc netem' arguments of the link, e.g. 'delay 5ms loss 1%%' "
                              "(skipped with a note where the kernel lacks netem)")
     parser.add_argument("--layout", choices=("node", "building", "role"), default=None,
@@ -73,6 +73,16 @@ def _clock(text: str) -> str:
     try:
         return parse_clock(text).spec()
     except ClockError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _netem(text: str) -> str:
+    """``--netem`` value, checked by :func:`comems4build_ros.commands.netem.check_netem` (tc-netem(8))."""
+    from .netem import NetemError, check_netem
+
+    try:
+        return check_netem(text)
+    except NetemError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
