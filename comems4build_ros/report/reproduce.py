@@ -19,7 +19,7 @@ import json
 import math
 import statistics
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -532,6 +532,23 @@ class ReproduceResult:
     wall_s: float
 
 
+def check_tasks(tasks: Iterable[RunTask]) -> None:
+    """Build the plant parameters and the controller of every task, as its run will, before any run starts.
+
+    A bad plant override or EMS option of the study file is reported at once (a
+    :class:`~comems4build_ros.config.ConfigError` naming it) instead of in a worker after
+    other runs have taken their time.
+    """
+    from ..ems import make_controller
+
+    seen: set[str] = set()
+    for task in tasks:
+        key = json.dumps([task.ems, task.config, task.overrides, task.ems_options], sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            make_controller(task.ems, load_plant_params(task.config, task.overrides), task.ems_options)
+
+
 def reproduce(
     out_dir: str | Path,
     with_study: bool = True,
@@ -581,6 +598,7 @@ def reproduce(
         raise ConfigError(f"{study.source}: default readings differ from config/: " + "; ".join(drift))
     out = Path(out_dir)
     tasks, cases = plan(study, with_study)
+    check_tasks(tasks.values())
     names = list(tasks)
     earlier: dict[str, Any] = {}
     if from_runs is not None:
