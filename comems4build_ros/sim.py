@@ -24,7 +24,15 @@ from pydantic import Field
 from . import kpi
 from .config import PlantParams, Section, config_dir, read_ros_params, validate
 from .ems import make_controller
-from .ems.base import BOUNDS_AHEAD, FORECAST_KEYS, INFO_LEVELS, PRICE_WINDOW, Controller, Observation
+from .ems.base import (
+    BOUNDS_AHEAD,
+    FORECAST_KEYS,
+    INFO_LEVELS,
+    PRICE_WINDOW,
+    Controller,
+    Observation,
+    check_mpc_horizon,
+)
 from .fileio import atomic_dir
 from .models.pv import pv_power_w
 from .plant import Plant
@@ -155,6 +163,8 @@ class ObservationBuilder:
     ) -> None:
         if level not in INFO_LEVELS:
             raise ValueError(f"unknown information level '{level}'")
+        if level == "mpc":
+            check_mpc_horizon(params.simulation.horizon_h, params.simulation.time_step_h)
         self.level = level
         self._fields = INFO_LEVELS[level]
         pad = PRICE_WINDOW

@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .options import COUNT, DOMAIN_ID, SECONDS, SEED, add_scenario_options
+from .options import BUILDINGS, COUNT, DOMAIN_ID, MAX_BUILDINGS, SECONDS, SEED, add_scenario_options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -19,8 +19,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_scenario_options(parser, hours=False, seed=False, extend=False)
     parser.add_argument("--steps", metavar="N", type=COUNT, default=None,
                         help="cut the run to its first N steps, integer >= 1 (short runs)")
-    parser.add_argument("--buildings", metavar="N", type=COUNT, default=1,
-                        help="independent buildings under /building_<i>/, scenario seed + i, integer >= 1 (default 1)")
+    parser.add_argument("--buildings", metavar="N", type=BUILDINGS, default=1,
+                        help="independent buildings under /building_<i>/, scenario seed + i, integer 1 .. "
+                             f"{MAX_BUILDINGS} (default 1)")
     parser.add_argument("--seed", metavar="N", type=SEED, default=None,
                         help="scenario seed of building 0 (default scenario; 0 .. 2^32-1)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",

@@ -178,6 +178,10 @@ def _numeric(path: Path, df: pd.DataFrame, col: str) -> np.ndarray:
         i = int(np.flatnonzero(bad.to_numpy())[0])
         raise ScenarioError(f"{path}: line {_line(i)}, column '{col}': '{df[col].iloc[i]}' is not a number")
     arr = values.to_numpy(dtype=float, copy=True)
+    infinite = np.flatnonzero(np.isinf(arr))
+    if len(infinite):  # 'inf' is a value, not a missing one: never filled
+        i = int(infinite[0])
+        raise ScenarioError(f"{path}: line {_line(i)}, column '{col}': '{df[col].iloc[i]}' is not a finite number")
     arr[arr == MISSING_MARKER] = np.nan
     return arr
 
