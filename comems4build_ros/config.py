@@ -169,6 +169,53 @@ def set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
 M = TypeVar("M", bound=BaseModel)
 
 
+def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
+    """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}``, each value read as YAML (``--set``, ``--ems-option``).
+
+    Raises
+    ------
+    ConfigError
+        Naming ``what`` (the option or node parameter) and the item, for an item that is not
+        ``KEY=VALUE`` or a value that is not valid YAML (``[1`` without its bracket).
+    """
+    out: dict[str, Any] = {}
+    for item in items:
+        key, sep, value = str(item).partition("=")
+        if not sep or not key.strip():
+            raise ConfigError(f"{what} '{item}' is not KEY=VALUE")
+        try:
+            out[key.strip()] = yaml.load(value, Loader=SAFE_LOADER)  # noqa: S506 (a safe loader)
+        except yaml.YAMLError as exc:
+            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+            raise ConfigError(f"{what} '{item}': the value is not valid YAML ({problem})") from None
+    return out
+
+
+def check_known_keys(data: Mapping[str, Any], known: Iterable[str], where: str) -> None:
+    """Raise :class:`ConfigError` naming the first key of ``data`` that is not in ``known``.
+
+    For option mappings read without a pydantic model (the fuzzy rule-base files and their
+    overrides): a misspelt key is refused instead of silently ignored.
+    """
+    import difflib
+
+    known = list(known)
+    for key in data:
+        if key not in known:
+            close = difflib.get_close_matches(str(key), known, n=1)
+            hint = f"did you mean '{close[0]}'? " if close else ""
+            raise ConfigError(f"{where}: unknown parameter '{key}' ({hint}known: {', '.join(known)})")
+
+
+def finite_number(value: Any, where: str) -> float:
+    """``value`` as a float; :class:`ConfigError` naming ``where`` for a boolean, text, inf or NaN."""
+    import math
+
+    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
+        raise ConfigError(f"{where}: expected a finite number, got {value!r}")
+    return float(value)
+
+
 def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
     """Validate ``data`` against a pydantic model; errors name source and parameter."""
     try:
@@ -176,27 +223,36 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
     except ValidationError as exc:
         lines = []
         for err in exc.errors():
-            loc = ".".join(str(p) for p in err["loc"]) or "(top level)"
+            loc = ".".join(str(p) for p in err["loc"])
             msg = err["msg"].removeprefix("Value error, ")
             if err["type"] == "extra_forbidden":
                 msg = "unknown parameter"
-            lines.append(f"{source}: parameter '{loc}': {msg}")
+            lines.append(f"{source}: parameter '{loc}': {msg}" if loc else f"{source}: {msg}")
         raise ConfigError("\n".join(lines)) from None
 
 
-class _Section(BaseModel):
-    """A parameter section: unknown keys, booleans as numbers and inf/NaN are refused."""
+class Section(BaseModel):
+    """A parameter section: unknown keys, booleans as numbers and inf/NaN are refused.
+
+    The one rule for every validated parameter set: the plant sections here and the
+    controllers' options (``config/rbc.yaml``, ``config/mpc.yaml``), from files, ``--set``,
+    ``--config`` and ``--ems-option`` alike.
+    """
 
     model_config = ConfigDict(extra="forbid", frozen=True, allow_inf_nan=False)
 
     @field_validator("*", mode="before")
     @classmethod
     def _no_bool_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        """``e_max_kwh: true`` must not become 1.0 (YAML ``true``/``yes``/``on`` are booleans)."""
+        """``e_max_kwh: true`` must not become 1.0 (YAML ``true``/``yes``/``on`` are booleans).
+
+        Text is parsed as a number (PyYAML reads ``7.27e6`` without a sign in the exponent as
+        text); text that is not a number is refused by the field's type.
+        """
         field = cls.model_fields.get(info.field_name or "")
         if field is None or field.annotation is bool:
             return value
-        items = value if isinstance(value, list) else [value]
+        items = value if isinstance(value, list | tuple) else [value]
         if any(isinstance(v, bool) for v in items):
             raise ValueError(f"expected a number, got the boolean {value!r}")
         return value
@@ -207,7 +263,7 @@ NonNeg = Field(ge=0)
 Frac = Field(ge=0, le=1)
 
 
-class SimulationParams(_Section):
+class SimulationParams(Section):
     """Run settings: step [h], horizon [h], H2 season [weeks] and initial states."""
 
     time_step_h: float = Pos
@@ -219,7 +275,7 @@ class SimulationParams(_Section):
     v_dhw_init_l: float = NonNeg
 
 
-class SiteParams(_Section):
+class SiteParams(Section):
     """Location of the building (degrees, metres, IANA time zone)."""
 
     latitude_deg: float = Field(ge=-90, le=90)
@@ -240,7 +296,7 @@ class SiteParams(_Section):
         return value
 
 
-class PVParams(_Section):
+class PVParams(Section):
     """PV array, ``eq:power_pv``."""
 
     n_modules: int = Field(ge=0)
@@ -256,7 +312,7 @@ class PVParams(_Section):
     sky_model: Literal["isotropic", "klucher", "haydavies", "reindl", "king", "perez"] = "isotropic"
 
 
-class BatteryParams(_Section):
+class BatteryParams(Section):
     """Battery energy storage, ``eq:batt_soc`` .. ``eq:s_summ``."""
 
     e_max_kwh: float = Pos
@@ -280,7 +336,7 @@ class BatteryParams(_Section):
         return self
 
 
-class FuelCellParams(_Section):
+class FuelCellParams(Section):
     """PEM fuel cell, ``eq:molar_flows`` .. ``eq:FC_sys_efficiency``."""
 
     p_max_w: float = Pos
@@ -304,7 +360,7 @@ class FuelCellParams(_Section):
         return self
 
 
-class HydrogenParams(_Section):
+class HydrogenParams(Section):
     """Hydrogen store, ``eq:LOH`` (energy content at LHV)."""
 
     e_max_kwh: float = Pos
@@ -318,7 +374,7 @@ class HydrogenParams(_Section):
         return self
 
 
-class HeatPumpParams(_Section):
+class HeatPumpParams(Section):
     """Air-source heat pump, ``sec:hp``."""
 
     t_supply_sh_c: float
@@ -349,7 +405,7 @@ class HeatPumpParams(_Section):
         return self
 
 
-class DHWParams(_Section):
+class DHWParams(Section):
     """Hot-water tank, ``eq:DHW_model``."""
 
     v_max_l: float = Pos
@@ -369,7 +425,7 @@ class DHWParams(_Section):
         return self
 
 
-class BuildingParams(_Section):
+class BuildingParams(Section):
     """4R3C building, ``eq:dT_i`` .. ``eq:dT_wout`` (SI units)."""
 
     c_air_j_per_k: float = Pos
@@ -384,7 +440,7 @@ class BuildingParams(_Section):
     t_amb_init_c: float
 
 
-class GridParams(_Section):
+class GridParams(Section):
     """Tariff: ``p_buy = a + b * spot`` [EUR/kWh] (spot in EUR/kWh); constant sell price ``eq:costs``."""
 
     buy_offset_eur_per_kwh: float
@@ -392,7 +448,7 @@ class GridParams(_Section):
     price_sell_eur_per_kwh: float = NonNeg
 
 
-class ComfortParams(_Section):
+class ComfortParams(Section):
     """Comfort bounds, ``eq:T_min``."""
 
     t_min_home_c: float
@@ -406,6 +462,7 @@ class ComfortParams(_Section):
 
     @model_validator(mode="after")
     def _check(self) -> ComfortParams:
+        check_holiday_calendar(self.holidays_country, self.holidays_subdivision)
         for name in ("home_hours_weekday", "home_hours_weekend"):
             hours = getattr(self, name)
             if len(hours) % 2 or any(not 0 <= h <= 24 for h in hours):
@@ -417,7 +474,32 @@ class ComfortParams(_Section):
         return self
 
 
-class DegradationParams(_Section):
+def check_holiday_calendar(country: str, subdivision: str) -> None:
+    """Raise ``ValueError`` naming the parameter unless the ``holidays`` library knows the calendar.
+
+    ``country`` is an ISO 3166-1 alpha-2 code (``DE``), ``subdivision`` one of its
+    subdivisions (``BW``) or empty (the national holidays only).
+    """
+    import holidays
+
+    supported = holidays.list_supported_countries()
+    if country not in supported:
+        import difflib
+
+        close = difflib.get_close_matches(country.upper(), list(supported), n=3)
+        hint = f"; did you mean {', '.join(close)}?" if close else ""
+        raise ValueError(f"holidays_country '{country}': no holiday calendar for this country in the holidays "
+                         f"library (an ISO 3166-1 alpha-2 code such as DE, AT, FR{hint})")
+    if subdivision:
+        try:
+            holidays.country_holidays(country, subdiv=subdivision, years=[])
+        except NotImplementedError:
+            known = ", ".join(str(s) for s in supported[country]) or "none"
+            raise ValueError(f"holidays_subdivision '{subdivision}' is not a subdivision of {country} in the "
+                             f"holidays library (known: {known}; empty for the national holidays only)") from None
+
+
+class DegradationParams(Section):
     """Lifecycle and toggling costs, ``tab:degradation_HESS``."""
 
     sigma_in_fc_eur: float = NonNeg
@@ -430,7 +512,7 @@ class DegradationParams(_Section):
     n_b_cycles: float = Pos
 
 
-class PlantParams(_Section):
+class PlantParams(Section):
     """All plant parameters (one section per device)."""
 
     simulation: SimulationParams

@@ -15,7 +15,7 @@ import contextlib
 import os
 import shutil
 import tempfile
-from collections.abc import Iterator
+from collections.abc import Iterable, Iterator
 from pathlib import Path
 
 
@@ -98,14 +98,19 @@ def write_text_atomic(path: str | Path, text: str) -> Path:
 
 
 @contextlib.contextmanager
-def atomic_dir(path: str | Path) -> Iterator[Path]:
-    """A temporary directory inside ``path``; its files are renamed into ``path`` when the block succeeds.
+def atomic_dir(path: str | Path, replaces: Iterable[str] = ()) -> Iterator[Path]:
+    """A temporary directory inside ``path`` whose entries replace those of ``path`` when the block succeeds.
 
-    The caller writes every result file into the yielded directory. Only when all of them
-    are written are they renamed into ``path`` (renames within one file system need no
-    space and do not fail half-way), so a failure while writing leaves none of the new
-    files in ``path`` (and removes ``path`` again if it created it and it is empty). The
-    temporary directory is removed in any case.
+    The caller writes every result (files and directories) into the yielded directory.
+    Only when all of them are written does each top-level entry replace the entry of the
+    same name in ``path`` (a directory as a whole, so no file of an older result stays
+    inside it), and the entries matching a pattern of ``replaces`` (``fnmatch``, e.g.
+    ``timeseries.csv``, ``building_*``) that the block did not write are removed: the
+    result in ``path`` is the new one, whole, beside the entries of ``path`` that are no
+    result. Renames within one file system need no space, so a failure or an interruption
+    while writing leaves ``path`` as it was (and removes it again if it created it and it
+    is empty); the temporary directory is removed in any case. A process killed while
+    writing leaves only the hidden ``.partial.*`` directory.
     """
     path = Path(path)
     created = not path.exists()
@@ -113,11 +118,7 @@ def atomic_dir(path: str | Path) -> Iterator[Path]:
     tmp = Path(tempfile.mkdtemp(prefix=".partial.", dir=path))
     try:
         yield tmp
-        for f in sorted(tmp.rglob("*")):
-            if f.is_file():
-                dest = path / f.relative_to(tmp)
-                dest.parent.mkdir(parents=True, exist_ok=True)
-                os.replace(f, dest)
+        _replace_entries(tmp, path, tuple(replaces))
     except BaseException as exc:
         shutil.rmtree(tmp, ignore_errors=True)
         if created:
@@ -127,6 +128,26 @@ def atomic_dir(path: str | Path) -> Iterator[Path]:
             raise _named(exc, path) from exc
         raise
     shutil.rmtree(tmp, ignore_errors=True)
+
+
+def _replace_entries(new: Path, path: Path, replaces: tuple[str, ...]) -> None:
+    """Move each entry of ``new`` into ``path`` over the old one; old entries matching ``replaces`` go."""
+    import fnmatch
+
+    names = sorted(p.name for p in new.iterdir())
+    stale = [p.name for p in path.iterdir() if p.name not in names and not p.name.startswith(".partial.")
+             and any(fnmatch.fnmatchcase(p.name, pattern) for pattern in replaces)]
+    trash = Path(tempfile.mkdtemp(prefix=".replaced.", dir=path))
+    try:
+        for name in names:
+            src, dest = new / name, path / name
+            if (dest.is_dir() and not dest.is_symlink()) or (src.is_dir() and dest.exists()):
+                os.replace(dest, trash / name)  # a directory is replaced whole
+            os.replace(src, dest)
+        for name in stale:
+            os.replace(path / name, trash / name)
+    finally:
+        shutil.rmtree(trash, ignore_errors=True)
 
 
 def _named(exc: OSError, path: Path) -> OSError:

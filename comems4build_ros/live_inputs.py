@@ -37,9 +37,9 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from .config import ConfigError, PlantParams, config_dir, read_ros_params, validate
+from .config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
 from .scenario import scenario_from_frame
 from .scenario.base import CSV_COLUMNS, Scenario
 from .scenario.csvio import ScenarioError
@@ -53,8 +53,8 @@ class FetchError(RuntimeError):
     """Every attempt of a fetch failed (the message lists each attempt's reason)."""
 
 
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+class _Model(Section):
+    """A live-input section: the parameter rule of :class:`~comems4build_ros.config.Section`."""
 
 
 class _FetchSettings(_Model):

@@ -19,12 +19,20 @@ from typing import Any
 import holidays as _holidays
 import numpy as np
 import pandas as pd
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
 from . import kpi
-from .config import PlantParams, config_dir, read_ros_params, validate
+from .config import PlantParams, Section, config_dir, read_ros_params, validate
 from .ems import make_controller
-from .ems.base import BOUNDS_AHEAD, FORECAST_KEYS, INFO_LEVELS, PRICE_WINDOW, Controller, Observation
+from .ems.base import (
+    BOUNDS_AHEAD,
+    FORECAST_KEYS,
+    INFO_LEVELS,
+    PRICE_WINDOW,
+    Controller,
+    Observation,
+    check_mpc_horizon,
+)
 from .fileio import atomic_dir
 from .models.pv import pv_power_w
 from .plant import Plant
@@ -79,10 +87,9 @@ def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]
     return [Exogenous(*c) for c in cols]
 
 
-class ForecastSettings(BaseModel):
+class ForecastSettings(Section):
     """Forecast settings (``config/forecast.yaml``); see that file for the sources."""
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
     mode: str = Field(pattern="^(perfect|imperfect)$")
     seed: int
     sigma_t_amb_k_24h: float = Field(ge=0)
@@ -156,6 +163,8 @@ class ObservationBuilder:
     ) -> None:
         if level not in INFO_LEVELS:
             raise ValueError(f"unknown information level '{level}'")
+        if level == "mpc":
+            check_mpc_horizon(params.simulation.horizon_h, params.simulation.time_step_h)
         self.level = level
         self._fields = INFO_LEVELS[level]
         pad = PRICE_WINDOW
@@ -348,16 +357,21 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
+#: Files of a run directory (:func:`write_run`).
+RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json")
+
+
 def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
     """Write ``timeseries.csv`` (optional), ``weekly.csv`` and ``summary.json`` to ``out_dir``.
 
     All or nothing: the files are written into a temporary directory inside ``out_dir``
     and renamed into place only when every one was written (:func:`~.fileio.atomic_dir`),
-    so a failure (e.g. a full disk) leaves no partial result.
+    so a failure (e.g. a full disk) leaves no partial result; a ``timeseries.csv`` of an
+    earlier run in ``out_dir`` is removed when this one writes none.
     """
     out = Path(out_dir)
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.summary.items()}
-    with atomic_dir(out) as tmp:
+    with atomic_dir(out, replaces=RUN_FILES) as tmp:  # no older timeseries.csv stays beside a run without one
         if timeseries:
             result.timeseries.to_csv(tmp / "timeseries.csv", index=False)
         result.weekly.to_csv(tmp / "weekly.csv", index=False)

@@ -173,7 +173,7 @@ def test_load_csv_bad_input(tmp_path):
     with pytest.raises(ScenarioError, match="unit unknown"):
         ld.read_load_csv(path)
     path.write_text("time,p_w\n2022-12-01T00:00:00+01:00,-5\n")
-    with pytest.raises(ScenarioError, match="line 2, column 'p_w': negative"):
+    with pytest.raises(ScenarioError, match=r"line 2, column 'p_w' \(read as W\): value -5 outside the plausible"):
         ld.read_load_csv(path)
 
 

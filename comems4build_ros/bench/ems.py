@@ -89,14 +89,14 @@ def _pct(values: list[float], q: float) -> float:
 def run(args: argparse.Namespace) -> int:
     """Print the figures; exit code 0 (targets are reported, not enforced)."""
     from ..cli import UsageError
-    from ..config import load_plant_params
+    from ..commands.options import load_params
     from ..ems import make_controller
     from ..scenario import default_scenario
     from ..sim import simulate
 
     if args.weeks < 1:
         raise UsageError("--weeks must be at least 1")
-    params = load_plant_params(args.config)
+    params = load_params(args.config)
     scenario = default_scenario(params, weeks=args.weeks)
     print(f"bench ems: {args.ems} on the default scenario, {scenario.n_steps} steps ({args.weeks} weeks)")
 

@@ -280,10 +280,19 @@ def exact_with_first_fixed(params: Any, problems: Sequence[tuple], firsts: Seque
 
 
 def _pick_configs(spec: str) -> dict[str, tuple[dict[str, Any], bool]]:
+    """``--configs``: ``all``, ``none`` or label prefixes, each matching at least one configuration."""
+    from ..cli import UsageError
+
     if spec == "none":
         return {}
-    return {label: cfg for label, cfg in CONFIGS.items()
-            if spec == "all" or any(label.startswith(s.strip()) for s in spec.split(","))}
+    if spec == "all":
+        return dict(CONFIGS)
+    prefixes = [p.strip() for p in spec.split(",") if p.strip()]
+    unmatched = [p for p in prefixes if not any(label.startswith(p) for label in CONFIGS)]
+    if unmatched or not prefixes:
+        raise UsageError(f"--configs {spec}: {', '.join(unmatched) or 'no prefix'} matches no configuration "
+                         f"(labels: {', '.join(CONFIGS)}; or 'all', 'none')")
+    return {label: cfg for label, cfg in CONFIGS.items() if any(label.startswith(p) for p in prefixes)}
 
 
 def _print_table(table: pd.DataFrame, digits: int = 2) -> None:
@@ -296,9 +305,13 @@ def run(args: argparse.Namespace) -> int:
     from ..ems.mpc import MPCController
     from ..ems.mpc.settings import MILPOptions, load_options
     from ..ems.mpc.solvers import available_solvers
+    from ..fileio import check_out_dir
     from ..scenario import default_scenario
     from ..sim import simulate
 
+    configs = _pick_configs(args.configs)  # checked before anything runs
+    if args.out:
+        check_out_dir(args.out)
     params = load_plant_params()
     defaults = load_options(MILPOptions, "mpc", {})
     print(f"bench mpc: default settings {defaults.model_dump()}")
@@ -327,7 +340,6 @@ def run(args: argparse.Namespace) -> int:
 
     weeks = int(math.ceil(args.weeks))
     scenario = default_scenario(params, weeks=weeks)
-    configs = _pick_configs(args.configs)
     wall = math.nan
     if args.skip_full_run and not configs:
         ts = None

@@ -146,17 +146,14 @@ def sizing_check(params, scenario, exo: list) -> dict[str, Any]:
 def run(args: argparse.Namespace) -> int:
     """Print plant steps per second and the sizing check."""
     from comems4build_ros.cli import UsageError
-    from comems4build_ros.config import ConfigError, load_plant_params
+    from comems4build_ros.commands.options import load_params
     from comems4build_ros.plant import Plant
     from comems4build_ros.scenario import default_scenario
     from comems4build_ros.sim import exogenous_series
 
     if args.weeks < 1 or args.repeats < 1:
         raise UsageError("bench plant: --weeks and --repeats must be >= 1")
-    try:
-        params = load_plant_params(args.config)
-    except ConfigError as exc:
-        raise UsageError(str(exc)) from exc
+    params = load_params(args.config)
     scenario = default_scenario(params, weeks=args.weeks)
     exo = exogenous_series(scenario, params)[: scenario.n_steps]
     plant = Plant(params)

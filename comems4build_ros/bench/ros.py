@@ -36,7 +36,7 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from ..commands.options import COUNT, SECONDS, WEEKS
+from ..commands.options import BUILDINGS, COUNT, SECONDS, WEEKS
 
 TARGET_RTT_MEDIAN_MS = 2.0
 TARGET_RTT_P99_MS = 10.0
@@ -107,17 +107,20 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print the figures."""
     from ..cli import UsageError
     from ..config import load_plant_params
+    from ..fileio import check_out_dir
     from ..ros.bag import lost_messages
     from ..ros.launcher import LaunchError, launch
     from ..ros.nodes.feed import load_scenario
     from ..sim import simulate
 
-    try:
-        counts = [int(x) for x in str(args.buildings).split(",") if x.strip()]
-    except ValueError:
-        raise UsageError(f"--buildings: comma-separated integers expected, got '{args.buildings}'") from None
-    if any(n < 1 for n in counts):
-        raise UsageError(f"--buildings: counts must be >= 1, got {counts}")
+    try:  # each count by the rule of launch --buildings
+        counts = [BUILDINGS(x.strip()) for x in str(args.buildings).split(",") if x.strip()]
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"--buildings {args.buildings}: {exc}") from None
+    if not counts:
+        raise UsageError(f"--buildings '{args.buildings}': no count given")
+    if args.out:
+        check_out_dir(args.out)
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bench_ros_"))
     root.mkdir(parents=True, exist_ok=True)
     params = load_plant_params()

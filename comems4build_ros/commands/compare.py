@@ -9,8 +9,12 @@ import argparse
 import sys
 import time
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from .options import COUNT, add_scenario_options
+
+if TYPE_CHECKING:
+    from ..report.build import Report
 
 #: EMS compared by default (the paper's three schedulers).
 DEFAULT_EMS = "rbc,fuzzy,mpc"
@@ -25,9 +29,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_scenario_options(parser, hours=False)
     parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
                         help="run in-process or through the ROS 2 node set (bags evaluated)")
-    parser.add_argument("--fc-efficiency", default=DEFAULT_ETAS, metavar="ETA[,ETA...]",
+    parser.add_argument("--fc-efficiency", default=None, metavar="ETA[,ETA...]",
                         help="FC system efficiencies (fuel_cell.eta_sys); the first gives runs/<ems>/, the others "
-                             f"runs/<ems>_eta<percent>/ for the heat-recovery figure (default {DEFAULT_ETAS})")
+                             f"runs/<ems>_eta<percent>/ for the heat-recovery figure (default {DEFAULT_ETAS}; "
+                             "fuel_cell.eta_sys from --set or --config instead runs that one efficiency, and "
+                             "giving both is refused)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -59,6 +65,30 @@ def parse_etas(text: str) -> list[float]:
     return etas
 
 
+def fc_efficiencies(option: str | None, config: list[str], overrides: dict) -> list[float]:
+    """FC system efficiencies of the comparison: the one rule for ``--fc-efficiency`` against ``eta_sys``.
+
+    ``--fc-efficiency`` gives them; without it, a ``fuel_cell.eta_sys`` from ``--set`` or a
+    ``--config`` file runs that one efficiency (it is never silently replaced by the
+    default); neither gives :data:`DEFAULT_ETAS`. Both at once are a conflict and refused.
+    """
+    from ..cli import UsageError
+    from ..config import load_plant_params, read_ros_params
+
+    eta = load_plant_params(config, overrides).fuel_cell.eta_sys  # every file and --set checked first
+    sources = [f"--set fuel_cell.eta_sys={overrides['fuel_cell.eta_sys']}"] if "fuel_cell.eta_sys" in overrides else []
+    sources += [f"--config {path} (fuel_cell.eta_sys)" for path in config
+                if "eta_sys" in (read_ros_params(path).get("fuel_cell") or {})]
+    if option is not None and sources:
+        raise UsageError(f"--fc-efficiency {option} and {sources[0]} both set the FC system efficiency; give it "
+                         "once (--fc-efficiency for the efficiencies the comparison runs)")
+    if option is not None:
+        return parse_etas(option)
+    if sources:
+        return [eta]
+    return parse_etas(DEFAULT_ETAS)
+
+
 def run_name(ems: str, eta: float, base_eta: float) -> str:
     """Run directory name: ``<ems>`` at the base efficiency, else ``<ems>_eta<percent>``."""
     return ems if abs(eta - base_eta) < 1e-9 else f"{ems}_eta{eta * 100:.0f}"
@@ -68,36 +98,30 @@ def run(args: argparse.Namespace) -> int:
     """Run the comparison (unless --from-runs) and write the report."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..ems import UnknownEMSError, controller_class
-    from ..fileio import check_out_dir
-    from ..progress import echo
+    from ..ems import controller_class
+    from ..fileio import atomic_dir, check_out_dir
     from ..report.build import build_report
-    from ..report.runner import RunTask, run_tasks
-    from ..report.runs import RUNS_DIR, Manifest, RunDirError, RunSpec, write_manifest
-    from .options import check_config_files, scenario_of
+    from ..report.runs import RunDirError
+    from .options import check_config_files, ems_names, scenario_of
     from .simulate import parse_assignments
 
     if args.from_runs:
+        out = Path(args.out or args.from_runs)
+        check_out_dir(out)
         try:
-            rep = build_report(args.from_runs, args.out)
+            with atomic_dir(out) as stage:  # the report files replace the older ones only when all are written
+                rep = build_report(args.from_runs, stage)
         except RunDirError as exc:
             raise UsageError(str(exc)) from None
-        _print_report(rep)
+        _print_report(rep, stage, out)
         return 0
     if not args.out:
         raise UsageError("--out is required (unless --from-runs)")
-    emss = [e.strip() for e in args.ems.split(",") if e.strip()]
-    if not emss:
-        raise UsageError("--ems: no EMS given")
-    levels = {}
-    for ems in emss:
-        try:
-            levels[ems] = str(controller_class(ems).info_level)
-        except UnknownEMSError as exc:
-            raise UsageError(f"--ems {ems}: {exc}") from None
-    etas = parse_etas(args.fc_efficiency)
+    emss = ems_names(args.ems)
+    levels = {ems: str(controller_class(ems).info_level) for ems in emss}
     check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
+    etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
     for eta in etas:  # validate every parameter set before starting any run
         params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
     if args.extend and args.via == "ros":
@@ -105,6 +129,20 @@ def run(args: argparse.Namespace) -> int:
     scenario_of(args, params)  # the scenario and the run length, checked once before any run
     check_out_dir(args.out)
     out = Path(args.out)
+    with atomic_dir(out) as stage:  # runs/, manifest, report, figures replace an older comparison's when all are done
+        rep = _compare(args, emss, etas, levels, overrides, stage)
+    _print_report(rep, stage, out)
+    return 0
+
+
+def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], levels: dict[str, str],
+             overrides: dict, out: Path) -> Report:
+    """Run every EMS at every efficiency into ``out`` (runs/, compare.json) and build the report there."""
+    from ..progress import echo
+    from ..report.build import build_report
+    from ..report.runner import RunTask, run_tasks
+    from ..report.runs import RUNS_DIR, Manifest, RunSpec, write_manifest
+
     base = etas[0]
     specs, tasks = [], []
     for ems in emss:
@@ -116,7 +154,6 @@ def run(args: argparse.Namespace) -> int:
                                  start=args.start, weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=ov,
                                  config=[str(Path(c).resolve()) for c in args.config], via=args.via))
     jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
-    out.mkdir(parents=True, exist_ok=True)
     walls: dict[str, float] = {}
 
     def done(task: RunTask, summary: dict) -> None:
@@ -133,14 +170,14 @@ def run(args: argparse.Namespace) -> int:
                         overrides=overrides, config=[str(Path(c).resolve()) for c in args.config],
                         wall_s={**walls, "all_runs": wall})
     write_manifest(manifest, out)
-    rep = build_report(out)
     print(f"runs: {wall:.1f} s wall for {len(tasks)} runs", file=sys.stderr)
-    _print_report(rep)
-    return 0
+    return build_report(out)
 
 
-def _print_report(rep) -> None:  # noqa: ANN001
+def _print_report(rep: Report, stage: Path, out: Path) -> None:
+    """The findings count and the files written (``rep`` was built in ``stage``, now renamed to ``out``)."""
     held = sum(f["verdict"] == "held" for f in rep.findings)
     evaluated = sum(f["verdict"] != "n/a" for f in rep.findings)
     print(f"report: {held} of {evaluated} evaluated findings held; built in {rep.seconds:.2f} s")
-    print(f"wrote {rep.markdown}, {rep.html} and {len(rep.figures)} figures in {rep.markdown.parent / 'figures'}")
+    md, html = (out / Path(p).relative_to(stage) for p in (rep.markdown, rep.html))
+    print(f"wrote {md}, {html} and {len(rep.figures)} figures in {md.parent / 'figures'}")

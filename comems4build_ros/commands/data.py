@@ -50,8 +50,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``fetch-prices`` or ``build``."""
-    import pandas as pd
-
     from ..config import check_input_file
     from ..fileio import check_out_file, write_text_atomic
     from ..scenario import loaders
@@ -61,19 +59,15 @@ def run(args: argparse.Namespace) -> int:
     tz = params.site.timezone
     check_out_file(args.out)
 
-    def when(text: str, option: str) -> pd.Timestamp:
-        try:
-            t = pd.Timestamp(text)
-        except ValueError:
-            raise UsageError(f"{option} '{text}' is not an ISO date/time") from None
-        return t.tz_localize(tz) if t.tzinfo is None else t
+    # --start / --end: ISO 8601, naive = site time (no DST gap, no ambiguous hour), checked before any file is read
+    start, end = (loaders.local_time(text, tz, option) if text else None
+                  for text, option in ((args.start, "--start"), (args.end, "--end")))
+    if start is not None and end is not None and end <= start:
+        raise UsageError("--end must be after --start")
 
     if args.data_command == "fetch-prices":
         import urllib.error
 
-        start, end = when(args.start, "--start"), when(args.end, "--end")
-        if end <= start:
-            raise UsageError("--end must be after --start")
         try:
             text = loaders.fetch_awattar(start, end)
         except (urllib.error.URLError, TimeoutError, OSError) as exc:
@@ -93,9 +87,7 @@ def run(args: argparse.Namespace) -> int:
     solar = (args.solar, loaders.read_dwd_solar(args.solar))
     dhw = None
     if args.dhw:
-        year = args.dhw_year or (
-            when(args.start, "--start").year if args.start else prices[1].index[0].tz_convert(tz).year
-        )
+        year = args.dhw_year or (start.year if start is not None else prices[1].index[0].tz_convert(tz).year)
         dhw = (args.dhw, loaders.read_dhwcalc(args.dhw, year, tz))
     load = (args.load, loaders.read_load_csv(args.load, args.load_column, args.load_unit)) if args.load else None
     frame, provenance = loaders.build_scenario_frame(

@@ -6,9 +6,6 @@ import argparse
 import json
 from pathlib import Path
 
-#: Files ``evaluate`` writes (per building and combined).
-WRITTEN = ("timeseries.csv", "weekly.csv", "summary.json")
-
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``evaluate``."""
@@ -28,8 +25,9 @@ def run(args: argparse.Namespace) -> int:
     """Read the bag, compute the KPIs, write the files."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..fileio import check_out_dir
+    from ..fileio import atomic_dir, check_out_dir
     from ..ros.bag import building_dir, evaluate_bag, read_run_info
+    from ..sim import RUN_FILES
     from .options import check_config_files
     from .simulate import parse_assignments
 
@@ -45,8 +43,11 @@ def run(args: argparse.Namespace) -> int:
         overrides = dict(info.get("overrides") or {}) if args.config is None else {}
         overrides.update(parse_assignments(args.set, "--set"))
         params = load_plant_params(files, overrides)
-    summaries = evaluate_bag(bag, args.out, params=params, timeseries=not args.no_timeseries,
-                             accept_gaps=args.accept_gaps)
+    # all or nothing: the results go to a temporary directory, then replace those of an earlier evaluate
+    # (no older timeseries.csv or building_<i>/ stays beside them)
+    with atomic_dir(args.out, replaces=(*RUN_FILES, "building_*")) as stage:
+        summaries = evaluate_bag(bag, stage, params=params, timeseries=not args.no_timeseries,
+                                 accept_gaps=args.accept_gaps)
     damaged = [s["bag_incomplete"] for s in summaries.values() if "bag_incomplete" in s]
     if damaged:
         d = damaged[0]
@@ -61,7 +62,7 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **({"bag_incomplete": s["bag_incomplete"]}
                                                                                if "bag_incomplete" in s else {})}))
     out = Path(args.out)
-    names = [n for n in WRITTEN if not (args.no_timeseries and n == "timeseries.csv")]
+    names = [n for n in RUN_FILES if not (args.no_timeseries and n == "timeseries.csv")]
     written = [building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names]
     if len(summaries) > 1 or "/" not in summaries:
         written += [out / "weekly.csv", out / "summary.json"]

@@ -131,11 +131,13 @@ def surfaces_figure(maps: dict[str, dict[str, Any]]) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     """Write the figures; print the paths of their PNG versions."""
-    from ..config import load_plant_params
     from ..ems.fuzzy import load_flcs
+    from ..fileio import check_out_dir
     from ..report.style import save_figure
+    from .options import load_params
 
-    params = load_plant_params(args.config)
+    check_out_dir(args.out)
+    params = load_params(args.config)
     systems = {}
     for key, (system, section) in load_flcs(params).items():
         system.load_scale_w = float(section.get("load_scale_w", 10_000.0))

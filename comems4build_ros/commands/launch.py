@@ -9,7 +9,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .options import COUNT, DOMAIN_ID, SECONDS, SEED, add_scenario_options
+from .options import BUILDINGS, COUNT, DOMAIN_ID, MAX_BUILDINGS, SECONDS, SEED, add_scenario_options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -19,8 +19,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_scenario_options(parser, hours=False, seed=False, extend=False)
     parser.add_argument("--steps", metavar="N", type=COUNT, default=None,
                         help="cut the run to its first N steps, integer >= 1 (short runs)")
-    parser.add_argument("--buildings", metavar="N", type=COUNT, default=1,
-                        help="independent buildings under /building_<i>/, scenario seed + i, integer >= 1 (default 1)")
+    parser.add_argument("--buildings", metavar="N", type=BUILDINGS, default=1,
+                        help="independent buildings under /building_<i>/, scenario seed + i, integer 1 .. "
+                             f"{MAX_BUILDINGS} (default 1)")
     parser.add_argument("--seed", metavar="N", type=SEED, default=None,
                         help="scenario seed of building 0 (default scenario; 0 .. 2^32-1)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
@@ -52,7 +53,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--network", choices=("local", "netns"), default="local",
                         help="local (default) or netns: plant+feed and EMS+recorder in two network namespaces "
                              "joined by a veth pair, DDS over UDP with unicast discovery (root, 'ip netns')")
-    parser.add_argument("--netem", default=None, metavar="ARGS",
+    parser.add_argument("--netem", default=None, metavar="ARGS", type=_netem,
                         help="with --network netns: 'tc netem' arguments of the link, e.g. 'delay 5ms loss 1%%' "
                              "(skipped with a note where the kernel lacks netem)")
     parser.add_argument("--layout", choices=("node", "building", "role"), default=None,
@@ -76,21 +77,38 @@ def _clock(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
-def _broker_url(text: str) -> str:
-    """``--broker`` value: ``mqtt://host[:port]`` or ``mqtts://host[:port]``."""
-    import re
+def _netem(text: str) -> str:
+    """``--netem`` value, checked by :func:`comems4build_ros.commands.netem.check_netem` (tc-netem(8))."""
+    from .netem import NetemError, check_netem
 
-    if not re.fullmatch(r"mqtts?://[^/:\s]+(:\d{1,5})?/?", text):
-        raise argparse.ArgumentTypeError(f"{text!r} is not mqtt://host[:port] or mqtts://host[:port]")
-    return text
+    try:
+        return check_netem(text)
+    except NetemError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _broker_url(text: str) -> str:
+    """``--broker`` value, checked by :func:`comems4build_ros.mqtt.topicmap.check_broker_url`."""
+    from ..mqtt.topicmap import check_broker_url
+
+    try:
+        return check_broker_url(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
 
 
 def check_plant_options(args: argparse.Namespace) -> None:
-    """``--plant``, ``--clock``, ``--broker``, ``--topic-map``, ``--netem`` combinations (UsageError names them)."""
+    """``--plant``, ``--clock``, ``--broker``, ``--topic-map``, ``--netem`` and their combinations.
+
+    A bad combination raises :class:`UsageError` naming the options; with ``--plant mqtt``
+    the topic map is read and validated whole (:class:`~comems4build_ros.config.ConfigError`
+    naming the file and the parameter).
+    """
+    from ..config import check_input_file
     from .options import UsageError
 
-    if args.topic_map is not None and not Path(args.topic_map).is_file():
-        raise UsageError(f"--topic-map {args.topic_map}: no such file")
+    if args.topic_map is not None:
+        check_input_file(args.topic_map, "--topic-map")
     if args.plant != "mqtt" and (args.clock != "sim" or args.broker or args.topic_map):
         raise UsageError("--clock wall, --broker and --topic-map need --plant mqtt")
     if args.plant == "mqtt" and args.buildings != 1:
@@ -105,6 +123,10 @@ def check_plant_options(args: argparse.Namespace) -> None:
         raise UsageError("--layout building and --containers need --plant sim and --network local")
     if args.broker and args.network != "local":
         raise UsageError("--broker needs --network local (the netns namespaces reach no other host)")
+    if args.plant == "mqtt":  # the whole topic map, as bridge and building will read it, before they start
+        from ..mqtt.topicmap import load_topic_map
+
+        load_topic_map(args.topic_map, args.broker)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -112,18 +134,18 @@ def run(args: argparse.Namespace) -> int:
     from ..ems import UnknownEMSError, controller_class
     from ..fileio import check_out_dir
     from ..ros.launcher import LaunchError, LaunchOptions, launch
-    from .options import UsageError, load_params
+    from .options import UsageError, ems_controller, load_params
     from .simulate import parse_assignments, warn_run
 
     try:
         controller_class(args.ems)
     except UnknownEMSError as exc:
         raise UsageError(str(exc)) from None
+    check_plant_options(args)
     overrides = parse_assignments(args.set, "--set")
     params = load_params(args.config, overrides)
-    parse_assignments(args.ems_option, "--ems-option")
+    ems_controller(args.ems, params, args.ems_option)  # the EMS node's own checks, before any node starts
     check_feed_scenario(args, params)
-    check_plant_options(args)
     opts = LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
@@ -186,7 +208,9 @@ def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
     """
     from ..ros.nodes.feed import check_scenario, load_scenario
     from ..ros.plan import feed_window
+    from .options import check_start
 
+    check_start(args.start, params)
     weeks, steps = feed_window(args.weeks, args.steps)
     scenario = load_scenario(args.scenario, params, args.start, weeks or None, args.seed, steps or None)
     check_scenario(scenario, params.simulation.time_step_h)

@@ -87,6 +87,11 @@ SEED = integer(0, SEED_MAX)
 DOMAIN_ID = integer(0, ROS_DOMAIN_ID_MAX)
 #: A fraction: finite, in [0, 1].
 FRACTION = real(0, 1)
+#: Most buildings of one ROS launch: a plan of 1000 buildings is built in about 2 s (100000 did not
+#: finish in 5 min); the runs measured go up to 16 (``bench ros``).
+MAX_BUILDINGS = 1000
+#: A number of buildings of a launch: 1 .. MAX_BUILDINGS.
+BUILDINGS = integer(1, MAX_BUILDINGS)
 
 
 def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,
@@ -131,10 +136,57 @@ def load_params(config: Sequence[str], overrides: Mapping[str, Any] | None = Non
     return load_plant_params(config, overrides)
 
 
+def ems_names(text: str) -> list[str]:
+    """``--ems rbc,fuzzy,mpc`` of ``compare`` and ``sweep``: registered names, each once, at least one."""
+    from ..ems import UnknownEMSError, controller_class
+
+    names = [e.strip() for e in text.split(",") if e.strip()]
+    if not names:
+        raise UsageError(f"--ems '{text}': no EMS given")
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise UsageError(f"--ems {text}: '{name}' given twice (its runs would overwrite each other)")
+        try:
+            controller_class(name)
+        except UnknownEMSError as exc:
+            raise UsageError(f"--ems {name}: {exc}") from None
+    return names
+
+
+def ems_controller(name: str, params: Any, items: Sequence[str]) -> Any:
+    """The EMS ``name`` built with its ``--ems-option`` items by the constructor its node or loop uses.
+
+    So every option is checked by the controller's own rules (unknown keys, ranges, an
+    inverted hysteresis) before anything runs or starts; an unknown EMS is named as
+    ``--ems``, a bad option (:class:`~comems4build_ros.config.ConfigError`) by its key.
+    """
+    from ..config import parse_assignments
+    from ..ems import UnknownEMSError, make_controller
+    from ..ems.base import check_mpc_horizon
+
+    options = parse_assignments(items, "--ems-option")
+    try:
+        controller = make_controller(name, params, options)
+    except UnknownEMSError as exc:
+        raise UsageError(f"--ems {name}: {exc}") from None
+    if controller.info_level == "mpc":  # the horizon the loop's observation carries
+        check_mpc_horizon(params.simulation.horizon_h, params.simulation.time_step_h)
+    return controller
+
+
+def check_start(start: str | None, params: Any) -> None:
+    """``--start``: ISO 8601, naive = site time, not in a DST gap nor ambiguous (the message names ``--start``)."""
+    from ..scenario.csvio import local_time
+
+    if start is not None:
+        local_time(start, params.site.timezone, "--start")
+
+
 def scenario_of(args: argparse.Namespace, params: Any) -> Any:
     """The run's scenario from the options of :func:`add_scenario_options`."""
     from ..scenario import resolve_scenario
 
+    check_start(args.start, params)
     return resolve_scenario(args.scenario, params, start=args.start, weeks=args.weeks,
                             hours=getattr(args, "hours", None), seed=getattr(args, "seed", None),
                             extend=getattr(args, "extend", None))

@@ -30,18 +30,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parse_assignments(items: list[str], what: str) -> dict[str, object]:
-    """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}`` (values parsed as YAML scalars)."""
-    import yaml
+    """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}`` (:func:`comems4build_ros.config.parse_assignments`)."""
+    from ..config import parse_assignments as parse
 
-    from ..cli import UsageError
-
-    out: dict[str, object] = {}
-    for item in items:
-        key, sep, value = item.partition("=")
-        if not sep or not key:
-            raise UsageError(f"{what} '{item}' is not KEY=VALUE")
-        out[key.strip()] = yaml.safe_load(value)
-    return out
+    return parse(items, what)
 
 
 def run(args: argparse.Namespace) -> int:
@@ -50,19 +42,19 @@ def run(args: argparse.Namespace) -> int:
     from ..fileio import check_out_dir
     from ..progress import ProgressBar
     from ..sim import load_forecast_settings, simulate, write_run
-    from .options import UsageError, load_params, scenario_of
+    from .options import UsageError, ems_controller, load_params, scenario_of
 
     try:
         controller_class(args.ems)
     except UnknownEMSError as exc:
         raise UsageError(str(exc)) from None
     params = load_params(args.config, parse_assignments(args.set, "--set"))
+    controller = ems_controller(args.ems, params, args.ems_option)
     check_out_dir(args.out)
     scenario = scenario_of(args, params)
     with ProgressBar(f"simulate {args.ems}", unit="h", enable=False if args.no_progress else None) as bar:
         result = simulate(
-            args.ems, scenario, params,
-            ems_options=parse_assignments(args.ems_option, "--ems-option"),
+            controller, scenario, params,
             progress=bar,
             forecast=load_forecast_settings(**({"mode": args.forecast} if args.forecast else {})),
         )

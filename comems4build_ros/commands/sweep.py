@@ -31,12 +31,9 @@ def run(args: argparse.Namespace) -> int:
     """Run every case of the grid and write sweep.csv, sweep.md, figures/<kpi>.{png,pdf,svg} and runs/."""
     from ..cli import UsageError
     from ..config import load_plant_params
-    from ..ems import UnknownEMSError, controller_class
-    from ..fileio import check_out_dir
-    from ..progress import echo
-    from ..report.runner import RunTask, run_tasks
-    from ..report.sweep import SWEEP_KPIS, grid, markdown_table, parse_param, plot_kpi, table
-    from .options import check_config_files, scenario_of
+    from ..fileio import atomic_dir, check_out_dir
+    from ..report.sweep import SWEEP_KPIS, grid, parse_param
+    from .options import check_config_files, ems_names, scenario_of
 
     params: dict[str, list] = {}
     for text in args.param:
@@ -47,19 +44,27 @@ def run(args: argparse.Namespace) -> int:
         if path in params:
             raise UsageError(f"--param {path} given twice")
         params[path] = values
-    emss = [e.strip() for e in args.ems.split(",") if e.strip()]
-    for ems in emss:
-        try:
-            controller_class(ems)
-        except UnknownEMSError as exc:
-            raise UsageError(f"--ems {ems}: {exc}") from None
+    emss = ems_names(args.ems)
     check_config_files(args.config)
     cases = grid(params, emss)
     for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
         plant = load_plant_params(args.config, case.values)
     scenario_of(args, plant)  # the scenario and the run length, checked once before any run
     check_out_dir(args.out)
+    with atomic_dir(args.out) as stage:  # runs/, tables and figures replace an older sweep's when all are done
+        wall = _sweep(args, params, emss, cases, stage)
     out = Path(args.out)
+    print(f"{len(cases)} runs in {wall:.1f} s; wrote {out / 'sweep.csv'}, {out / 'sweep.md'} and "
+          f"{len(SWEEP_KPIS)} plots in {out / 'figures'}")
+    return 0
+
+
+def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], cases: list, out: Path) -> float:
+    """Run every case of the grid into ``out/runs/``, write the tables and plots into ``out``; the wall time [s]."""
+    from ..progress import echo
+    from ..report.runner import RunTask, run_tasks
+    from ..report.sweep import SWEEP_KPIS, markdown_table, plot_kpi, table
+
     tasks = [RunTask(ems=c.ems, out_dir=str(out / "runs" / c.name), scenario=args.scenario, start=args.start,
                      weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=dict(c.values),
                      config=[str(Path(p).resolve()) for p in args.config],
@@ -86,6 +91,4 @@ def run(args: argparse.Namespace) -> int:
     (out / "sweep.json").write_text(json.dumps({"params": params, "ems": emss, "scenario": args.scenario,
                                                 "weeks": args.weeks, "wall_s": wall}, indent=2) + "\n",
                                     encoding="utf-8")
-    print(f"{len(cases)} runs in {wall:.1f} s; wrote {out / 'sweep.csv'}, {out / 'sweep.md'} and "
-          f"{len(SWEEP_KPIS)} plots in {out / 'figures'}")
-    return 0
+    return wall

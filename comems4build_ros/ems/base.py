@@ -37,6 +37,20 @@ PRICE_WINDOW = 24
 #: Comfort look-ahead of ComEMS4Build, ``eq:s_sh`` (k .. k+5).
 BOUNDS_AHEAD = 5
 
+
+def check_mpc_horizon(horizon_h: float, time_step_h: float) -> None:
+    """Refuse a plant ``simulation.horizon_h`` other than the :data:`PRICE_WINDOW` steps a run's observation carries.
+
+    The loop (in-process or the ROS feed) gives the MPC level :data:`PRICE_WINDOW` steps of
+    day-ahead prices and forecasts, over which the MPC plans (``sec:MPC``: a 24 h horizon);
+    another horizon would stop the run at its first step. Raises ``ValueError`` naming the
+    parameter.
+    """
+    if round(horizon_h / time_step_h) != PRICE_WINDOW:
+        raise ValueError(f"plant parameter simulation.horizon_h = {horizon_h:g}: a run's observation carries "
+                         f"{PRICE_WINDOW} steps of day-ahead prices and forecasts, the MPC's horizon (sec:MPC); it "
+                         f"must be {PRICE_WINDOW * time_step_h:g} h")
+
 COMMON_FIELDS = frozenset(
     {
         "step",

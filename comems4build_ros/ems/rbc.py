@@ -23,19 +23,22 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field, model_validator
 
-from ..config import PlantParams, config_dir, deep_merge, read_ros_params, set_dotted, validate
+from ..config import PlantParams, Section, config_dir, deep_merge, read_ros_params, set_dotted, validate
 from ..models.battery import power_limits_w
 from ..types import HP_DHW, HP_OFF, HP_SH, Action
 from .base import Observation
 from .features import chi_dhw, chi_sh, edf_price, hp_p_el_ref_w
 
 
-class RBCOptions(BaseModel):
-    """Options of the RBC (``config/rbc.yaml``, section ``rbc``); see the file for sources."""
+class RBCOptions(Section):
+    """Options of the RBC (``config/rbc.yaml``, section ``rbc``); see the file for sources.
 
-    model_config = ConfigDict(extra="forbid", frozen=True)
+    Each hysteresis switches on at or below its ``*_on_chi`` and off at or above its
+    ``*_off_chi`` (``sec:RBC``), so ``on`` must lie below ``off``; the EDF quartile that
+    charges from the grid must lie below the one that runs the FC.
+    """
 
     sh_on_chi: float = Field(ge=0, le=1)
     sh_off_chi: float = Field(ge=0, le=1)
@@ -46,6 +49,14 @@ class RBCOptions(BaseModel):
     edf_upper_quartile: float = Field(ge=0, le=1)
     edf_lower_quartile: float = Field(ge=0, le=1)
     loh_reserve: float = Field(ge=0, le=1)
+
+    @model_validator(mode="after")
+    def _check(self) -> RBCOptions:
+        for low, high in (("sh_on_chi", "sh_off_chi"), ("dhw_on_chi", "dhw_off_chi"),
+                          ("edf_lower_quartile", "edf_upper_quartile")):
+            if not getattr(self, low) < getattr(self, high):
+                raise ValueError(f"{low} ({getattr(self, low)}) must be below {high} ({getattr(self, high)})")
+        return self
 
 
 def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCOptions:

@@ -10,7 +10,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from ..config import PlantParams
+from ..config import ConfigError, PlantParams
 from ..types import HP_DHW, HP_OFF, HP_SH, Action
 from .base import Observation
 
@@ -27,13 +27,15 @@ class Thermostat:
     Parameters
     ----------
     params : plant parameters (tank volumes)
-    options : unused (accepted for the common constructor signature)
+    options : none (the common constructor signature); any option is refused
     """
 
     name = "thermostat"
     info_level = "basic"
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
+        if options:
+            raise ConfigError(f"thermostat EMS: unknown option(s) {', '.join(map(str, options))} (it takes none)")
         self._v_min = params.dhw.v_min_l
         self._v_max = params.dhw.v_max_l
         self.reset()

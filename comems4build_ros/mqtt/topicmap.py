@@ -19,9 +19,9 @@ from pathlib import Path
 from typing import Any
 from urllib.parse import urlsplit
 
-from pydantic import BaseModel, ConfigDict, Field, field_validator, model_validator
+from pydantic import Field, field_validator, model_validator
 
-from ..config import ConfigError, PlantParams, config_dir, read_ros_params, validate
+from ..config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
 from ..types import HP_DHW, HP_OFF, HP_SH, Action
 
 #: Measurements the bridge knows: SI name -> meaning [unit]. The first four are required.
@@ -52,8 +52,8 @@ class PayloadError(ValueError):
     """An MQTT payload cannot be read; the message names the topic."""
 
 
-class _Model(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+class _Model(Section):
+    """A topic-map section: the parameter rule of :class:`~comems4build_ros.config.Section`."""
 
 
 class _Scaled(_Model):
@@ -200,10 +200,50 @@ class SetpointSpec(_Scaled):
             raise PayloadError(f"topic '{self.topic}': {text[:40]!r} is not a number") from None
 
 
+#: Largest TCP port number.
+PORT_MAX = 65535
+
+
+def check_broker_url(url: str) -> str:
+    """``url`` if it is ``mqtt://host[:port]`` or ``mqtts://host[:port]`` with a port in 1..65535.
+
+    The one rule for a broker address wherever it enters (``launch --broker``, a topic
+    map's ``broker.url``). Credentials in the URL (``user:password@``) are refused: they
+    would stand on command lines and in files; the topic map names a password file or
+    variable instead.
+
+    Raises
+    ------
+    ValueError
+        Saying what is wrong with ``url``.
+    """
+    parts = urlsplit(str(url))
+    if parts.scheme not in ("mqtt", "mqtts") or not parts.netloc or parts.path not in ("", "/") or \
+            parts.query or parts.fragment or any(c.isspace() for c in str(url)):
+        raise ValueError(f"'{url}' is not mqtt://host[:port] or mqtts://host[:port]")
+    if "@" in parts.netloc:
+        raise ValueError(f"'{parts.scheme}://...@{parts.hostname}': no credentials in the URL (the topic map's "
+                         "broker.username with password_file or password_env)")
+    try:
+        port = parts.port
+    except ValueError:
+        port = -1
+    if not parts.hostname or (port is not None and not 1 <= port <= PORT_MAX):
+        what = "no host" if not parts.hostname else \
+            f"port {parts.netloc.rpartition(':')[2]} is not a number in 1..{PORT_MAX}"
+        raise ValueError(f"'{url}': {what}")
+    return str(url)
+
+
 class BrokerSettings(_Model):
     """Broker address and credentials (the password itself is never stored here)."""
 
-    url: str = Field(pattern=r"^mqtts?://[^/:]+(:\d+)?/?$")
+    url: str
+
+    @field_validator("url")
+    @classmethod
+    def _url(cls, v: str) -> str:
+        return check_broker_url(v)
     username: str = ""
     password_file: str = ""
     password_env: str = ""

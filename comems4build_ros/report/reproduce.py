@@ -22,7 +22,7 @@ import json
 import math
 import statistics
 import time
-from collections.abc import Callable, Mapping, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -582,6 +582,23 @@ class ReproduceResult:
     wall_s: float
 
 
+def check_tasks(tasks: Iterable[RunTask]) -> None:
+    """Build the plant parameters and the controller of every task, as its run will, before any run starts.
+
+    A bad plant override or EMS option of the study file is reported at once (a
+    :class:`~comems4build_ros.config.ConfigError` naming it) instead of in a worker after
+    other runs have taken their time.
+    """
+    from ..ems import make_controller
+
+    seen: set[str] = set()
+    for task in tasks:
+        key = json.dumps([task.ems, task.config, task.overrides, task.ems_options], sort_keys=True, default=str)
+        if key not in seen:
+            seen.add(key)
+            make_controller(task.ems, load_plant_params(task.config, task.overrides), task.ems_options)
+
+
 def _read_runs(runs_dir: Path, names: Sequence[str], tasks: Mapping[str, RunTask], study: Study,
                params: PlantParams) -> dict[str, RunData]:
     from ..ems.rbc import loh_floor
@@ -674,6 +691,7 @@ def reproduce(
     statements = load_paper_results()
     out = Path(out_dir)
     tasks, cases = plan(study, with_study)
+    check_tasks(tasks.values())
     if only:
         cases = [cases[0], *(c for c in cases[1:] if c.ambiguity in only)]
     names = list(tasks)

@@ -23,7 +23,7 @@ import pandas as pd
 from ..config import PlantParams, path_kind
 from .base import CSV_COLUMNS, OPTIONAL_CSV_COLUMNS, SERIES, Scenario
 from .comfort import comfort_bounds, is_off_day
-from .csvio import ScenarioError, ScenarioWarning, read_scenario_frame, write_scenario_csv
+from .csvio import ScenarioError, ScenarioWarning, check_values, local_time, read_scenario_frame, write_scenario_csv
 from .settings import (
     MeasuredSettings,
     ScenarioSettings,
@@ -92,7 +92,11 @@ def _tariff(spot_eur_per_mwh: np.ndarray, params: PlantParams) -> tuple[np.ndarr
     ``config/plant.yaml``).
     """
     g = params.grid
-    buy = g.buy_offset_eur_per_kwh + g.buy_spot_factor * spot_eur_per_mwh / KWH_PER_MWH
+    with np.errstate(over="ignore"):
+        buy = g.buy_offset_eur_per_kwh + g.buy_spot_factor * spot_eur_per_mwh / KWH_PER_MWH
+    check_values(f"plant parameters grid.buy_offset_eur_per_kwh = {g.buy_offset_eur_per_kwh:g}, "
+                 f"grid.buy_spot_factor = {g.buy_spot_factor:g}", "price_buy_eur_per_kwh", buy,
+                 lambda i: f"spot price {spot_eur_per_mwh[i]:g} EUR/MWh (row {i})", "buy price")
     sell = np.full(len(spot_eur_per_mwh), params.grid.price_sell_eur_per_kwh)
     return buy, sell
 
@@ -338,11 +342,7 @@ def _window(
     if extend is not None and extend not in EXTEND_METHODS:
         raise ScenarioError(f"{name}: extend '{extend}' unknown (known: {', '.join(EXTEND_METHODS)})")
     if start is not None:
-        try:
-            t0 = pd.Timestamp(start)
-        except ValueError:
-            raise ScenarioError(f"{name}: start '{start}' is not an ISO date/time") from None
-        t0 = t0.tz_localize(tz) if t0.tzinfo is None else t0
+        t0 = local_time(start, tz, f"{name}: start")
         pos = frame.index.searchsorted(t0.tz_convert("UTC"))
         if pos >= len(frame) or frame.index[pos] != t0.tz_convert("UTC"):
             raise ScenarioError(

@@ -9,7 +9,7 @@ Format (one row per hour, header in the first line)::
 
 Checks on reading (each error names the file, the line and the column):
 
-- missing required column, unparsable time or time without UTC offset -> error;
+- missing required column, a time that is not ISO 8601 or has no UTC offset -> error;
 - duplicate, decreasing or non-hourly (gap) times -> error (a gap in time is not filled:
   the rows around it may come from different sources);
 - missing values (empty, NaN, the DWD marker -999) -> runs of at most
@@ -18,8 +18,9 @@ Checks on reading (each error names the file, the line and the column):
 - implausible values / wrong units -> error: a spot price column whose values all lie within
   +-2 (EUR/kWh instead of EUR/MWh), a buy price above 5 EUR/kWh (EUR/MWh or ct/kWh), air
   temperatures outside -60..60 degC (e.g. Kelvin), irradiance below -10 or above 1500 W/m2,
-  diffuse above global by more than 10 W/m2, negative load or draws, a load column whose
-  values all lie below 20 (kW instead of W);
+  diffuse above global by more than 10 W/m2, negative load or draws, a load above 100 kW, a load
+  column whose values all lie below 20 (kW instead of W); the source loaders apply the same
+  rules (:func:`check_values`, :func:`check_diffuse`);
 - small negative irradiance (-10..0 W/m2, sensor offset at night) -> set to 0 with a warning.
 """
 
@@ -27,8 +28,9 @@ from __future__ import annotations
 
 import csv
 import io
-import re
 import warnings
+from collections.abc import Callable
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
@@ -49,15 +51,21 @@ LOAD_KW_SUSPECT_W = 20.0
 #: Header line is line 1, first data row is line 2.
 FIRST_DATA_LINE = 2
 
-_OFFSET_RE = re.compile(r"(Z|[+-]\d{2}:?\d{2})$")
 
-#: column -> (min, max, unit hint) plausibility range
-_RANGES: dict[str, tuple[float, float, str]] = {
+#: Diffuse irradiance may exceed the global one by this much (measurement noise) [W/m2].
+DIFFUSE_EXCESS_W_M2 = 10.0
+#: column -> (min, max, unit hint): the plausible range of each scenario column, for the scenario
+#: CSV and every source loader (:func:`check_values`). Air temperature -60..60 degC (a value in
+#: Kelvin falls far outside); irradiance up to 1500 W/m2 (above the solar constant, 1361 W/m2);
+#: spot prices from the day-ahead market's harmonised minimum of -500 EUR/MWh (EPEX SPOT / SDAC)
+#: to 10000 EUR/MWh, above its maximum clearing price; a household load up to 100 kW, beyond
+#: any house connection's main fuse (3 x 63 A at 230 V is 43 kW), so W read as kW is refused.
+PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "t_amb_c": (-60.0, 60.0, "degC (Kelvin?)"),
     "ghi_w_m2": (-10.0, 1500.0, "W/m2"),
     "dhi_w_m2": (-10.0, 1500.0, "W/m2"),
     "spot_eur_per_mwh": (-500.0, 10000.0, "EUR/MWh"),
-    "p_load_w": (0.0, 1e6, "W"),
+    "p_load_w": (0.0, 1e5, "W"),
     "dhw_l_per_h": (0.0, 1e5, "l/h"),
     "price_buy_eur_per_kwh": (-BUY_PRICE_MAX_EUR_PER_KWH, BUY_PRICE_MAX_EUR_PER_KWH, "EUR/kWh"),
 }
@@ -75,20 +83,69 @@ def _line(i: int) -> int:
     return i + FIRST_DATA_LINE
 
 
-def _parse_time(path: Path, raw: pd.Series) -> pd.DatetimeIndex:
-    for i, text in enumerate(raw.astype(str)):
-        t = text.strip()
-        if not _OFFSET_RE.search(t):
-            raise ScenarioError(f"{path}: line {_line(i)}, column 'time': '{t}' has no UTC offset (ISO 8601 required)")
+#: Example of an ISO 8601 time with its UTC offset, for messages.
+ISO_EXAMPLE = "2022-12-01T06:00:00+01:00"
+
+
+def iso_time(text: str, what: str) -> datetime:
+    """``text`` as an ISO 8601 date or date/time (``datetime.fromisoformat``: naive or with an offset).
+
+    The one rule for every time that enters as text (``--start``, ``--end``, the ``time``
+    column of a scenario or load CSV): ``12/01/2022`` or ``1.12.2022`` are refused, not
+    guessed. :class:`ScenarioError` names ``what`` (the option, or file, line and column).
+    """
     try:
-        return pd.DatetimeIndex(pd.to_datetime(raw.str.strip(), utc=True, format="ISO8601"))
-    except (ValueError, TypeError):
-        for i, text in enumerate(raw):
-            try:
-                pd.Timestamp(str(text).strip())
-            except ValueError:
-                raise ScenarioError(f"{path}: line {_line(i)}, column 'time': cannot parse '{text}'") from None
-        raise
+        return datetime.fromisoformat(str(text).strip())
+    except ValueError:
+        raise ScenarioError(f"{what}: '{text}' is not an ISO 8601 date/time (e.g. 2022-12-01, 2022-12-01T06:00 "
+                            f"or {ISO_EXAMPLE})") from None
+
+
+def local_time(text: str, timezone: str, what: str) -> pd.Timestamp:
+    """An ISO 8601 date/time as a time of the zone ``timezone``; a naive one is local time there.
+
+    A naive local time that the clocks skip (the spring-forward gap of daylight saving
+    time) or pass twice (autumn) is refused with a message naming ``what`` and the offsets
+    that make it unique, instead of being shifted or guessed.
+
+    Raises
+    ------
+    ScenarioError
+        For a text that is not ISO 8601, a time in the gap or an ambiguous time.
+    """
+    t = pd.Timestamp(iso_time(text, what))
+    if t.tzinfo is not None:
+        return t.tz_convert(timezone)
+    try:
+        return t.tz_localize(timezone)
+    except ValueError as exc:  # pandas' NonExistentTimeError / AmbiguousTimeError
+        if "nonexistent" in str(exc).lower():
+            raise ScenarioError(f"{what}: '{text}' does not exist in {timezone}: the clocks jump over it (start of "
+                                "daylight saving time); give a time outside the gap or with its UTC offset") from None
+        both = " or ".join(t.tz_localize(timezone, ambiguous=dst).isoformat() for dst in (True, False))
+        raise ScenarioError(f"{what}: '{text}' occurs twice in {timezone} (end of daylight saving time); give the "
+                            f"UTC offset: {both}") from None
+
+
+def parse_times(path: str | Path, raw: pd.Series, column: str = "time", line_of=None) -> pd.DatetimeIndex:
+    """UTC index of a column of ISO 8601 times, each with its UTC offset (:func:`iso_time`).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, the line and the column of the first time that is not ISO 8601 or
+        has no offset.
+    """
+    line_of = line_of or _line
+    times = []
+    for i, text in enumerate(raw.astype(str)):
+        where = f"{path}: line {line_of(i)}, column '{column}'"
+        t = iso_time(text, where)
+        if t.tzinfo is None:
+            raise ScenarioError(f"{where}: '{text.strip()}' has no UTC offset (ISO 8601 with offset required, "
+                                f"e.g. {ISO_EXAMPLE})")
+        times.append(t)
+    return pd.DatetimeIndex(pd.to_datetime(times, utc=True))
 
 
 def check_hourly(path: str | Path, time: pd.DatetimeIndex, column: str = "time", line_of=_line) -> None:
@@ -121,6 +178,10 @@ def _numeric(path: Path, df: pd.DataFrame, col: str) -> np.ndarray:
         i = int(np.flatnonzero(bad.to_numpy())[0])
         raise ScenarioError(f"{path}: line {_line(i)}, column '{col}': '{df[col].iloc[i]}' is not a number")
     arr = values.to_numpy(dtype=float, copy=True)
+    infinite = np.flatnonzero(np.isinf(arr))
+    if len(infinite):  # 'inf' is a value, not a missing one: never filled
+        i = int(infinite[0])
+        raise ScenarioError(f"{path}: line {_line(i)}, column '{col}': '{df[col].iloc[i]}' is not a finite number")
     arr[arr == MISSING_MARKER] = np.nan
     return arr
 
@@ -177,35 +238,81 @@ def fill_gaps(
     return out
 
 
-def _check_values(path: Path, col: str, arr: np.ndarray) -> np.ndarray:
-    lo, hi, unit = _RANGES[col]
-    if col == "spot_eur_per_mwh" and len(arr) >= 24 and np.all(np.abs(arr) < SPOT_EUR_PER_KWH_SUSPECT):
+def check_values(
+    source: str | Path, col: str, arr: np.ndarray, where: Callable[[int], str] = _line_label, name: str = ""
+) -> np.ndarray:
+    """The plausibility rules of a scenario column, applied wherever its values enter.
+
+    The scenario CSV reader and the source loaders (aWATTar, DWD, DHWCalc, load CSV) call
+    this with their own locations, so a value is judged by one rule whatever file it comes
+    from: a value outside :data:`PLAUSIBLE` (Kelvin for degC, 15000 W/m2, a price of 1e15),
+    a spot price column whose values all lie within +-2 (EUR/kWh for EUR/MWh) and a load
+    column whose values all lie below 20 W (kW read as W), each over at least 24 values.
+    Small negative irradiance (-10..0 W/m2, a sensor offset at night) is set to 0 with a
+    warning. Missing values (NaN) pass.
+
+    Parameters
+    ----------
+    source : file named in messages
+    col : scenario column whose rules apply (a key of :data:`PLAUSIBLE`)
+    arr : values in the column's unit
+    where : row index -> position in the source (``line 5``, ``data[3]``)
+    name : the values' name in the source (default ``column '<col>'``), e.g. ``column 'GS_10' (as ghi_w_m2)``
+
+    Returns
+    -------
+    The values, small negative irradiance set to 0.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``source``, the position and ``name``.
+    """
+    lo, hi, unit = PLAUSIBLE[col]
+    name = name or f"column '{col}'"
+    finite = arr[np.isfinite(arr)]
+    span = f"{where(0)} to {where(len(arr) - 1)}"
+    if col == "spot_eur_per_mwh" and len(finite) >= 24 and np.all(np.abs(finite) < SPOT_EUR_PER_KWH_SUSPECT):
         raise ScenarioError(
-            f"{path}: lines {_line(0)}-{_line(len(arr) - 1)}, column '{col}': all values within +-2, "
-            "this looks like EUR/kWh; the column must be in EUR/MWh"
+            f"{source}: {span}, {name}: all values within +-{SPOT_EUR_PER_KWH_SUSPECT:g}, this looks like EUR/kWh; "
+            "the prices must be in EUR/MWh"
         )
-    if col == "p_load_w" and len(arr) >= 24 and np.all(arr < LOAD_KW_SUSPECT_W):
+    if col == "p_load_w" and len(finite) >= 24 and np.all(finite < LOAD_KW_SUSPECT_W):
         raise ScenarioError(
-            f"{path}: lines {_line(0)}-{_line(len(arr) - 1)}, column '{col}': all values below 20, "
-            "this looks like kW; the column must be in W"
+            f"{source}: {span}, {name}: all values below {LOAD_KW_SUSPECT_W:g} W, this looks like kW read as W; "
+            "the load must be in W (a load CSV: --load-unit kW or a column named *_kw)"
         )
     bad = (arr < lo) | (arr > hi)
     if bad.any():
         i = int(np.flatnonzero(bad)[0])
         raise ScenarioError(
-            f"{path}: line {_line(i)}, column '{col}': value {arr[i]:g} outside the plausible range "
-            f"{lo:g}..{hi:g} {unit}"
+            f"{source}: {where(i)}, {name}: value {arr[i]:g} outside the plausible range {lo:g}..{hi:g} {unit}"
         )
     if col in ("ghi_w_m2", "dhi_w_m2") and (arr < 0).any():
         neg = np.flatnonzero(arr < 0)
         warnings.warn(
-            f"{path}: column '{col}': {len(neg)} small negative value(s) (sensor offset, first at line "
-            f"{_line(int(neg[0]))}) set to 0",
+            f"{source}: {name}: {len(neg)} small negative value(s) (sensor offset, first at {where(int(neg[0]))}) "
+            "set to 0",
             ScenarioWarning,
-            stacklevel=3,
+            stacklevel=2,
         )
         arr = np.maximum(arr, 0.0)
     return arr
+
+
+def check_diffuse(
+    source: str | Path, ghi: np.ndarray, dhi: np.ndarray, where: Callable[[int], str] = _line_label,
+    name: str = "column 'dhi_w_m2'",
+) -> None:
+    """Refuse diffuse irradiance above the global one by more than :data:`DIFFUSE_EXCESS_W_M2` [W/m2].
+
+    Diffuse horizontal irradiance is a part of the global horizontal irradiance; a larger
+    value is a swapped column or a bad record (DWD ``DS_10`` > ``GS_10``).
+    """
+    excess = np.flatnonzero(dhi > ghi + DIFFUSE_EXCESS_W_M2)
+    if len(excess):
+        i = int(excess[0])
+        raise ScenarioError(f"{source}: {where(i)}, {name}: diffuse {dhi[i]:g} W/m2 exceeds global {ghi[i]:g} W/m2")
 
 
 #: Separators other than the comma that a scenario CSV is checked for (name in messages).
@@ -291,19 +398,13 @@ def read_scenario_frame(path: str | Path) -> pd.DataFrame:
     df.columns = header
     if len(df) == 0:
         raise ScenarioError(f"{path}: no data rows")
-    time = _parse_time(path, df["time"])
+    time = parse_times(path, df["time"])
     check_hourly(path, time)
     out = pd.DataFrame(index=time)
     for col in CSV_COLUMNS[1:] + tuple(c for c in OPTIONAL_CSV_COLUMNS if c in df.columns):
         arr = fill_gaps(path, col, _numeric(path, df, col))
-        out[col] = _check_values(path, col, arr)
-    excess = out["dhi_w_m2"] > out["ghi_w_m2"] + 10.0
-    if excess.any():
-        i = int(np.flatnonzero(excess.to_numpy())[0])
-        raise ScenarioError(
-            f"{path}: line {_line(i)}, column 'dhi_w_m2': diffuse {out['dhi_w_m2'].iloc[i]:g} W/m2 exceeds "
-            f"global {out['ghi_w_m2'].iloc[i]:g} W/m2"
-        )
+        out[col] = check_values(path, col, arr)
+    check_diffuse(path, out["ghi_w_m2"].to_numpy(), out["dhi_w_m2"].to_numpy())
     out["dhi_w_m2"] = np.minimum(out["dhi_w_m2"], out["ghi_w_m2"])
     return out
 

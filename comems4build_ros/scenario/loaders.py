@@ -29,6 +29,7 @@ import json
 import re
 import urllib.parse
 import urllib.request
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -36,7 +37,16 @@ import pandas as pd
 
 from ..config import PlantParams
 from .base import CSV_COLUMNS
-from .csvio import MISSING_MARKER, ScenarioError, fill_gaps, read_text_file
+from .csvio import (
+    MISSING_MARKER,
+    ScenarioError,
+    check_diffuse,
+    check_values,
+    fill_gaps,
+    local_time,
+    parse_times,
+    read_text_file,
+)
 
 #: aWATTar market data endpoint (aWATTar API documentation, api.awattar.de).
 AWATTAR_URL = "https://api.awattar.de/v1/marketdata"
@@ -100,11 +110,12 @@ def parse_awattar(text: str, source: str) -> pd.Series:
         if unit.lower().replace(" ", "") != "eur/mwh":
             raise ScenarioError(f"{path}: data[{i}], field 'unit': '{unit}' (expected Eur/MWh)")
         price = entry["marketprice"]
-        if not isinstance(price, int | float) or not np.isfinite(price):
-            raise ScenarioError(f"{path}: data[{i}], field 'marketprice': '{price}' is not a number")
+        if isinstance(price, bool) or not isinstance(price, int | float) or not np.isfinite(price):
+            raise ScenarioError(f"{path}: data[{i}], field 'marketprice': {json.dumps(price)} is not a number")
         starts.append(int(entry["start_timestamp"]))
         ends.append(int(entry["end_timestamp"]))
         prices.append(float(price))
+    check_values(path, "spot_eur_per_mwh", np.array(prices), lambda i: f"data[{i}]", "field 'marketprice'")
     starts_a, ends_a = np.array(starts), np.array(ends)
     length = ends_a - starts_a
     if np.any(length <= 0) or np.any(MS_PER_HOUR % length != 0):
@@ -145,16 +156,22 @@ def fetch_awattar(start: pd.Timestamp, end: pd.Timestamp, timeout_s: float = 30.
 DWD_TIME_FORMATS = {12: "%Y%m%d%H%M", 10: "%Y%m%d%H"}
 
 
-def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame:
+def read_dwd_product(
+    path: str | Path, columns: tuple[str, ...],
+    check: Callable[[pd.DataFrame, Callable[[int], str]], None] | None = None,
+) -> pd.DataFrame:
     """Read a DWD open-data product (semicolon separated, ``MESS_DATUM`` UTC, rows end with ``eor``).
 
     Returns a frame of the requested columns (floats, -999 -> NaN) indexed by UTC time.
+    ``check(frame, where)`` judges the values before any averaging; ``where(i)`` is the
+    file line of row ``i`` (for :func:`~.csvio.check_values`).
 
     Raises
     ------
     ScenarioError
         Naming the file, line and column for a missing column, a bad time stamp, a
-        non-numeric value, a row without ``eor`` or with the wrong number of fields.
+        non-numeric value, a row without ``eor`` or with the wrong number of fields, and
+        whatever ``check`` refuses.
     """
     path = Path(path)
     lines = _read_text_lines(path)
@@ -192,6 +209,8 @@ def read_dwd_product(path: str | Path, columns: tuple[str, ...]) -> pd.DataFrame
                 f"{path}: column '{col}': every one of the {len(df)} values is missing ({MISSING_MARKER:g}); "
                 "no data to build from"
             )
+    if check is not None:
+        check(df, lambda i: f"line {line_nos[i]}")
     dup = df.index.duplicated()
     if dup.any() or not df.index.is_monotonic_increasing:
         i = int(np.flatnonzero(dup)[0]) if dup.any() else int(np.flatnonzero(np.diff(df.index.asi8) < 0)[0]) + 1
@@ -232,12 +251,15 @@ def read_dwd_temperature(path: str | Path) -> pd.Series:
     """Hourly air temperature [degC] from a DWD 10-minute (``TT_10``) or hourly (``TT_TU``) file."""
     path = Path(path)
     header = _read_text_lines(path)[0].upper()
-    if "TT_10" in header:
-        df = read_dwd_product(path, ("TT_10",))
-        return _hourly_from_10min(df, end_stamped=False)["TT_10"].rename("t_amb_c")
-    if "TT_TU" in header:
-        df = read_dwd_product(path, ("TT_TU",))
-        return df["TT_TU"].asfreq("1h").rename("t_amb_c")
+    for col in ("TT_10", "TT_TU"):
+        if col in header:
+            def check(df: pd.DataFrame, where: Callable[[int], str], col: str = col) -> None:
+                check_values(path, "t_amb_c", df[col].to_numpy(), where, f"column '{col}'")
+
+            df = read_dwd_product(path, (col,), check)
+            if col == "TT_10":
+                return _hourly_from_10min(df, end_stamped=False)["TT_10"].rename("t_amb_c")
+            return df["TT_TU"].asfreq("1h").rename("t_amb_c")
     raise ScenarioError(f"{path}: line 1 (header): neither 'TT_10' nor 'TT_TU' found (DWD air temperature)")
 
 
@@ -247,12 +269,26 @@ def read_dwd_solar(path: str | Path) -> pd.DataFrame:
     ``GS_10`` and ``DS_10`` are sums over 10 minutes in J/cm2; the mean irradiance of an
     interval is ``v * 10000 / 600`` W/m2 (:func:`j_per_cm2_10min_to_w_m2`).
     """
-    df = read_dwd_product(path, ("GS_10", "DS_10"))
+    def check(df: pd.DataFrame, where: Callable[[int], str]) -> None:
+        """Each 10-minute value as irradiance [W/m2] within the scenario's range."""
+        for c, col in (("GS_10", "ghi_w_m2"), ("DS_10", "dhi_w_m2")):
+            check_values(path, col, j_per_cm2_10min_to_w_m2(df[c].to_numpy()), where,
+                         f"column '{c}' (J/cm2 in 10 min as W/m2)")
+
+    df = read_dwd_product(path, ("GS_10", "DS_10"), check)
     w = pd.DataFrame(
         {"ghi_w_m2": j_per_cm2_10min_to_w_m2(df["GS_10"]), "dhi_w_m2": j_per_cm2_10min_to_w_m2(df["DS_10"])},
         index=df.index,
     )
-    return _hourly_from_10min(w, end_stamped=True)
+    hourly = _hourly_from_10min(w, end_stamped=True)
+
+    def hour(i: int) -> str:  # the 10-minute stamps (end of each interval) that make up hour i
+        first = hourly.index[i] + pd.Timedelta(minutes=10)
+        return f"MESS_DATUM {first:%Y%m%d%H%M}..{first + pd.Timedelta(minutes=50):%Y%m%d%H%M} (hourly mean)"
+
+    check_diffuse(path, hourly["ghi_w_m2"].to_numpy(), hourly["dhi_w_m2"].to_numpy(), hour,
+                  "column 'DS_10' above 'GS_10'")
+    return hourly
 
 
 # --------------------------------------------------------------------------- DHWCalc, load
@@ -317,9 +353,11 @@ def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
         raise ScenarioError(
             f"{path}: {len(arr)} rows; a DHWCalc year has one of {sorted(DHWCALC_STEPS)} rows (365 days)"
         )
-    bad = np.flatnonzero(~np.isfinite(arr) | (arr < 0))
+    bad = np.flatnonzero(~np.isfinite(arr))
     if len(bad):
-        raise ScenarioError(f"{path}: line {first_data_line + int(bad[0])}, column 1: '{arr[bad[0]]}' (l/h >= 0)")
+        raise ScenarioError(f"{path}: line {first_data_line + int(bad[0])}, column {n_fields}: '{arr[bad[0]]}' "
+                            "is not a finite number (l/h)")
+    check_values(path, "dhw_l_per_h", arr, lambda i: f"line {first_data_line + i}", f"column {n_fields} (l/h)")
     per_hour = len(arr) // (365 * HOURS_PER_DAY)
     hourly = arr.reshape(-1, per_hour).mean(axis=1)
     start = pd.Timestamp(year, 1, 1).tz_localize(timezone)
@@ -364,16 +402,7 @@ def read_load_csv(path: str | Path, column: str | None = None, unit: str | None 
     factor = {"w": 1.0, "kw": W_PER_KW}.get(unit.lower())
     if factor is None:
         raise ScenarioError(f"{path}: unit '{unit}' is not W or kW")
-    times = []
-    for i, text in enumerate(df["time"]):
-        try:
-            t = pd.Timestamp(text.strip())
-        except ValueError:
-            raise ScenarioError(f"{path}: line {i + 2}, column 'time': cannot parse '{text}'") from None
-        if t.tzinfo is None:
-            raise ScenarioError(f"{path}: line {i + 2}, column 'time': '{text}' has no UTC offset")
-        times.append(t.tz_convert("UTC"))
-    index = pd.DatetimeIndex(times)
+    index = parse_times(path, df["time"])
     numeric = pd.to_numeric(df[column].replace(r"^\s*$", np.nan, regex=True), errors="coerce")
     values = numeric.to_numpy(dtype=float, copy=True)
     bad = np.flatnonzero(np.isnan(values) & ~df[column].str.strip().str.lower().isin(("", "nan")).to_numpy())
@@ -391,10 +420,9 @@ def read_load_csv(path: str | Path, column: str | None = None, unit: str | None 
                 f"{path}: line {i + 2}, column 'time': irregular, duplicate or decreasing time "
                 f"({index[i - 1].isoformat()} -> {index[i].isoformat()})"
             )
-    negative = np.flatnonzero(values < 0)
-    if len(negative):
-        raise ScenarioError(f"{path}: line {negative[0] + 2}, column '{column}': negative load {values[negative[0]]:g}")
-    series = pd.Series(values * factor, index=index)
+    watts = check_values(path, "p_load_w", values * factor, lambda i: f"line {i + 2}",
+                         f"column '{column}' (read as {unit})")
+    series = pd.Series(watts, index=index)
     hourly = series.resample("1h").mean()
     return hourly.rename("p_load_w")
 
@@ -450,14 +478,10 @@ def build_scenario_frame(
     first = max(s.first_valid_index() for _, s in required.values())
     last = min(s.last_valid_index() for _, s in required.values())
 
-    def local(text: str) -> pd.Timestamp:
-        t = pd.Timestamp(text)
-        return (t.tz_localize(tz) if t.tzinfo is None else t).tz_convert("UTC")
-
     if start is not None:
-        first = max(first, local(start))
+        first = max(first, local_time(start, tz, "start").tz_convert("UTC"))
     if end is not None:
-        last = min(last, local(end) - pd.Timedelta(hours=1))
+        last = min(last, local_time(end, tz, "end").tz_convert("UTC") - pd.Timedelta(hours=1))
     if last < first:
         spans = "; ".join(f"{n}: {s.first_valid_index()} .. {s.last_valid_index()}" for n, s in required.values())
         raise ScenarioError(f"the sources share no common hours ({spans})")

@@ -14,15 +14,15 @@ from datetime import date, datetime
 from pathlib import Path
 from typing import Any
 
-from pydantic import BaseModel, ConfigDict, Field, model_validator
+from pydantic import Field, model_validator
 
-from ..config import ConfigError, config_dir, read_ros_params, set_dotted, validate
+from ..config import ConfigError, Section, config_dir, read_ros_params, set_dotted, validate
 
 HOURS_PER_DAY = 24
 
 
-class _Section(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
+class _Section(Section):
+    """A generator section: the parameter rule of :class:`~comems4build_ros.config.Section`."""
 
 
 class Episode(_Section):

@@ -28,7 +28,7 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from ...config import ConfigError, PlantParams, config_dir, set_dotted
+from ...config import ConfigError, PlantParams, check_known_keys, config_dir, finite_number, set_dotted
 from ...models.battery import power_limits_w
 from ...types import HP_DHW, HP_OFF, HP_SH, Action
 from ..base import Observation
@@ -41,7 +41,7 @@ from ..features import (
     modulation_level,
     update_modulation,
 )
-from .engine import FuzzySystem, load_system
+from .engine import SECTION_KEYS, FuzzySystem, load_system
 
 #: Controller section of each data file and the option key of its file / overrides.
 FLC_FILES: dict[str, tuple[str, str]] = {
@@ -50,6 +50,13 @@ FLC_FILES: dict[str, tuple[str, str]] = {
     "battery": ("battery.yaml", "flc_b"),
 }
 
+
+#: The controller's own option group of each section and its keys (read by :class:`FuzzyEMS`).
+FLC_OPTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
+    "flex": ("hp", ("update", "p_el_ref_t_amb_c", "dhw_priority_chi")),
+    "fc": ("fc", ("cap_to_demand", "stop_when_allowance_used", "h2_allowance")),
+    "battery": ("battery", ("absorb_surplus",)),
+}
 
 #: Readings of the FLC_flex output (``hp.update`` in ``config/fuzzy/flex.yaml``).
 HP_UPDATES = ("increment", "level")
@@ -90,7 +97,13 @@ def load_flcs(params: PlantParams, options: Mapping[str, Any] | None = None) -> 
         overrides = opts.get(key) or {}
         if not isinstance(overrides, Mapping):
             raise ConfigError(f"fuzzy EMS options: '{key}' must be a mapping of overrides for {path}")
-        out[key] = load_system(path, section, params, overrides)
+        system, merged = load_system(path, section, params, overrides)
+        group, group_keys = FLC_OPTIONS[key]
+        where = f"{path}{' + options' if overrides else ''}: {section}"
+        check_known_keys(merged, (*SECTION_KEYS, group), where)
+        if isinstance(merged.get(group), Mapping):
+            check_known_keys(merged[group], group_keys, f"{where}.{group}")
+        out[key] = (system, merged)
     return out
 
 
@@ -103,6 +116,8 @@ def _option(section: Mapping[str, Any], group: str, key: str, source: str, kind:
         if not isinstance(value, bool):
             raise ConfigError(f"{source}: option '{group}.{key}' must be true or false, got {value!r}")
         return value
+    if kind is float:
+        return finite_number(value, f"{source}: option '{group}.{key}'")
     try:
         return kind(value)
     except (TypeError, ValueError):

@@ -44,10 +44,14 @@ from typing import Any
 
 import numpy as np
 
-from ...config import ConfigError, PlantParams
+from ...config import ConfigError, PlantParams, check_known_keys, finite_number
 
 #: Rule base sections in a file: the paper's snapshot rules and ours.
 RULE_SECTIONS = ("rules_paper", "rules_design")
+#: Keys of a controller section the engine reads (the controller's own option group comes on top).
+SECTION_KEYS = ("load_scale_w", "inputs", "output", *RULE_SECTIONS)
+#: Keys of an input variable; the output variable has ``name`` and ``points`` besides.
+VARIABLE_KEYS = ("universe", "terms")
 
 _RULE_RE = re.compile(r"^\s*(?P<ante>.*?)\s*->\s*(?P<cons>[A-Za-z_][A-Za-z0-9_]*)\s*$")
 _POINT_RE = re.compile(
@@ -380,9 +384,11 @@ def _point(value: Any, quantities: Mapping[str, float], where: str) -> float:
     raise ConfigError(f"{where}: expected a number or a device quantity, got {value!r}")
 
 
-def _variable(name: str, spec: Any, quantities: Mapping[str, float], where: str) -> Variable:
+def _variable(name: str, spec: Any, quantities: Mapping[str, float], where: str,
+              keys: tuple[str, ...] = VARIABLE_KEYS) -> Variable:
     if not isinstance(spec, Mapping):
         raise ConfigError(f"{where}: variable '{name}' must be a mapping with universe and terms")
+    check_known_keys(spec, keys, f"{where}: variable '{name}'")
     try:
         lo, hi = (float(v) for v in spec["universe"])
     except (KeyError, TypeError, ValueError):
@@ -482,7 +488,8 @@ def build_system(name: str, spec: Mapping[str, Any], quantities: Mapping[str, fl
     out_spec = spec.get("output")
     if not isinstance(out_spec, Mapping) or "name" not in out_spec:
         raise ConfigError(f"{where}: 'output' must be a mapping with name, universe, points and terms")
-    output = _variable(str(out_spec["name"]), out_spec, quantities, f"{where}.output")
+    output = _variable(str(out_spec["name"]), out_spec, quantities, f"{where}.output",
+                       ("name", "points", *VARIABLE_KEYS))
     rules: list[Rule] = []
     for section in RULE_SECTIONS:
         texts = spec.get(section, [])
@@ -537,7 +544,7 @@ def load_system(path: str | Path, name: str, params: PlantParams, overrides: Map
     if name not in data:
         raise ConfigError(f"{path}: no section '{name}'")
     section = deep_merge(deep_merge({}, data[name]), overrides or {})
-    scale = float(section.get("load_scale_w", 10_000.0))
+    scale = finite_number(section.get("load_scale_w", 10_000.0), f"{path}: {name}.load_scale_w")
     try:
         system = build_system(name, section, device_quantities(params, scale), str(path))
     except QuantityError as exc:

@@ -13,14 +13,12 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import Field
 
-from ...config import W_PER_KW, ConfigError, PlantParams, config_dir, read_ros_params, validate
+from ...config import W_PER_KW, ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
 
 
-class _Options(BaseModel):
-    model_config = ConfigDict(extra="forbid", frozen=True)
-
+class _Options(Section):
     loh_min_mode: Literal["day", "step"] = "day"
     fc_lifecycle_eta: Literal["eta_el_mpc", "eta_sys", "one"] = "one"
     penalty_comfort_eur_per_kh: float = Field(default=100.0, gt=0)

@@ -35,6 +35,7 @@ from typing import Any
 
 from rclpy.task import Future
 
+from ...config import parse_assignments
 from ...ems import make_controller
 from ...ems.base import Observation
 from ...types import ACTION_FIELDS
@@ -58,18 +59,8 @@ EXIT_CONTROLLER_ERROR = 1
 
 
 def parse_options(items: list[str], node_name: str) -> dict[str, Any]:
-    """``["solver=HiGHS", "gap=0.01"]`` -> ``{"solver": "HiGHS", "gap": 0.01}`` (YAML scalars)."""
-    import yaml
-
-    out: dict[str, Any] = {}
-    for item in items:
-        if not item:
-            continue
-        key, sep, value = str(item).partition("=")
-        if not sep or not key.strip():
-            raise ValueError(f"node '{node_name}': parameter 'ems_options': '{item}' is not KEY=VALUE")
-        out[key.strip()] = yaml.safe_load(value)
-    return out
+    """``["solver=HiGHS", "gap=0.01"]`` -> ``{"solver": "HiGHS", "gap": 0.01}`` (YAML scalars; empty items skipped)."""
+    return parse_assignments([i for i in items if i], f"node '{node_name}': parameter 'ems_options':")
 
 
 class EMSNode(ContractNode):
