@@ -23,7 +23,7 @@ NODES = {
     "recorder": "comems4build_ros.ros.nodes.recorder",
     "replay": "comems4build_ros.ros.nodes.replay",
     "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
-    "mqtt_plant": "comems4build_ros.mqtt.building",
+    "mqtt_plant": "comems4build_ros.mqtt.plant",
 }
 
 

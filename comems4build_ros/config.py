@@ -31,7 +31,6 @@ PACKAGE = "comems4build_ros"
 #: Hours per second, seconds per hour and similar named conversion factors.
 SECONDS_PER_HOUR = 3600.0
 W_PER_KW = 1000.0
-J_PER_KWH = 3.6e6
 
 
 class ConfigError(ValueError):
@@ -172,6 +171,8 @@ M = TypeVar("M", bound=BaseModel)
 def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
     """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}``, each value read as YAML (``--set``, ``--ems-option``).
 
+    Empty items are skipped (a ROS string-array parameter's empty default).
+
     Raises
     ------
     ConfigError
@@ -180,6 +181,8 @@ def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
     """
     out: dict[str, Any] = {}
     for item in items:
+        if not str(item).strip():
+            continue
         key, sep, value = str(item).partition("=")
         if not sep or not key.strip():
             raise ConfigError(f"{what} '{item}' is not KEY=VALUE")

@@ -14,15 +14,15 @@ from rclpy.node import Node  # noqa: E402
 from rclpy.task import Future  # noqa: E402
 from std_msgs.msg import UInt32  # noqa: E402
 
-from comems4build_ros.ros.common import EXECUTOR_ENV, make_executor  # noqa: E402
 from comems4build_ros.ros.executor import LeanExecutor  # noqa: E402
+from comems4build_ros.ros.process import EXECUTOR_ENV, make_executor  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
 
 @pytest.fixture()
 def context() -> Iterator[object]:
-    from comems4build_ros.ros.launcher import acquire_domain_id
+    from comems4build_ros.ros.supervisor import acquire_domain_id
 
     with acquire_domain_id() as did:
         os.environ["ROS_DOMAIN_ID"] = str(did)

@@ -17,8 +17,10 @@ from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
 from comems4build_ros.config import load_plant_params
-from comems4build_ros.ros.bag import lost_messages
-from comems4build_ros.ros.launcher import LaunchOptions, launch, processes_with_env
+from comems4build_ros.ros.bag_eval import lost_messages
+from comems4build_ros.ros.launcher import launch
+from comems4build_ros.ros.plan import LaunchOptions
+from comems4build_ros.ros.supervisor import processes_with_env
 from comems4build_ros.sim import simulate
 
 pytestmark = pytest.mark.ros
@@ -29,7 +31,7 @@ CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main;
 
 def _reference(ems: str, steps: int, seed: int | None = None) -> dict:
     """In-process summary over the same scenario window as the feed builds it."""
-    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.scenario.run import load_scenario
 
     params = load_plant_params()
     scenario = load_scenario("default", params, None, 1, seed, steps)
@@ -194,7 +196,7 @@ def test_a_paused_recorder_cannot_hang_the_launcher(tmp_path: Path, monkeypatch:
     import threading
 
     from comems4build_ros.ros import plan
-    from comems4build_ros.ros.launcher import LaunchError
+    from comems4build_ros.ros.supervisor import LaunchError
 
     monkeypatch.setattr(plan, "TIME_LIMIT_START_S", 25.0)
     out = tmp_path / "run"

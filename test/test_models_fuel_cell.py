@@ -41,14 +41,6 @@ def test_h2_flow_in_litres_matches_datasheet(fc):
     assert 24.0 < l_per_min < 27.0
 
 
-def test_recovered_heat(fc):
-    p_h2, _ = fuel_cell.operating_point(2016.0, fc)
-    # Q_hr = n LHV (eta_sys - eta_el) = eta_sys * P_H2 - P_el
-    assert float(fuel_cell.recovered_heat_w(2016.0, p_h2, 0.75)) == pytest.approx(0.75 * p_h2 - 2016.0)
-    assert float(fuel_cell.recovered_heat_w(2016.0, p_h2, 0.90)) == pytest.approx(0.90 * p_h2 - 2016.0)
-    assert float(fuel_cell.recovered_heat_w(2016.0, p_h2, 0.40)) == 0.0
-
-
 def test_efficiency_falls_with_load(fc):
     p = np.linspace(fc.p_min_w, fc.p_max_w, 50)
     p_h2, eta = fuel_cell.operating_point(p, fc)

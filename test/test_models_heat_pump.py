@@ -51,11 +51,3 @@ def test_heat_capacity_about_5kw_at_a7(hp):
     q7 = heat_pump.heat_capacity_w(7.0, 55.0, hp)
     assert 4800.0 < q7 < 5200.0
     assert heat_pump.heat_capacity_w(-15.0, 55.0, hp) < q7
-
-
-@pytest.mark.parametrize(
-    ("req", "out", "clipped"),
-    [(0.0, 0.0, False), (-0.3, 0.0, True), (0.05, 0.0, True), (0.15, 0.2, True), (0.5, 0.5, False), (1.7, 1.0, True)],
-)
-def test_clip_modulation(req, out, clipped):
-    assert heat_pump.clip_modulation(req, 0.2) == (out, clipped)

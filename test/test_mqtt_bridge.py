@@ -42,7 +42,9 @@ from comems4build_ros.mqtt.client import MqttLink  # noqa: E402
 from comems4build_ros.mqtt.discovery import DISCOVERY_SCHEMA, validate_discovery  # noqa: E402
 from comems4build_ros.mqtt.topicmap import SETPOINTS, load_topic_map  # noqa: E402
 from comems4build_ros.ros.contract import load_contract  # noqa: E402
-from comems4build_ros.ros.launcher import LaunchOptions, acquire_domain_id, launch, ros_args  # noqa: E402
+from comems4build_ros.ros.launcher import launch  # noqa: E402
+from comems4build_ros.ros.plan import LaunchOptions, ros_args  # noqa: E402
+from comems4build_ros.ros.supervisor import acquire_domain_id  # noqa: E402
 from comems4build_ros.sim import simulate  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -53,7 +55,7 @@ KPI_KEYS = ("cost_eur_week_median", "discomfort_kh_week_median", "buy_kwh_week_m
 
 
 def _reference(weeks: int, steps: int | None = None) -> dict:
-    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.scenario.run import load_scenario
 
     params = load_plant_params()
     scenario = load_scenario("default", params, None, weeks, None, steps)

@@ -10,8 +10,8 @@ from pathlib import Path
 import pytest
 
 from comems4build_ros.ros.plan import (
+    CONTAINER_STEP_TIMEOUT_S,
     DISCOVERY_PORT_BASE,
-    HOST_STEP_TIMEOUT_S,
     STAGE_NODES,
     STAGE_RECORDERS,
     STAGE_SERVICES,
@@ -48,45 +48,45 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
     assert [n.name for _, n in plan.nodes()] == ["recorder", "fuzzy_ems", "feed", "plant_sim"]
     assert plan.nodes("ems")[0][1].namespace == "/"
     assert "ROS_DISCOVERY_SERVER" not in plan.env and all(not p.env for p in plan.processes)
-    assert set(plan.groups) == {"local"} and all(p.group == "local" for p in plan.processes)
+    assert set(plan.sides) == {"local"} and all(p.side == "local" for p in plan.processes)
 
 
 def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
     opts = LaunchOptions(ems="rbc", out=tmp_path / "run", weeks=1, buildings=5, buildings_per_recorder=2,
-                         host_mode=True)
+                         layout="role")
     plan = plan_run(opts, domain_id=7)
     assert plan.layout == "role"
     assert [p.name for p in plan.processes] == [
-        "host_recorder_0", "host_recorder_1", "host_recorder_2", "host_ems", "host_feed", "host_plant"]
+        "role_recorder_0", "role_recorder_1", "role_recorder_2", "role_ems", "role_feed", "role_plant"]
     seed = load_scenario_settings().seed
     assert [b.seed for b in plan.buildings] == [seed + i for i in range(5)]
     assert [str(b.bag.relative_to(tmp_path)) for b in plan.buildings] == [
         f"run/bag/building_{i}" for i in range(5)]
-    feed = plan.process("host_feed")
+    feed = plan.process("role_feed")
     assert [n.params["seed"] for n in feed.nodes] == [seed + i for i in range(5)]
     ((path, text),) = feed.files
-    assert Path(path) == tmp_path / "run" / "host" / "host_feed.json"
+    assert Path(path) == tmp_path / "run" / "containers" / "role_feed.json"
     spec = json.loads(text)
     assert spec["ems"] == "rbc" and [n["namespace"] for n in spec["nodes"]] == [f"/building_{i}" for i in range(5)]
     assert str(path) in feed.argv
-    plant = plan.process("host_plant")
-    assert plant.finishes and all(n.params["step_timeout_s"] == HOST_STEP_TIMEOUT_S for n in plant.nodes)
-    assert [n.namespace for n in plan.process("host_recorder_2").nodes] == ["/building_4"]
+    plant = plan.process("role_plant")
+    assert plant.finishes and all(n.params["step_timeout_s"] == CONTAINER_STEP_TIMEOUT_S for n in plant.nodes)
+    assert [n.namespace for n in plan.process("role_recorder_2").nodes] == ["/building_4"]
     assert not any(p.role == "discovery" for p in plan.processes)
-    with pytest.raises(KeyError, match="no process 'nope'.*host_feed"):
+    with pytest.raises(KeyError, match="no process 'nope'.*role_feed"):
         plan.process("nope")
 
 
 def test_plant_params_override_host_defaults(tmp_path: Path) -> None:
-    opts = LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, plant_params={"step_timeout_s": 3.0})
+    opts = LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, plant_node_params={"step_timeout_s": 3.0})
     plants = [n for _, n in plan_run(opts, domain_id=1).nodes("plant")]  # containers
     assert [n.params["step_timeout_s"] for n in plants] == [3.0, 3.0]
-    plant = plan_run(dataclasses.replace(opts, host_mode=True), domain_id=1).process("host_plant")
+    plant = plan_run(dataclasses.replace(opts, layout="role"), domain_id=1).process("role_plant")
     assert [n.params["step_timeout_s"] for n in plant.nodes] == [3.0, 3.0]
 
 
 def test_discovery_server_is_an_option_of_the_plan(tmp_path: Path) -> None:
-    opts = LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, host_mode=False)
+    opts = LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, layout="node")
     plan = plan_run(opts, domain_id=9)
     first, *rest = plan.processes
     if first.role != "discovery":
@@ -124,17 +124,17 @@ def test_bad_options_name_the_option(tmp_path: Path) -> None:
     with pytest.raises(ValueError, match="--buildings must be >= 1"):
         plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=0), domain_id=1)
     with pytest.raises(ValueError, match="buildings_per_recorder"):
-        plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, buildings_per_recorder=0, host_mode=True),
+        plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, buildings=2, buildings_per_recorder=0, layout="role"),
                  domain_id=1)
 
 
 def test_netns_network_is_an_option_of_the_plan(tmp_path: Path) -> None:
     opts = LaunchOptions(ems="rbc", out=tmp_path, weeks=1, network="netns", netem="delay 5ms loss 1%")
     plan = plan_run(opts, domain_id=12)
-    assert set(plan.groups) == {"plant_host", "ems_host"}
-    groups = {p.name: p.group for p in plan.processes}
-    assert groups == {"recorder": "ems_host", "rbc_ems": "ems_host", "feed": "plant_host", "plant_sim": "plant_host"}
-    plant_host, ems_host = plan.groups["plant_host"], plan.groups["ems_host"]
+    assert set(plan.sides) == {"plant_side", "ems_side"}
+    groups = {p.name: p.side for p in plan.processes}
+    assert groups == {"recorder": "ems_side", "rbc_ems": "ems_side", "feed": "plant_side", "plant_sim": "plant_side"}
+    plant_host, ems_host = plan.sides["plant_side"], plan.sides["ems_side"]
     assert (plant_host.netns, plant_host.address, ems_host.netns, ems_host.address) == (
         "c4b12p", "10.231.12.1", "c4b12e", "10.231.12.2")
     assert plant_host.env["ROS_STATIC_PEERS"] == "10.231.12.2" and ems_host.env["ROS_STATIC_PEERS"] == "10.231.12.1"
@@ -167,7 +167,7 @@ def test_containers_compose_every_node_of_a_share_of_the_buildings(tmp_path: Pat
     # the default for more buildings (one container per core); the role layout on request
     default = plan_run(dataclasses.replace(opts, containers=None), domain_id=9)
     assert default.layout == "building" and len(default.processes) == min(5, os.cpu_count() or 1)
-    assert plan_run(dataclasses.replace(opts, containers=None, host_mode=True), domain_id=9).layout == "role"
+    assert plan_run(dataclasses.replace(opts, containers=None, layout="role"), domain_id=9).layout == "role"
     assert plan_run(dataclasses.replace(opts, containers=None, network="netns"), domain_id=9).layout == "role"
     # at most one container per building; a single building composes into one process
     one = plan_run(dataclasses.replace(opts, buildings=1, containers=4), domain_id=9)

@@ -105,6 +105,27 @@ def test_battery_charge_one_hour(plant):
     assert f.p_ch_w == 1000.0 and f.p_dis_w == 0.0 and f.p_buy_w == pytest.approx(1500.0)
 
 
+def test_battery_one_hour_to_the_soc_bounds(plant):
+    """eq:batt_soc with eq:SOC_const: 1 kW discharging from 0.5 -> 0.5 - 1000 / 0.93 / 6500; charging
+    from 0.89 stops at 0.9 (65 Wh of room at 93 %), discharging from 0.12 at 0.1 (120.9 W)."""
+    s, _ = plant.step(state(), Action(p_bess_w=-1000.0), exo())
+    assert s.soc == pytest.approx(0.5 - 1000.0 / 0.93 / 6500.0, rel=1e-12)
+    s, f = plant.step(state(soc=0.89), Action(p_bess_w=800.0), exo())
+    assert s.soc == pytest.approx(0.9, abs=1e-12) and f.p_ch_w == pytest.approx(65.0 / 0.93)
+    s, f = plant.step(state(soc=0.12), Action(p_bess_w=-800.0), exo())
+    assert s.soc == pytest.approx(0.1, abs=1e-12) and f.p_dis_w == pytest.approx(120.9)
+
+
+def test_dhw_tank_one_hour(plant):
+    """eq:DHW_model: the standing loss alone, 35 W for 1 h = 126000 J / 146216.98 J/l = 0.86173 l;
+    with 200 l/day drawn (338.465 W) and the HP's DHW heat the net heat fills the tank."""
+    s, _ = plant.step(state(v_dhw_l=100.0), Action(), exo(dhw_l_per_h=0.0))
+    assert s.v_dhw_l == pytest.approx(100.0 - 0.86173, abs=1e-5)
+    s, f = plant.step(state(v_dhw_l=100.0), Action(hp_mod=0.5, hp_mode=HP_DHW), exo(dhw_l_per_h=200.0 / 24.0))
+    q_net = f.q_hp_dhw_w - 200.0 / 24.0 / 3600.0 * J_PER_L - 35.0
+    assert s.v_dhw_l == pytest.approx(100.0 + q_net * 3600.0 / J_PER_L, rel=1e-9)
+
+
 def test_fuel_cell_step(params, plant):
     fc = params.fuel_cell
     p_h2, eta = fuel_cell.operating_point(1500.0, fc)

@@ -11,17 +11,12 @@ from pathlib import Path
 import pytest
 
 from comems4build_ros.config import load_plant_params
-from comems4build_ros.ros.bag import evaluate_bag, iter_messages
+from comems4build_ros.ros.bag import iter_messages
+from comems4build_ros.ros.bag_eval import evaluate_bag
 from comems4build_ros.ros.contract import load_contract
-from comems4build_ros.ros.launcher import (
-    LaunchOptions,
-    ProcessGroup,
-    acquire_domain_id,
-    child_env,
-    launch,
-    node_command,
-    ros_args,
-)
+from comems4build_ros.ros.launcher import launch
+from comems4build_ros.ros.plan import LaunchOptions, node_command, ros_args
+from comems4build_ros.ros.supervisor import ProcessGroup, acquire_domain_id, child_env
 
 pytestmark = pytest.mark.ros
 STEPS = 24
@@ -63,7 +58,7 @@ def test_full_replay_as_fast_as_possible_is_recorded_again(recorded: Path, tmp_p
 )
 def test_inputs_only_replay_drives_another_ems(recorded: Path, tmp_path: Path) -> None:
     """rbc against the inputs recorded with fuzzy gives the in-process rbc run on the same scenario."""
-    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.scenario.run import load_scenario
     from comems4build_ros.sim import simulate
 
     bag = tmp_path / "rbc_bag"

@@ -36,8 +36,8 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
 from comems4build_ros.config import load_plant_params  # noqa: E402
-from comems4build_ros.ros.common import layout_sizes  # noqa: E402
 from comems4build_ros.ros.contract import load_contract, relative  # noqa: E402
+from comems4build_ros.ros.node import layout_sizes  # noqa: E402
 from comems4build_ros.sim import TIMESERIES_COLUMNS  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -59,7 +59,7 @@ TIMING_COLUMNS = ("ems_solve_s",)
 @pytest.fixture()
 def domain_id() -> Iterator[int]:
     """A ROS domain id nobody else uses during the test (same lock files as the launcher)."""
-    from comems4build_ros.ros.launcher import acquire_domain_id
+    from comems4build_ros.ros.supervisor import acquire_domain_id
 
     with acquire_domain_id() as did:
         yield did
@@ -372,20 +372,30 @@ def _fallback_rule(t_air_c: float, v_dhw_l: float, t_min_c: float, params) -> tu
 
 
 def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Graph) -> None:
+    from std_msgs.msg import UInt32
+
     killed_at: list[int] = []
+    graph.collect()
+    # The observer stands in for the recorder's back-pressure: with recorder/progress at 0 and
+    # a window of 12 steps the plant announces no step beyond 12 until the EMS is dead (a
+    # fast EMS would otherwise answer all 48 steps before the kill lands).
+    progress = graph.node.create_publisher(UInt32, "recorder/progress",
+                                           graph.contract.topic("recorder/progress").qos_profile())
 
     def kill_on_step(step: int) -> None:  # SIGKILL the EMS the moment the plant announces step 12
         if step == 12 and not killed_at:
             killed_at.append(step)
             graph.may_fail.add("ems")
             os.kill(graph.procs["ems"].pid, signal.SIGKILL)
+            graph.procs["ems"].wait(10)
+            progress.publish(UInt32(data=STEPS))  # the plant may go on
 
-    graph.collect()
     graph.on_state = kill_on_step
     graph.start_ems("thermostat", exit_when_done=False)
     graph.start_feed(exit_when_done=False)
     # 2 s: long enough that a loaded machine does not trigger a fallback before the kill
-    graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=2.0, republish_period_s=0.2)
+    graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=2.0, republish_period_s=0.2,
+                      record_window_steps=12)
     graph.ready()
 
     def n_fallback() -> int:
@@ -514,8 +524,8 @@ def test_feed_refuses_a_scenario_with_nan_or_gap(graph: Graph, scenario_csv: Pat
 
 def test_feed_check_refuses_non_finite_series_and_irregular_steps() -> None:
     """The feed's own check on a Scenario object (whatever loader produced it)."""
-    from comems4build_ros.ros.nodes.feed import ScenarioInputError, check_scenario
     from comems4build_ros.scenario import resolve_scenario
+    from comems4build_ros.scenario.run import ScenarioInputError, check_scenario
 
     scen = resolve_scenario("default", load_plant_params(), weeks=1)
     bad = dataclasses.replace(scen, p_load_w=scen.p_load_w.copy())
@@ -542,7 +552,7 @@ def test_nodes_started_by_hand_exit_at_the_end_and_the_bag_knows_ems_and_scenari
     """Recorder, EMS, feed and plant with their default parameters all exit 0 by themselves after the
     run (end-of-run signal plant/done), and the bag, recorded without the launcher's run_info, names
     the EMS and the scenario."""
-    from comems4build_ros.ros.bag import evaluate_bag
+    from comems4build_ros.ros.bag_eval import evaluate_bag
 
     bag = graph.tmp / "bag"
     graph.start("recorder", ["-m", "comems4build_ros.ros.nodes.recorder", *_ros_args({"bag_path": str(bag)})])
@@ -559,6 +569,6 @@ def test_nodes_started_by_hand_exit_at_the_end_and_the_bag_knows_ems_and_scenari
 
 def in_process_scenario_name() -> str:
     """Name of the default scenario as the in-process summary reports it."""
-    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.scenario.run import load_scenario
 
     return load_scenario("default", load_plant_params(), None, 1, None, 24).name

@@ -11,6 +11,14 @@ if [ -z "$PY" ]; then
   done
 fi
 [ -x .venv/bin/python ] || "$PY" -m venv .venv
+# The ros2 command finds a package through the ament index under AMENT_PREFIX_PATH: the
+# venv's activate script puts the venv prefix there (what sourcing a ROS setup file does).
+if ! grep -q AMENT_PREFIX_PATH .venv/bin/activate; then
+  cat >> .venv/bin/activate <<'ACTIVATE'
+# comems4build_ros: ros2 finds the package's ament index under this prefix
+case ":${AMENT_PREFIX_PATH:-}:" in *":$VIRTUAL_ENV:"*) ;; *) export AMENT_PREFIX_PATH="$VIRTUAL_ENV${AMENT_PREFIX_PATH:+:$AMENT_PREFIX_PATH}" ;; esac
+ACTIVATE
+fi
 stamp=.venv/.requirements.sha256
 want=$(sha256sum requirements.txt | cut -d' ' -f1)
 if [ "$(cat "$stamp" 2>/dev/null || true)" != "$want" ]; then

@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..fileio import atomic_dir, check_out_dir
-    from ..ros.bag import building_dir, evaluate_bag, read_run_info
+    from ..ros.bag_eval import building_dir, evaluate_bag, read_run_info
     from ..sim import RUN_FILES
     from .options import check_config_files
     from .simulate import parse_assignments

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import os
 import sys
 from pathlib import Path
 from typing import Any
@@ -49,6 +48,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="feed inputs: the scenario (default) or live aWATTar prices and weather (real buildings)")
     parser.add_argument("--out", metavar="DIR", required=True,
                         help="output directory (bag/, log/, weekly.csv, summary.json)")
+    parser.add_argument("--bag", metavar="DIR", default=None,
+                        help="bag directory to create (default DIR/bag of --out)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
     parser.add_argument("--network", choices=("local", "netns"), default="local",
                         help="local (default) or netns: plant+feed and EMS+recorder in two network namespaces "
@@ -63,6 +64,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
                         help="container processes of --layout building (implies it), building i in container "
                              "i mod N (default: one per core)")
+    parser.add_argument("--namespace", metavar="NS", type=_namespace, default="/",
+                        help="ROS namespace of the building (one building) or of the buildings' namespaces "
+                             "building_<i> (default /)")
     parser.add_argument("--print-plan", action="store_true",
                         help="print the run plan (processes, nodes, parameters) and exit without starting anything")
 
@@ -74,6 +78,16 @@ def _clock(text: str) -> str:
     try:
         return parse_clock(text).spec()
     except ClockError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _namespace(text: str) -> str:
+    """``--namespace`` value: an absolute ROS namespace (:func:`comems4build_ros.ros.plan.namespaces`)."""
+    from ..ros.plan import namespaces
+
+    try:
+        return namespaces(1, text)[0]
+    except ValueError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
@@ -129,13 +143,20 @@ def check_plant_options(args: argparse.Namespace) -> None:
         load_topic_map(args.topic_map, args.broker)
 
 
-def run(args: argparse.Namespace) -> int:
-    """Validate every input, then launch, wait, evaluate; print the main figures."""
+def launch_options(args: argparse.Namespace) -> Any:
+    """Check every input of ``launch`` (before anything starts) and return its
+    :class:`~comems4build_ros.ros.plan.LaunchOptions`; the ROS 2 launch file builds its
+    plan through this same function (:mod:`comems4build_ros.ros.ros2_launch`).
+
+    Raises
+    ------
+    UsageError
+        Naming the option, file or parameter that is invalid.
+    """
     from ..ems import UnknownEMSError, controller_class
-    from ..fileio import check_out_dir
-    from ..ros.launcher import LaunchError, LaunchOptions, launch
+    from ..ros.plan import LaunchOptions
     from .options import UsageError, ems_controller, load_params
-    from .simulate import parse_assignments, warn_run
+    from .simulate import parse_assignments
 
     try:
         controller_class(args.ems)
@@ -146,7 +167,7 @@ def run(args: argparse.Namespace) -> int:
     params = load_params(args.config, overrides)
     ems_controller(args.ems, params, args.ems_option)  # the EMS node's own checks, before any node starts
     check_feed_scenario(args, params)
-    opts = LaunchOptions(
+    return LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
         scenario=args.scenario,
@@ -162,7 +183,7 @@ def run(args: argparse.Namespace) -> int:
         domain_id=args.domain_id,
         timeout_s=args.timeout,
         progress=not args.no_progress and sys.stderr.isatty(),
-        plant_params={} if args.step_timeout is None else {"step_timeout_s": float(args.step_timeout)},
+        plant_node_params={} if args.step_timeout is None else {"step_timeout_s": float(args.step_timeout)},
         plant=args.plant,
         clock=args.clock,
         broker_url=args.broker,
@@ -170,18 +191,31 @@ def run(args: argparse.Namespace) -> int:
         inputs=args.inputs,
         network=args.network,
         netem=args.netem,
-        containers=(os.cpu_count() or 1) if args.layout == "building" and args.containers is None
-        else args.containers,  # one per core, at most one per building (LaunchOptions.container_count)
-        host_mode=None if args.layout in (None, "building") else args.layout == "role",
+        containers=args.containers,
+        layout=args.layout,
+        namespace=args.namespace,
+        bag=Path(args.bag) if args.bag else None,
     )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Validate every input, then launch, wait, evaluate; print the main figures."""
+    from ..fileio import check_out_dir
+    from ..ros.launcher import launch
+    from ..ros.supervisor import LaunchError
+    from .options import UsageError
+    from .simulate import warn_run
+
+    opts = launch_options(args)
     if args.print_plan:
         from ..ros.plan import plan_run
 
         print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
         return 0
     check_out_dir(args.out)
-    if (Path(args.out) / "bag").exists():
-        raise UsageError(f"--out {args.out}: {Path(args.out) / 'bag'} exists (choose another --out or remove it)")
+    bag = Path(args.bag) if args.bag else Path(args.out) / "bag"
+    if bag.exists():
+        raise UsageError(f"--out {args.out}: {bag} exists (choose another --out or --bag, or remove it)")
     try:
         result = launch(opts)
     except LaunchError as exc:
@@ -206,8 +240,8 @@ def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
     run longer than the scenario, missing values the feed refuses), so that a bad
     scenario ends the launch with exit code 2 instead of a feed exiting after start-up.
     """
-    from ..ros.nodes.feed import check_scenario, load_scenario
     from ..ros.plan import feed_window
+    from ..scenario.run import check_scenario, load_scenario
     from .options import check_start
 
     check_start(args.start, params)

@@ -30,10 +30,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 
 def parse_assignments(items: list[str], what: str) -> dict[str, object]:
-    """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}`` (:func:`comems4build_ros.config.parse_assignments`)."""
+    """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}`` (values parsed as YAML scalars;
+    :func:`comems4build_ros.config.parse_assignments`, a bad item is a usage error)."""
+    from ..cli import UsageError
+    from ..config import ConfigError
     from ..config import parse_assignments as parse
 
-    return parse(items, what)
+    if any(not str(item).strip() for item in items):
+        raise UsageError(f"{what} '' is not KEY=VALUE")
+    try:
+        return parse(items, what)
+    except ConfigError as exc:
+        raise UsageError(str(exc)) from None
 
 
 def run(args: argparse.Namespace) -> int:

@@ -11,32 +11,7 @@ P_ch and P_d, so the battery never charges and discharges in the same step
 
 from __future__ import annotations
 
-import numpy as np
-
 from comems4build_ros.config import W_PER_KW, BatteryParams
-
-
-def soc_next(soc, p_ch_w, p_d_w, b: BatteryParams, dt_h: float):
-    """State of charge after one step, ``eq:batt_soc`` (vectorised, no clipping).
-
-    Parameters
-    ----------
-    soc : numeric
-        SOC[k-1] [-].
-    p_ch_w, p_d_w : numeric
-        Charging and discharging power at the battery terminals [W] (both >= 0).
-    b : BatteryParams
-        Capacity [kWh] and efficiencies [-].
-    dt_h : float
-        Step t_s [h].
-
-    Returns
-    -------
-    numeric
-        SOC[k] [-].
-    """
-    e_wh = b.e_max_kwh * W_PER_KW
-    return np.asarray(soc) + (b.eta_ch * np.asarray(p_ch_w) - np.asarray(p_d_w) / b.eta_d) * dt_h / e_wh
 
 
 def power_limits_w(soc: float, b: BatteryParams, dt_h: float) -> tuple[float, float]:

@@ -21,10 +21,6 @@ from scipy.linalg import expm
 
 from comems4build_ros.config import SECONDS_PER_HOUR, BuildingParams
 
-#: Names of the state and input vectors (order of the matrices).
-STATES = ("t_air_c", "t_wall_in_c", "t_wall_out_c")
-INPUTS = ("q_sh_w", "t_amb_c", "q_s_w_m2")
-
 
 def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
     """Continuous-time matrices A [1/s] and B of dx/dt = A x + B u.
@@ -79,18 +75,6 @@ def discretize(b: BuildingParams, dt_h: float) -> tuple[np.ndarray, np.ndarray]:
     aug[:n, n:] = bm
     phi = expm(aug * dt_h * SECONDS_PER_HOUR)
     return phi[:n, :n], phi[:n, n:]
-
-
-def heat_loss_coefficient_w_per_k(b: BuildingParams) -> float:
-    """Steady-state heat loss coefficient of the air node H [W/K].
-
-    The air node loses heat directly (R_air,amb) and through the envelope chain
-    R_w,air + R_w + R_w,amb in parallel; H = Q_h / (T_air - T_amb) when all heat enters
-    the air (f_conv = 1). With f_conv < 1 part of the heat delivered to the inner wall
-    node leaves through the envelope without passing the air, so slightly more heat is
-    needed per kelvin of air temperature (see :func:`steady_state_c`).
-    """
-    return 1.0 / b.r_air_amb_k_per_w + 1.0 / (b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w)
 
 
 def steady_state_c(q_sh_w: float, t_amb_c: float, q_s_w_m2: float, b: BuildingParams) -> np.ndarray:

@@ -30,21 +30,3 @@ def heat_w_from_l_per_h(l_per_h, dhw: DHWParams):
     return np.asarray(l_per_h, dtype=float) / SECONDS_PER_HOUR * heat_per_litre_j(dhw)
 
 
-def volume_next_l(v_l, q_in_w, q_demand_w, dhw: DHWParams, dt_h: float):
-    """Usable volume after one step [l], ``eq:DHW_model`` (vectorised, no bounds).
-
-    Parameters
-    ----------
-    v_l : numeric
-        V_DHW[k-1] [l].
-    q_in_w : numeric
-        Q_DHW = Q_h,DHW + Q_hr,FC [W].
-    q_demand_w : numeric
-        Q_dm,DHW [W].
-    dhw : DHWParams
-        Standing loss ``q_loss_w`` [W] and water properties.
-    dt_h : float
-        Step [h].
-    """
-    net_w = np.asarray(q_in_w, dtype=float) - np.asarray(q_demand_w, dtype=float) - dhw.q_loss_w
-    return np.asarray(v_l, dtype=float) + net_w * dt_h * SECONDS_PER_HOUR / heat_per_litre_j(dhw)

@@ -142,15 +142,6 @@ def operating_point(p_el_w, fc: FuelCellParams):
     return p_h2, eta
 
 
-def recovered_heat_w(p_el_w, p_h2_w, eta_sys: float):
-    """Recoverable heat Q_hr = n_FC * LHV * (eta_sys - eta_el) [W], ``eq:FC_sys_efficiency``.
-
-    ``n_FC * LHV * eta_el`` is the electrical output, so Q_hr = eta_sys * P_H2 - P_el;
-    negative values (eta_el above eta_sys) are set to 0.
-    """
-    return np.maximum(eta_sys * np.asarray(p_h2_w, dtype=float) - np.asarray(p_el_w, dtype=float), 0.0)
-
-
 class FuelCellTable:
     """P_H2(P_el) on a uniform grid for fast scalar lookups in the plant step.
 

@@ -58,20 +58,3 @@ def heat_capacity_w(t_amb_c, t_supply_c, hp: HeatPumpParams):
     return np.asarray(cop(t_amb_c, t_supply_c, hp)) * np.asarray(p_el_max_w(t_amb_c, hp))
 
 
-def clip_modulation(mod: float, mod_min: float) -> tuple[float, bool]:
-    """Map a requested modulation onto {0} U [mod_min, 1].
-
-    Values at or below 0 give 0, values above 1 give 1, values in (0, mod_min) go to
-    the nearer of 0 and mod_min. ``mod`` must be finite.
-
-    Returns
-    -------
-    (eta_HP, clipped)
-    """
-    if mod <= 0.0:
-        return 0.0, mod < 0.0
-    if mod > 1.0:
-        return 1.0, True
-    if mod < mod_min:
-        return (mod_min if mod >= 0.5 * mod_min else 0.0), True
-    return mod, False

@@ -22,7 +22,7 @@ from urllib.parse import urlsplit
 from pydantic import Field, field_validator, model_validator
 
 from ..config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
-from ..types import HP_DHW, HP_OFF, HP_SH, Action
+from ..types import HP_DHW, HP_OFF, HP_SH
 
 #: Measurements the bridge knows: SI name -> meaning [unit]. The first four are required.
 MEASUREMENTS: dict[str, str] = {
@@ -394,6 +394,3 @@ def load_topic_map(path: str | Path | None = None, broker_url: str | None = None
     return validate(TopicMap, data, str(path))
 
 
-def command_values(action: Action) -> dict[str, float]:
-    """Set-point values (SI) of an action, by set-point name."""
-    return {name: float(getattr(action, name)) for name in SETPOINTS}

@@ -129,11 +129,6 @@ def quality_indicators_figure(runs: Mapping[str, RunData]) -> Figure:
     return fig
 
 
-def quality_indicators(runs: Mapping[str, RunData], path: Path) -> Path:
-    """Write :func:`quality_indicators_figure`; returns the PNG path."""
-    return save_figure(quality_indicators_figure(runs), path)
-
-
 @styled
 def hess_usage_figure(runs: Mapping[str, RunData]) -> Figure:
     """Weekly BESS charged energy and H2 consumption (after ``fig:HESS_usage``)."""
@@ -141,11 +136,6 @@ def hess_usage_figure(runs: Mapping[str, RunData]) -> Figure:
     _boxes(axes[0], runs, "bess_charged_kwh", "charged [kWh/week]", "(a) Battery charging")
     _boxes(axes[1], runs, "h2_kwh", r"$\mathrm{H_2}$ consumed, LHV [kWh/week]", "(b) Hydrogen consumption")
     return fig
-
-
-def hess_usage(runs: Mapping[str, RunData], path: Path) -> Path:
-    """Write :func:`hess_usage_figure`; returns the PNG path."""
-    return save_figure(hess_usage_figure(runs), path)
 
 
 @styled
@@ -180,11 +170,6 @@ def working_hours_fc_figure(runs: Mapping[str, RunData]) -> Figure:
         ax.tick_params(axis="x", length=0)
         ax.grid(axis="x", visible=False)
     return fig
-
-
-def working_hours_fc(runs: Mapping[str, RunData], path: Path) -> Path:
-    """Write :func:`working_hours_fc_figure`; returns the PNG path."""
-    return save_figure(working_hours_fc_figure(runs), path)
 
 
 @styled

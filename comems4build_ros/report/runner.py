@@ -104,7 +104,9 @@ def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     """
     import json
 
-    from ..ros.launcher import LaunchError, LaunchOptions, launch
+    from ..ros.launcher import launch
+    from ..ros.plan import LaunchOptions
+    from ..ros.supervisor import LaunchError
 
     out = Path(task.out_dir)
     if task.scenario_overrides:

@@ -118,6 +118,7 @@ class BagWriter:
         if self._writer.compression_mode != CompressionMode.NONE:
             raise RuntimeError("BagWriter writes uncompressed MCAP records only")
         self._storage = storage
+        storage.add_connection = self._add_channel  # channels with rosbag2's metadata (see _add_channel)
         self._connections: dict[str, Any] = {}
         self._chunk_opened_at: float | None = None
         self.message_count = 0
@@ -139,6 +140,21 @@ class BagWriter:
             typestore=typestore(),
             offered_qos_profiles=[qos or qos_for_bag()],
         )
+
+    def _add_channel(self, connection: Any, offered_qos_profiles: str) -> None:
+        """MCAP channel record of ``connection`` with the metadata rosbag2's own MCAP writer
+        gives a channel: ``offered_qos_profiles`` (YAML) and ``topic_type_hash`` (the type's
+        RIHS01 hash of the Jazzy typestore); rosbags' own channel lacks the hash. Called by
+        rosbags' ``Writer.add_connection`` in place of its storage's method."""
+        from rosbags.rosbag2.storage_mcap import Channel, write_channel
+
+        st = self._storage
+        meta = {"offered_qos_profiles": offered_qos_profiles, "topic_type_hash": str(connection.digest)}
+        channel = Channel(connection.id, connection.msgtype, connection.topic, connection.ext.serialization_format,
+                          b"".join(_mcap_string(k) + _mcap_string(v) for k, v in meta.items()))
+        st.channels.append(channel)
+        st.channel_stats[connection.id] = 0
+        write_channel(st.chunk.bio, channel, st.schemas)
 
     def set_custom_data(self, key: str, value: str) -> None:
         """Add a ``custom_data`` entry to ``metadata.yaml`` (written on close)."""
@@ -210,6 +226,12 @@ class BagWriter:
         self.close()
 
 
+def _mcap_string(text: str) -> bytes:
+    """An MCAP string: uint32 byte length (little endian), UTF-8 bytes."""
+    raw = text.encode("utf-8")
+    return struct.pack("<I", len(raw)) + raw
+
+
 def set_ros_distro(metadata: Path, distro: str = ROS_DISTRO) -> None:
     """Write ``ros_distro: <distro>`` into a bag's ``metadata.yaml`` (rosbags writes its own
     name there); atomically (temporary file + rename)."""
@@ -272,7 +294,7 @@ def bag_set(path: str | Path) -> list[Path]:
     p = Path(path)
     if not p.is_dir() or any(p.glob("*.mcap")) or (p / "metadata.yaml").exists():
         return [p]
-    subs = sorted((d for d in p.iterdir() if d.is_dir() and any(d.glob("*.mcap"))), key=lambda d: _ns_key(d.name))
+    subs = sorted((d for d in p.iterdir() if d.is_dir() and any(d.glob("*.mcap"))), key=lambda d: ns_key(d.name))
     return subs or [p]
 
 
@@ -384,431 +406,7 @@ def decode(msgtype: str, raw: bytes | memoryview) -> Any:
     return typestore().deserialize_cdr(raw, ros_type_to_bag_type(msgtype))
 
 
-# ---------------------------------------------------------------------- bag -> timeseries
-#: Topic (relative contract name) with one timeseries row per step.
-RECORD_TOPIC = "plant/record"
-#: Topic carrying the EMS's per-step ``step_info`` as JSON.
-INFO_TOPIC = "ems/info"
-#: Topic carrying the run length (element ``n_steps``).
-TRUTH_TOPIC = "feed/truth"
-#: The plant's step announcements (data = step).
-STEP_TOPIC = "plant/step"
-#: The feed's scenario description (JSON, once).
-FEED_INFO_TOPIC = "feed/info"
-#: Steps before the last record of a cut bag that the gap check leaves out (feed
-#: look-ahead + 1) [steps].
-CUT_TAIL_STEPS = 5
-#: File the recorder writes next to the MCAP file with the run's description.
-RUN_INFO_FILE = "run_info.json"
-
-
-@dataclass
-class BagRun:
-    """One building's run rebuilt from a bag.
-
-    Attributes
-    ----------
-    namespace : ``/`` or ``/building_<i>``
-    timeseries : one row per step, columns of ``comems4build_ros.sim.TIMESERIES_COLUMNS``
-        (plus ``ems_<key>`` when the EMS published its step_info for every step)
-    n_steps : steps of the run according to ``feed/truth`` (None if never recorded)
-    first_ns, last_ns : receive times of the first message and of the last ``plant/record`` [ns]
-    counters : the plant's fault counters after the last recorded step
-    gaps : topic -> steps of the recorded run with no message on it (:func:`find_gaps`)
-    ems, scenario : EMS name (from ``ems/info``) and scenario description (``feed/info``)
-        as the nodes announced them, None if not recorded
-    """
-
-    namespace: str
-    timeseries: Any
-    n_steps: int | None
-    first_ns: int
-    last_ns: int
-    counters: dict[str, int] = field(default_factory=dict)
-    gaps: dict[str, list[int]] = field(default_factory=dict)
-    ems: str | None = None
-    scenario: dict[str, Any] | None = None
-
-    @property
-    def complete(self) -> bool:
-        """Every step of the run is in the bag."""
-        return self.n_steps is not None and len(self.timeseries) == self.n_steps
-
-
-def read_run_info(path: str | Path) -> dict[str, Any]:
-    """The ``run_info.json`` beside the MCAP file (``{}`` if absent)."""
-    import json
-
-    p = bag_set(path)[0]
-    f = (p if p.is_dir() else p.parent) / RUN_INFO_FILE
-    if not f.is_file():
-        return {}
-    try:
-        out = json.loads(f.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{f}: invalid JSON: {exc}") from None
-    if not isinstance(out, dict):
-        raise ValueError(f"{f}: expected a JSON object")
-    return out
-
-
-def _split(topic: str, name: str) -> str | None:
-    """Namespace of ``topic`` if it ends with the contract name ``name``."""
-    if topic == f"/{name}":
-        return "/"
-    if topic.endswith(f"/{name}"):
-        return topic[: -len(name) - 1]
-    return None
-
-
-def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
-    """Rebuild the per-step timeseries of every namespace of a bag.
-
-    Parameters
-    ----------
-    path : rosbag2 directory or ``.mcap`` file (complete or cut short by a SIGKILL)
-    timezone : time zone of the ``time`` column (the site's, ``site.timezone``)
-    info : filled like :func:`iter_messages` does
-
-    Raises
-    ------
-    ValueError
-        If the bag has no ``plant/record`` topic, a record does not match the contract
-        layout, or steps are missing in the middle of a run (naming topic and steps).
-    """
-    import json
-
-    import pandas as pd
-
-    from ..sim import TIMESERIES_COLUMNS
-    from .contract import load_contract
-
-    contract = load_contract()
-    layout = contract.topic(RECORD_TOPIC).layout({})
-    truth_layout = contract.topic(TRUTH_TOPIC).layout({})
-    n_idx = truth_layout.index["n_steps"]
-    info = info if info is not None else BagInfo(Path(path), [], False)
-    records: dict[str, dict[int, tuple[int, Any]]] = {}
-    infos: dict[str, dict[int, dict[str, float]]] = {}
-    ems_names: dict[str, str] = {}
-    scenarios: dict[str, dict[str, Any]] = {}
-    n_steps: dict[str, int] = {}
-    seen: dict[str, set[int]] = {}  # topic -> steps with a message (gap check)
-    first_ns: int | None = None
-    for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
-        first_ns = t_ns if first_ns is None else min(first_ns, t_ns)
-        ns = _split(topic, RECORD_TOPIC)
-        if ns is not None:
-            data = decode(msgtype, raw).data
-            if len(data) != layout.length:
-                raise ValueError(
-                    f"bag {path}: topic '{topic}': {len(data)} elements, the contract layout has {layout.length}"
-                )
-            step = int(data[0])
-            records.setdefault(ns, {}).setdefault(step, (t_ns, data))
-            continue
-        if msgtype.endswith("Float64MultiArray"):
-            data = decode(msgtype, raw).data
-            if len(data):
-                seen.setdefault(topic, set()).add(int(data[0]))
-            ns = _split(topic, TRUTH_TOPIC)
-            if ns is not None and ns not in n_steps:
-                n_steps[ns] = int(data[n_idx])
-            continue
-        ns = _split(topic, INFO_TOPIC)
-        if ns is not None:
-            try:
-                msg = json.loads(decode(msgtype, raw).data)
-                step = int(msg["step"])
-                infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
-            except (ValueError, KeyError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
-            seen.setdefault(topic, set()).add(step)
-            if isinstance(msg.get("ems"), str):
-                ems_names.setdefault(ns, msg["ems"])
-            continue
-        ns = _split(topic, STEP_TOPIC)
-        if ns is not None:
-            seen.setdefault(topic, set()).add(int(decode(msgtype, raw).data))
-            continue
-        ns = _split(topic, FEED_INFO_TOPIC)
-        if ns is not None:
-            try:
-                scenarios.setdefault(ns, dict(json.loads(decode(msgtype, raw).data)))
-            except (ValueError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid JSON: {exc}") from None
-    if not records:
-        topics = ", ".join(sorted(info.topics)) or "none"
-        damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
-        raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
-    columns = [c for c in TIMESERIES_COLUMNS if c != "time"]
-    counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands", "foreign_commands")
-    runs: dict[str, BagRun] = {}
-    for ns in sorted(records, key=_ns_key):
-        by_step = records[ns]
-        steps = sorted(by_step)
-        expected = list(range(len(steps)))
-        if steps != expected:
-            missing = sorted(set(range(steps[-1] + 1)) - set(steps))
-            raise ValueError(
-                f"bag {path}: topic '{resolve_ns(ns, RECORD_TOPIC)}': steps missing in the middle of the run: "
-                f"{_ranges(missing)} (recorder overloaded or messages lost)"
-            )
-        rows = [layout.unpack(by_step[k][1]) for k in steps]
-        ts = pd.DataFrame({c: [r[c] for r in rows] for c in columns})
-        times = pd.to_datetime([r["time_unix_s"] for r in rows], unit="s", utc=True).tz_convert(timezone)
-        ts.insert(0, "time", [t.isoformat() for t in times])
-        ts = ts[list(TIMESERIES_COLUMNS)]
-        step_infos = infos.get(ns, {})
-        if step_infos and all(k in step_infos for k in steps):
-            ts = pd.concat([ts, pd.DataFrame([step_infos[k] for k in steps]).add_prefix("ems_")], axis=1)
-        last = rows[-1]
-        complete = n_steps.get(ns) is not None and len(steps) == n_steps[ns]
-        fallback = {k for k, r in zip(steps, rows) if r["fallback"]}
-        runs[ns] = BagRun(
-            namespace=ns,
-            timeseries=ts,
-            n_steps=n_steps.get(ns),
-            first_ns=int(first_ns or 0),
-            last_ns=max(t for t, _ in by_step.values()),
-            counters={c: int(last[c]) for c in counter_names},
-            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete, set(info.topics)),
-            ems=ems_names.get(ns),
-            scenario=scenarios.get(ns),
-        )
-    return runs
-
-
-def is_per_step(spec: Any) -> bool:
-    """Whether a contract topic carries one message per step (its step in the message):
-    every ``Float64MultiArray`` topic (element 0), ``plant/step`` and ``ems/info``. The gap
-    check and the recorder's end of run expect each step of these."""
-    return bool(spec.is_array) or spec.name in (STEP_TOPIC, INFO_TOPIC)
-
-
-def find_gaps(
-    contract: Any,
-    ns: str,
-    n: int,
-    fallback: set[int],
-    seen: dict[str, set[int]],
-    complete: bool,
-    recorded: set[str] | None = None,
-) -> dict[str, list[int]]:
-    """Steps of a recorded run with no message, per topic of namespace ``ns``.
-
-    Checked: every ``Float64MultiArray`` topic of the contract (element 0 is the step),
-    ``plant/step`` and, if the EMS published it at all, ``ems/info``, among the topics the
-    bag records (``recorded``: its connections; None = all; a topic left out of a
-    recording is not a gap); steps ``0 .. n-1``
-    (``n`` = recorded ``plant/record`` steps), except the fallback steps for the EMS's
-    topics (no command is expected there). A bag cut short (recorder killed) is checked
-    up to :data:`CUT_TAIL_STEPS` steps before its last record (the feed runs ahead and
-    the last messages before the cut need not all be in), and each topic with messages
-    only up to its own last recorded step: the recorder's queues of different topics can
-    be many steps apart when it is killed (what it had not written is the cut, reported
-    as ``bag_incomplete``; a step missing inside a topic's recorded span is a gap).
-    """
-    roles = {name: spec.role for name, spec in contract.nodes.items()}
-    last = n if complete else max(0, n - CUT_TAIL_STEPS)
-    out: dict[str, list[int]] = {}
-    for spec in contract.topics.values():
-        if spec.name == RECORD_TOPIC:
-            continue
-        full = resolve_ns(ns, spec.name)
-        if recorded is not None and full not in recorded:
-            continue
-        if not is_per_step(spec) or (spec.name == INFO_TOPIC and full not in seen):
-            continue
-        from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
-        got = seen.get(full, set())
-        end = last if complete or not got else min(last, max(got) + 1)
-        missing = [k for k in range(end) if k not in got and not (from_ems and k in fallback)]
-        if missing:
-            out[full] = missing
-    return out
-
-
-class BagGapError(ValueError):
-    """The bag misses messages in the middle of a run (names topics and steps)."""
-
-
-def describe_gaps(gaps: dict[str, list[int]]) -> str:
-    """``topic: N step(s) (ranges)`` per topic, one per line."""
-    return "\n".join(f"  {t}: {len(steps)} step(s) missing ({_ranges(steps)})" for t, steps in sorted(gaps.items()))
-
-
-def resolve_ns(ns: str, name: str) -> str:
-    """``/`` + ``a/b`` -> ``/a/b``; ``/building_1`` + ``a/b`` -> ``/building_1/a/b``."""
-    return f"{ns.rstrip('/')}/{name}"
-
-
-def _ns_key(ns: str) -> tuple[int, str]:
+def ns_key(ns: str) -> tuple[int, str]:
+    """Sort key of a namespace or bag name: ``building_2`` before ``building_10``."""
     tail = ns.rsplit("_", 1)[-1]
     return (int(tail), ns) if tail.isdigit() else (-1, ns)
-
-
-def _ranges(values: list[int]) -> str:
-    """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (at most 10 ranges)."""
-    out: list[str] = []
-    start = prev = None
-    for v in values:
-        if start is None:
-            start = prev = v
-        elif v == prev + 1:
-            prev = v
-        else:
-            out.append(f"{start}-{prev}" if prev != start else f"{start}")
-            start = prev = v
-    if start is not None:
-        out.append(f"{start}-{prev}" if prev != start else f"{start}")
-    return ", ".join(out[:10]) + (" ..." if len(out) > 10 else "")
-
-
-def building_dir(out: Path, namespace: str, n_namespaces: int) -> Path:
-    """Output directory of one namespace: ``out`` itself for a single root-namespace run."""
-    return out if n_namespaces == 1 and namespace == "/" else out / namespace.strip("/")
-
-
-def evaluate_bag(
-    path: str | Path,
-    out: str | Path,
-    params: Any = None,
-    wall_s: float | None = None,
-    timeseries: bool = True,
-    accept_gaps: bool = False,
-) -> dict[str, dict[str, Any]]:
-    """Weekly KPIs and summary of every building in a bag, with the in-process KPI code.
-
-    Writes, per namespace, ``timeseries.csv`` (optional), ``weekly.csv`` and
-    ``summary.json`` through :func:`comems4build_ros.sim.write_run` (into ``out`` for a
-    single building in the root namespace, else into ``out/building_<i>/``, and then
-    ``out/weekly.csv`` with a ``building`` column and ``out/summary.json`` with one
-    summary per building).
-
-    Parameters
-    ----------
-    path : rosbag2 directory or ``.mcap`` file
-    out : output directory
-    params : plant parameters (default: those named in the bag's ``run_info.json``)
-    wall_s : wall time of the run [s] for the summary (the launcher's; None for a bag
-        evaluated on its own: the bag does not know it)
-    accept_gaps : evaluate a bag with messages missing on some topic (default: refuse)
-
-    Summary entries besides the KPIs (as in-process): ``ems``, ``scenario``, ``forecast``
-    from ``run_info.json`` or, without it, as the EMS (``ems/info``) and the feed
-    (``feed/info``) announced them in the bag; ``wall_s``; ``ems_s`` = None (the
-    controller's own compute time is not in the bag); ``bag_duration_s`` (receive time of
-    the last record minus that of the first message); ``lost_messages`` (topic -> steps
-    without a message, ``{}`` for a complete recording). An incomplete run or bag adds
-    ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
-    read, whether an ``.mcap`` file ended early, and the damage found, see
-    :class:`BagInfo`); a partial last week is left out of the weekly medians like any
-    partial week. Fault counters of the plant other than fallback steps are added as
-    ``ros_faults`` when non-zero. Every file is written all-or-nothing.
-
-    Raises
-    ------
-    BagGapError
-        When some topic misses messages and ``accept_gaps`` is false (naming the
-        topics and the steps).
-
-    Returns
-    -------
-    namespace -> summary
-    """
-    import json
-
-    import pandas as pd
-
-    from ..config import load_plant_params
-    from ..fileio import atomic_dir
-    from ..sim import evaluate_timeseries, write_run
-
-    out = Path(out)
-    run_info = read_run_info(path)
-    if params is None:
-        params = load_plant_params(run_info.get("config_files") or [], run_info.get("overrides") or {})
-    info = BagInfo(Path(path), [], False)
-    runs = read_runs(path, params.site.timezone, info)
-    gaps = {t: steps for run in runs.values() for t, steps in run.gaps.items()}
-    if gaps and not accept_gaps:
-        raise BagGapError(
-            f"bag {path}: messages missing (lost in the recording) on {len(gaps)} topic(s):\n{describe_gaps(gaps)}\n"
-            "KPIs from plant/record would still be exact, but the bag is not a complete record of the run; "
-            "evaluate it anyway with --accept-gaps"
-        )
-    summaries: dict[str, dict[str, Any]] = {}
-    weekly_parts = []
-    for ns, run in runs.items():
-        scen = run.scenario or {}
-        extra: dict[str, Any] = {
-            "ems": run_info.get("ems") or run.ems,
-            "scenario": run_info.get("scenario") or scenario_label(scen.get("scenario")),
-            "wall_s": wall_s,
-            "ems_s": None,
-            "forecast": run_info.get("forecast") if run_info else _forecast_of(run.ems, scen.get("forecast")),
-            "bag_duration_s": (run.last_ns - run.first_ns) / NS_PER_S,
-            "lost_messages": {t: len(steps) for t, steps in sorted(run.gaps.items())},
-        }
-        if not run.complete or not info.complete or info.damage:
-            extra["bag_incomplete"] = {
-                "steps_recorded": len(run.timeseries),
-                "steps_expected": run.n_steps,
-                "metadata_yaml": info.complete,
-                "truncated_mcap": info.truncated,
-                "damage": list(info.damage),
-            }
-        faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
-        if faults:
-            extra["ros_faults"] = faults
-        result = evaluate_timeseries(run.timeseries, params, extra)
-        write_run(result, building_dir(out, ns, len(runs)), timeseries=timeseries)
-        summaries[ns] = result.summary
-        weekly_parts.append(result.weekly.assign(building=ns.strip("/") or "root"))
-    if len(runs) > 1 or "/" not in runs:
-        weekly = pd.concat(weekly_parts, ignore_index=True)
-        weekly = weekly[["building", *[c for c in weekly.columns if c != "building"]]]
-        combined = {"buildings": {ns.strip("/"): s for ns, s in summaries.items()}}
-        with atomic_dir(out) as tmp:
-            weekly.to_csv(tmp / "weekly.csv", index=False)
-            (tmp / "summary.json").write_text(json.dumps(combined, indent=2, default=_json_default) + "\n", "utf-8")
-    return summaries
-
-
-def _json_default(value: Any) -> Any:
-    import math
-
-    import numpy as np
-
-    if isinstance(value, np.generic):
-        value = value.item()
-        return None if isinstance(value, float) and not math.isfinite(value) else value
-    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
-
-
-def lost_messages(path: str | Path) -> dict[str, int]:
-    """Per topic of every namespace, steps of the recorded run with no message (:func:`find_gaps`).
-
-    A complete recording gives ``{}``; used by the tests and ``bench ros`` to show that
-    the recorder kept up.
-    """
-    runs = read_runs(path, "UTC")
-    return {t: len(steps) for run in runs.values() for t, steps in sorted(run.gaps.items())}
-
-
-def scenario_label(name: Any) -> str | None:
-    """The feed's scenario name (``Scenario.name``, as the in-process summary has it), None if absent."""
-    return name if isinstance(name, str) and name else None
-
-
-def _forecast_of(ems: str | None, mode: Any) -> str | None:
-    """Forecast mode of the summary: the feed's mode for an MPC-level EMS, else None (as in-process)."""
-    if ems is None or not isinstance(mode, str):
-        return None
-    from ..ems import UnknownEMSError, controller_class
-
-    try:
-        return mode if controller_class(ems).info_level == "mpc" else None
-    except UnknownEMSError:
-        return None

@@ -4,7 +4,7 @@ The YAML file is the single source of truth for every topic of the node set: nam
 (relative, so namespaces such as ``/building_3/`` work), interface type, unit, the nodes
 that may publish and subscribe, QoS, and for ``Float64MultiArray`` topics the label of
 each element. The nodes create their publishers and subscriptions from it (and
-:mod:`comems4build_ros.ros.common` refuses any pub/sub the contract does not declare),
+:mod:`comems4build_ros.ros.node` refuses any pub/sub the contract does not declare),
 the recorder records every topic in it, the bag evaluation decodes the layouts, and the
 docs table is generated from it (:func:`markdown_table`).
 

@@ -5,7 +5,7 @@
 the EMS node, plus the recorders, each as its own OS process or, for several buildings,
 one process per role), has the supervisor start and watch it
 (:func:`comems4build_ros.ros.supervisor.run_plan`), then evaluates the bag with the
-in-process KPI code (:func:`comems4build_ros.ros.bag.evaluate_bag`). No rclpy in this
+in-process KPI code (:func:`comems4build_ros.ros.bag_eval.evaluate_bag`). No rclpy in this
 process.
 
 ``--buildings N``: building ``i`` runs under the namespace ``/building_<i>`` with
@@ -13,8 +13,6 @@ scenario seed ``seed + i`` (default scenario) and its own recorder writing
 ``bag/building_<i>/`` (one recorder for all namespaces spent its time in rclpy's executor,
 whose per-wake-up bookkeeping grows with the square of the number of subscriptions: 512
 subscriptions for 16 buildings could not keep up).
-
-The names below re-export the plan and supervisor API that callers and tests use.
 """
 
 from __future__ import annotations
@@ -25,46 +23,8 @@ from pathlib import Path
 from typing import Any
 
 from ..progress import ProgressBar
-from .plan import (  # noqa: F401  (re-exported)
-    DISCOVERY_PORT_BASE,
-    EMS_MODULE,
-    EMS_SCRIPTS,
-    HOST_BUILDINGS_PER_RECORDER,
-    HOST_MODULE,
-    HOST_RECORDER_TICK_S,
-    HOST_STEP_TIMEOUT_S,
-    HOST_WATCHDOG_PERIOD_S,
-    NODE_MODULES,
-    PROGRESS_PERIOD_S,
-    LaunchOptions,
-    RunPlan,
-    bag_dir,
-    host_command,
-    namespaces,
-    node_command,
-    plan_run,
-    ros_args,
-    run_info,
-)
-from .supervisor import (  # noqa: F401  (re-exported)
-    DOMAIN_IDS,
-    FASTDDS_PROFILE,
-    GRACE_S,
-    LOCK_DIR,
-    POLL_S,
-    RECORDER_DRAIN_S,
-    RECORDER_GRACE_S,
-    Child,
-    LaunchError,
-    ProcessGroup,
-    acquire_domain_id,
-    child_env,
-    fastdds_profile,
-    processes_with_env,
-    run_plan,
-    sigterm_as_keyboard_interrupt,
-    sweep,
-)
+from .plan import LaunchOptions, plan_run
+from .supervisor import acquire_domain_id, run_plan
 
 
 @dataclass
@@ -90,10 +50,10 @@ def launch(opts: LaunchOptions) -> LaunchResult:
         On Ctrl-C or SIGTERM (after every child has been stopped).
     """
     from ..config import load_plant_params
-    from .bag import evaluate_bag
+    from .bag_eval import evaluate_bag
 
     out = Path(opts.out)
-    bag = out / "bag"
+    bag = Path(opts.bag) if opts.bag is not None else out / "bag"
     if bag.exists():
         raise FileExistsError(f"{bag} exists: choose another --out or remove it")
     params = load_plant_params(opts.config_files, opts.overrides)
@@ -104,7 +64,7 @@ def launch(opts: LaunchOptions) -> LaunchResult:
             plan = plan_run(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
             if len(plan.buildings) > 1:
-                bag.mkdir()
+                bag.mkdir(parents=True)
             times = run_plan(plan, opts.on_progress or bar)
     finally:
         bar.close()

@@ -1,10 +1,10 @@
-"""The plan of a launch: which nodes run, in which process and host group, with what.
+"""The plan of a launch: which nodes run, in which process and on which network side, with what.
 
 A :class:`RunPlan` is plain data, built by :func:`plan_run` from the
 :class:`LaunchOptions` of ``comems4build launch`` without starting anything: the
-buildings (namespace, scenario seed, bag directory), the host groups (where a set of
-processes runs: the local host, or a network namespace with its own address), and the
-processes (command line, the nodes each hosts with their namespace and parameters,
+buildings (namespace, scenario seed, bag directory), the network sides (where a set of
+processes runs: this machine as it is, or a network namespace with its own address), and
+the processes (command line, the nodes each runs with their namespace and parameters,
 the files to write before the start, environment additions, and the exit rule). The
 supervisor (:mod:`comems4build_ros.ros.supervisor`) starts and watches any plan; the
 launcher (:mod:`comems4build_ros.ros.launcher`) joins the two and evaluates the bag.
@@ -15,9 +15,9 @@ Every way to run is an option of the plan, never a branch through the supervisor
   ``building`` (``containers`` container processes, one per core by default, each
   running every node, recorder included, of its share of the buildings: ROS 2
   composition; the default for more buildings) or ``role`` (one process per role
-  hosting that role's nodes of every building, recorders split by
+  running that role's nodes of every building, recorders split by
   ``buildings_per_recorder``; the default for more buildings on the ``netns`` network);
-  see :mod:`comems4build_ros.ros.host`;
+  see :mod:`comems4build_ros.ros.container`;
 * ``discovery_server``: a Fast DDS discovery server process and ``ROS_DISCOVERY_SERVER``
   in every other process's environment;
 * ``plant``: ``sim`` (``plant_sim`` on ROS) or ``mqtt``: the building behind MQTT, i.e.
@@ -58,46 +58,48 @@ NODE_MODULES: dict[str, str] = {
     "recorder": "comems4build_ros.ros.nodes.recorder",
     "replay": "comems4build_ros.ros.nodes.replay",
     "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
-    "mqtt_plant": "comems4build_ros.mqtt.building",
+    "mqtt_plant": "comems4build_ros.mqtt.plant",
 }
 #: Module of the embedded MQTT broker (``plant="mqtt"`` without a broker URL).
 BROKER_MODULE = "comems4build_ros.mqtt.broker"
 #: EMS name -> console script (EMS without one run as ``python -m ...ems_node --ems NAME``).
 EMS_SCRIPTS: dict[str, str] = {"fuzzy": "fuzzy_ems", "rbc": "rbc_ems", "mpc": "mpc_ems"}
 EMS_MODULE = "comems4build_ros.ros.nodes.ems_node"
-#: Module of the host processes (one process per role for many buildings).
-HOST_MODULE = "comems4build_ros.ros.host"
+#: Module of the container processes (layouts ``building`` and ``role``).
+CONTAINER_MODULE = "comems4build_ros.ros.container"
 #: Recorder progress line period [s].
 PROGRESS_PERIOD_S = 0.25
 #: UDP port of the discovery server: this base + the (locked) domain id.
 DISCOVERY_PORT_BASE = 11811
-#: Buildings per recorder process in host mode (one recorder process for all 16 buildings
+#: Buildings per recorder process in layout ``role`` (one recorder process for all 16 buildings
 #: would hold 16 x 32 subscriptions in one executor, see the module docstring of the launcher).
-HOST_BUILDINGS_PER_RECORDER = 4
-#: Host mode: plant_sim's step timeout [s]. One EMS process answers every building in
+ROLE_BUILDINGS_PER_RECORDER = 4
+#: Container processes: plant_sim's step timeout [s]. One EMS process may answer every building in
 #: turn, so on a loaded machine a command can come later than the 5 s meant to detect a
-#: dead EMS (a dead host process stops the launch anyway). Overridden by ``plant_params``.
-HOST_STEP_TIMEOUT_S = 60.0
-#: Host mode: plant_sim's watchdog and the recorder's housekeeping timer periods [s]
+#: dead EMS (a dead container process stops the launch anyway). Overridden by ``plant_node_params``.
+CONTAINER_STEP_TIMEOUT_S = 60.0
+#: Container processes: plant_sim's watchdog and the recorder's housekeeping timer periods [s]
 #: (instead of 0.02 s and 0.05 s: N nodes' timers wake one shared executor N times as often).
-HOST_WATCHDOG_PERIOD_S = 0.1
-HOST_RECORDER_TICK_S = 0.2
+CONTAINER_WATCHDOG_PERIOD_S = 0.1
+CONTAINER_RECORDER_TICK_S = 0.2
 #: Process layouts: one process per node, one process per role for all buildings, or
 #: container processes each running every node of a share of the buildings.
 LAYOUTS = ("node", "role", "building")
 #: Networks: this host as it is, or two network namespaces joined by a veth pair.
 NETWORKS = ("local", "netns")
-#: Host group of each role in the ``netns`` network (the others: everything in ``local``).
+#: Network side of each role in the ``netns`` network (the others: everything in ``local``).
 #: (An MQTT broker goes with the building it serves, on the plant's host.)
-NETNS_GROUP_OF_ROLE = {"plant": "plant_host", "feed": "plant_host", "broker": "plant_host", "ems": "ems_host",
-                       "recorder": "ems_host"}
+NETNS_SIDE_OF_ROLE = {"plant": "plant_side", "feed": "plant_side", "broker": "plant_side", "ems": "ems_side",
+                       "recorder": "ems_side"}
+#: Fast DDS profile given to every node unless the user sets one (see the file's comment).
+FASTDDS_PROFILE = "fastdds_profile.xml"
 #: Fast DDS profile of the ``netns`` network: UDPv4 only (no shared memory across hosts).
 FASTDDS_UDP_PROFILE = "fastdds_profile_udp.xml"
 #: Stop stages: plant, feed and EMS first, then the recorders (they close the bags),
 #: then services (discovery server).
 STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES = 0, 1, 2
-#: Name of the host group of a plan that runs everything on this host as it is.
-LOCAL_GROUP = "local"
+#: Name of the network side of a plan that runs everything on this machine as it is.
+LOCAL_SIDE = "local"
 #: Default overall time limit of a launch: this start-up allowance plus
 #: :data:`TIME_LIMIT_PER_STEP_S` per building-step (:data:`TIME_LIMIT_PER_STEP_MPC_S` for
 #: an MPC; plus the step period of a wall clock) [s]. A run that needs longer (a paused or
@@ -131,19 +133,22 @@ class LaunchOptions:
     progress : show a progress bar on stderr (:class:`comems4build_ros.progress.ProgressBar`)
     on_progress : called as ``on_progress(recorded steps, total steps)`` while the run goes
         (instead of the bar; e.g. a worker's reporter to a parent's bars)
-    plant_params : extra ``-p`` parameters of plant_sim (e.g. ``step_timeout_s``)
+    plant_node_params : extra ROS parameters of plant_sim (e.g. ``step_timeout_s``)
     discovery_server : use a Fast DDS discovery server (None = with more than one building
-        in process-per-node mode; never in host mode)
-    host_mode : one process per role hosting the nodes of all buildings (see
-        :mod:`comems4build_ros.ros.host`; ``layout`` ``role``; False = ``node``); None =
-        the default layout (``node`` for one building, ``building`` for more; ``role``
-        for more on the ``netns`` network)
-    buildings_per_recorder : buildings recorded by one recorder process in host mode
-    containers : run every node of the buildings in this many container processes (layout
-        ``building``: recorder, EMS, feed and plant of building i in container i mod
-        ``containers``; at most one container per building); None = one container per
-        core when the layout is ``building`` by default (more than one building, no
-        ``host_mode``)
+        in layout ``node``; never in the container layouts)
+    layout : process layout (:data:`LAYOUTS`, see :func:`effective_layout`): ``node`` (one
+        process per node), ``building`` (container processes, each running every node of
+        its share of the buildings) or ``role`` (one container process per role for all
+        buildings, see :mod:`comems4build_ros.ros.container`); None = the default (``node``
+        for one building, ``building`` for more; ``role`` for more on the ``netns``
+        network, ``building`` whenever ``containers`` is given)
+    buildings_per_recorder : buildings recorded by one recorder process in layout ``role``
+    containers : container processes of layout ``building`` (recorder, EMS, feed and plant
+        of building i in container i mod ``containers``; at most one container per
+        building); None = one per core (:func:`container_count`)
+    namespace : namespace of the run: the building's own for one building (``/`` = none),
+        else the namespace under which the buildings ``building_<i>`` run
+    bag : bag directory to create (None = ``out/bag``)
     plant : ``sim`` (``plant_sim`` on ROS) or ``mqtt`` (the simulated building behind MQTT,
         reached through ``mqtt_bridge``; one building, one process per node)
     clock : ``sim``, ``wall`` or ``wall:<factor>`` (wall modes need ``plant="mqtt"``)
@@ -173,10 +178,10 @@ class LaunchOptions:
     timeout_s: float | None = None
     progress: bool = False
     on_progress: Callable[[int, int], None] | None = None
-    plant_params: dict[str, Any] = field(default_factory=dict)
+    plant_node_params: dict[str, Any] = field(default_factory=dict)
     discovery_server: bool | None = None
-    host_mode: bool | None = None
-    buildings_per_recorder: int = HOST_BUILDINGS_PER_RECORDER
+    layout: str | None = None
+    buildings_per_recorder: int = ROLE_BUILDINGS_PER_RECORDER
     containers: int | None = None
     plant: str = "sim"
     clock: str = "sim"
@@ -185,27 +190,40 @@ class LaunchOptions:
     inputs: str = "scenario"
     network: str = "local"
     netem: str | None = None
+    namespace: str = "/"
+    bag: Path | None = None
 
-    @property
-    def layout(self) -> str:
-        """``building`` (containers), ``role`` (host mode) or ``node`` (one process per node);
-        see :data:`LAYOUTS`."""
-        if self.containers is not None:
-            return "building"
-        if self.host_mode is not None:
-            return "role" if self.host_mode else "node"
-        if self.buildings == 1:
-            return "node"
-        return "building" if self.network == "local" else "role"  # containers cannot span two hosts
 
-    @property
-    def container_count(self) -> int:
-        """Container processes of layout ``building``: ``containers``, or one per core, at
-        most one per building."""
-        import os
+def effective_layout(opts: LaunchOptions) -> str:
+    """The process layout of ``opts`` (:data:`LAYOUTS`): ``layout`` as given, else ``building``
+    when ``containers`` is given, else ``node`` for one building and ``building`` (network
+    ``local``) or ``role`` (``netns``: containers cannot span two hosts) for more.
 
-        n = self.containers if self.containers is not None else (os.cpu_count() or 1)
-        return max(1, min(n, self.buildings))
+    Raises
+    ------
+    ValueError
+        For an unknown layout, or ``containers`` with a layout other than ``building``.
+    """
+    if opts.layout is not None and opts.layout not in LAYOUTS:
+        raise ValueError(f"layout '{opts.layout}': one of {', '.join(LAYOUTS)}")
+    if opts.containers is not None and opts.layout not in (None, "building"):
+        raise ValueError(f"containers need layout 'building', not '{opts.layout}'")
+    if opts.layout is not None:
+        return opts.layout
+    if opts.containers is not None:
+        return "building"
+    if opts.buildings == 1:
+        return "node"
+    return "building" if opts.network == "local" else "role"
+
+
+def container_count(opts: LaunchOptions) -> int:
+    """Container processes of layout ``building``: ``containers``, or one per core, at most
+    one per building."""
+    import os
+
+    n = opts.containers if opts.containers is not None else (os.cpu_count() or 1)
+    return max(1, min(n, opts.buildings))
 
 
 # ---------------------------------------------------------------------- plan records
@@ -233,13 +251,13 @@ class ProcessPlan:
 
     Attributes
     ----------
-    name : name in messages and of the log file (``plant_sim``, ``building_3/feed``, ``host_ems``)
+    name : name in messages and of the log file (``plant_sim``, ``building_3/feed``, ``role_ems``)
     role : plant, feed, ems, recorder or discovery (what the exit rule looks at)
     argv : command line
     nodes : the ROS nodes the process runs (empty for a service such as the discovery server)
-    group : host group (:class:`HostGroup`) the process runs in
-    files : ``(path, text)`` written before the start (host spec files)
-    env : environment additions of this process (over the group's and the plan's)
+    side : network side (:class:`NetworkSide`) the process runs on
+    files : ``(path, text)`` written before the start (container spec files)
+    env : environment additions of this process (over the side's and the plan's)
     finishes : exit code 0 at the end of its part of the run is normal (every node exits 0
         on ``plant/done``); any other exit while the run is in progress fails the launch
     progress : the process prints ``progress <recorded> <total>`` lines on stdout
@@ -251,7 +269,7 @@ class ProcessPlan:
     role: str
     argv: tuple[str, ...]
     nodes: tuple[NodePlan, ...] = ()
-    group: str = LOCAL_GROUP
+    side: str = LOCAL_SIDE
     files: tuple[tuple[str, str], ...] = ()
     env: dict[str, str] = field(default_factory=dict)
     finishes: bool = False
@@ -260,15 +278,15 @@ class ProcessPlan:
 
 
 @dataclass(frozen=True)
-class HostGroup:
+class NetworkSide:
     """Where a set of processes runs.
 
     Attributes
     ----------
-    name : group name (``local`` = this host as it is)
-    env : environment additions of every process of the group
-    netns : Linux network namespace the group's processes run in (None = the launcher's)
-    address : the group's IPv4 address on the link to the other group (None = local)
+    name : side name (``local`` = this machine as it is)
+    env : environment additions of every process of the side
+    netns : Linux network namespace the side's processes run in (None = the launcher's)
+    address : the side's IPv4 address on the link to the other side (None = local)
     """
 
     name: str
@@ -299,7 +317,7 @@ class RunPlan:
     domain_id : ROS domain id of every process
     layout : ``node`` or ``role`` (:data:`LAYOUTS`)
     buildings : the buildings, in namespace order
-    groups : host groups by name
+    sides : network sides by name
     processes : processes in start order
     env : environment additions of every process (besides the isolation variables the
         supervisor sets: domain id, discovery range, log directory)
@@ -316,7 +334,7 @@ class RunPlan:
     domain_id: int
     layout: str
     buildings: tuple[BuildingPlan, ...]
-    groups: dict[str, HostGroup]
+    sides: dict[str, NetworkSide]
     processes: tuple[ProcessPlan, ...]
     env: dict[str, str] = field(default_factory=dict)
     run_info: dict[str, Any] = field(default_factory=dict)
@@ -337,7 +355,7 @@ class RunPlan:
         return [(p, n) for p in self.processes for n in p.nodes if role is None or n.role == role]
 
     def describe(self) -> str:
-        """Human-readable plan: groups, processes and the nodes each runs."""
+        """Human-readable plan: network sides, processes and the nodes each runs."""
         lines = [
             f"run plan: EMS {self.ems}, {len(self.buildings)} building(s), layout '{self.layout}', "
             f"ROS domain {self.domain_id}, {len(self.processes)} process(es), "
@@ -346,12 +364,12 @@ class RunPlan:
         ]
         for cmd in (*self.setup, *self.optional_setup):
             lines.append(f"setup $ {' '.join(cmd)}")
-        for g in self.groups.values():
+        for g in self.sides.values():
             env = " ".join(f"{k}={v}" for k, v in sorted(g.env.items()))
             where = f" (network namespace {g.netns}, {g.address})" if g.netns else ""
-            lines.append(f"group {g.name}{where}" + (f": {env}" if env else ""))
+            lines.append(f"side {g.name}{where}" + (f": {env}" if env else ""))
             for p in self.processes:
-                if p.group != g.name:
+                if p.side != g.name:
                     continue
                 nodes = ", ".join(f"{n.namespace.rstrip('/')}/{n.name}" for n in p.nodes) or "-"
                 lines.append(f"  process {p.name} [{p.role}, stop stage {p.stop_stage}]: {nodes}")
@@ -375,12 +393,12 @@ class RunPlan:
             "timeout_s": self.timeout_s,
             "env": self.env,
             "buildings": [{"namespace": b.namespace, "seed": b.seed, "bag": str(b.bag)} for b in self.buildings],
-            "groups": [{"name": g.name, "env": g.env, "netns": g.netns, "address": g.address}
-                       for g in self.groups.values()],
+            "sides": [{"name": g.name, "env": g.env, "netns": g.netns, "address": g.address}
+                       for g in self.sides.values()],
             "setup": [list(c) for c in (*self.setup, *self.optional_setup)],
             "teardown": [list(c) for c in self.teardown],
             "processes": [
-                {"name": p.name, "role": p.role, "group": p.group, "argv": list(p.argv),
+                {"name": p.name, "role": p.role, "side": p.side, "argv": list(p.argv),
                  "nodes": [node(n) for n in p.nodes], "files": [f for f, _ in p.files], "env": p.env,
                  "finishes": p.finishes, "progress": p.progress, "stop_stage": p.stop_stage}
                 for p in self.processes
@@ -441,9 +459,9 @@ def ros_args(namespace: str = "", params: dict[str, Any] | None = None, params_f
     return out
 
 
-def host_command(role: str, spec_path: Path) -> list[str]:
-    """Command line of a host process (``python -m comems4build_ros.ros.host``)."""
-    return [*python_module(HOST_MODULE), "--role", role, "--spec", str(spec_path)]
+def container_command(role: str, spec_path: Path) -> list[str]:
+    """Command line of a container process (``python -m comems4build_ros.ros.container``)."""
+    return [*python_module(CONTAINER_MODULE), "--role", role, "--spec", str(spec_path)]
 
 
 def discovery_server_command(port: int) -> list[str] | None:
@@ -454,17 +472,42 @@ def discovery_server_command(port: int) -> list[str] | None:
     return [str(exe), "-i", "0", "-l", "127.0.0.1", "-p", str(port)]
 
 
+def fastdds_profile(name: str = FASTDDS_PROFILE) -> Path | None:
+    """A Fast DDS profile of ``launch_scripts/`` (default ``fastdds_profile.xml``: deep
+    shared-memory port queues): source tree, then installed share."""
+    src = Path(__file__).resolve().parents[2] / "launch_scripts" / name
+    if src.is_file():
+        return src
+    installed = Path(sys.prefix) / "share" / "comems4build_ros" / "launch" / name
+    return installed if installed.is_file() else None
+
+
 # ---------------------------------------------------------------------- the planner
-def bag_dir(bag: Path, ns: str) -> Path:
-    """Bag of namespace ``ns``: ``bag`` itself for the root namespace, else ``bag/building_<i>``."""
-    return bag if ns == "/" else bag / ns.strip("/")
+def bag_dir(bag: Path, ns: str, buildings: int) -> Path:
+    """Bag of the building in namespace ``ns``: ``bag`` itself for one building, else
+    ``bag/building_<i>`` (the namespace's last segment)."""
+    return bag if buildings == 1 else bag / ns.rstrip("/").rsplit("/", 1)[-1]
 
 
-def namespaces(buildings: int) -> list[str]:
-    """``["/"]`` for one building, else ``["/building_0", ...]``."""
+def namespaces(buildings: int, namespace: str = "/") -> list[str]:
+    """Namespaces of the buildings: ``[namespace]`` for one building, else
+    ``[<namespace>/building_0, ...]`` (``/building_<i>`` under the root namespace).
+
+    Raises
+    ------
+    ValueError
+        For fewer than one building or a namespace that is not absolute.
+    """
     if buildings < 1:
         raise ValueError(f"--buildings must be >= 1, got {buildings}")
-    return ["/"] if buildings == 1 else [f"/building_{i}" for i in range(buildings)]
+    if not namespace.startswith("/") or "//" in namespace or not all(
+            part.replace("_", "a").isalnum() and not part[0].isdigit() for part in namespace.strip("/").split("/")
+            if namespace.strip("/")):
+        raise ValueError(f"namespace '{namespace}': an absolute ROS namespace such as / or /site_3 is expected")
+    root = "/" + namespace.strip("/") if namespace.strip("/") else "/"
+    if buildings == 1:
+        return [root]
+    return [f"{root.rstrip('/')}/building_{i}" for i in range(buildings)]
 
 
 def feed_window(weeks: float | None, steps: int | None) -> tuple[int, int]:
@@ -505,7 +548,7 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
         "weeks": opts.weeks,
         "steps": opts.steps,
         "start": opts.start,
-        "buildings": [{"namespace": ns, "seed": s} for ns, s in zip(namespaces(opts.buildings), seeds)],
+        "buildings": [{"namespace": ns, "seed": s} for ns, s in zip(namespaces(opts.buildings, opts.namespace), seeds)],
         "config_files": [str(Path(f).resolve()) for f in opts.config_files],
         "overrides": opts.overrides,
         "ems_options": opts.ems_options,
@@ -532,8 +575,8 @@ def building_params(
         feed_params["forecast_mode"] = opts.forecast
     if opts.inputs != "scenario":
         feed_params.update(inputs=opts.inputs, live_cache_dir=str(Path(opts.out).resolve()))
-    plant_params = dict(common, wait_for_recorder=True, **({"ems_token": token} if token else {}), **opts.plant_params)
-    return {"ems": ems_params, "feed": feed_params, "plant": plant_params}
+    plant = dict(common, wait_for_recorder=True, **({"ems_token": token} if token else {}), **opts.plant_node_params)
+    return {"ems": ems_params, "feed": feed_params, "plant": plant}
 
 
 def run_steps(opts: LaunchOptions) -> int:
@@ -556,9 +599,9 @@ def default_time_limit(opts: LaunchOptions) -> float:
 
 
 def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float) -> dict[str, Any]:
-    """Parameters of the recorder of namespace ``ns``."""
+    """Parameters of the recorder of namespace ``ns`` writing the bag directory ``bag``."""
     return {
-        "bag_path": str(bag_dir(bag, ns).resolve()),
+        "bag_path": str(bag.resolve()),
         "namespaces": [ns],
         "run_info": json.dumps(info),
         "progress_period_s": progress_period_s,
@@ -583,7 +626,7 @@ def check_plant_options(opts: LaunchOptions) -> None:
     clock = parse_clock(opts.clock)
     if opts.plant != "mqtt" and (clock.wall or opts.broker_url or opts.topic_map):
         raise ValueError("clock 'wall', a broker URL and a topic map need plant 'mqtt' (plant_sim runs lock-step)")
-    if opts.plant == "mqtt" and (opts.buildings > 1 or opts.layout != "node"):
+    if opts.plant == "mqtt" and (opts.buildings > 1 or effective_layout(opts) != "node"):
         raise ValueError("plant 'mqtt' runs one building, one process per node")
     if opts.plant == "mqtt" and opts.broker_url and opts.network != "local":
         raise ValueError("a broker URL needs network 'local' (the 'netns' namespaces reach no other host)")
@@ -639,14 +682,14 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     from ..config import load_plant_params
 
     out = Path(opts.out)
-    bag = out / "bag"
+    bag = Path(opts.bag) if opts.bag is not None else out / "bag"
     if params is None:
         params = load_plant_params(opts.config_files, opts.overrides)
-    ns_list = namespaces(opts.buildings)
+    ns_list = namespaces(opts.buildings, opts.namespace)
     check_plant_options(opts)
     seeds = building_seeds(opts)
     info = run_info(opts, params, seeds)
-    layout = opts.layout
+    layout = effective_layout(opts)
     if opts.network not in NETWORKS:
         raise ValueError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
     if layout == "role" and opts.buildings_per_recorder < 1:
@@ -658,10 +701,11 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     common: dict[str, Any] = {"config_files": info["config_files"]}
     if opts.overrides:
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
-    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns), new_token()) for ns, seed in zip(ns_list, seeds))
+    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns, opts.buildings), new_token())
+                      for ns, seed in zip(ns_list, seeds))
 
     if layout in ("role", "building"):
-        processes = _host_processes(opts, buildings, common, bag, info, out / "host")
+        processes = _container_processes(opts, buildings, common, bag, info, out / "containers")
     else:
         processes = _node_processes(opts, buildings, common, bag, info)
     use_server = opts.discovery_server
@@ -680,15 +724,15 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
             ]
         else:
             print("launcher: fast-discovery-server not found, using simple discovery", file=sys.stderr)
-    groups = {LOCAL_GROUP: HostGroup(LOCAL_GROUP)}
+    sides = {LOCAL_SIDE: NetworkSide(LOCAL_SIDE)}
     setup: tuple[tuple[str, ...], ...] = ()
     optional_setup: tuple[tuple[str, ...], ...] = ()
     teardown: tuple[tuple[str, ...], ...] = ()
     if opts.network == "netns":
-        groups, setup, optional_setup, teardown = netns_network(domain_id, opts.netem)
+        sides, setup, optional_setup, teardown = netns_network(domain_id, opts.netem)
         processes = [
-            dataclasses.replace(p, group=NETNS_GROUP_OF_ROLE[p.role],
-                                argv=("ip", "netns", "exec", str(groups[NETNS_GROUP_OF_ROLE[p.role]].netns), *p.argv))
+            dataclasses.replace(p, side=NETNS_SIDE_OF_ROLE[p.role],
+                                argv=("ip", "netns", "exec", str(sides[NETNS_SIDE_OF_ROLE[p.role]].netns), *p.argv))
             for p in processes
         ]
     elif opts.netem:
@@ -700,7 +744,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         domain_id=domain_id,
         layout=layout,
         buildings=buildings,
-        groups=groups,
+        sides=sides,
         setup=setup,
         optional_setup=optional_setup,
         teardown=teardown,
@@ -718,7 +762,7 @@ def _node_processes(
     out: list[ProcessPlan] = []
     for b in buildings:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = recorder_params(b.namespace, bag, info, PROGRESS_PERIOD_S)
+        params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S)
         out.append(ProcessPlan(
             f"{prefix}recorder", "recorder", (*node_command("recorder"), *ros_args("", params)),
             nodes=(NodePlan("recorder", "recorder", "/", params),), finishes=True, progress=True,
@@ -745,36 +789,37 @@ def _node_processes(
     return out
 
 
-def _hosted_nodes(
+def _contained_nodes(
     opts: LaunchOptions, b: BuildingPlan, common: dict[str, Any], bag: Path, info: dict[str, Any]
 ) -> list[NodePlan]:
-    """Recorder, EMS, feed and plant of building ``b`` as hosted nodes (host and container
-    processes: the recorder's and the plant's timers slower, the plant's step timeout longer)."""
+    """Recorder, EMS, feed and plant of building ``b`` as nodes of a container
+    process: the recorder's and the plant's timers slower, the plant's step timeout longer)."""
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
     nodes = [NodePlan("recorder", "recorder", b.namespace,
-                      dict(recorder_params(b.namespace, bag, info, 0.0), tick_s=HOST_RECORDER_TICK_S))]
+                      dict(recorder_params(b.namespace, b.bag, info, 0.0), tick_s=CONTAINER_RECORDER_TICK_S))]
     for role, params in building_params(opts, b.seed, common, b.token).items():
         if role == "plant":
-            params = {"step_timeout_s": HOST_STEP_TIMEOUT_S, "watchdog_period_s": HOST_WATCHDOG_PERIOD_S, **params}
+            params = {"step_timeout_s": CONTAINER_STEP_TIMEOUT_S, "watchdog_period_s": CONTAINER_WATCHDOG_PERIOD_S,
+                      **params}
         nodes.append(NodePlan(role, names[role], b.namespace, params))
     return nodes
 
 
-def _host_process(name: str, role: str, nodes: Sequence[NodePlan], spec_dir: Path, ems: str,
+def _container_process(name: str, role: str, nodes: Sequence[NodePlan], spec_dir: Path, ems: str,
                   progress: bool) -> ProcessPlan:
-    """A process of :mod:`comems4build_ros.ros.host` running ``nodes`` (its spec file written first)."""
+    """A process of :mod:`comems4build_ros.ros.container` running ``nodes`` (its spec file written first)."""
     path = spec_dir / f"{name}.json"
     spec: dict[str, Any] = {"ems": ems, "nodes": [
         {"namespace": n.namespace, "params": n.params, **({"role": n.role} if role == "container" else {})}
         for n in nodes]}
     if progress:
         spec["progress_period_s"] = PROGRESS_PERIOD_S
-    return ProcessPlan(name, role, tuple(host_command(role, path)), nodes=tuple(nodes),
+    return ProcessPlan(name, role, tuple(container_command(role, path)), nodes=tuple(nodes),
                        files=((str(path), json.dumps(spec, indent=1) + "\n"),), finishes=True, progress=progress,
                        stop_stage=STAGE_RECORDERS if progress else STAGE_NODES)
 
 
-def _host_processes(
+def _container_processes(
     opts: LaunchOptions,
     buildings: Sequence[BuildingPlan],
     common: dict[str, Any],
@@ -782,69 +827,68 @@ def _host_processes(
     info: dict[str, Any],
     spec_dir: Path,
 ) -> list[ProcessPlan]:
-    """Processes of :mod:`comems4build_ros.ros.host` for the layouts ``role`` and ``building``.
+    """Processes of :mod:`comems4build_ros.ros.container` for the layouts ``role`` and ``building``.
 
-    ``role`` (host mode): recorder processes (one per ``buildings_per_recorder``), then one
+    ``role``: recorder processes (one per ``buildings_per_recorder``), then one
     EMS, one feed and one plant process for all buildings. ``building``: container process
     j runs recorder, EMS, feed and plant of every building i with i mod n = j (n =
     ``containers``, at most the number of buildings).
     """
-    if opts.layout == "building":
-        n = opts.container_count
-        return [_host_process(f"container_{j}", "container",
-                              [node for b in buildings[j::n] for node in _hosted_nodes(opts, b, common, bag, info)],
+    if effective_layout(opts) == "building":
+        n = container_count(opts)
+        return [_container_process(f"container_{j}", "container",
+                              [node for b in buildings[j::n] for node in _contained_nodes(opts, b, common, bag, info)],
                               spec_dir, opts.ems, True)
                 for j in range(n)]
     by_role: dict[str, list[NodePlan]] = {"recorder": [], "ems": [], "feed": [], "plant": []}
     for b in buildings:
-        for node in _hosted_nodes(opts, b, common, bag, info):
+        for node in _contained_nodes(opts, b, common, bag, info):
             by_role[node.role].append(node)
     per = opts.buildings_per_recorder
     recorders = by_role["recorder"]
-    out = [_host_process(f"host_recorder_{j // per}", "recorder", recorders[j:j + per], spec_dir, opts.ems, True)
+    out = [_container_process(f"role_recorder_{j // per}", "recorder", recorders[j:j + per], spec_dir, opts.ems, True)
            for j in range(0, len(recorders), per)]
-    out += [_host_process(f"host_{role}", role, by_role[role], spec_dir, opts.ems, False)
+    out += [_container_process(f"role_{role}", role, by_role[role], spec_dir, opts.ems, False)
             for role in ("ems", "feed", "plant")]
     return out
 
 
-def netns_network(
-    domain_id: int, netem: str | None
-) -> tuple[dict[str, HostGroup], tuple[tuple[str, ...], ...], tuple[tuple[str, ...], ...], tuple[tuple[str, ...], ...]]:
-    """Two network namespaces joined by a veth pair: host groups and set-up/tear-down commands.
+Commands = tuple[tuple[str, ...], ...]
+
+
+def netns_network(domain_id: int, netem: str | None) -> tuple[dict[str, NetworkSide], Commands, Commands, Commands]:
+    """Two network namespaces joined by a veth pair: network sides and set-up/tear-down commands.
 
     Names carry the (locked) domain id, so concurrent launches do not collide: namespaces
     ``c4b<id>p`` (plant host) and ``c4b<id>e`` (EMS host), link ``10.231.<id>.0/24`` with
-    ``.1`` on the plant side and ``.2`` on the EMS side. Each group's processes get UDP-only
+    ``.1`` on the plant side and ``.2`` on the EMS side. Each side's processes get UDP-only
     Fast DDS (:data:`FASTDDS_UDP_PROFILE`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` and the
     other side as ``ROS_STATIC_PEERS`` (unicast discovery, no multicast needed).
     """
-    from .supervisor import fastdds_profile
-
     profile = fastdds_profile(FASTDDS_UDP_PROFILE)
-    sides = {"plant_host": ("p", 1), "ems_host": ("e", 2)}
-    groups: dict[str, HostGroup] = {}
+    tags = {"plant_side": ("p", 1), "ems_side": ("e", 2)}
+    sides: dict[str, NetworkSide] = {}
     setup: list[tuple[str, ...]] = []
     optional: list[tuple[str, ...]] = []
     teardown: list[tuple[str, ...]] = []
-    addr = {g: f"10.231.{domain_id}.{n}" for g, (_, n) in sides.items()}
-    for g, (tag, _n) in sides.items():
-        other = next(o for o in sides if o != g)
+    addr = {g: f"10.231.{domain_id}.{n}" for g, (_, n) in tags.items()}
+    for g, (tag, _n) in tags.items():
+        other = next(o for o in tags if o != g)
         env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_PEERS": addr[other]}
         if profile is not None:
             env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
-        groups[g] = HostGroup(g, env, netns=f"c4b{domain_id}{tag}", address=addr[g])
-    ns_p, ns_e = groups["plant_host"].netns, groups["ems_host"].netns
+        sides[g] = NetworkSide(g, env, netns=f"c4b{domain_id}{tag}", address=addr[g])
+    ns_p, ns_e = sides["plant_side"].netns, sides["ems_side"].netns
     dev_p, dev_e = f"{ns_p}0", f"{ns_e}0"
     assert ns_p is not None and ns_e is not None
     setup += [("ip", "netns", "add", ns_p), ("ip", "netns", "add", ns_e),
               ("ip", "link", "add", dev_p, "type", "veth", "peer", "name", dev_e),
               ("ip", "link", "set", dev_p, "netns", ns_p), ("ip", "link", "set", dev_e, "netns", ns_e)]
-    for ns, dev, g in ((ns_p, dev_p, "plant_host"), (ns_e, dev_e, "ems_host")):
+    for ns, dev, g in ((ns_p, dev_p, "plant_side"), (ns_e, dev_e, "ems_side")):
         setup += [("ip", "-n", ns, "addr", "add", f"{addr[g]}/24", "dev", dev),
                   ("ip", "-n", ns, "link", "set", "lo", "up"), ("ip", "-n", ns, "link", "set", dev, "up")]
         if netem:
             optional.append(("ip", "netns", "exec", ns, "tc", "qdisc", "add", "dev", dev, "root", "netem",
                              *netem.split()))
     teardown += [("ip", "netns", "del", ns_p), ("ip", "netns", "del", ns_e)]
-    return groups, tuple(setup), tuple(optional), tuple(teardown)
+    return sides, tuple(setup), tuple(optional), tuple(teardown)

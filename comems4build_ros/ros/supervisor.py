@@ -11,7 +11,7 @@ under the output directory, ``PYTHONPATH`` starting with the directory this pack
 was imported from (the nodes run the same code as the launcher) and, unless set,
 ``FASTDDS_DEFAULT_PROFILES_FILE`` = ``launch_scripts/fastdds_profile.xml`` (deep
 shared-memory port queues: without it a briefly descheduled recorder loses messages),
-then the plan's, the host group's and the process's own environment additions.
+then the plan's, the network side's and the process's own environment additions.
 
 Process hygiene: every child runs in its own session (a terminal Ctrl-C reaches only the
 launcher, which then stops the children in order) and gets ``PR_SET_PDEATHSIG`` =
@@ -46,7 +46,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan
+from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile
 
 #: Domain ids tried by :func:`acquire_domain_id` (0..101 keep Fast DDS's ports below the
 #: Linux ephemeral range).
@@ -60,8 +60,6 @@ RECORDER_GRACE_S = 20.0
 RECORDER_DRAIN_S = 60.0
 #: Poll period of the supervision loop [s].
 POLL_S = 0.05
-#: Fast DDS profile given to every node unless the user sets one (see the file's comment).
-FASTDDS_PROFILE = "fastdds_profile.xml"
 #: prctl option number of PR_SET_PDEATHSIG (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
 
@@ -333,16 +331,6 @@ def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = N
     return env
 
 
-def fastdds_profile(name: str = FASTDDS_PROFILE) -> Path | None:
-    """A Fast DDS profile of ``launch_scripts/`` (default ``fastdds_profile.xml``: deep
-    shared-memory port queues): source tree, then installed share."""
-    src = Path(__file__).resolve().parents[2] / "launch_scripts" / name
-    if src.is_file():
-        return src
-    installed = Path(sys.prefix) / "share" / "comems4build_ros" / "launch" / name
-    return installed if installed.is_file() else None
-
-
 def run_commands(commands: Sequence[Sequence[str]], optional: bool = False) -> list[str]:
     """Run set-up or tear-down commands in order; returns the notes of failed optional ones.
 
@@ -495,7 +483,7 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
                 for path, text in p.files:
                     Path(path).parent.mkdir(parents=True, exist_ok=True)
                     Path(path).write_text(text, encoding="utf-8")
-                extra = {**plan.groups[p.group].env, **p.env}
+                extra = {**plan.sides[p.side].env, **p.env}
                 listener = progress.listener(len(recorders)) if p.progress else None
                 child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
                                     finishes=p.finishes)

@@ -57,13 +57,6 @@ from ...config import W_PER_KW
 from .horizon import HorizonData, PlantConstants
 from .solvers import MatrixForm
 
-#: Variables of the plan returned per step (continuous and binary), by name prefix.
-PLAN_VARS = (
-    "p_buy", "p_sell", "p_ch", "p_dis", "p_fc", "p_hp_sh", "p_hp_dhw", "q_dump",
-    "t_air", "t_wall_in", "t_wall_out", "v_dhw", "soc", "loh",
-    "s_fc", "s_fc_on", "s_fc_off", "s_sh", "s_dhw",
-    "sl_t_lo", "sl_t_hi", "sl_v_lo", "sl_v_hi", "sl_soc_lo", "sl_soc_hi", "sl_loh",
-)
 #: Slack variables and the unit each is reported in.
 SLACKS = {
     "sl_t_lo": "K", "sl_t_hi": "K", "sl_v_lo": "l", "sl_v_hi": "l",

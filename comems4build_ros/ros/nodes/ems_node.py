@@ -4,7 +4,7 @@ One module for every EMS: the node wraps the controller of the core
 (:func:`comems4build_ros.ems.make_controller`) and is swapped by starting another node;
 all publish ``ems/command``. Each node subscribes to exactly the topics its row of
 ``tab:level_of_information`` allows (the contract lists the node as a subscriber of
-those topics only; :class:`~comems4build_ros.ros.common.ContractNode` refuses anything
+those topics only; :class:`~comems4build_ros.ros.node.ContractNode` refuses anything
 else). From the messages tagged with step ``k`` it rebuilds the very
 :class:`~comems4build_ros.ems.base.Observation` the in-process loop builds with
 :class:`comems4build_ros.sim.ObservationBuilder` (labels = observation fields, float64
@@ -22,7 +22,7 @@ on ``plant/done`` (end of the run).
 
 Parameters: ``ems`` (set by the entry point), ``ems_options`` (string array of
 ``key=value``, as ``comems4build simulate --ems-option``), ``run_token`` and the plant
-parameters (:func:`comems4build_ros.ros.common.plant_params_from_node`).
+parameters (:func:`comems4build_ros.ros.parameters.plant_params_from_node`).
 """
 
 from __future__ import annotations
@@ -39,17 +39,11 @@ from ...config import parse_assignments
 from ...ems import make_controller
 from ...ems.base import Observation
 from ...types import ACTION_FIELDS
-from ..common import (
-    ArrayPublisher,
-    ContractNode,
-    layout_sizes,
-    param,
-    parse_array,
-    plant_params_from_node,
-    run_node,
-    string_cdr,
-)
+from ..cdr import parse_array, string_cdr
 from ..contract import ContractError, load_contract, nest
+from ..node import ArrayPublisher, ContractNode, layout_sizes
+from ..parameters import param, plant_params_from_node
+from ..process import run_node
 from ..tokens import default_token
 
 #: Topic whose repeated message for an answered step triggers a re-send of the command.
@@ -78,7 +72,8 @@ class EMSNode(ContractNode):
         super().__init__(node_name, contract, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         spec = contract.node(node_name)
         params = plant_params_from_node(self)
-        options = parse_options(param(self, "ems_options", [""]), node_name)
+        items = param(self, "ems_options", [])
+        options = parse_options([items] if isinstance(items, str) else items, node_name)
         self.controller = make_controller(ems, params, options)
         self.controller.reset()
         self.level = self.controller.info_level

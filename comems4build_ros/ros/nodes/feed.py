@@ -25,7 +25,7 @@ default length), ``steps`` (cut the run to its first N steps, 0 = all), ``start`
 time, empty = from the beginning), ``seed`` (default scenario only, -1 = the seed of
 ``config/scenario.yaml``), ``forecast_mode`` (empty = ``config/forecast.yaml``), ``lookahead_steps``,
 ``allow_gap_fill`` (default false) and the plant parameters (see
-:func:`comems4build_ros.ros.common.plant_params_from_node`). A scenario with a time gap,
+:func:`comems4build_ros.ros.parameters.plant_params_from_node`). A scenario with a time gap,
 a non-finite value, or missing values the core loader would interpolate makes the feed
 refuse to start (exit code 2, the message names file, line and column); with
 ``allow_gap_fill:=true`` the loader's documented interpolation is accepted.
@@ -33,21 +33,19 @@ refuse to start (exit code 2, the message names file, line and column); with
 
 from __future__ import annotations
 
-import dataclasses
-import inspect
 import json
-import warnings
 from array import array
 from typing import Any
 
-import numpy as np
 from rclpy.task import Future
 from std_msgs.msg import String, UInt32
 
-from ...config import SECONDS_PER_HOUR
-from ...scenario.base import SERIES, Scenario
+from ...scenario.base import Scenario
+from ...scenario.run import check_scenario, load_scenario
 from ...types import EXOGENOUS_FIELDS, PlantState
-from ..common import ArrayPublisher, ContractNode, layout_sizes, param, plant_params_from_node, run_node
+from ..node import ArrayPublisher, ContractNode, layout_sizes
+from ..parameters import param, plant_params_from_node
+from ..process import run_node
 
 NODE_NAME = "feed"
 #: Feed topics besides feed/truth, published for every step.
@@ -63,104 +61,6 @@ EMS_TOPICS = (
 )
 #: Default number of steps published ahead of the step the plant waits for.
 LOOKAHEAD_STEPS = 4
-#: Text of the core loader's warning about interpolated missing values.
-GAP_FILL_MARK = "filled by linear interpolation"
-#: Tolerance on the hourly spacing check of the scenario time index [s].
-TIME_STEP_TOL_S = 1e-6
-
-
-class ScenarioInputError(ValueError):
-    """The scenario has a gap, an irregular step or a non-finite value."""
-
-
-def check_scenario(scenario: Scenario, time_step_h: float) -> None:
-    """Refuse a scenario with non-finite values or irregular time steps.
-
-    Raises
-    ------
-    ScenarioInputError
-        Naming the scenario, the series and the first offending time.
-    """
-    for name in SERIES:
-        values = np.asarray(getattr(scenario, name), dtype=float)
-        bad = np.flatnonzero(~np.isfinite(values))
-        if bad.size:
-            i = int(bad[0])
-            raise ScenarioInputError(
-                f"scenario '{scenario.name}': series '{name}' has {bad.size} non-finite value(s), "
-                f"first at {scenario.time[i].isoformat()} (row {i}): {values[i]}"
-            )
-    if len(scenario.time) > 1:
-        dt = np.asarray((scenario.time[1:] - scenario.time[:-1]).total_seconds(), dtype=float)
-        want = time_step_h * SECONDS_PER_HOUR
-        bad = np.flatnonzero(np.abs(dt - want) > TIME_STEP_TOL_S)
-        if bad.size:
-            i = int(bad[0])
-            raise ScenarioInputError(
-                f"scenario '{scenario.name}': time step {dt[i]:.0f} s instead of {want:.0f} s between "
-                f"{scenario.time[i].isoformat()} and {scenario.time[i + 1].isoformat()} (gap or irregular index)"
-            )
-
-
-def load_scenario(
-    spec: str,
-    params: Any,
-    start: str | None,
-    weeks: int | None,
-    seed: int | None,
-    steps: int | None = None,
-    allow_gap_fill: bool = False,
-    notes: list[str] | None = None,
-) -> Scenario:
-    """The run's scenario through the core's loaders (their file checks included).
-
-    Parameters
-    ----------
-    spec : ``default`` or a scenario CSV path
-    params : plant parameters
-    start, weeks : window of the run (see :func:`comems4build_ros.scenario.resolve_scenario`)
-    seed : generator seed of the default scenario (None = the configured seed)
-    steps : cut the run to its first ``steps`` steps (the rest stays as look-ahead);
-        None = the whole window
-    allow_gap_fill : accept missing values the loader filled by interpolation (its
-        ``ScenarioWarning``); by default they make the feed refuse the scenario
-    notes : receives the text of every other loader warning
-
-    Raises
-    ------
-    ScenarioInputError
-        For filled missing values unless ``allow_gap_fill``.
-    ScenarioError, ValueError
-        From the loaders (file, line and column named) or for an invalid window.
-    """
-    from ... import scenario as scen
-
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always", scen.ScenarioWarning)
-        if seed is None or "seed" in inspect.signature(scen.resolve_scenario).parameters:
-            kwargs: dict[str, Any] = {} if seed is None else {"seed": seed}
-            out = scen.resolve_scenario(spec, params, start=start, weeks=weeks, **kwargs)
-        elif spec == "default" and start is None:
-            settings = scen.load_scenario_settings()
-            out = scen.default_scenario(params, weeks=weeks or settings.weeks, seed=seed, settings=settings)
-        else:
-            raise ValueError(f"parameter 'seed' applies to the default scenario without 'start' (scenario '{spec}')")
-    for w in caught:
-        text = str(w.message)
-        if issubclass(w.category, scen.ScenarioWarning) and GAP_FILL_MARK in text and not allow_gap_fill:
-            raise ScenarioInputError(
-                f"{text}: the feed refuses a scenario with missing values "
-                "(parameter allow_gap_fill:=true accepts the core loader's documented interpolation)"
-            )
-        if notes is not None:
-            notes.append(text)
-    if steps is not None:
-        if not 0 < steps <= out.n_steps:
-            raise ValueError(f"parameter 'steps': {steps} outside 1..{out.n_steps} of scenario '{out.name}'")
-        out = dataclasses.replace(out, n_steps=steps)
-    return out
-
-
 #: Feed parameters that choose the scenario, with their defaults.
 SCENARIO_PARAMS: dict[str, Any] = {
     "scenario": "default", "start": "", "weeks": 0, "seed": -1, "steps": 0, "allow_gap_fill": False,
@@ -177,14 +77,9 @@ def scenario_args(values: dict[str, Any], params: Any) -> tuple[Any, ...]:
 def prepare_scenario(node_params: dict[str, Any]) -> tuple[Scenario, list[str]]:
     """The scenario a feed node with ROS parameters ``node_params`` (``config_files``,
     ``overrides`` and :data:`SCENARIO_PARAMS`) loads, and the loader's notes; no rclpy."""
-    import yaml
+    from ...config import load_plant_params, parse_assignments
 
-    from ...config import load_plant_params
-
-    overrides = {}
-    for item in node_params.get("overrides") or []:
-        key, _, value = str(item).partition("=")
-        overrides[key.strip()] = yaml.safe_load(value)
+    overrides = parse_assignments(node_params.get("overrides") or [], "parameter 'overrides':")
     params = load_plant_params([f for f in node_params.get("config_files") or [] if f], overrides)
     values = {name: node_params.get(name, default) for name, default in SCENARIO_PARAMS.items()}
     notes: list[str] = []

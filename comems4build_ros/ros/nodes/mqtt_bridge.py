@@ -50,32 +50,23 @@ from array import array
 from typing import Any
 
 import numpy as np
-from builtin_interfaces.msg import Time
-from rclpy.task import Future
-from rosgraph_msgs.msg import Clock as ClockMsg
-from std_msgs.msg import Bool, Float64MultiArray, String, UInt32
+from std_msgs.msg import Float64MultiArray, String
 
 from ... import kpi
 from ...config import W_PER_KW
 from ...ems.fallback import safe_action
-from ...mqtt.building import BRIDGE_RECORD_FIELDS
 from ...mqtt.client import MqttLink
 from ...mqtt.clock import parse_clock
 from ...mqtt.discovery import AVAILABLE, NOT_AVAILABLE, PAYLOAD_OFF, PAYLOAD_ON, discovery_messages
+from ...mqtt.plant import BRIDGE_RECORD_FIELDS
 from ...mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
 from ...mqtt.topicmap import PayloadError, load_topic_map
 from ...types import ACTION_FIELDS, Action
-from ..common import (
-    ArrayPublisher,
-    CommandError,
-    ContractNode,
-    check_token,
-    layout_sizes,
-    param,
-    plant_params_from_node,
-    run_node,
-)
-from .plant_sim import NS_PER_S, STATE_TOPICS, accept_token, finish_run, set_loop_params
+from ..ems_command import CommandError, check_token
+from ..lockstep import STATE_TOPICS, LockStepMaster
+from ..node import ArrayPublisher
+from ..parameters import param
+from ..process import run_node
 
 NODE_NAME = "mqtt_bridge"
 #: Lock-step: alarm when the building has sent nothing for this long [s].
@@ -95,16 +86,14 @@ WALL_TAG_WAIT_SHARE = 0.5
 HP_MODE_WORDS = {0: "off", 1: "heating", 2: "dhw"}
 
 
-class MqttBridge(ContractNode):
+class MqttBridge(LockStepMaster):
     """The bridge node (see the module docstring)."""
 
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
-        self.params = plant_params_from_node(self)
+        super().__init__(NODE_NAME, {"building_timeout_s": BUILDING_TIMEOUT_S}, **node_kwargs)
         self.map = load_topic_map(str(param(self, "topic_map", "")) or None, str(param(self, "broker_url", "")) or None)
         self.clock = parse_clock(str(param(self, "clock", "sim")), self.params.simulation.time_step_h)
-        set_loop_params(self, NODE_NAME, {"building_timeout_s": BUILDING_TIMEOUT_S})
         delay = float(param(self, "measure_delay_s", -1.0))
         self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
                                                             MEASURE_DELAY_MAX_S)
@@ -114,26 +103,18 @@ class MqttBridge(ContractNode):
                              f"{COMMAND_DEADLINE_SHARE:g} of the step period ({self.clock.period_s:g} s)")
 
         self.dt_h = self.params.simulation.time_step_h
-        self.dt_ns = int(round(self.dt_h * 3600.0 * NS_PER_S))
-        sizes = layout_sizes(self.params)
+        sizes = self.sizes
         m = self.map.measurements
         self._state_pubs = [(ArrayPublisher(self, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()
                             if t != "state/t_wall" or ("t_wall_in_c" in m and "t_wall_out_c" in m)]
         self._measured = (ArrayPublisher(self, "feed/measured", sizes)
                           if "p_pv_w" in m and "p_load_w" in m else None)
-        self._record = ArrayPublisher(self, "plant/record", sizes)
         self._record_labels = self._record.layout.labels
-        self._step_pub = self.contract_publisher("plant/step")
-        self._clock_pub = self.contract_publisher("clock")
-        self._done_pub = self.contract_publisher("plant/done")
-        self._events_pub = self.contract_publisher("plant/events")
         self._alarm_pub = self.contract_publisher("bridge/alarm")
         self._cmd_layout = self.contract.topic("ems/command").layout(sizes)
         self._truth_index = self.contract.topic("feed/truth").layout(sizes).index
         self._cmd_sub = self.contract_subscription("ems/command", self._on_command)
         self.contract_subscription("feed/truth", self._on_truth)
-        self.contract_subscription("recorder/ready", self._on_recorder_ready)
-        self.contract_subscription("recorder/progress", self._on_recorder_progress)
 
         self.watchdog = MeasurementWatchdog(self.map)
         self.limiter = CommandLimiter.from_map(self.map, self.params)
@@ -142,17 +123,12 @@ class MqttBridge(ContractNode):
         self.switches = {"ems": True, "fallback": False}
 
         # run state
-        self.k = 0
         self.phase = "measure"  # measure -> command -> sent (lock-step); command/sent per wall step
-        self.n_steps: int | None = None
         self.t0_unix_s: float | None = None
-        self.started = False
-        self.done = False
         self._truth: dict[int, tuple[float, float]] = {}  # step -> (time_unix_s, t_min_c)
         self._records: dict[int, dict[str, float]] = {}
         self.next_record = 0
         self.fallback_for: dict[int, bool] = {}
-        self._t_held: float | None = None
         self.bad_measurements = 0
         self.untagged_announcements = 0  # wall modes: steps announced without measurements tagged for them
         self._tagged = all(spec.step_key for spec in m.values())
@@ -170,9 +146,6 @@ class MqttBridge(ContractNode):
         self._t_sent = 0.0
         self._t_building = self._t_created
         self.kpis = {"cost_eur": 0.0, "discomfort_kh": 0.0, "grid_import_kwh": 0.0, "grid_export_kwh": 0.0}
-        self._step_msg = UInt32()
-        self._clock_msg = ClockMsg()
-        self.finished = Future()
 
         self._wake = self.create_guard_condition(self._on_mqtt)
         subs = [*self._topic_measurement, *self._switch_topics]
@@ -213,7 +186,7 @@ class MqttBridge(ContractNode):
                     value, step = self.map.measurements[name].decode(msg.payload)
                 except PayloadError as exc:
                     self.bad_measurements += 1
-                    self._event("rejected", f"measurement '{name}': {exc}")
+                    self.event("rejected", f"measurement '{name}': {exc}")
                     # lock-step: the building sends only the step the bridge waits for, so
                     # the unreadable value stands for it (and gets the fallback)
                     value, step = math.nan, (self.k if self.phase == "measure" and not self.clock.wall else None)
@@ -231,7 +204,7 @@ class MqttBridge(ContractNode):
             rec = json.loads(payload)
             step = int(rec["step"])
         except (ValueError, KeyError, TypeError):
-            self._event("rejected", f"topic '{self.map.sim_record_topic}': unreadable record")
+            self.event("rejected", f"topic '{self.map.sim_record_topic}': unreadable record")
             return
         if step >= self.next_record:
             self._records[step] = rec
@@ -239,11 +212,11 @@ class MqttBridge(ContractNode):
     def _on_switch(self, name: str, payload: bytes) -> None:
         text = payload.decode("utf-8", errors="replace").strip().upper()
         if text not in (PAYLOAD_ON, PAYLOAD_OFF):
-            self._event("rejected", f"switch '{name}': payload {text[:20]!r} is not ON/OFF")
+            self.event("rejected", f"switch '{name}': payload {text[:20]!r} is not ON/OFF")
             return
         self.switches[name] = text == PAYLOAD_ON
         self.link.publish(self.map.switch_topics(name)[1], text, retain=True)
-        self._event("switch", f"{name} {text}")
+        self.event("switch", f"{name} {text}")
 
     def _send_setpoints(self, k: int, action: Action, fallback: bool) -> None:
         """Set-points of ``action`` tagged ``k`` (held back while the rate limit is in force)."""
@@ -279,11 +252,6 @@ class MqttBridge(ContractNode):
         self.link.publish(self.map.state_topic, json.dumps(state), retain=True)
 
     # ------------------------------------------------------------------ ROS side
-    def _event(self, kind: str, detail: str) -> None:
-        line = f"{self.k} {kind} {detail}"
-        self.get_logger().warning(line)
-        self._events_pub.publish(String(data=line))
-
     def _alarm(self, k: int, kind: str, detail: str, action: Action | None) -> None:
         payload = {"step": k, "kind": kind, "detail": detail, "time_unix_s": time.time()}
         if action is not None:
@@ -295,11 +263,8 @@ class MqttBridge(ContractNode):
         self.link.publish(self.map.alarm_topic, text)
         self.get_logger().error(f"alarm at step {k}: {kind}: {detail}")
 
-    def _on_recorder_ready(self, msg: Bool) -> None:
-        self._recorder_ready = bool(msg.data)
-
-    def _on_recorder_progress(self, msg: UInt32) -> None:
-        self._recorded = max(self._recorded, int(msg.data))
+    def on_recorder_progress(self) -> None:
+        """The recording caught up: the next step may be due."""
         self._advance()
 
     def _on_truth(self, msg: Float64MultiArray) -> None:
@@ -320,16 +285,16 @@ class MqttBridge(ContractNode):
         if len(data) != self._cmd_layout.length or not all(math.isfinite(v) for v in data) \
                 or data[0] != int(data[0]) or data[2] != int(data[2]):
             self.rejected_commands += 1
-            self._event("rejected", f"topic 'ems/command': malformed command {data[:6]}")
+            self.event("rejected", f"topic 'ems/command': malformed command {data[:6]}")
             return
         try:
             check_token(data[-1])
         except CommandError as exc:
             self.rejected_commands += 1
-            self._event("rejected", f"topic 'ems/command' {exc}")
+            self.event("rejected", f"topic 'ems/command' {exc}")
             return
         step = int(data[0])
-        if not accept_token(self, data[-1], step):
+        if not self.accept_token(data[-1], step):
             return
         if step == self.k - 1 and data == self._last_cmd:
             self.duplicate_commands += 1
@@ -337,12 +302,12 @@ class MqttBridge(ContractNode):
         if not self.started or self.done or step != self.k or self.phase != "command":
             if not (self.phase == "sent" and step == self.k):  # an answer to a repeated announcement
                 self.wrong_step_commands += 1
-                self._event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
+                self.event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
             return
         raw = Action(hp_mod=data[1], hp_mode=int(data[2]), p_fc_w=data[3], p_bess_w=data[4])
         action, notes = self.limiter.limit(raw)
         if notes:
-            self._event("clamped", "; ".join(notes))
+            self.event("clamped", "; ".join(notes))
         self._last_cmd = data
         self._ever_commanded = True
         self._send_setpoints(step, action, fallback=False)
@@ -367,8 +332,7 @@ class MqttBridge(ContractNode):
         self._t_announce = time.monotonic()
 
     def _publish_step(self, k: int) -> None:
-        self._step_msg.data = k
-        self._step_pub.publish(self._step_msg)
+        self.publish_step(k)
         self.link.publish(self.map.step_topic, str(k), retain=True)
 
     def _fallback(self, k: int, kind: str, detail: str) -> None:
@@ -381,7 +345,7 @@ class MqttBridge(ContractNode):
             t_min = self._truth[max(self._truth)][1]
         action = safe_action(t_air, v_dhw, t_min, self.params)
         self.fallback_steps += 1
-        self._event("fallback", f"{kind}: {detail}: safe action hp_mode={action.hp_mode} hp_mod={action.hp_mod} "
+        self.event("fallback", f"{kind}: {detail}: safe action hp_mode={action.hp_mode} hp_mod={action.hp_mod} "
                                 f"(fallback steps: {self.fallback_steps})")
         self._alarm(k, kind, detail, action)
         self._send_setpoints(k, action, fallback=True)
@@ -411,14 +375,12 @@ class MqttBridge(ContractNode):
                 row = array("d", [float(extra[lab]) if lab in extra else float(rec[lab])
                                   for lab in self._record_labels])
             except (KeyError, TypeError, ValueError) as exc:
-                self._event("rejected", f"topic '{self.map.sim_record_topic}': record {k} lacks {exc}")
+                self.event("rejected", f"topic '{self.map.sim_record_topic}': record {k} lacks {exc}")
                 row = None
             if row is not None:
                 self._record.publish(row)
                 self._update_kpis(rec)
-                end_ns = int(round(float(rec["time_unix_s"]) * NS_PER_S)) + self.dt_ns
-                self._clock_msg.clock = Time(sec=end_ns // NS_PER_S, nanosec=end_ns % NS_PER_S)
-                self._clock_pub.publish(self._clock_msg)
+                self.publish_clock(float(rec["time_unix_s"]))
             self.next_record = k + 1
             if self.n_steps is None and "n_steps" in rec:
                 self.n_steps = int(rec["n_steps"])
@@ -447,7 +409,7 @@ class MqttBridge(ContractNode):
         if self.phase == "sent" and (not records or self.next_record > self.k):
             if self.n_steps is not None and self.k + 1 >= self.n_steps:
                 return  # the last record completes the run
-            if self._behind(self.k + 1):
+            if self.behind(self.k + 1):
                 return  # back-pressure: the recorder catches up first (recorder/progress)
             if self.watchdog.complete_for(self.k + 1):
                 self.k += 1
@@ -455,19 +417,6 @@ class MqttBridge(ContractNode):
                 self._t_phase = time.monotonic()
         if self.phase == "measure" and self.watchdog.complete_for(self.k):
             self._begin_step(self.k, self.watchdog.check(time.monotonic(), check_age=False))
-
-    def _behind(self, k: int) -> bool:
-        """Lock-step with ``wait_for_recorder``: announcing step ``k`` would run more than
-        ``record_window_steps`` beyond the gap-free recording (back-pressure, as plant_sim);
-        accumulates the held time. The wall clocks are paced by time, not held."""
-        behind = self.wait_for_recorder and k - self._recorded > self.record_window_steps
-        now = time.monotonic()
-        if behind and self._t_held is None:
-            self._t_held = now
-        elif not behind and self._t_held is not None:
-            self.held_s += now - self._t_held
-            self._t_held = None
-        return behind
 
     def _start(self) -> None:
         self.started = True
@@ -513,9 +462,7 @@ class MqttBridge(ContractNode):
         if not self.started:
             late = now - self._t_created > self.startup_timeout_s
             heard = all(m in self.watchdog.latest for m in self.map.measurements if self.map.measurements[m].required)
-            # recorder ready (its readers matched) and our writers matched its readers too
-            recorder = self._recorder_ready and self.recorder_gate()
-            ready = self.link.connected.is_set() and (not self.wait_for_recorder or recorder) and (
+            ready = self.link.connected.is_set() and self.recorder_ready() and (
                 self._cmd_sub.get_publisher_count() > 0 or late) and (heard or late)
             if ready:
                 self._start()
@@ -547,13 +494,8 @@ class MqttBridge(ContractNode):
         """Run statistics (fault and limiter counters, MQTT reconnects)."""
         c = self.limiter.counters
         return {
+            **super().stats(),
             "steps": float(self.next_record if self.map.sim_record_topic else self.k),
-            "fallback_steps": float(self.fallback_steps),
-            "rejected_commands": float(self.rejected_commands),
-            "wrong_step_commands": float(self.wrong_step_commands),
-            "duplicate_commands": float(self.duplicate_commands),
-            "foreign_commands": float(self.foreign_commands),
-            "held_for_recorder_s": self.held_s,
             "clamped_commands": float(c.clamped_commands),
             "rate_limited": float(c.rate_limited),
             "bad_measurements": float(self.bad_measurements),
@@ -563,13 +505,11 @@ class MqttBridge(ContractNode):
         }
 
     def _finish(self) -> None:
-        self.done = True
-
         def tell_building() -> None:
             self._publish_step(self.n_steps or self.k)  # the building's acknowledgement
             self.link.publish(self.map.run_topic, "", retain=True)
 
-        finish_run(self, tell_building)
+        self.finish_run(tell_building)
 
     def destroy_node(self) -> None:  # noqa: D102
         self.link.stop(final=(self.map.availability_topic, NOT_AVAILABLE))

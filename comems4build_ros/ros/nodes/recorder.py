@@ -58,21 +58,28 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, UInt32
 
-from ..bag import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, BagWriter, decode, is_per_step, qos_for_bag
-from ..common import FINISHED_LOCAL_RECORDERS, array_step, no_default_event_callbacks, param, parse_array, run_node
+from ..bag import BagWriter, decode, qos_for_bag
+from ..bag_eval import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, is_per_step
+from ..cdr import array_step, parse_array, uint32_value
 from ..contract import Contract, load_contract, resolve
+from ..node import FINISHED_LOCAL_RECORDERS, no_default_event_callbacks
+from ..parameters import param, string_list
+from ..process import run_node
 
 NODE_NAME = "recorder"
 #: History depth of every recording subscription: how many messages per topic may queue
 #: while the recorder is busy (the publishers' own depths are 10..1000).
 RECORD_DEPTH = 100_000
 #: Default wait between "every topic matched" and "ready" for the publishers' side of
-#: discovery to complete [s].
-SETTLE_S = 0.3
+#: discovery to complete [s]. Short: a node started with ``wait_for_recorder`` holds its
+#: first message until its own writers matched the recorder's readers anyway
+#: (:meth:`~comems4build_ros.ros.node.ContractNode.recorder_gate`).
+SETTLE_S = 0.1
 #: Default limit on the wait for publishers [s].
 READY_TIMEOUT_S = 60.0
-#: Default wait for late messages after the last record [s].
-DONE_GRACE_S = 0.3
+#: Default wait for late messages after the last record [s]; the end of a run also waits
+#: until every topic published once a step has every step (:meth:`Recorder.behind`).
+DONE_GRACE_S = 0.1
 #: Default limit on the wait for missing records once every plant is done [s].
 DONE_TIMEOUT_S = 10.0
 #: Default period of the housekeeping timer (chunk age, readiness, end of run, progress;
@@ -123,16 +130,6 @@ class StepsSeen:
         self.steps.add(k)
 
 
-def _uint32_step(raw: bytes) -> int:
-    """The value of a CDR ``std_msgs/UInt32`` (``plant/step``)."""
-    import struct
-
-    try:
-        return int(struct.unpack_from("<I", raw, 4)[0])
-    except struct.error:
-        raise ValueError("UInt32 cut short") from None
-
-
 def _info_step(raw: bytes) -> int:
     """``step`` of an ``ems/info`` JSON string."""
     try:
@@ -158,7 +155,7 @@ class Recorder(Node):
         bag_path = str(param(self, "bag_path", ""))
         if not bag_path:
             raise ValueError(f"node '{NODE_NAME}': parameter 'bag_path' (bag directory to create) is required")
-        namespaces = [str(n) for n in param(self, "namespaces", [""]) if str(n)] or [self.get_namespace()]
+        namespaces = string_list(self, "namespaces") or [self.get_namespace()]
         self.namespaces = ["/" + ns.strip("/") if ns.strip("/") else "/" for ns in namespaces]
         if len(set(self.namespaces)) != len(self.namespaces):
             raise ValueError(f"node '{NODE_NAME}': parameter 'namespaces' lists a namespace twice: {namespaces}")
@@ -209,7 +206,7 @@ class Recorder(Node):
                 holder: list[Any] = []
                 counter = None
                 if is_per_step(spec):
-                    step_of = array_step if spec.is_array else _uint32_step if spec.name == STEP_TOPIC else _info_step
+                    step_of = array_step if spec.is_array else uint32_value if spec.name == STEP_TOPIC else _info_step
                     counter = StepsSeen(full, any(roles.get(p) == "ems" for p in spec.publishers), step_of)
                     self.per_step[ns].append(counter)
                 sub = self.create_subscription(

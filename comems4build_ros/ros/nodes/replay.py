@@ -39,7 +39,9 @@ from rclpy.duration import Duration
 from rclpy.task import Future
 
 from ..bag import BagInfo, decode, iter_messages
-from ..common import ContractNode, param, run_node
+from ..node import ContractNode
+from ..parameters import param
+from ..process import run_node
 
 NODE_NAME = "replay"
 #: Messages published at most per timer tick.

@@ -1,4 +1,4 @@
-"""Host mode (one process per role for many buildings): spec checks, parameters, closed loop equals in-process."""
+"""Container processes (layouts role and building): spec checks, parameters, closed loop equals in-process."""
 
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.ros.host import HostSpecError, load_spec, main, to_parameters
+from comems4build_ros.ros.container import ContainerSpecError, load_spec, main, to_parameters
 
 
 def _write(tmp_path: Path, obj: object) -> Path:
@@ -18,23 +18,23 @@ def _write(tmp_path: Path, obj: object) -> Path:
 
 
 def test_load_spec_names_the_file_and_entry(tmp_path: Path) -> None:
-    with pytest.raises(HostSpecError, match="spec.json.*'nodes' must be a non-empty list"):
+    with pytest.raises(ContainerSpecError, match="spec.json.*'nodes' must be a non-empty list"):
         load_spec(_write(tmp_path, {"nodes": []}))
-    with pytest.raises(HostSpecError, match=r"nodes\[1\]: namespace '/b' given twice"):
+    with pytest.raises(ContainerSpecError, match=r"nodes\[1\]: namespace '/b' given twice"):
         load_spec(_write(tmp_path, {"nodes": [{"namespace": "/b"}, {"namespace": "/b"}]}))
-    with pytest.raises(HostSpecError, match=r"nodes\[0\] needs a string 'namespace'"):
+    with pytest.raises(ContainerSpecError, match=r"nodes\[0\] needs a string 'namespace'"):
         load_spec(_write(tmp_path, {"nodes": [{"params": {}}]}))
-    with pytest.raises(HostSpecError, match="spec.json"):
+    with pytest.raises(ContainerSpecError, match="spec.json"):
         load_spec(_write(tmp_path, "{not json"))
     spec = load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "params": {"x": 1}}]}))
     assert spec["nodes"][0]["params"] == {"x": 1}
-    with pytest.raises(HostSpecError, match=r"nodes\[0\]\.role 'broker': one of plant, feed, ems, recorder"):
+    with pytest.raises(ContainerSpecError, match=r"nodes\[0\]\.role 'broker': one of plant, feed, ems, recorder"):
         load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "role": "broker"}]}))
     # a container runs one node per role and namespace
     both = [{"namespace": "/a", "role": "plant"}, {"namespace": "/a", "role": "feed"}]
     spec = load_spec(_write(tmp_path, {"nodes": both}))
     assert [e["role"] for e in spec["nodes"]] == ["plant", "feed"]
-    with pytest.raises(HostSpecError, match=r"nodes\[1\]: namespace '/a' given twice"):
+    with pytest.raises(ContainerSpecError, match=r"nodes\[1\]: namespace '/a' given twice"):
         load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "role": "ems"}, {"namespace": "/a", "role": "ems"}]}))
 
 
@@ -62,15 +62,16 @@ def test_to_parameters_types() -> None:
 
 
 @pytest.mark.ros
-def test_three_buildings_in_host_mode_equal_in_process(tmp_path: Path) -> None:
+def test_three_buildings_in_the_role_layout_equal_in_process(tmp_path: Path) -> None:
     """3 buildings, 2 per recorder process: 5 node processes, each building equals its in-process run."""
-    from comems4build_ros.ros.launcher import LaunchOptions, launch
+    from comems4build_ros.ros.launcher import launch
+    from comems4build_ros.ros.plan import LaunchOptions
 
     out = tmp_path / "run"
-    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, host_mode=True,
+    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, layout="role",
                          buildings_per_recorder=2, timeout_s=150))
     logs = sorted(p.name for p in (out / "log").glob("*.log"))
-    assert logs == ["host_ems.log", "host_feed.log", "host_plant.log", "host_recorder_0.log", "host_recorder_1.log"]
+    assert logs == ["role_ems.log", "role_feed.log", "role_plant.log", "role_recorder_0.log", "role_recorder_1.log"]
     assert_buildings_equal_in_process(out, 3)
 
 
@@ -79,8 +80,9 @@ def test_three_buildings_in_two_containers_equal_in_process(tmp_path: Path) -> N
     """Layout ``building``: every node of buildings 0 and 2 in one container process, of
     building 1 in another; each building equals its in-process run, nothing lost, and the
     EMS and feed beside a finished recorder end at once (no linger for the recorder to leave)."""
-    from comems4build_ros.ros.common import LINGER_S
-    from comems4build_ros.ros.launcher import LaunchOptions, launch
+    from comems4build_ros.ros.launcher import launch
+    from comems4build_ros.ros.node import LINGER_S
+    from comems4build_ros.ros.plan import LaunchOptions
 
     out = tmp_path / "run"
     res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, containers=2, timeout_s=150))
@@ -96,9 +98,9 @@ def test_three_buildings_in_two_containers_equal_in_process(tmp_path: Path) -> N
 def assert_buildings_equal_in_process(out: Path, n: int) -> None:
     """Each building's summary of the launch in ``out`` equals its in-process run; complete bags."""
     from comems4build_ros.config import load_plant_params
-    from comems4build_ros.ros.bag import lost_messages
-    from comems4build_ros.ros.launcher import processes_with_env
-    from comems4build_ros.ros.nodes.feed import load_scenario
+    from comems4build_ros.ros.bag_eval import lost_messages
+    from comems4build_ros.ros.supervisor import processes_with_env
+    from comems4build_ros.scenario.run import load_scenario
     from comems4build_ros.scenario.settings import load_scenario_settings
     from comems4build_ros.sim import simulate
 

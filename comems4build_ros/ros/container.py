@@ -1,25 +1,24 @@
-"""Host mode: one OS process per role runs that role's nodes of many buildings.
+"""Container processes: one OS process runs several nodes (ROS 2 composition, for rclpy).
 
-``python -m comems4build_ros.ros.host --role plant|feed|ems|recorder|container --spec FILE.json``
+``python -m comems4build_ros.ros.container --role plant|feed|ems|recorder|container --spec FILE.json``
 
-With ``--buildings N`` the process-per-node launch starts 3N + N + 1 processes; with 16
-buildings Fast DDS discovery between ~65 participants and the per-process overhead
-(imports, executors, one wake-up per message per process) did not finish in minutes on
-2 cores (docs/ros_tools.md). In host mode the launcher starts one process per role
-(plant, feed, EMS) and one recorder process per few buildings. Each process creates the
-very node classes of ``comems4build_ros.ros.nodes`` (:class:`PlantSim`, :class:`Feed`,
-:class:`EMSNode`, :class:`Recorder`), one ``rclpy`` node per building under
-``/building_<i>/`` with its parameters as ``parameter_overrides``, and spins them all on
-one ``SingleThreadedExecutor``. The nodes still talk over DDS (one participant per
-process, rclpy's default), so the lock-step protocol, the contract checks and the bags
-are those of the separate processes.
+rclpy has no component container, so this module is one: it creates the very node
+classes of ``comems4build_ros.ros.nodes`` (:class:`PlantSim`, :class:`Feed`,
+:class:`EMSNode`, :class:`Recorder`), one ``rclpy`` node per entry of its spec file, each
+under its own namespace with its parameters as ``parameter_overrides``, and spins them
+all on one executor. The nodes still talk over DDS (one participant per process, rclpy's
+default), so the topics, the lock-step protocol, the contract checks and the bags are
+those of separate processes. Two layouts of the run plan use it
+(:mod:`comems4build_ros.ros.plan`):
 
-Role ``container`` (the ROS 2 idea of composing nodes into one container process): one
-process runs every node of a few buildings (recorder, EMS, feed and plant), each spec
-entry naming its node role (``"role": "plant"``). Messages between the nodes of one
-process still go through the process's DDS participant, so the topics, the lock-step
-protocol and the bags stay those of separate processes; there is one process wake-up per
-step of a building instead of one in each of four processes.
+* ``building`` (role ``container``): one process runs every node of a few buildings
+  (recorder, EMS, feed and plant), each spec entry naming its node role (``"role":
+  "plant"``): one process wake-up per step of a building instead of one in each of four
+  processes;
+* ``role`` (roles ``plant``, ``feed``, ``ems``, ``recorder``): one process per role runs
+  that role's node of every building (and one recorder process per few buildings); with
+  16 buildings one process per node meant ~65 DDS participants, whose discovery did not
+  finish in minutes on 2 cores (docs/ros_tools.md).
 
 Spec file (JSON, written by the launcher)::
 
@@ -34,11 +33,11 @@ The recorders' own progress lines are replaced by one line ``progress <recorded>
 Parameter values: bool, int, float, str or a non-empty list of one of them (empty lists
 are left out: their type cannot be inferred, as with ``-p``).
 
-Exit codes: a host process exits 0 once every node's ``finished`` future completed with
+Exit codes: a container process exits 0 once every node's ``finished`` future completed with
 0 (plants after their last step, recorders once their bags are complete, feed and EMS
 nodes on ``plant/done``); the first non-zero result is the exit code (an EMS node whose
 controller failed). A bad parameter or scenario gives exit code 2 and a message
-naming the namespace. Parameter services are not started for hosted nodes (fewer
+naming the namespace. Parameter services are not started for contained nodes (fewer
 entities in the shared executor); ``ros2 param`` does not reach them.
 """
 
@@ -50,11 +49,11 @@ import sys
 from pathlib import Path
 from typing import Any
 
-#: Roles of hosted nodes.
+#: Roles of the nodes a container runs.
 NODE_ROLES = ("plant", "feed", "ems", "recorder")
 #: Role of a container process: every entry of its spec names its own node role.
 CONTAINER = "container"
-#: Roles a host process can run.
+#: Roles a container process can run.
 ROLES = (*NODE_ROLES, CONTAINER)
 #: Roles whose process ends once all its nodes' ``finished`` futures are done (every node
 #: finishes at the end of the run: feed and EMS on ``plant/done``).
@@ -63,38 +62,39 @@ FINISHING_ROLES = ROLES
 EXIT_BAD_INPUT = 2
 
 
-class HostSpecError(ValueError):
+class ContainerSpecError(ValueError):
     """The spec file is unreadable or malformed."""
 
 
 def load_spec(path: str | Path) -> dict[str, Any]:
-    """Read and check a host spec file (see the module docstring).
+    """Read and check a container spec file (see the module docstring).
 
     Raises
     ------
-    HostSpecError
+    ContainerSpecError
         Naming the file and the offending entry.
     """
     p = Path(path)
     try:
         spec = json.loads(p.read_text(encoding="utf-8"))
     except (OSError, json.JSONDecodeError) as exc:
-        raise HostSpecError(f"host spec '{p}': {exc}") from None
+        raise ContainerSpecError(f"container spec '{p}': {exc}") from None
     nodes = spec.get("nodes") if isinstance(spec, dict) else None
     if not isinstance(nodes, list) or not nodes:
-        raise HostSpecError(f"host spec '{p}': 'nodes' must be a non-empty list")
+        raise ContainerSpecError(f"container spec '{p}': 'nodes' must be a non-empty list")
     seen: set[tuple[Any, str]] = set()
     for i, entry in enumerate(nodes):
         if not isinstance(entry, dict) or not isinstance(entry.get("namespace"), str):
-            raise HostSpecError(f"host spec '{p}': nodes[{i}] needs a string 'namespace'")
+            raise ContainerSpecError(f"container spec '{p}': nodes[{i}] needs a string 'namespace'")
         key = (entry.get("role"), entry["namespace"])  # a container has one node per role and namespace
         if key in seen:
-            raise HostSpecError(f"host spec '{p}': nodes[{i}]: namespace '{entry['namespace']}' given twice")
+            raise ContainerSpecError(f"container spec '{p}': nodes[{i}]: namespace '{entry['namespace']}' given twice")
         seen.add(key)
         if not isinstance(entry.get("params", {}), dict):
-            raise HostSpecError(f"host spec '{p}': nodes[{i}].params must be an object")
+            raise ContainerSpecError(f"container spec '{p}': nodes[{i}].params must be an object")
         if "role" in entry and entry["role"] not in NODE_ROLES:
-            raise HostSpecError(f"host spec '{p}': nodes[{i}].role '{entry['role']}': one of {', '.join(NODE_ROLES)}")
+            raise ContainerSpecError(f"container spec '{p}': nodes[{i}].role '{entry['role']}': "
+                                     f"one of {', '.join(NODE_ROLES)}")
     return spec
 
 
@@ -103,7 +103,7 @@ def entry_role(entry: dict[str, Any], role: str) -> str:
     if role != CONTAINER:
         return role
     if "role" not in entry:
-        raise HostSpecError(f"host spec: node '{entry.get('namespace')}' of a container needs a 'role'")
+        raise ContainerSpecError(f"container spec: node '{entry.get('namespace')}' of a container needs a 'role'")
     return str(entry["role"])
 
 
@@ -140,15 +140,15 @@ def node_factory(role: str, spec: dict[str, Any]) -> Any:
 
         ems = spec.get("ems")
         if not isinstance(ems, str) or not ems:
-            raise HostSpecError("host spec: role 'ems' needs the EMS name as 'ems'")
+            raise ContainerSpecError("container spec: role 'ems' needs the EMS name as 'ems'")
         return lambda **kw: EMSNode(ems, **kw)
-    raise HostSpecError(f"unknown role '{role}' (one of {', '.join(ROLES)})")
+    raise ContainerSpecError(f"unknown role '{role}' (one of {', '.join(ROLES)})")
 
 
-def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> int:
-    """Create every node of ``spec`` and spin them on one executor (:func:`~.common.make_executor`).
+def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None) -> int:
+    """Create every node of ``spec`` and spin them on one executor (:func:`~.process.make_executor`).
 
-    Shutdown order as :func:`comems4build_ros.ros.common.run_node`: executor shutdown,
+    Shutdown order as :func:`comems4build_ros.ros.process.run_node`: executor shutdown,
     destroy every node (a recorder closes its bag there), rclpy shutdown.
     """
     import rclpy
@@ -156,8 +156,8 @@ def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> 
     from rclpy.task import Future
 
     from ..config import ConfigError
-    from .common import make_executor
     from .contract import ContractError
+    from .process import ignore_sigint, make_executor, print_cpu
 
     makers: dict[str, Any] = {}
     roles = [entry_role(e, role) for e in spec["nodes"]]
@@ -210,8 +210,8 @@ def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> 
             print_progress(progress_nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
-    except (ConfigError, ContractError, ValueError, FileNotFoundError) as exc:
-        print(f"[host {role} {current}] error: {exc}", file=sys.stderr, flush=True)
+    except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
+        print(f"[container {role} {current}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
     finally:
         ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
@@ -219,32 +219,15 @@ def run_host(role: str, spec: dict[str, Any], args: list[str] | None = None) -> 
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
-        print_cpu(f"host {role}")
+        print_cpu(f"container {role}")
     return code
-
-
-def ignore_sigint() -> None:
-    """Ignore SIGINT from now on (main thread only): the process is already shutting down."""
-    import signal
-    import threading
-
-    if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.SIG_IGN)
-
-
-def print_cpu(label: str) -> None:
-    """``[<label>] cpu_s user=<s> sys=<s>`` on stderr (the log): CPU time of this process [s]."""
-    import resource
-
-    ru = resource.getrusage(resource.RUSAGE_SELF)
-    print(f"[{label}] cpu_s user={ru.ru_utime:.2f} sys={ru.ru_stime:.2f}", file=sys.stderr, flush=True)
 
 
 def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str, Any]:
     """Scenario of every feed node of ``spec`` (of a process of ``role``), built in parallel
     worker processes.
 
-    Generating one default scenario takes about 1.5 s of CPU; a feed host with 16
+    Generating one default scenario takes about 1.5 s of CPU; a feed container with 16
     buildings would spend 16 x that before the first step. The workers are forked before
     rclpy is initialised (one per core, at most one per node). A node whose scenario
     fails here is left to its own constructor, which reports the error as usual.
@@ -273,7 +256,7 @@ def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str
 
 
 def print_progress(recorders: list[Any]) -> None:
-    """One ``progress <recorded> <total>`` line for all hosted recorders (total 0 until every one knows)."""
+    """One ``progress <recorded> <total>`` line for all recorders of the process (total 0 until every one knows)."""
     recorded = sum(sum(r.records.values()) for r in recorders)
     known = all(len(r.n_steps) == len(r.namespaces) for r in recorders)
     total = sum(sum(r.n_steps.values()) for r in recorders) if known else 0
@@ -281,8 +264,8 @@ def print_progress(recorders: list[Any]) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Entry point: ``python -m comems4build_ros.ros.host --role ROLE --spec FILE``."""
-    parser = argparse.ArgumentParser(prog="comems4build_ros.ros.host", description=__doc__.splitlines()[0])
+    """Entry point: ``python -m comems4build_ros.ros.container --role ROLE --spec FILE``."""
+    parser = argparse.ArgumentParser(prog="comems4build_ros.ros.container", description=__doc__.splitlines()[0])
     parser.add_argument("--role", required=True, choices=ROLES)
     parser.add_argument("--spec", required=True, help="JSON spec file (namespaces and parameters of the nodes)")
     ns, rest = parser.parse_known_args(argv)
@@ -290,10 +273,10 @@ def main(argv: list[str] | None = None) -> int:
         spec = load_spec(ns.spec)
         for entry in spec["nodes"]:
             entry_role(entry, ns.role)
-    except HostSpecError as exc:
+    except ContainerSpecError as exc:
         print(f"error: {exc}", file=sys.stderr)
         return EXIT_BAD_INPUT
-    return run_host(ns.role, spec, rest or None)
+    return run_container(ns.role, spec, rest or None)
 
 
 if __name__ == "__main__":

@@ -18,16 +18,10 @@ import pytest
 rclpy = pytest.importorskip("rclpy")
 
 from comems4build_ros.config import ConfigError, load_plant_params  # noqa: E402
-from comems4build_ros.ros.common import (  # noqa: E402
-    ArrayPublisher,
-    CommandError,
-    ContractNode,
-    command_bounds,
-    command_to_action,
-    layout_sizes,
-    plant_params_from_node,
-)
 from comems4build_ros.ros.contract import ContractError, load_contract  # noqa: E402
+from comems4build_ros.ros.ems_command import CommandError, command_bounds, command_to_action  # noqa: E402
+from comems4build_ros.ros.node import ArrayPublisher, ContractNode, layout_sizes  # noqa: E402
+from comems4build_ros.ros.parameters import plant_params_from_node  # noqa: E402
 from comems4build_ros.types import HP_DHW  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -38,7 +32,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture()
 def domain_id():
     """A ROS domain id locked for this test (the launcher's lock files)."""
-    from comems4build_ros.ros.launcher import acquire_domain_id
+    from comems4build_ros.ros.supervisor import acquire_domain_id
 
     with acquire_domain_id() as did:
         yield did
@@ -276,7 +270,7 @@ def test_ready_cdr_bytes_equal_rclpy_serialisation(params) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-    from comems4build_ros.ros.common import cdr_prefix
+    from comems4build_ros.ros.cdr import cdr_prefix
 
     contract = load_contract()
     for spec in contract.topics.values():
@@ -299,7 +293,7 @@ def test_string_cdr_equals_rclpy_serialisation(text: str) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
     from std_msgs.msg import String
 
-    from comems4build_ros.ros.common import string_cdr
+    from comems4build_ros.ros.cdr import string_cdr
 
     assert string_cdr(text) == serialize_message(String(data=text))
     assert deserialize_message(string_cdr(text), String).data == text
@@ -312,7 +306,7 @@ def test_parse_array_reads_what_rclpy_serialises(labels) -> None:
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-    from comems4build_ros.ros.common import parse_array
+    from comems4build_ros.ros.cdr import parse_array
 
     values = array("d", [3.0, -0.1, 1e300, 7.25])
     msg = Float64MultiArray(data=values)
@@ -323,3 +317,69 @@ def test_parse_array_reads_what_rclpy_serialises(labels) -> None:
         parse_array(raw[:-3])
     with pytest.raises(ValueError, match="little-endian"):
         parse_array(b"\x00\x00")
+
+
+def _descriptions(node) -> dict[str, object]:
+    names = node.list_parameters([], 0).names
+    rclpy_own = ("use_sim_time", "start_type_description_service")  # declared by rclpy itself
+    return {n: node.describe_parameter(n) for n in names if n not in rclpy_own}
+
+
+def test_every_parameter_has_a_description_unit_and_range(context, tmp_path):
+    """What ``ros2 param describe`` shows: each parameter of plant_sim, the EMS and the
+    recorder (plant sections included) has a description ending in its unit, and a range
+    (numbers) or its allowed values (text, flags)."""
+    from rclpy.parameter import Parameter
+
+    from comems4build_ros.ros.nodes.ems_node import EMSNode
+    from comems4build_ros.ros.nodes.plant_sim import PlantSim
+    from comems4build_ros.ros.nodes.recorder import Recorder
+
+    overrides = [Parameter("battery.e_max_kwh", value=8.0), Parameter("step_timeout_s", value=3)]
+    nodes = [PlantSim(context=context, parameter_overrides=overrides), EMSNode("fuzzy", context=context),
+             Recorder(context=context, parameter_overrides=[Parameter("bag_path", value=str(tmp_path / "bag"))])]
+    try:
+        for node in nodes:
+            described = _descriptions(node)
+            assert "config_files" in described and "exit_when_done" in described or node.get_name() == "recorder"
+            for name, d in described.items():
+                assert d.description, (node.get_name(), name)
+                numeric = d.type in (2, 3)  # integer, double
+                if numeric:
+                    assert d.description.endswith("]"), (node.get_name(), name, d.description)
+                    assert d.floating_point_range or d.integer_range or d.additional_constraints, (name, d)
+                else:
+                    assert d.additional_constraints, (node.get_name(), name)
+        plant = _descriptions(nodes[0])
+        assert plant["battery.e_max_kwh"].description.endswith("[kWh]")
+        assert plant["battery.e_max_kwh"].floating_point_range[0].from_value == 0.0
+        assert plant["step_timeout_s"].integer_range  # given as an integer: described as one
+        assert plant["config_files"].type == Parameter.Type.STRING_ARRAY.value  # not a list holding ""
+    finally:
+        for node in nodes:
+            node.destroy_node()
+
+
+def test_parameter_outside_its_range_is_refused(context):
+    from rclpy.parameter import Parameter
+
+    from comems4build_ros.ros.nodes.plant_sim import PlantSim
+
+    with pytest.raises(ValueError, match="record_window_steps"):
+        PlantSim(context=context, parameter_overrides=[Parameter("record_window_steps", value=0)])
+
+
+@pytest.mark.parametrize("given", ["/building_0", "/building_0, /building_1", ["/building_0", "/building_1"]])
+def test_recorder_takes_namespaces_as_string_or_array(context, tmp_path, given):
+    """launch_ros hands a list of one substitution over as a string: both forms work."""
+    from rclpy.parameter import Parameter
+
+    from comems4build_ros.ros.nodes.recorder import Recorder
+
+    node = Recorder(context=context, parameter_overrides=[Parameter("bag_path", value=str(tmp_path / "bag")),
+                                                          Parameter("namespaces", value=given)])
+    try:
+        want = [given] if given == "/building_0" else ["/building_0", "/building_1"]
+        assert node.namespaces == want
+    finally:
+        node.destroy_node()

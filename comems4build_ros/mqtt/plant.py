@@ -255,7 +255,7 @@ def _sleep_until(t_unix_s: float, handle: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``mqtt_plant``; exit code 2 for bad options or files."""
-    from ..ros.nodes.feed import check_scenario, load_scenario
+    from ..scenario.run import check_scenario, load_scenario
 
     ap = argparse.ArgumentParser(prog="mqtt_plant", description="simulated building with its I/O over MQTT")
     ap.add_argument("--topic-map", default=None, help="topic map (default config/mqtt.yaml)")

@@ -1,0 +1,236 @@
+"""The master of the lock-step loop: the protocol that ``plant_sim`` and ``mqtt_bridge`` share.
+
+A lock-step master announces step ``k`` (the state at its start on ``state/*``, then
+``plant/step`` = ``k``), waits for the EMS's command for ``k``, applies it (the plant
+model, or the building behind MQTT), publishes the step's ``plant/record`` and ``clock``,
+and goes on to ``k + 1`` (docs/ros_nodes.md "Lock-step protocol"). :class:`LockStepMaster`
+owns what does not depend on what is stepped:
+
+* the loop's timing parameters (:data:`LOOP_PARAMS`, each positive) and flags
+  (``wait_for_recorder``, ``recorder_node``, ``exit_when_done``, ``ems_token``,
+  ``record_window_steps``);
+* run tokens (:meth:`accept_token`): the commands of one EMS only, ``ems_token`` or the
+  token of the run's first valid command; any other is counted as foreign;
+* the start gate (:meth:`recorder_ready`): with ``wait_for_recorder``, the recorder's
+  ``recorder/ready`` and this node's writers matched to the recorder's readers;
+* back-pressure (:meth:`behind`): no step announced more than ``record_window_steps``
+  beyond ``recorder/progress``, the time held counted;
+* the run's fault counters and statistics (:meth:`stats`), fault events on
+  ``plant/events`` (:meth:`event`), ``clock`` (:meth:`publish_clock`);
+* the end of the run (:meth:`finish_run`): the statistics line, ``plant/done``, the
+  acknowledgement of the last messages, and the exit once the recorder has left.
+
+A subclass creates its own publishers of ``state/*`` and ``plant/record`` and its
+subscriptions of ``ems/command`` and ``feed/truth``, and implements
+:meth:`on_recorder_progress` (what to do when the recording caught up).
+"""
+
+from __future__ import annotations
+
+import time
+from typing import Any
+
+from builtin_interfaces.msg import Time
+from rclpy.duration import Duration
+from rclpy.task import Future
+from rosgraph_msgs.msg import Clock
+from std_msgs.msg import Bool, String, UInt32
+
+from .node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
+from .parameters import param, plant_params_from_node
+
+#: Default wait for the command of a step once the EMS has answered at least once [s].
+STEP_TIMEOUT_S = 5.0
+#: Default wait for the first command of the run (EMS start-up, imports, solver set-up) [s].
+STARTUP_TIMEOUT_S = 120.0
+#: Default period of the repeated announcement while the master waits [s].
+REPUBLISH_PERIOD_S = 0.5
+#: Default period of the watchdog timer (timeouts, repeats; parameter ``watchdog_period_s``) [s].
+WATCHDOG_PERIOD_S = 0.02
+#: Timing parameters of the loop [s] and their defaults.
+LOOP_PARAMS = {
+    "step_timeout_s": STEP_TIMEOUT_S,
+    "startup_timeout_s": STARTUP_TIMEOUT_S,
+    "republish_period_s": REPUBLISH_PERIOD_S,
+    "watchdog_period_s": WATCHDOG_PERIOD_S,
+}
+#: Default of ``record_window_steps``: with ``wait_for_recorder`` no step is announced more
+#: than this beyond the last step the recorder has written without a gap
+#: (``recorder/progress``); the contract's keep-last depth (1000) exceeds it, so no
+#: message can be overwritten before the recorder has it [steps].
+RECORD_WINDOW_STEPS = 256
+#: Wait for the acknowledgement of the last messages before exiting [s] ...
+ACK_TIMEOUT_S = 5.0
+#: ... checked this often [s].
+ACK_POLL_S = 0.02
+NS_PER_S = 1_000_000_000
+#: State topics: contract topic -> PlantState attributes in layout order (after step).
+STATE_TOPICS: dict[str, tuple[str, ...]] = {
+    "state/t_air_c": ("t_air_c",),
+    "state/v_dhw_l": ("v_dhw_l",),
+    "state/soc": ("soc",),
+    "state/loh": ("loh",),
+    "state/hp_mod": ("hp_mod",),
+    "state/fc_on": ("fc_on",),
+    "state/t_wall": ("t_wall_in_c", "t_wall_out_c"),
+}
+#: Names of the fault counters, in the order of ``plant/record`` and of the statistics.
+FAULT_COUNTERS = ("fallback_steps", "rejected_commands", "wrong_step_commands", "duplicate_commands",
+                  "foreign_commands")
+
+
+class LockStepMaster(ContractNode):
+    """Base class of the lock-step masters (see the module docstring).
+
+    Parameters
+    ----------
+    node_name : node name in the contract (``plant_sim``, ``mqtt_bridge``)
+    extra_timing : further positive timing parameters [s] of the subclass and their defaults
+    node_kwargs : passed to ``rclpy.node.Node`` (``namespace``, ``parameter_overrides``, ...)
+    """
+
+    def __init__(self, node_name: str, extra_timing: dict[str, float] | None = None, **node_kwargs: Any) -> None:
+        super().__init__(node_name, automatically_declare_parameters_from_overrides=True, **node_kwargs)
+        self.params = plant_params_from_node(self)
+        for name, default in {**LOOP_PARAMS, **(extra_timing or {})}.items():
+            value = float(param(self, name, default))
+            if not value > 0:
+                raise ValueError(f"node '{node_name}': parameter '{name}' must be positive")
+            setattr(self, name, value)
+        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
+        self.recorder_node = str(param(self, "recorder_node", RECORDER_NODE))
+        self.exit_when_done = bool(param(self, "exit_when_done", True))
+        self.ems_token = int(param(self, "ems_token", 0))
+        self.record_window_steps = int(param(self, "record_window_steps", RECORD_WINDOW_STEPS))
+        if self.record_window_steps < 1:
+            raise ValueError(f"node '{node_name}': parameter 'record_window_steps' must be >= 1")
+        self.sizes = layout_sizes(self.params)
+        self.dt_ns = int(round(self.params.simulation.time_step_h * 3600.0 * NS_PER_S))
+        # the run
+        self.k = 0  # the step announced or waited for
+        self.n_steps: int | None = None
+        self.started = False
+        self.done = False
+        self.finished = Future()
+        for name in FAULT_COUNTERS:
+            setattr(self, name, 0)
+        self.held_s = 0.0  # time announcements waited for the recorder (back-pressure) [s]
+        self._t_held: float | None = None
+        self._token = float(self.ems_token) if self.ems_token > 0 else None  # run token of applied commands
+        self._recorder_ready = False
+        self._recorded = 0  # steps the recorder has written without a gap (recorder/progress)
+        # what every master publishes and reads besides its state and commands
+        self._record = ArrayPublisher(self, "plant/record", self.sizes)
+        self._step_pub = self.contract_publisher("plant/step")
+        self._clock_pub = self.contract_publisher("clock")
+        self._done_pub = self.contract_publisher("plant/done")
+        self._events_pub = self.contract_publisher("plant/events")
+        self._step_msg = UInt32()
+        self._clock_msg = Clock()
+        self.contract_subscription("recorder/ready", self._on_recorder_ready)
+        self.contract_subscription("recorder/progress", self._on_recorder_progress)
+
+    # ------------------------------------------------------------------ recorder
+    def _on_recorder_ready(self, msg: Bool) -> None:
+        self._recorder_ready = bool(msg.data)
+
+    def _on_recorder_progress(self, msg: UInt32) -> None:
+        self._recorded = max(self._recorded, int(msg.data))
+        self.on_recorder_progress()
+
+    def on_recorder_progress(self) -> None:
+        """Called when ``recorder/progress`` grew: a held announcement may go out now."""
+
+    def recorder_ready(self) -> bool:
+        """Whether the run may start as far as the recorder is concerned: without
+        ``wait_for_recorder`` at once; else once the recorder said ``recorder/ready`` (its
+        readers matched) and this node's writers matched its readers too (the first
+        messages could otherwise go unsent, :meth:`~ContractNode.recorder_gate`)."""
+        return not self.wait_for_recorder or (self._recorder_ready and self.recorder_gate())
+
+    def behind(self, k: int) -> bool:
+        """With ``wait_for_recorder``: announcing step ``k`` would run more than
+        ``record_window_steps`` beyond the gap-free recording (back-pressure). The time
+        from the first ``True`` to the next ``False`` is added to ``held_s``."""
+        behind = self.wait_for_recorder and k - self._recorded > self.record_window_steps
+        now = time.monotonic()
+        if behind and self._t_held is None:
+            self._t_held = now
+        elif not behind and self._t_held is not None:
+            self.held_s += now - self._t_held
+            self._t_held = None
+        return behind
+
+    # ------------------------------------------------------------------ commands
+    def accept_token(self, token: float, step: int) -> bool:
+        """Whether a valid command with run token ``token`` comes from the run's EMS: the
+        token is ``ems_token``, or else that of the run's first valid command; any other
+        token is counted in ``foreign_commands``, logged on plant/events and its command
+        ignored."""
+        if self._token is None:
+            self._token = token  # the first valid command names the run's EMS
+            self.get_logger().info(f"commands of token {int(token)} accepted from now on")
+        elif token != self._token:
+            self.foreign_commands += 1
+            self.event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} ignored "
+                                  f"(the run's EMS has token {int(self._token)})")
+            return False
+        return True
+
+    # ------------------------------------------------------------------ output
+    def event(self, kind: str, detail: str) -> None:
+        """Log a fault event and publish it on plant/events (``<step> <kind> <detail>``)."""
+        line = f"{self.k} {kind} {detail}"
+        self.get_logger().warning(line)
+        self._events_pub.publish(String(data=line))
+
+    def publish_step(self, k: int) -> None:
+        """``plant/step`` = ``k``."""
+        self._step_msg.data = k
+        self._step_pub.publish(self._step_msg)
+
+    def publish_clock(self, start_unix_s: float) -> None:
+        """``clock``: the end of the step that started at ``start_unix_s`` [s since the epoch]."""
+        end_ns = int(round(start_unix_s * NS_PER_S)) + self.dt_ns
+        self._clock_msg.clock = Time(sec=end_ns // NS_PER_S, nanosec=end_ns % NS_PER_S)
+        self._clock_pub.publish(self._clock_msg)
+
+    def stats(self) -> dict[str, float]:
+        """Run statistics: steps, fault counters and the time held by the recorder [s]."""
+        return {"steps": float(self.k), **{name: float(getattr(self, name)) for name in FAULT_COUNTERS},
+                "held_for_recorder_s": self.held_s}
+
+    # ------------------------------------------------------------------ end of run
+    def finish_run(self, before_done: Any = None) -> None:
+        """End of the run: log the statistics line, publish plant/done and the line on
+        plant/events, wait (at most :data:`ACK_TIMEOUT_S`) for their acknowledgement, then,
+        if ``exit_when_done``, finish once the recorder has left (a writer that left at once
+        could take its last messages out of a busy recorder's queue).
+
+        The acknowledgements are polled by a timer (:data:`ACK_POLL_S`), not awaited in the
+        callback: a container process spins every building's plant on one executor, and a
+        blocking wait (DDS acknowledges on the writer's heartbeat period, seconds) would stall
+        the other buildings' steps at every end of run. The line is logged first: whoever
+        sees plant/done can rely on it being in the log. ``before_done`` (optional) is
+        called between the log line and plant/done.
+        """
+        self.done = True
+        line = " ".join(f"{k}={v:.6g}" for k, v in self.stats().items())
+        self.get_logger().info(f"run done: {line}")
+        if before_done is not None:
+            before_done()
+        self._done_pub.publish(Bool(data=True))
+        self._events_pub.publish(String(data=f"{self.k} stats {line}"))
+        pubs = (self._record.publisher, self._done_pub, self._events_pub)
+        t0 = time.monotonic()
+        now_only = Duration(nanoseconds=0)
+        timer: Any = None
+
+        def poll() -> None:
+            if not all(p.wait_for_all_acked(now_only) for p in pubs) and time.monotonic() - t0 < ACK_TIMEOUT_S:
+                return
+            timer.cancel()
+            if self.exit_when_done:
+                self.finish_when_recorded("plant/record")
+
+        timer = self.create_timer(ACK_POLL_S, poll)

@@ -1,0 +1,250 @@
+"""The base of every node of the package: the contract enforced, the recorder awaited.
+
+* :class:`ContractNode`: its ``create_publisher`` / ``create_subscription`` refuse any
+  topic the contract (``msg_defs/topics.yaml``) does not declare for the node, so a node
+  cannot quietly publish or read something outside its row of
+  ``tab:level_of_information``; :meth:`ContractNode.contract_publisher` and
+  :meth:`ContractNode.contract_subscription` take the type and QoS from the contract.
+  It also holds the two waits a recorded run needs: the first publication until the
+  node's writers matched the recorder (:meth:`ContractNode.recorder_gate`), and the end of
+  the node until the recorder has left (:meth:`ContractNode.finish_when_recorded`).
+* :class:`ArrayPublisher` publishes one contract array topic in its layout order, as
+  ready CDR bytes (:mod:`comems4build_ros.ros.cdr`).
+"""
+
+from __future__ import annotations
+
+import time
+from array import array
+from collections.abc import Callable, Sequence
+from typing import Any
+
+from rclpy.node import Node
+
+from ..config import PlantParams
+from .cdr import cdr_prefix
+from .contract import Contract, ContractError, Layout, load_contract, relative, sizes
+
+#: Topics rclpy itself creates for every node (parameter events, logging); not in the contract.
+INFRASTRUCTURE_TOPICS = frozenset({"/parameter_events", "/rosout"})
+
+#: Longest wait of a finished node for the recorder to leave [s] (ContractNode.finish_when_recorded).
+LINGER_S = 30.0
+#: Period of that check [s].
+LINGER_CHECK_S = 0.05
+#: Node name of the recorder in the contract.
+RECORDER_NODE = "recorder"
+#: Longest hold of a node's first publication for its writers to match the recorder [s].
+RECORDER_GATE_TIMEOUT_S = 30.0
+#: ``(namespace, name)`` of the recorder nodes of this process that have closed their run
+#: (every message taken). In a container process (:mod:`comems4build_ros.ros.container`) such a
+#: recorder stays in the graph until the process ends; the nodes beside it need not wait.
+FINISHED_LOCAL_RECORDERS: set[tuple[str, str]] = set()
+
+
+class ContractNode(Node):
+    """A ``Node`` whose publishers and subscriptions must be declared in the topic contract.
+
+    Parameters
+    ----------
+    node_name : node name; must be a node of the contract
+    contract : contract to enforce (default: the package's ``msg_defs/topics.yaml``)
+    kwargs : passed to ``rclpy.node.Node``
+    """
+
+    def __init__(self, node_name: str, contract: Contract | None = None, **kwargs: Any) -> None:
+        self.contract = contract or load_contract()
+        self.contract.node(node_name)  # raises ContractError for an undeclared node
+        super().__init__(node_name, **kwargs)
+
+    # -- enforcement -------------------------------------------------------------
+    def _contract_name(self, topic: str) -> str:
+        """Contract (relative) name of ``topic`` as this node would resolve it."""
+        full = self.resolve_topic_name(topic)
+        if full in INFRASTRUCTURE_TOPICS:
+            return full
+        rel = relative(self.get_namespace(), full)
+        if rel is None:
+            raise ContractError(
+                f"node '{self.get_name()}': topic '{full}' lies outside its namespace '{self.get_namespace()}'"
+            )
+        return rel
+
+    def create_publisher(self, msg_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
+        name = self._contract_name(topic)
+        if name not in INFRASTRUCTURE_TOPICS and not self.contract.may_publish(self.get_name(), name):
+            raise ContractError(
+                f"node '{self.get_name()}' may not publish '{name}' ({self.contract.path} does not declare it)"
+            )
+        kwargs.setdefault("event_callbacks", no_default_event_callbacks("publisher"))
+        return super().create_publisher(msg_type, topic, *args, **kwargs)
+
+    def create_subscription(self, msg_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
+        name = self._contract_name(topic)
+        if name not in INFRASTRUCTURE_TOPICS and not self.contract.may_subscribe(self.get_name(), name):
+            raise ContractError(
+                f"node '{self.get_name()}' may not subscribe to '{name}' ({self.contract.path} does not declare it)"
+            )
+        kwargs.setdefault("event_callbacks", no_default_event_callbacks("subscription"))
+        return super().create_subscription(msg_type, topic, *args, **kwargs)
+
+    # -- contract-typed helpers --------------------------------------------------
+    def contract_publisher(self, topic: str) -> Any:
+        """Publisher of the contract topic ``topic`` with its type and QoS."""
+        spec = self.contract.topic(topic)
+        return self.create_publisher(spec.msg_class(), topic, spec.qos_profile())
+
+    def contract_subscription(self, topic: str, callback: Callable[[Any], None], raw: bool = False) -> Any:
+        """Subscription to the contract topic ``topic`` with its type and QoS."""
+        spec = self.contract.topic(topic)
+        return self.create_subscription(spec.msg_class(), topic, callback, spec.qos_profile(), raw=raw)
+
+    def finish_when_recorded(self, topic: str, code: int = 0, timeout_s: float | None = None) -> None:
+        """Complete ``self.finished`` with ``code`` once no recorder subscribes to ``topic``.
+
+        A DDS reader drops the samples of a writer that leaves before they were taken, so
+        a node that exited at once on ``plant/done`` could take its last messages out of
+        a busy recorder's queue. The node therefore stays until the recorder (node name
+        ``recorder``) has closed its bag and left, at most ``timeout_s``
+        (:data:`LINGER_S`); without a recorder, or once the recorders are finished ones of
+        this process (:data:`FINISHED_LOCAL_RECORDERS`), it ends at the next check.
+        """
+        full = self.resolve_topic_name(topic)
+        limit = LINGER_S if timeout_s is None else timeout_s
+        t0 = time.monotonic()
+
+        def check() -> None:
+            if self.finished.done():
+                return
+            recorders = [i for i in self.get_subscriptions_info_by_topic(full) if i.node_name == RECORDER_NODE
+                         and (i.node_namespace, i.node_name) not in FINISHED_LOCAL_RECORDERS]
+            if not recorders or time.monotonic() - t0 > limit:
+                self.finished.set_result(code)
+
+        self.create_timer(LINGER_CHECK_S, check)
+
+    #: With a recorder in the run (parameter ``wait_for_recorder``, set by the launcher):
+    #: hold the first publication until :meth:`recorder_matched` (see :meth:`recorder_gate`).
+    wait_for_recorder: bool = False
+    #: Node name of the recorder whose readers :meth:`recorder_matched` looks for.
+    recorder_node: str = RECORDER_NODE
+    _gate_open = False
+    _gate_t0: float | None = None
+
+    def recorder_gate(self) -> bool:
+        """True once this node may publish its first message of the run: without
+        ``wait_for_recorder`` at once, else when :meth:`recorder_matched` holds, or
+        :data:`RECORDER_GATE_TIMEOUT_S` after the first ask (with a warning naming the
+        topics; a reader that died without leaving the graph must not stop the run)."""
+        if self._gate_open or not self.wait_for_recorder:
+            return True
+        now = time.monotonic()
+        if self._gate_t0 is None:
+            self._gate_t0 = now
+        if self.recorder_matched():
+            self._gate_open = True
+        elif now - self._gate_t0 > RECORDER_GATE_TIMEOUT_S:
+            self._gate_open = True
+            unmatched = [p.topic_name for p in self.publishers if p.topic_name not in INFRASTRUCTURE_TOPICS
+                         and p.get_subscription_count() < len(self.get_subscriptions_info_by_topic(p.topic_name))]
+            self.get_logger().warning(f"publishing after {RECORDER_GATE_TIMEOUT_S:g} s without every reader "
+                                      f"matched on: {', '.join(unmatched) or '(none; no recorder reader)'}")
+        return self._gate_open
+
+    def recorder_matched(self) -> bool:
+        """Whether every contract publisher of this node has a recorder's reader and has
+        matched every reader the graph shows on its topic.
+
+        A reader sees a writer (``get_publisher_count``) before, or after, the writer sees
+        the reader: the recorder's ``recorder/ready`` only says that its readers matched.
+        Samples a writer publishes before it has matched a reader are not sent to it
+        (volatile durability), so a node run with ``wait_for_recorder`` publishes its
+        first message only once this holds (measured: the first 2 to 5 steps of 16 feed
+        topics missing in one of six 12-week runs on a quiet machine).
+        """
+        for pub in self.publishers:
+            if pub.topic_name in INFRASTRUCTURE_TOPICS:
+                continue
+            infos = self.get_subscriptions_info_by_topic(pub.topic_name)
+            if not any(i.node_name == self.recorder_node for i in infos) or pub.get_subscription_count() < len(infos):
+                return False
+        return True
+
+    def declared_topics(self) -> tuple[set[str], set[str]]:
+        """Contract names of this node's actual publishers and subscriptions (infrastructure excluded)."""
+        ns = self.get_namespace()
+
+        def names(endpoints: Any) -> set[str]:
+            full = {e.topic_name for e in endpoints} - INFRASTRUCTURE_TOPICS
+            return {relative(ns, t) or t for t in full}
+
+        return names(self.publishers), names(self.subscriptions)
+
+
+class ArrayPublisher:
+    """Publishes ``Float64MultiArray`` messages of one contract topic, reusing one message.
+
+    Parameters
+    ----------
+    node : the publishing node
+    topic : contract topic name
+    layout_sizes : values of the layout size symbols (:func:`contract.sizes`)
+    """
+
+    def __init__(self, node: ContractNode, topic: str, layout_sizes: dict[str, int]) -> None:
+        from std_msgs.msg import Float64MultiArray, MultiArrayDimension
+
+        spec = node.contract.topic(topic)
+        self.topic = topic
+        self.layout: Layout = spec.layout(layout_sizes)
+        self.publisher = node.contract_publisher(topic)
+        self._msg = Float64MultiArray()
+        n = self.layout.length
+        self._msg.layout.dim = [MultiArrayDimension(label=self.layout.dim_label, size=n, stride=n)]
+
+        self._prefix = cdr_prefix(self.layout.dim_label, n)
+
+    def publish(self, data: Sequence[float]) -> None:
+        """Publish ``data`` as is.
+
+        An ``array('d')`` of the layout's length is sent as ready CDR bytes (the fixed
+        prefix of :func:`cdr_prefix` plus the array's bytes; the profile of a step showed
+        rclpy's conversion of the message object as the largest cost of plant_sim and
+        feed); anything else through the ``Float64MultiArray`` message.
+        """
+        if type(data) is array and len(data) == self.layout.length and data.typecode == "d":
+            self.publisher.publish(self._prefix + data.tobytes())
+            return
+        self._msg.data = data
+        self.publisher.publish(self._msg)
+
+    def publish_values(self, values: dict[str, Any]) -> None:
+        """Pack ``values`` (by field name) in layout order and publish."""
+        self.publish(self.layout.pack(values))
+
+
+
+def layout_sizes(params: PlantParams) -> dict[str, int]:
+    """Layout size symbols for ``params`` (horizon and comfort look-ahead of sim.py)."""
+    from ..ems.base import BOUNDS_AHEAD, PRICE_WINDOW
+
+    out = sizes(params, comfort_ahead=BOUNDS_AHEAD + 1)
+    out["horizon"] = PRICE_WINDOW  # the loop's price window and forecast length [steps]
+    return out
+
+
+
+def no_default_event_callbacks(kind: str) -> Any:
+    """Event callbacks without rclpy's default QoS-incompatibility handlers.
+
+    rclpy adds two event handlers (waitables) to every publisher and subscription that
+    only log an incompatible QoS or type; the executor polls them at every wake-up. The
+    topic contract gives every endpoint of a topic the same QoS and type, so the nodes
+    leave them out (``kind``: ``publisher`` or ``subscription``).
+    """
+    from rclpy.event_handler import PublisherEventCallbacks, SubscriptionEventCallbacks
+
+    cls = PublisherEventCallbacks if kind == "publisher" else SubscriptionEventCallbacks
+    return cls(use_default_callbacks=False)
+
+

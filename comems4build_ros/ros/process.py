@@ -1,0 +1,118 @@
+"""The main loop of a node process: init, the executor, a clean shutdown with an exit code.
+
+:func:`run_node` is the body of every node's ``main()`` (and :mod:`comems4build_ros.ros.container`
+does the same for several nodes): the lean single-threaded executor
+(:mod:`comems4build_ros.ros.executor`), clean shutdown on Ctrl-C / SIGTERM (executor
+shutdown, destroy node, ``rclpy.try_shutdown``), exit code 2 for bad input.
+"""
+
+from __future__ import annotations
+
+import sys
+from collections.abc import Callable
+from typing import Any
+
+import rclpy
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.task import Future
+
+from ..config import ConfigError
+from .contract import ContractError
+
+#: Exit code of a node that refused to start (bad parameters, scenario or contract).
+EXIT_BAD_INPUT = 2
+
+#: Environment variable choosing the executor of the node processes: ``lean`` (default,
+#: :class:`comems4build_ros.ros.executor.LeanExecutor`) or ``single`` (rclpy's
+#: ``SingleThreadedExecutor``, for comparison: ``comems4build bench ros`` measures both).
+EXECUTOR_ENV = "COMEMS4BUILD_EXECUTOR"
+EXECUTORS = ("lean", "single")
+
+
+def make_executor() -> Any:
+    """The executor of a node process, chosen by :data:`EXECUTOR_ENV` (default ``lean``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown executor name.
+    """
+    import os
+
+    name = os.environ.get(EXECUTOR_ENV, "lean") or "lean"
+    if name == "single":
+        return SingleThreadedExecutor()
+    if name == "lean":
+        from .executor import LeanExecutor
+
+        return LeanExecutor()
+    raise ValueError(f"environment variable {EXECUTOR_ENV}={name!r}: one of {', '.join(EXECUTORS)}")
+
+
+
+
+def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name: str = "node") -> int:
+    """Create a node, spin it on :func:`make_executor`'s executor and always shut down cleanly.
+
+    The node may expose ``finished: rclpy.task.Future``; spinning stops when it
+    completes (its result is the exit code, default 0). Ctrl-C (KeyboardInterrupt) and
+    SIGTERM (ExternalShutdownException, or rclpy's error on the context the signal
+    handler has just shut down) end the spin with exit code 0. A
+    :class:`ConfigError`, :class:`ContractError`, ``ValueError`` or a missing or existing file raised while the node
+    is created is reported on stderr with exit code :data:`EXIT_BAD_INPUT`.
+    Order of shutdown (as in the rclpy examples): executor shutdown, destroy node, rclpy shutdown.
+    """
+    rclpy.init(args=args)
+    executor = make_executor()
+    node: Node | None = None
+    code = 0
+    try:
+        node = make_node()
+        executor.add_node(node)
+        finished: Future | None = getattr(node, "finished", None)
+        if finished is not None:
+            executor.spin_until_future_complete(finished)
+            if finished.done():
+                code = int(finished.result() or 0)
+        else:
+            executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    except RuntimeError:
+        # rclpy's SIGINT/SIGTERM handler shuts the context down from the signal; when that
+        # falls between the executor's check and its next wait set, rclpy raises RCLError
+        # (a RuntimeError: "the given context is not valid") instead of
+        # ExternalShutdownException. That is the same clean external shutdown.
+        if rclpy.ok():
+            raise
+    except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
+        label = node.get_name() if node is not None else name
+        print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
+        code = EXIT_BAD_INPUT
+    finally:
+        ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
+        executor.shutdown()
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+        print_cpu(name)
+    return code
+
+
+
+def ignore_sigint() -> None:
+    """Ignore SIGINT from now on (main thread only): the process is already shutting down."""
+    import signal
+    import threading
+
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.SIG_IGN)
+
+
+def print_cpu(label: str) -> None:
+    """``[<label>] cpu_s user=<s> sys=<s>`` on stderr (the log): CPU time of this process [s]."""
+    import resource
+
+    ru = resource.getrusage(resource.RUSAGE_SELF)
+    print(f"[{label}] cpu_s user={ru.ru_utime:.2f} sys={ru.ru_stime:.2f}", file=sys.stderr, flush=True)

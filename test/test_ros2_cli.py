@@ -1,0 +1,268 @@
+"""Conformance with the real ROS 2 Jazzy command-line tools: ``ros2 pkg/run/param/launch``.
+
+The tools (ros2cli, launch, launch_ros; pure Python) are not on PyPI. Where a ROS 2
+install provides ``ros2`` with ``launch_ros``, the tests use it; otherwise they install
+the wheels of the folder ``COMEMS4BUILD_ROS2_CLI`` (default: ``ros2-cli`` in the
+``shared`` folder beside the repository) into a temporary overlay of this environment
+(``pip install --target``, put first on ``PYTHONPATH``), and skip, saying why, where
+neither is there. The package is found through ``AMENT_PREFIX_PATH`` = this
+environment's prefix, as a ROS user sets it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import re
+import shutil
+import signal
+import subprocess
+import sys
+import time
+import warnings
+from pathlib import Path
+
+import pytest
+
+from comems4build_ros.config import load_plant_params
+from comems4build_ros.sim import simulate
+
+pytestmark = pytest.mark.ros
+
+REPO = Path(__file__).resolve().parents[1]
+#: Folder of the ROS 2 CLI wheels (README, install.sh, wheels/); overridable by this variable.
+ROS2_CLI_ENV = "COMEMS4BUILD_ROS2_CLI"
+#: Their own PyPI dependencies (install.sh) and those of these, where this environment lacks them.
+CLI_DEPENDENCIES = {"argcomplete": "argcomplete", "importlib_metadata": "importlib-metadata", "zipp": "zipp",
+                    "catkin_pkg": "catkin-pkg", "osrf_pycommon": "osrf-pycommon", "docutils": "docutils",
+                    "lark": "lark", "psutil": "psutil", "packaging": "packaging", "yaml": "pyyaml",
+                    "dateutil": "python-dateutil", "pyparsing": "pyparsing"}
+TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
+EXECUTABLES = ("feed", "fuzzy_ems", "mpc_ems", "mqtt_bridge", "mqtt_plant", "plant_sim", "rbc_ems", "recorder",
+               "replay")
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+
+
+def cli_folder() -> Path:
+    """Where the ROS 2 CLI wheels are looked for."""
+    return Path(os.environ.get(ROS2_CLI_ENV) or REPO.parent / "shared" / "ros2-cli")
+
+
+@pytest.fixture(scope="session")
+def ros2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    """``{"argv": [...ros2], "env": {...}}``: the ``ros2`` command and the environment it needs."""
+    env = dict(os.environ, AMENT_PREFIX_PATH=sys.prefix, PYTHONUNBUFFERED="1")
+    own = shutil.which("ros2")
+    if own and subprocess.run([own, "launch", "--help"], capture_output=True, env=env).returncode == 0:
+        return {"argv": [own], "env": env}  # a real ROS 2 install
+    folder = cli_folder()
+    wheels = sorted((folder / "wheels").glob("*.whl"))
+    if not wheels:
+        pytest.skip(f"no ROS 2 command-line tools: neither 'ros2' with launch on PATH nor the wheels in {folder} "
+                    f"(set {ROS2_CLI_ENV} to the folder holding wheels/)")
+    site = tmp_path_factory.mktemp("ros2_cli") / "site"
+    missing = []
+    for module, dist in CLI_DEPENDENCIES.items():
+        if subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True).returncode != 0:
+            missing.append(dist)
+    res = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--disable-pip-version-check", "--no-deps",
+                          "--target", str(site), *missing, *map(str, wheels)], capture_output=True, text=True)
+    if res.returncode != 0:
+        pytest.skip(f"could not install the ROS 2 command-line tools from {folder}: {res.stderr.strip()[-500:]}")
+    env["PYTHONPATH"] = os.pathsep.join([str(site), *filter(None, [env.get("PYTHONPATH")])])
+    return {"argv": [sys.executable, str(site / "bin" / "ros2")], "env": env}
+
+
+@pytest.fixture()
+def domain_id():
+    from comems4build_ros.ros.supervisor import acquire_domain_id
+
+    with acquire_domain_id() as did:
+        yield did
+
+
+def run_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, timeout: float = 300,
+             **kw: object) -> subprocess.CompletedProcess:
+    env = dict(ros2["env"], ROS_DOMAIN_ID=str(domain), ROS_LOG_DIR=str(tmp_path / "ros_log"),
+               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    return subprocess.run([*ros2["argv"], *args], env=env, capture_output=True, text=True, timeout=timeout,
+                          cwd=tmp_path, **kw)
+
+
+def reference(ems: str, steps: int, seed: int | None = None) -> dict:
+    """In-process summary over the window the feed builds (default scenario, first week)."""
+    from comems4build_ros.scenario.run import load_scenario
+
+    params = load_plant_params()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return simulate(ems, load_scenario("default", params, None, 1, seed, steps), params).summary
+
+
+def same_kpis(got: dict, want: dict) -> None:
+    keys = set(want) - set(TIMING_KEYS)
+    assert keys <= set(got)
+    for k in sorted(keys):
+        a, b = got[k], want[k]
+        assert (isinstance(a, float) and math.isnan(a) and math.isnan(b)) or a == b, k
+
+
+def evaluate(bag: Path, out: Path) -> dict:
+    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr
+    return json.loads((out / "summary.json").read_text())
+
+
+def test_ros2_pkg_executables(ros2, domain_id, tmp_path) -> None:
+    res = run_ros2(ros2, ["pkg", "executables", "comems4build_ros"], domain_id, tmp_path, timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert sorted(line.split()[1] for line in res.stdout.splitlines()) == sorted(EXECUTABLES)
+
+
+def _plan_text(stdout: str) -> str:
+    """The plan printed (launch's own log lines dropped), run tokens masked (drawn per launch)."""
+    lines = stdout[stdout.index("run plan:"):].splitlines()
+    return re.sub(r"(run|ems)_token:=\d+", r"\1_token:=T", "\n".join(line for line in lines
+                                                                     if not line.startswith("[INFO]")))
+
+
+@pytest.mark.parametrize("launch_args, cli_args", [
+    (["ems:=rbc", "weeks:=1", "namespace:=/building_0"],
+     ["--ems", "rbc", "--weeks", "1", "--namespace", "/building_0"]),
+    (["ems:=fuzzy", "buildings:=4", "steps:=30", "weeks:=1", "containers:=2", "set:=battery.e_max_kwh=8",
+      "config:=" + str(REPO / "config" / "plant.yaml")],
+     ["--ems", "fuzzy", "--buildings", "4", "--steps", "30", "--weeks", "1", "--containers", "2", "--set",
+      "battery.e_max_kwh=8", "--config", str(REPO / "config" / "plant.yaml")]),
+    (["ems:=mpc", "buildings:=2", "layout:=role", "weeks:=0.5", "ems_options:=time_limit_s=5", "namespace:=/site"],
+     ["--ems", "mpc", "--buildings", "2", "--layout", "role", "--weeks", "0.5", "--ems-option", "time_limit_s=5",
+      "--namespace", "/site"]),
+])
+def test_launch_file_and_comems4build_launch_print_the_same_plan(ros2, domain_id, tmp_path, launch_args,
+                                                                 cli_args) -> None:
+    """Launch parity: the same nodes with the same parameters, by both paths."""
+    a = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", *launch_args, "out:=run",
+                        "domain:=9", "print_plan:=true"], domain_id, tmp_path, timeout=120)
+    assert a.returncode == 0, a.stderr + a.stdout
+    b = subprocess.run([*CLI, "launch", *cli_args, "--out", "run", "--domain-id", "9", "--print-plan"],
+                       capture_output=True, text=True, cwd=tmp_path, timeout=120)
+    assert b.returncode == 0, b.stderr
+    assert _plan_text(a.stdout) == _plan_text(b.stdout)
+    assert "ROS domain 9" in b.stdout
+
+
+def test_ros2_launch_one_namespaced_building_gives_the_in_process_kpis(ros2, domain_id, tmp_path) -> None:
+    """``namespace:=/building_0`` (the recorder's namespaces given through launch_ros) writes the bag."""
+    res = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", "ems:=rbc", "weeks:=1",
+                          "steps:=36", "namespace:=/building_0", f"out:={tmp_path / 'run'}"], domain_id, tmp_path)
+    assert res.returncode == 0, res.stdout[-3000:]
+    summary = evaluate(tmp_path / "run" / "bag", tmp_path / "eval")
+    got = summary["buildings"]["building_0"]
+    assert got["lost_messages"] == {} and got["steps"] == 36
+    same_kpis(got, reference("rbc", 36))
+
+
+@pytest.mark.parametrize("ems, layout", [("fuzzy", "building"), ("mpc", "node")])
+def test_ros2_launch_several_buildings_give_the_in_process_kpis_per_building(ros2, domain_id, tmp_path, ems,
+                                                                              layout) -> None:
+    from comems4build_ros.scenario.settings import load_scenario_settings
+
+    steps = 24 if ems == "mpc" else 30
+    res = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", f"ems:={ems}", "weeks:=1",
+                          f"steps:={steps}", "buildings:=2", f"layout:={layout}", f"out:={tmp_path / 'run'}"],
+                   domain_id, tmp_path)
+    assert res.returncode == 0, res.stdout[-3000:]
+    summary = evaluate(tmp_path / "run" / "bag", tmp_path / "eval")
+    seed = load_scenario_settings().seed
+    for i in range(2):
+        got = summary["buildings"][f"building_{i}"]
+        assert got["lost_messages"] == {} and got["steps"] == steps
+        same_kpis(got, reference(ems, steps, seed + i))
+
+
+def test_ros2_launch_fails_when_the_recorder_fails(ros2, domain_id, tmp_path) -> None:
+    """A recorder that cannot create its bag (the directory exists) fails the launch."""
+    (tmp_path / "run" / "bag").mkdir(parents=True)
+    res = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", "ems:=rbc", "weeks:=1",
+                          "steps:=24", f"out:={tmp_path / 'run'}"], domain_id, tmp_path, timeout=120)
+    assert res.returncode != 0
+    assert "'recorder' (recorder) exited with code 2" in res.stdout + res.stderr
+    assert "bag directory already exists" in res.stdout + res.stderr
+
+
+def _describe(ros2: dict, node: str, domain: int, tmp_path: Path) -> dict[str, str]:
+    """``ros2 param describe`` of every parameter of ``node``: name -> its text."""
+    names = run_ros2(ros2, ["param", "list", node], domain, tmp_path, timeout=60).stdout.split()
+    own = [n for n in names if not n.endswith(":") and n not in ("use_sim_time", "start_type_description_service")]
+    assert own, f"no parameters of {node}"
+    res = run_ros2(ros2, ["param", "describe", node, *own], domain, tmp_path, timeout=60)
+    assert res.returncode == 0, res.stderr
+    blocks = res.stdout.split("Parameter name: ")[1:]
+    return {b.splitlines()[0].strip(): b for b in blocks}
+
+
+def test_ros2_run_every_node_and_describe_every_parameter(ros2, domain_id, tmp_path) -> None:
+    """Every ROS executable started by ``ros2 run`` with ``--ros-args -p`` (each in a namespace of
+    its own, so they wait instead of running a loop); ``ros2 param describe`` shows a
+    description, the unit and the range (or the allowed values) of each parameter."""
+    runs = {
+        "plant_sim": ["-r", "__ns:=/b0", "-p", "step_timeout_s:=3.0", "-p", "battery.e_max_kwh:=8.0"],
+        "feed": ["-r", "__ns:=/b4", "-p", "weeks:=1", "-p", "steps:=24"],
+        "fuzzy_ems": ["-p", "run_token:=7"],
+        "rbc_ems": ["-r", "__ns:=/b1", "-p", "ems_options:=['sh_on_chi=0.1']"],
+        "mpc_ems": ["-r", "__ns:=/b2", "-p", "ems_options:=['time_limit_s=5']"],
+        "recorder": ["-p", f"bag_path:={tmp_path / 'bag'}", "-p", "namespaces:=/b3"],
+        "mqtt_bridge": ["-p", "broker_url:=mqtt://127.0.0.1:9", "-p", "startup_timeout_s:=60.0"],
+    }
+    env = dict(ros2["env"], ROS_DOMAIN_ID=str(domain_id), ROS_LOG_DIR=str(tmp_path / "ros_log"),
+               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    procs = {exe: subprocess.Popen([*ros2["argv"], "run", "comems4build_ros", exe, "--ros-args", *args], env=env,
+                                   stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, cwd=tmp_path,
+                                   start_new_session=True)
+             for exe, args in runs.items()}
+    try:
+        nodes = {"plant_sim": "/b0/plant_sim", "feed": "/b4/feed", "fuzzy_ems": "/fuzzy_ems", "rbc_ems": "/b1/rbc_ems",
+                 "mpc_ems": "/b2/mpc_ems", "recorder": "/recorder", "mqtt_bridge": "/mqtt_bridge"}
+        deadline = time.monotonic() + 90
+        while time.monotonic() < deadline:
+            listed = run_ros2(ros2, ["node", "list"], domain_id, tmp_path, timeout=60).stdout.split()
+            if set(nodes.values()) <= set(listed):
+                break
+            assert all(p.poll() is None for p in procs.values()), {e: p.poll() for e, p in procs.items()}
+            time.sleep(1.0)
+        else:
+            pytest.fail(f"nodes not up: {listed}")
+        for node in nodes.values():
+            described = _describe(ros2, node, domain_id, tmp_path)
+            for name, text in described.items():
+                desc = re.search(r"Description: (.*)", text)
+                assert desc and desc.group(1).strip(), (node, name, text)
+                if re.search(r"Type: (integer|double)\b", text):
+                    assert desc.group(1).rstrip().endswith("]"), (node, name, text)  # the unit
+                    assert "Min value" in text or "Additional constraints" in text, (node, name, text)
+                else:
+                    assert "Additional constraints" in text, (node, name, text)
+        plant = _describe(ros2, "/b0/plant_sim", domain_id, tmp_path)
+        assert "[kWh]" in plant["battery.e_max_kwh"] and "Min value: 0.0" in plant["battery.e_max_kwh"]
+        assert "[s]" in plant["step_timeout_s"]
+        got = run_ros2(ros2, ["param", "get", "/fuzzy_ems", "run_token"], domain_id, tmp_path)
+        assert "7" in got.stdout
+    finally:
+        run_ros2(ros2, ["daemon", "stop"], domain_id, tmp_path, timeout=60)  # started by the first 'node list'
+        for p in procs.values():
+            if p.poll() is None:
+                os.killpg(p.pid, signal.SIGINT)
+        codes = {exe: p.wait(timeout=30) for exe, p in procs.items()}
+    assert codes == dict.fromkeys(runs, 0), {e: (c, procs[e].stdout.read()[-800:]) for e, c in codes.items() if c}
+
+
+def test_ros2_run_replay_and_mqtt_plant(ros2, domain_id, tmp_path) -> None:
+    """The two other executables: ``replay`` of a recorded bag, ``mqtt_plant`` (no ROS node) with --help."""
+    res = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", "ems:=rbc", "weeks:=1",
+                          "steps:=12", f"out:={tmp_path / 'run'}"], domain_id, tmp_path)
+    assert res.returncode == 0, res.stdout[-2000:]
+    rep = run_ros2(ros2, ["run", "comems4build_ros", "replay", "--ros-args", "-p", f"bag_path:={tmp_path / 'run/bag'}",
+                          "-p", "rate:=0.0", "-p", "wait_for_subscribers_s:=0.5"], domain_id, tmp_path, timeout=120)
+    assert rep.returncode == 0, rep.stderr[-2000:]
+    helped = run_ros2(ros2, ["run", "comems4build_ros", "mqtt_plant", "--help"], domain_id, tmp_path, timeout=60)
+    assert helped.returncode == 0 and "--broker" in helped.stdout
