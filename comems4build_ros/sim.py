@@ -37,6 +37,7 @@ from .fileio import atomic_dir
 from .models.pv import pv_power_w
 from .plant import Plant
 from .scenario.base import Scenario
+from .scenario.comfort import heating_season_days
 from .types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, Flows, PlantState
 
 #: Hours of a day and of a week [h].
@@ -196,6 +197,10 @@ class ObservationBuilder:
         )
         self._weekend = [wd >= 5 or t.date() in hol for wd, t in zip(self._weekday, scenario.time)]
         self._dloh = dloh_per_day(params)
+        sim = params.simulation
+        to_season, season_left = heating_season_days(scenario.time, sim.heating_season_start, sim.heating_season_end)
+        self._to_season = to_season.tolist()
+        self._season_left = season_left.tolist()
         self._forecast = ForecastModel(
             self._series,
             forecast or load_forecast_settings(),
@@ -229,6 +234,9 @@ class ObservationBuilder:
             d["ghi_w_m2"] = e.ghi_w_m2
             d["dloh_per_day"] = self._dloh
             d["fc_on_prev"] = bool(state.fc_on)
+            d["el_on_prev"] = bool(state.el_on)
+            d["days_to_heating_season"] = self._to_season[k]
+            d["heating_season_days_left"] = self._season_left[k]
         if self.level == "mpc":
             d["t_amb_c"] = e.t_amb_c
             d["t_wall_in_c"] = state.t_wall_in_c
