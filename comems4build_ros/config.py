@@ -52,6 +52,25 @@ def config_dir() -> Path:
     raise ConfigError(f"cannot find the config directory ({src} or {installed})")
 
 
+#: Embedded scenarios whose plant differs from ``config/plant.yaml``: scenario -> the plant
+#: parameter file merged over it before any user file (``--config``) and ``--set``.
+SCENARIO_PLANT_FILES = {"year": "year.yaml"}
+
+
+def scenario_config_files(scenario: str | Path, files: Iterable[str | Path] = ()) -> list[str]:
+    """``files`` with the plant file of an embedded ``scenario`` in front (once; absolute path).
+
+    ``--scenario year`` runs the year-round plant (``config/year.yaml``: electrolyser,
+    cooling, a nearly empty store at the start); every other scenario the files as given.
+    """
+    out = [str(f) for f in files]
+    name = SCENARIO_PLANT_FILES.get(str(scenario))
+    if name is None:
+        return out
+    path = str((config_dir() / name).resolve())
+    return out if any(Path(f).resolve() == Path(path) for f in out) else [path, *out]
+
+
 def default_plant_file() -> Path:
     """Path of the default ``plant.yaml``."""
     return config_dir() / "plant.yaml"

@@ -280,6 +280,12 @@ class RunResult:
     timeseries: pd.DataFrame
     weekly: pd.DataFrame
     summary: dict[str, Any] = field(default_factory=dict)
+    monthly: pd.DataFrame | None = None  # year-round plants (electrolyser or cooling) only
+
+
+def is_year_round(params: PlantParams) -> bool:
+    """The plant has an electrolyser or cooling: its runs get the year's KPIs and monthly table."""
+    return params.electrolyser.n_modules > 0 or params.cooling.enabled
 
 
 def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[str, Any] | None = None) -> RunResult:
@@ -292,7 +298,14 @@ def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[st
         t_comfort=kpi.comfort_sample_c(ts, sample, t0),
     )
     summary["discomfort_sample"] = sample
-    return RunResult(ts, weekly, summary)
+    monthly = None
+    if is_year_round(params):
+        t_c = kpi.comfort_sample_c(ts, sample, t0)
+        sim = params.simulation
+        summary.update(kpi.year_kpis(ts, weekly, dt_h, sim.heating_season_start, sim.heating_season_end, t_c))
+        summary["loh_init"] = sim.loh_init
+        monthly = kpi.monthly_table(ts, dt_h, t_c)
+    return RunResult(ts, weekly, summary, monthly)
 
 
 def simulate(
@@ -365,8 +378,8 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
-#: Files of a run directory (:func:`write_run`).
-RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json")
+#: Files of a run directory (:func:`write_run`; ``monthly.csv`` for year-round plants only).
+RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json", "monthly.csv")
 
 
 def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
@@ -383,5 +396,7 @@ def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -
         if timeseries:
             result.timeseries.to_csv(tmp / "timeseries.csv", index=False)
         result.weekly.to_csv(tmp / "weekly.csv", index=False)
+        if result.monthly is not None:
+            result.monthly.to_csv(tmp / "monthly.csv", index=False)
         (tmp / "summary.json").write_text(json.dumps(clean, indent=2, default=_json_default) + "\n", encoding="utf-8")
     return out

@@ -96,6 +96,9 @@ def run_name(ems: str, eta: float, base_eta: float) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the comparison (unless --from-runs) and write the report."""
+    from .options import add_scenario_config
+
+    add_scenario_config(args)
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..ems import controller_class

@@ -29,6 +29,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run every case of the grid and write sweep.csv, sweep.md, figures/<kpi>.{png,pdf,svg} and runs/."""
+    from .options import add_scenario_config
+
+    add_scenario_config(args)
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..fileio import atomic_dir, check_out_dir

@@ -540,7 +540,7 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
 
     level = controller_class(opts.ems).info_level
     forecast = load_forecast_settings(**({"mode": opts.forecast} if opts.forecast else {})).mode
-    name = "default" if opts.scenario == "default" else Path(opts.scenario).name
+    name = opts.scenario if opts.scenario in ("default", "year") else Path(opts.scenario).name
     return {
         "ems": opts.ems,
         "scenario": name,
