@@ -436,9 +436,9 @@ def monthly_table(ts: pd.DataFrame, dt_h: float = 1.0, t_comfort: np.ndarray | N
             row[key] = _sum_kwh(part, "p_hp_el_w", dt_h, mode == code)
         row["discomfort_kh"] = discomfort_kh(tc, part["t_min_c"].to_numpy(float), part["t_max_c"].to_numpy(float), dt_h)
         row["overheating_kh"] = float(np.sum(np.clip(tc - part["t_max_c"].to_numpy(float), 0.0, None)) * dt_h)
-        row["cost_eur"] = (cost_eur(part["price_buy_eur_per_kwh"].to_numpy(float), part["p_buy_w"].to_numpy(float), dt_h)
-                           - cost_eur(part["price_sell_eur_per_kwh"].to_numpy(float),
-                                      part["p_sell_w"].to_numpy(float), dt_h))
+        row["cost_eur"] = (
+            cost_eur(part["price_buy_eur_per_kwh"].to_numpy(float), part["p_buy_w"].to_numpy(float), dt_h)
+            - cost_eur(part["price_sell_eur_per_kwh"].to_numpy(float), part["p_sell_w"].to_numpy(float), dt_h))
         row["loh_end"] = float(part["loh"].iloc[-1])
         rows.append({k: at_resolution(k, v) for k, v in row.items()})
     return pd.DataFrame(rows)

@@ -104,6 +104,7 @@ def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     """
     import json
 
+    from ..config import scenario_config_files
     from ..ros.launcher import launch
     from ..ros.plan import LaunchOptions
     from ..ros.supervisor import LaunchError
