@@ -9,7 +9,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .options import COUNT, add_scenario_options
 
@@ -103,7 +103,6 @@ def run(args: argparse.Namespace) -> int:
     from ..config import load_plant_params
     from ..ems import controller_class
     from ..fileio import atomic_dir, check_out_dir
-    from ..report.build import build_report
     from ..report.runs import RunDirError
     from .options import check_config_files, ems_names, scenario_of
     from .simulate import parse_assignments
@@ -113,7 +112,7 @@ def run(args: argparse.Namespace) -> int:
         check_out_dir(out)
         try:
             with atomic_dir(out) as stage:  # the report files replace the older ones only when all are written
-                rep = build_report(args.from_runs, stage)
+                rep = _report_builder(args.from_runs)(args.from_runs, stage)
         except RunDirError as exc:
             raise UsageError(str(exc)) from None
         _print_report(rep, stage, out)
@@ -125,6 +124,8 @@ def run(args: argparse.Namespace) -> int:
     check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
     etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
+    if args.scenario == "year" and args.fc_efficiency is None:
+        etas = etas[:1]  # the year's report compares the EMS at the plant's FC efficiency
     for eta in etas:  # validate every parameter set before starting any run
         params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
     if args.extend and args.via == "ros":
@@ -142,7 +143,6 @@ def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], level
              overrides: dict, out: Path) -> Report:
     """Run every EMS at every efficiency into ``out`` (runs/, compare.json) and build the report there."""
     from ..progress import echo
-    from ..report.build import build_report
     from ..report.runner import RunTask, run_tasks
     from ..report.runs import RUNS_DIR, Manifest, RunSpec, write_manifest
 
@@ -174,7 +174,23 @@ def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], level
                         wall_s={**walls, "all_runs": wall})
     write_manifest(manifest, out)
     print(f"runs: {wall:.1f} s wall for {len(tasks)} runs", file=sys.stderr)
-    return build_report(out)
+    return _report_builder(out)(out)
+
+
+def _report_builder(compare_dir: str | Path) -> Any:
+    """The report of a comparison: the year-round one (``report/year.py``) for ``--scenario year``,
+    else the paper's (``report/build.py``)."""
+    import json
+
+    from ..report.build import build_report
+    from ..report.runs import MANIFEST
+    from ..report.year import build_year_report
+
+    try:
+        scenario = json.loads((Path(compare_dir) / MANIFEST).read_text(encoding="utf-8")).get("scenario")
+    except (OSError, ValueError):
+        scenario = None  # build_report names the missing or corrupt manifest
+    return build_year_report if scenario == "year" else build_report
 
 
 def _print_report(rep: Report, stage: Path, out: Path) -> None:

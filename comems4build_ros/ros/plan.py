@@ -193,6 +193,12 @@ class LaunchOptions:
     namespace: str = "/"
     bag: Path | None = None
 
+    def __post_init__(self) -> None:
+        """An embedded scenario's plant file (``--scenario year``: ``config/year.yaml``) goes first."""
+        from ..config import scenario_config_files
+
+        self.config_files = scenario_config_files(self.scenario, self.config_files)
+
 
 def effective_layout(opts: LaunchOptions) -> str:
     """The process layout of ``opts`` (:data:`LAYOUTS`): ``layout`` as given, else ``building``
