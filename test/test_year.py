@@ -76,3 +76,28 @@ def test_fuzzy_year_closes_the_balance(params) -> None:
     assert s["heating_season_weeks"] == 12
     assert len(r.monthly) == 12
     assert s["loh_heating_season_start"] is not None
+
+
+def test_compare_year_writes_the_year_report(tmp_path) -> None:
+    from comems4build_ros.cli import main
+
+    out = tmp_path / "cmp"
+    rc = main(["compare", "--scenario", "year", "--ems", "rbc,fuzzy", "--start", "2022-11-21T00:00:00",
+               "--weeks", "2", "--out", str(out), "--no-progress"])
+    assert rc == 0
+    md = (out / "report.md").read_text(encoding="utf-8")
+    for key in ("loh_year", "monthly_energy", "sankey_rbc", "sankey_fuzzy"):
+        assert (out / "figures" / f"{key}.png").is_file() and (out / "figures" / f"{key}.svg").is_file()
+        assert f"figures/{key}" in md
+    assert "Monthly tables" in md and "2022-12" in md and "H2 produced" in md
+    assert (out / "runs" / "fuzzy" / "monthly.csv").is_file()
+    assert not (out / "runs" / "fuzzy_eta90").exists()  # the year compares at the plant's FC efficiency
+
+
+def test_sankey_flows_balance(params) -> None:
+    from comems4build_ros.report.year import sankey_flows
+
+    r = simulate("rbc", resolve_scenario("year", params, start="2022-06-06T00:00:00", weeks=1), params)
+    flows = sankey_flows(r.summary, r.monthly, r.timeseries)
+    total_in = sum(v for _, v in flows if v > 0)
+    assert abs(sum(v for _, v in flows)) < 1e-6 * total_in
