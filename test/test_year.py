@@ -101,3 +101,16 @@ def test_sankey_flows_balance(params) -> None:
     flows = sankey_flows(r.summary, r.monthly, r.timeseries)
     total_in = sum(v for _, v in flows if v > 0)
     assert abs(sum(v for _, v in flows)) < 1e-6 * total_in
+
+
+def test_sweep_over_the_year_tabulates_the_sizing_figures(tmp_path) -> None:
+    from comems4build_ros.cli import main
+
+    out = tmp_path / "sweep"
+    rc = main(["sweep", "--param", "electrolyser.n_modules=1,2", "--ems", "rbc", "--scenario", "year",
+               "--start", "2022-07-04T00:00:00", "--weeks", "1", "--out", str(out), "--no-progress"])
+    assert rc == 0
+    df = pd.read_csv(out / "sweep.csv")
+    assert list(df["electrolyser.n_modules"]) == [1, 2]
+    assert {"h2_produced_kwh", "self_sufficiency", "loh_heating_season_start"} <= set(df.columns)
+    assert (df["h2_produced_kwh"] > 0).all()

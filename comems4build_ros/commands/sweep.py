@@ -35,7 +35,7 @@ def run(args: argparse.Namespace) -> int:
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..fileio import atomic_dir, check_out_dir
-    from ..report.sweep import SWEEP_KPIS, grid, parse_param
+    from ..report.sweep import grid, parse_param, sweep_kpis
     from .options import check_config_files, ems_names, scenario_of
 
     params: dict[str, list] = {}
@@ -58,7 +58,7 @@ def run(args: argparse.Namespace) -> int:
         wall = _sweep(args, params, emss, cases, stage)
     out = Path(args.out)
     print(f"{len(cases)} runs in {wall:.1f} s; wrote {out / 'sweep.csv'}, {out / 'sweep.md'} and "
-          f"{len(SWEEP_KPIS)} plots in {out / 'figures'}")
+          f"{len(sweep_kpis(args.scenario))} plots in {out / 'figures'}")
     return 0
 
 
@@ -66,7 +66,7 @@ def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], c
     """Run every case of the grid into ``out/runs/``, write the tables and plots into ``out``; the wall time [s]."""
     from ..progress import echo
     from ..report.runner import RunTask, run_tasks
-    from ..report.sweep import SWEEP_KPIS, markdown_table, plot_kpi, table
+    from ..report.sweep import markdown_table, plot_kpi, sweep_kpis, table
 
     tasks = [RunTask(ems=c.ems, out_dir=str(out / "runs" / c.name), scenario=args.scenario, start=args.start,
                      weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=dict(c.values),
@@ -80,13 +80,13 @@ def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], c
 
     summaries = run_tasks(tasks, jobs=args.jobs, on_done=done, progress=False if args.no_progress else None)
     wall = time.perf_counter() - t0
-    kpis = [k for k, _ in SWEEP_KPIS]
+    kpis = [k for k, _ in sweep_kpis(args.scenario)]
     df = table(cases, summaries, kpis)
     df.to_csv(out / "sweep.csv", index=False)
     md = [f"# Sweep over {', '.join(params)}", "",
           f"EMS: {', '.join(emss)}; scenario {args.scenario}, weeks {args.weeks or 'default'}; "
           f"{len(cases)} runs in {wall:.1f} s wall.", "", markdown_table(df), "## Figures", ""]
-    for key, ylabel in SWEEP_KPIS:
+    for key, ylabel in sweep_kpis(args.scenario):
         png = plot_kpi(df, list(params), key, ylabel, out / "figures" / key)
         md.append(f"![{key} over {next(iter(params))}](figures/{png.name})\n\n`{key}` over "
                   f"`{next(iter(params))}`; vector versions: [PDF](figures/{key}.pdf), [SVG](figures/{key}.svg)\n")
