@@ -197,6 +197,9 @@ def _print_report(rep: Report, stage: Path, out: Path) -> None:
     """The findings count and the files written (``rep`` was built in ``stage``, now renamed to ``out``)."""
     held = sum(f["verdict"] == "held" for f in rep.findings)
     evaluated = sum(f["verdict"] != "n/a" for f in rep.findings)
-    print(f"report: {held} of {evaluated} evaluated findings held; built in {rep.seconds:.2f} s")
+    if rep.findings:
+        print(f"report: {held} of {evaluated} evaluated findings held; built in {rep.seconds:.2f} s")
+    else:  # the year's report: no finding of the paper's winter applies
+        print(f"report: built in {rep.seconds:.2f} s")
     md, html = (out / Path(p).relative_to(stage) for p in (rep.markdown, rep.html))
     print(f"wrote {md}, {html} and {len(rep.figures)} figures in {md.parent / 'figures'}")

@@ -168,6 +168,7 @@ def sankey_figure(ems: str, flows: list[tuple[str, float]], h2_made: float, h2_u
     sk.add(flows=values, labels=labels, orientations=orient, pathlengths=lengths, facecolor=colour(ems), alpha=0.55,
            trunklength=1.5)
     diagrams = sk.finish()
+    ax.set_aspect("equal", adjustable="box")  # keep the limits finish() set (no datalim adjustment)
     for text in diagrams[0].texts:
         text.set_fontsize(6)
     ax.set_title(f"{label(ems)}: electricity of the year; H2 made {h2_made:.0f} kWh, used {h2_used:.0f} kWh (LHV)",
