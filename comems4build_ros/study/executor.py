@@ -181,7 +181,9 @@ class Monitor:
         """Run ``i`` started on a worker (a running attempt elsewhere was lost)."""
         s = self.slots[i]
         if s.status == "running":
+            lost_on = s.attempts[-1].get("worker")
             self._lose(s, "started again elsewhere")
+            self.say(f"{s.name}: its worker {lost_on} was lost; it runs again")
         s.attempts.append({**where, "outcome": "running"})
         s.status = "running"
         self.say(f"{s.name}: started on {where.get('worker')} (host {where.get('host')}, pid {where.get('pid')})")
@@ -617,9 +619,10 @@ class StudyExecutor:
 
     Use it as a context manager: entering connects the backend (a Dask scheduler is asked
     for a worker and every worker's environment checked: :class:`ExecutorError` before any
-    run), locks the store and checks it (a store with finished runs and no ``resume`` is
-    refused: :class:`~comems4build_ros.study.store.StoreError`), and makes the executor the
-    one :func:`comems4build_ros.report.runner.run_tasks` uses when given none. Call
+    run), turns SIGTERM into KeyboardInterrupt for the block, locks the store and checks it
+    (a store with finished runs and no ``resume`` is refused:
+    :class:`~comems4build_ros.study.store.StoreError`), and makes the executor the one
+    :func:`comems4build_ros.report.runner.run_tasks` uses when given none. Call
     :meth:`complete` once the study's results are in place: it removes the store.
 
     Parameters
@@ -655,6 +658,7 @@ class StudyExecutor:
                                      "remove that directory to start over")
             self.backend.open()
             stack.callback(self.backend.close)
+            stack.enter_context(_terminate_as_interrupt())  # SIGTERM ends the study as Ctrl-C does
         except BaseException:
             stack.close()
             raise
@@ -767,7 +771,7 @@ def run_jobs(
     ex.resumed += len(reuse)
     items = [(i, slots[i].job.portable()) for i in todo]
     try:
-        with RunProgress([s.name for s in slots], enable=progress) as bars, _terminate_as_interrupt():
+        with RunProgress([s.name for s in slots], enable=progress) as bars:
             if items:
                 ex.backend.execute(items, monitor, bars)
     finally:
