@@ -158,7 +158,6 @@ class Monitor:
         self.study_id = study_id
         self.on_done = on_done
         self.quiet = quiet
-        self.lock = threading.Lock()
 
     def counts(self) -> dict[str, int]:
         """Runs per status."""
@@ -509,7 +508,10 @@ class DaskBackend:
                     if fut.status == "finished":
                         monitor.finished(i, fut.result())
                         continue
-                    if fut.status == "cancelled":
+                    if fut.status == "cancelled":  # not by this study: the scheduler dropped it
+                        monitor.failed(i, "cancelled by the cluster")
+                        failure = failure or RunFailedError(f"{job.out_dir}: the Dask cluster cancelled the run "
+                                                            "(scheduler restarted or connection lost)")
                         continue
                     exc = fut.exception()
                     monitor.failed(i, _message(exc))
@@ -774,6 +776,9 @@ def run_jobs(
         with RunProgress([s.name for s in slots], enable=progress) as bars:
             if items:
                 ex.backend.execute(items, monitor, bars)
+        unfinished = [s.name for s in slots if s.status != "done"]
+        if unfinished:  # every backend raises first; this guards the summaries handed back
+            raise RunFailedError(f"runs not finished: {', '.join(unfinished)}")
     finally:
         ex.ran += sum(1 for i in todo if slots[i].status == "done")
     return [s.summary or {} for s in slots]
