@@ -29,7 +29,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("compare", "RBC, fuzzy and MPC on one scenario; DIR/report.md, DIR/report.html (contents, figures "
                            "linked to their vector versions) and the paper-style figures as PDF, SVG and 300 dpi PNG; "
                            "a progress bar per run on a terminal"),
-    "sweep": ("sweep", "sensitivity grid in parallel processes; one table and one plot per KPI (PDF, SVG, PNG)"),
+    "sweep": ("sweep", "sensitivity grid on local processes or a Dask cluster; one table and one plot per KPI "
+                       "(PDF, SVG, PNG)"),
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
 }
 
