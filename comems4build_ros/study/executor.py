@@ -55,8 +55,8 @@ from .store import RunStore, StoredRun, StoreError, materialize, place
 MAX_ATTEMPTS = 3
 #: Least time between two progress reports a Dask worker sends for one run [s].
 DASK_REPORT_INTERVAL_S = 1.0
-#: How often the client looks for finished runs and lost workers [s].
-POLL_S = 0.2
+#: How often the client looks for finished runs and progress events [s].
+POLL_S = 0.05
 #: How often the client asks the scheduler which workers are alive [s].
 WORKER_POLL_S = 2.0
 #: Time to connect to a scheduler and to wait for its first worker [s].
