@@ -245,3 +245,38 @@ def test_a_worker_of_another_environment_is_named() -> None:
     other = {**mine, "numpy": "0.0.1"}
     with pytest.raises(ExecutorError, match=r"worker tcp://b:2: numpy: \"[^\"]+\" -> \"0.0.1\""):
         check_environment({"tcp://a:1": dict(mine), "tcp://b:2": other}, "tcp://s:1")
+
+
+# --------------------------------------------------------------------------- bench study
+
+def _dask_processes() -> set[int]:
+    """Processes of this environment's ``dask`` command and the processes such ones spawn.
+
+    A dask scheduler or worker (``.venv/bin/dask ...``), a nanny's worker process and its
+    resource tracker (``python -c from multiprocessing...``) of this environment's Python;
+    other checkouts' environments are not counted.
+    """
+    dask, python = str(Path(sys.executable).with_name("dask")), str(Path(sys.executable))
+    out = set()
+    for p in psutil.process_iter(["cmdline"]):
+        cmd = p.info["cmdline"] or []
+        spawned = bool(cmd) and cmd[0] == python and any("from multiprocessing" in c for c in cmd)
+        if (dask in cmd or spawned) and p.pid != os.getpid():
+            out.add(p.pid)
+    return out
+
+
+def test_bench_study_prints_the_three_ways_and_leaves_no_dask_process() -> None:
+    before = _dask_processes()
+    proc = _run(["bench", "study", "--runs", "2", "--ems", "rbc", "--weeks", "0.25", "--repeats", "1"])
+    assert proc.returncode == 0, proc.stderr + proc.stdout
+    out = proc.stdout
+    for way in ("1 local worker", "2 local workers", "Dask, 2 workers"):
+        assert re.search(rf"^{re.escape(way)}\s+\d+\.\d\d\s+\d+\.\d\d \.\. \d+\.\d\d", out, re.M), way
+    assert re.search(r"Dask, 2 workers: parallel efficiency \d+\.\d %", out)
+    assert "summaries identical across the ways (timing entries aside): yes" in out
+    assert out.count("load average") >= 7  # beside every measurement
+    deadline = time.monotonic() + 10
+    while (left := {pid for pid in _dask_processes() - before if _alive(pid)}) and time.monotonic() < deadline:
+        time.sleep(0.2)
+    assert not left, [psutil.Process(pid).cmdline() for pid in left]
