@@ -9,7 +9,9 @@ command as separate processes (``dask scheduler``, ``dask worker``; t2 Dask, mea
 after the cluster is up and has imported the simulation). It prints the wall times, the
 parallel efficiencies t1 / (2 t2) (target of the project: at least 80 % on 2 workers),
 the load average before and after each measurement (other jobs on the cores lower the
-figures), and whether the three ways gave the same summaries (timing entries aside).
+figures), the runs' own times summed and the share of the workers' time spent in runs
+(what the executor itself leaves idle, hardly touched by other jobs), and whether the
+three ways gave the same summaries (timing entries aside).
 """
 
 from __future__ import annotations
@@ -68,12 +70,14 @@ def run_set(args: argparse.Namespace, emss: list[str], out: Path) -> list[Any]:
     return tasks
 
 
-def _measure(label: str, tasks_of: Any, backend: Any, repeats: int, work: Path) -> tuple[list[float], list[Any]]:
-    """Wall times of ``repeats`` studies of the run set on ``backend``, and the last one's summaries."""
+def _measure(label: str, tasks_of: Any, backend: Any, repeats: int,
+             work: Path) -> tuple[list[float], list[Any], list[float]]:
+    """Wall times of ``repeats`` studies of the run set on ``backend``, the last one's summaries, and per
+    study the runs' own times summed (``task_wall_s``: how long each run took where it ran)."""
     from ..study.executor import StudyExecutor, run_jobs
     from ..study.store import RunStore
 
-    walls, summaries = [], []
+    walls, summaries, busy = [], [], []
     for r in range(repeats):
         where = work / f"{label.replace(' ', '_')}_{r}"
         tasks = tasks_of(where / "runs")
@@ -83,8 +87,10 @@ def _measure(label: str, tasks_of: Any, backend: Any, repeats: int, work: Path) 
             summaries = run_jobs(tasks, ex, progress=False, quiet=True)
             walls.append(time.perf_counter() - t0)
             ex.complete()
-        print(f"  {label:<26} repeat {r + 1}: {walls[-1]:7.2f} s   ({before}; after: {load_text()})", flush=True)
-    return walls, summaries
+        busy.append(sum(float(x["task_wall_s"]) for x in summaries))
+        print(f"  {label:<26} repeat {r + 1}: {walls[-1]:7.2f} s, runs' own times summed {busy[-1]:7.2f} s   "
+              f"({before}; after: {load_text()})", flush=True)
+    return walls, summaries, busy
 
 
 def _same(a: list[dict[str, Any]], b: list[dict[str, Any]]) -> bool:
@@ -112,7 +118,7 @@ def run(args: argparse.Namespace) -> int:
         weeks = f"{args.weeks:g} weeks" if args.weeks else "the whole"
         print(f"bench study: {len(names)} runs ({', '.join(names)}), {weeks} of scenario "
               f"{args.scenario}; {args.repeats} repeat(s) per way; {load_text()}", flush=True)
-        results: dict[str, tuple[list[float], list[Any]]] = {}
+        results: dict[str, tuple[list[float], list[Any], list[float]]] = {}
         results["1 local worker"] = _measure("1 local worker", tasks_of, LocalBackend(1), args.repeats, work)
         results["2 local workers"] = _measure("2 local workers", tasks_of, LocalBackend(2), args.repeats, work)
         if not args.no_dask:
@@ -122,14 +128,21 @@ def run(args: argparse.Namespace) -> int:
                 backend = DaskBackend(cluster.address)
                 results["Dask, 2 workers"] = _measure("Dask, 2 workers", tasks_of, backend, args.repeats, work)
     t1 = statistics.median(results["1 local worker"][0])
-    print(f"\n{'way':<18}{'median wall [s]':>16}{'range [s]':>20}{'efficiency t1/(2 t2)':>24}")
-    for label, (walls, _) in results.items():
+    print(f"\n{'way':<18}{'median wall [s]':>16}{'range [s]':>18}{'efficiency t1/(2 t2)':>22}"
+          f"{'runs summed [s]':>17}{'workers busy':>14}")
+    for label, (walls, _, busy) in results.items():
         med = statistics.median(walls)
-        eff = "" if label.startswith("1 ") else f"{100 * t1 / (2 * med):.1f} %"
-        print(f"{label:<18}{med:>16.2f}{f'{min(walls):.2f} .. {max(walls):.2f}':>20}{eff:>24}")
+        n = 1 if label.startswith("1 ") else 2
+        eff = "" if n == 1 else f"{100 * t1 / (2 * med):.1f} %"
+        share = statistics.median(b / (n * w) for b, w in zip(busy, walls))
+        print(f"{label:<18}{med:>16.2f}{f'{min(walls):.2f} .. {max(walls):.2f}':>18}{eff:>22}"
+              f"{statistics.median(busy):>17.2f}{f'{100 * share:.0f} %':>14}")
+    print("(runs summed: each run's own time where it ran, above the 1-worker figure when runs at once slow each "
+          "other, e.g. with other jobs on the cores; workers busy: runs summed / (workers x wall), what the "
+          "executor leaves idle is the rest)")
     ref = results["1 local worker"][1]
-    same = all(_same(ref, s) for _, s in results.values())
-    for label, (walls, _) in results.items():
+    same = all(_same(ref, s) for _, s, _ in results.values())
+    for label, (walls, _, _) in results.items():
         if label.startswith("1 "):
             continue
         eff = t1 / (2 * statistics.median(walls))
