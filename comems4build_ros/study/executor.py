@@ -28,7 +28,6 @@ import contextlib
 import contextvars
 import ctypes
 import datetime as dt
-import json
 import multiprocessing
 import multiprocessing.connection
 import os
@@ -783,7 +782,3 @@ def run_jobs(
         ex.ran += sum(1 for i in todo if slots[i].status == "done")
     return [s.summary or {} for s in slots]
 
-
-def stored_record(run_dir: str | Path) -> dict[str, Any]:
-    """The ``run.json`` record of a run directory a study wrote (spec, hash, summary, attempts)."""
-    return json.loads((Path(run_dir) / "run.json").read_text(encoding="utf-8"))
