@@ -69,13 +69,24 @@ def test_summer_week_electrolyses_and_cools(ems: str, params) -> None:
     assert ts["loh"].iloc[-1] - params.simulation.loh_init == pytest.approx(gain, abs=1e-9)
 
 
-def test_fuzzy_year_closes_the_balance(params) -> None:
+def test_fuzzy_year_closes_the_balance_and_the_seasonal_cycle(params) -> None:
+    """ComEMS4Build over the year from LOH_init: the energy balance closes to 1e-6 of the throughput, the
+    store holds at least half on 2022-12-01 and ends with at least LOH_init, and at most 2 of the 12 winter
+    weeks have discomfort (docs/seasonal.md, results)."""
     r = simulate("fuzzy", resolve_scenario("year", params), params)
     s = r.summary
     assert s["energy_balance_rel_error"] < 1e-6
     assert s["heating_season_weeks"] == 12
     assert len(r.monthly) == 12
-    assert s["loh_heating_season_start"] is not None
+    assert s["loh_heating_season_start"] >= 0.5
+    assert s["loh_end"] >= params.simulation.loh_init
+    assert s["heating_season_discomfort_weeks"] <= 2
+
+
+def test_rbc_year_closes_the_balance(params) -> None:
+    s = simulate("rbc", resolve_scenario("year", params), params).summary
+    assert s["energy_balance_rel_error"] < 1e-6
+    assert s["h2_produced_kwh"] > 0.0 and s["loh_heating_season_start"] is not None
 
 
 def test_compare_year_writes_the_year_report(tmp_path) -> None:

@@ -83,3 +83,76 @@ def test_year_inputs_replayed_drive_the_rbc(tmp_path: Path) -> None:
     for key in set(ref) - {"wall_s", "ems_s", "scenario"}:
         assert summary[key] == ref[key], key
     assert summary["h2_produced_kwh"] > 0.0 and summary["lost_messages"] == {}
+
+
+def test_year_cli_launch_and_evaluate_across_the_heating_season_start(tmp_path: Path) -> None:
+    """``comems4build launch --scenario year`` and ``comems4build evaluate`` of its bag (plant parameters from
+    the bag's run_info.json, no --config) over the night the heating season starts (2022-12-01): the summary,
+    weekly and monthly tables equal the in-process run's; the bag carries state/el_on and feed/season."""
+    import subprocess
+    import sys
+
+    from rosbags.highlevel import AnyReader
+
+    from comems4build_ros.sim import write_run
+
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+    start, steps = "2022-11-30T18:00:00", 12
+    out = tmp_path / "run"
+    proc = subprocess.run([*cli, "launch", "--ems", "fuzzy", "--scenario", "year", "--start", start, "--steps",
+                           str(steps), "--out", str(out), "--no-progress", "--timeout", "240"],
+                          capture_output=True, text=True, timeout=300)
+    assert proc.returncode == 0, proc.stderr
+    ev = tmp_path / "eval"
+    proc = subprocess.run([*cli, "evaluate", str(out / "bag"), "--out", str(ev)], capture_output=True, text=True,
+                          timeout=120)
+    assert proc.returncode == 0, proc.stderr
+    params = load_plant_params(scenario_config_files("year"))
+    ref = simulate("fuzzy", load_scenario("year", params, start, None, None, steps), params)
+    write_run(ref, tmp_path / "ref", timeseries=False)
+    for run_dir in (out, ev):
+        got = json.loads((run_dir / "summary.json").read_text())
+        for k in sorted(set(ref.summary) - set(TIMING_KEYS)):
+            b = ref.summary[k]
+            assert (isinstance(got[k], float) and math.isnan(got[k])) if isinstance(b, float) and math.isnan(b) \
+                else got[k] == b, (run_dir.name, k)
+        for name in ("weekly.csv", "monthly.csv"):
+            assert (run_dir / name).read_text() == (tmp_path / "ref" / name).read_text(), (run_dir.name, name)
+    monthly = pd.read_csv(ev / "monthly.csv")
+    assert list(monthly["month"]) == ["2022-11", "2022-12"]
+    assert ref.summary["loh_heating_season_start"] is not None
+    with AnyReader([out / "bag"]) as reader:
+        conns = {c.topic: c for c in reader.connections}
+        season = [reader.deserialize(raw, c.msgtype).data for c, _, raw in reader.messages([conns["/feed/season"]])]
+        el_steps = [int(reader.deserialize(raw, c.msgtype).data[0])
+                    for c, _, raw in reader.messages([conns["/state/el_on"]])]
+        n_fc = sum(1 for _ in reader.messages([conns["/state/fc_on"]]))
+    assert sorted(set(el_steps)) == list(range(steps)) and len(el_steps) == n_fc  # published as state/fc_on
+    by_step = {int(m[0]): list(m[1:]) for m in season}  # the feed may send a step again (lockstep resend)
+    assert sorted(by_step) == list(range(steps))
+    assert all(list(m[1:]) == by_step[int(m[0])] for m in season)
+    # days to the heating season fall to 0 at 2022-12-01 00:00 (step 6), the days left then count down from 90
+    assert [by_step[5], by_step[6]] == [[pytest.approx(1 / 24), 0.0], [0.0, pytest.approx(90.0)]]
+
+
+def test_bench_year_prints_the_figures_and_the_ros_run_equals_in_process(tmp_path: Path) -> None:
+    """``comems4build bench year`` on a short window of the year: the in-process lines with their targets and
+    seasonal figures, and the composed ROS run whose summary equals the in-process one."""
+    import subprocess
+    import sys
+
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+    proc = subprocess.run([*cli, "bench", "year", "--ems", "rbc,fuzzy", "--weeks", "0.25", "--ros",
+                           "--ros-ems", "fuzzy", "--timeout", "240", "--out", str(tmp_path / "bench")],
+                          capture_output=True, text=True, timeout=400)
+    assert proc.returncode == 0, proc.stderr
+    lines = proc.stdout.splitlines()
+    assert lines[0].startswith("year scenario, 0.25 weeks from 2022-03-01; load average")
+    for ems in ("rbc", "fuzzy"):
+        line = next(x for x in lines if x.startswith(f"{ems:6s} in-process: scenario"))
+        assert "target < 3 s" in line
+    assert sum("LOH 2022-12-01 None, end" in x and "H2 made" in x for x in lines) == 2  # March: no season yet
+    ros = next(x for x in lines if x.startswith("fuzzy  over ROS, composed (one container)"))
+    assert "summary equals in-process: yes" in ros and "load average" in ros
+    assert (tmp_path / "bench" / "ros_fuzzy" / "bag").is_dir()
+    assert (tmp_path / "bench" / "fuzzy" / "summary.json").is_file()
