@@ -41,7 +41,7 @@ def refused(argv: list, named: str, out: Path, capsys: pytest.CaptureFixture[str
 # ---------------------------------------------------------------------------- EMS options
 EMS_OPTIONS = [
     ("rbc", "foo=1", "parameter 'foo': unknown parameter"),
-    ("rbc", "sh_on_chi=0.99", "sh_on_chi (0.99) must be below sh_off_chi (0.95)"),
+    ("rbc", "sh_on_chi=1.0", "sh_on_chi (1.0) must be below sh_off_chi (1.0)"),
     ("rbc", "dhw_off_chi=0.1", "dhw_on_chi (0.25) must be below dhw_off_chi (0.1)"),
     ("rbc", "edf_lower_quartile=0.9", "edf_lower_quartile (0.9) must be below edf_upper_quartile"),
     ("rbc", "hp_mod_on=true", "parameter 'hp_mod_on': expected a number, got the boolean True"),

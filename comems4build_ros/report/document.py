@@ -14,7 +14,7 @@ from __future__ import annotations
 import base64
 import html
 import re
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -167,7 +167,15 @@ class Document:
 
     @staticmethod
     def _files(fig: _Figure) -> dict[str, str]:
-        return {fmt: f"{fig.rel_dir}/{p.name}" for fmt, p in figure_files(fig.png).items()}
+        """The figure's files beside its PNG (format -> path relative to the report); the PNG always."""
+        return {fmt: f"{fig.rel_dir}/{p.name}" for fmt, p in figure_files(fig.png).items()
+                if fmt == "png" or p.is_file()}
+
+    @staticmethod
+    def _links(files: Mapping[str, str]) -> list[tuple[str, str]]:
+        """(label, path) of each file, vector formats first; the PNG at print resolution only beside them."""
+        labels = {"pdf": "PDF", "svg": "SVG", "png": "PNG, 300 dpi" if len(files) > 1 else "PNG"}
+        return [(labels[k], files[k]) for k in ("pdf", "svg", "png") if k in files]
 
     def markdown(self) -> str:
         """The document in Markdown (GitHub flavour)."""
@@ -188,8 +196,9 @@ class Document:
             elif b[0] == "figure":
                 f: _Figure = b[1]
                 files = self._files(f)
+                links = ", ".join(f"[{label}]({path})" for label, path in self._links(files))
                 out.append(f"![Figure {f.number}]({files['png']})\n\n*Figure {f.number}.* {f.caption} "
-                           f"Files: [PDF]({files['pdf']}), [SVG]({files['svg']}), [PNG, 300 dpi]({files['png']}).")
+                           f"Files: {links}.")
             out.append("")
         return "\n".join(out)
 
@@ -232,11 +241,10 @@ class Document:
         data = base64.b64encode(f.png.read_bytes()).decode("ascii")
         width = _png_width_mm(f.png)
         size = f' style="width:{width:.0f}mm"' if width else ""
-        links = " · ".join(f'<a href="{e(files[k])}">{label}</a>'
-                           for k, label in (("pdf", "PDF"), ("svg", "SVG"), ("png", "PNG, 300 dpi")))
+        links = " · ".join(f'<a href="{e(path)}">{label}</a>' for label, path in self._links(files))
         return (f'<figure id="figure-{f.number}"><img alt="Figure {f.number}: {e(f.caption)}"{size} '
                 f'src="data:image/png;base64,{data}"><figcaption><strong>Figure {f.number}.</strong> '
-                f'{e(f.caption)} <span class="files">Vector versions: {links}</span></figcaption></figure>')
+                f'{e(f.caption)} <span class="files">Files: {links}</span></figcaption></figure>')
 
 
 def _png_width_mm(path: Path) -> float | None:

@@ -166,7 +166,8 @@ def _figures(doc: Document, report: Mapping[str, Any], where: tuple[Path, str]) 
           f"{report['heat_eta'] * 100:.0f} % FC system efficiency is "
           + ("each EMS's own dispatch evaluated at that efficiency." if report["heat_mode"] == "posthoc"
              else "a run of each EMS at that efficiency.")
-          + " PDF and SVG beside each PNG.")
+          + (" PDF and SVG beside each PNG." if any(
+              (png_dir / Path(p).name).with_suffix(".pdf").is_file() for p in report["figures"].values()) else ""))
     for key, path in report["figures"].items():
         doc.figure(png_dir / Path(path).name, rel, CAPTIONS[key].format(**spans))
 
