@@ -78,4 +78,8 @@ def main(argv: list[str] | None = None) -> int:
 
 
 if __name__ == "__main__":
-    sys.exit(main())
+    # ``python -m comems4build_ros.cli``: run the package's module, not this ``__main__`` copy,
+    # whose exception classes (UsageError, ...) are not the ones the commands raise.
+    from comems4build_ros.cli import main as _main
+
+    sys.exit(_main())

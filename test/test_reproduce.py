@@ -275,3 +275,10 @@ def test_cli_bad_options_exit_2(tmp_path, args, message):
     proc = subprocess.run([*CLI, "reproduce", "--out", str(tmp_path / "r"), *args],
                           capture_output=True, text=True, timeout=300)
     assert proc.returncode == 2 and message in proc.stderr
+
+
+def test_usage_error_exits_2_when_run_as_a_module(tmp_path):
+    """``python -m comems4build_ros.cli``: a usage error raised by a command is an exit 2 with its message."""
+    proc = subprocess.run([sys.executable, "-m", "comems4build_ros.cli", "reproduce", "--out", str(tmp_path / "r"),
+                           "--from-json", "a.json", "--from-runs", "b"], capture_output=True, text=True, timeout=120)
+    assert proc.returncode == 2 and "exclude each other" in proc.stderr and "Traceback" not in proc.stderr
