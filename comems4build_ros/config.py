@@ -52,6 +52,25 @@ def config_dir() -> Path:
     raise ConfigError(f"cannot find the config directory ({src} or {installed})")
 
 
+#: Embedded scenarios whose plant differs from ``config/plant.yaml``: scenario -> the plant
+#: parameter file merged over it before any user file (``--config``) and ``--set``.
+SCENARIO_PLANT_FILES = {"year": "year.yaml"}
+
+
+def scenario_config_files(scenario: str | Path, files: Iterable[str | Path] = ()) -> list[str]:
+    """``files`` with the plant file of an embedded ``scenario`` in front (once; absolute path).
+
+    ``--scenario year`` runs the year-round plant (``config/year.yaml``: electrolyser,
+    cooling, a nearly empty store at the start); every other scenario the files as given.
+    """
+    out = [str(f) for f in files]
+    name = SCENARIO_PLANT_FILES.get(str(scenario))
+    if name is None:
+        return out
+    path = str((config_dir() / name).resolve())
+    return out if any(Path(f).resolve() == Path(path) for f in out) else [path, *out]
+
+
 def default_plant_file() -> Path:
     """Path of the default ``plant.yaml``."""
     return config_dir() / "plant.yaml"
@@ -276,6 +295,23 @@ class SimulationParams(Section):
     loh_init: float = Frac
     t_air_init_c: float
     v_dhw_init_l: float = NonNeg
+    #: Heating season of a year-round run, local ``MM-DD`` dates (end exclusive): the FC's
+    #: daily H2 budget (``eq:deltaLOH``) is spread over it, the electrolyser fills the store
+    #: before it (only used when an electrolyser is installed).
+    heating_season_start: str = Field(default="12-01", pattern=r"^\d\d-\d\d$")
+    heating_season_end: str = Field(default="03-01", pattern=r"^\d\d-\d\d$")
+    #: LOH the store should hold at the end of the heating season (year-round runs) [-].
+    loh_season_end: float = Field(default=0.0, ge=0, le=1)
+
+    @model_validator(mode="after")
+    def _check_season(self) -> SimulationParams:
+        for name in ("heating_season_start", "heating_season_end"):
+            month, day = (int(x) for x in getattr(self, name).split("-"))
+            if not (1 <= month <= 12 and 1 <= day <= 28):
+                raise ValueError(f"{name} '{getattr(self, name)}': month 01..12, day 01..28")
+        if self.heating_season_start == self.heating_season_end:
+            raise ValueError("heating_season_start and heating_season_end must differ")
+        return self
 
 
 class SiteParams(Section):
@@ -377,6 +413,83 @@ class HydrogenParams(Section):
         return self
 
 
+class ElectrolyserParams(Section):
+    """Electrolyser (EL) modules filling the H2 store (:mod:`comems4build_ros.models.electrolyser`).
+
+    Per module: electrical power ``p_el_points_w`` [W] of stack and balance of plant at the
+    H2 outputs ``load_points`` (fractions of ``h2_rated_nl_per_h``; the first is the
+    minimal load, the last 1.0), standby draw [W] while installed and off, the H2 lost
+    in a start [h of production], compression from ``p_out_bar`` to ``p_store_bar`` with an
+    isothermal efficiency, and the share of the stack's waste heat recovered into the DHW
+    tank. ``n_modules = 0``: no electrolyser (the paper's plant).
+    """
+
+    n_modules: int = Field(ge=0)
+    h2_rated_nl_per_h: float = Pos
+    load_points: list[float]
+    p_el_points_w: list[float]
+    p_standby_w: float = NonNeg
+    start_lost_h: float = NonNeg
+    p_out_bar: float = Pos
+    p_store_bar: float = Pos
+    t_compression_c: float
+    eta_compressor: float = Field(gt=0, le=1)
+    heat_recovery: float = Frac
+
+    @model_validator(mode="after")
+    def _check(self) -> ElectrolyserParams:
+        n = len(self.load_points)
+        if n < 2 or len(self.p_el_points_w) != n:
+            raise ValueError("load_points and p_el_points_w need the same length (>= 2)")
+        if not 0 < self.load_points[0] or self.load_points[-1] != 1.0:
+            raise ValueError("load_points must start above 0 and end at 1.0 (rated output)")
+        for name in ("load_points", "p_el_points_w"):
+            values = getattr(self, name)
+            if any(b <= a for a, b in zip(values, values[1:])):
+                raise ValueError(f"{name} must increase strictly")
+        if min(self.p_el_points_w) <= 0:
+            raise ValueError("p_el_points_w must be positive")
+        if self.start_lost_h > 1.0:
+            raise ValueError("start_lost_h must not exceed one hour")
+        return self
+
+
+class CoolingParams(Section):
+    """Cooling by the reversible heat pump through the underfloor system.
+
+    ``q_cool_max_w``: heat the floor can take from the rooms at the supply temperature
+    ``t_supply_c`` [W]; EER(T_amb) piecewise linear (``eer_t_amb_c``, ``eer``), held
+    outside the table. The supply must stay above the dew point of the room air at the
+    design state (``design_room_c``, ``design_rh``) plus ``dew_point_margin_k``.
+    """
+
+    enabled: bool
+    q_cool_max_w: float = Pos
+    t_supply_c: float
+    design_room_c: float
+    design_rh: float = Field(gt=0, le=1)
+    dew_point_margin_k: float = NonNeg
+    eer_t_amb_c: list[float]
+    eer: list[float]
+
+    @model_validator(mode="after")
+    def _check(self) -> CoolingParams:
+        from .models.psychrometrics import dew_point_c
+
+        n = len(self.eer_t_amb_c)
+        if n < 2 or len(self.eer) != n:
+            raise ValueError("eer_t_amb_c and eer need the same length (>= 2)")
+        if any(b <= a for a, b in zip(self.eer_t_amb_c, self.eer_t_amb_c[1:])):
+            raise ValueError("eer_t_amb_c must increase strictly")
+        if min(self.eer) <= 0:
+            raise ValueError("EER values must be positive")
+        limit = dew_point_c(self.design_room_c, self.design_rh) + self.dew_point_margin_k
+        if self.t_supply_c < limit:
+            raise ValueError(f"t_supply_c ({self.t_supply_c}) below the dew point of the room air plus margin "
+                             f"({limit:.2f} degC): the floor would condense")
+        return self
+
+
 class HeatPumpParams(Section):
     """Air-source heat pump, ``sec:hp``."""
 
@@ -462,6 +575,9 @@ class ComfortParams(Section):
     holidays_country: str
     holidays_subdivision: str
     discomfort_sample: Literal["end", "start", "mean"] = "end"
+    #: Upper bound in the cooling season [degC] and the season's first and last month (inclusive).
+    t_max_cooling_c: float = 26.0
+    cooling_season_months: list[int] = [5, 9]
 
     @model_validator(mode="after")
     def _check(self) -> ComfortParams:
@@ -472,8 +588,11 @@ class ComfortParams(Section):
                 raise ValueError(f"{name} must hold [start, end) hour pairs within 0..24")
             if any(b <= a for a, b in zip(hours[::2], hours[1::2])):
                 raise ValueError(f"{name}: each pair needs start < end")
-        if max(self.t_min_home_c, self.t_min_away_c) >= self.t_max_c:
-            raise ValueError("t_max_c must exceed both lower bounds")
+        if max(self.t_min_home_c, self.t_min_away_c) >= min(self.t_max_c, self.t_max_cooling_c):
+            raise ValueError("t_max_c and t_max_cooling_c must exceed both lower bounds")
+        months = self.cooling_season_months
+        if len(months) != 2 or any(not 1 <= m <= 12 for m in months) or months[1] < months[0]:
+            raise ValueError("cooling_season_months must be [first, last] months within 1..12, first <= last")
         return self
 
 
@@ -524,7 +643,9 @@ class PlantParams(Section):
     battery: BatteryParams
     fuel_cell: FuelCellParams
     hydrogen: HydrogenParams
+    electrolyser: ElectrolyserParams
     heat_pump: HeatPumpParams
+    cooling: CoolingParams
     dhw: DHWParams
     building: BuildingParams
     grid: GridParams

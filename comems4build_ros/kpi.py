@@ -384,3 +384,147 @@ def summarize(
     if extra:
         summary.update(extra)
     return summary
+
+
+# ----------------------------------------------------------------------------- year
+#: HP circuits of the ``hp_mode`` column (``comems4build_ros.types``) in the monthly table.
+_HP_COLUMNS = (("hp_heating_kwh", 1), ("hp_dhw_kwh", 2), ("hp_cooling_kwh", 3))
+
+
+def _sum_kwh(ts: pd.DataFrame, column: str, dt_h: float, mask: np.ndarray | None = None) -> float:
+    values = ts[column].to_numpy(dtype=float)
+    if mask is not None:
+        values = values[mask]
+    return _energy_kwh(values, dt_h)
+
+
+def energy_balance_rel_error(ts: pd.DataFrame) -> float:
+    """|supply - demand| of the whole run over its throughput (``eq:power_balance`` summed) [-].
+
+    Supply: PV, grid purchase, FC, battery discharge; demand: sale, appliances, HP, battery
+    charge, electrolyser. Throughput: the supply's sum.
+    """
+    col = {c: ts[c].to_numpy(dtype=float) for c in ("p_pv_w", "p_buy_w", "p_fc_w", "p_dis_w", "p_sell_w",
+                                                     "p_load_w", "p_hp_el_w", "p_ch_w", "p_el_w")}
+    supply = float(np.sum(col["p_pv_w"] + col["p_buy_w"] + col["p_fc_w"] + col["p_dis_w"]))
+    demand = float(np.sum(col["p_sell_w"] + col["p_load_w"] + col["p_hp_el_w"] + col["p_ch_w"] + col["p_el_w"]))
+    return abs(supply - demand) / supply if supply > 0 else 0.0
+
+
+def monthly_table(ts: pd.DataFrame, dt_h: float = 1.0, t_comfort: np.ndarray | None = None) -> pd.DataFrame:
+    """Energy and comfort per calendar month (local time) of a run [kWh, K*h, EUR, -].
+
+    Columns: bought, sold, PV, appliances, EL input, H2 produced (LHV), FC output, HP
+    electricity for heating, hot water and cooling, discomfort (both bounds) and
+    overheating (above the upper bound) in K*h, cost net of the reimbursement, LOH at
+    the end of the month.
+    """
+    month = ts["time"].astype(str).str[:7].to_numpy()
+    t = ts["t_air_c"].to_numpy(dtype=float) if t_comfort is None else np.asarray(t_comfort, dtype=float)
+    rows = []
+    for m in pd.unique(month):
+        sel = month == m
+        part = ts[sel]
+        mode = part["hp_mode"].to_numpy(dtype=float)
+        tc = t[sel]
+        row: dict[str, Any] = {"month": m, "hours": float(sel.sum() * dt_h)}
+        for key, col in (("bought_kwh", "p_buy_w"), ("sold_kwh", "p_sell_w"), ("pv_kwh", "p_pv_w"),
+                         ("load_kwh", "p_load_w"), ("el_input_kwh", "p_el_w"), ("h2_produced_kwh", "p_h2_el_w"),
+                         ("fc_output_kwh", "p_fc_w")):
+            row[key] = _sum_kwh(part, col, dt_h)
+        for key, code in _HP_COLUMNS:
+            row[key] = _sum_kwh(part, "p_hp_el_w", dt_h, mode == code)
+        row["discomfort_kh"] = discomfort_kh(tc, part["t_min_c"].to_numpy(float), part["t_max_c"].to_numpy(float), dt_h)
+        row["overheating_kh"] = float(np.sum(np.clip(tc - part["t_max_c"].to_numpy(float), 0.0, None)) * dt_h)
+        row["cost_eur"] = (
+            cost_eur(part["price_buy_eur_per_kwh"].to_numpy(float), part["p_buy_w"].to_numpy(float), dt_h)
+            - cost_eur(part["price_sell_eur_per_kwh"].to_numpy(float), part["p_sell_w"].to_numpy(float), dt_h))
+        row["loh_end"] = float(part["loh"].iloc[-1])
+        rows.append({k: at_resolution(k, v) for k, v in row.items()})
+    return pd.DataFrame(rows)
+
+
+def loh_at(ts: pd.DataFrame, when: str) -> float | None:
+    """LOH at the local time ``when`` (ISO, naive = the run's offset): the end state of the step before it [-].
+
+    None if the run does not reach ``when``; the first row's start is the run's initial LOH,
+    which the timeseries does not hold, so a ``when`` at or before the first step gives None.
+    """
+    times = pd.to_datetime(ts["time"].astype(str), utc=True)
+    target = pd.Timestamp(when)
+    if target.tzinfo is None:
+        target = target.tz_localize(pd.Timestamp(str(ts["time"].iloc[0])).tzinfo)
+    idx = int(np.searchsorted(times.to_numpy(), target.tz_convert("UTC").to_datetime64()))
+    if idx <= 0 or idx >= len(ts) + 1 or (idx == len(ts) and times.iloc[-1] + pd.Timedelta(hours=1) < target):
+        return None
+    return float(ts["loh"].iloc[idx - 1])
+
+
+def year_kpis(
+    ts: pd.DataFrame, weekly: pd.DataFrame, dt_h: float, season_start: str, season_end: str,
+    t_comfort: np.ndarray | None = None,
+) -> dict[str, Any]:
+    """KPIs of a year-round run with an electrolyser and cooling.
+
+    Parameters
+    ----------
+    ts, weekly : the run's timeseries and weekly table
+    dt_h : step [h]
+    season_start, season_end : heating season as ``MM-DD`` (``simulation.heating_season_*``)
+    t_comfort : air temperature compared with the bounds (default: end of step)
+
+    Returns
+    -------
+    dict with: ``h2_produced_kwh`` (LHV), ``el_input_kwh`` (standby and compression
+    included), ``el_working_hours``, ``el_starts``, ``el_mean_eta`` (H2 over the intake while
+    producing), ``h2_round_trip`` (FC electrical output over EL electrical input),
+    ``loh_heating_season_start`` (LOH when the first heating season of the run starts),
+    ``self_sufficiency`` (1 - bought / (appliances + HP + EL)), ``overheating_kh``,
+    ``hp_cooling_kwh``, ``cost_net_eur`` (bought - sold), ``heating_season_weeks`` and
+    ``heating_season_discomfort_weeks`` (weeks starting in the season; those above
+    :data:`DISCOMFORT_TOL_KH`), ``energy_balance_rel_error``
+    """
+    on = ts["el_on"].to_numpy(dtype=float) > 0.5
+    h2 = _sum_kwh(ts, "p_h2_el_w", dt_h)
+    el_in = _sum_kwh(ts, "p_el_w", dt_h)
+    el_on_in = _sum_kwh(ts, "p_el_w", dt_h, on)
+    fc_out = _sum_kwh(ts, "p_fc_w", dt_h)
+    consumption = _sum_kwh(ts, "p_load_w", dt_h) + _sum_kwh(ts, "p_hp_el_w", dt_h) + el_in
+    bought = _sum_kwh(ts, "p_buy_w", dt_h)
+    t = ts["t_air_c"].to_numpy(dtype=float) if t_comfort is None else np.asarray(t_comfort, dtype=float)
+    times = pd.to_datetime(ts["time"].astype(str), utc=True)
+    tz = pd.Timestamp(str(ts["time"].iloc[0])).tzinfo
+    local = times.dt.tz_convert(tz) if tz is not None else times
+    mmdd = local.dt.strftime("%m-%d").to_numpy()
+    in_season = (mmdd >= season_start) & (mmdd < season_end) if season_start < season_end else \
+        (mmdd >= season_start) | (mmdd < season_end)
+    first = np.flatnonzero(in_season & ~np.concatenate(([True], in_season[:-1])))
+    loh_start = float(ts["loh"].iloc[first[0] - 1]) if len(first) and first[0] > 0 else None
+    wk_start = pd.to_datetime(weekly["start"].astype(str), utc=True).dt.tz_convert(tz).dt.strftime("%m-%d")
+    wk_mmdd = wk_start.to_numpy()
+    wk_season = (wk_mmdd >= season_start) & (wk_mmdd < season_end) if season_start < season_end else \
+        (wk_mmdd >= season_start) | (wk_mmdd < season_end)
+    full = weekly["full_week"].astype(bool).to_numpy() if "full_week" in weekly else np.ones(len(weekly), bool)
+    wk_season &= full
+    mode = ts["hp_mode"].to_numpy(dtype=float)
+    out = {
+        "h2_produced_kwh": h2,
+        "el_input_kwh": el_in,
+        "el_working_hours": float(np.count_nonzero(on) * dt_h),
+        "el_starts": int(np.count_nonzero(ts["el_start"].to_numpy(dtype=float) > 0.5)),
+        "el_mean_eta": h2 / el_on_in if el_on_in > 0 else 0.0,
+        "h2_round_trip": fc_out / el_in if el_in > 0 else 0.0,
+        "loh_heating_season_start": loh_start,
+        "self_sufficiency": 1.0 - bought / consumption if consumption > 0 else 0.0,
+        "overheating_kh": float(np.sum(np.clip(t - ts["t_max_c"].to_numpy(float), 0.0, None)) * dt_h),
+        "hp_cooling_kwh": _sum_kwh(ts, "p_hp_el_w", dt_h, mode == 3),
+        "cost_net_eur": (cost_eur(ts["price_buy_eur_per_kwh"].to_numpy(float), ts["p_buy_w"].to_numpy(float), dt_h)
+                         - cost_eur(ts["price_sell_eur_per_kwh"].to_numpy(float), ts["p_sell_w"].to_numpy(float),
+                                    dt_h)),
+        "heating_season_weeks": int(np.count_nonzero(wk_season)),
+        "heating_season_discomfort_weeks": int(np.count_nonzero(
+            wk_season & (weekly["discomfort_kh"].to_numpy(float) > DISCOMFORT_TOL_KH))),
+    }
+    out = {k: (at_resolution(k, v) if v is not None else None) for k, v in out.items()}
+    out["energy_balance_rel_error"] = energy_balance_rel_error(ts)
+    return out

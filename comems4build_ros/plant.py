@@ -12,13 +12,22 @@ reports each clip as a bit in ``Flows.clipped`` (``CLIP_*`` in
 3. Fuel cell (``eq:molar_flows`` .. ``eq:FC_sys_efficiency``): output onto
    {0} U [P_min, zeta P_max], then reduced (or stopped below P_min) if the H2 store
    would fall below LOH_min (``eq:LOH``).
-4. DHW tank (``eq:DHW_model``): recovered FC heat goes in first; HP heat is reduced so the
-   tank does not overflow (HP off if less than mod_min would be needed); FC heat that
-   still does not fit is dumped (``q_fc_dump_w``). Draws and standing losses the tank
-   cannot serve without falling below V_min are unmet (``q_dhw_unmet_w``).
-5. Building (``eq:state_update_bldgs``) with the space-heating heat.
+   Electrolyser (:mod:`~comems4build_ros.models.electrolyser`): intake onto
+   {0} U [P_EL,min, P_EL,max], then reduced (or stopped below its minimal load) if the
+   store would rise above LOH_max; the H2 it makes enters the store in the same step.
+4. DHW tank (``eq:DHW_model``): recovered FC heat goes in first, then recovered EL heat;
+   HP heat is reduced so the tank does not overflow (HP off if less than mod_min would be
+   needed); recovered heat that still does not fit is dumped (``q_fc_dump_w``,
+   ``q_el_dump_w``). Draws and standing losses the tank cannot serve without falling
+   below V_min are unmet (``q_dhw_unmet_w``).
+5. Building (``eq:state_update_bldgs``) with the space-heating heat, or minus the heat the
+   cooling mode takes through the floor (:mod:`~comems4build_ros.models.cooling`).
 6. Battery (``eq:batt_soc``): power limits and SOC bounds; one direction only.
-7. Grid (``eq:power_balance``): the residual is bought or sold, never both.
+7. Grid (``eq:power_balance`` with the EL's intake on the demand side): the residual is
+   bought or sold, never both.
+
+Without an electrolyser (``electrolyser.n_modules = 0``) and with cooling disabled (the
+paper's plant), every added term is an exact 0.0 and the step is the paper's.
 
 Everything in :meth:`Plant.step` is plain float arithmetic on precomputed coefficients
 (no numpy), for speed (``comems4build bench plant``).
@@ -31,10 +40,13 @@ import math
 
 from comems4build_ros.config import SECONDS_PER_HOUR, W_PER_KW, PlantParams
 from comems4build_ros.models import battery, building, dhw, fuel_cell
+from comems4build_ros.models.electrolyser import ElectrolyserTable
 from comems4build_ros.models.heat_pump import T_SUPPLY_TABLE_C
 from comems4build_ros.types import (
     CLIP_BESS_POWER,
     CLIP_BESS_SOC,
+    CLIP_EL_H2,
+    CLIP_EL_RANGE,
     CLIP_FC_H2,
     CLIP_FC_RANGE,
     CLIP_HP_DHW_FULL,
@@ -42,6 +54,7 @@ from comems4build_ros.types import (
     CLIP_HP_MODE,
     CLIP_NONFINITE,
     EXOGENOUS_FIELDS,
+    HP_COOL,
     HP_DHW,
     HP_OFF,
     HP_SH,
@@ -130,6 +143,13 @@ class Plant:
 
         self._w_supply = {HP_SH: weight(hp.t_supply_sh_c), HP_DHW: weight(hp.t_supply_dhw_c)}
 
+        self.el_table = ElectrolyserTable(params.electrolyser)
+        self._el_n = self.el_table.n
+        cool = params.cooling
+        self._cool_on = bool(cool.enabled)
+        self._eer = _PiecewiseLinear(cool.eer_t_amb_c, cool.eer)
+        self._q_cool_max = float(cool.q_cool_max_w)
+
         d = params.dhw
         self._j_per_l = dhw.heat_per_litre_j(d)
         self._l_per_w = dt_s / self._j_per_l  # litres per W held over the step
@@ -165,6 +185,7 @@ class Plant:
             v_dhw_l=sim.v_dhw_init_l,
             hp_mod=0.0,
             fc_on=False,
+            el_on=False,
         )
         self.check_state(state)
         return state
@@ -242,6 +263,10 @@ class Plant:
         mode_f = _as_float(action.hp_mode)
         p_fc = _as_float(action.p_fc_w)
         p_bess = _as_float(action.p_bess_w)
+        p_el = _as_float(action.p_el_w)
+        if not math.isfinite(p_el):
+            p_el = 0.0
+            clipped |= CLIP_NONFINITE
         if not math.isfinite(hp_mod):
             hp_mod = 0.0
             clipped |= CLIP_NONFINITE
@@ -257,6 +282,8 @@ class Plant:
             mode = HP_SH
         elif mode_f == 2.0:
             mode = HP_DHW
+        elif mode_f == 3.0 and self._cool_on:
+            mode = HP_COOL
         else:
             if not math.isfinite(mode_f):
                 clipped |= CLIP_NONFINITE
@@ -285,6 +312,9 @@ class Plant:
             mode = HP_OFF
             cop = 0.0
             p_el_max = 0.0
+        elif mode == HP_COOL:
+            cop = self._eer(t_amb)  # EER
+            p_el_max = self._q_cool_max / cop
         else:
             w = self._w_supply[mode]
             c45 = self._cop45(t_amb)
@@ -331,14 +361,27 @@ class Plant:
         if loh_new < self._loh_min:
             loh_new = self._loh_min
 
+        # --- electrolyser (models/electrolyser.py) -----------------------------------
+        el_on = False
+        p_h2_el = 0.0
+        q_el_rec = 0.0
+        if p_el != 0.0 or self._el_n:
+            p_el, p_h2_el, el_on, q_el_rec, el_clip = self._electrolyser(p_el, loh_new, state.el_on, dt_h)
+            clipped |= el_clip
+            if p_h2_el > 0.0:
+                loh_new = loh_new + p_h2_el * dt_h / self._e_h2_wh
+                if loh_new > self._loh_max:
+                    loh_new = self._loh_max
+
         # --- DHW tank (eq:DHW_model, eq:DHW_heat) ---------------------------------
         l_per_w = self._l_per_w
         q_dem = dhw_lph * self._w_per_l_per_h
         q_loss = self._q_loss
         room_w = (self._v_max - v) / l_per_w + q_dem + q_loss  # largest net inflow that fits
         q_hp_dhw = 0.0
+        q_rec_all = q_rec + q_el_rec
         if mode == HP_DHW:
-            cap_hp = room_w - q_rec
+            cap_hp = room_w - q_rec_all
             if q_hp > cap_hp:
                 clipped |= CLIP_HP_DHW_FULL
                 mod_fit = cap_hp / (cop * p_el_max) if cap_hp > 0.0 else 0.0
@@ -355,12 +398,20 @@ class Plant:
             q_hp_dhw = q_hp
         q_fc_in = q_rec
         q_dump = 0.0
-        if q_rec + q_hp_dhw > room_w:
-            q_fc_in = room_w - q_hp_dhw
-            if q_fc_in < 0.0:
-                q_fc_in = 0.0
+        q_el_in = q_el_rec
+        q_el_dump = 0.0
+        if q_rec_all + q_hp_dhw > room_w:
+            avail = room_w - q_hp_dhw
+            if avail < 0.0:
+                avail = 0.0
+            if q_el_rec > 0.0:  # FC heat first, then EL heat
+                q_fc_in = q_rec if q_rec < avail else avail
+                q_el_in = min(q_el_rec, avail - q_fc_in)
+                q_el_dump = q_el_rec - q_el_in
+            else:
+                q_fc_in = avail
             q_dump = q_rec - q_fc_in
-        v_new = v + (q_hp_dhw + q_fc_in - q_dem - q_loss) * l_per_w
+        v_new = v + (q_hp_dhw + q_fc_in + q_el_in - q_dem - q_loss) * l_per_w
         q_unmet = 0.0
         if v_new < self._v_min:
             q_unmet = (self._v_min - v_new) / l_per_w
@@ -370,12 +421,14 @@ class Plant:
 
         # --- building (eq:state_update_bldgs) ---------------------------------------
         q_sh = q_hp if mode == HP_SH else 0.0
+        q_cool = q_hp if mode == HP_COOL else 0.0
+        q_floor = q_sh - q_cool
         x0, x1, x2 = state.t_air_c, state.t_wall_in_c, state.t_wall_out_c
         a0, a1, a2 = self._ad
         b0, b1, b2 = self._bd
-        t_air = a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_sh + b0[1] * t_amb + b0[2] * q_s
-        t_wi = a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_sh + b1[1] * t_amb + b1[2] * q_s
-        t_wo = a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_sh + b2[1] * t_amb + b2[2] * q_s
+        t_air = a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor + b0[1] * t_amb + b0[2] * q_s
+        t_wi = a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor + b1[1] * t_amb + b1[2] * q_s
+        t_wo = a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor + b2[1] * t_amb + b2[2] * q_s
 
         # --- battery (eq:batt_soc, eq:SOC_const, eq:bat_ch_dis_const) ----------------
         p_ch, p_dis, power_clip, soc_clip = battery.split_power(p_bess, soc, b, dt_h)
@@ -390,17 +443,17 @@ class Plant:
             soc_new = b.soc_min
 
         # --- grid (eq:power_balance) -------------------------------------------------
-        net = (p_load + p_hp + p_ch) - (p_pv + p_fc + p_dis)
+        net = (p_load + p_hp + p_ch + p_el) - (p_pv + p_fc + p_dis)
         if net > 0.0:
             p_buy = net
             p_sell = 0.0
         else:
             p_buy = 0.0
             p_sell = -net
-        residual = (p_pv + p_buy + p_fc + p_dis) - (p_sell + p_load + p_hp + p_ch)
+        residual = (p_pv + p_buy + p_fc + p_dis) - (p_sell + p_load + p_hp + p_ch + p_el)
 
         prev_on = state.fc_on
-        new_state = PlantState(soc_new, loh_new, t_air, t_wi, t_wo, v_new, mod, fc_on)
+        new_state = PlantState(soc_new, loh_new, t_air, t_wi, t_wo, v_new, mod, fc_on, el_on)
         flows = Flows(
             p_pv,
             p_load,
@@ -429,8 +482,55 @@ class Plant:
             exo.price_sell_eur_per_kwh,
             residual,
             clipped,
+            p_el,
+            el_on,
+            el_on and not state.el_on,
+            p_h2_el,
+            q_el_in,
+            q_el_dump,
+            q_cool,
         )
         return new_state, flows
+
+    def _electrolyser(self, p_req: float, loh: float, was_on: bool, dt_h: float
+                      ) -> tuple[float, float, bool, float, int]:
+        """The EL's step: (intake [W], H2 made [W LHV], on, recoverable heat [W], clip bits).
+
+        ``p_req`` is the requested intake, ``loh`` the level after the FC's draw. Off, the
+        modules draw their standby power.
+        """
+        table = self.el_table
+        clip = 0
+        if self._el_n == 0:
+            return 0.0, 0.0, False, 0.0, (CLIP_EL_RANGE if p_req != 0.0 else 0)
+        p_min, p_max = table.p_min_w, table.p_max_w
+        if p_req <= 0.0:
+            if p_req < 0.0:
+                clip |= CLIP_EL_RANGE
+            return table.p_standby_w, 0.0, False, 0.0, clip
+        if p_req < p_min:
+            clip |= CLIP_EL_RANGE
+            if p_req < 0.5 * p_min:
+                return table.p_standby_w, 0.0, False, 0.0, clip
+            p_req = p_min
+        elif p_req > p_max:
+            clip |= CLIP_EL_RANGE
+            p_req = p_max
+        x = table.load_of_power(p_req)
+        f_prod = 1.0 if was_on else max(0.0, 1.0 - table.start_lost_h / dt_h)
+        room_w = (self._loh_max - loh) * self._e_h2_wh / dt_h
+        h2 = table.h2_w(x) * f_prod
+        if h2 > room_w:
+            clip |= CLIP_EL_H2
+            x_fit = room_w / (table.h2_w(1.0) * f_prod) if f_prod > 0.0 else 0.0
+            if x_fit < table.x_min:
+                return table.p_standby_w, 0.0, False, 0.0, clip
+            x = x_fit
+            h2 = min(table.h2_w(x) * f_prod, room_w)
+        p_el = table.p_total_w(x)
+        waste = table.p_stack_w(x) - h2
+        q_rec = table.heat_recovery * waste if waste > 0.0 else 0.0
+        return p_el, h2, True, q_rec, clip
 
     @staticmethod
     def _raise_exo(exo: Exogenous) -> None:

@@ -37,6 +37,7 @@ from .fileio import atomic_dir
 from .models.pv import pv_power_w
 from .plant import Plant
 from .scenario.base import Scenario
+from .scenario.comfort import heating_season_days
 from .types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, Flows, PlantState
 
 #: Hours of a day and of a week [h].
@@ -196,6 +197,10 @@ class ObservationBuilder:
         )
         self._weekend = [wd >= 5 or t.date() in hol for wd, t in zip(self._weekday, scenario.time)]
         self._dloh = dloh_per_day(params)
+        sim = params.simulation
+        to_season, season_left = heating_season_days(scenario.time, sim.heating_season_start, sim.heating_season_end)
+        self._to_season = to_season.tolist()
+        self._season_left = season_left.tolist()
         self._forecast = ForecastModel(
             self._series,
             forecast or load_forecast_settings(),
@@ -229,6 +234,9 @@ class ObservationBuilder:
             d["ghi_w_m2"] = e.ghi_w_m2
             d["dloh_per_day"] = self._dloh
             d["fc_on_prev"] = bool(state.fc_on)
+            d["el_on_prev"] = bool(state.el_on)
+            d["days_to_heating_season"] = self._to_season[k]
+            d["heating_season_days_left"] = self._season_left[k]
         if self.level == "mpc":
             d["t_amb_c"] = e.t_amb_c
             d["t_wall_in_c"] = state.t_wall_in_c
@@ -272,6 +280,12 @@ class RunResult:
     timeseries: pd.DataFrame
     weekly: pd.DataFrame
     summary: dict[str, Any] = field(default_factory=dict)
+    monthly: pd.DataFrame | None = None  # year-round plants (electrolyser or cooling) only
+
+
+def is_year_round(params: PlantParams) -> bool:
+    """The plant has an electrolyser or cooling: its runs get the year's KPIs and monthly table."""
+    return params.electrolyser.n_modules > 0 or params.cooling.enabled
 
 
 def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[str, Any] | None = None) -> RunResult:
@@ -284,7 +298,14 @@ def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[st
         t_comfort=kpi.comfort_sample_c(ts, sample, t0),
     )
     summary["discomfort_sample"] = sample
-    return RunResult(ts, weekly, summary)
+    monthly = None
+    if is_year_round(params):
+        t_c = kpi.comfort_sample_c(ts, sample, t0)
+        sim = params.simulation
+        summary.update(kpi.year_kpis(ts, weekly, dt_h, sim.heating_season_start, sim.heating_season_end, t_c))
+        summary["loh_init"] = sim.loh_init
+        monthly = kpi.monthly_table(ts, dt_h, t_c)
+    return RunResult(ts, weekly, summary, monthly)
 
 
 def simulate(
@@ -357,8 +378,8 @@ def _json_default(value: Any) -> Any:
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
 
 
-#: Files of a run directory (:func:`write_run`).
-RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json")
+#: Files of a run directory (:func:`write_run`; ``monthly.csv`` for year-round plants only).
+RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json", "monthly.csv")
 
 
 def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
@@ -375,5 +396,7 @@ def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -
         if timeseries:
             result.timeseries.to_csv(tmp / "timeseries.csv", index=False)
         result.weekly.to_csv(tmp / "weekly.csv", index=False)
+        if result.monthly is not None:
+            result.monthly.to_csv(tmp / "monthly.csv", index=False)
         (tmp / "summary.json").write_text(json.dumps(clean, indent=2, default=_json_default) + "\n", encoding="utf-8")
     return out

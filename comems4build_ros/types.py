@@ -11,10 +11,13 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
 
-#: Heat-pump circuits (``eq:zetas``): off, space heating, domestic hot water.
+#: Heat-pump circuits (``eq:zetas``): off, space heating, domestic hot water; and cooling of
+#: the rooms through the underfloor system (reversible heat pump, only where
+#: ``cooling.enabled``).
 HP_OFF = 0
 HP_SH = 1
 HP_DHW = 2
+HP_COOL = 3
 
 
 @dataclass(slots=True)
@@ -29,6 +32,7 @@ class PlantState:
     v_dhw_l : usable hot-water volume at T_DHW [l]
     hp_mod : heat-pump modulation eta_HP applied in the step [-]
     fc_on : fuel cell was on in the step (s_FC)
+    el_on : electrolyser was on (producing) in the step
     """
 
     soc: float
@@ -39,6 +43,7 @@ class PlantState:
     v_dhw_l: float
     hp_mod: float = 0.0
     fc_on: bool = False
+    el_on: bool = False
 
     def copy(self) -> PlantState:
         """Independent copy."""
@@ -52,15 +57,17 @@ class Action:
     Attributes
     ----------
     hp_mod : heat-pump modulation eta_HP, physically {0} U [mod_min, 1] [-]
-    hp_mode : HP_OFF, HP_SH or HP_DHW
+    hp_mode : HP_OFF, HP_SH, HP_DHW or HP_COOL
     p_fc_w : requested fuel-cell electrical output [W], 0 or [P_min, zeta * P_max]
     p_bess_w : battery power [W], > 0 charging, < 0 discharging
+    p_el_w : requested electrolyser electrical intake [W], 0 or [P_EL,min, P_EL,max]
     """
 
     hp_mod: float = 0.0
     hp_mode: int = HP_OFF
     p_fc_w: float = 0.0
     p_bess_w: float = 0.0
+    p_el_w: float = 0.0
 
 
 @dataclass(slots=True)
@@ -98,6 +105,8 @@ CLIP_FC_H2 = 16  # FC reduced or stopped by the H2 store's lower bound
 CLIP_BESS_POWER = 32  # battery power beyond its limits
 CLIP_BESS_SOC = 64  # battery power reduced by the SOC bounds
 CLIP_NONFINITE = 128  # NaN or inf in the action (treated as 0)
+CLIP_EL_RANGE = 256  # EL request outside {0} U [P_EL,min, P_EL,max] (or no EL installed)
+CLIP_EL_H2 = 512  # EL reduced or stopped by the H2 store's upper bound
 
 
 @dataclass(slots=True)
@@ -105,8 +114,10 @@ class Flows:
     """Everything that happened in one step (mean powers [W], energies via t_s).
 
     The power balance ``eq:power_balance`` reads
-    ``p_pv_w + p_buy_w + p_fc_w + p_dis_w = p_sell_w + p_load_w + p_hp_el_w + p_ch_w``;
-    ``balance_residual_w`` is left side minus right side.
+    ``p_pv_w + p_buy_w + p_fc_w + p_dis_w = p_sell_w + p_load_w + p_hp_el_w + p_ch_w + p_el_w``
+    (the electrolyser's intake ``p_el_w`` added to the paper's demand side);
+    ``balance_residual_w`` is left side minus right side. In cooling mode ``cop`` is the
+    EER and the heat taken from the rooms is ``q_cool_w`` (``q_hp_sh_w`` is 0).
     """
 
     p_pv_w: float
@@ -136,6 +147,13 @@ class Flows:
     price_sell_eur_per_kwh: float
     balance_residual_w: float
     clipped: int
+    p_el_w: float = 0.0  # electrolyser intake incl. compression and standby [W]
+    el_on: bool = False
+    el_start: bool = False
+    p_h2_el_w: float = 0.0  # hydrogen produced, LHV power [W]
+    q_el_rec_w: float = 0.0  # recovered EL heat delivered to the DHW tank [W]
+    q_el_dump_w: float = 0.0  # recoverable EL heat the full tank could not take [W]
+    q_cool_w: float = 0.0  # heat taken from the rooms by cooling [W]
 
     def as_dict(self) -> dict[str, float]:
         """Field name -> value."""

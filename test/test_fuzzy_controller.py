@@ -37,6 +37,9 @@ def obs_data(**changes):
         "ghi_w_m2": 0.0,
         "dloh_per_day": 1.0 / 84.0,
         "fc_on_prev": False,
+        "el_on_prev": False,
+        "days_to_heating_season": 0.0,
+        "heating_season_days_left": 84.0,
     }
     d.update(changes)
     return d

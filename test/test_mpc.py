@@ -48,7 +48,8 @@ def mpc_obs(n: int, *, prices, load_w, t_air=21.0, t_min=-50.0, t_max=60.0, v_dh
                 v_dhw_l=v_dhw, soc=soc, loh=loh, hp_mod_prev=0.0, p_pv_w=0.0, p_load_w=fc["p_load_w"][0],
                 t_min_c=fc["t_min_c"][0], t_max_c=t_max, price_buy_eur_per_kwh=prices[0],
                 price_sell_eur_per_kwh=SELL, prices_buy_24h=prices, t_min_5h_c=fc["t_min_c"][:1] * 6,
-                ghi_w_m2=0.0, dloh_per_day=dloh, fc_on_prev=fc_on_prev, t_amb_c=t_amb, t_wall_in_c=t_wall_in,
+                ghi_w_m2=0.0, dloh_per_day=dloh, fc_on_prev=fc_on_prev, el_on_prev=False,
+                days_to_heating_season=0.0, heating_season_days_left=84.0, t_amb_c=t_amb, t_wall_in_c=t_wall_in,
                 t_wall_out_c=t_wall_out, forecast=MappingProxyType(fc))
     return Observation("mpc", data)
 

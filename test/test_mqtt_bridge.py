@@ -226,7 +226,7 @@ class Rig:
             if k not in self.announced:
                 self.announced.append(k)
                 if k == 3:  # another EMS on the topic first: its token is not the run's
-                    self.cmd_pub.publish(Float64MultiArray(data=[float(k), 0.0, 0.0, 0.0, 0.0, RIG_TOKEN + 1]))
+                    self.cmd_pub.publish(Float64MultiArray(data=[float(k), 0.0, 0.0, 0.0, 0.0, 0.0, RIG_TOKEN + 1]))
                 self.cmd_pub.publish(Float64MultiArray(data=[float(k), *self.command(k), RIG_TOKEN]))
 
         self.node.create_subscription(Float64MultiArray, "state/t_air_c", on_state,
@@ -294,7 +294,7 @@ GOOD = {"t_air_c": 20.5, "v_dhw_l": 200.0, "soc": 0.5, "loh": 0.9, "hp_mod": 0.0
 #: Run token of the scripted EMS's commands (the last element of ems/command).
 RIG_TOKEN = 7.0
 #: The scripted EMS: hp_mod, hp_mode, p_fc_w, p_bess_w; step 1 asks the battery for 5 kW.
-NORMAL = [0.6, 1.0, 0.0, 200.0]
+NORMAL = [0.6, 1.0, 0.0, 200.0, 0.0]  # hp_mod, hp_mode, p_fc_w, p_bess_w, p_el_w
 
 
 @pytest.fixture()
@@ -305,7 +305,7 @@ def domain_id() -> Iterator[int]:
 
 def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_switch_and_last_will(
         tmp_path: Path, domain_id: int, broker: Broker) -> None:
-    rig = Rig(tmp_path, domain_id, broker, "sim", lambda k: [0.6, 1.0, 0.0, 5000.0] if k == 1 else NORMAL)
+    rig = Rig(tmp_path, domain_id, broker, "sim", lambda k: [0.6, 1.0, 0.0, 5000.0, 0.0] if k == 1 else NORMAL)
     try:
         k, t_pub = 0, 0.0
         deadline = time.monotonic() + 120

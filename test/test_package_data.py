@@ -13,6 +13,10 @@ CHECKSUMS = {
         "7067e5caaba2a6d0a5c053cfa7bd0abcc9b6a152774c59e9bed5670c4a9be92a",
     "DWD_04177_Rheinstetten_tu_stunde_2022110100_2023021423.txt":
         "5858bd724324d29d184ce666aace58e9352c850e17c9553e115c6f0bbcb533cd",
+    "DE_LU_day_ahead_EURperMWh_2022-03-01_2023-02-28_hourly.csv":
+        "f8aba6a88b5fca3217475ddd1f43692dcc47e2ed221eab5689a474c860fce150",
+    "DWD_04177_Rheinstetten_tu_stunde_2022022823_2023021423.txt":
+        "089f6303eba42ed8251bff6da4f547f2a70360be1b56bd1ea0527b410d8744e6",
     "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200.txt":
         "52192ec1aedda0324945f65d98cfcfef8f3cb72032428e5730427f8e1fb1fa34",
     "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200_log.txt":
@@ -30,6 +34,10 @@ def test_shapes():
     assert lines[0] == "utc_start,local_start_Europe_Berlin,price_EUR_per_MWh" and len(lines) == 2161
     dwd = (data_dir() / "DWD_04177_Rheinstetten_tu_stunde_2022110100_2023021423.txt").read_text().splitlines()
     assert dwd[0] == "STATIONS_ID;MESS_DATUM;QN_9;TT_TU;RF_TU;eor" and len(dwd) == 1 + 106 * 24
+    year = (data_dir() / "DE_LU_day_ahead_EURperMWh_2022-03-01_2023-02-28_hourly.csv").read_text().splitlines()
+    assert year[0] == lines[0] and len(year) == 8761 and set(lines[1:]) <= set(year[1:])
+    dwd_year = (data_dir() / "DWD_04177_Rheinstetten_tu_stunde_2022022823_2023021423.txt").read_text().splitlines()
+    assert dwd_year[0] == dwd[0] and len(dwd_year) == 1 + 8425
     dhw = np.loadtxt(data_dir() / "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200.txt")
     assert dhw.shape == (8760,) and dhw.mean() * 24 == pytest.approx(200.0, abs=0.5)
 

@@ -106,6 +106,16 @@ def test_every_figure_off_by_more_than_40_percent_is_explained(base):
     assert unexplained(base[1], CALIBRATION_DOC.read_text(encoding="utf-8")) == []
 
 
+def test_figures_as_before_the_year_round_plant(base):
+    """The reproduction gives the figures main's code gave without the electrolyser, cooling and the year
+    scenario: the stated figures, findings and ratios on every seed, the H2 figures and the paper's windows
+    of ``reproduce --no-study`` (test/fixtures/winter_reference/README.md says how they were made)."""
+    ref = json.loads((ROOT / "test" / "fixtures" / "winter_reference" / "reproduce_base.json").read_text(
+        encoding="utf-8"))
+    for key in ("scenario", "weeks", "seeds", "base", "h2", "windows"):
+        assert base[1][key] == ref[key], key
+
+
 def test_h2_figures_reported(base):
     rows = {r["ems"]: r for r in base[1]["h2"]}
     for e in rp.EMS:

@@ -17,7 +17,7 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from comems4build_ros.config import ConfigError, load_plant_params  # noqa: E402
+from comems4build_ros.config import ConfigError, load_plant_params, scenario_config_files  # noqa: E402
 from comems4build_ros.ros.contract import ContractError, load_contract  # noqa: E402
 from comems4build_ros.ros.ems_command import CommandError, command_bounds, command_to_action  # noqa: E402
 from comems4build_ros.ros.node import ArrayPublisher, ContractNode, layout_sizes  # noqa: E402
@@ -130,10 +130,15 @@ def cmd_layout(params):
 
 
 def test_valid_command_becomes_an_action(params, cmd_layout):
-    step, action = command_to_action([12.0, 0.6, 2.0, 800.0, -500.0, 7.0], cmd_layout, command_bounds(params))
+    step, action = command_to_action([12.0, 0.6, 2.0, 800.0, -500.0, 0.0, 7.0], cmd_layout, command_bounds(params))
     assert step == 12
-    assert (action.hp_mod, action.hp_mode, action.p_fc_w, action.p_bess_w) == (0.6, HP_DHW, 800.0, -500.0)
+    assert (action.hp_mod, action.hp_mode, action.p_fc_w, action.p_bess_w, action.p_el_w) == (
+        0.6, HP_DHW, 800.0, -500.0, 0.0)
     assert isinstance(action.hp_mode, int)
+    # cooling (hp_mode 3) and the electrolyser are part of the command (the plant refuses what it lacks)
+    year = load_plant_params(scenario_config_files("year"))
+    _, action = command_to_action([3.0, 1.0, 3.0, 0.0, 0.0, 2000.0, 7.0], cmd_layout, command_bounds(year))
+    assert (action.hp_mode, action.p_el_w) == (3, 2000.0)
 
 
 def test_command_bounds_are_device_limits_plus_tolerance(params):
@@ -143,28 +148,31 @@ def test_command_bounds_are_device_limits_plus_tolerance(params):
     # p_fc: [0, 2441.6] W widened by 24.416 W + 1 W
     assert b["p_fc_w"] == pytest.approx((-25.416, 2441.6 + 25.416))
     assert b["hp_mod"] == pytest.approx((-0.01, 1.01))
+    assert b["p_el_w"] == pytest.approx((-1.0, 1.0))  # no electrolyser in the paper's plant
 
 
 @pytest.mark.parametrize(
     "data, field, reason",
     [
-        ([1.0, 0.5, 1.0, 0.0, 3.0], "(length)", "5 elements"),
-        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0, 3.0], "(length)", "7 elements"),
-        ([1.0, math.nan, 1.0, 0.0, 0.0, 3.0], "hp_mod", "non-finite"),
-        ([1.0, 0.5, 1.0, math.inf, 0.0, 3.0], "p_fc_w", "non-finite"),
-        ([1.0, 0.5, 1.0, 0.0, -math.inf, 3.0], "p_bess_w", "non-finite"),
-        ([math.nan, 0.5, 1.0, 0.0, 0.0, 3.0], "step", "non-finite"),
-        ([1.5, 0.5, 1.0, 0.0, 0.0, 3.0], "step", "not a non-negative integer"),
-        ([-1.0, 0.5, 1.0, 0.0, 0.0, 3.0], "step", "not a non-negative integer"),
-        ([1.0, 0.5, 3.0, 0.0, 0.0, 3.0], "hp_mode", "is not one of"),
-        ([1.0, 0.5, 1.5, 0.0, 0.0, 3.0], "hp_mode", "is not one of"),
-        ([1.0, 1.5, 1.0, 0.0, 0.0, 3.0], "hp_mod", "outside the accepted range"),
-        ([1.0, 0.5, 1.0, 5000.0, 0.0, 3.0], "p_fc_w", "outside the accepted range"),
-        ([1.0, 0.5, 1.0, -100.0, 0.0, 3.0], "p_fc_w", "outside the accepted range"),
-        ([1.0, 0.5, 1.0, 0.0, 1e6, 3.0], "p_bess_w", "outside the accepted range"),
-        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0], "token", r"not an integer in 1\.\.2\^53-1"),
-        ([1.0, 0.5, 1.0, 0.0, 0.0, 2.5], "token", "not an integer"),
-        ([1.0, 0.5, 1.0, 0.0, 0.0, 2.0**53], "token", "not an integer"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 3.0], "(length)", "6 elements"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0, 3.0], "(length)", "8 elements"),
+        ([1.0, math.nan, 1.0, 0.0, 0.0, 0.0, 3.0], "hp_mod", "non-finite"),
+        ([1.0, 0.5, 1.0, math.inf, 0.0, 0.0, 3.0], "p_fc_w", "non-finite"),
+        ([1.0, 0.5, 1.0, 0.0, -math.inf, 0.0, 3.0], "p_bess_w", "non-finite"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, math.nan, 3.0], "p_el_w", "non-finite"),
+        ([math.nan, 0.5, 1.0, 0.0, 0.0, 0.0, 3.0], "step", "non-finite"),
+        ([1.5, 0.5, 1.0, 0.0, 0.0, 0.0, 3.0], "step", "not a non-negative integer"),
+        ([-1.0, 0.5, 1.0, 0.0, 0.0, 0.0, 3.0], "step", "not a non-negative integer"),
+        ([1.0, 0.5, 4.0, 0.0, 0.0, 0.0, 3.0], "hp_mode", "is not one of"),
+        ([1.0, 0.5, 1.5, 0.0, 0.0, 0.0, 3.0], "hp_mode", "is not one of"),
+        ([1.0, 1.5, 1.0, 0.0, 0.0, 0.0, 3.0], "hp_mod", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 5000.0, 0.0, 0.0, 3.0], "p_fc_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, -100.0, 0.0, 0.0, 3.0], "p_fc_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 0.0, 1e6, 0.0, 3.0], "p_bess_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 2000.0, 3.0], "p_el_w", "outside the accepted range"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0, 0.0], "token", r"not an integer in 1\.\.2\^53-1"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0, 2.5], "token", "not an integer"),
+        ([1.0, 0.5, 1.0, 0.0, 0.0, 0.0, 2.0**53], "token", "not an integer"),
     ],
 )
 def test_invalid_command_names_the_field(params, cmd_layout, data, field, reason):

@@ -450,12 +450,12 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
         cmd_pub.publish(Float64MultiArray(data=[*values, token]))
 
     nan, inf = float("nan"), float("inf")
-    send(0.0, 1.0, 1.0, 0.0)  # wrong length
-    send(0.0, nan, 1.0, 0.0, 0.0)  # NaN
-    send(0.0, 1.0, 1.0, inf, 0.0)  # inf
-    send(0.0, 1.0, 1.0, 0.0, 5.0e5)  # battery power far beyond its 1 kW
-    send(0.0, 1.0, 7.0, 0.0, 0.0)  # unknown circuit
-    send(5.0, 1.0, 1.0, 0.0, 0.0)  # valid, but for step 5 while the plant waits for step 0
+    send(0.0, 1.0, 1.0, 0.0, 0.0)  # wrong length
+    send(0.0, nan, 1.0, 0.0, 0.0, 0.0)  # NaN
+    send(0.0, 1.0, 1.0, inf, 0.0, 0.0)  # inf
+    send(0.0, 1.0, 1.0, 0.0, 5.0e5, 0.0)  # battery power far beyond its 1 kW
+    send(0.0, 1.0, 7.0, 0.0, 0.0, 0.0)  # unknown circuit
+    send(5.0, 1.0, 1.0, 0.0, 0.0, 0.0)  # valid, but for step 5 while the plant waits for step 0
     graph.spin_until(lambda: 0 in graph.records, 30.0, "step 0 (after the timeout)")
     lay = graph.contract.topic("plant/record").layout(graph.sizes)
     r0 = lay.unpack(graph.records[0])
@@ -463,10 +463,10 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
     assert (r0["rejected_commands"], r0["wrong_step_commands"]) == (5, 1)
 
     graph.spin_until(lambda: 1 in graph.states, 10.0, "step 1")
-    send(1.0, 0.0, 2.0, 0.0, 0.0, token=99.0)  # in range, right step, but another EMS's token: foreign
-    send(1.0, 1.0, 1.0, 0.0, 0.0)  # valid: space heating at full power
+    send(1.0, 0.0, 2.0, 0.0, 0.0, 0.0, token=99.0)  # in range, right step, but another EMS's token: foreign
+    send(1.0, 1.0, 1.0, 0.0, 0.0, 0.0)  # valid: space heating at full power
     graph.spin_until(lambda: 2 in graph.states, 10.0, "step 2")
-    send(2.0, 0.0, 0.0, 0.0, 0.0)
+    send(2.0, 0.0, 0.0, 0.0, 0.0, 0.0)
     graph.spin_until(lambda: len(graph.records) == 3, 10.0, "the end of the run")
     r1, r2 = lay.unpack(graph.records[1]), lay.unpack(graph.records[2])
     assert r1["fallback"] is False and (r1["cmd_hp_mode"], r1["cmd_hp_mod"]) == (1, 1.0)
@@ -476,7 +476,7 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
     assert graph.procs["plant_sim"].wait(30) == 0
     log = graph.log("plant_sim")
     for expected in (
-        "rejected topic 'ems/command' field '(length)': 5 elements",
+        "rejected topic 'ems/command' field '(length)': 6 elements",
         "rejected topic 'ems/command' field 'hp_mod': non-finite value nan",
         "rejected topic 'ems/command' field 'p_fc_w': non-finite value inf",
         "rejected topic 'ems/command' field 'p_bess_w': 500000.0 outside the accepted range",

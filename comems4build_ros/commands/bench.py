@@ -12,6 +12,7 @@ TARGETS = {
     "mpc": "mpc",
     "ros": "ros",
     "study": "study",
+    "year": "year",
 }
 
 

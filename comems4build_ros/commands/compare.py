@@ -9,7 +9,7 @@ import argparse
 import sys
 import time
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 from .options import add_executor_options, add_scenario_options
 
@@ -95,11 +95,13 @@ def run_name(ems: str, eta: float, base_eta: float) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the comparison (unless --from-runs) and write the report."""
+    from .options import add_scenario_config
+
+    add_scenario_config(args)
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..ems import controller_class
     from ..fileio import atomic_dir, check_out_dir
-    from ..report.build import build_report
     from ..report.runs import RunDirError
     from .options import check_config_files, ems_names, scenario_of, study_executor
     from .simulate import parse_assignments
@@ -113,7 +115,7 @@ def run(args: argparse.Namespace) -> int:
         check_out_dir(out)
         try:
             with atomic_dir(out) as stage:  # the report files replace the older ones only when all are written
-                rep = build_report(args.from_runs, stage)
+                rep = _report_builder(args.from_runs)(args.from_runs, stage)
         except RunDirError as exc:
             raise UsageError(str(exc)) from None
         _print_report(rep, stage, out)
@@ -125,6 +127,8 @@ def run(args: argparse.Namespace) -> int:
     check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
     etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
+    if args.scenario == "year" and args.fc_efficiency is None:
+        etas = etas[:1]  # the year's report compares the EMS at the plant's FC efficiency
     for eta in etas:  # validate every parameter set before starting any run
         params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
     if args.extend and args.via == "ros":
@@ -144,7 +148,6 @@ def run(args: argparse.Namespace) -> int:
 def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], levels: dict[str, str],
              overrides: dict, out: Path) -> Report:
     """Run every EMS at every efficiency into ``out`` (runs/, compare.json) and build the report there."""
-    from ..report.build import build_report
     from ..report.runner import RunTask, run_tasks
     from ..report.runs import RUNS_DIR, Manifest, RunSpec, write_manifest
 
@@ -172,13 +175,32 @@ def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], level
                         wall_s={**walls, "all_runs": wall})
     write_manifest(manifest, out)
     print(f"runs: {wall:.1f} s wall for {len(tasks)} runs", file=sys.stderr)
-    return build_report(out)
+    return _report_builder(out)(out)
+
+
+def _report_builder(compare_dir: str | Path) -> Any:
+    """The report of a comparison: the year-round one (``report/year.py``) for ``--scenario year``,
+    else the paper's (``report/build.py``)."""
+    import json
+
+    from ..report.build import build_report
+    from ..report.runs import MANIFEST
+    from ..report.year import build_year_report
+
+    try:
+        scenario = json.loads((Path(compare_dir) / MANIFEST).read_text(encoding="utf-8")).get("scenario")
+    except (OSError, ValueError):
+        scenario = None  # build_report names the missing or corrupt manifest
+    return build_year_report if scenario == "year" else build_report
 
 
 def _print_report(rep: Report, stage: Path, out: Path) -> None:
     """The findings count and the files written (``rep`` was built in ``stage``, now renamed to ``out``)."""
     held = sum(f["verdict"] == "held" for f in rep.findings)
     evaluated = sum(f["verdict"] != "n/a" for f in rep.findings)
-    print(f"report: {held} of {evaluated} evaluated findings held; built in {rep.seconds:.2f} s")
+    if rep.findings:
+        print(f"report: {held} of {evaluated} evaluated findings held; built in {rep.seconds:.2f} s")
+    else:  # the year's report: no finding of the paper's winter applies
+        print(f"report: built in {rep.seconds:.2f} s")
     md, html = (out / Path(p).relative_to(stage) for p in (rep.markdown, rep.html))
     print(f"wrote {md}, {html} and {len(rep.figures)} figures in {md.parent / 'figures'}")

@@ -63,7 +63,7 @@ def run(args: argparse.Namespace) -> int:
                                                                                if "bag_incomplete" in s else {})}))
     out = Path(args.out)
     names = [n for n in RUN_FILES if not (args.no_timeseries and n == "timeseries.csv")]
-    written = [building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names]
+    written = [p for p in (building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names) if p.exists()]
     if len(summaries) > 1 or "/" not in summaries:
         written += [out / "weekly.csv", out / "summary.json"]
     print(f"wrote {len(written)} files: {', '.join(str(p) for p in written)}")

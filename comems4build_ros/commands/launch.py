@@ -200,6 +200,9 @@ def launch_options(args: argparse.Namespace) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     """Validate every input, then launch, wait, evaluate; print the main figures."""
+    from .options import add_scenario_config
+
+    add_scenario_config(args)
     from ..fileio import check_out_dir
     from ..ros.launcher import launch
     from ..ros.supervisor import LaunchError

@@ -97,9 +97,10 @@ BUILDINGS = integer(1, MAX_BUILDINGS)
 def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,
                          extend: bool = True) -> None:
     """``--scenario``, ``--start``, ``--weeks`` / ``--hours``, ``--seed`` and ``--extend`` of a run."""
-    parser.add_argument("--scenario", metavar="default|synthetic|FILE.csv", default="default",
-                        help="'default' (the paper's winter, measured data), 'synthetic' (the seeded generator) "
-                             "or a scenario CSV file")
+    parser.add_argument("--scenario", metavar="default|year|synthetic|FILE.csv", default="default",
+                        help="'default' (the paper's winter, measured data), 'year' (the year around it from "
+                             "2022-03-01 with an electrolyser and cooling, config/year.yaml), 'synthetic' (the "
+                             "seeded generator) or a scenario CSV file")
     parser.add_argument("--start", metavar="ISO", default=None,
                         help="first step of the window (ISO date/time; naive = site time)")
     group = parser.add_mutually_exclusive_group()
@@ -118,6 +119,14 @@ def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, se
                             help="a run longer than the scenario's data is refused unless this is given: "
                                  "'synthetic' appends generated data after the data's end (summary.json "
                                  "says so under scenario_extended)")
+
+
+def add_scenario_config(args: argparse.Namespace) -> None:
+    """Put the plant file of an embedded scenario (``--scenario year``: ``config/year.yaml``)
+    in front of ``args.config``, so that ``--config`` files and ``--set`` still override it."""
+    from ..config import scenario_config_files
+
+    args.config = scenario_config_files(getattr(args, "scenario", "default"), args.config)
 
 
 def check_config_files(paths: Sequence[str], option: str = "--config") -> None:

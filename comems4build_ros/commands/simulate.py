@@ -46,6 +46,9 @@ def parse_assignments(items: list[str], what: str) -> dict[str, object]:
 
 def run(args: argparse.Namespace) -> int:
     """Run the simulation and write timeseries.csv, weekly.csv and summary.json."""
+    from .options import add_scenario_config
+
+    add_scenario_config(args)
     from ..ems import UnknownEMSError, controller_class
     from ..fileio import check_out_dir
     from ..progress import ProgressBar

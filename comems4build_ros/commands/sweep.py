@@ -28,10 +28,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run every case of the grid and write sweep.csv, sweep.md, figures/<kpi>.{png,pdf,svg} and runs/."""
+    from .options import add_scenario_config
+
+    add_scenario_config(args)
     from ..cli import UsageError
     from ..config import load_plant_params
     from ..fileio import atomic_dir, check_out_dir
-    from ..report.sweep import SWEEP_KPIS, grid, parse_param
+    from ..report.sweep import grid, parse_param, sweep_kpis
     from .options import check_config_files, ems_names, scenario_of, study_executor
 
     params: dict[str, list] = {}
@@ -56,14 +59,14 @@ def run(args: argparse.Namespace) -> int:
         executor.complete()
     out = Path(args.out)
     print(f"{len(cases)} runs in {wall:.1f} s; wrote {out / 'sweep.csv'}, {out / 'sweep.md'} and "
-          f"{len(SWEEP_KPIS)} plots in {out / 'figures'}")
+          f"{len(sweep_kpis(args.scenario))} plots in {out / 'figures'}")
     return 0
 
 
 def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], cases: list, out: Path) -> float:
     """Run every case of the grid into ``out/runs/``, write the tables and plots into ``out``; the wall time [s]."""
     from ..report.runner import RunTask, run_tasks
-    from ..report.sweep import SWEEP_KPIS, markdown_table, plot_kpi, table
+    from ..report.sweep import markdown_table, plot_kpi, sweep_kpis, table
 
     tasks = [RunTask(ems=c.ems, out_dir=str(out / "runs" / c.name), scenario=args.scenario, start=args.start,
                      weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=dict(c.values),
@@ -73,13 +76,13 @@ def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], c
     t0 = time.perf_counter()
     summaries = run_tasks(tasks, progress=False if args.no_progress else None)
     wall = time.perf_counter() - t0
-    kpis = [k for k, _ in SWEEP_KPIS]
+    kpis = [k for k, _ in sweep_kpis(args.scenario)]
     df = table(cases, summaries, kpis)
     df.to_csv(out / "sweep.csv", index=False)
     md = [f"# Sweep over {', '.join(params)}", "",
           f"EMS: {', '.join(emss)}; scenario {args.scenario}, weeks {args.weeks or 'default'}; "
           f"{len(cases)} runs in {wall:.1f} s wall.", "", markdown_table(df), "## Figures", ""]
-    for key, ylabel in SWEEP_KPIS:
+    for key, ylabel in sweep_kpis(args.scenario):
         png = plot_kpi(df, list(params), key, ylabel, out / "figures" / key)
         md.append(f"![{key} over {next(iter(params))}](figures/{png.name})\n\n`{key}` over "
                   f"`{next(iter(params))}`; vector versions: [PDF](figures/{key}.pdf), [SVG](figures/{key}.svg)\n")

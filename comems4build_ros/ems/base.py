@@ -18,7 +18,12 @@ Common to every level ("measured" by any EMS):
     prices_buy_24h (day-ahead buy prices k .. k+23, not a forecast: published in advance)
 Fuzzy (ComEMS4Build) adds:
     t_min_5h_c (lower bounds k .. k+5), ghi_w_m2 (current radiation),
-    dloh_per_day (eq:deltaLOH, fraction of the store per day), fc_on_prev
+    dloh_per_day (eq:deltaLOH, fraction of the store per day), fc_on_prev,
+    and, for the electrolyser of a year-round plant (not in the paper's table):
+    el_on_prev (the electrolyser produced in step k-1, as s_on/off of the FC),
+    days_to_heating_season (days from step k to the next heating season, 0 inside it),
+    heating_season_days_left (days left in the heating season, 0 outside it); both are
+    calendar figures of ``simulation.heating_season_start/end``
 MPC adds:
     t_amb_c (current), t_wall_in_c, t_wall_out_c (model states),
     forecast: mapping of 24-step tuples starting at k with keys t_amb_c, ghi_w_m2,
@@ -72,7 +77,8 @@ COMMON_FIELDS = frozenset(
         "prices_buy_24h",
     }
 )
-FUZZY_FIELDS = COMMON_FIELDS | {"t_min_5h_c", "ghi_w_m2", "dloh_per_day", "fc_on_prev"}
+FUZZY_FIELDS = COMMON_FIELDS | {"t_min_5h_c", "ghi_w_m2", "dloh_per_day", "fc_on_prev", "el_on_prev",
+                                "days_to_heating_season", "heating_season_days_left"}
 MPC_FIELDS = FUZZY_FIELDS | {"t_amb_c", "t_wall_in_c", "t_wall_out_c", "forecast"}
 
 #: Information level name -> fields it may read (tab:level_of_information).

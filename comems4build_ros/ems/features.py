@@ -20,6 +20,18 @@ import numpy as np
 from ..config import HeatPumpParams
 
 
+def chi_cool(t_air_c: float, t_min_c: float, t_max_c: float) -> float:
+    """Thermal state towards the upper bound for cooling [-], in [0, 1]: ``eq:s_sh`` mirrored.
+
+    ``chi_cool = sqrt((T_air,max[k] - T_air[k-1]) / (T_air,max[k] - T_air,min[k]))``, clipped to
+    [0, 1] before the root: 0 at or above the upper bound (no reserve), 1 at the lower bound.
+    """
+    span = float(t_max_c) - float(t_min_c)
+    if span <= 0.0:
+        return 0.0 if t_air_c >= t_max_c else 1.0
+    return math.sqrt(min(1.0, max(0.0, (float(t_max_c) - float(t_air_c)) / span)))
+
+
 def chi_sh(t_air_c: float, t_min_c: float | Sequence[float], t_max_c: float) -> float:
     """Thermal state of space heating ``eq:s_sh`` [-], in [0, 1].
 

@@ -16,6 +16,12 @@ The RBC follows the ComEMS4Build workflow with crisp rules and the "basic" input
 4. Battery: in the lowest EDF quartile it charges at full power (the grid buys the load
    and the charge); otherwise it takes the residual dP_new = dP + P_el,FC: charging with
    surplus, discharging to cover demand, within its power and SOC limits.
+
+A year-round plant (``docs/seasonal.md``; not in the paper) adds, each only where installed:
+cooling at the upper bound (on when T_air reaches T_air,max, off at ``cool_off_chi`` of the
+mirrored thermal state, at ``hp_mod_on``; DHW first), and the electrolyser on the surplus
+left after the battery (P_EL = that surplus up to P_EL,max, off below P_EL,min or with the
+store at LOH_max).
 """
 
 from __future__ import annotations
@@ -27,9 +33,11 @@ from pydantic import Field, model_validator
 
 from ..config import PlantParams, Section, config_dir, deep_merge, read_ros_params, set_dotted, validate
 from ..models.battery import power_limits_w
-from ..types import HP_DHW, HP_OFF, HP_SH, Action
+from ..models.cooling import p_el_max_cool_w
+from ..models.electrolyser import ElectrolyserTable
+from ..types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 from .base import Observation
-from .features import chi_dhw, chi_sh, edf_price, hp_p_el_ref_w
+from .features import chi_cool, chi_dhw, chi_sh, edf_price, hp_p_el_ref_w
 
 
 class RBCOptions(Section):
@@ -49,6 +57,8 @@ class RBCOptions(Section):
     edf_upper_quartile: float = Field(ge=0, le=1)
     edf_lower_quartile: float = Field(ge=0, le=1)
     loh_reserve: float = Field(ge=0, le=1)
+    cool_off_chi: float = Field(gt=0, le=1)
+    p_el_ref_cool_t_amb_c: float
 
     @model_validator(mode="after")
     def _check(self) -> RBCOptions:
@@ -98,13 +108,19 @@ class RuleBasedController:
             raise ValueError(f"rbc option hp_mod_on={self.options.hp_mod_on} is below the HP's minimal modulation")
         self._p_hp_ref_w = hp_p_el_ref_w(params.heat_pump, self.options.p_el_ref_t_amb_c)
         self._p_fc_w = params.fuel_cell.zeta * params.fuel_cell.p_max_w
+        self._cooling = bool(params.cooling.enabled)
+        self._p_cool_ref_w = float(p_el_max_cool_w(self.options.p_el_ref_cool_t_amb_c, params.cooling))
+        table = ElectrolyserTable(params.electrolyser)
+        self._el = table.n > 0
+        self._p_el_min_w, self._p_el_max_w = table.p_min_w, table.p_max_w
         self.step_info: dict[str, float] = {}
         self.reset()
 
     def reset(self) -> None:
-        """Both heating switches off."""
+        """Both heating switches (and the cooling switch) off."""
         self._sh_on = False
         self._dhw_on = False
+        self._cool_on = False
         self.step_info = {}
 
     def act(self, obs: Observation) -> Action:
@@ -126,7 +142,16 @@ class RuleBasedController:
             mode, eta = HP_SH, o.hp_mod_on
         else:
             mode, eta = HP_OFF, 0.0
-        dp_w = obs.p_pv_w - eta * self._p_hp_ref_w - obs.p_load_w
+        p_hp_ref = self._p_hp_ref_w
+        if self._cooling:
+            c_cool = chi_cool(obs.t_air_c, obs.t_min_c, obs.t_max_c)
+            if c_cool <= 0.0:
+                self._cool_on = True
+            elif c_cool >= o.cool_off_chi:
+                self._cool_on = False
+            if self._cool_on and mode == HP_OFF:
+                mode, eta, p_hp_ref = HP_COOL, o.hp_mod_on, self._p_cool_ref_w
+        dp_w = obs.p_pv_w - eta * p_hp_ref - obs.p_load_w
         edf = edf_price(obs.price_buy_eur_per_kwh, obs.prices_buy_24h)
         p_fc = 0.0
         if dp_w < 0.0 and edf > o.edf_upper_quartile and obs.loh > max(o.loh_reserve, p.hydrogen.loh_min):
@@ -142,4 +167,10 @@ class RuleBasedController:
         room_ch, room_d = power_limits_w(obs.soc, b, p.simulation.time_step_h)
         p_bess = min(p_bess, room_ch) if p_bess > 0 else max(p_bess, -room_d)
         self.step_info = {"chi_sh": c_sh, "chi_dhw": c_dhw, "edf": edf, "dp_w": dp_w, "dp_new_w": dp_new_w}
-        return Action(hp_mod=eta, hp_mode=mode, p_fc_w=p_fc, p_bess_w=p_bess)
+        p_el = 0.0
+        if self._el:
+            surplus = dp_new_w - max(p_bess, 0.0)
+            if surplus >= self._p_el_min_w and obs.loh < p.hydrogen.loh_max:
+                p_el = min(surplus, self._p_el_max_w)
+            self.step_info["p_el_w"] = p_el
+        return Action(hp_mod=eta, hp_mode=mode, p_fc_w=p_fc, p_bess_w=p_bess, p_el_w=p_el)

@@ -99,8 +99,8 @@ class SimBuilding:
         """Value of measurement ``name`` at the start of step ``k`` (state) or during ``k`` (PV, load, T_amb)."""
         if name in ("p_pv_w", "p_load_w", "t_amb_c"):
             return float(getattr(self.exo[min(k, self.n_steps - 1)], name))
-        if name == "fc_on":
-            return 1.0 if self.state.fc_on else 0.0
+        if name in ("fc_on", "el_on"):
+            return 1.0 if getattr(self.state, name) else 0.0
         return float(getattr(self.state, name))
 
     def measurement_payloads(self, k: int) -> list[tuple[str, bytes]]:

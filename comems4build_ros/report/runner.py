@@ -74,7 +74,8 @@ class RunTask:
     @property
     def weight(self) -> float:
         """Relative cost of the run (:data:`EMS_WEIGHT` times its weeks; longest first)."""
-        return EMS_WEIGHT.get(self.ems, 1.0) * float(self.weeks or 12.0)
+        default_weeks = 52.0 if str(self.scenario) == "year" else 12.0  # the year's 52 weeks, else the winter's 12
+        return EMS_WEIGHT.get(self.ems, 1.0) * float(self.weeks or default_weeks)
 
     def _input_files(self) -> list[str]:
         from ..scenario import EMBEDDED
@@ -146,11 +147,11 @@ def run_task(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
 
 
 def _run_inprocess(task: RunTask, progress: ProgressCallback | None = None) -> dict[str, Any]:
-    from ..config import load_plant_params
+    from ..config import load_plant_params, scenario_config_files
     from ..scenario import resolve_scenario
     from ..sim import simulate, write_run
 
-    params = load_plant_params(task.config, task.overrides)
+    params = load_plant_params(scenario_config_files(task.scenario, task.config), task.overrides)
     scenario = resolve_scenario(task.scenario, params, start=task.start, weeks=task.weeks, seed=task.seed,
                                 extend=task.extend, settings_overrides=task.scenario_overrides or None)
     result = simulate(task.ems, scenario, params, ems_options=task.ems_options, progress=progress)
@@ -169,6 +170,7 @@ def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     """
     import json
 
+    from ..config import scenario_config_files
     from ..ros.launcher import launch
     from ..ros.plan import LaunchOptions
     from ..ros.supervisor import LaunchError
@@ -179,7 +181,8 @@ def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     if task.extend:
         raise RunFailedError(f"{out}: extend '{task.extend}' applies to in-process runs only")
     opts = LaunchOptions(ems=task.ems, out=out, scenario=task.scenario, weeks=task.weeks, start=task.start,
-                         seed=task.seed, config_files=list(task.config), overrides=dict(task.overrides),
+                         seed=task.seed, config_files=scenario_config_files(task.scenario, task.config),
+                         overrides=dict(task.overrides),
                          ems_options=[f"{k}={json.dumps(v)}" for k, v in task.ems_options.items()],
                          on_progress=progress)
     try:
@@ -189,9 +192,10 @@ def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     if len(result.summaries) != 1:
         raise RunFailedError(f"{out}: expected one building in the bag, got {len(result.summaries)}")
     summary = dict(next(iter(result.summaries.values())))
-    from ..config import load_plant_params
+    from ..config import load_plant_params, scenario_config_files
 
-    summary["eta_sys"] = load_plant_params(task.config, task.overrides).fuel_cell.eta_sys
+    summary["eta_sys"] = load_plant_params(scenario_config_files(task.scenario, task.config),
+                                           task.overrides).fuel_cell.eta_sys
     path = out / "summary.json"
     data = json.loads(path.read_text(encoding="utf-8"))
     data["eta_sys"] = summary["eta_sys"]

@@ -41,6 +41,22 @@ SWEEP_KPIS: tuple[tuple[str, str], ...] = (
     ("dhw_unmet_kwh", "unmet DHW [kWh]"),
 )
 
+#: KPIs added for the year-round scenario (``--scenario year``; docs/seasonal.md), the sizing figures.
+YEAR_SWEEP_KPIS: tuple[tuple[str, str], ...] = (
+    ("loh_heating_season_start", r"$\mathit{LOH}$ at the start of the heating season [–]"),
+    ("h2_produced_kwh", r"$\mathrm{H_2}$ produced, LHV [kWh]"),
+    ("el_working_hours", "electrolyser working hours [h]"),
+    ("self_sufficiency", "self-sufficiency [–]"),
+    ("cost_net_eur", "cost, bought - sold [EUR]"),
+    ("heating_season_discomfort_weeks", "heating-season weeks with discomfort [–]"),
+)
+
+
+def sweep_kpis(scenario: str) -> tuple[tuple[str, str], ...]:
+    """KPIs of a sweep over ``scenario``: :data:`SWEEP_KPIS`, plus :data:`YEAR_SWEEP_KPIS` for the year."""
+    return SWEEP_KPIS + YEAR_SWEEP_KPIS if str(scenario) == "year" else SWEEP_KPIS
+
+
 #: Axis labels of common sweep parameters (dotted path of ``config/plant.yaml`` -> label with unit).
 PARAM_LABELS: dict[str, str] = {
     "battery.e_max_kwh": r"battery capacity $E_\mathrm{B,max}$ [kWh]",
@@ -55,6 +71,7 @@ PARAM_LABELS: dict[str, str] = {
     "grid.surcharge_eur_per_kwh": "tariff surcharge [EUR/kWh]",
     "grid.price_sell_eur_per_kwh": r"sell price $p_\mathrm{sell}$ [EUR/kWh]",
     "heat_pump.p_el_max_w": r"HP maximal power $P_\mathrm{el,HP,max}$ [W]",
+    "electrolyser.n_modules": "electrolyser modules (EL 2.1) [–]",
 }
 #: Unit suffixes of parameter names -> unit as printed (longest first).
 UNIT_SUFFIXES: tuple[tuple[str, str], ...] = (

@@ -10,7 +10,8 @@ import math
 from collections.abc import Sequence
 
 from ..config import PlantParams
-from ..types import ACTION_FIELDS, HP_DHW, HP_OFF, HP_SH, Action
+from ..models.electrolyser import ElectrolyserTable
+from ..types import ACTION_FIELDS, HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 from .contract import Layout
 from .tokens import MAX_TOKEN
 
@@ -48,10 +49,11 @@ def command_bounds(params: PlantParams) -> dict[str, tuple[float, float]]:
         "hp_mod": widen(0.0, 1.0, 0.0),
         "p_fc_w": widen(0.0, params.fuel_cell.p_max_w, COMMAND_RANGE_ABS_TOL_W),
         "p_bess_w": widen(-params.battery.p_d_max_w, params.battery.p_ch_max_w, COMMAND_RANGE_ABS_TOL_W),
+        "p_el_w": widen(0.0, ElectrolyserTable(params.electrolyser).p_max_w, COMMAND_RANGE_ABS_TOL_W),
     }
 
 
-VALID_HP_MODES = (HP_OFF, HP_SH, HP_DHW)
+VALID_HP_MODES = (HP_OFF, HP_SH, HP_DHW, HP_COOL)
 
 
 def check_token(token: float) -> None:
@@ -83,7 +85,7 @@ def command_to_action(
     values = dict(zip(ACTION_FIELDS, data[1:]))
     mode = values["hp_mode"]
     if mode not in VALID_HP_MODES:
-        raise CommandError("hp_mode", f"{mode} is not one of {VALID_HP_MODES} (off, SH, DHW)")
+        raise CommandError("hp_mode", f"{mode} is not one of {VALID_HP_MODES} (off, SH, DHW, cooling)")
     for name, (lo, hi) in bounds.items():
         v = values[name]
         if not lo <= v <= hi:
@@ -93,6 +95,7 @@ def command_to_action(
         hp_mode=int(mode),
         p_fc_w=float(values["p_fc_w"]),
         p_bess_w=float(values["p_bess_w"]),
+        p_el_w=float(values["p_el_w"]),
     )
 
 

@@ -72,6 +72,7 @@ STATE_TOPICS: dict[str, tuple[str, ...]] = {
     "state/loh": ("loh",),
     "state/hp_mod": ("hp_mod",),
     "state/fc_on": ("fc_on",),
+    "state/el_on": ("el_on",),
     "state/t_wall": ("t_wall_in_c", "t_wall_out_c"),
 }
 #: Names of the fault counters, in the order of ``plant/record`` and of the statistics.

@@ -193,6 +193,12 @@ class LaunchOptions:
     namespace: str = "/"
     bag: Path | None = None
 
+    def __post_init__(self) -> None:
+        """An embedded scenario's plant file (``--scenario year``: ``config/year.yaml``) goes first."""
+        from ..config import scenario_config_files
+
+        self.config_files = scenario_config_files(self.scenario, self.config_files)
+
 
 def effective_layout(opts: LaunchOptions) -> str:
     """The process layout of ``opts`` (:data:`LAYOUTS`): ``layout`` as given, else ``building``
@@ -540,7 +546,7 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
 
     level = controller_class(opts.ems).info_level
     forecast = load_forecast_settings(**({"mode": opts.forecast} if opts.forecast else {})).mode
-    name = "default" if opts.scenario == "default" else Path(opts.scenario).name
+    name = opts.scenario if opts.scenario in ("default", "year") else Path(opts.scenario).name
     return {
         "ems": opts.ems,
         "scenario": name,

@@ -62,7 +62,9 @@ KWH_PER_MWH = 1000.0
 
 _CACHE: dict[tuple, object] = {}
 #: Names of the embedded scenarios (``--scenario``).
-EMBEDDED = ("default", "synthetic")
+EMBEDDED = ("default", "synthetic", "year")
+#: Embedded scenarios from measured data -> their section of ``config/scenario.yaml``.
+MEASURED_SECTIONS = {"default": "measured", "year": "measured_year"}
 
 
 def steps_of_weeks(weeks: float, name: str) -> int:
@@ -460,14 +462,20 @@ def resolve_scenario(
     if str(spec) in EMBEDDED:
         parts = split_overrides(settings_overrides)
         settings = load_scenario_settings(overrides=parts["scenario"])
-        if str(spec) == "default":
-            measured = load_measured_settings(overrides=parts["measured"])
+        if str(spec) in MEASURED_SECTIONS:
+            section = MEASURED_SECTIONS[str(spec)]
+            other = next(s for s in MEASURED_SECTIONS.values() if s != section)
+            if parts[other]:
+                raise ScenarioError(f"scenario '{spec}': '{other}.*' settings apply to another scenario "
+                                    f"(this one reads '{section}.*')")
+            measured = load_measured_settings(overrides=parts[section], section=section)
             frame, meta = _measured_frame(params, measured, settings, measured.seed if seed is None else int(seed),
                                           None)
             lookahead_h, default_weeks = measured.lookahead_h, measured.weeks
         else:
-            if parts["measured"]:
-                raise ScenarioError("scenario 'synthetic': 'measured.*' settings apply to the default scenario only")
+            if parts["measured"] or parts["measured_year"]:
+                raise ScenarioError("scenario 'synthetic': 'measured.*' and 'measured_year.*' settings apply to the "
+                                    "scenarios from measured data only")
             full = synthetic_scenario(params, weeks=settings.weeks, seed=seed, settings=settings)
             frame = pd.DataFrame({c: getattr(full, c) for c in CSV_COLUMNS[1:]}, index=full.time.tz_convert("UTC"))
             meta = dict(full.meta)

@@ -42,6 +42,42 @@ def is_off_day(time: pd.DatetimeIndex | pd.Timestamp, comfort: ComfortParams) ->
     return weekend | holiday
 
 
+def heating_season_days(
+    time: pd.DatetimeIndex, start_mmdd: str, end_mmdd: str
+) -> tuple[np.ndarray, np.ndarray]:
+    """Days to the next heating season and days left in it, for each step start [d].
+
+    The season runs from the local date ``start_mmdd`` (``"12-01"``) to ``end_mmdd``
+    (exclusive, ``"03-01"``), across the turn of the year when the end lies before the
+    start. Inside the season the first value is 0, outside it the second.
+
+    Parameters
+    ----------
+    time : local step starts (tz-aware in the site's zone)
+    start_mmdd, end_mmdd : season bounds as ``MM-DD``
+    """
+    idx = pd.DatetimeIndex(time)
+    naive = idx.tz_localize(None) if idx.tz is not None else idx
+    to_start = np.zeros(len(idx))
+    left = np.zeros(len(idx))
+    sm, sd = (int(x) for x in start_mmdd.split("-"))
+    em, ed = (int(x) for x in end_mmdd.split("-"))
+    day_s = 86400.0
+    for i, t in enumerate(naive):
+        y = t.year
+        # the season that contains t or comes next: its start in year y-1, y or y+1
+        for ys in (y - 1, y, y + 1):
+            s = pd.Timestamp(ys, sm, sd)
+            e = pd.Timestamp(ys + (1 if (em, ed) <= (sm, sd) else 0), em, ed)
+            if s <= t < e:
+                left[i] = (e - t).total_seconds() / day_s
+                break
+            if t < s:
+                to_start[i] = (s - t).total_seconds() / day_s
+                break
+    return to_start, left
+
+
 def _in_hours(hour: np.ndarray, pairs: list[int]) -> np.ndarray:
     """True where ``hour`` lies in one of the ``[start, end)`` pairs."""
     inside = np.zeros(hour.shape, dtype=bool)
@@ -58,7 +94,9 @@ def comfort_bounds(
     ``T_min = t_min_home_c`` when the occupants are at home (weekdays in
     ``home_hours_weekday``, weekends and public holidays in ``home_hours_weekend``; both
     lists of ``[start, end)`` local hours, paper: 06-08 and 17-23 resp. 06-23), otherwise
-    ``t_min_away_c``; ``T_max = t_max_c`` always.
+    ``t_min_away_c``; ``T_max = t_max_c`` (the paper's bound), except in the months of
+    ``cooling_season_months`` where ``T_max = t_max_cooling_c`` (EN 16798-1 category II,
+    cooling season).
 
     Parameters
     ----------
@@ -75,4 +113,7 @@ def comfort_bounds(
     home = np.where(off, _in_hours(hour, comfort.home_hours_weekend), _in_hours(hour, comfort.home_hours_weekday))
     t_min = np.where(home, comfort.t_min_home_c, comfort.t_min_away_c).astype(float)
     t_max = np.full(len(idx), float(comfort.t_max_c))
+    first, last = comfort.cooling_season_months
+    month = np.asarray(idx.month)
+    t_max[(month >= first) & (month <= last)] = float(comfort.t_max_cooling_c)
     return t_min, t_max

@@ -242,9 +242,12 @@ def _section(path: str | Path | None, name: str, overrides: Mapping[str, Any] | 
 
 
 def load_measured_settings(
-    path: str | Path | None = None, overrides: Mapping[str, Any] | None = None
+    path: str | Path | None = None, overrides: Mapping[str, Any] | None = None, section: str = "measured"
 ) -> MeasuredSettings:
-    """Read and validate the ``measured`` section of a parameter file (default ``config/scenario.yaml``).
+    """Read and validate a measured-data section of a parameter file (default ``config/scenario.yaml``).
+
+    ``section``: ``measured`` (the paper's winter, ``--scenario default``) or
+    ``measured_year`` (the year around it, ``--scenario year``).
 
     ``overrides`` are dotted keys inside the section (``{"temperature.fill": "synthetic"}``).
 
@@ -253,8 +256,8 @@ def load_measured_settings(
     ConfigError
         Naming the file and the parameter if the section is missing or invalid.
     """
-    section, label = _section(path, "measured", overrides)
-    return validate(MeasuredSettings, section, label)
+    data, label = _section(path, section, overrides)
+    return validate(MeasuredSettings, data, label)
 
 
 def default_scenario_file() -> Path:
@@ -286,10 +289,11 @@ def split_overrides(overrides: Mapping[str, Any] | None) -> dict[str, dict[str, 
     ConfigError
         For a key outside the sections ``scenario`` and ``measured``.
     """
-    out: dict[str, dict[str, Any]] = {"scenario": {}, "measured": {}}
+    out: dict[str, dict[str, Any]] = {"scenario": {}, "measured": {}, "measured_year": {}}
     for key, value in (overrides or {}).items():
         head, _, rest = str(key).partition(".")
         if head not in out or not rest:
-            raise ConfigError(f"scenario override '{key}': must start with 'scenario.' or 'measured.'")
+            raise ConfigError(f"scenario override '{key}': must start with 'scenario.', 'measured.' or "
+                              "'measured_year.'")
         out[head][rest] = value
     return out

@@ -18,6 +18,19 @@ One step (``fig:flc_rbc_flowchart`` left, ``sec:appendix``):
    alpha_B > 0 charges alpha_B * P_ch,max, alpha_B <= 0 discharges alpha_B * dP_new; the
    grid covers the rest (the plant's power balance).
 
+A year-round plant (``docs/seasonal.md``; not in the paper) adds, each only where installed:
+
+- cooling (``cooling.enabled``): FLC_flex drives cooling as it drives heating, with the
+  thermal state towards the upper bound chi_cool (:func:`~comems4build_ros.ems.features.chi_cool`)
+  in place of chi_SH, when chi_cool is below ``hp.cool_below_chi`` and the tank does not
+  take the HP (DHW priority);
+- the electrolyser (``electrolyser.n_modules > 0``): only if dP > 0,
+  FLC_EL(dP / 10 kW, SOC, LOH, EDF, days to the heating season) -> alpha_EL,
+  P_EL = alpha_EL * P_EL,max capped at dP, 0 below P_EL,min; dP_new = dP + P_el,FC - P_EL;
+  and the daily H2 budget ``eq:deltaLOH`` spread over the heating season: on its first step
+  the budget becomes (LOH - ``simulation.loh_season_end``) / days of the season, outside the
+  season it is 0 (the FC saves the store for the winter).
+
 The membership functions and rule bases are the data files ``config/fuzzy/flex.yaml``,
 ``fc.yaml`` and ``battery.yaml``; the options choose other files or override entries.
 """
@@ -30,10 +43,11 @@ from typing import Any
 
 from ...config import ConfigError, PlantParams, check_known_keys, config_dir, finite_number, set_dotted
 from ...models.battery import power_limits_w
-from ...types import HP_DHW, HP_OFF, HP_SH, Action
+from ...types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 from ..base import Observation
 from ..features import (
     DailyH2Allowance,
+    chi_cool,
     chi_dhw,
     chi_sh,
     edf_price,
@@ -48,14 +62,18 @@ FLC_FILES: dict[str, tuple[str, str]] = {
     "flex": ("flex.yaml", "flc_flex"),
     "fc": ("fc.yaml", "flc_fc"),
     "battery": ("battery.yaml", "flc_b"),
+    "el": ("el.yaml", "flc_el"),
 }
+#: Controllers only a year-round plant with an electrolyser reads (the paper's plant has none).
+EL_FLCS = ("el",)
 
 
 #: The controller's own option group of each section and its keys (read by :class:`FuzzyEMS`).
 FLC_OPTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "flex": ("hp", ("update", "p_el_ref_t_amb_c", "dhw_priority_chi")),
+    "flex": ("hp", ("update", "p_el_ref_t_amb_c", "dhw_priority_chi", "cool_below_chi", "p_el_ref_cool_t_amb_c")),
     "fc": ("fc", ("cap_to_demand", "stop_when_allowance_used", "h2_allowance")),
     "battery": ("battery", ("absorb_surplus",)),
+    "el": ("el", ("cap_to_surplus",)),
 }
 
 #: Readings of the FLC_flex output (``hp.update`` in ``config/fuzzy/flex.yaml``).
@@ -93,6 +111,8 @@ def load_flcs(params: PlantParams, options: Mapping[str, Any] | None = None) -> 
         )
     out = {}
     for key, (fname, section) in FLC_FILES.items():
+        if key in EL_FLCS and params.electrolyser.n_modules == 0:
+            continue
         path = Path(opts.get(f"{key}_file") or fuzzy_config_dir() / fname)
         overrides = opts.get(key) or {}
         if not isinstance(overrides, Mapping):
@@ -171,11 +191,30 @@ class FuzzyEMS:
             params.hydrogen.loh_min,
         )
         self.step_info: dict[str, float] = {}
+        # year-round plant: cooling and the electrolyser, each only where installed
+        self._cooling = bool(params.cooling.enabled)
+        self._cool_chi = _option(flex_sec, "hp", "cool_below_chi", self.flex.source, float)
+        from ...models.cooling import p_el_max_cool_w
+        from ...models.electrolyser import ElectrolyserTable
+
+        self._p_cool_ref_w = float(p_el_max_cool_w(
+            _option(flex_sec, "hp", "p_el_ref_cool_t_amb_c", self.flex.source, float), params.cooling))
+        self.el: FuzzySystem | None = None
+        if "el" in flcs:
+            self.el, el_sec = flcs["el"]
+            self._cap_el = _option(el_sec, "el", "cap_to_surplus", self.el.source, bool)
+            self._scale_el = float(el_sec.get("load_scale_w", 10_000.0))
+            table = ElectrolyserTable(params.electrolyser)
+            self._p_el_max_w, self._p_el_min_w = table.p_max_w, table.p_min_w
+        self._season_loh0: float | None = None
+        self._season_dloh = 0.0
 
     def reset(self) -> None:
         """Forget the day's H2 bookkeeping."""
         self._allowance.reset()
         self.step_info = {}
+        self._season_loh0 = None
+        self._season_dloh = 0.0
 
     # ------------------------------------------------------------------ stages
     def heating(self, obs: Observation, edf: float) -> tuple[float, int, float, float, float]:
@@ -192,6 +231,42 @@ class FuzzyEMS:
             return 0.0, HP_OFF, alpha, c_sh, c_dhw
         mode = HP_DHW if (c_dhw <= c_sh or c_dhw < self._dhw_prio) else HP_SH
         return eta, mode, alpha, c_sh, c_dhw
+
+    def cooling(self, obs: Observation, edf: float, eta: float, mode: int) -> tuple[float, int, float, float]:
+        """FLC_flex for cooling: (eta_HP, mode, alpha_cool, chi_cool); the heating decision when it does not cool."""
+        c_cool = chi_cool(obs.t_air_c, obs.t_min_c, obs.t_max_c)
+        if mode == HP_DHW or c_cool >= self._cool_chi:
+            return eta, mode, 0.0, c_cool
+        alpha = self.flex(c_cool, obs.loh, obs.soc, edf, obs.ghi_w_m2)
+        prev = obs.hp_mod_prev
+        eta_c = modulation_level(alpha, self._mod_min) if self._hp_level else \
+            update_modulation(prev, alpha, self._mod_min)
+        if eta_c <= 0.0:
+            return eta, mode, alpha, c_cool
+        return eta_c, HP_COOL, alpha, c_cool
+
+    def season_dloh(self, obs: Observation) -> float:
+        """Daily H2 budget of a plant with an electrolyser: ``eq:deltaLOH`` over the heating season [-/day]."""
+        left = obs.heating_season_days_left
+        if left <= 0.0:
+            self._season_loh0 = None
+            self._season_dloh = 0.0
+        elif self._season_loh0 is None:
+            self._season_loh0 = obs.loh
+            self._season_dloh = max(0.0, obs.loh - self.params.simulation.loh_season_end) / left
+        return self._season_dloh
+
+    def electrolyser(self, obs: Observation, dp_w: float, edf: float) -> tuple[float, float]:
+        """FLC_EL: (P_EL [W], alpha_EL); zero without surplus (dP <= 0)."""
+        if self.el is None or dp_w <= 0.0 or obs.loh >= self.params.hydrogen.loh_max:
+            return 0.0, 0.0
+        alpha = self.el(dp_w / self._scale_el, obs.soc, obs.loh, edf, obs.days_to_heating_season)
+        p_el = alpha * self._p_el_max_w
+        if self._cap_el:
+            p_el = min(p_el, dp_w)
+        if p_el < self._p_el_min_w:
+            p_el = 0.0
+        return p_el, alpha
 
     def fuel_cell(self, obs: Observation, dp_w: float, share: float, edf: float) -> tuple[float, float]:
         """FLC_FC: (P_el,FC [W], alpha_FC); zero when there is no demand (dP >= 0)."""
@@ -227,10 +302,20 @@ class FuzzyEMS:
         """Set-points of the step (hierarchy of ``sec:FLC``)."""
         edf = edf_price(obs.price_buy_eur_per_kwh, obs.prices_buy_24h)
         eta, mode, alpha_hp, c_sh, c_dhw = self.heating(obs, edf)
-        dp_w = obs.p_pv_w - eta * self._p_hp_ref_w - obs.p_load_w
-        share = self._allowance.update(obs.day_index, obs.loh, obs.dloh_per_day)
+        year: dict[str, float] = {}
+        if self._cooling:
+            eta, mode, alpha_cool, c_cool = self.cooling(obs, edf, eta, mode)
+            year.update(chi_cool=c_cool, alpha_cool=alpha_cool)
+        p_hp_ref = self._p_cool_ref_w if mode == HP_COOL else self._p_hp_ref_w
+        dp_w = obs.p_pv_w - eta * p_hp_ref - obs.p_load_w
+        dloh = obs.dloh_per_day if self.el is None else self.season_dloh(obs)
+        share = self._allowance.update(obs.day_index, obs.loh, dloh)
         p_fc, alpha_fc = self.fuel_cell(obs, dp_w, share, edf)
-        dp_new_w = dp_w + p_fc
+        p_el = 0.0
+        if self.el is not None:
+            p_el, alpha_el = self.electrolyser(obs, dp_w, edf)
+            year.update(alpha_el=alpha_el, p_el_w=p_el, dloh_season=dloh)
+        dp_new_w = dp_w + p_fc - p_el
         p_bess, alpha_b = self.battery_power(obs.soc, dp_new_w, edf)
         self.step_info = {
             "chi_sh": c_sh,
@@ -242,5 +327,6 @@ class FuzzyEMS:
             "alpha_b": alpha_b,
             "dp_w": dp_w,
             "dp_new_w": dp_new_w,
+            **year,
         }
-        return Action(hp_mod=eta, hp_mode=mode, p_fc_w=p_fc, p_bess_w=p_bess)
+        return Action(hp_mod=eta, hp_mode=mode, p_fc_w=p_fc, p_bess_w=p_bess, p_el_w=p_el)

@@ -71,6 +71,9 @@ QUANTITY_PARAMS: dict[str, tuple[str, ...]] = {
     "dp_fc_bess": ("fuel_cell.zeta", "fuel_cell.p_max_w", "battery.p_d_max_w"),
     "p_ch": ("battery.p_ch_max_w",),
     "p_d": ("battery.p_d_max_w",),
+    "dp_el_min": ("electrolyser.n_modules", "electrolyser.p_el_points_w"),
+    "dp_el_max": ("electrolyser.n_modules", "electrolyser.p_el_points_w"),
+    "alpha_el_min": ("electrolyser.n_modules", "electrolyser.p_el_points_w"),
 }
 
 
@@ -106,11 +109,17 @@ def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, flo
         alpha_fc_min : the FC's minimum power as a share of zeta * P_FC,max [-]: below it
             ``P_el,FC = alpha_FC * zeta * P_FC,max`` is under P_FC,min and the FC is off
             (end of the alpha_FC "off" term)
+        dp_el_min, dp_el_max : the electrolyser's minimal and maximal intake / scale [-]
+            (compression included; 0 without an electrolyser)
+        alpha_el_min : P_EL,min / P_EL,max [-] (0 without an electrolyser)
     """
     if load_scale_w <= 0:
         raise ConfigError(f"load_scale_w must be positive, got {load_scale_w}")
+    from ...models.electrolyser import ElectrolyserTable
+
     b, fc, h2 = params.battery, params.fuel_cell, params.hydrogen
     p_fc = fc.zeta * fc.p_max_w
+    el = ElectrolyserTable(params.electrolyser)
     return {
         "soc_min": b.soc_min,
         "soc_mid": 0.5 * (b.soc_min + b.soc_max),
@@ -123,6 +132,9 @@ def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, flo
         "p_ch": b.p_ch_max_w / load_scale_w,
         "p_d": b.p_d_max_w / load_scale_w,
         "alpha_fc_min": fc.p_min_w / p_fc,
+        "dp_el_min": el.p_min_w / load_scale_w,
+        "dp_el_max": el.p_max_w / load_scale_w,
+        "alpha_el_min": el.p_min_w / el.p_max_w if el.n else 0.0,
     }
 
 

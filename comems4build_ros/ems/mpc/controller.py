@@ -11,6 +11,7 @@ V_min, rooms to T_air,min, battery and FC idle, the grid covers the load), count
 
 from __future__ import annotations
 
+import dataclasses
 import math
 import sys
 from collections.abc import Mapping
@@ -19,11 +20,11 @@ from typing import Any
 import numpy as np
 
 from ...config import PlantParams
-from ...types import HP_DHW, HP_OFF, HP_SH, Action
+from ...types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 from ..base import Observation
 from ..fallback import safe_action
-from .horizon import HorizonData, PlantConstants, build_horizon
-from .milp import SLACKS, MILPModel, Penalties, SolveResult, shift_plan
+from .horizon import HorizonData, PlantConstants, build_horizon, season_schedules
+from .milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
 from .settings import MILPOptions, load_options
 from .solvers import make_backend
 
@@ -56,13 +57,20 @@ def action_from_plan(plan: Mapping[str, np.ndarray], h: HorizonData, const: Plan
         mode, mod = HP_SH, min(p_sh / pmax, 1.0)
     else:
         mode, mod = HP_DHW, min(p_dhw / pmax, 1.0)
+    if "p_hp_cool" in plan:  # year-round plant with cooling
+        p_cool = float(plan["p_hp_cool"][0])
+        pc = float(h.p_cool_max_w[0])
+        if p_cool > POWER_EPS_W and pc > 0 and p_cool > max(p_sh, p_dhw):
+            mode, mod = HP_COOL, min(p_cool / pc, 1.0)
     p_fc = float(plan["p_fc"][0])
     p_bess = float(plan["p_ch"][0] - plan["p_dis"][0])
+    p_el = float(plan["p_el"][0]) if "p_el" in plan else 0.0
     return Action(
         hp_mod=mod,
         hp_mode=mode,
         p_fc_w=p_fc if p_fc > POWER_EPS_W else 0.0,
         p_bess_w=p_bess if abs(p_bess) > POWER_EPS_W else 0.0,
+        p_el_w=p_el if p_el > POWER_EPS_W else 0.0,
     )
 
 
@@ -101,7 +109,8 @@ class MPCController:
         o = self.options
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
         self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
-                               o.relax_battery_binary)
+                               o.relax_battery_binary,
+                               YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur))
         self.backend = make_backend(o.solver, self.model.form, o.mip_rel_gap, o.time_limit_s, o.threads,
                                     o.warm_start, highs_options=o.highs_options, gurobi_options=o.gurobi_options)
         self.step_info: dict[str, float] = {}
@@ -116,10 +125,20 @@ class MPCController:
         self.last_result: SolveResult | None = None
         self.last_horizon: HorizonData | None = None
         self.step_info = dict.fromkeys(STEP_INFO_KEYS, 0.0)
+        self._season_loh0: float | None = None
 
     def plan(self, obs: Observation) -> SolveResult:
         """Update and solve the horizon problem for ``obs`` (no action, no counters)."""
         h = build_horizon(obs, self.const, self.options.loh_min_mode)
+        if self.const.year_round:  # seasonal schedules (memory: the LOH at the season's start)
+            left = float(obs.heating_season_days_left)
+            if left <= 0.0:
+                self._season_loh0 = None
+            elif self._season_loh0 is None:
+                self._season_loh0 = float(obs.loh)
+            bound, target = season_schedules(float(obs.days_to_heating_season), left, self._season_loh0,
+                                             self.const, self.options.loh_season_target)
+            h = dataclasses.replace(h, loh_min=bound, loh_season=target)
         self.last_horizon = h
         self.model.update(h)
         self.model.set_start(shift_plan(self._prev_plan) if self.options.warm_start and self._prev_plan else None)

@@ -71,6 +71,19 @@ class PlantConstants:
     t_supply_dhw_c: float
     costs: LifecycleCosts
     params: PlantParams
+    #: year-round plant: electrolyser (P_EL range [W], LOH gain per Wh of intake at its rated
+    #: efficiency, compression included [1/Wh]) and cooling (capacity [W]); 0 where not installed
+    el: bool = False
+    p_el_min_w: float = 0.0
+    p_el_max_w: float = 0.0
+    loh_per_wh_el: float = 0.0
+    cooling: bool = False
+    q_cool_max_w: float = 0.0
+
+    @property
+    def year_round(self) -> bool:
+        """An electrolyser or cooling is installed: the MILP gets their variables."""
+        return self.el or self.cooling
 
     @classmethod
     def from_params(cls, params: PlantParams, fc_lifecycle_eta: str = "eta_el_mpc") -> PlantConstants:
@@ -110,6 +123,7 @@ class PlantConstants:
             t_supply_dhw_c=hp.t_supply_dhw_c,
             costs=lifecycle_costs(params, fc_lifecycle_eta),
             params=params,
+            **_year_constants(params),
         )
 
 
@@ -148,11 +162,69 @@ class HorizonData:
     cop_dhw: np.ndarray
     p_hp_max_w: np.ndarray
     loh_min: np.ndarray
+    #: year-round plant: EL on in step k-1, EER and cooling intake limit at forecast T_amb,
+    #: the soft seasonal LOH target per step (None where not installed)
+    el_on_prev: bool = False
+    eer: np.ndarray | None = None
+    p_cool_max_w: np.ndarray | None = None
+    loh_season: np.ndarray | None = None
 
     @property
     def n(self) -> int:
         """Horizon steps."""
         return len(self.t_amb_c)
+
+
+def _year_constants(params: PlantParams) -> dict:
+    """Electrolyser and cooling constants of :class:`PlantConstants` (empty for the paper's plant)."""
+    from ...models.electrolyser import ElectrolyserTable
+
+    out: dict = {}
+    table = ElectrolyserTable(params.electrolyser)
+    if table.n:
+        out.update(el=True, p_el_min_w=table.p_min_w, p_el_max_w=table.p_max_w,
+                   loh_per_wh_el=table.efficiency(1.0) / (params.hydrogen.e_max_kwh * W_PER_KW))
+    if params.cooling.enabled:
+        out.update(cooling=True, q_cool_max_w=params.cooling.q_cool_max_w)
+    return out
+
+
+def season_schedules(
+    days_to_season: float, season_days_left: float, loh_season_start: float | None, const: PlantConstants,
+    target: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Hard lower bound (eq:LOHmin_MPC over the heating season) and soft seasonal target per horizon step [-].
+
+    Inside the heating season: the bound falls linearly from ``loh_season_start`` (the LOH
+    when the season began) to ``simulation.loh_season_end`` at its end, the bound of the
+    current day over the whole horizon (the paper's ``day`` reading); no target. Outside it:
+    the store's own LOH_min as bound, and a target rising linearly from ``loh_season_end``
+    at the end of the last season to ``target`` at the start of the next (over the days
+    between two seasons).
+    """
+    sim = const.params.simulation
+    end = sim.loh_season_end
+    n = const.n
+    if season_days_left > 0.0 and loh_season_start is not None:
+        season_len = _season_length_days(sim)
+        day_no = np.floor(season_len - season_days_left) + 1.0
+        bound = loh_season_start - max(loh_season_start - end, 0.0) * day_no / season_len
+        return np.full(n, max(bound, const.loh_lower)), np.zeros(n)
+    gap = 365.0 - _season_length_days(sim)
+    ahead = days_to_season - np.arange(n) * const.dt_h / 24.0
+    share = np.clip(1.0 - ahead / gap, 0.0, 1.0)
+    return np.full(n, const.loh_lower), end + (target - end) * share
+
+
+def _season_length_days(sim) -> float:
+    """Days of the heating season (``heating_season_start`` .. ``_end``, a non-leap year)."""
+    import datetime as _dt
+
+    sm, sd = (int(x) for x in sim.heating_season_start.split("-"))
+    em, ed = (int(x) for x in sim.heating_season_end.split("-"))
+    start = _dt.date(2001, sm, sd)
+    end = _dt.date(2001 if (em, ed) > (sm, sd) else 2002, em, ed)
+    return float((end - start).days)
 
 
 def loh_min_schedule(
@@ -211,5 +283,17 @@ def build_horizon(obs: Observation, const: PlantConstants, loh_min_mode: str = "
         p_hp_max_w=np.asarray(heat_pump.p_el_max_w(t_amb, hp), dtype=float),
         loh_min=loh_min_schedule(int(obs.day_index), int(obs.hour_of_day), float(obs.dloh_per_day), const,
                                  loh_min_mode),
+        **(_year_horizon(obs, t_amb, const) if const.year_round else {}),
     )
+
+
+def _year_horizon(obs: Observation, t_amb: np.ndarray, const: PlantConstants) -> dict:
+    """The year-round plant's horizon numbers (the seasonal schedules are set by the controller)."""
+    from ...models.cooling import eer
+
+    out: dict = {"el_on_prev": bool(obs.el_on_prev)}
+    if const.cooling:
+        e = np.asarray(eer(t_amb, const.params.cooling), dtype=float)
+        out.update(eer=e, p_cool_max_w=const.q_cool_max_w / e)
+    return out
 

@@ -40,6 +40,24 @@ Per step ``t`` (0 = step k of the closed loop), powers in W, energies via ``dt_h
 
 Objective (eq:mpc_objective): ``sum_t dt (p_buy P_buy - p_sell P_sell) + dt (sigma_B,ch P_ch
 + sigma_B,d P_d + sigma_FC s_FC) + sigma_on s_on + sigma_off s_off`` plus the penalties.
+
+A year-round plant (``docs/seasonal.md``; ``PlantConstants.year_round``) adds, and only then
+(the paper's plant gets exactly the model above):
+
+- electrolyser: ``P_EL,min s_EL <= P_EL <= P_EL,max s_EL`` (``s_EL`` binary), its intake on
+  the demand side of ``balance``, ``eta_EL P_EL`` (rated LHV efficiency, compression
+  included) into ``loh``, starts ``s_EL,on - s_EL,off = s_EL[t] - s_EL[t-1]`` at
+  ``sigma_el_on_eur``; the store's upper bound ``loh_hi`` (hard);
+- cooling: ``mod_min P_cool,max s_cool <= P_HP,cool <= P_cool,max s_cool`` with
+  ``P_cool,max = Q_cool,max / EER(T_amb[t])``, ``s_SH + s_DHW + s_cool <= 1``, the heat
+  ``- EER P_HP,cool`` into the building equations, the intake in ``balance``;
+- the seasonal target of the store: ``loh_season_{t}``: ``LOH + sl_loh_season >= target[t]``
+  (soft, ``penalty_loh_season_eur_per_h``), the FC off while the store is at or below the
+  target (``P_FC`` bounded by 0; inside the heating season the target is 0), and the H2 left
+  at the horizon's end valued at ``h2_value_eur_per_kwh`` (``- value E_H2,max LOH[n-1]``)
+  outside the heating season (inside it, as in the paper's winter, only eq:LOHmin_MPC binds);
+- ``P_sell <= P_PV + zeta P_FC,max + P_d,max``: with a buy price below the sell price (spot
+  below -16 EUR/MWh occurs in the year's data) buying to sell would be unbounded.
 """
 
 from __future__ import annotations
@@ -72,6 +90,15 @@ class Penalties:
     dhw_eur_per_lh: float
     soc_eur_per_h: float
     loh_eur_per_h: float
+
+
+@dataclass
+class YearTerms:
+    """Costs of the year-round plant's terms (``config/mpc.yaml``; unused for the paper's plant)."""
+
+    penalty_loh_season_eur_per_h: float = 5.0
+    h2_value_eur_per_kwh: float = 0.15
+    sigma_el_on_eur: float = 0.04
 
 
 @dataclass
@@ -122,6 +149,7 @@ class MILPModel:
         big_m_loose_w: float = 1e5,
         integer_steps: int | None = None,
         relax_battery_binary: bool = False,
+        year: YearTerms | None = None,
     ) -> None:
         if formulation not in ("tight", "paper"):
             raise ValueError(f"formulation: unknown value '{formulation}' (tight, paper)")
@@ -132,6 +160,7 @@ class MILPModel:
         self.n = const.n
         self.integer_steps = self.n if integer_steps is None else max(0, min(int(integer_steps), self.n))
         self.relax_battery_binary = relax_battery_binary
+        self.year = year or YearTerms()
         self.prob = pulp.LpProblem("mpc_horizon", pulp.LpMinimize)
         self.v: dict[str, list[pulp.LpVariable]] = {}
         self.c: dict[str, list[pulp.LpConstraint]] = {}
@@ -182,6 +211,16 @@ class MILPModel:
         if paper:
             self._var("s_hp", binary=True)
             self._var("eta_hp", 0.0, 1.0)
+        if k.el:
+            self._var("p_el", 0.0, k.p_el_max_w)
+            self._var("s_el", binary=True)
+            self._var("s_el_on", 0.0, 1.0)
+            self._var("s_el_off", 0.0, 1.0)
+        if k.cooling:
+            self._var("p_hp_cool", 0.0)
+            self._var("s_cool", binary=True)
+        if k.year_round:
+            self._var("sl_loh_season", 0.0)
         V = self.v
         m_loose = self.big_m
         for t in range(n):
@@ -190,13 +229,20 @@ class MILPModel:
 
             # eq:power_balance (rhs P_load - P_PV set by update)
             hp_el = V["p_hp_sh"][t] + V["p_hp_dhw"][t]
+            if k.cooling:
+                hp_el = hp_el + V["p_hp_cool"][t]
+            if k.el:
+                hp_el = hp_el + V["p_el"][t]  # the electrolyser's intake on the demand side
             self._con("balance", t, V["p_buy"][t] - V["p_sell"][t] + V["p_fc"][t] + V["p_dis"][t] - V["p_ch"][t]
                       - hp_el == 0.0)
             # eq:batt_soc
             self._con("soc", t, V["soc"][t] - prev("soc") - k.soc_per_wh_ch * k.dt_h * V["p_ch"][t]
                       + k.soc_per_wh_d * k.dt_h * V["p_dis"][t] == 0.0)
             # eq:LOH at constant eta_el_mpc
-            self._con("loh", t, V["loh"][t] - prev("loh") + k.loh_per_wh_fc * k.dt_h * V["p_fc"][t] == 0.0)
+            loh_expr = V["loh"][t] - prev("loh") + k.loh_per_wh_fc * k.dt_h * V["p_fc"][t]
+            if k.el:
+                loh_expr = loh_expr - k.loh_per_wh_el * k.dt_h * V["p_el"][t]
+            self._con("loh", t, loh_expr == 0.0)
             # eq:DHW_model + eq:DHW_heat; COP coefficient set by update
             cv = k.l_per_wh * k.dt_h
             self._con("dhw", t, V["v_dhw"][t] - prev("v_dhw") - cv * 1.0 * V["p_hp_dhw"][t]
@@ -207,10 +253,14 @@ class MILPModel:
             states = ("t_air", "t_wall_in", "t_wall_out")
             for i, (sname, cname) in enumerate(zip(states, ("air", "wall_in", "wall_out"))):
                 expr = V[sname][t] - k.bd[i, 0] * 1.0 * V["p_hp_sh"][t]
+                if k.cooling:  # EER coefficient set by update
+                    expr += k.bd[i, 0] * 1.0 * V["p_hp_cool"][t]
                 if t:
                     expr -= pulp.lpSum(k.ad[i, j] * V[states[j]][t - 1] for j in range(3) if k.ad[i, j] != 0.0)
                 self._con(cname, t, expr == 0.0)
                 self.mutable.append((self.c[cname][t], V["p_hp_sh"][t]))
+                if k.cooling:
+                    self.mutable.append((self.c[cname][t], V["p_hp_cool"][t]))
             # soft bounds
             self._con("comfort_lo", t, V["t_air"][t] + V["sl_t_lo"][t] >= 0.0)
             self._con("comfort_hi", t, V["t_air"][t] - V["sl_t_hi"][t] <= 0.0)
@@ -219,6 +269,13 @@ class MILPModel:
             self._con("soc_lo", t, V["soc"][t] + V["sl_soc_lo"][t] >= k.soc_min)
             self._con("soc_hi", t, V["soc"][t] - V["sl_soc_hi"][t] <= k.soc_max)
             self._con("loh_lo", t, V["loh"][t] + V["sl_loh"][t] >= 0.0)
+            if k.year_round:
+                self._con("loh_season", t, V["loh"][t] + V["sl_loh_season"][t] >= 0.0)
+                self._con("loh_hi", t, V["loh"][t] <= k.loh_upper)
+            if k.el:
+                self._con("el_max", t, V["p_el"][t] - k.p_el_max_w * V["s_el"][t] <= 0.0)
+                self._con("el_min", t, V["p_el"][t] - k.p_el_min_w * V["s_el"][t] >= 0.0)
+                self._con("el_switch", t, V["s_el_on"][t] - V["s_el_off"][t] - V["s_el"][t] + prev("s_el") == 0.0)
             # FC range and start/stop (eq:on_off_logic)
             self._con("fc_max", t, V["p_fc"][t] - k.p_fc_max_w * V["s_fc"][t] <= 0.0)
             self._con("fc_min", t, V["p_fc"][t] - k.p_fc_min_w * V["s_fc"][t] >= 0.0)
@@ -250,7 +307,13 @@ class MILPModel:
                 self._con("bat_ch_max", t, V["p_ch"][t] - m_ch_tight * V["b_ch"][t] <= 0.0)
                 self._con("bat_dis_max", t, V["p_dis"][t] + m_d_tight * V["b_ch"][t] <= m_d_tight)
             # heat pump (eq:zetas .. eq:heat_flux_DHW); P_max coefficients set by update
-            self._con("hp_excl", t, V["s_sh"][t] + V["s_dhw"][t] <= 1.0)
+            if k.cooling:
+                self._con("hp_excl", t, V["s_sh"][t] + V["s_dhw"][t] + V["s_cool"][t] <= 1.0)
+                self._con("hp_cool_max", t, V["p_hp_cool"][t] - 1.0 * V["s_cool"][t] <= 0.0)
+                self._con("hp_cool_min", t, V["p_hp_cool"][t] - 1.0 * V["s_cool"][t] >= 0.0)
+                self.mutable += [(self.c["hp_cool_max"][t], V["s_cool"][t]), (self.c["hp_cool_min"][t], V["s_cool"][t])]
+            else:
+                self._con("hp_excl", t, V["s_sh"][t] + V["s_dhw"][t] <= 1.0)
             if paper:
                 eta, s_hp = V["eta_hp"][t], V["s_hp"][t]
                 self._con("hp_mod_min", t, eta - k.hp_mod_min * s_hp >= 0.0)
@@ -281,6 +344,12 @@ class MILPModel:
             obj += k.dt_h * self.pen.soc_eur_per_h * (V["sl_soc_lo"][t] + V["sl_soc_hi"][t])
             obj += k.dt_h * self.pen.loh_eur_per_h * V["sl_loh"][t]
             obj += 1e-9 * V["p_buy"][t] + 1e-9 * V["p_sell"][t]  # placeholders, set by update
+            if k.el:
+                obj += self.year.sigma_el_on_eur * V["s_el_on"][t]
+            if k.year_round:
+                obj += k.dt_h * self.year.penalty_loh_season_eur_per_h * V["sl_loh_season"][t]
+        if k.year_round:  # value of the H2 left at the horizon's end
+            obj += -self.year.h2_value_eur_per_kwh * k.params.hydrogen.e_max_kwh * V["loh"][n - 1]
         self.prob.setObjective(obj)
 
     # ----------------------------------------------------------------- updating
@@ -317,6 +386,22 @@ class MILPModel:
                     C[f"hp_{mode}_min"][t].expr[V[f"s_{mode}"][t]] = -k.hp_mod_min * pmax
             for mode in ("sh", "dhw"):
                 V[f"p_hp_{mode}"][t].upBound = pmax
+            if k.cooling:
+                e = float(h.eer[t])
+                for i, cname in enumerate(("air", "wall_in", "wall_out")):
+                    C[cname][t].expr[V["p_hp_cool"][t]] = k.bd[i, 0] * e
+                pc = float(h.p_cool_max_w[t])
+                C["hp_cool_max"][t].expr[V["s_cool"][t]] = -pc
+                C["hp_cool_min"][t].expr[V["s_cool"][t]] = -k.hp_mod_min * pc
+                V["p_hp_cool"][t].upBound = pc
+            if k.year_round:
+                target = h.loh_season if h.loh_season is not None else np.zeros(n)
+                C["loh_season"][t].changeRHS(float(target[t]))
+                # the house exports at most what it generates (a buy price below the sell price,
+                # spot < -16 EUR/MWh in the year's data, would otherwise make buying to sell unbounded)
+                V["p_sell"][t].upBound = float(max(h.p_pv_w[t], 0.0)) + k.p_fc_max_w + k.p_d_max_w
+                # outside the heating season the FC spends only H2 above the seasonal target
+                V["p_fc"][t].upBound = 0.0 if h.loh0 <= float(target[0]) else k.p_fc_max_w
             obj[V["p_buy"][t]] = k.dt_h * float(h.price_buy_eur_per_kwh[t]) / W_PER_KW
             obj[V["p_sell"][t]] = -k.dt_h * float(h.price_sell_eur_per_kwh) / W_PER_KW
         C["soc"][0].changeRHS(float(h.soc0))
@@ -329,6 +414,12 @@ class MILPModel:
             C["fc_off_c"][0].changeRHS(fc_prev)
         else:
             C["fc_switch"][0].changeRHS(-fc_prev)
+        if k.el:
+            C["el_switch"][0].changeRHS(-(1.0 if h.el_on_prev else 0.0))
+        if k.year_round:  # H2 left at the horizon's end: valued outside the heating season only
+            outside = h.loh_season is not None and float(np.max(h.loh_season)) > 0.0
+            value = self.year.h2_value_eur_per_kwh * k.params.hydrogen.e_max_kwh if outside else 0.0
+            obj[V["loh"][n - 1]] = -value
         if self.relax_battery_binary and not paper and not self.two_bat:
             cat = pulp.LpContinuous if h.price_sell_eur_per_kwh >= 0 else pulp.LpInteger  # bounds stay [0, 1]
             for var in V["b_ch"][: self.integer_steps]:

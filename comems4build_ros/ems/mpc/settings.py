@@ -43,6 +43,11 @@ class MILPOptions(_Options):
     log_fallback: bool = True
     highs_options: dict[str, bool | int | float | str] = Field(default_factory=dict)
     gurobi_options: dict[str, bool | int | float | str] = Field(default_factory=dict)
+    # year-round plant (electrolyser, cooling): the seasonal target of the store
+    loh_season_target: float = Field(default=0.9, ge=0, le=1)
+    penalty_loh_season_eur_per_h: float = Field(default=5.0, ge=0)
+    h2_value_eur_per_kwh: float = Field(default=0.15, ge=0)
+    sigma_el_on_eur: float = Field(default=0.04, ge=0)
 
 
 class QPOptions(_Options):

@@ -57,6 +57,7 @@ EMS_TOPICS = (
     "feed/comfort_ahead",
     "feed/solar",
     "feed/h2_allowance",
+    "feed/season",
     "feed/t_amb",
 )
 #: Default number of steps published ahead of the step the plant waits for.

@@ -304,7 +304,7 @@ class MqttBridge(LockStepMaster):
                 self.wrong_step_commands += 1
                 self.event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
             return
-        raw = Action(hp_mod=data[1], hp_mode=int(data[2]), p_fc_w=data[3], p_bess_w=data[4])
+        raw = Action(hp_mod=data[1], hp_mode=int(data[2]), p_fc_w=data[3], p_bess_w=data[4], p_el_w=data[5])
         action, notes = self.limiter.limit(raw)
         if notes:
             self.event("clamped", "; ".join(notes))
@@ -323,6 +323,8 @@ class MqttBridge(LockStepMaster):
                     values.append(w.value(a))
                 elif a == "hp_mod":  # not metered: the modulation the bridge last sent
                     values.append(float(self._last_action.hp_mod) if k else 0.0)
+                elif a == "el_on":  # not metered: the electrolyser was asked to run
+                    values.append(1.0 if k and self._last_action.p_el_w > 0 else 0.0)
                 else:  # fc_on not metered: the fuel cell was asked to run
                     values.append(1.0 if k and self._last_action.p_fc_w > 0 else 0.0)
             pub.publish(array("d", [kf, *values]))
