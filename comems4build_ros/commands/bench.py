@@ -12,6 +12,7 @@ TARGETS = {
     "mpc": "mpc",
     "ros": "ros",
     "year": "year",
+    "study": "study",
 }
 
 
