@@ -137,14 +137,14 @@ def test_cost_arithmetic() -> None:
     (["--ems", "nope"], "--ems nope"),
     (["--weeks", "-1"], "argument --weeks"),
     (["--start", "2022-03-27T02:30"], "--start"),
+    (["--weeks", "60"], "--start/--weeks: scenario 'year': the run (60 week(s))"),
     (["--jobs", "2", "--scheduler", "tcp://127.0.0.1:8786"], "--jobs and --scheduler exclude each other"),
 ])
 def test_bad_options_are_refused_before_any_run(argv: list[str], named: str, tmp_path: Path,
                                                 capsys: pytest.CaptureFixture[str]) -> None:
     out = tmp_path / "out"
-    base = ["size", "--ems", "rbc", *WINDOW]
-    if "--ems" in argv:
-        base = ["size", *WINDOW]
+    window = [] if "--weeks" in argv else WINDOW
+    base = ["size", *window] if "--ems" in argv else ["size", "--ems", "rbc", *window]
     code, _, err = run_cli([*base, *argv, "--out", out], capsys)
     assert code == 2, err
     assert named in err, err

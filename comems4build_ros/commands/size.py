@@ -119,7 +119,12 @@ def run(args: argparse.Namespace) -> int:
         except ConfigError as exc:
             raise UsageError(f"size point {point_name('', realised).lstrip('_')}: {exc}") from None
         sized.append((realised, {**overrides, **ov}, plant))
-    scenario_of(args, base)  # the window inside the year, checked once before any run
+    try:
+        scenario_of(args, base)  # the window inside the year, checked once before any run
+    except UsageError:
+        raise
+    except ValueError as exc:
+        raise UsageError(f"--start/--weeks: {exc}") from None
     check_out_dir(args.out)
     meta: dict[str, Any] = {"ems": emss, "design": design, "points": len(sized), "start": args.start,
                             "weeks": args.weeks or 52, "values": values, "set": overrides,
