@@ -17,7 +17,8 @@ import pytest
 from test_bad_input import param_file, run_cli
 
 from comems4build_ros.economics import crf, cycle_closes, load_costs
-from comems4build_ros.report.sizing import pareto_mask
+from comems4build_ros.report.sizing import pareto_figure, pareto_mask
+from comems4build_ros.report.style import layout_problems
 
 WINDOW = ["--start", "2022-10-27", "--weeks", "8"]
 GRID = ["--pv-kwp", "4,7,9.6", "--h2-kwh", "600,1200,1800"]
@@ -92,6 +93,7 @@ def test_size_writes_table_figure_report_and_names_the_closing_sizes(study: tupl
     assert "figures/pareto.png" in report
     html = (out / "report.html").read_text(encoding="utf-8")
     assert "data:image/png;base64," in html
+    assert layout_problems(pareto_figure(df)) == []
 
 
 def test_a_size_point_runs_the_same_year_as_simulate(study: tuple[Path, str], tmp_path: Path,
