@@ -1,6 +1,6 @@
 """One way to run a study's many runs: local worker processes or a Dask cluster, resumable.
 
-A study (``compare``, ``sweep``, ``reproduce``, and any command with a set of runs) hands
+A study (``compare``, ``sweep``, ``reproduce``, ``size``, and any command with a set of runs) hands
 its runs (:class:`Job` objects, e.g. :class:`comems4build_ros.report.runner.RunTask`) to
 :func:`run_jobs` with a :class:`StudyExecutor`, which says where they execute and where the
 finished ones are stored:
