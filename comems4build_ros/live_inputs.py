@@ -14,7 +14,10 @@ source. Settings: ``config/live_inputs.yaml``.
 A missing, late (timeout) or malformed answer never replaces valid data: the last valid
 values stay in use and a warning goes to the ``warn`` callback (the feed publishes it on
 ``feed/events``). Hours without a live price take the price of the same hour on the
-latest day that has one (the last valid day-ahead profile).
+latest day that has one (the last valid day-ahead profile). A run does not start without
+a live price (fetched now, or cached) for its first hour (:meth:`PriceSource.require`):
+``comems4build launch --inputs live`` checks it before any node starts (exit code 2
+naming the source URL), and so does the feed node itself.
 
 :func:`live_scenario` lays a run's scenario on the wall-clock hours from now and puts the
 live values in, so the feed's :class:`~comems4build_ros.sim.ObservationBuilder` works
@@ -51,6 +54,10 @@ USER_AGENT = "comems4build_ros"
 
 class FetchError(RuntimeError):
     """Every attempt of a fetch failed (the message lists each attempt's reason)."""
+
+
+class LiveInputsError(ConfigError):
+    """A run on live inputs cannot start: no live price for its first hour (names the source URL)."""
 
 
 class _Model(Section):
@@ -161,9 +168,11 @@ class _CachedSource:
         self.sleep = sleep
         self.last_attempt: float | None = None
         self.warnings = 0
+        self.last_warning = ""
 
     def _warn(self, text: str) -> None:
         self.warnings += 1
+        self.last_warning = text
         self.warn(text)
 
 
@@ -240,6 +249,29 @@ class PriceSource(_CachedSource):
         write_json_atomic(self.cache_path, {"source": s.url, "fetched_unix_s": t,
                                             "prices": _series_to_doc(self.prices)})
         return True
+
+    def has_price(self, t: float) -> bool:
+        """Whether a live price (fetched now or cached) is known for the hour of ``t`` itself
+        (no other day's price standing in for it)."""
+        hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h")
+        return hour in self.prices.index and not math.isnan(float(self.prices[hour]))
+
+    def require(self, t: float) -> None:
+        """Refuse a run on live inputs without a live price for the hour of ``t`` (its first step).
+
+        Raises
+        ------
+        LiveInputsError
+            Naming the source URL and why (the last failed fetch, or what is known).
+        """
+        if self.has_price(t):
+            return
+        hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h").tz_convert(self.tz)
+        why = self.last_warning or f"no price for that hour in the answer ({self.describe()})"
+        raise LiveInputsError(
+            f"live inputs: no day-ahead price for the run's first hour {hour.isoformat()} from {self.settings.url} "
+            f"({why}). A run on live inputs does not start on stand-in prices (the scenario's laid on today's "
+            "hours); check the network and the source, or run on the scenario's inputs (--inputs scenario)")
 
     def describe(self) -> str:
         """Which prices are known (for warnings)."""

@@ -24,7 +24,7 @@ from typing import Any
 
 from ..progress import ProgressBar
 from .plan import LaunchOptions, plan_run
-from .supervisor import acquire_domain_id, run_plan
+from .supervisor import LaunchError, acquire_domain_id, run_plan
 
 
 @dataclass
@@ -45,7 +45,9 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     Raises
     ------
     LaunchError
-        If a node crashes or exits before the end, or ``timeout_s`` passes.
+        If a node crashes or leaves before the end, the run stalls, or ``timeout_s``
+        passes. The bag is kept and marked incomplete (:func:`cut_short`); the error
+        carries the summaries of the cut run when its bag could be read.
     KeyboardInterrupt
         On Ctrl-C or SIGTERM (after every child has been stopped).
     """
@@ -64,8 +66,13 @@ def launch(opts: LaunchOptions) -> LaunchResult:
             plan = plan_run(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
             if len(plan.buildings) > 1:
-                bag.mkdir(parents=True)
-            times = run_plan(plan, opts.on_progress or bar)
+                bag.mkdir(parents=True, mode=0o700)  # the bags hold the run tokens (ems/command)
+            try:
+                times = run_plan(plan, opts.on_progress or bar)
+            except LaunchError as exc:
+                bar.close()
+                cut_short(exc, bag, out, params)
+                raise
     finally:
         bar.close()
     wall = times.t_end - times.t0
@@ -76,3 +83,21 @@ def launch(opts: LaunchOptions) -> LaunchResult:
         print(f"launcher: warning: the recording misses messages on {len(lost)} topic(s): {lost} "
               "(summary.json 'lost_messages')", file=sys.stderr)
     return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
+
+
+def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
+    """A run the launcher cut short: mark every bag (:data:`~comems4build_ros.ros.bag_eval.RUN_CUT_FILE`:
+    cause, process, exit code, log) and evaluate what was recorded into ``out`` (summaries
+    with ``run_cut`` and ``bag_incomplete``, put on ``exc.summaries``); a bag that cannot be
+    read is noted on stderr."""
+    from .bag_eval import RUN_CUT_FILE, evaluate_bag, mark_run_cut
+
+    marked = mark_run_cut(bag, {"cause": exc.cause, "process": exc.process, "exit_code": exc.code,
+                                "log": None if exc.log is None else str(exc.log)})
+    if not marked:
+        return
+    try:
+        exc.summaries = evaluate_bag(bag, out, params=params, accept_gaps=True)
+    except (ValueError, OSError) as err:
+        print(f"launcher: the cut run's bag {bag} (marked in {RUN_CUT_FILE}) could not be evaluated: {err}",
+              file=sys.stderr)

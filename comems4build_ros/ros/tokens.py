@@ -4,15 +4,22 @@ Every command carries, as its last element, the token of the EMS that sent it.
 ``plant_sim`` applies the commands of one token only (parameter ``ems_token``, or the
 token of the run's first valid command) and counts every other command as foreign, so a
 second node publishing in-range commands on the same topic cannot steer the plant.
-The launcher draws one token per building and gives it to that building's EMS and plant;
-an EMS started by hand without ``run_token`` derives one from its node name, so a
-restarted EMS keeps its token.
+The launcher draws one token per building and gives it to that building's EMS and plant
+through a token file (:func:`write_token_file`: mode 0600 in a directory of mode 0700,
+named by the parameters ``run_token_file`` and ``ems_token_file``), never on a command
+line, in a parameter value, a log line or a world-readable file; messages name a token by
+its :func:`fingerprint` only. An EMS started by hand without a token derives one from its
+node name, so a restarted EMS keeps its token.
 """
 
 from __future__ import annotations
 
+import hashlib
+import os
 import secrets
+import stat
 import zlib
+from pathlib import Path
 
 #: Tokens are integers in 1 .. MAX_TOKEN - 1 (exact in float64).
 MAX_TOKEN = 2**53
@@ -26,3 +33,63 @@ def default_token(fully_qualified_name: str) -> int:
 def new_token() -> int:
     """A random token for one building of a launch (1 .. 2^48)."""
     return secrets.randbelow(2**48) + 1
+
+
+def fingerprint(token: float) -> str:
+    """A short, one-way name of a token for messages (first 8 hex digits of its SHA-256)."""
+    return hashlib.sha256(str(int(token)).encode("ascii")).hexdigest()[:8]
+
+
+def private_dir(path: str | Path) -> Path:
+    """Create ``path`` (and parents) if needed and make it accessible to this user only (mode 0700).
+
+    Raises
+    ------
+    ValueError
+        If it exists and belongs to another user.
+    """
+    p = Path(path)
+    p.mkdir(mode=0o700, parents=True, exist_ok=True)
+    if p.stat().st_uid != os.getuid():
+        raise ValueError(f"{p}: belongs to another user; not a place for a secret")
+    os.chmod(p, 0o700)
+    return p
+
+
+def write_token_file(path: str | Path, token: int) -> Path:
+    """Write ``token`` to ``path`` readable by this user only (mode 0600, created so from
+    the start: never world-readable, not even for a moment), in a :func:`private_dir`."""
+    p = Path(path)
+    private_dir(p.parent)
+    p.unlink(missing_ok=True)
+    fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w", encoding="ascii") as fh:
+        fh.write(f"{int(token)}\n")
+    return p
+
+
+def read_token_file(path: str | Path) -> int:
+    """The token in ``path`` (see :func:`write_token_file`).
+
+    Raises
+    ------
+    ValueError
+        Naming the file: unreadable, readable or writable by group or others (a secret
+        others can read protects nothing), or not an integer in 1 .. 2^53 - 1.
+    """
+    p = Path(path)
+    try:
+        mode = p.stat().st_mode
+        text = p.read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"token file {p}: {exc}") from None
+    if mode & (stat.S_IRWXG | stat.S_IRWXO):
+        raise ValueError(f"token file {p}: mode {stat.filemode(mode)} lets other users read or change it; "
+                         "give it mode 0600")
+    try:
+        token = int(text)
+    except ValueError:
+        raise ValueError(f"token file {p}: not an integer") from None
+    if not 0 < token < MAX_TOKEN:
+        raise ValueError(f"token file {p}: not in 1 .. 2^53-1")
+    return token

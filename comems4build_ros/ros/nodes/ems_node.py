@@ -15,13 +15,16 @@ A repeated state announcement for a step already answered (the plant repeats whi
 waits, e.g. if the first command was lost during discovery) is answered with the same
 command again; the controller is never called twice for a step.
 
-Every command carries the node's run token (parameter ``run_token``; 0 = derived from
-the node's fully qualified name, so a restarted EMS keeps it): ``plant_sim`` applies
+Every command carries the node's run token (parameter ``run_token_file``, a file of mode
+0600 the launcher writes, or ``run_token``, visible to every local user; without either
+derived from the node's fully qualified name, so a restarted EMS keeps it): ``plant_sim`` applies
 commands of one token only and counts the others as foreign. The node exits with code 0
-on ``plant/done`` (end of the run).
+on ``plant/done`` (end of the run); stopped by a signal before it, with exit code 3
+(:data:`~comems4build_ros.ros.process.EXIT_INTERRUPTED`).
 
 Parameters: ``ems`` (set by the entry point), ``ems_options`` (string array of
-``key=value``, as ``comems4build simulate --ems-option``), ``run_token`` and the plant
+``key=value``, as ``comems4build simulate --ems-option``), ``run_token_file`` or
+``run_token`` and the plant
 parameters (:func:`comems4build_ros.ros.parameters.plant_params_from_node`).
 """
 
@@ -44,7 +47,7 @@ from ..contract import ContractError, load_contract, nest
 from ..node import ArrayPublisher, ContractNode, layout_sizes
 from ..parameters import param, plant_params_from_node
 from ..process import run_node
-from ..tokens import default_token
+from ..tokens import default_token, read_token_file
 
 #: Topic whose repeated message for an answered step triggers a re-send of the command.
 RESEND_TRIGGER_TOPIC = "state/t_air_c"
@@ -83,7 +86,8 @@ class EMSNode(ContractNode):
                 f"the contract says '{spec.info_level}'"
             )
         sizes = layout_sizes(params)
-        token = int(param(self, "run_token", 0))
+        token_file = str(param(self, "run_token_file", ""))
+        token = read_token_file(token_file) if token_file else int(param(self, "run_token", 0))
         self.token = float(token if token > 0 else default_token(self.get_fully_qualified_name()))
         self._cmd = ArrayPublisher(self, "ems/command", sizes)
         self._info_pub = self.contract_publisher("ems/info")
@@ -100,6 +104,7 @@ class EMSNode(ContractNode):
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
+        self.run_complete = False  # plant/done seen: a signal from now on is a normal end (process.run_complete)
         self.finished = Future()
         self.get_logger().info(
             f"EMS '{ems}' (level '{self.level}') listening to {len(self._inputs)} topics: "
@@ -138,6 +143,8 @@ class EMSNode(ContractNode):
 
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
+        if msg.data:
+            self.run_complete = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info(f"run done after {self.steps} decisions: exiting once the recorder has left")

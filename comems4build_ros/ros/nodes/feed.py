@@ -92,8 +92,10 @@ class LiveFeed:
     The run's steps are laid on the wall-clock hours from the current hour
     (:func:`comems4build_ros.live_inputs.live_scenario`). Prices and weather are fetched
     once, blocking, on start, then by a worker thread on their schedule; new values are
-    taken into the steps not yet published. A failed fetch keeps the last valid values
-    and is published as a ``warning`` on ``feed/events``.
+    taken into the steps not yet published. Without a live price for the first hour (a
+    failed fetch and no cached price for it) the node refuses to start (exit code 2, the
+    message names the source URL). A later failed fetch keeps the last valid values and
+    is published as a ``warning`` on ``feed/events``.
 
     Parameters of the feed: ``live_config`` (default ``config/live_inputs.yaml``) and
     ``live_cache_dir`` (directory of the cache files, default ``~/.cache/comems4build_ros``).
@@ -127,6 +129,7 @@ class LiveFeed:
         self.changed = threading.Event()
         self.stop = threading.Event()
         self.prices.refresh(force=True)
+        self.prices.require(self.start_time.timestamp())  # no run on stand-in prices (exit code 2)
         self.weather.refresh(force=True)
         self.thread = threading.Thread(target=self._work, name="live-inputs", daemon=True)
 
@@ -200,6 +203,7 @@ class Feed(ContractNode):
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
+        self.run_complete = False  # plant/done seen: a signal from now on is a normal end (process.run_complete)
         self.finished = Future()
         notes: list[str] = []
         if scenario is None:
@@ -284,6 +288,8 @@ class Feed(ContractNode):
 
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
+        if msg.data:
+            self.run_complete = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info("run done: exiting once the recorder has left")
