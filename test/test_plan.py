@@ -38,9 +38,16 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
     assert (rec.finishes, rec.progress, rec.stop_stage) == (True, True, STAGE_RECORDERS)
     assert (plant.finishes, plant.stop_stage) == (True, STAGE_NODES)
     assert ems.finishes and feed.finishes  # every node exits 0 on plant/done
-    token = plan.buildings[0].token
-    assert 0 < token <= 2**48 and _param(ems.argv, "run_token") == str(token)
-    assert _param(plant.argv, "ems_token") == str(token)
+    token, token_file = plan.buildings[0].token, plan.buildings[0].token_file
+    assert 0 < token < 2**53 and token_file == str((tmp_path / "run" / ".secrets" / "root.token").resolve())
+    # the run secret reaches EMS and plant through a file (mode 0600, written by the supervisor):
+    # never on a command line, in a parameter or in the plan's printed form
+    assert _param(ems.argv, "run_token_file") == json.dumps(token_file)
+    assert _param(plant.argv, "ems_token_file") == json.dumps(token_file)
+    assert plan.secrets == ((token_file, token),)
+    assert all(str(token) not in " ".join(p.argv) for p in plan.processes) and str(token) not in plan.describe()
+    assert str(token) not in json.dumps(plan.to_dict())
+    assert _param(plant.argv, "stall_steps") == "3" and plan.stall_s == pytest.approx(2 * 3 * 5.0 + 10.0)
     assert plan.timeout_s == pytest.approx(300.0 + 0.1 * 36)  # default overall time limit
     assert _param(plant.argv, "wait_for_recorder") == "true"
     assert _param(feed.argv, "weeks") == "1" and _param(feed.argv, "steps") == "36"

@@ -32,6 +32,7 @@ import subprocess
 import sys
 import threading
 import time
+from array import array
 from collections.abc import Callable, Iterator
 from pathlib import Path
 
@@ -355,6 +356,7 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
 
     from comems4build_ros.ros.contract import load_contract
     from comems4build_ros.ros.supervisor import acquire_domain_id
+    from comems4build_ros.ros.tokens import command_mac, secret_key
 
     with acquire_domain_id() as did:
         pass  # a free domain id for the run, joined below by the spoofer
@@ -380,6 +382,9 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
         ex.add_node(node)
         node.create_subscription(UInt32, "/plant/step", lambda m: steps.append(int(m.data)),
                                  contract.topic("plant/step").qos_profile())
+        sniffed: list[float] = []  # the tokens of the EMS's commands as DDS carries them (in clear)
+        node.create_subscription(Float64MultiArray, "/ems/command", lambda m: sniffed.append(float(m.data[-1])),
+                                 contract.topic("ems/command").qos_profile())
         cmd = node.create_publisher(Float64MultiArray, "/ems/command", contract.topic("ems/command").qos_profile())
 
         def spin(seconds: float) -> bool:
@@ -388,12 +393,14 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
                 ex.spin_once(timeout_sec=0.02)
             return False
 
-        _wait_for(lambda: (bool(steps) and cmd.get_subscription_count() >= 2) or spin(0.05), 30,
-                  "the plant's announcements and the readers of ems/command (plant, recorder) matched")
+        _wait_for(lambda: (bool(steps) and bool(sniffed) and cmd.get_subscription_count() >= 2) or spin(0.05), 30,
+                  "the plant's announcements, the EMS's commands and the readers of ems/command matched")
         ems = _pid_of(out, "fuzzy_ems")
         os.kill(ems, signal.SIGSTOP)  # the plant now waits for a command: the spoof has the field to itself
         spin(0.7)  # > the plant's republish period: steps[-1] is the step it waits for
         k = steps[-1]
+        assert token not in sniffed  # the secret itself is never on the wire ...
+        candidates |= {int(t) for t in sniffed}  # ... its codes are, and are tried as well
         ordered = sorted(candidates)
         for i in range(0, len(ordered), 100):  # every readable candidate, for the step the plant waits for
             for t in ordered[i:i + 100]:
@@ -402,7 +409,8 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
         # the plant falls back for k after its step time-out and announces k + 1
         _wait_for(lambda: steps[-1] > k or spin(0.02), 30, "the announcement of the next step")
         k1 = steps[-1]
-        cmd.publish(Float64MultiArray(data=[float(k1), *spoof, float(token)]))  # the real token: applied
+        values = array("d", [float(k1), *spoof])  # with the run's secret, as only the run's user can:
+        cmd.publish(Float64MultiArray(data=[*values, command_mac(secret_key(token), values.tobytes())]))
         spin(0.5)
         os.kill(ems, signal.SIGCONT)
         ems = None
@@ -423,3 +431,21 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
     assert (ts["cmd_hp_mode"][k1], ts["cmd_hp_mod"][k1]) == (2, 0.37)  # the channel works: the true token is
     assert ((ts["cmd_hp_mod"] == 0.37) & (ts["cmd_hp_mode"] == 2)).sum() == 1
     assert not (out / ".secrets").exists()  # removed after the run
+
+
+def test_dds_security_plugins_are_missing_from_the_installed_fast_dds(tmp_path: Path) -> None:
+    """What docs/ros_nodes.md states as measured: the ROS wheels' Fast DDS has no DDS-Security
+    plugins, so an enforced SROS2 enclave cannot be used here. The day a wheel brings them this
+    fails: then DDS-Security gets a real test (keystore, enclaves, a spoofer without permissions)."""
+    enclave = tmp_path / "keystore" / "enclaves" / "probe"
+    enclave.mkdir(parents=True)
+    for name in ("identity_ca.cert.pem", "cert.pem", "key.pem", "governance.p7s", "permissions.p7s",
+                 "permissions_ca.cert.pem"):
+        (enclave / name).write_text("not a certificate\n")
+    env = {**os.environ, "ROS_SECURITY_KEYSTORE": str(tmp_path / "keystore"), "ROS_SECURITY_ENABLE": "true",
+           "ROS_SECURITY_STRATEGY": "Enforce", "ROS_SECURITY_ENCLAVE_OVERRIDE": "/probe",
+           "ROS_LOG_DIR": str(tmp_path / "ros_log"), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    res = subprocess.run([sys.executable, "-c", "import rclpy; rclpy.init(); rclpy.create_node('probe')"],
+                         capture_output=True, text=True, timeout=120, env=env)
+    assert res.returncode != 0, "a node was created with an enforced enclave: test DDS-Security for real"
+    assert "doesn't have the security libraries" in res.stderr and "-DSECURITY=ON" in res.stderr, res.stderr

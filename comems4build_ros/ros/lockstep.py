@@ -34,6 +34,7 @@ subscriptions of ``ems/command`` and ``feed/truth``, and implements
 from __future__ import annotations
 
 import time
+from array import array
 from typing import Any
 
 from builtin_interfaces.msg import Time
@@ -46,7 +47,7 @@ from .exits import EXIT_STALLED
 from .node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
 from .parameters import param, plant_params_from_node
 from .process import report_cause
-from .tokens import fingerprint, read_token_file
+from .tokens import command_mac, read_token_file, secret_key
 
 #: Default wait for the command of a step once the EMS has answered at least once [s].
 STEP_TIMEOUT_S = 5.0
@@ -110,7 +111,9 @@ class LockStepMaster(ContractNode):
         self.recorder_node = str(param(self, "recorder_node", RECORDER_NODE))
         self.exit_when_done = bool(param(self, "exit_when_done", True))
         token_file = str(param(self, "ems_token_file", ""))
-        self.ems_token = read_token_file(token_file) if token_file else int(param(self, "ems_token", 0))
+        # a run secret (file): every command authenticated; else a plain token (parameter) or none
+        self._key = secret_key(read_token_file(token_file)) if token_file else None
+        self.ems_token = 0 if token_file else int(param(self, "ems_token", 0))
         self.stall_steps = int(param(self, "stall_steps", 0))
         self.record_window_steps = int(param(self, "record_window_steps", RECORD_WINDOW_STEPS))
         if self.record_window_steps < 1:
@@ -178,18 +181,26 @@ class LockStepMaster(ContractNode):
         return behind
 
     # ------------------------------------------------------------------ commands
-    def accept_token(self, token: float, step: int) -> bool:
-        """Whether a valid command with run token ``token`` comes from the run's EMS: the
-        token is ``ems_token``, or else that of the run's first valid command; any other
-        token is counted in ``foreign_commands``, logged on plant/events and its command
-        ignored."""
-        if self._token is None:
+    def accept_token(self, data: Any, step: int) -> bool:
+        """Whether the valid command ``data`` (float64 array, the token last) comes from
+        the run's EMS (:mod:`comems4build_ros.ros.tokens`): with a run secret its token is
+        the authentication code of its other elements; else the token is ``ems_token``, or
+        else that of the run's first valid command. Any other command is counted in
+        ``foreign_commands``, logged on plant/events and ignored."""
+        token = data[-1]
+        if self._key is not None:
+            if token != command_mac(self._key, array("d", data[:-1]).tobytes()):
+                self.foreign_commands += 1
+                self.event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} "
+                                      "ignored (not authenticated by the run's secret)")
+                return False
+        elif self._token is None:
             self._token = token  # the first valid command names the run's EMS
-            self.get_logger().info(f"commands of token {fingerprint(token)} (fingerprint) accepted from now on")
+            self.get_logger().info(f"commands of token {int(token)} accepted from now on")
         elif token != self._token:
             self.foreign_commands += 1
             self.event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} ignored "
-                                  f"(the run's EMS has the token of fingerprint {fingerprint(self._token)})")
+                                  f"(the run's EMS has token {int(self._token)})")
             return False
         self.silent_fallbacks = 0  # the run's EMS is there (even if this command comes too late)
         return True
@@ -197,7 +208,14 @@ class LockStepMaster(ContractNode):
     # ------------------------------------------------------------------ stalls
     @property
     def run_complete(self) -> bool:
-        """The last step is done: a signal from now on is a normal end (exit code 0)."""
+        """A signal from now on is a normal end (exit code 0): the last step is done and,
+        with ``exit_when_done``, the recorder has left (while it has not, a node leaving
+        would take its last messages out of the recorder's queues: the run is cut)."""
+        return self.done and not self.stalled and (not self.exit_when_done or self.finished.done())
+
+    @property
+    def run_over(self) -> bool:
+        """The last step is done (the node may still wait for the recorder to leave)."""
         return self.done and not self.stalled
 
     def note_fallback(self, ems_silent: bool) -> None:

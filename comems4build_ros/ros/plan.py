@@ -274,8 +274,10 @@ class ProcessPlan:
     side : network side (:class:`NetworkSide`) the process runs on
     files : ``(path, text)`` written before the start (container spec files)
     env : environment additions of this process (over the side's and the plan's)
-    finishes : exit code 0 at the end of its part of the run is normal (every node exits 0
-        on ``plant/done``); any other exit while the run is in progress fails the launch
+    finishes : exit code 0 means its part of the run is complete (every node process: a
+        node exits 0 only then, :mod:`comems4build_ros.ros.exits`); any other exit while
+        the run is in progress fails the launch, as does any exit of a process that does
+        not finish (a broker, a discovery server)
     progress : the process prints ``progress <recorded> <total>`` lines on stdout
     stop_stage : order of stopping (:data:`STAGE_NODES`, :data:`STAGE_RECORDERS`,
         :data:`STAGE_SERVICES`)

@@ -126,7 +126,12 @@ def interrupted_code(nodes: list[Any], label: str) -> int:
     :data:`EXIT_INTERRUPTED` (with a :func:`report_cause` line)."""
     if nodes and all(run_complete(n) for n in nodes):
         return 0
-    report_cause(label, "stopped by a signal before the end of its run")
+    if nodes and all(run_complete(n) or getattr(n, "run_over", False) for n in nodes):
+        # plant/done came, the node was waiting for the recorder to leave: after a complete
+        # run that is the supervisor's clean-up; otherwise its last messages may be unrecorded
+        report_cause(label, "stopped by a signal after the end of the run, before the recorder had left")
+    else:
+        report_cause(label, "stopped by a signal before the end of its run")
     return EXIT_INTERRUPTED
 
 

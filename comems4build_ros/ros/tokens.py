@@ -1,20 +1,27 @@
 """Run tokens of ``ems/command``: which EMS a command comes from (no rclpy here).
 
-Every command carries, as its last element, the token of the EMS that sent it.
-``plant_sim`` applies the commands of one token only (parameter ``ems_token``, or the
-token of the run's first valid command) and counts every other command as foreign, so a
-second node publishing in-range commands on the same topic cannot steer the plant.
-The launcher draws one token per building and gives it to that building's EMS and plant
-through a token file (:func:`write_token_file`: mode 0600 in a directory of mode 0700,
-named by the parameters ``run_token_file`` and ``ems_token_file``), never on a command
-line, in a parameter value, a log line or a world-readable file; messages name a token by
-its :func:`fingerprint` only. An EMS started by hand without a token derives one from its
-node name, so a restarted EMS keeps its token.
+Every command carries, as its last element, a token of the EMS that sent it; the lock-step
+master applies the commands of one EMS only and counts every other command as foreign.
+Two modes:
+
+* **run secret** (what the launcher uses): one secret per building, drawn by
+  :func:`new_token` and given to that building's EMS and plant in a token file
+  (:func:`write_token_file`: mode 0600 in a directory of mode 0700; parameters
+  ``run_token_file`` and ``ems_token_file``), never on a command line, in a parameter
+  value, a log line or a world-readable file. The token of each command is then its authentication code
+  (:func:`command_mac`: HMAC-SHA256 of the command's other elements under the secret, 48
+  bits), so a command seen on the wire (DDS carries it in clear) authorises nothing but
+  itself: another step or other values need the secret.
+* **plain token** (by hand, ``run_token`` / ``ems_token``, or none): the same number in
+  every command; the plant applies ``ems_token`` or else the token of the run's first
+  valid command. This keeps a second EMS from steering the plant by mistake, not an
+  adversary (the number is on the command line and in every command). An EMS started
+  without any token derives one from its node name, so a restarted EMS keeps its token.
 """
 
 from __future__ import annotations
 
-import hashlib
+import hmac
 import os
 import secrets
 import stat
@@ -25,19 +32,31 @@ from pathlib import Path
 MAX_TOKEN = 2**53
 
 
+#: Bytes of the authentication code a command carries in run-secret mode (48 bits: exact in float64).
+MAC_BYTES = 6
+
+
+def command_mac(secret: bytes, values: bytes) -> float:
+    """Authentication code of a command: the first :data:`MAC_BYTES` of HMAC-SHA256 of
+    ``values`` (the float64 bytes of every element but the token) under ``secret``, as a
+    token (an integer in 1 .. 2^48, float)."""
+    code = int.from_bytes(hmac.digest(secret, values, "sha256")[:MAC_BYTES], "big")
+    return float(code or 1)
+
+
+def secret_key(token: int) -> bytes:
+    """HMAC key of a run secret read from a token file."""
+    return str(int(token)).encode("ascii")
+
+
 def default_token(fully_qualified_name: str) -> int:
     """Token of an EMS started without one: CRC-32 of its fully qualified node name + 1."""
     return zlib.crc32(fully_qualified_name.encode("utf-8")) + 1
 
 
 def new_token() -> int:
-    """A random token for one building of a launch (1 .. 2^48)."""
-    return secrets.randbelow(2**48) + 1
-
-
-def fingerprint(token: float) -> str:
-    """A short, one-way name of a token for messages (first 8 hex digits of its SHA-256)."""
-    return hashlib.sha256(str(int(token)).encode("ascii")).hexdigest()[:8]
+    """A random run secret for one building of a launch (1 .. 2^53 - 1)."""
+    return secrets.randbelow(MAX_TOKEN - 1) + 1
 
 
 def private_dir(path: str | Path) -> Path:

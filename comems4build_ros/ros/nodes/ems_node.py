@@ -15,10 +15,12 @@ A repeated state announcement for a step already answered (the plant repeats whi
 waits, e.g. if the first command was lost during discovery) is answered with the same
 command again; the controller is never called twice for a step.
 
-Every command carries the node's run token (parameter ``run_token_file``, a file of mode
-0600 the launcher writes, or ``run_token``, visible to every local user; without either
-derived from the node's fully qualified name, so a restarted EMS keeps it): ``plant_sim`` applies
-commands of one token only and counts the others as foreign. The node exits with code 0
+Every command carries a token (:mod:`comems4build_ros.ros.tokens`): with the run secret
+of ``run_token_file`` (a file of mode 0600 the launcher writes) the command's own
+authentication code, else the plain ``run_token`` (visible to every local user) or,
+without either, one derived from the node's fully qualified name, so a restarted EMS
+keeps it. ``plant_sim`` applies the commands of the run's EMS only and counts the others
+as foreign. The node exits with code 0
 on ``plant/done`` (end of the run); stopped by a signal before it, with exit code 3
 (:data:`~comems4build_ros.ros.process.EXIT_INTERRUPTED`).
 
@@ -47,7 +49,7 @@ from ..contract import ContractError, load_contract, nest
 from ..node import ArrayPublisher, ContractNode, layout_sizes
 from ..parameters import param, plant_params_from_node
 from ..process import run_node
-from ..tokens import default_token, read_token_file
+from ..tokens import command_mac, default_token, read_token_file, secret_key
 
 #: Topic whose repeated message for an answered step triggers a re-send of the command.
 RESEND_TRIGGER_TOPIC = "state/t_air_c"
@@ -87,7 +89,8 @@ class EMSNode(ContractNode):
             )
         sizes = layout_sizes(params)
         token_file = str(param(self, "run_token_file", ""))
-        token = read_token_file(token_file) if token_file else int(param(self, "run_token", 0))
+        self._key = secret_key(read_token_file(token_file)) if token_file else None  # authenticate each command
+        token = 0 if token_file else int(param(self, "run_token", 0))
         self.token = float(token if token > 0 else default_token(self.get_fully_qualified_name()))
         self._cmd = ArrayPublisher(self, "ems/command", sizes)
         self._info_pub = self.contract_publisher("ems/info")
@@ -104,7 +107,7 @@ class EMSNode(ContractNode):
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
-        self.run_complete = False  # plant/done seen: a signal from now on is a normal end (process.run_complete)
+        self._saw_done = False  # plant/done seen (run_complete)
         self.finished = Future()
         self.get_logger().info(
             f"EMS '{ems}' (level '{self.level}') listening to {len(self._inputs)} topics: "
@@ -141,10 +144,22 @@ class EMSNode(ContractNode):
 
         return on_msg
 
+    @property
+    def run_over(self) -> bool:
+        """``plant/done`` came (the node may still wait for the recorder to leave)."""
+        return self._saw_done
+
+    @property
+    def run_complete(self) -> bool:
+        """A signal from now on is a normal end (exit code 0, :func:`~comems4build_ros.ros.process.run_complete`):
+        ``plant/done`` came and, with ``exit_when_done``, the recorder has left (until then
+        this node's last messages may still be in the recorder's queues)."""
+        return self._saw_done and (not self.exit_when_done or self.finished.done())
+
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
         if msg.data:
-            self.run_complete = True
+            self._saw_done = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info(f"run done after {self.steps} decisions: exiting once the recorder has left")
@@ -168,6 +183,8 @@ class EMSNode(ContractNode):
         payload_info = {"step": step, "ems": self.ems, "info": {k: float(v) for k, v in info.items()}}
         self._info_pub.publish(string_cdr(json.dumps(payload_info)))  # ready CDR bytes, as the arrays
         payload = array("d", [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS), self.token])
+        if self._key is not None:  # the run secret: this command's own authentication code as its token
+            payload[-1] = command_mac(self._key, payload[:-1].tobytes())
         self._cmd.publish(payload)
         self._answered = step
         self._last_cmd = payload

@@ -203,7 +203,7 @@ class Feed(ContractNode):
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
-        self.run_complete = False  # plant/done seen: a signal from now on is a normal end (process.run_complete)
+        self._saw_done = False  # plant/done seen (run_complete)
         self.finished = Future()
         notes: list[str] = []
         if scenario is None:
@@ -286,10 +286,22 @@ class Feed(ContractNode):
         for pub, payload in zip((self._truth, *self._pubs), self.payloads(k)):
             pub.publish(payload)
 
+    @property
+    def run_over(self) -> bool:
+        """``plant/done`` came (the node may still wait for the recorder to leave)."""
+        return self._saw_done
+
+    @property
+    def run_complete(self) -> bool:
+        """A signal from now on is a normal end (exit code 0, :func:`~comems4build_ros.ros.process.run_complete`):
+        ``plant/done`` came and, with ``exit_when_done``, the recorder has left (until then
+        this node's last messages may still be in the recorder's queues)."""
+        return self._saw_done and (not self.exit_when_done or self.finished.done())
+
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
         if msg.data:
-            self.run_complete = True
+            self._saw_done = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info("run done: exiting once the recorder has left")

@@ -301,7 +301,7 @@ class MqttBridge(LockStepMaster):
             self.event("rejected", f"topic 'ems/command' {exc}")
             return
         step = int(data[0])
-        if not self.accept_token(data[-1], step):
+        if not self.accept_token(data, step):
             return
         if step == self.k - 1 and data == self._last_cmd:
             self.duplicate_commands += 1

@@ -115,7 +115,7 @@ class PlantSim(LockStepMaster):
             self.rejected_commands += 1
             self.event("rejected", f"topic 'ems/command' {exc}")
             return
-        if not self.accept_token(msg.data[-1], step):
+        if not self.accept_token(msg.data, step):
             return
         if step == self.k - 1 and self._last_cmd is not None and list(msg.data) == self._last_cmd:
             # the EMS re-sent the command just applied (answer to a repeated announcement
