@@ -46,7 +46,7 @@ from ...ems.base import Observation
 from ...types import ACTION_FIELDS
 from ..cdr import parse_array, string_cdr
 from ..contract import ContractError, load_contract, nest
-from ..node import ArrayPublisher, ContractNode, layout_sizes
+from ..node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
 from ..parameters import param, plant_params_from_node
 from ..process import run_node
 from ..tokens import command_mac, default_token, read_token_file, secret_key
@@ -62,7 +62,7 @@ def parse_options(items: list[str], node_name: str) -> dict[str, Any]:
     return parse_assignments([i for i in items if i], f"node '{node_name}': parameter 'ems_options':")
 
 
-class EMSNode(ContractNode):
+class EMSNode(EndsWithRun, ContractNode):
     """Wraps one controller; see the module docstring.
 
     Parameters
@@ -107,7 +107,6 @@ class EMSNode(ContractNode):
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
-        self._saw_done = False  # plant/done seen (run_complete)
         self.finished = Future()
         self.get_logger().info(
             f"EMS '{ems}' (level '{self.level}') listening to {len(self._inputs)} topics: "
@@ -144,22 +143,10 @@ class EMSNode(ContractNode):
 
         return on_msg
 
-    @property
-    def run_over(self) -> bool:
-        """``plant/done`` came (the node may still wait for the recorder to leave)."""
-        return self._saw_done
-
-    @property
-    def run_complete(self) -> bool:
-        """A signal from now on is a normal end (exit code 0, :func:`~comems4build_ros.ros.process.run_complete`):
-        ``plant/done`` came and, with ``exit_when_done``, the recorder has left (until then
-        this node's last messages may still be in the recorder's queues)."""
-        return self._saw_done and (not self.exit_when_done or self.finished.done())
-
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
         if msg.data:
-            self._saw_done = True
+            self.saw_done = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info(f"run done after {self.steps} decisions: exiting once the recorder has left")

@@ -43,7 +43,7 @@ from std_msgs.msg import String, UInt32
 from ...scenario.base import Scenario
 from ...scenario.run import check_scenario, load_scenario
 from ...types import EXOGENOUS_FIELDS, PlantState
-from ..node import ArrayPublisher, ContractNode, layout_sizes
+from ..node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
 from ..parameters import param, plant_params_from_node
 from ..process import run_node
 
@@ -166,7 +166,7 @@ class LiveFeed:
             self.feed.event("live", f"new live inputs taken in from step {self.feed._next}: {self.prices.describe()}")
 
 
-class Feed(ContractNode):
+class Feed(EndsWithRun, ContractNode):
     """Scenario publisher node (see the module docstring)."""
 
     def __init__(self, scenario: Scenario | None = None, **node_kwargs: Any) -> None:
@@ -203,7 +203,6 @@ class Feed(ContractNode):
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
-        self._saw_done = False  # plant/done seen (run_complete)
         self.finished = Future()
         notes: list[str] = []
         if scenario is None:
@@ -286,22 +285,10 @@ class Feed(ContractNode):
         for pub, payload in zip((self._truth, *self._pubs), self.payloads(k)):
             pub.publish(payload)
 
-    @property
-    def run_over(self) -> bool:
-        """``plant/done`` came (the node may still wait for the recorder to leave)."""
-        return self._saw_done
-
-    @property
-    def run_complete(self) -> bool:
-        """A signal from now on is a normal end (exit code 0, :func:`~comems4build_ros.ros.process.run_complete`):
-        ``plant/done`` came and, with ``exit_when_done``, the recorder has left (until then
-        this node's last messages may still be in the recorder's queues)."""
-        return self._saw_done and (not self.exit_when_done or self.finished.done())
-
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
         if msg.data:
-            self._saw_done = True
+            self.saw_done = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info("run done: exiting once the recorder has left")
