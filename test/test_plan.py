@@ -47,7 +47,7 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
     assert plan.secrets == ((token_file, token),)
     assert all(str(token) not in " ".join(p.argv) for p in plan.processes) and str(token) not in plan.describe()
     assert str(token) not in json.dumps(plan.to_dict())
-    assert _param(plant.argv, "stall_steps") == "3" and plan.stall_s == pytest.approx(2 * 3 * 5.0 + 10.0)
+    assert _param(plant.argv, "stall_steps") == "3" and plan.stall_s == pytest.approx(90.0)
     assert plan.timeout_s == pytest.approx(300.0 + 0.1 * 36)  # default overall time limit
     assert _param(plant.argv, "wait_for_recorder") == "true"
     assert _param(feed.argv, "weeks") == "1" and _param(feed.argv, "steps") == "36"

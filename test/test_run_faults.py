@@ -393,8 +393,11 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
                 ex.spin_once(timeout_sec=0.02)
             return False
 
-        _wait_for(lambda: (bool(steps) and bool(sniffed) and cmd.get_subscription_count() >= 2) or spin(0.05), 30,
-                  "the plant's announcements, the EMS's commands and the readers of ems/command matched")
+        def joined() -> bool:
+            assert run.proc.poll() is None, "the run ended before the spoofer had joined"
+            return (bool(steps) and bool(sniffed) and cmd.get_subscription_count() >= 2) or spin(0.05)
+
+        _wait_for(joined, 90, "the plant's announcements, the EMS's commands and the readers of ems/command matched")
         ems = _pid_of(out, "fuzzy_ems")
         os.kill(ems, signal.SIGSTOP)  # the plant now waits for a command: the spoof has the field to itself
         spin(0.7)  # > the plant's republish period: steps[-1] is the step it waits for

@@ -84,6 +84,10 @@ STATE_TOPICS: dict[str, tuple[str, ...]] = {
     "state/fc_on": ("fc_on",),
     "state/t_wall": ("t_wall_in_c", "t_wall_out_c"),
 }
+#: Shortest wait for the recorder's progress before a held run counts as stalled [s]: on a
+#: loaded machine a reliable writer's retransmission waits for its next heartbeat (seconds),
+#: so a live recorder can be still for a while (measured: 6 s at a load average of 9 on 2 cores).
+RECORDER_STALL_MIN_S = 60.0
 #: Names of the fault counters, in the order of ``plant/record`` and of the statistics.
 FAULT_COUNTERS = ("fallback_steps", "rejected_commands", "wrong_step_commands", "duplicate_commands",
                   "foreign_commands")
@@ -235,7 +239,8 @@ class LockStepMaster(ContractNode):
         """What the master waits for now: ``(words naming the node or device, contract topic
         whose publishers to name or None)``; None while it waits for the EMS's command (the
         step time-out and :attr:`silent_fallbacks` cover that). Called at every watchdog
-        tick: no graph queries here."""
+        tick: no graph queries here. A wait for ``recorder/progress`` is a stall only after
+        :data:`RECORDER_STALL_MIN_S` at least."""
         return None
 
     def publishers_of(self, topic: str) -> str:
@@ -258,11 +263,12 @@ class LockStepMaster(ContractNode):
         waiting = self.waiting_for()
         if waiting is None:
             self._t_moved = now
-        elif now - self._t_moved > self.stall_window_s():
+        elif now - self._t_moved > (self.stall_window_s() if waiting[1] != "recorder/progress"
+                                    else max(self.stall_window_s(), RECORDER_STALL_MIN_S)):
             what, topic = waiting
             who = f" ({self.publishers_of(topic)})" if topic else ""
-            self.stall(f"no step for {now - self._t_moved:.1f} s ({self.stall_steps} step time-outs of "
-                       f"{self.step_timeout_s:g} s) at step {self.k}: waiting for {what}{who}")
+            self.stall(f"no step for {now - self._t_moved:.1f} s at step {self.k} (limit: {self.stall_steps} step "
+                       f"time-outs of {self.step_timeout_s:g} s): waiting for {what}{who}")
             return True
         return False
 

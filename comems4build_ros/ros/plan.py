@@ -116,9 +116,12 @@ STALL_STEPS = 3
 #: Step time-out of the lock-step master when not given (plant_sim's and mqtt_bridge's default) [s].
 DEFAULT_STEP_TIMEOUT_S = 5.0
 #: The supervisor's backstop (:attr:`RunPlan.stall_s`): this many times the masters' own
-#: stall window, plus :data:`STALL_MARGIN_S` (the master names the cause first when it can).
+#: stall window, plus :data:`STALL_MARGIN_S` (the master names the cause first when it can),
+#: and at least :data:`STALL_BACKSTOP_MIN_S` (a live recorder on a loaded machine can be
+#: still for seconds: the lock-step master's recorder wait, ``lockstep.RECORDER_STALL_MIN_S``).
 STALL_BACKSTOP_FACTOR = 2.0
 STALL_MARGIN_S = 10.0
+STALL_BACKSTOP_MIN_S = 90.0
 #: Directory of the run's token files under the output directory (mode 0700, removed after the run).
 SECRETS_DIR = ".secrets"
 
@@ -637,7 +640,8 @@ def default_time_limit(opts: LaunchOptions) -> float:
 def backstop_stall_s(opts: LaunchOptions, layout: str) -> float | None:
     """The supervisor's stall limit of a run (:attr:`RunPlan.stall_s`) [s]: :data:`STALL_BACKSTOP_FACTOR`
     times the masters' window (``stall_steps`` x the step time-out, plus a wall clock's step
-    period) plus :data:`STALL_MARGIN_S`; None when the masters' stall rule is off."""
+    period) plus :data:`STALL_MARGIN_S`, at least :data:`STALL_BACKSTOP_MIN_S`; None when the
+    masters' stall rule is off."""
     from ..mqtt.clock import parse_clock
 
     steps = int(opts.plant_node_params.get("stall_steps", STALL_STEPS))
@@ -647,7 +651,7 @@ def backstop_stall_s(opts: LaunchOptions, layout: str) -> float | None:
     step_timeout = float(opts.plant_node_params.get("step_timeout_s", default))
     clock = parse_clock(opts.clock)
     window = steps * (step_timeout + (clock.period_s if clock.wall else 0.0))
-    return STALL_BACKSTOP_FACTOR * window + STALL_MARGIN_S
+    return max(STALL_BACKSTOP_FACTOR * window + STALL_MARGIN_S, STALL_BACKSTOP_MIN_S)
 
 
 def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float) -> dict[str, Any]:

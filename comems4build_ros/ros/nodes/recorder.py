@@ -446,9 +446,10 @@ class Recorder(Node):
 
     @property
     def run_complete(self) -> bool:
-        """Every plant is done (or the bag is complete): a signal from now on closes the bag
-        as a normal end (exit 0, :func:`comems4build_ros.ros.process.run_complete`)."""
-        return self.finished.done() or len(self.done_at) == len(self.namespaces)
+        """Every plant is done (or the bag is complete), or the node records until it is
+        stopped (``stop_when_done`` false, as ``ros2 bag record``): a signal from now on
+        closes the bag as a normal end (exit 0, :func:`comems4build_ros.ros.process.run_complete`)."""
+        return not self.stop_when_done or self.finished.done() or len(self.done_at) == len(self.namespaces)
 
     def destroy_node(self) -> None:
         """Close the bag (last chunk, summary, metadata.yaml), then destroy the node."""
