@@ -208,6 +208,8 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         executor.spin_until_future_complete(all_done)
         if all_done.done():
             code = int(all_done.result() or 0)
+        else:  # the spin ended because the signal handler shut the context down (no exception)
+            code = interrupted_code(nodes, f"container {role}")
         if progress_nodes:
             print_progress(progress_nodes)
     except (KeyboardInterrupt, ExternalShutdownException):

@@ -76,6 +76,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
             executor.spin_until_future_complete(finished)
             if finished.done():
                 code = int(finished.result() or 0)
+            else:  # the spin ended because the signal handler shut the context down (no exception)
+                code = interrupted_code([node], name)
         else:
             executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
