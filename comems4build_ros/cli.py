@@ -18,7 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "one EMS in-process over a scenario; writes DIR/timeseries.csv (every state, command "
                              "and flow per step), DIR/weekly.csv (one row per week, a partial week marked) and "
                              "DIR/summary.json"),
-    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros"),
+    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros, study"),
     "data": ("data", "build scenario CSVs from real sources (aWATTar, DWD, DHWCalc, load CSV)"),
     "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D) as "
                                        "PDF, SVG and PNG"),
@@ -29,7 +29,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "compare": ("compare", "RBC, fuzzy and MPC on one scenario; DIR/report.md, DIR/report.html (contents, figures "
                            "linked to their vector versions) and the paper-style figures as PDF, SVG and 300 dpi PNG; "
                            "a progress bar per run on a terminal"),
-    "sweep": ("sweep", "sensitivity grid in parallel processes; one table and one plot per KPI (PDF, SVG, PNG)"),
+    "sweep": ("sweep", "sensitivity grid on local processes or a Dask cluster; one table and one plot per KPI "
+                       "(PDF, SVG, PNG)"),
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
 }
 

@@ -385,5 +385,8 @@ def test_interrupted_comparison_or_sweep_keeps_the_older_results_whole(
     argv = [*JOBS[command], "--out", out, "--seed", "7"]  # another result, were it finished
     code, _, err = run_cli(argv, capsys)
     assert code == 130 and "interrupted" in err
-    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file()}
+    store = out / ".runstore"  # the run that finished is kept for --resume, beside the results
+    after = {p.relative_to(out): p.read_bytes() for p in out.rglob("*") if p.is_file() and store not in p.parents}
     assert after == before  # no partial runs/<name>/, no temporary directory, the old results byte for byte
+    assert len([p for p in store.iterdir() if not p.name.startswith(".")]) == 1
+    assert "1 finished run(s) are kept" in err

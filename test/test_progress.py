@@ -129,5 +129,5 @@ def test_compare_quiet_when_stderr_is_not_a_terminal(tmp_path: Path, capsys: pyt
     assert main(["compare", "--ems", "thermostat", "--weeks", "0.25", "--fc-efficiency", "0.75",
                  "--out", str(tmp_path)]) == 0
     err = capsys.readouterr().err
-    assert "run thermostat" in err
+    assert "thermostat: finished" in err
     assert "\r" not in err and "step/s" not in err

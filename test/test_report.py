@@ -325,11 +325,11 @@ def test_paper_windows_hand_made() -> None:
     ts = run.timeseries
     ts.loc[24 * 5:24 * 8 - 1, "ghi_w_m2"] = 300.0  # days 5-7 sunny, but no trough of 0.23 ...
     ts.loc[24 * 8:24 * 11 - 1, "ghi_w_m2"] = 200.0  # days 8-10 less sunny, with the trough
-    ts.loc[24 * 9 + 3, "price_buy_eur_per_kwh"] = 0.232
+    ts.loc[24 * 10 + 3, "price_buy_eur_per_kwh"] = 0.232  # only windows from days 8, 9, 10 contain it
     w = paper_windows(run, "Europe/Berlin", WINDOWS)
     assert w["performance_comparison"] == (48, 120)  # 2022-12-03 00:00 local
     assert w["high_pv"] == (24 * 8, 24 * 11)
-    ts.loc[24 * 9 + 3, "price_buy_eur_per_kwh"] = 0.3  # no window with the trough: the sunniest late one
+    ts.loc[24 * 10 + 3, "price_buy_eur_per_kwh"] = 0.3  # no window with the trough: the sunniest late one
     assert paper_windows(run, "Europe/Berlin", WINDOWS)["high_pv"] == (24 * 5, 24 * 8)
 
 

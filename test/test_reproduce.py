@@ -47,12 +47,33 @@ def test_five_seeds_the_default_first(base):
     assert rp.check_defaults(study) == []  # the first seed is the default scenario's
 
 
-@pytest.mark.parametrize("key", [f.key for f in fd.FINDINGS])
+#: Findings this reproduction does not reproduce, each explained with measured figures in
+#: docs/calibration.md ("Findings that do not hold"). Strict: a finding that starts to hold
+#: fails the test, so that the list and the document are updated.
+NOT_REPRODUCED = {
+    "rbc_fc_less_than_mpc": "the RBC toggles its FC 3 % more often than the MPC (paper: 3.5 % less); hours hold",
+    "no_dhw_cover_at_75": "the MPC spends its saved H2 in weeks 8-9, whose FC heat covers their DHW demand at 75 %",
+    "dhw_demand_met": "three morning draws of 209-269 l/h exceed what the RBC's tank holds at that hour",
+}
+
+
+@pytest.mark.parametrize("key", [
+    pytest.param(f.key, marks=pytest.mark.xfail(strict=True, reason=NOT_REPRODUCED[f.key]))
+    if f.key in NOT_REPRODUCED else f.key for f in fd.FINDINGS])
 def test_every_finding_holds_on_at_least_four_of_five_seeds(base, key):
     report = base[1]
     need = report["targets"]["findings_seeds"]
     finding = next(f for f in report["base"]["findings"] if f["key"] == key)
     assert finding["held"] >= need, f"{finding['claim']}: held on {finding['held']} seeds; {finding['evidence']}"
+
+
+def test_findings_not_reproduced_are_explained():
+    """Each finding listed in NOT_REPRODUCED has its explanation in docs/calibration.md."""
+    text = CALIBRATION_DOC.read_text(encoding="utf-8")
+    section = text.split("## Findings that do not hold", 1)[1].split("\n## ", 1)[0]
+    assert {f.key for f in fd.FINDINGS} >= set(NOT_REPRODUCED)
+    for key in NOT_REPRODUCED:
+        assert f"`{key}`" in section, key
 
 
 def test_fuel_cell_operation_as_the_paper_runs_it(base):
@@ -149,7 +170,10 @@ def test_a_drifted_default_is_refused(tmp_path):
     study = rp.load_study(_study_file(tmp_path, drift))
     problems = rp.check_defaults(study)
     assert problems and "grid.buy_offset_eur_per_kwh" in problems[0]
-    other_first = rp.load_study(_study_file(tmp_path, lambda s: s.update(seeds=[1, 57])))
+    def swap(s):  # the default scenario's seed second; as many seeds as findings_seeds asks for
+        s["seeds"] = [1, 57, *(n for n in s["seeds"] if n not in (1, 57))]
+
+    other_first = rp.load_study(_study_file(tmp_path, swap))
     assert any(p.startswith("seeds: the first seed 1") for p in rp.check_defaults(other_first))
 
 

@@ -11,6 +11,7 @@ TARGETS = {
     "ems": "ems",
     "mpc": "mpc",
     "ros": "ros",
+    "study": "study",
 }
 
 

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING
 
-from .options import COUNT, add_scenario_options
+from .options import add_executor_options, add_scenario_options
 
 if TYPE_CHECKING:
     from ..report.build import Report
@@ -38,8 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run, e.g. --set battery.e_max_kwh=10")
-    parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
-                        help="parallel runs, integer >= 1 (default: CPU count in-process, 1 with --via ros)")
+    add_executor_options(parser, jobs_default="CPU count in-process, 1 with --via ros")
     parser.add_argument("--from-runs", default=None, metavar="DIR",
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
     parser.add_argument("--out", metavar="DIR", default=None,
@@ -102,9 +101,13 @@ def run(args: argparse.Namespace) -> int:
     from ..fileio import atomic_dir, check_out_dir
     from ..report.build import build_report
     from ..report.runs import RunDirError
-    from .options import check_config_files, ems_names, scenario_of
+    from .options import check_config_files, ems_names, scenario_of, study_executor
     from .simulate import parse_assignments
 
+    if args.from_runs and (args.scheduler or args.resume):
+        raise UsageError("--scheduler and --resume apply to runs; --from-runs makes none")
+    if args.via == "ros" and args.scheduler:
+        raise UsageError("--via ros runs the ROS 2 node set on this machine; --scheduler applies to in-process runs")
     if args.from_runs:
         out = Path(args.out or args.from_runs)
         check_out_dir(out)
@@ -129,8 +132,11 @@ def run(args: argparse.Namespace) -> int:
     scenario_of(args, params)  # the scenario and the run length, checked once before any run
     check_out_dir(args.out)
     out = Path(args.out)
-    with atomic_dir(out) as stage:  # runs/, manifest, report, figures replace an older comparison's when all are done
-        rep = _compare(args, emss, etas, levels, overrides, stage)
+    jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
+    with study_executor(args, out, jobs) as executor:  # finished runs kept in OUT/.runstore until the end
+        with atomic_dir(out) as stage:  # runs/, manifest, report, figures replace an older comparison's when done
+            rep = _compare(args, emss, etas, levels, overrides, stage)
+        executor.complete()
     _print_report(rep, stage, out)
     return 0
 
@@ -138,7 +144,6 @@ def run(args: argparse.Namespace) -> int:
 def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], levels: dict[str, str],
              overrides: dict, out: Path) -> Report:
     """Run every EMS at every efficiency into ``out`` (runs/, compare.json) and build the report there."""
-    from ..progress import echo
     from ..report.build import build_report
     from ..report.runner import RunTask, run_tasks
     from ..report.runs import RUNS_DIR, Manifest, RunSpec, write_manifest
@@ -153,18 +158,14 @@ def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], level
             tasks.append(RunTask(ems=ems, out_dir=str(out / RUNS_DIR / name), scenario=args.scenario,
                                  start=args.start, weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=ov,
                                  config=[str(Path(c).resolve()) for c in args.config], via=args.via))
-    jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
     walls: dict[str, float] = {}
 
     def done(task: RunTask, summary: dict) -> None:
-        name = Path(task.out_dir).name
-        walls[name] = float(summary["task_wall_s"])
-        echo(f"  run {name}: {summary['task_wall_s']:.1f} s, cost median {summary['cost_eur_week_median']:.2f} "
-             "EUR/week")
+        walls[Path(task.out_dir).name] = float(summary["task_wall_s"])
 
     print(f"compare: {len(tasks)} runs ({', '.join(s.name for s in specs)}) via {args.via}", file=sys.stderr)
     t0 = time.perf_counter()
-    run_tasks(tasks, jobs=jobs, on_done=done, progress=False if args.no_progress else None)
+    run_tasks(tasks, on_done=done, progress=False if args.no_progress else None)
     wall = time.perf_counter() - t0
     manifest = Manifest(scenario=args.scenario, weeks=args.weeks, via=args.via, base_eta=base, runs=specs,
                         overrides=overrides, config=[str(Path(c).resolve()) for c in args.config],

@@ -190,3 +190,55 @@ def scenario_of(args: argparse.Namespace, params: Any) -> Any:
     return resolve_scenario(args.scenario, params, start=args.start, weeks=args.weeks,
                             hours=getattr(args, "hours", None), seed=getattr(args, "seed", None),
                             extend=getattr(args, "extend", None))
+
+
+#: URL schemes of a Dask scheduler address (TLS when the cluster is configured for it).
+SCHEDULER_SCHEMES = ("tcp", "tls")
+
+
+def scheduler_address(text: str) -> str:
+    """argparse type of ``--scheduler``: ``tcp://HOST:PORT`` (or ``tls://``), port 1..65535."""
+    from urllib.parse import urlsplit
+
+    form = "tcp://HOST:PORT (or tls://HOST:PORT), e.g. tcp://10.0.0.5:8786"
+    try:
+        url = urlsplit(text)
+        port = url.port
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"'{text}' is not {form} ({exc})") from None
+    if url.scheme not in SCHEDULER_SCHEMES or not url.hostname or port is None or url.path not in ("", "/") \
+            or url.query or url.username or url.password:
+        raise argparse.ArgumentTypeError(f"'{text}' is not {form}")
+    if not 1 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"'{text}': port {port} is outside 1..65535")
+    return f"{url.scheme}://{url.netloc}"
+
+
+def add_executor_options(parser: argparse.ArgumentParser, jobs_default: str = "CPU count") -> None:
+    """``--jobs``, ``--scheduler``, ``--resume``: where a study's runs execute and whether it resumes."""
+    parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
+                        help=f"parallel runs in local worker processes, integer >= 1 (default: {jobs_default}; "
+                             "at most the CPU count)")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:PORT", type=scheduler_address, default=None,
+                        help="run on the workers of this Dask scheduler instead of local processes (docs/cluster.md); "
+                             "every worker must run the same code, parameter files and library versions")
+    parser.add_argument("--resume", action="store_true",
+                        help="take the runs an interrupted study of the same --out finished (OUT/.runstore) instead "
+                             "of running them again; a stored run of another specification is refused")
+
+
+def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = None) -> Any:
+    """The :class:`~comems4build_ros.study.executor.StudyExecutor` of ``--jobs``/``--scheduler``/``--resume``.
+
+    Its store is ``out/.runstore``; ``jobs`` replaces ``--jobs`` when given (a command's own
+    default). Enter it before any run: it connects and checks the cluster, and refuses a
+    store of an unfinished study without ``--resume``.
+    """
+    from ..study.executor import DaskBackend, LocalBackend, StudyExecutor
+    from ..study.store import RunStore
+
+    if args.scheduler and args.jobs is not None:
+        raise UsageError("--jobs and --scheduler exclude each other (with --scheduler the cluster's workers run "
+                         "the runs, as many at once as they have threads)")
+    backend = DaskBackend(args.scheduler) if args.scheduler else LocalBackend(jobs if jobs is not None else args.jobs)
+    return StudyExecutor(backend, RunStore.of(out), resume=args.resume)

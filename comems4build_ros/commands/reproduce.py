@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from .options import COUNT, real
+from .options import add_executor_options, real
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -16,8 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(no interpretation study)")
     parser.add_argument("--only", default=None, metavar="KEY[,KEY...]",
                         help="study only these ambiguities of config/reproduce.yaml")
-    parser.add_argument("--jobs", type=COUNT, default=None, metavar="N",
-                        help="parallel runs, integer >= 1 (default: CPU count)")
+    add_executor_options(parser)
     parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
                         help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
                              "checks that do not compare with the paper's table)")
@@ -40,11 +39,13 @@ def run(args: argparse.Namespace) -> int:
     """Run the reproduction and print where the report is."""
     from ..cli import UsageError
     from ..fileio import check_out_dir
-    from ..progress import echo
     from ..report.reproduce import reproduce
+    from .options import study_executor
 
     if args.from_json and args.from_runs:
         raise UsageError("--from-json and --from-runs exclude each other")
+    if (args.from_json or args.from_runs) and (args.scheduler or args.resume):
+        raise UsageError("--scheduler and --resume apply to runs; --from-json and --from-runs make none")
     if args.from_json:
         import json
         from pathlib import Path
@@ -84,12 +85,11 @@ def run(args: argparse.Namespace) -> int:
         if not seeds or len(set(seeds)) != len(seeds) or not all(0 <= s < 2**32 for s in seeds):
             raise UsageError(f"--seeds {args.seeds}: distinct integers in 0..2^32-1")
 
-    def progress(done: int, total: int, name: str) -> None:
-        echo(f"  run {done} of {total} done: {name}")
-
-    res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
-                    seeds=seeds, progress=progress, show_progress=False if args.no_progress else None,
-                    from_runs=args.from_runs, figures=not args.no_figures)
+    with study_executor(args, args.out) as executor:  # the runs' executor; finished runs kept in OUT/.runstore
+        res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
+                        seeds=seeds, show_progress=False if args.no_progress else None,
+                        from_runs=args.from_runs, figures=not args.no_figures)
+        executor.complete()
 
     def pct(x: float | None) -> str:
         return "-" if x is None else f"{100 * x:.1f} %"

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from .options import COUNT, add_scenario_options
+from .options import add_executor_options, add_scenario_options
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -20,8 +20,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_scenario_options(parser, hours=False)
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
-    parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
-                        help="parallel runs, integer >= 1 (default and maximum: CPU count)")
+    add_executor_options(parser)
     parser.add_argument("--timeseries", action="store_true", help="also write each run's timeseries.csv")
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
@@ -33,7 +32,7 @@ def run(args: argparse.Namespace) -> int:
     from ..config import load_plant_params
     from ..fileio import atomic_dir, check_out_dir
     from ..report.sweep import SWEEP_KPIS, grid, parse_param
-    from .options import check_config_files, ems_names, scenario_of
+    from .options import check_config_files, ems_names, scenario_of, study_executor
 
     params: dict[str, list] = {}
     for text in args.param:
@@ -51,8 +50,10 @@ def run(args: argparse.Namespace) -> int:
         plant = load_plant_params(args.config, case.values)
     scenario_of(args, plant)  # the scenario and the run length, checked once before any run
     check_out_dir(args.out)
-    with atomic_dir(args.out) as stage:  # runs/, tables and figures replace an older sweep's when all are done
-        wall = _sweep(args, params, emss, cases, stage)
+    with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+        with atomic_dir(args.out) as stage:  # runs/, tables and figures replace an older sweep's when all are done
+            wall = _sweep(args, params, emss, cases, stage)
+        executor.complete()
     out = Path(args.out)
     print(f"{len(cases)} runs in {wall:.1f} s; wrote {out / 'sweep.csv'}, {out / 'sweep.md'} and "
           f"{len(SWEEP_KPIS)} plots in {out / 'figures'}")
@@ -61,7 +62,6 @@ def run(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], cases: list, out: Path) -> float:
     """Run every case of the grid into ``out/runs/``, write the tables and plots into ``out``; the wall time [s]."""
-    from ..progress import echo
     from ..report.runner import RunTask, run_tasks
     from ..report.sweep import SWEEP_KPIS, markdown_table, plot_kpi, table
 
@@ -71,11 +71,7 @@ def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], c
                      timeseries=args.timeseries) for c in cases]
     print(f"sweep: {len(cases)} runs ({len(emss)} EMS x {len(cases) // len(emss)} parameter sets)", file=sys.stderr)
     t0 = time.perf_counter()
-
-    def done(task: RunTask, summary: dict) -> None:
-        echo(f"  {Path(task.out_dir).name}: {summary['task_wall_s']:.1f} s")
-
-    summaries = run_tasks(tasks, jobs=args.jobs, on_done=done, progress=False if args.no_progress else None)
+    summaries = run_tasks(tasks, progress=False if args.no_progress else None)
     wall = time.perf_counter() - t0
     kpis = [k for k, _ in SWEEP_KPIS]
     df = table(cases, summaries, kpis)

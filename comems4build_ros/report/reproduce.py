@@ -614,6 +614,14 @@ def _read_runs(runs_dir: Path, names: Sequence[str], tasks: Mapping[str, RunTask
     return data
 
 
+def _runs_of(cases: Sequence[Case], study: Study) -> set[str]:
+    """Names of the runs that ``cases`` read (their own and, for ``rerun``, those at the second efficiency)."""
+    names = {n for c in cases for per_seed in c.runs.values() for n in per_seed.values()}
+    names |= {run_name(_heat_stem(e, study.heat_eta), s) for c in cases if c.heat == "rerun"
+              for s in c.runs for e in EMS}
+    return names
+
+
 def _seed_runs(case: Case, data: Mapping[str, RunData], study: Study) -> list[SeedRuns]:
     out = []
     for seed, names in case.runs.items():
@@ -694,6 +702,7 @@ def reproduce(
     check_tasks(tasks.values())
     if only:
         cases = [cases[0], *(c for c in cases[1:] if c.ambiguity in only)]
+        tasks = {n: t for n, t in tasks.items() if n in _runs_of(cases, study)}
     names = list(tasks)
     earlier: dict[str, Any] = {}
     if from_runs is not None:

@@ -1,23 +1,33 @@
-"""Running the EMS of a comparison or a sweep: one task per run, in parallel processes.
+"""Running the EMS of a comparison, a sweep or a reproduction: one task per run.
 
 A :class:`RunTask` is a plain picklable record (EMS, scenario spec, overrides, output
-directory); :func:`run_task` executes it in a worker process (in-process simulation or
-the ROS 2 node set through the launcher) and returns the summary. :func:`run_tasks`
-spreads tasks over at most ``os.cpu_count()`` worker processes, longest first, with one
-progress bar per run on a terminal (:class:`comems4build_ros.progress.RunProgress`).
+directory); :func:`run_task` executes it (in-process simulation or the ROS 2 node set
+through the launcher) and returns the summary. :func:`run_tasks` hands a study's tasks to
+an executor (:mod:`comems4build_ros.study.executor`): local worker processes, longest
+first, or a Dask cluster; each finished run is stored as it finishes, so a study resumes.
+A task is a job of that executor: :meth:`RunTask.spec` is its full specification (hashed
+to recognise a stored run), :meth:`RunTask.portable` carries the files it reads from
+outside the package (``--config`` files, a scenario CSV) to a worker on another host.
 """
 
 from __future__ import annotations
 
-import os
+import dataclasses
+import json
+import tempfile
 import time
 from collections.abc import Callable, Sequence
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
-from ..progress import ProgressCallback, RunProgress
+from ..progress import ProgressCallback
+from ..study.executor import RunFailedError
+
+if TYPE_CHECKING:
+    from ..study.executor import StudyExecutor
+
+__all__ = ["EMS_WEIGHT", "RunFailedError", "RunTask", "run_task", "run_tasks"]
 
 #: Relative cost of one step per EMS (orders tasks longest first; unknown EMS count 1).
 EMS_WEIGHT = {"mpc": 50.0, "mpc-qp": 10.0, "fuzzy": 2.0, "rbc": 1.0, "thermostat": 1.0}
@@ -42,6 +52,8 @@ class RunTask:
     ems_options : options passed to the controller
     scenario_overrides : dotted settings of ``config/scenario.yaml`` for an embedded scenario
         (``{"scenario.load.annual_kwh": 4000}``; in-process runs)
+    inputs : contents of the files named by ``config`` and a scenario CSV, by the name given
+        there (filled by :meth:`portable`; the run reads these instead of the paths)
     """
 
     ems: str
@@ -57,10 +69,63 @@ class RunTask:
     timeseries: bool = True
     ems_options: dict[str, Any] = field(default_factory=dict)
     scenario_overrides: dict[str, Any] = field(default_factory=dict)
+    inputs: dict[str, bytes] = field(default_factory=dict, repr=False)
 
+    @property
+    def weight(self) -> float:
+        """Relative cost of the run (:data:`EMS_WEIGHT` times its weeks; longest first)."""
+        return EMS_WEIGHT.get(self.ems, 1.0) * float(self.weeks or 12.0)
 
-class RunFailedError(RuntimeError):
-    """A run ended without its outputs (message names the run directory and the cause)."""
+    def _input_files(self) -> list[str]:
+        from ..scenario import EMBEDDED
+
+        return [*self.config, *([] if str(self.scenario) in EMBEDDED else [str(self.scenario)])]
+
+    def _read(self, path: str) -> bytes:
+        return self.inputs[path] if path in self.inputs else Path(path).read_bytes()
+
+    def spec(self) -> dict[str, Any]:
+        """Everything that decides the run's outputs (JSON-ready; ``out_dir`` is not part of it).
+
+        The run's settings, the name and SHA-256 of every file it reads from outside the
+        package, and the environment record (:func:`comems4build_ros.study.spec.environment`).
+        """
+        from ..scenario import EMBEDDED
+        from ..study.spec import environment, file_digest
+
+        def file(path: str) -> dict[str, str]:
+            return {"name": Path(path).name, "sha256": file_digest(self._read(path))}
+
+        spec: dict[str, Any] = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
+                                if f.name not in ("out_dir", "inputs", "config", "scenario")}
+        spec["config"] = [file(p) for p in self.config]
+        spec["scenario"] = str(self.scenario) if str(self.scenario) in EMBEDDED else file(str(self.scenario))
+        spec["environment"] = environment()
+        return json.loads(json.dumps(spec, default=str))
+
+    def portable(self) -> RunTask:
+        """This task with the contents of its ``--config`` files and scenario CSV inside it."""
+        return dataclasses.replace(self, inputs={p: self._read(p) for p in self._input_files()})
+
+    def run(self, out_dir: str, progress: ProgressCallback | None = None) -> dict[str, Any]:
+        """Run into ``out_dir``; the summary as written to ``summary.json``, with ``task_wall_s``.
+
+        Carried ``inputs`` are written to a temporary directory under their file names and
+        read from there, so the run needs no file of the machine that made the task.
+        """
+        with tempfile.TemporaryDirectory(prefix="comems4build-inputs-") as tmp:
+            paths: dict[str, str] = {}
+            for k, (name, data) in enumerate(self.inputs.items()):
+                local = Path(tmp) / str(k) / Path(name).name
+                local.parent.mkdir(parents=True)
+                local.write_bytes(data)
+                paths[name] = str(local)
+            task = dataclasses.replace(self, out_dir=str(out_dir), inputs={},
+                                       config=[paths.get(c, c) for c in self.config],
+                                       scenario=paths.get(str(self.scenario), self.scenario))
+            summary = run_task(task, progress)
+        written = json.loads((Path(out_dir) / "summary.json").read_text(encoding="utf-8"))
+        return {**written, "task_wall_s": summary["task_wall_s"]}
 
 
 def run_task(task: RunTask, progress: ProgressCallback | None = None) -> dict[str, Any]:
@@ -139,48 +204,19 @@ def run_tasks(
     jobs: int | None = None,
     on_done: Callable[[RunTask, dict[str, Any]], None] | None = None,
     progress: bool | None = None,
+    executor: StudyExecutor | None = None,
 ) -> list[dict[str, Any]]:
-    """Run ``tasks`` in at most ``min(jobs, os.cpu_count(), len(tasks))`` processes.
+    """Run ``tasks`` with ``executor``: default the enclosing study's, else ``jobs`` local processes.
 
-    Tasks start longest first (by :data:`EMS_WEIGHT`); summaries come back in task order,
-    ``on_done`` is called as each run finishes. The first failure cancels the tasks not
-    yet started and is raised. ``progress``: one bar per run on stderr while it runs (None
-    = when stderr is a terminal, False = never); print from ``on_done`` with
-    :func:`comems4build_ros.progress.echo` to keep the bars intact.
+    Tasks start longest first (:attr:`RunTask.weight`); summaries come back in task order
+    (as written to each run's ``summary.json``, with ``task_wall_s``), ``on_done`` is
+    called as each run finishes. The first failure stops the tasks not yet started and is
+    raised once the running ones ended. ``progress``: one bar per run on stderr while it
+    runs (None = when stderr is a terminal, False = never); print from ``on_done`` with
+    :func:`comems4build_ros.progress.echo` to keep the bars intact. ``jobs`` applies only
+    when no executor is given or current (:func:`comems4build_ros.study.executor.current`).
     """
-    with RunProgress([Path(t.out_dir).name for t in tasks], enable=progress) as bars:
-        return _run_tasks(tasks, jobs, on_done, bars)
+    from ..study.executor import LocalBackend, StudyExecutor, current, run_jobs
 
-
-def _run_tasks(
-    tasks: Sequence[RunTask],
-    jobs: int | None,
-    on_done: Callable[[RunTask, dict[str, Any]], None] | None,
-    bars: RunProgress,
-) -> list[dict[str, Any]]:
-    cpus = os.cpu_count() or 1
-    workers = max(1, min(jobs or cpus, cpus, len(tasks)))
-    order = sorted(range(len(tasks)), key=lambda i: -EMS_WEIGHT.get(tasks[i].ems, 1.0))
-    results: list[dict[str, Any] | None] = [None] * len(tasks)
-    if workers == 1:
-        for i in order:
-            results[i] = run_task(tasks[i], bars.callback(i))
-            if on_done:
-                on_done(tasks[i], results[i])
-        return [r for r in results if r is not None]
-    with ProcessPoolExecutor(max_workers=workers, initializer=bars.initializer, initargs=bars.initargs) as pool:
-        futures = {pool.submit(run_task, tasks[i], bars.reporter(i)): i for i in order}
-        pending = set(futures)
-        while pending:
-            done, pending = wait(pending, return_when=FIRST_COMPLETED)
-            for fut in done:
-                i = futures[fut]
-                exc = fut.exception()
-                if exc is not None:
-                    for other in pending:
-                        other.cancel()
-                    raise exc
-                results[i] = fut.result()
-                if on_done:
-                    on_done(tasks[i], results[i])
-    return [r for r in results if r is not None]
+    ex = executor or current() or StudyExecutor(LocalBackend(jobs))
+    return run_jobs(tasks, ex, on_done=on_done, progress=progress)
