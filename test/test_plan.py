@@ -16,6 +16,7 @@ from comems4build_ros.ros.plan import (
     STAGE_RECORDERS,
     STAGE_SERVICES,
     LaunchOptions,
+    node_label,
     plan_run,
 )
 from comems4build_ros.scenario.settings import load_scenario_settings
@@ -82,6 +83,25 @@ def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
     assert not any(p.role == "discovery" for p in plan.processes)
     with pytest.raises(KeyError, match="no process 'nope'.*role_feed"):
         plan.process("nope")
+
+
+@pytest.mark.parametrize("layout", ["node", "role", "building"])
+def test_nodes_of_each_process_are_named_with_the_building_they_serve(layout: str, tmp_path: Path) -> None:
+    """What the launcher names when a process leaves the run (``supervisor.left_error``)."""
+    from comems4build_ros.ros.supervisor import describe_nodes
+
+    plan = plan_run(LaunchOptions(ems="rbc", out=tmp_path, weeks=1, buildings=2, layout=layout), domain_id=1)
+    labels = {p.name: [node_label(n) for n in p.nodes] for p in plan.processes}
+    every = sorted(n for names in labels.values() for n in names)
+    assert every == sorted(f"/building_{i}/{n}" for i in (0, 1) for n in ("recorder", "rbc_ems", "feed", "plant_sim"))
+    if layout == "node":
+        assert labels["building_0/recorder"] == ["/building_0/recorder"]  # started at /, records building_0
+    if layout == "role":
+        assert describe_nodes(labels["role_ems"]) == "rbc_ems of /building_0, /building_1"
+    if layout == "building":
+        assert describe_nodes(labels["container_1"]) == "recorder, rbc_ems, feed, plant_sim of /building_1"
+    many = [f"/building_{i}/rbc_ems" for i in range(8)]
+    assert describe_nodes(many) == "rbc_ems of /building_0 .. /building_7 (8 buildings)"
 
 
 def test_plant_params_override_host_defaults(tmp_path: Path) -> None:

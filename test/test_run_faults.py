@@ -14,8 +14,9 @@ the test that spoofs commands. One case per row of each class:
 * a stall (the EMS or the feed paused: alive but silent) is named with the silent node;
 * the MQTT bridge's safety fallback steps (no state by design) are no lost messages: no
   warning, ``lost_messages`` empty, ``evaluate`` accepts the bag without ``--accept-gaps``;
-* SIGKILL of one container of a 2-building run: each building's summary lists the
-  damage of its own bag only;
+* SIGKILL of one container of a 2-building run: the launcher names the nodes that died with
+  it (building_0's), and each building's summary lists the damage of its own bag only and
+  which of its own nodes left (``nodes_here``: none for the intact building);
 * live inputs that cannot be fetched: the launch (exit 2, before anything starts) and the
   feed node (exit 2) refuse, naming the source URL;
 * a command built from anything another local user can read (every process's command
@@ -172,9 +173,12 @@ FAULTS = {
     "feed SIGINT": ([], "plant_sim", "feed", signal.SIGINT,
                     ["node 'feed' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
     "container SIGTERM": (["--buildings", "2", "--containers", "2"], "container_0", "container_1", signal.SIGTERM,
-                          ["node 'container_1' exited with code 3"], DEPARTURE_LIMIT_S),
+                          ["node 'container_1' exited with code 3",
+                           "(it ran recorder, fuzzy_ems, feed, plant_sim of /building_1)"],
+                          DEPARTURE_LIMIT_S),
     "role EMS SIGTERM": (["--buildings", "2", "--layout", "role"], "role_plant", "role_ems", signal.SIGTERM,
-                         ["node 'role_ems' exited with code 3"], DEPARTURE_LIMIT_S),
+                         ["node 'role_ems' exited with code 3", "(it ran fuzzy_ems of /building_0, /building_1)"],
+                         DEPARTURE_LIMIT_S),
     "mqtt_plant SIGTERM": (["--plant", "mqtt", "--weeks", "2"], "mqtt_bridge", "mqtt_plant", signal.SIGTERM,
                            ["node 'mqtt_plant' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
     "embedded MQTT broker SIGKILL": (["--plant", "mqtt", "--weeks", "2"], "mqtt_bridge", "broker", signal.SIGKILL,
@@ -272,8 +276,13 @@ def test_container_killed_damage_attributed_to_its_own_building(tmp_path: Path) 
     os.kill(_pid_of(out, "container_0"), signal.SIGKILL)
     code, err = run.finish()
     assert code == 1 and "node 'container_0' exited with code -9 (killed by SIGKILL)" in err, err
+    first = err.splitlines()[0]  # the nodes that died with the container: building_0's, none of building_1's
+    assert "(it ran recorder, rbc_ems, feed, plant_sim of /building_0)" in first and "/building_1" not in first, first
     b0 = json.loads((out / "building_0" / "summary.json").read_text())["bag_incomplete"]
     b1 = json.loads((out / "building_1" / "summary.json").read_text())["bag_incomplete"]
+    assert sorted(b0["run_cut"]["nodes_here"]) == [f"/building_0/{n}" for n in ("feed", "plant_sim", "rbc_ems",
+                                                                                 "recorder")]
+    assert b1["run_cut"]["nodes_here"] == []  # cut by the other building's loss: its own nodes all ran on
     assert b0["metadata_yaml"] is False  # its recorder was killed with its container
     assert b1["metadata_yaml"] is True and b1["damage"] == [] and b1["truncated_mcap"] is False
     assert all("building_1" not in d for d in b0["damage"]) and all("building_0" not in d for d in b1["damage"])

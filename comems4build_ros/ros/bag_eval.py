@@ -358,7 +358,9 @@ def evaluate_bag(
     ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
     read, whether an ``.mcap`` file ended early, and the damage found in this building's
     own bag, see :class:`BagInfo`; for a run the launcher cut short also ``run_cut``, its
-    :data:`RUN_CUT_FILE`, whose cause is repeated as the summary's ``run_cut``); a
+    :data:`RUN_CUT_FILE`, whose cause is repeated as the summary's ``run_cut``, with
+    ``nodes_here``: the nodes of this building among those of the process that left, so
+    that a building whose own nodes all ran on is told apart from the one that lost them); a
     partial last week is left out of the weekly medians like any
     partial week. Fault counters of the plant other than fallback steps are added as
     ``ros_faults`` when non-zero. Every file is written all-or-nothing.
@@ -416,7 +418,7 @@ def evaluate_bag(
                 "damage": list(info.damage),
             }
             if cut:
-                extra["bag_incomplete"]["run_cut"] = cut
+                extra["bag_incomplete"]["run_cut"] = dict(cut, nodes_here=nodes_of(cut.get("nodes") or [], ns))
                 extra["run_cut"] = cut.get("cause")
         faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
         if faults:
@@ -436,6 +438,11 @@ def evaluate_bag(
 
 
 BagOf = dict[str, tuple[BagInfo, dict[str, Any]]]
+
+
+def nodes_of(nodes: list[str], namespace: str) -> list[str]:
+    """The full node names of ``nodes`` that lie in ``namespace`` (``/`` or ``/building_<i>``)."""
+    return [n for n in nodes if isinstance(n, str) and (n.rpartition("/")[0] or "/") == namespace]
 
 
 def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], BagOf]:

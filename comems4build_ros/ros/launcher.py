@@ -87,13 +87,13 @@ def launch(opts: LaunchOptions) -> LaunchResult:
 
 def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
     """A run the launcher cut short: mark every bag (:data:`~comems4build_ros.ros.bag_eval.RUN_CUT_FILE`:
-    cause, process, exit code, log) and evaluate what was recorded into ``out`` (summaries
-    with ``run_cut`` and ``bag_incomplete``, put on ``exc.summaries``); a bag that cannot be
-    read is noted on stderr."""
+    cause, process, exit code, log, the ROS nodes of that process) and evaluate what was
+    recorded into ``out`` (summaries with ``run_cut`` and ``bag_incomplete``, put on
+    ``exc.summaries``); a bag that cannot be read is noted on stderr."""
     from .bag_eval import RUN_CUT_FILE, evaluate_bag, mark_run_cut
 
     marked = mark_run_cut(bag, {"cause": exc.cause, "process": exc.process, "exit_code": exc.code,
-                                "log": None if exc.log is None else str(exc.log)})
+                                "log": None if exc.log is None else str(exc.log), "nodes": list(exc.nodes)})
     if not marked:
         return
     try:

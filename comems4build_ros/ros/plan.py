@@ -264,6 +264,17 @@ class NodePlan:
     params: dict[str, Any] = field(default_factory=dict)
 
 
+def node_label(node: NodePlan) -> str:
+    """The node's full name under the namespace of the building it serves (``/building_0/plant_sim``,
+    ``/feed``): what the launcher names when the node's process leaves the run. A recorder
+    started at ``/`` for one building's bag (layout ``node``) is ``/building_0/recorder``."""
+    ns = node.namespace
+    recorded = node.params.get("namespaces") if node.role == "recorder" else None
+    if ns == "/" and isinstance(recorded, list) and len(recorded) == 1:
+        ns = str(recorded[0])
+    return f"{ns.rstrip('/')}/{node.name}"
+
+
 @dataclass(frozen=True)
 class ProcessPlan:
     """One OS process of the plan.

@@ -35,8 +35,8 @@ from pathlib import Path
 from typing import Any
 
 from .exits import exit_meaning
-from .plan import LaunchOptions, RunPlan, fastdds_profile, plan_run
-from .supervisor import LaunchError
+from .plan import LaunchOptions, RunPlan, fastdds_profile, node_label, plan_run
+from .supervisor import LaunchError, describe_nodes
 from .tokens import write_token_file
 
 PACKAGE = "comems4build_ros"
@@ -170,9 +170,11 @@ def plan_actions(plan: RunPlan) -> list[Any]:
             code = event.returncode
             if code != 0 or not process.finishes:
                 state["over"] = True
+                nodes = [node_label(n) for n in process.nodes]
+                ran = f" (it ran {describe_nodes(nodes)})" if len(nodes) > 1 else ""
                 raise LaunchError(f"run cut short: process '{process.name}' ({process.role}) exited with code {code} "
-                                  f"({exit_meaning(code)}) while the run was in progress; the launch fails (its "
-                                  "'cause:' line above says why)")
+                                  f"({exit_meaning(code)}) while the run was in progress{ran}; the launch fails (its "
+                                  "'cause:' line above says why)", process=process.name, code=code, nodes=nodes)
             state["ended"].add(process.name)
             if all(name in state["ended"] for name in ending):
                 state["over"] = True

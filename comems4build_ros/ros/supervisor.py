@@ -56,7 +56,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from .exits import CAUSE_TAG, exit_meaning
-from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile
+from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile, node_label
 from .tokens import private_dir, write_token_file
 
 #: Domain ids tried by :func:`acquire_domain_id` (0..101 keep Fast DDS's ports below the
@@ -82,16 +82,18 @@ class LaunchError(RuntimeError):
     ----------
     process : name of the process that left or is to blame (None: not known)
     code : its exit code (None: it did not exit)
+    nodes : full names of the ROS nodes that process ran (empty: not known, or no node)
     cause : one line: why the run was cut (the first line of the message)
     log : its log file (None: none)
     summaries : namespace -> summary of the cut run, when the launcher could evaluate the bag
     """
 
     def __init__(self, message: str, process: str | None = None, code: int | None = None,
-                 log: Path | None = None) -> None:
+                 log: Path | None = None, nodes: Sequence[str] = ()) -> None:
         super().__init__(message)
         self.process = process
         self.code = code
+        self.nodes = tuple(nodes)
         self.log = log
         self.cause = message.splitlines()[0] if message else ""
         self.summaries: dict[str, dict[str, Any]] = {}
@@ -163,6 +165,7 @@ class Child:
     stdout_reader: threading.Thread | None = None
     stage: int = STAGE_NODES
     finishes: bool = False
+    nodes: tuple[str, ...] = ()  # full names of the ROS nodes the process runs ("/building_0/plant_sim")
 
     def tail(self, lines: int = 8) -> str:
         """Last lines of the node's log."""
@@ -215,6 +218,7 @@ class ProcessGroup:
         env: dict[str, str] | None = None,
         stage: int | None = None,
         finishes: bool | None = None,
+        nodes: Sequence[str] = (),
     ) -> Child:
         """Start ``argv``; with ``on_stdout_line`` its stdout is read line by line in a thread.
 
@@ -222,6 +226,7 @@ class ProcessGroup:
         ``env`` is added to the group's environment. ``stage`` (stop order) and
         ``finishes`` (exit 0 at the end of the run is normal) default by ``role``:
         recorders stop after the nodes, a discovery server last; plants and recorders finish.
+        ``nodes``: full names of the ROS nodes the process runs (named when it leaves the run).
         """
         log_path = self.log_dir / f"{name.replace('/', '__')}.log"
         log: IO[bytes] = log_path.open("wb")
@@ -241,7 +246,7 @@ class ProcessGroup:
             stage = {"recorder": STAGE_RECORDERS, "discovery": STAGE_SERVICES}.get(role, STAGE_NODES)
         if finishes is None:
             finishes = role in ("plant", "recorder")
-        child = Child(name, role, proc, log_path, stage=stage, finishes=finishes)
+        child = Child(name, role, proc, log_path, stage=stage, finishes=finishes, nodes=tuple(nodes))
         if on_stdout_line is not None:
             assert proc.stdout is not None
             stream = proc.stdout
@@ -510,11 +515,31 @@ def left_error(c: Child, code: int) -> LaunchError:
     if text.startswith(f"{meaning}: "):
         text = text[len(meaning) + 2:]
     said = f": {cause.split(f' {CAUSE_TAG} ', 1)[0]} {text}" if text and text != meaning else ""
+    ran = f" (it ran {describe_nodes(c.nodes)})" if len(c.nodes) > 1 else ""
     return LaunchError(
-        f"run cut short: node '{c.name}' exited with code {code} ({meaning}) while the run was in progress{said} "
+        f"run cut short: node '{c.name}' exited with code {code} ({meaning}) while the run was in progress{ran}{said} "
         f"(log: {c.log_path})\n{c.tail()}",
-        process=c.name, code=code, log=c.log_path,
+        process=c.name, code=code, log=c.log_path, nodes=c.nodes,
     )
+
+
+def describe_nodes(nodes: Sequence[str], max_namespaces: int = 4) -> str:
+    """The nodes of a process that runs several, in words: node names per set of namespaces,
+    e.g. ``plant_sim, feed, rbc_ems, recorder of /building_0`` or ``rbc_ems of /building_0 ..
+    /building_7 (8 buildings)``."""
+    by_name: dict[str, list[str]] = {}
+    for full in nodes:
+        ns, _, name = full.rpartition("/")
+        by_name.setdefault(name, []).append(ns or "/")
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for name, spaces in by_name.items():
+        groups.setdefault(tuple(spaces), []).append(name)
+    parts = []
+    for spaces, names in groups.items():
+        where = (", ".join(spaces) if len(spaces) <= max_namespaces
+                 else f"{spaces[0]} .. {spaces[-1]} ({len(spaces)} buildings)")
+        parts.append(f"{', '.join(names)} of {where}")
+    return "; ".join(parts)
 
 
 def _paused(group: ProcessGroup) -> str:
@@ -565,7 +590,7 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
                 extra = {**plan.sides[p.side].env, **p.env}
                 listener = progress.listener(len(recorders)) if p.progress else None
                 child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
-                                    finishes=p.finishes)
+                                    finishes=p.finishes, nodes=[node_label(n) for n in p.nodes])
                 if p.role in ("recorder", "container"):  # a container's recorders end with it
                     recorders.append(child)
                 if p.role in ("plant", "container"):  # ... and so do its plants
