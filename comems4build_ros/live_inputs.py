@@ -256,6 +256,14 @@ class PriceSource(_CachedSource):
         hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h")
         return hour in self.prices.index and not math.isnan(float(self.prices[hour]))
 
+    def known(self, times: pd.DatetimeIndex) -> np.ndarray:
+        """For each hour start in ``times``: whether a live price is known for that hour itself
+        (False where :meth:`values` gives another day's price standing in for it)."""
+        if self.prices.empty:
+            return np.zeros(len(times), dtype=bool)
+        known = self.prices.reindex(pd.DatetimeIndex(times).tz_convert("UTC"))
+        return ~np.isnan(known.to_numpy(dtype=float))
+
     def require(self, t: float) -> None:
         """Refuse a run on live inputs without a live price for the hour of ``t`` (its first step).
 
@@ -387,6 +395,26 @@ class WeatherSource(_CachedSource):
         if self.frame.empty:
             return np.full(len(times), np.nan)
         return self.frame[name].reindex(pd.DatetimeIndex(times).tz_convert("UTC")).to_numpy(dtype=float)
+
+
+#: Kind of the ``feed/events`` line that states, from its step on, which live inputs stand-in
+#: values replace (:func:`stand_in_state`): ``<step> stand_in <state>: <explanation>``.
+STAND_IN_EVENT = "stand_in"
+#: States of :data:`STAND_IN_EVENT` lines: nothing replaced, or the inputs replaced.
+STAND_IN_STATES = ("none", "prices", "weather", "prices+weather")
+
+
+def stand_in_state(times: pd.DatetimeIndex, prices: PriceSource,
+                   weather: WeatherSource | None = None) -> list[str]:
+    """For each hour start in ``times``, which live inputs :func:`live_scenario` had to replace
+    by stand-in values (one of :data:`STAND_IN_STATES`): prices without a live price for
+    the hour (the same hour of the latest day with prices stands in), weather where the
+    forecast has no value or no weather source is configured (the scenario's stands in)."""
+    price = ~prices.known(times)
+    wx = np.ones(len(times), dtype=bool)
+    if weather is not None and weather.enabled:
+        wx = np.isnan(weather.values(times, "t_amb_c")) | np.isnan(weather.values(times, "ghi_w_m2"))
+    return [STAND_IN_STATES[int(p) + 2 * int(w)] for p, w in zip(price, wx)]
 
 
 def live_scenario(base: Scenario, params: PlantParams, start: pd.Timestamp, prices: PriceSource,

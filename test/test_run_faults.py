@@ -18,7 +18,8 @@ the test that spoofs commands. One case per row of each class:
   it (building_0's), and each building's summary lists the damage of its own bag only and
   which of its own nodes left (``nodes_here``: none for the intact building);
 * live inputs that cannot be fetched: the launch (exit 2, before anything starts) and the
-  feed node (exit 2) refuse, naming the source URL;
+  feed node (exit 2) refuse, naming the source URL; steps of a live run beyond the known
+  prices, and the scenario's weather, are stated on the console, in summary.json and in the bag;
 * a command built from anything another local user can read (every process's command
   line, every world-readable file of the run) is not applied; the run token (read here
   from its private file, as only the run's user can) is, which shows the spoof reached the plant.
@@ -323,6 +324,40 @@ def test_live_inputs_that_cannot_be_fetched_are_refused_naming_the_source(tmp_pa
     assert res.returncode == 2, res.stderr
     assert url in res.stderr and "no day-ahead price for the run's first hour" in res.stderr, res.stderr
     assert "Traceback" not in res.stderr
+
+
+def test_live_run_states_its_stand_in_prices_on_the_console_in_the_summary_and_the_bag(tmp_path: Path) -> None:
+    """Live prices known for 30 hours from the last hour, no weather source (the default): a
+    one-week run goes, and the steps beyond the known prices (the same hour of the latest
+    day standing in) and the scenario's weather are stated, not hidden."""
+    from test_live_inputs import Server, awattar_answer
+
+    from comems4build_ros.ros.bag import decode, iter_messages
+
+    first = pd.Timestamp.now(tz="Europe/Berlin").floor("h") - pd.Timedelta(hours=1)
+    server = Server()
+    server.responses = [(200, awattar_answer(first, 30, 80.0), 0.0)]
+    try:
+        out = tmp_path / "run"
+        res = subprocess.run([*CLI, "launch", "--ems", "rbc", "--weeks", "1", "--inputs", "live", "--live-config",
+                              str(_live_config(tmp_path, server.url)), "--out", str(out), "--no-progress"],
+                             capture_output=True, text=True, timeout=300)
+    finally:
+        server.close()
+    assert res.returncode == 0, res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    ts = pd.read_csv(out / "timeseries.csv")
+    end = first + pd.Timedelta(hours=30)  # the first hour without a live price
+    beyond = int((pd.to_datetime(ts["time"], utc=True) >= end.tz_convert("UTC")).sum())
+    assert summary["steps"] == 168 and 130 <= beyond <= 140, beyond
+    assert summary["scenario"] == "default+live"
+    assert summary["live_inputs"] == {"stand_in_price_steps": beyond, "stand_in_weather_steps": 168}
+    warning = f"live inputs: {beyond} of 168 steps ran on stand-in prices"
+    assert warning in res.stderr and "168 on the scenario's weather" in res.stderr, res.stderr
+    lines = [decode(m, raw).data for topic, m, _, raw in iter_messages(out / "bag") if topic == "/feed/events"]
+    stated = [ln for ln in lines if ln.split()[1] == "stand_in"]
+    assert [ln.split(":")[0] for ln in stated] == ["0 stand_in weather", f"{168 - beyond} stand_in prices+weather"]
+    print(f"live run: {res.stderr.strip().splitlines()[-1]}")
 
 
 # ---------------------------------------------------------------------- secrets

@@ -27,6 +27,7 @@ TRUTH_TOPIC = "feed/truth"
 STEP_TOPIC = "plant/step"
 #: The feed's scenario description (JSON, once).
 FEED_INFO_TOPIC = "feed/info"
+FEED_EVENTS_TOPIC = "feed/events"
 #: Steps before the last record of a cut bag that the gap check leaves out (feed
 #: look-ahead + 1) [steps].
 CUT_TAIL_STEPS = 5
@@ -53,6 +54,9 @@ class BagRun:
     gaps : topic -> steps of the recorded run with no message on it (:func:`find_gaps`)
     ems, scenario : EMS name (from ``ems/info``) and scenario description (``feed/info``)
         as the nodes announced them, None if not recorded
+    stand_in : for a run on live inputs, ``(step, state)`` of the feed's ``stand_in`` lines on
+        ``feed/events`` (:data:`~comems4build_ros.live_inputs.STAND_IN_EVENT`: which inputs
+        stand-in values replace from that step on); empty otherwise
     """
 
     namespace: str
@@ -64,6 +68,23 @@ class BagRun:
     gaps: dict[str, list[int]] = field(default_factory=dict)
     ems: str | None = None
     scenario: dict[str, Any] | None = None
+    stand_in: list[tuple[int, str]] = field(default_factory=list)
+
+    def stand_in_steps(self) -> dict[str, int]:
+        """Recorded steps whose price, and whose weather, stand-in values replaced
+        (:attr:`stand_in`; both 0 for a run on live inputs without any)."""
+        from ..live_inputs import STAND_IN_STATES
+
+        n = len(self.timeseries)
+        out = {"stand_in_price_steps": 0, "stand_in_weather_steps": 0}
+        marks = sorted(m for m in self.stand_in if m[1] in STAND_IN_STATES and m[0] < n)
+        for i, (k, state) in enumerate(marks):
+            end = marks[i + 1][0] if i + 1 < len(marks) else n
+            if "prices" in state:
+                out["stand_in_price_steps"] += end - k
+            if "weather" in state:
+                out["stand_in_weather_steps"] += end - k
+        return out
 
     @property
     def complete(self) -> bool:
@@ -116,6 +137,7 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
 
     import pandas as pd
 
+    from ..live_inputs import STAND_IN_EVENT
     from ..sim import TIMESERIES_COLUMNS
     from .contract import load_contract
 
@@ -131,6 +153,7 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
     n_steps: dict[str, int] = {}
     seen: dict[str, set[int]] = {}  # topic -> steps with a message (gap check)
     withheld: dict[str, set[int]] = {}  # namespace -> steps without state by design (WITHHELD_EVENT)
+    stand_in: dict[str, list[tuple[int, str]]] = {}  # namespace -> the feed's stand_in lines (live inputs)
     first_ns: int | None = None
     for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
         first_ns = t_ns if first_ns is None else min(first_ns, t_ns)
@@ -173,6 +196,13 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
             step_kind = event_step_kind(decode(msgtype, raw).data)
             if step_kind is not None and step_kind[1] == WITHHELD_EVENT:
                 withheld.setdefault(ns, set()).add(step_kind[0])
+            continue
+        ns = _split(topic, FEED_EVENTS_TOPIC)
+        if ns is not None:
+            line = decode(msgtype, raw).data
+            step_kind = event_step_kind(line)
+            if step_kind is not None and step_kind[1] == STAND_IN_EVENT:
+                stand_in.setdefault(ns, []).append((step_kind[0], line.split(None, 2)[2].split(":", 1)[0]))
             continue
         ns = _split(topic, FEED_INFO_TOPIC)
         if ns is not None:
@@ -219,6 +249,7 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
                            withheld.get(ns, set())),
             ems=ems_names.get(ns),
             scenario=scenarios.get(ns),
+            stand_in=sorted(set(stand_in.get(ns, []))),
         )
     return runs
 
@@ -363,7 +394,10 @@ def evaluate_bag(
     that a building whose own nodes all ran on is told apart from the one that lost them); a
     partial last week is left out of the weekly medians like any
     partial week. Fault counters of the plant other than fallback steps are added as
-    ``ros_faults`` when non-zero. Every file is written all-or-nothing.
+    ``ros_faults`` when non-zero. A run on live inputs adds ``live_inputs``: the recorded
+    steps whose price (``stand_in_price_steps``) and whose weather
+    (``stand_in_weather_steps``) stand-in values replaced, as the feed stated them on
+    ``feed/events``. Every file is written all-or-nothing.
 
     Raises
     ------
@@ -420,6 +454,8 @@ def evaluate_bag(
             if cut:
                 extra["bag_incomplete"]["run_cut"] = dict(cut, nodes_here=nodes_of(cut.get("nodes") or [], ns))
                 extra["run_cut"] = cut.get("cause")
+        if run.stand_in:  # a run on live inputs: how many steps ran on stand-in values
+            extra["live_inputs"] = run.stand_in_steps()
         faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
         if faults:
             extra["ros_faults"] = faults

@@ -82,7 +82,23 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     if lost:
         print(f"launcher: warning: the recording misses messages on {len(lost)} topic(s): {lost} "
               "(summary.json 'lost_messages')", file=sys.stderr)
+    warn_stand_in(summaries)
     return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
+
+
+def warn_stand_in(summaries: dict[str, dict[str, Any]]) -> None:
+    """Say on the console how many steps of a run on live inputs ran on stand-in prices or
+    weather (``live_inputs`` of the summaries; nothing for a run without)."""
+    for ns, s in summaries.items():
+        live = s.get("live_inputs") or {}
+        price, weather = live.get("stand_in_price_steps", 0), live.get("stand_in_weather_steps", 0)
+        if price or weather:
+            where = "" if ns == "/" else f" ({ns.strip('/')})"
+            print(f"launcher: warning: live inputs{where}: {price} of {s.get('steps')} steps ran on stand-in prices "
+                  "(no live price for their hour: the same hour of the latest day with prices stood in), "
+                  f"{weather} on the scenario's weather (no forecast for their hour, or no weather source); "
+                  "summary.json 'live_inputs', "
+                  "feed/events 'stand_in' lines in the bag", file=sys.stderr)
 
 
 def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:

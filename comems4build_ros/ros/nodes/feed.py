@@ -126,6 +126,8 @@ class LiveFeed:
                                      self.warnings.put)
         self.start_time = pd.Timestamp.now(tz=tz).floor("h")
         self.lock = threading.Lock()
+        self.states: list[str] = []  # per step: the inputs stand-in values replace (:meth:`scenario`)
+        self.stated = ""  # the state last stated on feed/events (:meth:`published`)
         self.changed = threading.Event()
         self.stop = threading.Event()
         self.prices.refresh(force=True)
@@ -134,11 +136,37 @@ class LiveFeed:
         self.thread = threading.Thread(target=self._work, name="live-inputs", daemon=True)
 
     def scenario(self) -> Scenario:
-        """The run's scenario with the live values known now."""
-        from ...live_inputs import live_scenario
+        """The run's scenario with the live values known now (and, in :attr:`states`, which
+        inputs of each step stand-in values replace)."""
+        import pandas as pd
+
+        from ...live_inputs import live_scenario, stand_in_state
 
         with self.lock:
-            return live_scenario(self.base, self.params, self.start_time, self.prices, self.weather)
+            scenario = live_scenario(self.base, self.params, self.start_time, self.prices, self.weather)
+            self.states = stand_in_state(pd.DatetimeIndex(scenario.time), self.prices, self.weather)
+        return scenario
+
+    def published(self, k: int) -> None:
+        """Step ``k`` is published for the first time: from the run's first step on, and
+        whenever it changes, the inputs that stand-in values replace are stated on
+        ``feed/events`` (:data:`~comems4build_ros.live_inputs.STAND_IN_EVENT`, read by
+        evaluate into ``live_inputs`` of the summary)."""
+        from ...live_inputs import STAND_IN_EVENT
+
+        state = self.states[k]
+        if k > 0 and state == self.stated:
+            return
+        self.stated = state
+        why = {
+            "none": "every input of this step is live",
+            "prices": "no live price for this hour: the same hour of the latest day with prices stands in",
+            "weather": "no weather forecast for this hour (or no weather source): the scenario's weather stands in",
+            "prices+weather": "no live price and no weather forecast for this hour (or no weather source): the same "
+                              "hour of the latest day with prices and the scenario's weather stand in",
+        }[state]
+        self.feed.event(STAND_IN_EVENT, f"{state}: {why} (from this step on, until the next {STAND_IN_EVENT} line)",
+                        step=k)
 
     def start(self) -> None:
         """Start the worker thread and the feed's timer that takes new values in."""
@@ -245,9 +273,10 @@ class Feed(EndsWithRun, ContractNode):
         self._spot = scenario.spot_eur_per_mwh.tolist()
         self.scenario = scenario
 
-    def event(self, kind: str, detail: str) -> None:
-        """Log an input event and publish it on feed/events (``<step> <kind> <detail>``)."""
-        line = f"{self._next} {kind} {detail}"
+    def event(self, kind: str, detail: str, step: int | None = None) -> None:
+        """Log an input event and publish it on feed/events (``<step> <kind> <detail>``;
+        ``step`` default: the first step not yet published)."""
+        line = f"{self._next if step is None else step} {kind} {detail}"
         self.get_logger().warning(line)
         self._events.publish(String(data=line))
 
@@ -301,6 +330,8 @@ class Feed(EndsWithRun, ContractNode):
         last = min(k + self.lookahead, self.n_steps - 1)
         first = k if k <= self._last_request else max(self._next, k)
         for j in range(first, last + 1):
+            if self._live is not None and j >= self._next:
+                self._live.published(j)
             self._publish_step(j)
         self._next = max(self._next, last + 1)
         self._last_request = k
