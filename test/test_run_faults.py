@@ -358,6 +358,9 @@ def test_live_run_states_its_stand_in_prices_on_the_console_in_the_summary_and_t
     stated = [ln for ln in lines if ln.split()[1] == "stand_in"]
     assert [ln.split(":")[0] for ln in stated] == ["0 stand_in weather", f"{168 - beyond} stand_in prices+weather"]
     print(f"live run: {res.stderr.strip().splitlines()[-1]}")
+    ev = subprocess.run([*CLI, "evaluate", str(out / "bag"), "--out", str(tmp_path / "eval")],
+                        capture_output=True, text=True, timeout=120)
+    assert ev.returncode == 0 and f'"stand_in_price_steps": {beyond}' in ev.stdout, ev.stdout + ev.stderr
 
 
 # ---------------------------------------------------------------------- secrets

@@ -60,9 +60,9 @@ def run(args: argparse.Namespace) -> int:
     if not damaged:
         print(f"bag {bag}: complete")
     keys = ("weeks", "steps", "cost_eur_week_median", "discomfort_kh_week_median", "loh_end", "fallback_steps")
-    for ns, s in summaries.items():
-        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **({"bag_incomplete": s["bag_incomplete"]}
-                                                                               if "bag_incomplete" in s else {})}))
+    for ns, s in summaries.items():  # with what was cut or stood in (a run on live inputs), where it applies
+        marks = {k: s[k] for k in ("bag_incomplete", "live_inputs") if k in s}
+        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **marks}))
     out = Path(args.out)
     names = [n for n in RUN_FILES if not (args.no_timeseries and n == "timeseries.csv")]
     written = [building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names]
