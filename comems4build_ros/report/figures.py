@@ -624,34 +624,38 @@ def iter_figures(inputs: FigureInputs) -> Iterator[tuple[str, Figure]]:
         yield key, build(inputs)
 
 
-#: Inputs of the figures being written by forked worker processes (set only while they run).
-_FORKED: tuple[FigureInputs, Path] | None = None
+#: Inputs of the figures in a worker process (set by :func:`_init_worker`).
+_WORKER: tuple[FigureInputs, Path] | None = None
 
 
-def _write_forked(key: str) -> Path:
-    assert _FORKED is not None
-    inputs, out_dir = _FORKED
+def _init_worker(inputs: FigureInputs, out_dir: Path) -> None:
+    global _WORKER
+    _WORKER = (inputs, out_dir)
+
+
+def _write_in_worker(key: str) -> Path:
+    assert _WORKER is not None
+    inputs, out_dir = _WORKER
     return save_figure(FIGURES[key](inputs), out_dir / key)
 
 
 def all_figures(inputs: FigureInputs, out_dir: Path, jobs: int | None = None) -> dict[str, Path]:
     """Write every figure as ``<key>.pdf/.svg/.png`` into ``out_dir``; returns key -> PNG path.
 
-    The figures are drawn in up to ``jobs`` (default: CPU count) forked processes, which
-    inherit the inputs instead of receiving a copy; one job (or no ``fork``) draws them here.
+    The figures are drawn in up to ``jobs`` (default: CPU count) worker processes of a fork
+    server, which get the inputs once each; one job (or no fork server) draws them here.
+    The workers are never forked from this process: it may run other threads (DDS, a run
+    executor, a progress listener), and a child forked from it keeps only the forking thread
+    while locks the others held stay held, which hung or crashed figure workers.
     """
-    global _FORKED
     out_dir = Path(out_dir)
     workers = min(jobs or os.cpu_count() or 1, len(FIGURES))
-    if workers <= 1 or "fork" not in multiprocessing.get_all_start_methods():
+    if workers <= 1 or "forkserver" not in multiprocessing.get_all_start_methods():
         return {key: save_figure(fig, out_dir / key) for key, fig in iter_figures(inputs)}
     order = [*SLOW_FIGURES, *(k for k in FIGURES if k not in SLOW_FIGURES)]
-    _FORKED = (inputs, out_dir)
-    try:
-        with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("fork")) as pool:
-            written = dict(zip(order, pool.map(_write_forked, order)))
-    finally:
-        _FORKED = None
+    with ProcessPoolExecutor(workers, mp_context=multiprocessing.get_context("forkserver"),
+                             initializer=_init_worker, initargs=(inputs, out_dir)) as pool:
+        written = dict(zip(order, pool.map(_write_in_worker, order)))
     return {key: written[key] for key in FIGURES}
 
 
