@@ -3,7 +3,9 @@
 :func:`run_node` is the body of every node's ``main()`` (and :mod:`comems4build_ros.ros.container`
 does the same for several nodes): the lean single-threaded executor
 (:mod:`comems4build_ros.ros.executor`), clean shutdown on Ctrl-C / SIGTERM (executor
-shutdown, destroy node, ``rclpy.try_shutdown``), exit code 2 for bad input.
+shutdown, destroy node, ``rclpy.try_shutdown``) and the exit codes the supervisor reads
+(:data:`~comems4build_ros.ros.exits.EXIT_CODES`): 0 only once the node's part of the run is complete, a distinct code
+for bad input, for a signal before the end of the run and for a stalled run.
 """
 
 from __future__ import annotations
@@ -19,9 +21,7 @@ from rclpy.task import Future
 
 from ..config import ConfigError
 from .contract import ContractError
-
-#: Exit code of a node that refused to start (bad parameters, scenario or contract).
-EXIT_BAD_INPUT = 2
+from .exits import CAUSE_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 #: Environment variable choosing the executor of the node processes: ``lean`` (default,
 #: :class:`comems4build_ros.ros.executor.LeanExecutor`) or ``single`` (rclpy's
@@ -58,7 +58,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     The node may expose ``finished: rclpy.task.Future``; spinning stops when it
     completes (its result is the exit code, default 0). Ctrl-C (KeyboardInterrupt) and
     SIGTERM (ExternalShutdownException, or rclpy's error on the context the signal
-    handler has just shut down) end the spin with exit code 0. A
+    handler has just shut down) end the spin with exit code 0 if the node's part of the
+    run is complete (:func:`run_complete`), else :data:`EXIT_INTERRUPTED`. A
     :class:`ConfigError`, :class:`ContractError`, ``ValueError`` or a missing or existing file raised while the node
     is created is reported on stderr with exit code :data:`EXIT_BAD_INPUT`.
     Order of shutdown (as in the rclpy examples): executor shutdown, destroy node, rclpy shutdown.
@@ -75,10 +76,12 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
             executor.spin_until_future_complete(finished)
             if finished.done():
                 code = int(finished.result() or 0)
+            else:  # the spin ended because the signal handler shut the context down (no exception)
+                code = interrupted_code([node], name)
         else:
             executor.spin()
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        code = interrupted_code([node], name)
     except RuntimeError:
         # rclpy's SIGINT/SIGTERM handler shuts the context down from the signal; when that
         # falls between the executor's check and its next wait set, rclpy raises RCLError
@@ -86,6 +89,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
         # ExternalShutdownException. That is the same clean external shutdown.
         if rclpy.ok():
             raise
+        code = interrupted_code([node], name)
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
         label = node.get_name() if node is not None else name
         print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
@@ -99,6 +103,46 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
         print_cpu(name)
     return code
 
+
+
+def run_complete(node: Any) -> bool:
+    """Whether ``node``'s part of the run is complete, so that a signal now is a normal end.
+
+    A node says so with a ``run_complete`` attribute (the lock-step master after its last
+    step, the EMS and the feed once they saw ``plant/done``, the recorder once every
+    plant is done); a node with neither that nor a ``finished`` future has no run (always
+    complete); otherwise its ``finished`` future must be done. A node that was never
+    created (None) has not run.
+    """
+    if node is None:
+        return False
+    flag = getattr(node, "run_complete", None)
+    if flag is not None:
+        return bool(flag)
+    finished = getattr(node, "finished", None)
+    return finished is None or finished.done()
+
+
+def interrupted_code(nodes: list[Any], label: str) -> int:
+    """Exit code after SIGINT/SIGTERM: 0 if every node's run is complete, else
+    :data:`EXIT_INTERRUPTED` (with a :func:`report_cause` line)."""
+    if nodes and all(run_complete(n) for n in nodes):
+        return 0
+    if nodes and all(run_complete(n) or getattr(n, "run_over", False) for n in nodes):
+        # plant/done came, the node was waiting for the recorder to leave: after a complete
+        # run that is the supervisor's clean-up; otherwise its last messages may be unrecorded
+        report_cause(label, "stopped by a signal after the end of the run, before the recorder had left")
+    else:
+        report_cause(label, "stopped by a signal before the end of its run")
+    return EXIT_INTERRUPTED
+
+
+def report_cause(label: str, text: str) -> None:
+    """``[<label>] cause: <text>`` on stderr (the node's log): why it ends the run early.
+
+    The supervisor puts the last such line of a node's log first in its error message.
+    """
+    print(f"[{label}] {CAUSE_TAG} {text}", file=sys.stderr, flush=True)
 
 
 def ignore_sigint() -> None:
