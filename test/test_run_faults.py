@@ -417,7 +417,10 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
     # machine can stretch; 3 silent steps of 2 s would end the run as stalled (by design) before it is over
     run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", "5", "--domain-id", str(did))
     contract = load_contract()
-    spoof = [0.37, 2.0, 0.0, 0.0]  # DHW at 37 %: hp_mod, hp_mode, p_fc_w, p_bess_w (in range, distinctive)
+    # DHW at 37 %, the rest idle: hp_mod, hp_mode, p_fc_w, p_bess_w, p_el_w (in range, distinctive)
+    spoof = [0.37, 2.0, 0.0, 0.0, 0.0]
+    assert contract.topic("ems/command").layout_labels == ("step", "hp_mod", "hp_mode", "p_fc_w", "p_bess_w", "p_el_w",
+                                                           "token")
     steps: list[int] = []
     ems = None
     ctx = Context()

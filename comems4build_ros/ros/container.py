@@ -159,7 +159,15 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
 
     from ..config import ConfigError
     from .contract import ContractError
-    from .process import ignore_sigint, interrupted_code, make_executor, print_cpu
+    from .process import (
+        cleanup_deadline,
+        ignore_sigint,
+        init_rclpy,
+        interrupted_code,
+        make_executor,
+        print_cpu,
+        spin_until_done,
+    )
 
     makers: dict[str, Any] = {}
     roles = [entry_role(e, role) for e in spec["nodes"]]
@@ -167,7 +175,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         if r not in makers:
             makers[r] = node_factory(r, spec)
     prepared = prepare_feed_scenarios(spec, role)
-    rclpy.init(args=args)
+    init_rclpy(args)
     executor = make_executor()
     nodes: list[Any] = []
     code = 0
@@ -205,17 +213,17 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
 
         for f in futures:
             f.add_done_callback(check)
-        executor.spin_until_future_complete(all_done)
+        spin_until_done(executor, all_done)
         if all_done.done():
             code = int(all_done.result() or 0)
-        else:  # the spin ended because the signal handler shut the context down (no exception)
+        else:  # the spin ended because the context was shut down (no exception)
             code = interrupted_code(nodes, f"container {role}")
         if progress_nodes:
             print_progress(progress_nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
         code = interrupted_code(nodes, f"container {role}")
     except RuntimeError:
-        if rclpy.ok():  # see run_node: the context shut down by the signal handler
+        if rclpy.ok():  # see run_node: a context shut down from elsewhere
             raise
         code = interrupted_code(nodes, f"container {role}")
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
@@ -223,10 +231,12 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         code = EXIT_BAD_INPUT
     finally:
         ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
+        watchdog = cleanup_deadline(f"container {role}", code)
         executor.shutdown()
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
+        watchdog.cancel()
         print_cpu(f"container {role}")
     return code
 
