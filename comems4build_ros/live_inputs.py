@@ -14,7 +14,10 @@ source. Settings: ``config/live_inputs.yaml``.
 A missing, late (timeout) or malformed answer never replaces valid data: the last valid
 values stay in use and a warning goes to the ``warn`` callback (the feed publishes it on
 ``feed/events``). Hours without a live price take the price of the same hour on the
-latest day that has one (the last valid day-ahead profile).
+latest day that has one (the last valid day-ahead profile). A run does not start without
+a live price (fetched now, or cached) for its first hour (:meth:`PriceSource.require`):
+``comems4build launch --inputs live`` checks it before any node starts (exit code 2
+naming the source URL), and so does the feed node itself.
 
 :func:`live_scenario` lays a run's scenario on the wall-clock hours from now and puts the
 live values in, so the feed's :class:`~comems4build_ros.sim.ObservationBuilder` works
@@ -51,6 +54,10 @@ USER_AGENT = "comems4build_ros"
 
 class FetchError(RuntimeError):
     """Every attempt of a fetch failed (the message lists each attempt's reason)."""
+
+
+class LiveInputsError(ConfigError):
+    """A run on live inputs cannot start: no live price for its first hour (names the source URL)."""
 
 
 class _Model(Section):
@@ -161,9 +168,11 @@ class _CachedSource:
         self.sleep = sleep
         self.last_attempt: float | None = None
         self.warnings = 0
+        self.last_warning = ""
 
     def _warn(self, text: str) -> None:
         self.warnings += 1
+        self.last_warning = text
         self.warn(text)
 
 
@@ -240,6 +249,37 @@ class PriceSource(_CachedSource):
         write_json_atomic(self.cache_path, {"source": s.url, "fetched_unix_s": t,
                                             "prices": _series_to_doc(self.prices)})
         return True
+
+    def has_price(self, t: float) -> bool:
+        """Whether a live price (fetched now or cached) is known for the hour of ``t`` itself
+        (no other day's price standing in for it)."""
+        hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h")
+        return hour in self.prices.index and not math.isnan(float(self.prices[hour]))
+
+    def known(self, times: pd.DatetimeIndex) -> np.ndarray:
+        """For each hour start in ``times``: whether a live price is known for that hour itself
+        (False where :meth:`values` gives another day's price standing in for it)."""
+        if self.prices.empty:
+            return np.zeros(len(times), dtype=bool)
+        known = self.prices.reindex(pd.DatetimeIndex(times).tz_convert("UTC"))
+        return ~np.isnan(known.to_numpy(dtype=float))
+
+    def require(self, t: float) -> None:
+        """Refuse a run on live inputs without a live price for the hour of ``t`` (its first step).
+
+        Raises
+        ------
+        LiveInputsError
+            Naming the source URL and why (the last failed fetch, or what is known).
+        """
+        if self.has_price(t):
+            return
+        hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h").tz_convert(self.tz)
+        why = self.last_warning or f"no price for that hour in the answer ({self.describe()})"
+        raise LiveInputsError(
+            f"live inputs: no day-ahead price for the run's first hour {hour.isoformat()} from {self.settings.url} "
+            f"({why}). A run on live inputs does not start on stand-in prices (the scenario's laid on today's "
+            "hours); check the network and the source, or run on the scenario's inputs (--inputs scenario)")
 
     def describe(self) -> str:
         """Which prices are known (for warnings)."""
@@ -355,6 +395,26 @@ class WeatherSource(_CachedSource):
         if self.frame.empty:
             return np.full(len(times), np.nan)
         return self.frame[name].reindex(pd.DatetimeIndex(times).tz_convert("UTC")).to_numpy(dtype=float)
+
+
+#: Kind of the ``feed/events`` line that states, from its step on, which live inputs stand-in
+#: values replace (:func:`stand_in_state`): ``<step> stand_in <state>: <explanation>``.
+STAND_IN_EVENT = "stand_in"
+#: States of :data:`STAND_IN_EVENT` lines: nothing replaced, or the inputs replaced.
+STAND_IN_STATES = ("none", "prices", "weather", "prices+weather")
+
+
+def stand_in_state(times: pd.DatetimeIndex, prices: PriceSource,
+                   weather: WeatherSource | None = None) -> list[str]:
+    """For each hour start in ``times``, which live inputs :func:`live_scenario` had to replace
+    by stand-in values (one of :data:`STAND_IN_STATES`): prices without a live price for
+    the hour (the same hour of the latest day with prices stands in), weather where the
+    forecast has no value or no weather source is configured (the scenario's stands in)."""
+    price = ~prices.known(times)
+    wx = np.ones(len(times), dtype=bool)
+    if weather is not None and weather.enabled:
+        wx = np.isnan(weather.values(times, "t_amb_c")) | np.isnan(weather.values(times, "ghi_w_m2"))
+    return [STAND_IN_STATES[int(p) + 2 * int(w)] for p, w in zip(price, wx)]
 
 
 def live_scenario(base: Scenario, params: PlantParams, start: pd.Timestamp, prices: PriceSource,

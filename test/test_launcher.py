@@ -127,9 +127,20 @@ def _pid_of(out: Path, name: str) -> int:
     raise AssertionError(f"no process {name}")
 
 
+def _records_on_disk(bag: Path) -> int:
+    """plant/record messages readable now from the bag the recorder is writing (0 if none yet)."""
+    from comems4build_ros.ros.bag import iter_messages
+
+    try:
+        return sum(1 for _ in iter_messages(bag, ["/plant/record"]))
+    except (OSError, ValueError):
+        return 0
+
+
 def _finish(proc: subprocess.Popen, out: Path) -> tuple[int, str]:
     try:
-        _, err = proc.communicate(timeout=90)
+        stdout, err = proc.communicate(timeout=90)
+        proc.stdout_text = stdout  # type: ignore[attr-defined]  # for the assertion messages
     finally:
         if proc.poll() is None:
             proc.kill()
@@ -149,7 +160,7 @@ def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path: Path) -> None:
     time.sleep(1.0)
     proc.send_signal(signal.SIGINT)
     code, err = _finish(proc, out)
-    assert code == 130, err
+    assert code == 130, (err, getattr(proc, "stdout_text", ""))
     assert (out / "bag" / "metadata.yaml").is_file()  # recorder stopped last, bag closed cleanly
 
 
@@ -168,7 +179,7 @@ def test_recorder_sigkill_then_evaluate_reads_the_cut_bag(tmp_path: Path) -> Non
     out = tmp_path / "run"
     proc = _cli(out)
     _wait_for(lambda: _running(out))
-    time.sleep(2.5)  # > the 1 s chunk period: some chunks are on disk
+    _wait_for(lambda: _records_on_disk(out / "bag") > 0)  # closed chunks with plant/record (1 s chunk period)
     os.kill(_pid_of(out, "recorder"), signal.SIGKILL)
     code, err = _finish(proc, out)
     assert code == 1 and "node 'recorder' exited with code -9" in err

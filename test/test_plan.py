@@ -16,6 +16,7 @@ from comems4build_ros.ros.plan import (
     STAGE_RECORDERS,
     STAGE_SERVICES,
     LaunchOptions,
+    node_label,
     plan_run,
 )
 from comems4build_ros.scenario.settings import load_scenario_settings
@@ -38,9 +39,16 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
     assert (rec.finishes, rec.progress, rec.stop_stage) == (True, True, STAGE_RECORDERS)
     assert (plant.finishes, plant.stop_stage) == (True, STAGE_NODES)
     assert ems.finishes and feed.finishes  # every node exits 0 on plant/done
-    token = plan.buildings[0].token
-    assert 0 < token <= 2**48 and _param(ems.argv, "run_token") == str(token)
-    assert _param(plant.argv, "ems_token") == str(token)
+    token, token_file = plan.buildings[0].token, plan.buildings[0].token_file
+    assert 0 < token < 2**53 and token_file == str((tmp_path / "run" / ".secrets" / "root.token").resolve())
+    # the run secret reaches EMS and plant through a file (mode 0600, written by the supervisor):
+    # never on a command line, in a parameter or in the plan's printed form
+    assert _param(ems.argv, "run_token_file") == json.dumps(token_file)
+    assert _param(plant.argv, "ems_token_file") == json.dumps(token_file)
+    assert plan.secrets == ((token_file, token),)
+    assert all(str(token) not in " ".join(p.argv) for p in plan.processes) and str(token) not in plan.describe()
+    assert str(token) not in json.dumps(plan.to_dict())
+    assert _param(plant.argv, "stall_steps") == "3" and plan.stall_s == pytest.approx(90.0)
     assert plan.timeout_s == pytest.approx(300.0 + 0.1 * 36)  # default overall time limit
     assert _param(plant.argv, "wait_for_recorder") == "true"
     assert _param(feed.argv, "weeks") == "1" and _param(feed.argv, "steps") == "36"
@@ -75,6 +83,25 @@ def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
     assert not any(p.role == "discovery" for p in plan.processes)
     with pytest.raises(KeyError, match="no process 'nope'.*role_feed"):
         plan.process("nope")
+
+
+@pytest.mark.parametrize("layout", ["node", "role", "building"])
+def test_nodes_of_each_process_are_named_with_the_building_they_serve(layout: str, tmp_path: Path) -> None:
+    """What the launcher names when a process leaves the run (``supervisor.left_error``)."""
+    from comems4build_ros.ros.supervisor import describe_nodes
+
+    plan = plan_run(LaunchOptions(ems="rbc", out=tmp_path, weeks=1, buildings=2, layout=layout), domain_id=1)
+    labels = {p.name: [node_label(n) for n in p.nodes] for p in plan.processes}
+    every = sorted(n for names in labels.values() for n in names)
+    assert every == sorted(f"/building_{i}/{n}" for i in (0, 1) for n in ("recorder", "rbc_ems", "feed", "plant_sim"))
+    if layout == "node":
+        assert labels["building_0/recorder"] == ["/building_0/recorder"]  # started at /, records building_0
+    if layout == "role":
+        assert describe_nodes(labels["role_ems"]) == "rbc_ems of /building_0, /building_1"
+    if layout == "building":
+        assert describe_nodes(labels["container_1"]) == "recorder, rbc_ems, feed, plant_sim of /building_1"
+    many = [f"/building_{i}/rbc_ems" for i in range(8)]
+    assert describe_nodes(many) == "rbc_ems of /building_0 .. /building_7 (8 buildings)"
 
 
 def test_plant_params_override_host_defaults(tmp_path: Path) -> None:

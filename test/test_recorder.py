@@ -187,7 +187,7 @@ def test_recorder_records_and_closes_on_signal(tmp_path: Path, sig: signal.Signa
         assert pub.wait(timeout=60) == 0
         time.sleep(0.3)
         rec.send_signal(sig)
-        assert rec.wait(timeout=20) == 0
+        assert rec.wait(timeout=20) == 0  # stop_when_done false: it records until stopped, a signal is its end
     assert (bag / "metadata.yaml").is_file()
     with AnyReader([bag]) as reader:
         conns = [c for c in reader.connections if c.topic == "/state/soc"]

@@ -253,7 +253,11 @@ def test_ros2_run_every_node_and_describe_every_parameter(ros2, domain_id, tmp_p
             if p.poll() is None:
                 os.killpg(p.pid, signal.SIGINT)
         codes = {exe: p.wait(timeout=30) for exe, p in procs.items()}
-    assert codes == dict.fromkeys(runs, 0), {e: (c, procs[e].stdout.read()[-800:]) for e, c in codes.items() if c}
+    # a clean shutdown on Ctrl-C, with the exit code of a node whose run never ended (exits.py: 3)
+    outputs = {e: p.stdout.read() for e, p in procs.items()}
+    assert codes == dict.fromkeys(runs, 3), {e: (c, outputs[e][-800:]) for e, c in codes.items() if c != 3}
+    assert all("Traceback" not in text and "cause: stopped by a signal before the end of its run" in text
+               for text in outputs.values()), outputs
 
 
 def test_ros2_run_replay_and_mqtt_plant(ros2, domain_id, tmp_path) -> None:
@@ -266,3 +270,53 @@ def test_ros2_run_replay_and_mqtt_plant(ros2, domain_id, tmp_path) -> None:
     assert rep.returncode == 0, rep.stderr[-2000:]
     helped = run_ros2(ros2, ["run", "comems4build_ros", "mqtt_plant", "--help"], domain_id, tmp_path, timeout=60)
     assert helped.returncode == 0 and "--broker" in helped.stdout
+
+
+def test_ros2_launch_fails_at_once_when_a_node_leaves(ros2, domain_id, tmp_path) -> None:
+    """The launch file's exit rule is the supervisor's: plant_sim stopped by SIGTERM mid-run
+    (exit code 3) fails the launch at once, naming it, its exit code and what it means."""
+    import signal
+    import threading
+    import time
+
+    from comems4build_ros.ros.supervisor import processes_with_env
+
+    out = tmp_path / "run"
+    env = dict(ros2["env"], ROS_DOMAIN_ID=str(domain_id), ROS_LOG_DIR=str(tmp_path / "ros_log"),
+               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
+    proc = subprocess.Popen([*ros2["argv"], "launch", "comems4build_ros", "comems4build.launch.py", "ems:=fuzzy",
+                             "weeks:=12", "step_timeout:=2", f"out:={out}"], env=env, cwd=tmp_path, text=True,
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT)
+    lines: list[tuple[float, str]] = []
+
+    def read() -> None:
+        assert proc.stdout is not None
+        for line in proc.stdout:
+            lines.append((time.monotonic(), line.rstrip("\n")))
+
+    reader = threading.Thread(target=read, daemon=True)
+    reader.start()
+    try:
+        t_end = time.monotonic() + 180
+        while time.monotonic() < t_end and proc.poll() is None and sum(
+                f.stat().st_size for f in (out / "bag").rglob("*.mcap")) < 100_000:
+            time.sleep(0.05)
+        assert proc.poll() is None, "\n".join(line for _, line in lines)[-3000:]
+        plant = [pid for pid in processes_with_env("ROS_LOG_DIR", str(tmp_path / "ros_log"))
+                 if any(Path(a.decode()).name == "plant_sim"
+                        for a in Path(f"/proc/{pid}/cmdline").read_bytes().split(b"\0")[:3])]
+        assert len(plant) == 1
+        t_signal = time.monotonic()
+        os.kill(plant[0], signal.SIGTERM)
+        proc.wait(timeout=120)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        reader.join(5)
+        for pid in processes_with_env("ROS_LOG_DIR", str(tmp_path / "ros_log")):
+            os.kill(pid, signal.SIGKILL)
+    text = "\n".join(line for _, line in lines)
+    assert proc.returncode != 0, text[-3000:]
+    named = [t for t, line in lines if "process 'plant_sim' (plant) exited with code 3 (stopped by a signal" in line]
+    assert named and named[0] - t_signal < 10.0, text[-3000:]
+    print(f"ros2 launch named plant_sim {named[0] - t_signal:.2f} s after SIGTERM")

@@ -48,19 +48,21 @@ def run(args: argparse.Namespace) -> int:
     with atomic_dir(args.out, replaces=(*RUN_FILES, "building_*")) as stage:
         summaries = evaluate_bag(bag, stage, params=params, timeseries=not args.no_timeseries,
                                  accept_gaps=args.accept_gaps)
-    damaged = [s["bag_incomplete"] for s in summaries.values() if "bag_incomplete" in s]
-    if damaged:
-        d = damaged[0]
+    damaged = {ns: s["bag_incomplete"] for ns, s in summaries.items() if "bag_incomplete" in s}
+    for ns, d in damaged.items():  # each building with its own bag's damage
         why = "; ".join(d["damage"]) or ("no metadata.yaml (recorder killed?); read the .mcap directly"
                                           if not d["metadata_yaml"] else "")
-        print(f"bag {bag}: incomplete: {d['steps_recorded']} of {d['steps_expected'] or '?'} steps recorded"
+        if d.get("run_cut"):
+            why = f"run cut short: {d['run_cut'].get('cause')}" + (f"; {why}" if why else "")
+        where = "" if len(summaries) == 1 else f" (building {ns.strip('/') or 'root'})"
+        print(f"bag {bag}{where}: incomplete: {d['steps_recorded']} of {d['steps_expected'] or '?'} steps recorded"
               + (f"; {why}" if why else ""))
-    else:
+    if not damaged:
         print(f"bag {bag}: complete")
     keys = ("weeks", "steps", "cost_eur_week_median", "discomfort_kh_week_median", "loh_end", "fallback_steps")
-    for ns, s in summaries.items():
-        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **({"bag_incomplete": s["bag_incomplete"]}
-                                                                               if "bag_incomplete" in s else {})}))
+    for ns, s in summaries.items():  # with what was cut or stood in (a run on live inputs), where it applies
+        marks = {k: s[k] for k in ("bag_incomplete", "live_inputs") if k in s}
+        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **marks}))
     out = Path(args.out)
     names = [n for n in RUN_FILES if not (args.no_timeseries and n == "timeseries.csv")]
     written = [p for p in (building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names) if p.exists()]

@@ -45,7 +45,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="MQTT broker, mqtt://host:port or mqtts://host:port (default: an embedded amqtt broker)")
     parser.add_argument("--topic-map", metavar="FILE", default=None, help="MQTT topic map (default config/mqtt.yaml)")
     parser.add_argument("--inputs", choices=("scenario", "live"), default="scenario",
-                        help="feed inputs: the scenario (default) or live aWATTar prices and weather (real buildings)")
+                        help="feed inputs: the scenario (default) or live aWATTar prices and weather (real buildings; "
+                             "refused with exit code 2 when no live price for the current hour can be had)")
+    parser.add_argument("--live-config", metavar="FILE", default=None,
+                        help="live-input settings for --inputs live (default config/live_inputs.yaml)")
     parser.add_argument("--out", metavar="DIR", required=True,
                         help="output directory (bag/, log/, weekly.csv, summary.json)")
     parser.add_argument("--bag", metavar="DIR", default=None,
@@ -167,6 +170,7 @@ def launch_options(args: argparse.Namespace) -> Any:
     params = load_params(args.config, overrides)
     ems_controller(args.ems, params, args.ems_option)  # the EMS node's own checks, before any node starts
     check_feed_scenario(args, params)
+    check_live_inputs(args, params)
     return LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
@@ -189,6 +193,7 @@ def launch_options(args: argparse.Namespace) -> Any:
         broker_url=args.broker,
         topic_map=args.topic_map,
         inputs=args.inputs,
+        live_config=getattr(args, "live_config", None),
         network=args.network,
         netem=args.netem,
         containers=args.containers,
@@ -219,13 +224,21 @@ def run(args: argparse.Namespace) -> int:
     bag = Path(args.bag) if args.bag else Path(args.out) / "bag"
     if bag.exists():
         raise UsageError(f"--out {args.out}: {bag} exists (choose another --out or --bag, or remove it)")
+    keys = ("weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
+            "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "fallback_steps")
     try:
         result = launch(opts)
     except LaunchError as exc:
+        # first: that the run was cut and why (the message names the node, its exit code and log)
         print(f"comems4build launch: {exc}", file=sys.stderr)
+        for ns, s in exc.summaries.items():
+            inc = s.get("bag_incomplete", {})
+            print(json.dumps({"building": ns, "run_cut": True, "steps_recorded": inc.get("steps_recorded"),
+                              "steps_expected": inc.get("steps_expected"), **{k: s.get(k) for k in keys}}))
+        if exc.summaries:
+            print(f"comems4build launch: the run was cut short: the figures above cover only the steps recorded; "
+                  f"{bag} is kept and marked incomplete (run_cut.json), summaries in {args.out}", file=sys.stderr)
         return 1
-    keys = ("weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
-            "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "fallback_steps")
     for ns, s in result.summaries.items():
         print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}}))
     print(f"ROS domain {result.domain_id}: {len(result.summaries)} building(s), wall {result.wall_s:.1f} s "
@@ -234,6 +247,44 @@ def run(args: argparse.Namespace) -> int:
     for s in result.summaries.values():
         warn_run(s, "launch")
     return 0
+
+
+def check_live_inputs(args: argparse.Namespace, params: Any) -> None:
+    """``--live-config`` (needs ``--inputs live``) and, for a run on live inputs, a live
+    price for the current hour, fetched as the feed will fetch it (or cached): without it
+    the run is refused (:class:`UsageError` naming the source URL), before any node starts.
+    ``--print-plan`` fetches nothing."""
+    import shutil
+    import tempfile
+    import time
+
+    from ..config import check_input_file
+    from ..live_inputs import LiveInputsError, PriceSource, load_live_settings
+    from .options import UsageError
+
+    live_config = getattr(args, "live_config", None)
+    if live_config is not None:
+        if args.inputs != "live":
+            raise UsageError("--live-config needs --inputs live")
+        check_input_file(live_config, "--live-config")
+    if args.inputs != "live":
+        return
+    settings = load_live_settings(live_config).prices
+    if args.print_plan:
+        return
+    cache = Path(settings.cache_file) if settings.cache_file else Path(args.out) / "live_prices.json"
+    with tempfile.TemporaryDirectory(prefix="comems4build_live_") as tmp:
+        probe = cache
+        if not cache.parent.is_dir():  # nothing is written before the run: fetch into a scratch cache
+            probe = Path(tmp) / cache.name
+            if cache.is_file():
+                shutil.copy(cache, probe)
+        prices = PriceSource(settings, params.site.timezone, probe, lambda text: None)
+        prices.refresh(force=True)
+        try:
+            prices.require(time.time())
+        except LiveInputsError as exc:
+            raise UsageError(f"--inputs live: {exc}") from None
 
 
 def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:

@@ -113,6 +113,7 @@ class MqttLink:
         self.inbox: queue.SimpleQueue[Message] = queue.SimpleQueue()
         self.connected = threading.Event()
         self.connects = 0  # successful connects (1 + reconnects)
+        self.t_disconnected: float | None = None  # when the link was lost (time.monotonic; None = connected)
         self.disconnects = 0
         self.last_error = ""  # reason of the last refused connect or disconnect (never a password)
         self._on_connect_cb = on_connect
@@ -139,6 +140,7 @@ class MqttLink:
             self.last_error = str(reason)  # e.g. "Not authorized"; paho retries
             return
         self.connects += 1
+        self.t_disconnected = None
         for topic in self.subscriptions:
             client.subscribe(topic, qos=self.settings.qos)
         self.connected.set()
@@ -148,6 +150,8 @@ class MqttLink:
     def _on_disconnect(self, client: paho.Client, userdata: object, flags: object, reason: object,
                        props: object) -> None:
         self.connected.clear()
+        if self.t_disconnected is None:
+            self.t_disconnected = time.monotonic()
         self.disconnects += 1
         self.last_error = str(reason)
 
@@ -168,6 +172,16 @@ class MqttLink:
         if wait_s is None:
             return True
         return self.connected.wait(wait_s)
+
+    def describe(self) -> str:
+        """The link's state in words, for messages: connected, or for how long not and why."""
+        url = self.settings.url
+        if self.connected.is_set():
+            return f"broker {url}: connected"
+        since = "" if self.t_disconnected is None else f" for {time.monotonic() - self.t_disconnected:.1f} s"
+        why = f", last error: {self.last_error}" if self.last_error else ""
+        never = "" if self.connects else " (never connected)"
+        return f"broker {url}: not connected{since}{never}{why}; the broker is down or unreachable"
 
     def publish(self, topic: str, payload: bytes | str, retain: bool = False, qos: int | None = None) -> None:
         """Publish (queued by paho while disconnected for QoS > 0)."""

@@ -21,7 +21,9 @@ Clock (:mod:`comems4build_ros.mqtt.clock`):
   EMS acts on the latest measurements; no handshake).
 
 After the last step it repeats the last record until the bridge has announced the end
-on ``<base>/step`` (or ``done_timeout_s`` passed), then exits 0.
+on ``<base>/step`` (or ``done_timeout_s`` passed), then exits 0. SIGINT or SIGTERM
+before that end the process with exit code 3 (the run was cut; see
+:mod:`comems4build_ros.ros.exits`).
 """
 
 from __future__ import annotations
@@ -300,10 +302,19 @@ def main(argv: list[str] | None = None) -> int:
     link.publish(topic_map.topic("building", "availability"), "online", retain=True)
     print(f"[mqtt_plant] scenario '{scenario.name}': {building.n_steps} steps, clock {clock.spec()}, broker "
           f"{topic_map.broker.url}", file=sys.stderr, flush=True)
+    import signal
+
+    from ..ros.exits import CAUSE_TAG, EXIT_INTERRUPTED
+
+    def on_sigterm(signum: int, frame: Any) -> None:
+        raise KeyboardInterrupt(f"signal {signum}")
+
+    signal.signal(signal.SIGTERM, on_sigterm)  # as Ctrl-C: say goodbye on MQTT, exit with the code below
     try:
         code = run(building, link, clock, args.republish_s)
-    except KeyboardInterrupt:
-        code = 0
+    except KeyboardInterrupt:  # before the last step was acknowledged: the run was cut
+        print(f"[mqtt_plant] {CAUSE_TAG} stopped by a signal before the end of its run", file=sys.stderr, flush=True)
+        code = EXIT_INTERRUPTED
     link.stop(final=(topic_map.topic("building", "availability"), "offline"))
     return code
 

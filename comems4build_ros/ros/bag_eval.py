@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from .bag import NS_PER_S, BagInfo, bag_set, decode, iter_messages, ns_key
+from .contract import EVENTS_TOPIC, WITHHELD_EVENT, event_step_kind
 
 #: Topic (relative contract name) with one timeseries row per step.
 RECORD_TOPIC = "plant/record"
@@ -26,11 +27,16 @@ TRUTH_TOPIC = "feed/truth"
 STEP_TOPIC = "plant/step"
 #: The feed's scenario description (JSON, once).
 FEED_INFO_TOPIC = "feed/info"
+FEED_EVENTS_TOPIC = "feed/events"
 #: Steps before the last record of a cut bag that the gap check leaves out (feed
 #: look-ahead + 1) [steps].
 CUT_TAIL_STEPS = 5
 #: File the recorder writes next to the MCAP file with the run's description.
 RUN_INFO_FILE = "run_info.json"
+#: File the launcher writes next to the MCAP file of a run it cut short (why, which node).
+RUN_CUT_FILE = "run_cut.json"
+#: Node role of the MQTT bridge in the contract (what it publishes is what it can withhold).
+BRIDGE_ROLE = "bridge"
 
 
 @dataclass
@@ -48,6 +54,9 @@ class BagRun:
     gaps : topic -> steps of the recorded run with no message on it (:func:`find_gaps`)
     ems, scenario : EMS name (from ``ems/info``) and scenario description (``feed/info``)
         as the nodes announced them, None if not recorded
+    stand_in : for a run on live inputs, ``(step, state)`` of the feed's ``stand_in`` lines on
+        ``feed/events`` (:data:`~comems4build_ros.live_inputs.STAND_IN_EVENT`: which inputs
+        stand-in values replace from that step on); empty otherwise
     """
 
     namespace: str
@@ -59,6 +68,23 @@ class BagRun:
     gaps: dict[str, list[int]] = field(default_factory=dict)
     ems: str | None = None
     scenario: dict[str, Any] | None = None
+    stand_in: list[tuple[int, str]] = field(default_factory=list)
+
+    def stand_in_steps(self) -> dict[str, int]:
+        """Recorded steps whose price, and whose weather, stand-in values replaced
+        (:attr:`stand_in`; both 0 for a run on live inputs without any)."""
+        from ..live_inputs import STAND_IN_STATES
+
+        n = len(self.timeseries)
+        out = {"stand_in_price_steps": 0, "stand_in_weather_steps": 0}
+        marks = sorted(m for m in self.stand_in if m[1] in STAND_IN_STATES and m[0] < n)
+        for i, (k, state) in enumerate(marks):
+            end = marks[i + 1][0] if i + 1 < len(marks) else n
+            if "prices" in state:
+                out["stand_in_price_steps"] += end - k
+            if "weather" in state:
+                out["stand_in_weather_steps"] += end - k
+        return out
 
     @property
     def complete(self) -> bool:
@@ -111,6 +137,7 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
 
     import pandas as pd
 
+    from ..live_inputs import STAND_IN_EVENT
     from ..sim import TIMESERIES_COLUMNS
     from .contract import load_contract
 
@@ -125,6 +152,8 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
     scenarios: dict[str, dict[str, Any]] = {}
     n_steps: dict[str, int] = {}
     seen: dict[str, set[int]] = {}  # topic -> steps with a message (gap check)
+    withheld: dict[str, set[int]] = {}  # namespace -> steps without state by design (WITHHELD_EVENT)
+    stand_in: dict[str, list[tuple[int, str]]] = {}  # namespace -> the feed's stand_in lines (live inputs)
     first_ns: int | None = None
     for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
         first_ns = t_ns if first_ns is None else min(first_ns, t_ns)
@@ -161,6 +190,19 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
         ns = _split(topic, STEP_TOPIC)
         if ns is not None:
             seen.setdefault(topic, set()).add(int(decode(msgtype, raw).data))
+            continue
+        ns = _split(topic, EVENTS_TOPIC)
+        if ns is not None:
+            step_kind = event_step_kind(decode(msgtype, raw).data)
+            if step_kind is not None and step_kind[1] == WITHHELD_EVENT:
+                withheld.setdefault(ns, set()).add(step_kind[0])
+            continue
+        ns = _split(topic, FEED_EVENTS_TOPIC)
+        if ns is not None:
+            line = decode(msgtype, raw).data
+            step_kind = event_step_kind(line)
+            if step_kind is not None and step_kind[1] == STAND_IN_EVENT:
+                stand_in.setdefault(ns, []).append((step_kind[0], line.split(None, 2)[2].split(":", 1)[0]))
             continue
         ns = _split(topic, FEED_INFO_TOPIC)
         if ns is not None:
@@ -203,9 +245,11 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
             first_ns=int(first_ns or 0),
             last_ns=max(t for t, _ in by_step.values()),
             counters={c: int(last[c]) for c in counter_names},
-            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete, set(info.topics)),
+            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete, set(info.topics),
+                           withheld.get(ns, set())),
             ems=ems_names.get(ns),
             scenario=scenarios.get(ns),
+            stand_in=sorted(set(stand_in.get(ns, []))),
         )
     return runs
 
@@ -217,6 +261,15 @@ def is_per_step(spec: Any) -> bool:
     return bool(spec.is_array) or spec.name in (STEP_TOPIC, INFO_TOPIC)
 
 
+def withheld_topics(contract: Any) -> set[str]:
+    """Topics published once a step that a step named by a :data:`WITHHELD_EVENT` lacks by
+    design: those the MQTT bridge publishes besides ``plant/step`` and ``plant/record``
+    (``state/*``, ``feed/measured``)."""
+    bridges = {name for name, spec in contract.nodes.items() if spec.role == BRIDGE_ROLE}
+    return {spec.name for spec in contract.topics.values()
+            if is_per_step(spec) and spec.name not in (STEP_TOPIC, RECORD_TOPIC) and bridges & set(spec.publishers)}
+
+
 def find_gaps(
     contract: Any,
     ns: str,
@@ -225,6 +278,7 @@ def find_gaps(
     seen: dict[str, set[int]],
     complete: bool,
     recorded: set[str] | None = None,
+    withheld: set[int] | None = None,
 ) -> dict[str, list[int]]:
     """Steps of a recorded run with no message, per topic of namespace ``ns``.
 
@@ -233,15 +287,19 @@ def find_gaps(
     bag records (``recorded``: its connections; None = all; a topic left out of a
     recording is not a gap); steps ``0 .. n-1``
     (``n`` = recorded ``plant/record`` steps), except the fallback steps for the EMS's
-    topics (no command is expected there). A bag cut short (recorder killed) is checked
-    up to :data:`CUT_TAIL_STEPS` steps before its last record (the feed runs ahead and
-    the last messages before the cut need not all be in), and each topic with messages
-    only up to its own last recorded step: the recorder's queues of different topics can
-    be many steps apart when it is killed (what it had not written is the cut, reported
-    as ``bag_incomplete``; a step missing inside a topic's recorded span is a gap).
+    topics (no command is expected there) and the ``withheld`` steps (:data:`WITHHELD_EVENT`)
+    for the topics of :func:`withheld_topics` (no state was announced there, by design).
+    A bag cut short (recorder killed) is checked up to :data:`CUT_TAIL_STEPS` steps before
+    its last record (the feed runs ahead and the last messages before the cut need not all
+    be in), and each topic with messages only up to its own last recorded step: the
+    recorder's queues of different topics can be many steps apart when it is killed (what
+    it had not written is the cut, reported as ``bag_incomplete``; a step missing inside a
+    topic's recorded span is a gap).
     """
     roles = {name: spec.role for name, spec in contract.nodes.items()}
     last = n if complete else max(0, n - CUT_TAIL_STEPS)
+    withheld = withheld or set()
+    no_state = withheld_topics(contract) if withheld else set()
     out: dict[str, list[int]] = {}
     for spec in contract.topics.values():
         if spec.name == RECORD_TOPIC:
@@ -254,7 +312,8 @@ def find_gaps(
         from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
         got = seen.get(full, set())
         end = last if complete or not got else min(last, max(got) + 1)
-        missing = [k for k in range(end) if k not in got and not (from_ems and k in fallback)]
+        skip = (fallback if from_ems else set()) | (withheld if spec.name in no_state else set())
+        missing = [k for k in range(end) if k not in got and k not in skip]
         if missing:
             out[full] = missing
     return out
@@ -328,10 +387,17 @@ def evaluate_bag(
     the last record minus that of the first message); ``lost_messages`` (topic -> steps
     without a message, ``{}`` for a complete recording). An incomplete run or bag adds
     ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
-    read, whether an ``.mcap`` file ended early, and the damage found, see
-    :class:`BagInfo`); a partial last week is left out of the weekly medians like any
+    read, whether an ``.mcap`` file ended early, and the damage found in this building's
+    own bag, see :class:`BagInfo`; for a run the launcher cut short also ``run_cut``, its
+    :data:`RUN_CUT_FILE`, whose cause is repeated as the summary's ``run_cut``, with
+    ``nodes_here``: the nodes of this building among those of the process that left, so
+    that a building whose own nodes all ran on is told apart from the one that lost them); a
+    partial last week is left out of the weekly medians like any
     partial week. Fault counters of the plant other than fallback steps are added as
-    ``ros_faults`` when non-zero. Every file is written all-or-nothing.
+    ``ros_faults`` when non-zero. A run on live inputs adds ``live_inputs``: the recorded
+    steps whose price (``stand_in_price_steps``) and whose weather
+    (``stand_in_weather_steps``) stand-in values replaced, as the feed stated them on
+    ``feed/events``. Every file is written all-or-nothing.
 
     Raises
     ------
@@ -355,8 +421,7 @@ def evaluate_bag(
     run_info = read_run_info(path)
     if params is None:
         params = load_plant_params(run_info.get("config_files") or [], run_info.get("overrides") or {})
-    info = BagInfo(Path(path), [], False)
-    runs = read_runs(path, params.site.timezone, info)
+    runs, bag_of = read_bag_set(path, params.site.timezone)
     gaps = {t: steps for run in runs.values() for t, steps in run.gaps.items()}
     if gaps and not accept_gaps:
         raise BagGapError(
@@ -367,6 +432,7 @@ def evaluate_bag(
     summaries: dict[str, dict[str, Any]] = {}
     weekly_parts = []
     for ns, run in runs.items():
+        info, cut = bag_of[ns]  # the bag of this building: its own damage and cut, no other's
         scen = run.scenario or {}
         extra: dict[str, Any] = {
             "ems": run_info.get("ems") or run.ems,
@@ -377,7 +443,7 @@ def evaluate_bag(
             "bag_duration_s": (run.last_ns - run.first_ns) / NS_PER_S,
             "lost_messages": {t: len(steps) for t, steps in sorted(run.gaps.items())},
         }
-        if not run.complete or not info.complete or info.damage:
+        if not run.complete or not info.complete or info.damage or cut:
             extra["bag_incomplete"] = {
                 "steps_recorded": len(run.timeseries),
                 "steps_expected": run.n_steps,
@@ -385,6 +451,11 @@ def evaluate_bag(
                 "truncated_mcap": info.truncated,
                 "damage": list(info.damage),
             }
+            if cut:
+                extra["bag_incomplete"]["run_cut"] = dict(cut, nodes_here=nodes_of(cut.get("nodes") or [], ns))
+                extra["run_cut"] = cut.get("cause")
+        if run.stand_in:  # a run on live inputs: how many steps ran on stand-in values
+            extra["live_inputs"] = run.stand_in_steps()
         faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
         if faults:
             extra["ros_faults"] = faults
@@ -400,6 +471,77 @@ def evaluate_bag(
             weekly.to_csv(tmp / "weekly.csv", index=False)
             (tmp / "summary.json").write_text(json.dumps(combined, indent=2, default=_json_default) + "\n", "utf-8")
     return summaries
+
+
+BagOf = dict[str, tuple[BagInfo, dict[str, Any]]]
+
+
+def nodes_of(nodes: list[str], namespace: str) -> list[str]:
+    """The full node names of ``nodes`` that lie in ``namespace`` (``/`` or ``/building_<i>``)."""
+    return [n for n in nodes if isinstance(n, str) and (n.rpartition("/")[0] or "/") == namespace]
+
+
+def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], BagOf]:
+    """Every building's run of the bag (or set of per-building bags) at ``path``, each with
+    the :class:`BagInfo` of its own bag and that bag's :data:`RUN_CUT_FILE` (``{}`` if none).
+
+    Each bag of a set is read on its own, so damage (a truncated MCAP file of a killed
+    recorder) is attributed to the building whose bag has it. A bag of a set with no
+    ``plant/record`` at all (its recorder died before the first step) is left out; if no
+    bag has one, the ValueError names them.
+    """
+    parts = bag_set(path)
+    runs: dict[str, BagRun] = {}
+    bag_of: BagOf = {}
+    errors: list[str] = []
+    for part in parts:
+        info = BagInfo(part, [], False)
+        try:
+            part_runs = read_runs(part, timezone, info)
+        except ValueError as exc:
+            if len(parts) == 1:
+                raise
+            errors.append(str(exc))
+            continue
+        cut = read_run_cut(part)
+        for ns, run in part_runs.items():
+            runs[ns] = run
+            bag_of[ns] = (info, cut)
+    if not runs:
+        raise ValueError("; ".join(errors))
+    return runs, bag_of
+
+
+def read_run_cut(path: str | Path) -> dict[str, Any]:
+    """The :data:`RUN_CUT_FILE` of one bag (``{}`` if the run was not cut or the file is unreadable)."""
+    import json
+
+    p = Path(path)
+    f = (p if p.is_dir() else p.parent) / RUN_CUT_FILE
+    try:
+        doc = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def mark_run_cut(path: str | Path, cut: dict[str, Any]) -> list[Path]:
+    """Write ``cut`` (why the run was cut: cause, process, exit code, log) as
+    :data:`RUN_CUT_FILE` into every bag under ``path`` that exists; returns the files."""
+    import json
+
+    from ..fileio import write_text_atomic
+
+    p = Path(path)
+    if not p.exists():
+        return []
+    out = []
+    for part in bag_set(p):
+        d = part if part.is_dir() else part.parent
+        f = d / RUN_CUT_FILE
+        write_text_atomic(f, json.dumps(cut, indent=2) + "\n")
+        out.append(f)
+    return out
 
 
 def _json_default(value: Any) -> Any:
@@ -419,7 +561,7 @@ def lost_messages(path: str | Path) -> dict[str, int]:
     A complete recording gives ``{}``; used by the tests and ``bench ros`` to show that
     the recorder kept up.
     """
-    runs = read_runs(path, "UTC")
+    runs, _ = read_bag_set(path, "UTC")
     return {t: len(steps) for run in runs.values() for t, steps in sorted(run.gaps.items())}
 
 

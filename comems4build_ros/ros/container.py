@@ -36,7 +36,9 @@ are left out: their type cannot be inferred, as with ``-p``).
 Exit codes: a container process exits 0 once every node's ``finished`` future completed with
 0 (plants after their last step, recorders once their bags are complete, feed and EMS
 nodes on ``plant/done``); the first non-zero result is the exit code (an EMS node whose
-controller failed). A bad parameter or scenario gives exit code 2 and a message
+controller failed, a plant whose run stalled). SIGINT or SIGTERM give 0 only when every
+node's part of the run is complete, else exit code 3
+(:data:`~comems4build_ros.ros.process.EXIT_INTERRUPTED`). A bad parameter or scenario gives exit code 2 and a message
 naming the namespace. Parameter services are not started for contained nodes (fewer
 entities in the shared executor); ``ros2 param`` does not reach them.
 """
@@ -49,6 +51,8 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from .exits import EXIT_BAD_INPUT
+
 #: Roles of the nodes a container runs.
 NODE_ROLES = ("plant", "feed", "ems", "recorder")
 #: Role of a container process: every entry of its spec names its own node role.
@@ -58,8 +62,6 @@ ROLES = (*NODE_ROLES, CONTAINER)
 #: Roles whose process ends once all its nodes' ``finished`` futures are done (every node
 #: finishes at the end of the run: feed and EMS on ``plant/done``).
 FINISHING_ROLES = ROLES
-#: Exit code for a bad spec, parameter or scenario.
-EXIT_BAD_INPUT = 2
 
 
 class ContainerSpecError(ValueError):
@@ -157,7 +159,15 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
 
     from ..config import ConfigError
     from .contract import ContractError
-    from .process import ignore_sigint, make_executor, print_cpu
+    from .process import (
+        cleanup_deadline,
+        ignore_sigint,
+        init_rclpy,
+        interrupted_code,
+        make_executor,
+        print_cpu,
+        spin_until_done,
+    )
 
     makers: dict[str, Any] = {}
     roles = [entry_role(e, role) for e in spec["nodes"]]
@@ -165,7 +175,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         if r not in makers:
             makers[r] = node_factory(r, spec)
     prepared = prepare_feed_scenarios(spec, role)
-    rclpy.init(args=args)
+    init_rclpy(args)
     executor = make_executor()
     nodes: list[Any] = []
     code = 0
@@ -203,22 +213,30 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
 
         for f in futures:
             f.add_done_callback(check)
-        executor.spin_until_future_complete(all_done)
+        spin_until_done(executor, all_done)
         if all_done.done():
             code = int(all_done.result() or 0)
+        else:  # the spin ended because the context was shut down (no exception)
+            code = interrupted_code(nodes, f"container {role}")
         if progress_nodes:
             print_progress(progress_nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        code = interrupted_code(nodes, f"container {role}")
+    except RuntimeError:
+        if rclpy.ok():  # see run_node: a context shut down from elsewhere
+            raise
+        code = interrupted_code(nodes, f"container {role}")
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
         print(f"[container {role} {current}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
     finally:
         ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
+        watchdog = cleanup_deadline(f"container {role}", code)
         executor.shutdown()
         for node in nodes:
             node.destroy_node()
         rclpy.try_shutdown()
+        watchdog.cancel()
         print_cpu(f"container {role}")
     return code
 

@@ -34,6 +34,26 @@ import numpy as np
 
 from ..config import load_yaml
 
+#: The lock-step master's event topic: one line ``<step> <kind> <detail>`` per event.
+EVENTS_TOPIC = "plant/events"
+#: Kind of the ``plant/events`` line of a step whose state the master did not announce by
+#: design (the MQTT bridge's safety fallback): no ``state/*`` and no ``feed/measured`` for
+#: it (:func:`comems4build_ros.ros.bag_eval.withheld_topics`), and no command. The
+#: recorder and the bag's gap check expect none.
+WITHHELD_EVENT = "withheld"
+
+
+def event_step_kind(line: str) -> tuple[int, str] | None:
+    """``(step, kind)`` of a ``plant/events`` line ``<step> <kind> <detail>`` (None if malformed)."""
+    parts = line.split(None, 2)
+    if len(parts) < 2:
+        return None
+    try:
+        return int(parts[0]), parts[1]
+    except ValueError:
+        return None
+
+
 PACKAGE = "comems4build_ros"
 CONTRACT_FILE = "topics.yaml"
 

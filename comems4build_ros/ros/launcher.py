@@ -24,7 +24,7 @@ from typing import Any
 
 from ..progress import ProgressBar
 from .plan import LaunchOptions, plan_run
-from .supervisor import acquire_domain_id, run_plan
+from .supervisor import LaunchError, acquire_domain_id, run_plan
 
 
 @dataclass
@@ -45,7 +45,9 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     Raises
     ------
     LaunchError
-        If a node crashes or exits before the end, or ``timeout_s`` passes.
+        If a node crashes or leaves before the end, the run stalls, or ``timeout_s``
+        passes. The bag is kept and marked incomplete (:func:`cut_short`); the error
+        carries the summaries of the cut run when its bag could be read.
     KeyboardInterrupt
         On Ctrl-C or SIGTERM (after every child has been stopped).
     """
@@ -64,8 +66,13 @@ def launch(opts: LaunchOptions) -> LaunchResult:
             plan = plan_run(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
             if len(plan.buildings) > 1:
-                bag.mkdir(parents=True)
-            times = run_plan(plan, opts.on_progress or bar)
+                bag.mkdir(parents=True, mode=0o700)  # the bags hold the run tokens (ems/command)
+            try:
+                times = run_plan(plan, opts.on_progress or bar)
+            except LaunchError as exc:
+                bar.close()
+                cut_short(exc, bag, out, params)
+                raise
     finally:
         bar.close()
     wall = times.t_end - times.t0
@@ -75,4 +82,38 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     if lost:
         print(f"launcher: warning: the recording misses messages on {len(lost)} topic(s): {lost} "
               "(summary.json 'lost_messages')", file=sys.stderr)
+    warn_stand_in(summaries)
     return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
+
+
+def warn_stand_in(summaries: dict[str, dict[str, Any]]) -> None:
+    """Say on the console how many steps of a run on live inputs ran on stand-in prices or
+    weather (``live_inputs`` of the summaries; nothing for a run without)."""
+    for ns, s in summaries.items():
+        live = s.get("live_inputs") or {}
+        price, weather = live.get("stand_in_price_steps", 0), live.get("stand_in_weather_steps", 0)
+        if price or weather:
+            where = "" if ns == "/" else f" ({ns.strip('/')})"
+            print(f"launcher: warning: live inputs{where}: {price} of {s.get('steps')} steps ran on stand-in prices "
+                  "(no live price for their hour: the same hour of the latest day with prices stood in), "
+                  f"{weather} on the scenario's weather (no forecast for their hour, or no weather source); "
+                  "summary.json 'live_inputs', "
+                  "feed/events 'stand_in' lines in the bag", file=sys.stderr)
+
+
+def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
+    """A run the launcher cut short: mark every bag (:data:`~comems4build_ros.ros.bag_eval.RUN_CUT_FILE`:
+    cause, process, exit code, log, the ROS nodes of that process) and evaluate what was
+    recorded into ``out`` (summaries with ``run_cut`` and ``bag_incomplete``, put on
+    ``exc.summaries``); a bag that cannot be read is noted on stderr."""
+    from .bag_eval import RUN_CUT_FILE, evaluate_bag, mark_run_cut
+
+    marked = mark_run_cut(bag, {"cause": exc.cause, "process": exc.process, "exit_code": exc.code,
+                                "log": None if exc.log is None else str(exc.log), "nodes": list(exc.nodes)})
+    if not marked:
+        return
+    try:
+        exc.summaries = evaluate_bag(bag, out, params=params, accept_gaps=True)
+    except (ValueError, OSError) as err:
+        print(f"launcher: the cut run's bag {bag} (marked in {RUN_CUT_FILE}) could not be evaluated: {err}",
+              file=sys.stderr)

@@ -7,8 +7,8 @@ and goes on to ``k + 1`` (docs/ros_nodes.md "Lock-step protocol"). :class:`LockS
 owns what does not depend on what is stepped:
 
 * the loop's timing parameters (:data:`LOOP_PARAMS`, each positive) and flags
-  (``wait_for_recorder``, ``recorder_node``, ``exit_when_done``, ``ems_token``,
-  ``record_window_steps``);
+  (``wait_for_recorder``, ``recorder_node``, ``exit_when_done``, ``ems_token`` or
+  ``ems_token_file``, ``record_window_steps``, ``stall_steps``);
 * run tokens (:meth:`accept_token`): the commands of one EMS only, ``ems_token`` or the
   token of the run's first valid command; any other is counted as foreign;
 * the start gate (:meth:`recorder_ready`): with ``wait_for_recorder``, the recorder's
@@ -17,6 +17,12 @@ owns what does not depend on what is stepped:
   beyond ``recorder/progress``, the time held counted;
 * the run's fault counters and statistics (:meth:`stats`), fault events on
   ``plant/events`` (:meth:`event`), ``clock`` (:meth:`publish_clock`);
+* stalls (:meth:`check_stall`, with ``stall_steps`` > 0): the run ends with exit code
+  :data:`~comems4build_ros.ros.exits.EXIT_STALLED`, naming the silent party, once the
+  EMS has sent nothing for ``stall_steps`` step time-outs in a row (every one of them a
+  fallback step), or once no step was possible for ``stall_steps`` step time-outs while
+  the master waited for anything else than the EMS (the feed's inputs, the recorder's
+  progress, the building behind MQTT: :meth:`waiting_for`);
 * the end of the run (:meth:`finish_run`): the statistics line, ``plant/done``, the
   acknowledgement of the last messages, and the exit once the recorder has left.
 
@@ -28,6 +34,7 @@ subscriptions of ``ems/command`` and ``feed/truth``, and implements
 from __future__ import annotations
 
 import time
+from array import array
 from typing import Any
 
 from builtin_interfaces.msg import Time
@@ -36,8 +43,11 @@ from rclpy.task import Future
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, String, UInt32
 
+from .exits import EXIT_STALLED
 from .node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
 from .parameters import param, plant_params_from_node
+from .process import report_cause
+from .tokens import command_mac, read_token_file, secret_key
 
 #: Default wait for the command of a step once the EMS has answered at least once [s].
 STEP_TIMEOUT_S = 5.0
@@ -75,6 +85,10 @@ STATE_TOPICS: dict[str, tuple[str, ...]] = {
     "state/el_on": ("el_on",),
     "state/t_wall": ("t_wall_in_c", "t_wall_out_c"),
 }
+#: Shortest wait for the recorder's progress before a held run counts as stalled [s]: on a
+#: loaded machine a reliable writer's retransmission waits for its next heartbeat (seconds),
+#: so a live recorder can be still for a while (measured: 6 s at a load average of 9 on 2 cores).
+RECORDER_STALL_MIN_S = 60.0
 #: Names of the fault counters, in the order of ``plant/record`` and of the statistics.
 FAULT_COUNTERS = ("fallback_steps", "rejected_commands", "wrong_step_commands", "duplicate_commands",
                   "foreign_commands")
@@ -101,7 +115,11 @@ class LockStepMaster(ContractNode):
         self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.recorder_node = str(param(self, "recorder_node", RECORDER_NODE))
         self.exit_when_done = bool(param(self, "exit_when_done", True))
-        self.ems_token = int(param(self, "ems_token", 0))
+        token_file = str(param(self, "ems_token_file", ""))
+        # a run secret (file): every command authenticated; else a plain token (parameter) or none
+        self._key = secret_key(read_token_file(token_file)) if token_file else None
+        self.ems_token = 0 if token_file else int(param(self, "ems_token", 0))
+        self.stall_steps = int(param(self, "stall_steps", 0))
         self.record_window_steps = int(param(self, "record_window_steps", RECORD_WINDOW_STEPS))
         if self.record_window_steps < 1:
             raise ValueError(f"node '{node_name}': parameter 'record_window_steps' must be >= 1")
@@ -112,7 +130,10 @@ class LockStepMaster(ContractNode):
         self.n_steps: int | None = None
         self.started = False
         self.done = False
+        self.stalled = False
         self.finished = Future()
+        self.silent_fallbacks = 0  # fallback steps in a row without any command of the run's EMS
+        self._t_moved = time.monotonic()  # last step, recorder progress, or wait for the EMS (check_stall)
         for name in FAULT_COUNTERS:
             setattr(self, name, 0)
         self.held_s = 0.0  # time announcements waited for the recorder (back-pressure) [s]
@@ -136,7 +157,9 @@ class LockStepMaster(ContractNode):
         self._recorder_ready = bool(msg.data)
 
     def _on_recorder_progress(self, msg: UInt32) -> None:
-        self._recorded = max(self._recorded, int(msg.data))
+        if int(msg.data) > self._recorded:
+            self._recorded = int(msg.data)
+            self._t_moved = time.monotonic()
         self.on_recorder_progress()
 
     def on_recorder_progress(self) -> None:
@@ -163,12 +186,20 @@ class LockStepMaster(ContractNode):
         return behind
 
     # ------------------------------------------------------------------ commands
-    def accept_token(self, token: float, step: int) -> bool:
-        """Whether a valid command with run token ``token`` comes from the run's EMS: the
-        token is ``ems_token``, or else that of the run's first valid command; any other
-        token is counted in ``foreign_commands``, logged on plant/events and its command
-        ignored."""
-        if self._token is None:
+    def accept_token(self, data: Any, step: int) -> bool:
+        """Whether the valid command ``data`` (float64 array, the token last) comes from
+        the run's EMS (:mod:`comems4build_ros.ros.tokens`): with a run secret its token is
+        the authentication code of its other elements; else the token is ``ems_token``, or
+        else that of the run's first valid command. Any other command is counted in
+        ``foreign_commands``, logged on plant/events and ignored."""
+        token = data[-1]
+        if self._key is not None:
+            if token != command_mac(self._key, array("d", data[:-1]).tobytes()):
+                self.foreign_commands += 1
+                self.event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} "
+                                      "ignored (not authenticated by the run's secret)")
+                return False
+        elif self._token is None:
             self._token = token  # the first valid command names the run's EMS
             self.get_logger().info(f"commands of token {int(token)} accepted from now on")
         elif token != self._token:
@@ -176,7 +207,83 @@ class LockStepMaster(ContractNode):
             self.event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} ignored "
                                   f"(the run's EMS has token {int(self._token)})")
             return False
+        self.silent_fallbacks = 0  # the run's EMS is there (even if this command comes too late)
         return True
+
+    # ------------------------------------------------------------------ stalls
+    @property
+    def run_complete(self) -> bool:
+        """A signal from now on is a normal end (exit code 0): the last step is done and,
+        with ``exit_when_done``, the recorder has left (while it has not, a node leaving
+        would take its last messages out of the recorder's queues: the run is cut)."""
+        return self.done and not self.stalled and (not self.exit_when_done or self.finished.done())
+
+    @property
+    def run_over(self) -> bool:
+        """The last step is done (the node may still wait for the recorder to leave)."""
+        return self.done and not self.stalled
+
+    def note_fallback(self, ems_silent: bool) -> None:
+        """Count a fallback step: ``ems_silent`` if the EMS's command did not come in time
+        (a fallback for another reason, e.g. a bad measurement, says nothing about the EMS)."""
+        self.silent_fallbacks = self.silent_fallbacks + 1 if ems_silent else 0
+
+    def note_step(self) -> None:
+        """A step was made (:meth:`check_stall`)."""
+        self._t_moved = time.monotonic()
+
+    def stall_window_s(self) -> float:
+        """How long a wait may last before it is a stall: ``stall_steps`` step time-outs [s]."""
+        return self.stall_steps * self.step_timeout_s
+
+    def waiting_for(self) -> tuple[str, str | None] | None:
+        """What the master waits for now: ``(words naming the node or device, contract topic
+        whose publishers to name or None)``; None while it waits for the EMS's command (the
+        step time-out and :attr:`silent_fallbacks` cover that). Called at every watchdog
+        tick: no graph queries here. A wait for ``recorder/progress`` is a stall only after
+        :data:`RECORDER_STALL_MIN_S` at least."""
+        return None
+
+    def publishers_of(self, topic: str) -> str:
+        """The nodes publishing contract topic ``topic`` now, in words (for stall messages)."""
+        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(topic))
+        names = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos})
+        return f"publisher: {', '.join(names)}" if names else "no publisher left"
+
+    def check_stall(self, now: float) -> bool:
+        """End the run as stalled (:meth:`stall`) if, with ``stall_steps`` > 0, the EMS has
+        been silent for ``stall_steps`` fallback steps in a row, or no step was possible for
+        :meth:`stall_window_s` while the master waited for something else (:meth:`waiting_for`).
+        Called by the subclass's watchdog; returns whether the run stalled."""
+        if not self.stall_steps or not self.started or self.done:
+            return self.stalled
+        if self.silent_fallbacks >= self.stall_steps:
+            self.stall(f"the EMS is silent: no command on 'ems/command' for {self.silent_fallbacks} steps in a row "
+                       f"(step time-out {self.step_timeout_s:g} s; {self.publishers_of('ems/command')})")
+            return True
+        waiting = self.waiting_for()
+        if waiting is None:
+            self._t_moved = now
+        elif now - self._t_moved > (self.stall_window_s() if waiting[1] != "recorder/progress"
+                                    else max(self.stall_window_s(), RECORDER_STALL_MIN_S)):
+            what, topic = waiting
+            who = f" ({self.publishers_of(topic)})" if topic else ""
+            self.stall(f"no step for {now - self._t_moved:.1f} s at step {self.k} (limit: {self.stall_steps} step "
+                       f"time-outs of {self.step_timeout_s:g} s): waiting for {what}{who}")
+            return True
+        return False
+
+    def stall(self, cause: str) -> None:
+        """End the run early: log ``cause`` (naming the silent party), publish it on
+        plant/events (kind ``stall``, in the bag) and on stderr as the process's cause line,
+        and finish with exit code :data:`~comems4build_ros.ros.exits.EXIT_STALLED`."""
+        if self.stalled or self.finished.done():
+            return
+        self.stalled = True
+        self.done = True  # no further step: every handler of the subclasses checks done
+        self.event("stall", cause)
+        report_cause(self.get_fully_qualified_name(), f"run stalled: {cause}")
+        self.finished.set_result(EXIT_STALLED)
 
     # ------------------------------------------------------------------ output
     def event(self, kind: str, detail: str) -> None:

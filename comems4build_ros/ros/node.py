@@ -181,6 +181,30 @@ class ContractNode(Node):
         return names(self.publishers), names(self.subscriptions)
 
 
+class EndsWithRun:
+    """What a node that ends with the run (feed, EMS) tells :func:`comems4build_ros.ros.process.run_complete`.
+
+    The node sets :attr:`saw_done` on ``plant/done`` and has ``exit_when_done`` and a
+    ``finished`` future (completed by :meth:`ContractNode.finish_when_recorded`).
+    """
+
+    saw_done = False  # plant/done came
+    exit_when_done = True
+    finished: Any = None
+
+    @property
+    def run_over(self) -> bool:
+        """``plant/done`` came (the node may still wait for the recorder to leave)."""
+        return self.saw_done
+
+    @property
+    def run_complete(self) -> bool:
+        """A signal from now on is a normal end (exit code 0): ``plant/done`` came and, with
+        ``exit_when_done``, the recorder has left (until then this node's last messages may
+        still be in the recorder's queues)."""
+        return self.saw_done and (not self.exit_when_done or (self.finished is not None and self.finished.done()))
+
+
 class ArrayPublisher:
     """Publishes ``Float64MultiArray`` messages of one contract topic, reusing one message.
 

@@ -74,8 +74,12 @@ PARAMETERS: dict[str, ParamSpec] = {
                                allowed="a node name"),
     "exit_when_done": ParamSpec("exit at the end of the run (plant/done), once the recorder has left",
                                 allowed="true or false"),
-    "ems_token": ParamSpec("the only run token whose commands are applied (0 = that of the first valid command)",
-                           "-", 0, 2**53 - 1),
+    "ems_token": ParamSpec("the only run token whose commands are applied (0 = that of the first valid command; "
+                           "visible to every local user: prefer ems_token_file)", "-", 0, 2**53 - 1),
+    "ems_token_file": ParamSpec("file holding the run token (readable by this user only; overrides ems_token)",
+                                allowed="a file path or empty"),
+    "stall_steps": ParamSpec("end the run (exit code 4) once the EMS has sent nothing for this many step "
+                             "time-outs, or no step was possible for as long (0 = never)", "steps", 0, 1_000_000),
     "record_window_steps": ParamSpec("with wait_for_recorder: steps the plant may run ahead of the gap-free "
                                      "recording (recorder/progress)", "steps", 1, None),
     # feed
@@ -100,7 +104,10 @@ PARAMETERS: dict[str, ParamSpec] = {
     # EMS
     "ems_options": ParamSpec("options of the controller 'key=value' (as simulate --ems-option)",
                              allowed="items 'key=value'"),
-    "run_token": ParamSpec("run token in every command (0 = CRC-32 of the node's name + 1)", "-", 0, 2**53 - 1),
+    "run_token": ParamSpec("run token in every command (0 = CRC-32 of the node's name + 1; visible to every "
+                           "local user: prefer run_token_file)", "-", 0, 2**53 - 1),
+    "run_token_file": ParamSpec("file holding the run token (readable by this user only; overrides run_token)",
+                                allowed="a file path or empty"),
     # recorder
     "bag_path": ParamSpec("bag directory to create (recorder) or read (replay)", allowed="a directory path"),
     "namespaces": ParamSpec("namespaces to record (empty = the node's own)",

@@ -107,6 +107,23 @@ LOCAL_SIDE = "local"
 TIME_LIMIT_START_S = 300.0
 TIME_LIMIT_PER_STEP_S = 0.1
 TIME_LIMIT_PER_STEP_MPC_S = 1.0
+#: ``stall_steps`` of every lock-step master of a launch: the run ends, naming the silent
+#: node, once the EMS has sent nothing for this many steps in a row (each a fallback after
+#: the step time-out) or no step was possible for as many step time-outs (feed, recorder,
+#: building behind MQTT silent). Within a launch a node cannot come back (any node that
+#: leaves fails the launch), so a long silence is a fault, not a restart to wait for.
+STALL_STEPS = 3
+#: Step time-out of the lock-step master when not given (plant_sim's and mqtt_bridge's default) [s].
+DEFAULT_STEP_TIMEOUT_S = 5.0
+#: The supervisor's backstop (:attr:`RunPlan.stall_s`): this many times the masters' own
+#: stall window, plus :data:`STALL_MARGIN_S` (the master names the cause first when it can),
+#: and at least :data:`STALL_BACKSTOP_MIN_S` (a live recorder on a loaded machine can be
+#: still for seconds: the lock-step master's recorder wait, ``lockstep.RECORDER_STALL_MIN_S``).
+STALL_BACKSTOP_FACTOR = 2.0
+STALL_MARGIN_S = 10.0
+STALL_BACKSTOP_MIN_S = 90.0
+#: Directory of the run's token files under the output directory (mode 0700, removed after the run).
+SECRETS_DIR = ".secrets"
 
 
 @dataclass
@@ -156,6 +173,7 @@ class LaunchOptions:
     topic_map : topic map of bridge and building (None = ``config/mqtt.yaml``)
     inputs : ``scenario`` (default) or ``live`` (the feed's live prices and weather,
         ``config/live_inputs.yaml``, cache files in ``out``)
+    live_config : live-input settings file of ``inputs="live"`` (None = ``config/live_inputs.yaml``)
     network : ``local`` or ``netns`` (:data:`NETWORKS`; see the module docstring)
     netem : ``tc netem`` arguments for both ends of the veth link in the ``netns`` network,
         e.g. ``delay 5ms loss 1%`` (None = none; skipped with a message where the kernel
@@ -188,6 +206,7 @@ class LaunchOptions:
     broker_url: str | None = None
     topic_map: str | None = None
     inputs: str = "scenario"
+    live_config: str | None = None
     network: str = "local"
     netem: str | None = None
     namespace: str = "/"
@@ -251,6 +270,17 @@ class NodePlan:
     params: dict[str, Any] = field(default_factory=dict)
 
 
+def node_label(node: NodePlan) -> str:
+    """The node's full name under the namespace of the building it serves (``/building_0/plant_sim``,
+    ``/feed``): what the launcher names when the node's process leaves the run. A recorder
+    started at ``/`` for one building's bag (layout ``node``) is ``/building_0/recorder``."""
+    ns = node.namespace
+    recorded = node.params.get("namespaces") if node.role == "recorder" else None
+    if ns == "/" and isinstance(recorded, list) and len(recorded) == 1:
+        ns = str(recorded[0])
+    return f"{ns.rstrip('/')}/{node.name}"
+
+
 @dataclass(frozen=True)
 class ProcessPlan:
     """One OS process of the plan.
@@ -264,8 +294,10 @@ class ProcessPlan:
     side : network side (:class:`NetworkSide`) the process runs on
     files : ``(path, text)`` written before the start (container spec files)
     env : environment additions of this process (over the side's and the plan's)
-    finishes : exit code 0 at the end of its part of the run is normal (every node exits 0
-        on ``plant/done``); any other exit while the run is in progress fails the launch
+    finishes : exit code 0 means its part of the run is complete (every node process: a
+        node exits 0 only then, :mod:`comems4build_ros.ros.exits`); any other exit while
+        the run is in progress fails the launch, as does any exit of a process that does
+        not finish (a broker, a discovery server)
     progress : the process prints ``progress <recorded> <total>`` lines on stdout
     stop_stage : order of stopping (:data:`STAGE_NODES`, :data:`STAGE_RECORDERS`,
         :data:`STAGE_SERVICES`)
@@ -310,6 +342,7 @@ class BuildingPlan:
     seed: int | None
     bag: Path
     token: int = 0
+    token_file: str = ""  # where the supervisor writes the token for the run (mode 0600)
 
 
 @dataclass(frozen=True)
@@ -329,6 +362,10 @@ class RunPlan:
         supervisor sets: domain id, discovery range, log directory)
     run_info : the run's description stored in every bag (``run_info.json``)
     timeout_s : overall wall-time limit [s] (None = none)
+    stall_s : the supervisor ends the run when no step was recorded for this long [s]
+        (None = never; the backstop behind the masters' ``stall_steps``)
+    secrets : ``(path, token)`` of the token files to write before the start (mode 0600 in
+        a directory of mode 0700) and to remove after the run; the processes get the paths
     setup : commands run before the first process (network namespaces, link)
     optional_setup : commands whose failure only prints a note (``tc netem``)
     teardown : commands run after the last process stopped
@@ -345,6 +382,8 @@ class RunPlan:
     env: dict[str, str] = field(default_factory=dict)
     run_info: dict[str, Any] = field(default_factory=dict)
     timeout_s: float | None = None
+    stall_s: float | None = None
+    secrets: tuple[tuple[str, int], ...] = ()
     setup: tuple[tuple[str, ...], ...] = ()
     optional_setup: tuple[tuple[str, ...], ...] = ()
     teardown: tuple[tuple[str, ...], ...] = ()
@@ -547,9 +586,12 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
     level = controller_class(opts.ems).info_level
     forecast = load_forecast_settings(**({"mode": opts.forecast} if opts.forecast else {})).mode
     name = opts.scenario if opts.scenario in ("default", "year") else Path(opts.scenario).name
+    if opts.inputs == "live":  # the scenario's steps laid on the wall-clock hours, live prices and weather in
+        name += "+live"
     return {
         "ems": opts.ems,
         "scenario": name,
+        "inputs": opts.inputs,
         "forecast": forecast if level == "mpc" else None,
         "weeks": opts.weeks,
         "steps": opts.steps,
@@ -563,13 +605,18 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
 
 
 def building_params(
-    opts: LaunchOptions, seed: int | None, common: dict[str, Any], token: int = 0
+    opts: LaunchOptions, seed: int | None, common: dict[str, Any], token_file: str = ""
 ) -> dict[str, dict[str, Any]]:
-    """Parameters of the EMS, feed and plant of one building (role -> parameters)."""
+    """Parameters of the EMS, feed and plant of one building (role -> parameters).
+
+    ``token_file``: the building's run token file (EMS ``run_token_file``, plant
+    ``ems_token_file``); the token itself is never a parameter value (any local user sees
+    command lines, and any DDS participant reads parameters with ``ros2 param get``).
+    """
     weeks, steps = feed_window(opts.weeks, opts.steps)
     ems_params = dict(common, wait_for_recorder=True)  # first command once its writers matched the recorder
-    if token:
-        ems_params["run_token"] = token
+    if token_file:
+        ems_params["run_token_file"] = token_file
     if opts.ems_options:
         ems_params["ems_options"] = list(opts.ems_options)
     feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps, wait_for_recorder=True)
@@ -581,7 +628,10 @@ def building_params(
         feed_params["forecast_mode"] = opts.forecast
     if opts.inputs != "scenario":
         feed_params.update(inputs=opts.inputs, live_cache_dir=str(Path(opts.out).resolve()))
-    plant = dict(common, wait_for_recorder=True, **({"ems_token": token} if token else {}), **opts.plant_node_params)
+        if opts.live_config:
+            feed_params["live_config"] = str(Path(opts.live_config).resolve())
+    plant = dict(common, wait_for_recorder=True, stall_steps=STALL_STEPS,
+                 **({"ems_token_file": token_file} if token_file else {}), **opts.plant_node_params)
     return {"ems": ems_params, "feed": feed_params, "plant": plant}
 
 
@@ -602,6 +652,23 @@ def default_time_limit(opts: LaunchOptions) -> float:
     if clock.wall:  # a wall clock paces the steps (hourly steps of the default time step)
         per += clock.period_s
     return TIME_LIMIT_START_S + per * run_steps(opts) * opts.buildings
+
+
+def backstop_stall_s(opts: LaunchOptions, layout: str) -> float | None:
+    """The supervisor's stall limit of a run (:attr:`RunPlan.stall_s`) [s]: :data:`STALL_BACKSTOP_FACTOR`
+    times the masters' window (``stall_steps`` x the step time-out, plus a wall clock's step
+    period) plus :data:`STALL_MARGIN_S`, at least :data:`STALL_BACKSTOP_MIN_S`; None when the
+    masters' stall rule is off."""
+    from ..mqtt.clock import parse_clock
+
+    steps = int(opts.plant_node_params.get("stall_steps", STALL_STEPS))
+    if steps <= 0:
+        return None
+    default = CONTAINER_STEP_TIMEOUT_S if layout in ("role", "building") else DEFAULT_STEP_TIMEOUT_S
+    step_timeout = float(opts.plant_node_params.get("step_timeout_s", default))
+    clock = parse_clock(opts.clock)
+    window = steps * (step_timeout + (clock.period_s if clock.wall else 0.0))
+    return max(STALL_BACKSTOP_FACTOR * window + STALL_MARGIN_S, STALL_BACKSTOP_MIN_S)
 
 
 def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float) -> dict[str, Any]:
@@ -707,7 +774,9 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     common: dict[str, Any] = {"config_files": info["config_files"]}
     if opts.overrides:
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
-    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns, opts.buildings), new_token())
+    secret_dir = (out / SECRETS_DIR).resolve()
+    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns, opts.buildings), new_token(),
+                                   str(secret_dir / f"{ns.strip('/').replace('/', '__') or 'root'}.token"))
                       for ns, seed in zip(ns_list, seeds))
 
     if layout in ("role", "building"):
@@ -758,6 +827,8 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         run_info=info,
         timeout_s=None if opts.timeout_s == math.inf else (
             opts.timeout_s if opts.timeout_s is not None else default_time_limit(opts)),
+        stall_s=backstop_stall_s(opts, layout),
+        secrets=tuple((b.token_file, b.token) for b in buildings),
     )
 
 
@@ -777,7 +848,7 @@ def _node_processes(
     ems_name = ems_node_name(opts.ems)
     for b in buildings:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = building_params(opts, b.seed, common, b.token)
+        params = building_params(opts, b.seed, common, b.token_file)
         ns = b.namespace
         out.append(ProcessPlan(f"{prefix}{opts.ems}_ems", "ems",
                                (*node_command("ems", opts.ems), *ros_args(ns, params["ems"])),
@@ -803,7 +874,7 @@ def _contained_nodes(
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
     nodes = [NodePlan("recorder", "recorder", b.namespace,
                       dict(recorder_params(b.namespace, b.bag, info, 0.0), tick_s=CONTAINER_RECORDER_TICK_S))]
-    for role, params in building_params(opts, b.seed, common, b.token).items():
+    for role, params in building_params(opts, b.seed, common, b.token_file).items():
         if role == "plant":
             params = {"step_timeout_s": CONTAINER_STEP_TIMEOUT_S, "watchdog_period_s": CONTAINER_WATCHDOG_PERIOD_S,
                       **params}

@@ -3,7 +3,16 @@
 :func:`run_node` is the body of every node's ``main()`` (and :mod:`comems4build_ros.ros.container`
 does the same for several nodes): the lean single-threaded executor
 (:mod:`comems4build_ros.ros.executor`), clean shutdown on Ctrl-C / SIGTERM (executor
-shutdown, destroy node, ``rclpy.try_shutdown``), exit code 2 for bad input.
+shutdown, destroy node, ``rclpy.try_shutdown``) and the exit codes the supervisor reads
+(:data:`~comems4build_ros.ros.exits.EXIT_CODES`): 0 only once the node's part of the run is complete, a distinct code
+for bad input, for a signal before the end of the run and for a stalled run.
+
+Signals: rclpy's own SIGINT/SIGTERM handlers are not installed (:func:`init_rclpy`). Their
+handler does work in signal context (it logs through rcutils and wakes a helper thread), and
+a node process stopped by one signal was seen to hang for good, every thread waiting on a
+lock. Here the signals go to Python's handlers, which only set a flag (async-signal-safe);
+the executor never waits longer than :data:`SIGNAL_POLL_S`, so the main thread sees the
+KeyboardInterrupt within that time and the clean-up runs in the normal order.
 """
 
 from __future__ import annotations
@@ -19,9 +28,7 @@ from rclpy.task import Future
 
 from ..config import ConfigError
 from .contract import ContractError
-
-#: Exit code of a node that refused to start (bad parameters, scenario or contract).
-EXIT_BAD_INPUT = 2
+from .exits import CAUSE_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 #: Environment variable choosing the executor of the node processes: ``lean`` (default,
 #: :class:`comems4build_ros.ros.executor.LeanExecutor`) or ``single`` (rclpy's
@@ -52,18 +59,54 @@ def make_executor() -> Any:
 
 
 
+#: Longest single wait of a node's executor [s]: a SIGINT or SIGTERM is acted on within this.
+SIGNAL_POLL_S = 0.25
+
+
+def init_rclpy(args: list[str] | None) -> None:
+    """``rclpy.init`` without rclpy's signal handlers; SIGINT and SIGTERM raise
+    ``KeyboardInterrupt`` in the main thread instead (see the module's docstring).
+
+    Both are installed even when the process started with SIGINT ignored (a background job of
+    a shell script), as rclpy does: a node must stop on the signal ``ros2 launch`` sends.
+    """
+    import signal
+    import threading
+
+    from rclpy.signals import SignalHandlerOptions
+
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    if threading.current_thread() is threading.main_thread():
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+        signal.signal(signal.SIGTERM, _stop_on_sigterm)
+
+
+def _stop_on_sigterm(signum: int, frame: Any) -> None:
+    """SIGTERM handler: stop like Ctrl-C."""
+    raise KeyboardInterrupt(f"signal {signum}")
+
+
+def spin_until_done(executor: Any, future: Future) -> None:
+    """Spin ``executor`` until ``future`` is done or rclpy shuts down, waiting at most
+    :data:`SIGNAL_POLL_S` at a time so that a pending signal is seen."""
+    context = getattr(executor, "_context", None) or rclpy.get_default_context()
+    while context.ok() and not future.done() and not future.cancelled():
+        executor.spin_once(timeout_sec=SIGNAL_POLL_S)
+
+
 def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name: str = "node") -> int:
     """Create a node, spin it on :func:`make_executor`'s executor and always shut down cleanly.
 
     The node may expose ``finished: rclpy.task.Future``; spinning stops when it
-    completes (its result is the exit code, default 0). Ctrl-C (KeyboardInterrupt) and
-    SIGTERM (ExternalShutdownException, or rclpy's error on the context the signal
-    handler has just shut down) end the spin with exit code 0. A
+    completes (its result is the exit code, default 0). Ctrl-C and SIGTERM
+    (KeyboardInterrupt, :func:`init_rclpy`; ExternalShutdownException or rclpy's error on a
+    context shut down from elsewhere) end the spin with exit code 0 if the node's part of the
+    run is complete (:func:`run_complete`), else :data:`EXIT_INTERRUPTED`. A
     :class:`ConfigError`, :class:`ContractError`, ``ValueError`` or a missing or existing file raised while the node
     is created is reported on stderr with exit code :data:`EXIT_BAD_INPUT`.
     Order of shutdown (as in the rclpy examples): executor shutdown, destroy node, rclpy shutdown.
     """
-    rclpy.init(args=args)
+    init_rclpy(args)
     executor = make_executor()
     node: Node | None = None
     code = 0
@@ -71,34 +114,105 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
         node = make_node()
         executor.add_node(node)
         finished: Future | None = getattr(node, "finished", None)
-        if finished is not None:
-            executor.spin_until_future_complete(finished)
-            if finished.done():
-                code = int(finished.result() or 0)
-        else:
-            executor.spin()
+        if finished is None:
+            finished = Future()  # never done: spin until a signal or rclpy's shutdown
+        spin_until_done(executor, finished)
+        if finished.done():
+            code = int(finished.result() or 0)
+        else:  # the spin ended because the context was shut down (no exception)
+            code = interrupted_code([node], name)
     except (KeyboardInterrupt, ExternalShutdownException):
-        pass
+        code = interrupted_code([node], name)
     except RuntimeError:
-        # rclpy's SIGINT/SIGTERM handler shuts the context down from the signal; when that
-        # falls between the executor's check and its next wait set, rclpy raises RCLError
-        # (a RuntimeError: "the given context is not valid") instead of
-        # ExternalShutdownException. That is the same clean external shutdown.
+        # a context shut down from elsewhere between the executor's check and its next wait
+        # set makes rclpy raise RCLError (a RuntimeError: "the given context is not valid")
+        # instead of ExternalShutdownException. That is the same clean external shutdown.
         if rclpy.ok():
             raise
+        code = interrupted_code([node], name)
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
         label = node.get_name() if node is not None else name
         print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
     finally:
         ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
+        watchdog = cleanup_deadline(name, code)
         executor.shutdown()
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+        watchdog.cancel()
         print_cpu(name)
     return code
 
+
+
+def run_complete(node: Any) -> bool:
+    """Whether ``node``'s part of the run is complete, so that a signal now is a normal end.
+
+    A node says so with a ``run_complete`` attribute (the lock-step master after its last
+    step, the EMS and the feed once they saw ``plant/done``, the recorder once every
+    plant is done); a node with neither that nor a ``finished`` future has no run (always
+    complete); otherwise its ``finished`` future must be done. A node that was never
+    created (None) has not run.
+    """
+    if node is None:
+        return False
+    flag = getattr(node, "run_complete", None)
+    if flag is not None:
+        return bool(flag)
+    finished = getattr(node, "finished", None)
+    return finished is None or finished.done()
+
+
+def interrupted_code(nodes: list[Any], label: str) -> int:
+    """Exit code after SIGINT/SIGTERM: 0 if every node's run is complete, else
+    :data:`EXIT_INTERRUPTED` (with a :func:`report_cause` line)."""
+    if nodes and all(run_complete(n) for n in nodes):
+        return 0
+    if nodes and all(run_complete(n) or getattr(n, "run_over", False) for n in nodes):
+        # plant/done came, the node was waiting for the recorder to leave: after a complete
+        # run that is the supervisor's clean-up; otherwise its last messages may be unrecorded
+        report_cause(label, "stopped by a signal after the end of the run, before the recorder had left")
+    else:
+        report_cause(label, "stopped by a signal before the end of its run")
+    return EXIT_INTERRUPTED
+
+
+def report_cause(label: str, text: str) -> None:
+    """``[<label>] cause: <text>`` on stderr (the node's log): why it ends the run early.
+
+    The supervisor puts the last such line of a node's log first in its error message.
+    """
+    print(f"[{label}] {CAUSE_TAG} {text}", file=sys.stderr, flush=True)
+
+
+#: Seconds the clean-up after a run (executor shutdown, node destruction, rclpy shutdown) may
+#: take before the process exits without it (:func:`cleanup_deadline`).
+CLEANUP_TIMEOUT_S = 20.0
+
+
+def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S) -> Any:
+    """Start a watchdog that ends the process with ``code`` if the clean-up hangs; returns it.
+
+    A SIGINT that lands while rclpy holds one of its locks has been seen to leave the
+    clean-up waiting forever (the process then never exits and holds its DDS ports). The
+    run's outcome is decided by then, so after ``timeout_s`` the watchdog says so on stderr
+    and exits with the same code without the clean-up. ``cancel()`` it once the clean-up
+    is done.
+    """
+    import os
+    import threading
+
+    def expire() -> None:
+        print(f"[{label}] clean-up did not finish within {timeout_s:g} s; exiting with code {code} without it",
+              file=sys.stderr, flush=True)
+        os._exit(code)
+
+    timer = threading.Timer(timeout_s, expire)
+    timer.daemon = True
+    timer.start()
+    return timer
 
 
 def ignore_sigint() -> None:

@@ -14,9 +14,13 @@ DDS profile, as the supervisor gives it).
 
 The exit rule is the supervisor's (:mod:`comems4build_ros.ros.supervisor`): the run is
 done when every recorder process has exited 0 (the bags are closed), and then the launch
-shuts down; any other exit while the run is in progress (a node that fails, a process
-that may not end by itself), or the plan's time limit, ends the launch with an error,
-so ``ros2 launch`` exits non-zero. Evaluate the bag afterwards with ``comems4build
+shuts down; any other exit while the run is in progress (a node that fails, is stopped
+by a signal before the end of its run, ends a stalled run naming the silent node, or a
+process that may not end by itself), or the plan's time limit, ends the launch at once
+with an error naming the process, its exit code and what it means
+(:mod:`comems4build_ros.ros.exits`), so ``ros2 launch`` exits non-zero. The run tokens
+are written as the supervisor writes them (mode 0600 in ``<out>/.secrets``, mode 0700)
+and removed when the launch shuts down. Evaluate the bag afterwards with ``comems4build
 evaluate BAG --out DIR``.
 
 ``launch`` and ``launch_ros`` are imported inside the functions: the package itself does
@@ -30,8 +34,10 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from .plan import LaunchOptions, RunPlan, fastdds_profile, plan_run
-from .supervisor import LaunchError
+from .exits import exit_meaning
+from .plan import LaunchOptions, RunPlan, fastdds_profile, node_label, plan_run
+from .supervisor import LaunchError, describe_nodes
+from .tokens import write_token_file
 
 PACKAGE = "comems4build_ros"
 #: Launch arguments: name -> (default, description, ``comems4build launch`` option). A list
@@ -134,7 +140,7 @@ def process_action(plan: RunPlan, process: Any) -> Any:
 def plan_actions(plan: RunPlan) -> list[Any]:
     """Launch actions of ``plan``: its files, its processes in order, the exit rule, the time limit."""
     from launch.actions import EmitEvent, OpaqueFunction, RegisterEventHandler, TimerAction
-    from launch.event_handlers import OnProcessExit
+    from launch.event_handlers import OnProcessExit, OnShutdown
     from launch.events import Shutdown
 
     if plan.setup or plan.optional_setup:
@@ -146,6 +152,13 @@ def plan_actions(plan: RunPlan) -> list[Any]:
             Path(path).write_text(text, encoding="utf-8")
     if len(plan.buildings) > 1:
         plan.bag.mkdir(parents=True, exist_ok=True)
+    for path, token in plan.secrets:
+        write_token_file(path, token)
+
+    def remove_secrets(event: Any, context: Any) -> None:
+        for path, _token in plan.secrets:
+            Path(path).unlink(missing_ok=True)
+
     state = {"over": False, "ended": set()}
     ending = [p.name for p in plan.processes if p.role in ("recorder", "container")] or [
         p.name for p in plan.processes if p.role == "plant"]
@@ -157,8 +170,11 @@ def plan_actions(plan: RunPlan) -> list[Any]:
             code = event.returncode
             if code != 0 or not process.finishes:
                 state["over"] = True
-                raise LaunchError(f"process '{process.name}' ({process.role}) exited with code {code} while the "
-                                    "run was in progress; the launch fails")
+                nodes = [node_label(n) for n in process.nodes]
+                ran = f" (it ran {describe_nodes(nodes)})" if len(nodes) > 1 else ""
+                raise LaunchError(f"run cut short: process '{process.name}' ({process.role}) exited with code {code} "
+                                  f"({exit_meaning(code)}) while the run was in progress{ran}; the launch fails (its "
+                                  "'cause:' line above says why)", process=process.name, code=code, nodes=nodes)
             state["ended"].add(process.name)
             if all(name in state["ended"] for name in ending):
                 state["over"] = True
@@ -172,7 +188,7 @@ def plan_actions(plan: RunPlan) -> list[Any]:
             state["over"] = True
             raise LaunchError(f"run not finished within the time limit of {plan.timeout_s:g} s (timeout:=S sets it)")
 
-    actions: list[Any] = []
+    actions: list[Any] = [RegisterEventHandler(OnShutdown(on_shutdown=remove_secrets))]
     for p in plan.processes:
         action = process_action(plan, p)
         actions += [action, RegisterEventHandler(OnProcessExit(target_action=action, on_exit=rule(p)))]

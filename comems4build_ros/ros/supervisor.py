@@ -19,13 +19,22 @@ SIGTERM (if the launcher itself is killed, the kernel stops the children). Stopp
 SIGINT (rclpy shuts down cleanly), then SIGTERM after ``grace_s``, then SIGKILL; the
 recorders are stopped after the nodes so that they close the bags, services last.
 
-Exit rule: a process marked ``finishes`` (every node process: nodes exit 0 on
-``plant/done``) may exit 0; any other exit while the run is in progress (a crash, or a
-plant exiting with an error) stops the whole launch with :class:`LaunchError` naming the
-process, its exit code and its log file. The run is done when every recorder has exited
-0 (the bags are closed), whatever the other processes do; then everything still running
-is stopped, a process that ignores SIGINT and SIGTERM (or is paused) is killed. The
-plan's overall time limit ends any run.
+Exit rule: any process that leaves while the run is in progress fails the launch, with
+one exception: exit code 0 of a process marked ``finishes`` (every node process), which
+a node gives only once its part of the run is complete (:mod:`comems4build_ros.ros.exits`:
+the lock-step master after its last step, feed and EMS after ``plant/done``, the recorder
+once every plant is done; a signal before that gives exit code 3, a stalled run 4). The
+:class:`LaunchError` (within one poll period, :data:`POLL_S`, of the exit) names the
+process, its exit code and what it means, the cause the node gave (the last
+``cause:`` line of its log) and the log file. The run is done when every recorder has
+exited 0 (the bags are closed), whatever the other processes do; then everything still
+running is stopped, a process that ignores SIGINT and SIGTERM (or is paused) is killed.
+
+Stalls: the lock-step master ends a run whose EMS, feed, recorder or building fell silent
+(``stall_steps`` step time-outs, naming it). As a backstop for a master that is itself
+paused or hung, the supervisor ends a run in which no step was recorded for the plan's
+``stall_s`` (naming every paused process, state ``T``); the plan's overall time limit
+ends any run.
 """
 
 from __future__ import annotations
@@ -46,7 +55,9 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile
+from .exits import CAUSE_TAG, exit_meaning
+from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile, node_label
+from .tokens import private_dir, write_token_file
 
 #: Domain ids tried by :func:`acquire_domain_id` (0..101 keep Fast DDS's ports below the
 #: Linux ephemeral range).
@@ -65,7 +76,27 @@ PR_SET_PDEATHSIG = 1
 
 
 class LaunchError(RuntimeError):
-    """The launch failed: a node crashed or exited early, or the run timed out."""
+    """The launch failed: a node crashed or left early, the run stalled, or it timed out.
+
+    Attributes
+    ----------
+    process : name of the process that left or is to blame (None: not known)
+    code : its exit code (None: it did not exit)
+    nodes : full names of the ROS nodes that process ran (empty: not known, or no node)
+    cause : one line: why the run was cut (the first line of the message)
+    log : its log file (None: none)
+    summaries : namespace -> summary of the cut run, when the launcher could evaluate the bag
+    """
+
+    def __init__(self, message: str, process: str | None = None, code: int | None = None,
+                 log: Path | None = None, nodes: Sequence[str] = ()) -> None:
+        super().__init__(message)
+        self.process = process
+        self.code = code
+        self.nodes = tuple(nodes)
+        self.log = log
+        self.cause = message.splitlines()[0] if message else ""
+        self.summaries: dict[str, dict[str, Any]] = {}
 
 
 # ---------------------------------------------------------------------- domain ids
@@ -134,6 +165,7 @@ class Child:
     stdout_reader: threading.Thread | None = None
     stage: int = STAGE_NODES
     finishes: bool = False
+    nodes: tuple[str, ...] = ()  # full names of the ROS nodes the process runs ("/building_0/plant_sim")
 
     def tail(self, lines: int = 8) -> str:
         """Last lines of the node's log."""
@@ -142,6 +174,23 @@ class Child:
         except OSError:
             return ""
         return "\n".join(text.rstrip().splitlines()[-lines:])
+
+    def cause(self) -> str | None:
+        """The last ``[<node>] cause: <text>`` line of the log (:mod:`comems4build_ros.ros.exits`), or None."""
+        try:
+            text = self.log_path.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return None
+        lines = [ln for ln in text.splitlines() if f"] {CAUSE_TAG} " in ln]
+        return lines[-1].strip() if lines else None
+
+    def paused(self) -> bool:
+        """The process is stopped (SIGSTOP, state ``T`` in ``/proc/<pid>/stat``)."""
+        try:
+            stat = Path(f"/proc/{self.proc.pid}/stat").read_text()
+        except OSError:
+            return False
+        return stat.rsplit(")", 1)[-1].split()[:1] == ["T"]
 
 
 class ProcessGroup:
@@ -169,6 +218,7 @@ class ProcessGroup:
         env: dict[str, str] | None = None,
         stage: int | None = None,
         finishes: bool | None = None,
+        nodes: Sequence[str] = (),
     ) -> Child:
         """Start ``argv``; with ``on_stdout_line`` its stdout is read line by line in a thread.
 
@@ -176,6 +226,7 @@ class ProcessGroup:
         ``env`` is added to the group's environment. ``stage`` (stop order) and
         ``finishes`` (exit 0 at the end of the run is normal) default by ``role``:
         recorders stop after the nodes, a discovery server last; plants and recorders finish.
+        ``nodes``: full names of the ROS nodes the process runs (named when it leaves the run).
         """
         log_path = self.log_dir / f"{name.replace('/', '__')}.log"
         log: IO[bytes] = log_path.open("wb")
@@ -195,7 +246,7 @@ class ProcessGroup:
             stage = {"recorder": STAGE_RECORDERS, "discovery": STAGE_SERVICES}.get(role, STAGE_NODES)
         if finishes is None:
             finishes = role in ("plant", "recorder")
-        child = Child(name, role, proc, log_path, stage=stage, finishes=finishes)
+        child = Child(name, role, proc, log_path, stage=stage, finishes=finishes, nodes=tuple(nodes))
         if on_stdout_line is not None:
             assert proc.stdout is not None
             stream = proc.stdout
@@ -386,6 +437,7 @@ def supervise(
     report: Callable[[int, int], None] | None,
     t0: float,
     timeout_s: float | None,
+    stall_s: float | None = None,
 ) -> float | None:
     """Wait for the end of the run; returns when the first record came.
 
@@ -395,30 +447,34 @@ def supervise(
     has exited 0. Recorders still running :data:`RECORDER_DRAIN_S` after the last plant
     exited are stopped (SIGINT, SIGTERM, SIGKILL).
 
+    ``stall_s`` (None = never): no new record for this long after the first one, while
+    some plant still runs, ends the run (the backstop for a paused or hung master).
+
     Raises
     ------
     LaunchError
-        When a process exits against the exit rule, a recorder had to be killed, or
-        ``timeout_s`` passes.
+        When a process exits against the exit rule, a recorder had to be killed, no step
+        was recorded for ``stall_s``, or ``timeout_s`` passes.
     """
     t_first_record: float | None = None
     t_plants_done: float | None = None
+    last_r, t_last_r = 0, time.monotonic()
     while True:
         time.sleep(POLL_S)
         r, n = progress.get()
+        now = time.monotonic()
         if r and t_first_record is None:
-            t_first_record = time.monotonic()
+            t_first_record = now
+        if r != last_r:
+            last_r, t_last_r = r, now
         if report is not None:
             report(r, n)
         for c in group.children:
             code = c.proc.poll()
-            # plants exit 0 after their last step; the recorder exits 0 once every plant said done
+            # exit 0 of a node: its part of the run is complete (exits.py); anything else cuts the run
             if code is None or (c.finishes and code == 0):
                 continue
-            raise LaunchError(
-                f"node '{c.name}' exited with code {code} while the run was in progress (log: {c.log_path}):\n"
-                f"{c.tail()}"
-            )
+            raise left_error(c, code)
         if recorders and all(c.proc.poll() == 0 for c in recorders):
             return t_first_record
         plants_done = all(p.proc.poll() == 0 for p in plants)
@@ -439,11 +495,59 @@ def supervise(
                         "its summary (evaluate reads it anyway)"
                     )
                 return t_first_record
-        if timeout_s is not None and time.monotonic() - t0 > timeout_s:
+        if (stall_s is not None and t_first_record is not None and not plants_done and (not n or r < n)
+                and now - t_last_r > stall_s):
+            raise LaunchError(f"run stalled: no step recorded for {now - t_last_r:.0f} s (recorded {r} of {n or '?'} "
+                              f"steps); {_paused(group)}")
+        if timeout_s is not None and now - t0 > timeout_s:
             raise LaunchError(
-                f"run not finished within the time limit of {timeout_s:g} s (recorded {r} of {n} steps; "
-                "a node hung, was paused or fell back at every step; --timeout sets the limit)"
+                f"run not finished within the time limit of {timeout_s:g} s (recorded {r} of {n or '?'} steps; "
+                f"{_paused(group)}; --timeout sets the limit)"
             )
+
+
+def left_error(c: Child, code: int) -> LaunchError:
+    """The :class:`LaunchError` of process ``c`` that left the run with exit code ``code``:
+    first line names it, the exit code and its meaning, and the cause the node gave."""
+    meaning = exit_meaning(code)
+    cause = c.cause()  # "[<node>] cause: <text>"
+    text = cause.split(f"] {CAUSE_TAG} ", 1)[1] if cause else ""
+    if text.startswith(f"{meaning}: "):
+        text = text[len(meaning) + 2:]
+    said = f": {cause.split(f' {CAUSE_TAG} ', 1)[0]} {text}" if text and text != meaning else ""
+    ran = f" (it ran {describe_nodes(c.nodes)})" if len(c.nodes) > 1 else ""
+    return LaunchError(
+        f"run cut short: node '{c.name}' exited with code {code} ({meaning}) while the run was in progress{ran}{said} "
+        f"(log: {c.log_path})\n{c.tail()}",
+        process=c.name, code=code, log=c.log_path, nodes=c.nodes,
+    )
+
+
+def describe_nodes(nodes: Sequence[str], max_namespaces: int = 4) -> str:
+    """The nodes of a process that runs several, in words: node names per set of namespaces,
+    e.g. ``plant_sim, feed, rbc_ems, recorder of /building_0`` or ``rbc_ems of /building_0 ..
+    /building_7 (8 buildings)``."""
+    by_name: dict[str, list[str]] = {}
+    for full in nodes:
+        ns, _, name = full.rpartition("/")
+        by_name.setdefault(name, []).append(ns or "/")
+    groups: dict[tuple[str, ...], list[str]] = {}
+    for name, spaces in by_name.items():
+        groups.setdefault(tuple(spaces), []).append(name)
+    parts = []
+    for spaces, names in groups.items():
+        where = (", ".join(spaces) if len(spaces) <= max_namespaces
+                 else f"{spaces[0]} .. {spaces[-1]} ({len(spaces)} buildings)")
+        parts.append(f"{', '.join(names)} of {where}")
+    return "; ".join(parts)
+
+
+def _paused(group: ProcessGroup) -> str:
+    """Which processes of ``group`` are paused (SIGSTOP), in words."""
+    paused = [c.name for c in group.children if c.proc.poll() is None and c.paused()]
+    if paused:
+        return "paused (SIGSTOP) and so silent: " + ", ".join(f"'{n}'" for n in paused)
+    return "no node exited and none is paused: a node hangs (its log may tell)"
 
 
 @dataclass
@@ -474,7 +578,7 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
     env = dict(child_env(plan.domain_id, plan.out / "log" / "ros"), **plan.env)
     recorders_n = sum(1 for p in plan.processes if p.progress)
     progress = Progress(recorders_n)
-    with sigterm_as_keyboard_interrupt(), _network(plan):
+    with sigterm_as_keyboard_interrupt(), _network(plan), _secrets(plan):
         t0 = time.monotonic()
         with ProcessGroup(env, plan.out / "log") as group:
             recorders: list[Child] = []
@@ -486,14 +590,41 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
                 extra = {**plan.sides[p.side].env, **p.env}
                 listener = progress.listener(len(recorders)) if p.progress else None
                 child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
-                                    finishes=p.finishes)
+                                    finishes=p.finishes, nodes=[node_label(n) for n in p.nodes])
                 if p.role in ("recorder", "container"):  # a container's recorders end with it
                     recorders.append(child)
                 if p.role in ("plant", "container"):  # ... and so do its plants
                     plants.append(child)
-            t_first_record = supervise(group, recorders, plants, progress, report, t0, plan.timeout_s)
+            try:
+                t_first_record = supervise(group, recorders, plants, progress, report, t0, plan.timeout_s,
+                                           plan.stall_s)
+            except LaunchError as exc:  # say so at once, before the processes are stopped and the bag is read
+                print(f"launcher: {exc.cause}; stopping every process", file=sys.stderr, flush=True)
+                raise
             t_end = time.monotonic()
     return Supervised(t0, t_first_record, t_end)
+
+
+@contextlib.contextmanager
+def _secrets(plan: RunPlan) -> Iterator[None]:
+    """Write the plan's token files (mode 0600 in a directory of mode 0700) for the run,
+    and remove them after it (:func:`comems4build_ros.ros.tokens.write_token_file`)."""
+    if not plan.secrets:
+        yield
+        return
+    dirs = {Path(path).parent for path, _ in plan.secrets}
+    try:
+        for d in dirs:
+            private_dir(d)
+        for path, token in plan.secrets:
+            write_token_file(path, token)
+        yield
+    finally:
+        for path, _ in plan.secrets:
+            Path(path).unlink(missing_ok=True)
+        for d in dirs:
+            with contextlib.suppress(OSError):
+                d.rmdir()
 
 
 @contextlib.contextmanager

@@ -1,21 +1,52 @@
 """Run tokens of ``ems/command``: which EMS a command comes from (no rclpy here).
 
-Every command carries, as its last element, the token of the EMS that sent it.
-``plant_sim`` applies the commands of one token only (parameter ``ems_token``, or the
-token of the run's first valid command) and counts every other command as foreign, so a
-second node publishing in-range commands on the same topic cannot steer the plant.
-The launcher draws one token per building and gives it to that building's EMS and plant;
-an EMS started by hand without ``run_token`` derives one from its node name, so a
-restarted EMS keeps its token.
+Every command carries, as its last element, a token of the EMS that sent it; the lock-step
+master applies the commands of one EMS only and counts every other command as foreign.
+Two modes:
+
+* **run secret** (what the launcher uses): one secret per building, drawn by
+  :func:`new_token` and given to that building's EMS and plant in a token file
+  (:func:`write_token_file`: mode 0600 in a directory of mode 0700; parameters
+  ``run_token_file`` and ``ems_token_file``), never on a command line, in a parameter
+  value, a log line or a world-readable file. The token of each command is then its authentication code
+  (:func:`command_mac`: HMAC-SHA256 of the command's other elements under the secret, 48
+  bits), so a command seen on the wire (DDS carries it in clear) authorises nothing but
+  itself: another step or other values need the secret.
+* **plain token** (by hand, ``run_token`` / ``ems_token``, or none): the same number in
+  every command; the plant applies ``ems_token`` or else the token of the run's first
+  valid command. This keeps a second EMS from steering the plant by mistake, not an
+  adversary (the number is on the command line and in every command). An EMS started
+  without any token derives one from its node name, so a restarted EMS keeps its token.
 """
 
 from __future__ import annotations
 
+import hmac
+import os
 import secrets
+import stat
 import zlib
+from pathlib import Path
 
 #: Tokens are integers in 1 .. MAX_TOKEN - 1 (exact in float64).
 MAX_TOKEN = 2**53
+
+
+#: Bytes of the authentication code a command carries in run-secret mode (48 bits: exact in float64).
+MAC_BYTES = 6
+
+
+def command_mac(secret: bytes, values: bytes) -> float:
+    """Authentication code of a command: the first :data:`MAC_BYTES` of HMAC-SHA256 of
+    ``values`` (the float64 bytes of every element but the token) under ``secret``, as a
+    token (an integer in 1 .. 2^48, float)."""
+    code = int.from_bytes(hmac.digest(secret, values, "sha256")[:MAC_BYTES], "big")
+    return float(code or 1)
+
+
+def secret_key(token: int) -> bytes:
+    """HMAC key of a run secret read from a token file."""
+    return str(int(token)).encode("ascii")
 
 
 def default_token(fully_qualified_name: str) -> int:
@@ -24,5 +55,60 @@ def default_token(fully_qualified_name: str) -> int:
 
 
 def new_token() -> int:
-    """A random token for one building of a launch (1 .. 2^48)."""
-    return secrets.randbelow(2**48) + 1
+    """A random run secret for one building of a launch (1 .. 2^53 - 1)."""
+    return secrets.randbelow(MAX_TOKEN - 1) + 1
+
+
+def private_dir(path: str | Path) -> Path:
+    """Create ``path`` (and parents) if needed and make it accessible to this user only (mode 0700).
+
+    Raises
+    ------
+    ValueError
+        If it exists and belongs to another user.
+    """
+    p = Path(path)
+    p.mkdir(mode=0o700, parents=True, exist_ok=True)
+    if p.stat().st_uid != os.getuid():
+        raise ValueError(f"{p}: belongs to another user; not a place for a secret")
+    os.chmod(p, 0o700)
+    return p
+
+
+def write_token_file(path: str | Path, token: int) -> Path:
+    """Write ``token`` to ``path`` readable by this user only (mode 0600, created so from
+    the start: never world-readable, not even for a moment), in a :func:`private_dir`."""
+    p = Path(path)
+    private_dir(p.parent)
+    p.unlink(missing_ok=True)
+    fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+    with os.fdopen(fd, "w", encoding="ascii") as fh:
+        fh.write(f"{int(token)}\n")
+    return p
+
+
+def read_token_file(path: str | Path) -> int:
+    """The token in ``path`` (see :func:`write_token_file`).
+
+    Raises
+    ------
+    ValueError
+        Naming the file: unreadable, readable or writable by group or others (a secret
+        others can read protects nothing), or not an integer in 1 .. 2^53 - 1.
+    """
+    p = Path(path)
+    try:
+        mode = p.stat().st_mode
+        text = p.read_text(encoding="ascii").strip()
+    except (OSError, UnicodeDecodeError) as exc:
+        raise ValueError(f"token file {p}: {exc}") from None
+    if mode & (stat.S_IRWXG | stat.S_IRWXO):
+        raise ValueError(f"token file {p}: mode {stat.filemode(mode)} lets other users read or change it; "
+                         "give it mode 0600")
+    try:
+        token = int(text)
+    except ValueError:
+        raise ValueError(f"token file {p}: not an integer") from None
+    if not 0 < token < MAX_TOKEN:
+        raise ValueError(f"token file {p}: not in 1 .. 2^53-1")
+    return token

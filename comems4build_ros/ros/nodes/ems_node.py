@@ -15,13 +15,18 @@ A repeated state announcement for a step already answered (the plant repeats whi
 waits, e.g. if the first command was lost during discovery) is answered with the same
 command again; the controller is never called twice for a step.
 
-Every command carries the node's run token (parameter ``run_token``; 0 = derived from
-the node's fully qualified name, so a restarted EMS keeps it): ``plant_sim`` applies
-commands of one token only and counts the others as foreign. The node exits with code 0
-on ``plant/done`` (end of the run).
+Every command carries a token (:mod:`comems4build_ros.ros.tokens`): with the run secret
+of ``run_token_file`` (a file of mode 0600 the launcher writes) the command's own
+authentication code, else the plain ``run_token`` (visible to every local user) or,
+without either, one derived from the node's fully qualified name, so a restarted EMS
+keeps it. ``plant_sim`` applies the commands of the run's EMS only and counts the others
+as foreign. The node exits with code 0
+on ``plant/done`` (end of the run); stopped by a signal before it, with exit code 3
+(:data:`~comems4build_ros.ros.process.EXIT_INTERRUPTED`).
 
 Parameters: ``ems`` (set by the entry point), ``ems_options`` (string array of
-``key=value``, as ``comems4build simulate --ems-option``), ``run_token`` and the plant
+``key=value``, as ``comems4build simulate --ems-option``), ``run_token_file`` or
+``run_token`` and the plant
 parameters (:func:`comems4build_ros.ros.parameters.plant_params_from_node`).
 """
 
@@ -41,10 +46,10 @@ from ...ems.base import Observation
 from ...types import ACTION_FIELDS
 from ..cdr import parse_array, string_cdr
 from ..contract import ContractError, load_contract, nest
-from ..node import ArrayPublisher, ContractNode, layout_sizes
+from ..node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
 from ..parameters import param, plant_params_from_node
 from ..process import run_node
-from ..tokens import default_token
+from ..tokens import command_mac, default_token, read_token_file, secret_key
 
 #: Topic whose repeated message for an answered step triggers a re-send of the command.
 RESEND_TRIGGER_TOPIC = "state/t_air_c"
@@ -57,7 +62,7 @@ def parse_options(items: list[str], node_name: str) -> dict[str, Any]:
     return parse_assignments([i for i in items if i], f"node '{node_name}': parameter 'ems_options':")
 
 
-class EMSNode(ContractNode):
+class EMSNode(EndsWithRun, ContractNode):
     """Wraps one controller; see the module docstring.
 
     Parameters
@@ -83,7 +88,9 @@ class EMSNode(ContractNode):
                 f"the contract says '{spec.info_level}'"
             )
         sizes = layout_sizes(params)
-        token = int(param(self, "run_token", 0))
+        token_file = str(param(self, "run_token_file", ""))
+        self._key = secret_key(read_token_file(token_file)) if token_file else None  # authenticate each command
+        token = 0 if token_file else int(param(self, "run_token", 0))
         self.token = float(token if token > 0 else default_token(self.get_fully_qualified_name()))
         self._cmd = ArrayPublisher(self, "ems/command", sizes)
         self._info_pub = self.contract_publisher("ems/info")
@@ -138,6 +145,8 @@ class EMSNode(ContractNode):
 
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
+        if msg.data:
+            self.saw_done = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info(f"run done after {self.steps} decisions: exiting once the recorder has left")
@@ -161,6 +170,8 @@ class EMSNode(ContractNode):
         payload_info = {"step": step, "ems": self.ems, "info": {k: float(v) for k, v in info.items()}}
         self._info_pub.publish(string_cdr(json.dumps(payload_info)))  # ready CDR bytes, as the arrays
         payload = array("d", [float(step), *(float(getattr(action, f)) for f in ACTION_FIELDS), self.token])
+        if self._key is not None:  # the run secret: this command's own authentication code as its token
+            payload[-1] = command_mac(self._key, payload[:-1].tobytes())
         self._cmd.publish(payload)
         self._answered = step
         self._last_cmd = payload

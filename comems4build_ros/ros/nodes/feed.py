@@ -43,7 +43,7 @@ from std_msgs.msg import String, UInt32
 from ...scenario.base import Scenario
 from ...scenario.run import check_scenario, load_scenario
 from ...types import EXOGENOUS_FIELDS, PlantState
-from ..node import ArrayPublisher, ContractNode, layout_sizes
+from ..node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
 from ..parameters import param, plant_params_from_node
 from ..process import run_node
 
@@ -93,8 +93,10 @@ class LiveFeed:
     The run's steps are laid on the wall-clock hours from the current hour
     (:func:`comems4build_ros.live_inputs.live_scenario`). Prices and weather are fetched
     once, blocking, on start, then by a worker thread on their schedule; new values are
-    taken into the steps not yet published. A failed fetch keeps the last valid values
-    and is published as a ``warning`` on ``feed/events``.
+    taken into the steps not yet published. Without a live price for the first hour (a
+    failed fetch and no cached price for it) the node refuses to start (exit code 2, the
+    message names the source URL). A later failed fetch keeps the last valid values and
+    is published as a ``warning`` on ``feed/events``.
 
     Parameters of the feed: ``live_config`` (default ``config/live_inputs.yaml``) and
     ``live_cache_dir`` (directory of the cache files, default ``~/.cache/comems4build_ros``).
@@ -125,18 +127,47 @@ class LiveFeed:
                                      self.warnings.put)
         self.start_time = pd.Timestamp.now(tz=tz).floor("h")
         self.lock = threading.Lock()
+        self.states: list[str] = []  # per step: the inputs stand-in values replace (:meth:`scenario`)
+        self.stated = ""  # the state last stated on feed/events (:meth:`published`)
         self.changed = threading.Event()
         self.stop = threading.Event()
         self.prices.refresh(force=True)
+        self.prices.require(self.start_time.timestamp())  # no run on stand-in prices (exit code 2)
         self.weather.refresh(force=True)
         self.thread = threading.Thread(target=self._work, name="live-inputs", daemon=True)
 
     def scenario(self) -> Scenario:
-        """The run's scenario with the live values known now."""
-        from ...live_inputs import live_scenario
+        """The run's scenario with the live values known now (and, in :attr:`states`, which
+        inputs of each step stand-in values replace)."""
+        import pandas as pd
+
+        from ...live_inputs import live_scenario, stand_in_state
 
         with self.lock:
-            return live_scenario(self.base, self.params, self.start_time, self.prices, self.weather)
+            scenario = live_scenario(self.base, self.params, self.start_time, self.prices, self.weather)
+            self.states = stand_in_state(pd.DatetimeIndex(scenario.time), self.prices, self.weather)
+        return scenario
+
+    def published(self, k: int) -> None:
+        """Step ``k`` is published for the first time: from the run's first step on, and
+        whenever it changes, the inputs that stand-in values replace are stated on
+        ``feed/events`` (:data:`~comems4build_ros.live_inputs.STAND_IN_EVENT`, read by
+        evaluate into ``live_inputs`` of the summary)."""
+        from ...live_inputs import STAND_IN_EVENT
+
+        state = self.states[k]
+        if k > 0 and state == self.stated:
+            return
+        self.stated = state
+        why = {
+            "none": "every input of this step is live",
+            "prices": "no live price for this hour: the same hour of the latest day with prices stands in",
+            "weather": "no weather forecast for this hour (or no weather source): the scenario's weather stands in",
+            "prices+weather": "no live price and no weather forecast for this hour (or no weather source): the same "
+                              "hour of the latest day with prices and the scenario's weather stand in",
+        }[state]
+        self.feed.event(STAND_IN_EVENT, f"{state}: {why} (from this step on, until the next {STAND_IN_EVENT} line)",
+                        step=k)
 
     def start(self) -> None:
         """Start the worker thread and the feed's timer that takes new values in."""
@@ -164,7 +195,7 @@ class LiveFeed:
             self.feed.event("live", f"new live inputs taken in from step {self.feed._next}: {self.prices.describe()}")
 
 
-class Feed(ContractNode):
+class Feed(EndsWithRun, ContractNode):
     """Scenario publisher node (see the module docstring)."""
 
     def __init__(self, scenario: Scenario | None = None, **node_kwargs: Any) -> None:
@@ -243,9 +274,10 @@ class Feed(ContractNode):
         self._spot = scenario.spot_eur_per_mwh.tolist()
         self.scenario = scenario
 
-    def event(self, kind: str, detail: str) -> None:
-        """Log an input event and publish it on feed/events (``<step> <kind> <detail>``)."""
-        line = f"{self._next} {kind} {detail}"
+    def event(self, kind: str, detail: str, step: int | None = None) -> None:
+        """Log an input event and publish it on feed/events (``<step> <kind> <detail>``;
+        ``step`` default: the first step not yet published)."""
+        line = f"{self._next if step is None else step} {kind} {detail}"
         self.get_logger().warning(line)
         self._events.publish(String(data=line))
 
@@ -285,6 +317,8 @@ class Feed(ContractNode):
 
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
+        if msg.data:
+            self.saw_done = True
         if msg.data and self.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info("run done: exiting once the recorder has left")
@@ -297,6 +331,8 @@ class Feed(ContractNode):
         last = min(k + self.lookahead, self.n_steps - 1)
         first = k if k <= self._last_request else max(self._next, k)
         for j in range(first, last + 1):
+            if self._live is not None and j >= self._next:
+                self._live.published(j)
             self._publish_step(j)
         self._next = max(self._next, last + 1)
         self._last_request = k

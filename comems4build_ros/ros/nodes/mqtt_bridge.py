@@ -11,7 +11,11 @@ run contract: commands of one run token only (``ems_token``, else the first vali
 command's; others counted as ``foreign_commands``), in lock-step no step announced more
 than ``record_window_steps`` beyond ``recorder/progress`` (with ``wait_for_recorder``),
 and the end of the run through :func:`~comems4build_ros.ros.nodes.plant_sim.finish_run`
-(transient-local ``plant/done``, then the bridge stays until the recorder has left).
+(transient-local ``plant/done``, then the bridge stays until the recorder has left). With
+``stall_steps`` > 0 (the launcher sets it) the run ends with exit code 4 naming the silent
+party: the EMS (no command for ``stall_steps`` steps), the recorder, or the building and
+the broker (nothing from the building for ``stall_steps`` step time-outs, or periods of a
+wall clock: a broker that is down and does not come back is named with its URL).
 
 Clock (parameter ``clock``; :mod:`comems4build_ros.mqtt.clock`):
 
@@ -28,9 +32,11 @@ Clock (parameter ``clock``; :mod:`comems4build_ros.mqtt.clock`):
 Safety (:mod:`comems4build_ros.mqtt.safety`): before announcing a step the watchdog
 checks every measurement (missing, older than ``max_age_s`` of simulated time in the
 wall modes, outside its range, unreadable). On any finding, or while the EMS switch is
-off or the fallback switch on, the bridge does not hand the measurements to the EMS: it
-sends :func:`comems4build_ros.ems.fallback.safe_action` as the set-points of that very
-step and publishes an alarm on ``bridge/alarm`` (ROS) and ``<base>/alarm`` (MQTT). Every
+off or the fallback switch on, the bridge does not hand the measurements to the EMS (no
+``state/*`` and no ``feed/measured`` for that step, by design: the step is named by a
+``withheld`` event on ``plant/events``, so the recorder and the bag's gap check expect no
+such message), it sends :func:`comems4build_ros.ems.fallback.safe_action` as the
+set-points of that very step and publishes an alarm on ``bridge/alarm`` (ROS) and ``<base>/alarm`` (MQTT). Every
 command is clamped to the device limits and ramp limits and rate-limited
 (``min_interval_s``); changes are logged on ``plant/events`` and counted. An EMS silent
 past ``step_timeout_s`` also gets the fallback, as with ``plant_sim``.
@@ -62,6 +68,7 @@ from ...mqtt.plant import BRIDGE_RECORD_FIELDS
 from ...mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
 from ...mqtt.topicmap import PayloadError, load_topic_map
 from ...types import ACTION_FIELDS, Action
+from ..contract import WITHHELD_EVENT
 from ..ems_command import CommandError, check_token
 from ..lockstep import STATE_TOPICS, LockStepMaster
 from ..node import ArrayPublisher
@@ -294,7 +301,7 @@ class MqttBridge(LockStepMaster):
             self.event("rejected", f"topic 'ems/command' {exc}")
             return
         step = int(data[0])
-        if not self.accept_token(data[-1], step):
+        if not self.accept_token(data, step):
             return
         if step == self.k - 1 and data == self._last_cmd:
             self.duplicate_commands += 1
@@ -347,6 +354,7 @@ class MqttBridge(LockStepMaster):
             t_min = self._truth[max(self._truth)][1]
         action = safe_action(t_air, v_dhw, t_min, self.params)
         self.fallback_steps += 1
+        self.note_fallback(ems_silent=kind == "ems_silent")
         self.event("fallback", f"{kind}: {detail}: safe action hp_mode={action.hp_mode} hp_mod={action.hp_mod} "
                                 f"(fallback steps: {self.fallback_steps})")
         self._alarm(k, kind, detail, action)
@@ -358,9 +366,11 @@ class MqttBridge(LockStepMaster):
         self._t_phase = time.monotonic()
         if problems:
             self._publish_step(k)  # the feed keeps pace; the EMS gets no state for k
+            self.event(WITHHELD_EVENT, "no state announced (safety fallback)")
             self._fallback(k, problems[0].kind, "; ".join(str(p) for p in problems))
         elif not self.switches["ems"] or self.switches["fallback"]:
             self._publish_step(k)
+            self.event(WITHHELD_EVENT, "no state announced (fallback forced)")
             self._fallback(k, "forced", "EMS switched off" if not self.switches["ems"] else "fallback switched on")
         else:
             self._announce(k)
@@ -415,6 +425,7 @@ class MqttBridge(LockStepMaster):
                 return  # back-pressure: the recorder catches up first (recorder/progress)
             if self.watchdog.complete_for(self.k + 1):
                 self.k += 1
+                self.note_step()
                 self.phase = "measure"
                 self._t_phase = time.monotonic()
         if self.phase == "measure" and self.watchdog.complete_for(self.k):
@@ -448,6 +459,7 @@ class MqttBridge(LockStepMaster):
         if self._tagged and not self.watchdog.complete_for(nk):
             self.untagged_announcements += 1
         self.k = nk
+        self.note_step()
         problems = self.watchdog.check(now, check_age=False)
         for name in self.map.measurements:  # max_age_s is simulated time: scale wall ages by the factor
             r = self.watchdog.latest.get(name)
@@ -457,9 +469,29 @@ class MqttBridge(LockStepMaster):
                                                        f"{self.map.max_age(name):g} s"))
         self._begin_step(nk, problems)
 
+    def stall_window_s(self) -> float:
+        """``stall_steps`` step time-outs, or step periods of a wall clock if longer [s]."""
+        period = self.clock.period_s if self.clock.wall else 0.0
+        return self.stall_steps * max(self.step_timeout_s, period)
+
+    def waiting_for(self) -> tuple[str, str | None] | None:
+        """The recorder (back-pressure), the building over MQTT (its measurements or its
+        record of the step), or None (the EMS's command; a wall clock steps anyway)."""
+        if self.clock.wall or self.phase == "command":
+            return None
+        if self.phase == "sent" and self.wait_for_recorder and \
+                self.k + 1 - self._recorded > self.record_window_steps:
+            return f"the recorder '{self.recorder_node}' (written: {self._recorded})", "recorder/progress"
+        what = "measurements" if self.phase == "measure" else "record"
+        return f"the building's {what} of step {self.k} over MQTT ({self.link.describe()})", None
+
     def _watchdog(self) -> None:
         now = time.monotonic()
-        if self.done:
+        if self.done or self.check_stall(now):
+            return
+        if self.stall_steps and self.started and now - self._t_building > self.stall_window_s():
+            self.stall(f"nothing from the building for {now - self._t_building:.1f} s at step {self.k} "
+                       f"({self.link.describe()})")
             return
         if not self.started:
             late = now - self._t_created > self.startup_timeout_s

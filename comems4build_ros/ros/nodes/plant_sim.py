@@ -21,8 +21,11 @@ step (``ems/command``) have arrived. Protocol (docs/ros_nodes.md):
    of the in-process loop) and ``clock`` (end of step ``k``).
 
 After the last step the node publishes ``plant/done``, waits until the record messages
-are acknowledged, and exits (``exit_when_done``). With ``wait_for_recorder`` it starts
-only once the recorder has said ``recorder/ready``.
+are acknowledged, and exits (``exit_when_done``) with code 0. With ``wait_for_recorder`` it
+starts only once the recorder has said ``recorder/ready``. With ``stall_steps`` > 0 (the
+launcher sets it) a silent EMS, feed or recorder ends the run with exit code 4, naming it
+(:meth:`~comems4build_ros.ros.lockstep.LockStepMaster.check_stall`); a signal before the
+last step gives exit code 3.
 """
 
 from __future__ import annotations
@@ -112,7 +115,7 @@ class PlantSim(LockStepMaster):
             self.rejected_commands += 1
             self.event("rejected", f"topic 'ems/command' {exc}")
             return
-        if not self.accept_token(msg.data[-1], step):
+        if not self.accept_token(msg.data, step):
             return
         if step == self.k - 1 and self._last_cmd is not None and list(msg.data) == self._last_cmd:
             # the EMS re-sent the command just applied (answer to a repeated announcement
@@ -188,7 +191,7 @@ class PlantSim(LockStepMaster):
         row.extend((t0, float(self.fallback_steps), float(self.rejected_commands), float(self.wrong_step_commands),
                     float(self.foreign_commands)))
         self.k = k + 1
-        self._t_wait = time.monotonic()
+        self._t_wait = self._t_moved = time.monotonic()
         last = self.n_steps is not None and self.k >= self.n_steps
         if not last:
             if self.behind(self.k):
@@ -204,6 +207,7 @@ class PlantSim(LockStepMaster):
         t = self._truth[self.k]
         action = safe_action(self.state.t_air_c, self.state.v_dhw_l, t[self._ti["t_min_c"]], self.params)
         self.fallback_steps += 1
+        self.note_fallback(ems_silent=True)
         self._last_cmd = None
         self.event(
             "fallback",
@@ -226,9 +230,19 @@ class PlantSim(LockStepMaster):
         }
 
     # ------------------------------------------------------------------ watchdog
+    def waiting_for(self) -> tuple[str, str | None] | None:
+        """The recorder while an announcement is held back, the feed while ``feed/truth`` of
+        the step is missing, else None (the EMS)."""
+        if self._held:
+            return (f"the recorder '{self.recorder_node}' (step {self.k} held back until it has written step "
+                    f"{self.k - self.record_window_steps}; written: {self._recorded})", "recorder/progress")
+        if self.k not in self._truth:
+            return "the feed's inputs on 'feed/truth'", "feed/truth"
+        return None
+
     def _watchdog(self) -> None:
         now = time.monotonic()
-        if self.done or self._held:
+        if self.done or self.check_stall(now) or self._held:
             return
         if not self.started:
             ready = self.recorder_ready() and (

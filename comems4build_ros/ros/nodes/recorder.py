@@ -23,7 +23,9 @@ and names the topics without a publisher.
 End of run: with ``stop_when_done`` (default) the node closes the bag and exits once
 ``plant/done`` (or the last ``plant/record``) arrived from every namespace, every ``plant/record`` of the run
 (``n_steps`` from ``feed/truth``) is in, every other topic published once a step has every
-step (EMS topics: every step without a fallback; :meth:`Recorder.behind`), and no message
+step (EMS topics: every step without a fallback; the bridge's state topics: every step
+without a ``withheld`` event, :data:`~comems4build_ros.ros.bag_eval.WITHHELD_EVENT`;
+:meth:`Recorder.behind`), and no message
 of any topic has come for
 ``done_grace_s`` (its queues are drained; late ``ems/info`` of the last step); once done
 and ``done_timeout_s`` without any message, it stops even if some records are missing,
@@ -40,6 +42,8 @@ Progress: with ``progress_period_s`` > 0 the node prints ``progress <recorded> <
 lines on stdout (plant/record messages recorded, steps of all namespaces; total 0 until
 known), read by ``comems4build launch``.
 
+The bag directory gets mode 0700: every ``ems/command`` in it carries the run token.
+
 Other parameters: ``tick_s`` (housekeeping timer period, default 0.05 s), ``bag_path``
 (directory to create, required), ``run_info`` (JSON string, stored as ``run_info.json`` in
 the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``).
@@ -48,6 +52,7 @@ the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``me
 from __future__ import annotations
 
 import json
+import os
 import sys
 import time
 from collections.abc import Callable
@@ -59,9 +64,9 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from std_msgs.msg import Bool, UInt32
 
 from ..bag import BagWriter, decode, qos_for_bag
-from ..bag_eval import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, is_per_step
+from ..bag_eval import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, is_per_step, withheld_topics
 from ..cdr import array_step, parse_array, uint32_value
-from ..contract import Contract, load_contract, resolve
+from ..contract import EVENTS_TOPIC, WITHHELD_EVENT, Contract, event_step_kind, load_contract, resolve
 from ..node import FINISHED_LOCAL_RECORDERS, no_default_event_callbacks
 from ..parameters import param, string_list
 from ..process import run_node
@@ -91,7 +96,6 @@ WAIT_ROLES = ("plant", "feed", "ems")
 RUN_INFO_KEY = "comems4build.run_info"
 RUN_INFO_FILE = "run_info.json"
 DONE_TOPIC = "plant/done"
-EVENTS_TOPIC = "plant/events"
 PROGRESS_TOPIC = "recorder/progress"
 #: recorder/progress is published when the gap-free record count grew by this many steps
 #: (and at every housekeeping tick) [steps].
@@ -110,11 +114,12 @@ class StepsSeen:
     (and the feed and EMS answer it again), so a topic can carry a step twice.
     """
 
-    __slots__ = ("topic", "from_ems", "step_of", "steps", "first")
+    __slots__ = ("topic", "from_ems", "withheld", "step_of", "steps", "first")
 
-    def __init__(self, topic: str, from_ems: bool, step_of: Callable[[bytes], int]) -> None:
+    def __init__(self, topic: str, from_ems: bool, step_of: Callable[[bytes], int], withheld: bool = False) -> None:
         self.topic = topic
         self.from_ems = from_ems  # no message is expected at a fallback step
+        self.withheld = withheld  # ... nor at a step whose state was withheld (bag_eval.WITHHELD_EVENT)
         self.step_of = step_of
         self.steps: set[int] = set()
         self.first = 0  # first step seen: a topic that starts late does not hold the progress back
@@ -183,6 +188,9 @@ class Recorder(Node):
             chunk_period_s=float(param(self, "chunk_period_s", 1.0)),
             chunk_max_bytes=int(param(self, "chunk_max_bytes", 256 * 1024)),
         )
+        # The bag holds the run token of every command (ems/command): readable by this user
+        # only, before the first message comes (tokens.py).
+        os.chmod(bag_path, 0o700)
         if info_obj is not None:
             (Path(bag_path) / RUN_INFO_FILE).write_text(json.dumps(info_obj, indent=2) + "\n", encoding="utf-8")
             self.writer.set_custom_data(RUN_INFO_KEY, json.dumps(info_obj, separators=(",", ":")))
@@ -196,6 +204,8 @@ class Recorder(Node):
         # topics: every step without a fallback), not only plant/record.
         self.per_step: dict[str, list[StepsSeen]] = {ns: [] for ns in self.namespaces}
         self.fallbacks = dict.fromkeys(self.namespaces, 0)
+        self.withheld = dict.fromkeys(self.namespaces, 0)  # steps without state by design (WITHHELD_EVENT)
+        no_state = withheld_topics(self.contract)
         roles = {n.name: n.role for n in self.contract.nodes.values()}
         self.n_steps: dict[str, int] = {}
         self.done_at: dict[str, float] = {}
@@ -207,7 +217,8 @@ class Recorder(Node):
                 counter = None
                 if is_per_step(spec):
                     step_of = array_step if spec.is_array else uint32_value if spec.name == STEP_TOPIC else _info_step
-                    counter = StepsSeen(full, any(roles.get(p) == "ems" for p in spec.publishers), step_of)
+                    counter = StepsSeen(full, any(roles.get(p) == "ems" for p in spec.publishers), step_of,
+                                        spec.name in no_state)
                     self.per_step[ns].append(counter)
                 sub = self.create_subscription(
                     spec.msg_class(), full, self._callback(ns, spec.name, full, holder, counter),
@@ -322,8 +333,12 @@ class Recorder(Node):
                 self.n_steps[ns] = int(parse_array(raw)[1])
         elif name == DONE_TOPIC and decode("std_msgs/msg/Bool", raw).data and ns not in self.done_at:
             self.done_at[ns] = time.monotonic()
-        elif name == EVENTS_TOPIC and str(decode("std_msgs/msg/String", raw).data).split()[1:2] == ["fallback"]:
-            self.fallbacks[ns] += 1
+        elif name == EVENTS_TOPIC:
+            step_kind = event_step_kind(str(decode("std_msgs/msg/String", raw).data))
+            if step_kind is not None and step_kind[1] == "fallback":
+                self.fallbacks[ns] += 1
+            elif step_kind is not None and step_kind[1] == WITHHELD_EVENT:
+                self.withheld[ns] += 1
 
     def behind(self) -> dict[str, int]:
         """Per-step topics seen so far that lack messages of the run's steps -> how many.
@@ -338,7 +353,7 @@ class Recorder(Node):
         for ns in self.namespaces:
             n = self.n_steps.get(ns, 0)
             for c in self.per_step[ns]:
-                need = n - (self.fallbacks[ns] if c.from_ems else 0)
+                need = n - (self.fallbacks[ns] if c.from_ems else 0) - (self.withheld[ns] if c.withheld else 0)
                 if 0 < len(c.steps) < need:
                     out[c.topic] = need - len(c.steps)
         return out
@@ -347,8 +362,9 @@ class Recorder(Node):
     def progress(self, ns: str) -> int:
         """Steps of ``ns`` written: plant/record without a gap, and no plant or feed topic
         (per step, seen so far) with fewer messages (each writer's samples come in order)."""
-        return min([self.contiguous[ns], *(c.first + len(c.steps) for c in self.per_step[ns]
-                                           if c.steps and not c.from_ems)])
+        held = self.withheld[ns]
+        return min([self.contiguous[ns], *(c.first + len(c.steps) + (held if c.withheld else 0)
+                                           for c in self.per_step[ns] if c.steps and not c.from_ems)])
 
     def _publish_progress(self, ns: str, every: int = 1) -> None:
         """``recorder/progress`` of ``ns`` (:meth:`progress`; plant_sim's back-pressure) if it
@@ -427,6 +443,13 @@ class Recorder(Node):
         """``progress <plant/record messages> <steps of the run, 0 = unknown>`` on stdout."""
         total = sum(self.n_steps.values()) if len(self.n_steps) == len(self.namespaces) else 0
         print(f"progress {sum(self.records.values())} {total}", flush=True)
+
+    @property
+    def run_complete(self) -> bool:
+        """Every plant is done (or the bag is complete), or the node records until it is
+        stopped (``stop_when_done`` false, as ``ros2 bag record``): a signal from now on
+        closes the bag as a normal end (exit 0, :func:`comems4build_ros.ros.process.run_complete`)."""
+        return not self.stop_when_done or self.finished.done() or len(self.done_at) == len(self.namespaces)
 
     def destroy_node(self) -> None:
         """Close the bag (last chunk, summary, metadata.yaml), then destroy the node."""

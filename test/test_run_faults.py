@@ -1,0 +1,511 @@
+"""A ROS run that is cut short fails fast and names the cause; counts mean what they say; no secret leaks.
+
+Real processes throughout: ``comems4build launch`` as a user runs it, its node, container
+and broker processes over DDS and MQTT, an amqtt broker of the test, and an rclpy node of
+the test that spoofs commands. One case per row of each class:
+
+* a node that leaves during a run (SIGTERM to plant_sim, to the EMS, SIGINT to feed, a
+  container of layout ``building``, the EMS process of layout ``role``, SIGTERM to the
+  simulated building behind MQTT, the embedded MQTT broker killed, an external broker
+  killed and not restarted): the launch exits 1 within
+  10 s of the departure, the console's first line says the run was cut and names the
+  node (or the broker's URL), the bag is kept and marked incomplete (``run_cut.json``,
+  ``run_cut`` in summary.json);
+* a stall (the EMS or the feed paused: alive but silent) is named with the silent node;
+* the MQTT bridge's safety fallback steps (no state by design) are no lost messages: no
+  warning, ``lost_messages`` empty, ``evaluate`` accepts the bag without ``--accept-gaps``;
+* SIGKILL of one container of a 2-building run: the launcher names the nodes that died with
+  it (building_0's), and each building's summary lists the damage of its own bag only and
+  which of its own nodes left (``nodes_here``: none for the intact building);
+* live inputs that cannot be fetched: the launch (exit 2, before anything starts) and the
+  feed node (exit 2) refuse, naming the source URL; steps of a live run beyond the known
+  prices, and the scenario's weather, are stated on the console, in summary.json and in the bag;
+* a command built from anything another local user can read (every process's command
+  line, every world-readable file of the run) is not applied; the run token (read here
+  from its private file, as only the run's user can) is, which shows the spoof reached the plant.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+from array import array
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pandas as pd
+import pytest
+
+from comems4build_ros.mqtt.broker import free_port
+from comems4build_ros.ros.supervisor import processes_with_env
+
+pytestmark = pytest.mark.ros
+#: ``comems4build`` of this tree.
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+#: Step time-out of the runs [s]: with the launcher's 3 stall steps a silent node is named after 6 s.
+STEP_TIMEOUT = "2"
+#: A node's departure must fail the launch within this [s] (what the launcher promises).
+DEPARTURE_LIMIT_S = 10.0
+#: A silent node must be named within this [s]: 3 step time-outs of 2 s plus the same margin.
+STALL_LIMIT_S = 6.0 + DEPARTURE_LIMIT_S
+
+
+class Run:
+    """``comems4build launch`` in a subprocess; its stderr lines are kept with their arrival times."""
+
+    def __init__(self, out: Path, *args: str) -> None:
+        self.out = out
+        self.proc = subprocess.Popen([*CLI, "launch", "--out", str(out), "--no-progress", *args],
+                                     stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+        self.lines: list[tuple[float, str]] = []
+        self.stdout: list[str] = []
+        self._readers = [threading.Thread(target=self._read, daemon=True),
+                         threading.Thread(target=self._read_stdout, daemon=True)]
+        for r in self._readers:
+            r.start()
+
+    def _read(self) -> None:
+        assert self.proc.stderr is not None
+        for line in self.proc.stderr:
+            self.lines.append((time.monotonic(), line.rstrip("\n")))
+
+    def _read_stdout(self) -> None:
+        assert self.proc.stdout is not None
+        self.stdout.extend(self.proc.stdout)
+
+    def started(self, log: str) -> bool:
+        """The lock-step master (logging to ``log/<log>.log``) has started the run."""
+        path = self.out / "log" / f"{log}.log"
+        return path.is_file() and "starting the run" in path.read_text(errors="replace")
+
+    def recording(self, min_bytes: int = 100_000) -> bool:
+        """Steps are being recorded: the bag's MCAP files hold ``min_bytes`` (closed chunks)."""
+        return sum(f.stat().st_size for f in (self.out / "bag").rglob("*.mcap")) >= min_bytes
+
+    def wait_running(self, master: str) -> None:
+        """Until the run has started and steps are on disk (the EMS has answered)."""
+        _wait_for(lambda: (self.started(master) and self.recording()) or self.proc.poll() is not None,
+                  what="recorded steps")
+        assert self.proc.poll() is None, "the run ended before the fault"
+
+    def first(self, text: str) -> float | None:
+        """Arrival time of the first stderr line containing ``text``."""
+        return next((t for t, line in list(self.lines) if text in line), None)
+
+    def finish(self, timeout_s: float = 180.0) -> tuple[int, str]:
+        """Exit code and stderr; nothing of the launch may be left running."""
+        try:
+            self.proc.wait(timeout=timeout_s)
+        finally:
+            if self.proc.poll() is None:
+                self.proc.kill()
+        for r in self._readers:
+            r.join(5)
+        time.sleep(0.2)
+        left = processes_with_env("ROS_LOG_DIR", str(self.out / "log" / "ros"))
+        for pid in left:
+            os.kill(pid, signal.SIGKILL)
+        assert left == [], f"processes left behind: {left}"
+        return self.proc.returncode, "\n".join(line for _, line in self.lines)
+
+
+def _wait_for(cond: Callable[[], bool], timeout_s: float = 120.0, what: str = "condition") -> None:
+    t0 = time.monotonic()
+    while time.monotonic() - t0 < timeout_s:
+        if cond():
+            return
+        time.sleep(0.05)
+    raise AssertionError(f"{what} not met after {timeout_s} s")
+
+
+def _pid_of(out: Path, name: str) -> int:
+    """The process of the launch in ``out`` running ``name`` (console script, module or container spec)."""
+    for pid in processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")):
+        try:
+            argv = Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0")
+        except OSError:
+            continue
+        if any(Path(a).name in (name, f"{name}.json") or a.endswith(f".{name}") for a in argv[:8]):
+            return pid
+    raise AssertionError(f"no process {name}")
+
+
+class Broker:
+    """An amqtt broker process of the test (outside the launch: a broker given by URL)."""
+
+    def __init__(self, tmp: Path) -> None:
+        self.port = free_port()
+        self.url = f"mqtt://127.0.0.1:{self.port}"
+        with open(tmp / "broker.log", "w") as log:
+            self.proc = subprocess.Popen([sys.executable, "-m", "comems4build_ros.mqtt.broker", "--port",
+                                          str(self.port)], stdout=subprocess.PIPE, stderr=log, text=True,
+                                         start_new_session=True)
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline()
+        assert line.startswith("broker ready"), line
+
+    def close(self) -> None:
+        if self.proc.poll() is None:
+            self.proc.kill()
+        self.proc.wait(10)
+
+
+@pytest.fixture()
+def broker(tmp_path: Path) -> Iterator[Broker]:
+    b = Broker(tmp_path)
+    yield b
+    b.close()
+
+
+# ---------------------------------------------------------------------- a node leaves, a node falls silent
+# id: (launch arguments, log of the lock-step master, process to signal, signal, texts the error names,
+#      time limit from the signal to the launcher's first line [s])
+FAULTS = {
+    "plant_sim SIGTERM": ([], "plant_sim", "plant_sim", signal.SIGTERM,
+                          ["node 'plant_sim' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
+    "EMS SIGTERM": ([], "plant_sim", "fuzzy_ems", signal.SIGTERM,
+                    ["node 'fuzzy_ems' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
+    "feed SIGINT": ([], "plant_sim", "feed", signal.SIGINT,
+                    ["node 'feed' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
+    "container SIGTERM": (["--buildings", "2", "--containers", "2"], "container_0", "container_1", signal.SIGTERM,
+                          ["node 'container_1' exited with code 3",
+                           "(it ran recorder, fuzzy_ems, feed, plant_sim of /building_1)"],
+                          DEPARTURE_LIMIT_S),
+    "role EMS SIGTERM": (["--buildings", "2", "--layout", "role"], "role_plant", "role_ems", signal.SIGTERM,
+                         ["node 'role_ems' exited with code 3", "(it ran fuzzy_ems of /building_0, /building_1)"],
+                         DEPARTURE_LIMIT_S),
+    "mqtt_plant SIGTERM": (["--plant", "mqtt", "--weeks", "2"], "mqtt_bridge", "mqtt_plant", signal.SIGTERM,
+                           ["node 'mqtt_plant' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
+    "embedded MQTT broker SIGKILL": (["--plant", "mqtt", "--weeks", "2"], "mqtt_bridge", "broker", signal.SIGKILL,
+                                     ["node 'broker' exited with code -9", "killed by SIGKILL"], DEPARTURE_LIMIT_S),
+    "EMS paused (stall)": ([], "plant_sim", "fuzzy_ems", signal.SIGSTOP,
+                           ["run stalled", "the EMS is silent", "publisher: /fuzzy_ems"], STALL_LIMIT_S),
+    "feed paused (stall)": ([], "plant_sim", "feed", signal.SIGSTOP,
+                            ["run stalled", "waiting for the feed's inputs", "publisher: /feed"], STALL_LIMIT_S),
+}
+
+
+@pytest.mark.parametrize("case", list(FAULTS), ids=list(FAULTS))
+def test_a_node_that_leaves_or_falls_silent_fails_the_launch_naming_it(tmp_path: Path, case: str) -> None:
+    args, master, target, sig, texts, limit_s = FAULTS[case]
+    out = tmp_path / "run"
+    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", STEP_TIMEOUT, *args)
+    run.wait_running(master)
+    t_signal = time.monotonic()
+    os.kill(_pid_of(out, target), sig)
+    code, err = run.finish()
+    assert code == 1, err
+    first = err.splitlines()[0]
+    assert first.startswith(("launcher: run cut short", "launcher: run stalled")), err  # said first, at once
+    for text in texts:
+        assert text in err, (text, err)
+    t_named = run.first("launcher: run")
+    assert t_named is not None and t_named - t_signal < limit_s, f"named {t_named - t_signal:.1f} s after the signal"
+    print(f"{case}: named {t_named - t_signal:.2f} s after the signal: {first}")
+    # the bag is kept and marked incomplete; the summary of what was recorded says the run was cut
+    cut_files = sorted((out / "bag").rglob("run_cut.json"))
+    assert cut_files, "no bag marked"
+    assert json.loads(cut_files[0].read_text())["cause"] in first
+    assert (out / "summary.json").is_file(), err  # the launcher says why the cut bag could not be evaluated
+    summary = json.loads((out / "summary.json").read_text())
+    for s in summary.get("buildings", {"/": summary}).values():
+        assert s["run_cut"] and s["bag_incomplete"]["run_cut"]["cause"] in first
+        assert s["bag_incomplete"]["steps_recorded"] < s["bag_incomplete"]["steps_expected"]
+
+
+def test_an_external_broker_killed_and_not_restarted_is_named(tmp_path: Path, broker: Broker) -> None:
+    out = tmp_path / "run"
+    run = Run(out, "--ems", "fuzzy", "--weeks", "2", "--step-timeout", STEP_TIMEOUT, "--plant", "mqtt",
+              "--broker", broker.url)
+    run.wait_running("mqtt_bridge")
+    t_kill = time.monotonic()
+    broker.close()  # SIGKILL, not restarted
+    code, err = run.finish()
+    assert code == 1, err
+    first = err.splitlines()[0]
+    assert first.startswith("launcher: run cut short") and "run stalled" in first, err
+    assert "node 'mqtt_bridge' exited with code 4" in first and f"broker {broker.url}: not connected" in first, err
+    t_named = run.first("launcher: run")
+    assert t_named is not None and t_named - t_kill < STALL_LIMIT_S, f"named {t_named - t_kill:.1f} s after the kill"
+    print(f"external broker killed: named {t_named - t_kill:.2f} s after the kill: {first}")
+
+
+# ---------------------------------------------------------------------- counts that mean what they say
+def test_mqtt_fallback_steps_without_state_are_no_lost_messages(tmp_path: Path, broker: Broker) -> None:
+    """Home Assistant's fallback switch on for a while: the bridge announces no state for those
+    steps, by design; the run reports no lost message and evaluate takes the bag as complete."""
+    from comems4build_ros.mqtt.client import MqttLink
+    from comems4build_ros.mqtt.topicmap import load_topic_map
+
+    out = tmp_path / "run"
+    tmap = load_topic_map(broker_url=broker.url)
+    link = MqttLink(tmap.broker, "test_switch", [])
+    assert link.start(wait_s=10)
+    run = Run(out, "--ems", "rbc", "--weeks", "2", "--plant", "mqtt", "--broker", broker.url)
+    try:
+        _wait_for(lambda: run.started("mqtt_bridge") or run.proc.poll() is not None, what="the start of the run")
+        link.publish(tmap.switch_topics("fallback")[0], "ON")
+        time.sleep(1.5)
+        link.publish(tmap.switch_topics("fallback")[0], "OFF")
+        code, err = run.finish()
+    finally:
+        link.stop()
+    assert code == 0, err
+    assert "misses messages" not in err, err
+    summary = json.loads((out / "summary.json").read_text())
+    assert summary["steps"] == 336 and summary["fallback_steps"] >= 1, summary["fallback_steps"]
+    assert summary["lost_messages"] == {} and "bag_incomplete" not in summary
+    res = subprocess.run([*CLI, "evaluate", str(out / "bag"), "--out", str(tmp_path / "eval")],
+                         capture_output=True, text=True, timeout=120)
+    assert res.returncode == 0, res.stderr  # no --accept-gaps needed
+    assert "complete" in res.stdout
+    print(f"fallback steps without state (withheld): {summary['fallback_steps']}")
+
+
+def test_container_killed_damage_attributed_to_its_own_building(tmp_path: Path) -> None:
+    out = tmp_path / "run"
+    run = Run(out, "--ems", "rbc", "--weeks", "12", "--buildings", "2", "--containers", "2",
+              "--step-timeout", STEP_TIMEOUT)
+    run.wait_running("container_0")
+    time.sleep(1.5)  # > the recorder's 1 s chunk period: building_0's bag has closed chunks on disk
+    assert run.proc.poll() is None, "the run ended before the fault"
+    os.kill(_pid_of(out, "container_0"), signal.SIGKILL)
+    code, err = run.finish()
+    assert code == 1 and "node 'container_0' exited with code -9 (killed by SIGKILL)" in err, err
+    first = err.splitlines()[0]  # the nodes that died with the container: building_0's, none of building_1's
+    assert "(it ran recorder, rbc_ems, feed, plant_sim of /building_0)" in first and "/building_1" not in first, first
+    b0 = json.loads((out / "building_0" / "summary.json").read_text())["bag_incomplete"]
+    b1 = json.loads((out / "building_1" / "summary.json").read_text())["bag_incomplete"]
+    assert sorted(b0["run_cut"]["nodes_here"]) == [f"/building_0/{n}" for n in ("feed", "plant_sim", "rbc_ems",
+                                                                                 "recorder")]
+    assert b1["run_cut"]["nodes_here"] == []  # cut by the other building's loss: its own nodes all ran on
+    assert b0["metadata_yaml"] is False  # its recorder was killed with its container
+    assert b1["metadata_yaml"] is True and b1["damage"] == [] and b1["truncated_mcap"] is False
+    assert all("building_1" not in d for d in b0["damage"]) and all("building_0" not in d for d in b1["damage"])
+    print("building_0:", b0, "\nbuilding_1:", b1)
+
+
+# ---------------------------------------------------------------------- live inputs that cannot be fetched
+def _live_config(tmp_path: Path, url: str) -> Path:
+    import yaml
+
+    from comems4build_ros.config import config_dir
+
+    doc = yaml.safe_load((config_dir() / "live_inputs.yaml").read_text())
+    doc["/**"]["ros__parameters"]["live_inputs"]["prices"].update(url=url, retries=1, timeout_s=2.0, retry_delay_s=0.0)
+    path = tmp_path / "live.yaml"
+    path.write_text(yaml.safe_dump(doc))
+    return path
+
+
+@pytest.mark.parametrize("where", ["launch", "feed node"])
+def test_live_inputs_that_cannot_be_fetched_are_refused_naming_the_source(tmp_path: Path, where: str) -> None:
+    """Nothing listens at the source's port (as with no network): no run on stand-in prices."""
+    url = f"http://127.0.0.1:{free_port()}/v1/marketdata"
+    cfg = _live_config(tmp_path, url)
+    out = tmp_path / "run"
+    if where == "launch":
+        res = subprocess.run([*CLI, "launch", "--ems", "rbc", "--weeks", "1", "--inputs", "live", "--live-config",
+                              str(cfg), "--out", str(out), "--no-progress"],
+                             capture_output=True, text=True, timeout=120)
+        assert not out.exists()  # refused before anything started or was written
+    else:
+        from comems4build_ros.ros.plan import node_command, ros_args
+
+        env = {**os.environ, "ROS_LOG_DIR": str(tmp_path / "ros_log"), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+        res = subprocess.run([*node_command("feed"), *ros_args("", {"weeks": 1, "inputs": "live", "live_config":
+                                                                    str(cfg), "live_cache_dir": str(tmp_path)})],
+                             capture_output=True, text=True, timeout=120, env=env)
+    assert res.returncode == 2, res.stderr
+    assert url in res.stderr and "no day-ahead price for the run's first hour" in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr
+
+
+def test_live_run_states_its_stand_in_prices_on_the_console_in_the_summary_and_the_bag(tmp_path: Path) -> None:
+    """Live prices known for 30 hours from the last hour, no weather source (the default): a
+    one-week run goes, and the steps beyond the known prices (the same hour of the latest
+    day standing in) and the scenario's weather are stated, not hidden."""
+    from test_live_inputs import Server, awattar_answer
+
+    from comems4build_ros.ros.bag import decode, iter_messages
+
+    first = pd.Timestamp.now(tz="Europe/Berlin").floor("h") - pd.Timedelta(hours=1)
+    server = Server()
+    server.responses = [(200, awattar_answer(first, 30, 80.0), 0.0)]
+    try:
+        out = tmp_path / "run"
+        res = subprocess.run([*CLI, "launch", "--ems", "rbc", "--weeks", "1", "--inputs", "live", "--live-config",
+                              str(_live_config(tmp_path, server.url)), "--out", str(out), "--no-progress"],
+                             capture_output=True, text=True, timeout=300)
+    finally:
+        server.close()
+    assert res.returncode == 0, res.stderr
+    summary = json.loads((out / "summary.json").read_text())
+    ts = pd.read_csv(out / "timeseries.csv")
+    end = first + pd.Timedelta(hours=30)  # the first hour without a live price
+    beyond = int((pd.to_datetime(ts["time"], utc=True) >= end.tz_convert("UTC")).sum())
+    assert summary["steps"] == 168 and 130 <= beyond <= 140, beyond
+    assert summary["scenario"] == "default+live"
+    assert summary["live_inputs"] == {"stand_in_price_steps": beyond, "stand_in_weather_steps": 168}
+    warning = f"live inputs: {beyond} of 168 steps ran on stand-in prices"
+    assert warning in res.stderr and "168 on the scenario's weather" in res.stderr, res.stderr
+    lines = [decode(m, raw).data for topic, m, _, raw in iter_messages(out / "bag") if topic == "/feed/events"]
+    stated = [ln for ln in lines if ln.split()[1] == "stand_in"]
+    assert [ln.split(":")[0] for ln in stated] == ["0 stand_in weather", f"{168 - beyond} stand_in prices+weather"]
+    print(f"live run: {res.stderr.strip().splitlines()[-1]}")
+    ev = subprocess.run([*CLI, "evaluate", str(out / "bag"), "--out", str(tmp_path / "eval")],
+                        capture_output=True, text=True, timeout=120)
+    assert ev.returncode == 0 and f'"stand_in_price_steps": {beyond}' in ev.stdout, ev.stdout + ev.stderr
+
+
+# ---------------------------------------------------------------------- secrets
+def _world_readable(path: Path, top: Path) -> bool:
+    """Whether a user other than the owner can read ``path`` (mode bits of it and of every
+    directory from it up to ``top``, the run's output directory, whose parents are the
+    user's choice (pytest's own are private); this test may run as root, so access() cannot tell)."""
+    p = path
+    if not path.stat().st_mode & 0o004:
+        return False
+    while p != top:
+        p = p.parent
+        if not p.stat().st_mode & 0o001:
+            return False
+    return True
+
+
+def _readable_by_others(out: Path) -> tuple[set[int], int]:
+    """Every integer of 7 to 16 digits that another local user can read while the run goes: in the
+    command line of every process (``ps``) and in every world-readable file of the run; and
+    how many files were read. (The launcher's tokens are drawn from 1 .. 2^48: below 10^6
+    with a probability of 4e-9.)"""
+    text = []
+    for d in Path("/proc").iterdir():
+        if d.name.isdigit():
+            try:
+                text.append((d / "cmdline").read_bytes().replace(b"\0", b" ").decode(errors="replace"))
+            except OSError:
+                continue
+    files = [f for f in out.rglob("*") if f.is_file() and _world_readable(f, out)]
+    for f in files:
+        text.append(f.read_text(errors="replace"))
+    found = re.findall(r"(?<![\d.])\d{7,16}(?![\d])", "\n".join(text))
+    return {int(m) for m in found if 0 < int(m) < 2**53}, len(files)
+
+
+def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_path: Path) -> None:
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.duration import Duration
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+    from std_msgs.msg import Float64MultiArray, UInt32
+
+    from comems4build_ros.ros.contract import load_contract
+    from comems4build_ros.ros.supervisor import acquire_domain_id
+    from comems4build_ros.ros.tokens import command_mac, secret_key
+
+    with acquire_domain_id() as did:
+        pass  # a free domain id for the run, joined below by the spoofer
+    out = tmp_path / "run"
+    # a step time-out of 5 s: the EMS is paused for a fallback step and the spoofing, which a loaded
+    # machine can stretch; 3 silent steps of 2 s would end the run as stalled (by design) before it is over
+    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", "5", "--domain-id", str(did))
+    contract = load_contract()
+    # DHW at 37 %, the rest idle: hp_mod, hp_mode, p_fc_w, p_bess_w, p_el_w (in range, distinctive)
+    spoof = [0.37, 2.0, 0.0, 0.0, 0.0]
+    assert contract.topic("ems/command").layout_labels == ("step", "hp_mod", "hp_mode", "p_fc_w", "p_bess_w", "p_el_w",
+                                                           "token")
+    steps: list[int] = []
+    ems = None
+    ctx = Context()
+    try:
+        run.wait_running("plant_sim")  # the EMS has answered: from now on a missing command means a fallback
+        candidates, n_files = _readable_by_others(out)
+        token = int((out / ".secrets" / "root.token").read_text())  # readable by the run's user only
+        assert oct((out / ".secrets" / "root.token").stat().st_mode & 0o777) == "0o600"
+        assert oct((out / ".secrets").stat().st_mode & 0o777) == "0o700"
+        assert token not in candidates, "the run token is readable by other users"
+        assert candidates and n_files >= 4, (n_files, "the run's logs are world-readable and hold numbers")
+        # the spoofer joins the run's domain (as any local user can) once the run goes
+        rclpy.init(context=ctx, domain_id=did)
+        node = Node("spoofer", context=ctx)
+        ex = SingleThreadedExecutor(context=ctx)
+        ex.add_node(node)
+        node.create_subscription(UInt32, "/plant/step", lambda m: steps.append(int(m.data)),
+                                 contract.topic("plant/step").qos_profile())
+        sniffed: list[float] = []  # the tokens of the EMS's commands as DDS carries them (in clear)
+        node.create_subscription(Float64MultiArray, "/ems/command", lambda m: sniffed.append(float(m.data[-1])),
+                                 contract.topic("ems/command").qos_profile())
+        cmd = node.create_publisher(Float64MultiArray, "/ems/command", contract.topic("ems/command").qos_profile())
+
+        def spin(seconds: float) -> bool:
+            t_end = time.monotonic() + seconds
+            while time.monotonic() < t_end:
+                ex.spin_once(timeout_sec=0.02)
+            return False
+
+        def joined() -> bool:
+            assert run.proc.poll() is None, "the run ended before the spoofer had joined"
+            return (bool(steps) and bool(sniffed) and cmd.get_subscription_count() >= 2) or spin(0.05)
+
+        _wait_for(joined, 90, "the plant's announcements, the EMS's commands and the readers of ems/command matched")
+        ems = _pid_of(out, "fuzzy_ems")
+        os.kill(ems, signal.SIGSTOP)  # the plant now waits for a command: the spoof has the field to itself
+        spin(0.7)  # > the plant's republish period: steps[-1] is the step it waits for
+        k = steps[-1]
+        assert token not in sniffed  # the secret itself is never on the wire ...
+        candidates |= {int(t) for t in sniffed}  # ... its codes are, and are tried as well
+        ordered = sorted(candidates)
+        for i in range(0, len(ordered), 100):  # every readable candidate, for the step the plant waits for
+            for t in ordered[i:i + 100]:
+                cmd.publish(Float64MultiArray(data=[float(k), *spoof, float(t)]))
+            cmd.wait_for_all_acked(Duration(seconds=5))  # within the writer's history depth (1000)
+        # the plant falls back for k after its step time-out and announces k + 1
+        _wait_for(lambda: steps[-1] > k or spin(0.02), 30, "the announcement of the next step")
+        k1 = steps[-1]
+        values = array("d", [float(k1), *spoof])  # with the run's secret, as only the run's user can:
+        cmd.publish(Float64MultiArray(data=[*values, command_mac(secret_key(token), values.tobytes())]))
+        spin(0.5)
+        os.kill(ems, signal.SIGCONT)
+        ems = None
+        code, err = run.finish()
+    finally:
+        if ems is not None:
+            os.kill(ems, signal.SIGCONT)
+        if run.proc.poll() is None:
+            run.proc.send_signal(signal.SIGINT)
+        rclpy.try_shutdown(context=ctx)
+    assert code == 0, err
+    ts = pd.read_csv(out / "timeseries.csv")
+    summary = json.loads((out / "summary.json").read_text())
+    print(f"{len(candidates)} candidate tokens from {n_files} world-readable files and the process list; "
+          f"foreign commands counted: {summary.get('ros_faults', {}).get('foreign_commands')}")
+    assert summary["ros_faults"]["foreign_commands"] == len(candidates)  # every spoof reached the plant ...
+    assert ts["fallback"][k] == 1 and ts["cmd_hp_mod"][k] != 0.37  # ... and none was applied
+    assert (ts["cmd_hp_mode"][k1], ts["cmd_hp_mod"][k1]) == (2, 0.37)  # the channel works: the true token is
+    assert ((ts["cmd_hp_mod"] == 0.37) & (ts["cmd_hp_mode"] == 2)).sum() == 1
+    assert not (out / ".secrets").exists()  # removed after the run
+
+
+def test_dds_security_plugins_are_missing_from_the_installed_fast_dds(tmp_path: Path) -> None:
+    """What docs/ros_nodes.md states as measured: the ROS wheels' Fast DDS has no DDS-Security
+    plugins, so an enforced SROS2 enclave cannot be used here. The day a wheel brings them this
+    fails: then DDS-Security gets a real test (keystore, enclaves, a spoofer without permissions)."""
+    enclave = tmp_path / "keystore" / "enclaves" / "probe"
+    enclave.mkdir(parents=True)
+    for name in ("identity_ca.cert.pem", "cert.pem", "key.pem", "governance.p7s", "permissions.p7s",
+                 "permissions_ca.cert.pem"):
+        (enclave / name).write_text("not a certificate\n")
+    env = {**os.environ, "ROS_SECURITY_KEYSTORE": str(tmp_path / "keystore"), "ROS_SECURITY_ENABLE": "true",
+           "ROS_SECURITY_STRATEGY": "Enforce", "ROS_SECURITY_ENCLAVE_OVERRIDE": "/probe",
+           "ROS_LOG_DIR": str(tmp_path / "ros_log"), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
+    res = subprocess.run([sys.executable, "-c", "import rclpy; rclpy.init(); rclpy.create_node('probe')"],
+                         capture_output=True, text=True, timeout=120, env=env)
+    assert res.returncode != 0, "a node was created with an enforced enclave: test DDS-Security for real"
+    assert "doesn't have the security libraries" in res.stderr and "-DSECURITY=ON" in res.stderr, res.stderr
