@@ -391,3 +391,23 @@ def test_recorder_takes_namespaces_as_string_or_array(context, tmp_path, given):
         assert node.namespaces == want
     finally:
         node.destroy_node()
+
+
+def test_a_silent_ems_whose_feed_stopped_answering_names_the_feed(context):
+    """The EMS falls silent when its inputs stop; the plant may still hold inputs published
+    ahead. Its stall message then names the feed as well, not the EMS alone."""
+    import time
+
+    from comems4build_ros.ros.nodes.plant_sim import PlantSim
+
+    node = PlantSim(context=context)
+    try:
+        now = time.monotonic()
+        node._t_truth = now - 0.2  # the feed answered the last announcement
+        assert node.silent_ems_cause(now) == ""
+        node._t_truth = now - 3.0 * node.step_timeout_s  # no answer for three step time-outs
+        cause = node.silent_ems_cause(now)
+        assert "the feed has not answered the step announcements" in cause
+        assert "waiting for the feed's inputs on 'feed/truth'" in cause
+    finally:
+        node.destroy_node()

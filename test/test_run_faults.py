@@ -84,9 +84,18 @@ class Run:
         path = self.out / "log" / f"{log}.log"
         return path.is_file() and "starting the run" in path.read_text(errors="replace")
 
-    def recording(self, min_bytes: int = 100_000) -> bool:
-        """Steps are being recorded: the bag's MCAP files hold ``min_bytes`` (closed chunks)."""
-        return sum(f.stat().st_size for f in (self.out / "bag").rglob("*.mcap")) >= min_bytes
+    def recording(self) -> bool:
+        """Steps are being recorded: a plant/record message can be read from the bag's closed
+        chunks (a size alone is not enough: the first chunks may hold only the feed's inputs)."""
+        from comems4build_ros.ros.bag import iter_messages
+
+        bag = self.out / "bag"
+        if not any(bag.rglob("*.mcap")):
+            return False
+        try:
+            return any(topic.endswith("plant/record") for topic, *_ in iter_messages(bag))
+        except (OSError, ValueError):
+            return False
 
     def wait_running(self, master: str) -> None:
         """Until the run has started and steps are on disk (the EMS has answered)."""

@@ -244,6 +244,11 @@ class LockStepMaster(ContractNode):
         :data:`RECORDER_STALL_MIN_S` at least."""
         return None
 
+    def silent_ems_cause(self, now: float) -> str:
+        """Words appended to the "EMS is silent" stall when the master sees why (a silent EMS
+        may itself wait for another node); "" here. ``now``: ``time.monotonic()`` [s]."""
+        return ""
+
     def publishers_of(self, topic: str) -> str:
         """The nodes publishing contract topic ``topic`` now, in words (for stall messages)."""
         infos = self.get_publishers_info_by_topic(self.resolve_topic_name(topic))
@@ -259,7 +264,8 @@ class LockStepMaster(ContractNode):
             return self.stalled
         if self.silent_fallbacks >= self.stall_steps:
             self.stall(f"the EMS is silent: no command on 'ems/command' for {self.silent_fallbacks} steps in a row "
-                       f"(step time-out {self.step_timeout_s:g} s; {self.publishers_of('ems/command')})")
+                       f"(step time-out {self.step_timeout_s:g} s; {self.publishers_of('ems/command')})"
+                       f"{self.silent_ems_cause(now)}")
             return True
         waiting = self.waiting_for()
         if waiting is None:

@@ -76,6 +76,7 @@ class PlantSim(LockStepMaster):
         self._t_wait = 0.0
         self._t_announce = 0.0
         self._t_feed_warn = 0.0
+        self._t_truth = time.monotonic()  # last feed/truth message [s, monotonic]
         self._t_run0 = 0.0
         self._t_first_cmd = 0.0
         self._t_step_announced = 0.0
@@ -100,6 +101,7 @@ class PlantSim(LockStepMaster):
         if len(data) != self._truth_layout.length:
             self.event("rejected", f"topic 'feed/truth': {len(data)} elements, layout has {self._truth_layout.length}")
             return
+        self._t_truth = time.monotonic()  # the feed answers (every announcement, even a repeated one)
         step = int(data[0])
         if step < self.k:
             return
@@ -239,6 +241,17 @@ class PlantSim(LockStepMaster):
         if self.k not in self._truth:
             return "the feed's inputs on 'feed/truth'", "feed/truth"
         return None
+
+    def silent_ems_cause(self, now: float) -> str:
+        """A healthy feed answers every announcement (repeated every ``republish_period_s``)
+        with the inputs of the next steps; when it has not for a step time-out, the EMS is
+        silent because its inputs stopped: name the feed (the plant itself still had inputs
+        of the steps published ahead)."""
+        quiet = now - self._t_truth
+        if quiet <= max(self.step_timeout_s, 4 * self.republish_period_s):
+            return ""
+        return (f"; the feed has not answered the step announcements for {quiet:.1f} s, so the EMS lacks its "
+                f"inputs: waiting for the feed's inputs on 'feed/truth' ({self.publishers_of('feed/truth')})")
 
     def _watchdog(self) -> None:
         now = time.monotonic()
