@@ -13,6 +13,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from launch_probe import pid_of, records_on_disk
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
@@ -116,27 +117,6 @@ def _running(out: Path) -> bool:
     return log.exists() and "starting the run" in log.read_text(errors="replace")
 
 
-def _pid_of(out: Path, name: str) -> int:
-    for pid in processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")):
-        try:
-            argv = Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0")
-        except OSError:
-            continue
-        if any(Path(a).name == name or a.endswith(f"nodes.{name}") for a in argv[:3]):
-            return pid
-    raise AssertionError(f"no process {name}")
-
-
-def _records_on_disk(bag: Path) -> int:
-    """plant/record messages readable now from the bag the recorder is writing (0 if none yet)."""
-    from comems4build_ros.ros.bag import iter_messages
-
-    try:
-        return sum(1 for _ in iter_messages(bag, ["/plant/record"]))
-    except (OSError, ValueError):
-        return 0
-
-
 def _finish(proc: subprocess.Popen, out: Path) -> tuple[int, str]:
     try:
         stdout, err = proc.communicate(timeout=90)
@@ -168,7 +148,7 @@ def test_ems_crash_stops_the_launch(tmp_path: Path) -> None:
     out = tmp_path / "run"
     proc = _cli(out)
     _wait_for(lambda: _running(out))
-    os.kill(_pid_of(out, "fuzzy_ems"), signal.SIGKILL)
+    os.kill(pid_of(out, "fuzzy_ems"), signal.SIGKILL)
     code, err = _finish(proc, out)
     assert code == 1
     assert "node 'fuzzy_ems' exited with code -9" in err
@@ -179,8 +159,8 @@ def test_recorder_sigkill_then_evaluate_reads_the_cut_bag(tmp_path: Path) -> Non
     out = tmp_path / "run"
     proc = _cli(out)
     _wait_for(lambda: _running(out))
-    _wait_for(lambda: _records_on_disk(out / "bag") > 0)  # closed chunks with plant/record (1 s chunk period)
-    os.kill(_pid_of(out, "recorder"), signal.SIGKILL)
+    _wait_for(lambda: records_on_disk(out / "bag"))  # closed chunks with plant/record (1 s chunk period)
+    os.kill(pid_of(out, "recorder"), signal.SIGKILL)
     code, err = _finish(proc, out)
     assert code == 1 and "node 'recorder' exited with code -9" in err
     assert not (out / "bag" / "metadata.yaml").exists()
@@ -223,7 +203,7 @@ def test_a_paused_recorder_cannot_hang_the_launcher(tmp_path: Path, monkeypatch:
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
     _wait_for(lambda: _running(out))
-    os.kill(_pid_of(out, "recorder"), signal.SIGSTOP)
+    os.kill(pid_of(out, "recorder"), signal.SIGSTOP)
     thread.join(timeout=120)
     marker = str(out / "log" / "ros")
     left = processes_with_env("ROS_LOG_DIR", marker)

@@ -41,6 +41,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from launch_probe import pid_of, records_on_disk
 
 from comems4build_ros.mqtt.broker import free_port
 from comems4build_ros.ros.supervisor import processes_with_env
@@ -85,17 +86,8 @@ class Run:
         return path.is_file() and "starting the run" in path.read_text(errors="replace")
 
     def recording(self) -> bool:
-        """Steps are being recorded: a plant/record message can be read from the bag's closed
-        chunks (a size alone is not enough: the first chunks may hold only the feed's inputs)."""
-        from comems4build_ros.ros.bag import iter_messages
-
-        bag = self.out / "bag"
-        if not any(bag.rglob("*.mcap")):
-            return False
-        try:
-            return any(topic.endswith("plant/record") for topic, *_ in iter_messages(bag))
-        except (OSError, ValueError):
-            return False
+        """Steps are being recorded: a plant/record message can be read from the bag."""
+        return records_on_disk(self.out / "bag")
 
     def wait_running(self, master: str) -> None:
         """Until the run has started and steps are on disk (the EMS has answered)."""
@@ -133,16 +125,6 @@ def _wait_for(cond: Callable[[], bool], timeout_s: float = 120.0, what: str = "c
     raise AssertionError(f"{what} not met after {timeout_s} s")
 
 
-def _pid_of(out: Path, name: str) -> int:
-    """The process of the launch in ``out`` running ``name`` (console script, module or container spec)."""
-    for pid in processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")):
-        try:
-            argv = Path(f"/proc/{pid}/cmdline").read_bytes().decode().split("\0")
-        except OSError:
-            continue
-        if any(Path(a).name in (name, f"{name}.json") or a.endswith(f".{name}") for a in argv[:8]):
-            return pid
-    raise AssertionError(f"no process {name}")
 
 
 class Broker:
@@ -207,7 +189,7 @@ def test_a_node_that_leaves_or_falls_silent_fails_the_launch_naming_it(tmp_path:
     run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", STEP_TIMEOUT, *args)
     run.wait_running(master)
     t_signal = time.monotonic()
-    os.kill(_pid_of(out, target), sig)
+    os.kill(pid_of(out, target), sig)
     code, err = run.finish()
     assert code == 1, err
     first = err.splitlines()[0]
@@ -284,7 +266,7 @@ def test_container_killed_damage_attributed_to_its_own_building(tmp_path: Path) 
     run.wait_running("container_0")
     time.sleep(1.5)  # > the recorder's 1 s chunk period: building_0's bag has closed chunks on disk
     assert run.proc.poll() is None, "the run ended before the fault"
-    os.kill(_pid_of(out, "container_0"), signal.SIGKILL)
+    os.kill(pid_of(out, "container_0"), signal.SIGKILL)
     code, err = run.finish()
     assert code == 1 and "node 'container_0' exited with code -9 (killed by SIGKILL)" in err, err
     first = err.splitlines()[0]  # the nodes that died with the container: building_0's, none of building_1's
@@ -464,7 +446,7 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
             return (bool(steps) and bool(sniffed) and cmd.get_subscription_count() >= 2) or spin(0.05)
 
         _wait_for(joined, 90, "the plant's announcements, the EMS's commands and the readers of ems/command matched")
-        ems = _pid_of(out, "fuzzy_ems")
+        ems = pid_of(out, "fuzzy_ems")
         os.kill(ems, signal.SIGSTOP)  # the plant now waits for a command: the spoof has the field to itself
         spin(0.7)  # > the plant's republish period: steps[-1] is the step it waits for
         k = steps[-1]
