@@ -411,3 +411,28 @@ def test_a_silent_ems_whose_feed_stopped_answering_names_the_feed(context):
         assert "waiting for the feed's inputs on 'feed/truth'" in cause
     finally:
         node.destroy_node()
+
+
+def test_signals_during_the_clean_up_do_not_cut_it_short():
+    """After a node's run, SIGINT and SIGTERM are ignored while it cleans up (a recorder closes
+    its bag then); before, both stop the node like Ctrl-C (KeyboardInterrupt)."""
+    import subprocess
+    import sys
+
+    code = ("import os, signal\n"
+            "import rclpy\n"
+            "from comems4build_ros.ros.process import ignore_stop_signals, init_rclpy\n"
+            "init_rclpy([])\n"
+            "try:\n"
+            "    os.kill(os.getpid(), signal.SIGTERM)\n"
+            "    print('SIGTERM not raised')\n"
+            "except KeyboardInterrupt:\n"
+            "    print('SIGTERM raised KeyboardInterrupt')\n"
+            "ignore_stop_signals()\n"
+            "os.kill(os.getpid(), signal.SIGTERM)\n"
+            "os.kill(os.getpid(), signal.SIGINT)\n"
+            "rclpy.try_shutdown()\n"
+            "print('clean-up went on')\n")
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    assert res.returncode == 0, res.stderr
+    assert res.stdout.splitlines() == ["SIGTERM raised KeyboardInterrupt", "clean-up went on"], res.stdout

@@ -161,7 +161,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
     from .contract import ContractError
     from .process import (
         cleanup_deadline,
-        ignore_sigint,
+        ignore_stop_signals,
         init_rclpy,
         interrupted_code,
         make_executor,
@@ -230,7 +230,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         print(f"[container {role} {current}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
     finally:
-        ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
+        ignore_stop_signals()  # a second Ctrl-C or the supervisor's signals must not cut the clean-up short
         watchdog = cleanup_deadline(f"container {role}", code)
         executor.shutdown()
         for node in nodes:

@@ -135,7 +135,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
         print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
     finally:
-        ignore_sigint()  # a second Ctrl-C or the launcher's SIGINT must not cut the clean-up short
+        ignore_stop_signals()  # a second Ctrl-C or the supervisor's signals must not cut the clean-up short
         watchdog = cleanup_deadline(name, code)
         executor.shutdown()
         if node is not None:
@@ -215,13 +215,17 @@ def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S
     return timer
 
 
-def ignore_sigint() -> None:
-    """Ignore SIGINT from now on (main thread only): the process is already shutting down."""
+def ignore_stop_signals() -> None:
+    """Ignore SIGINT and SIGTERM from now on (main thread only): the process is already
+    shutting down, and a KeyboardInterrupt (:func:`init_rclpy`) inside the clean-up would cut
+    it short (a recorder closes its bag there). A process whose clean-up hangs still ends:
+    by :func:`cleanup_deadline`, or the supervisor's SIGKILL."""
     import signal
     import threading
 
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, signal.SIG_IGN)
+        signal.signal(signal.SIGTERM, signal.SIG_IGN)
 
 
 def print_cpu(label: str) -> None:
