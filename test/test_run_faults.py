@@ -236,13 +236,22 @@ def test_mqtt_fallback_steps_without_state_are_no_lost_messages(tmp_path: Path, 
 
     out = tmp_path / "run"
     tmap = load_topic_map(broker_url=broker.url)
-    link = MqttLink(tmap.broker, "test_switch", [])
+    link = MqttLink(tmap.broker, "test_switch", [tmap.state_topic])
     assert link.start(wait_s=10)
     run = Run(out, "--ems", "rbc", "--weeks", "2", "--plant", "mqtt", "--broker", broker.url)
+    reported: list[int] = []
+
+    def bridge_reports_fallback() -> bool:
+        # the bridge's state (a fresh broker: nothing retained from another run) counts the
+        # fallback steps; the switch stays on until one has been taken (a fixed time was not
+        # enough under load: the run can wait that long for the EMS's first command)
+        reported.extend(json.loads(m.payload)["fallback_steps"] for m in link.drain())
+        return any(n >= 1 for n in reported) or run.proc.poll() is not None
+
     try:
         _wait_for(lambda: run.started("mqtt_bridge") or run.proc.poll() is not None, what="the start of the run")
         link.publish(tmap.switch_topics("fallback")[0], "ON")
-        time.sleep(1.5)
+        _wait_for(bridge_reports_fallback, what="a fallback step reported by the bridge")
         link.publish(tmap.switch_topics("fallback")[0], "OFF")
         code, err = run.finish()
     finally:
