@@ -17,7 +17,6 @@ The default parameters (``config/plant.yaml``, section ``building``) are calibra
 from __future__ import annotations
 
 import numpy as np
-from scipy.linalg import expm
 
 from comems4build_ros.config import SECONDS_PER_HOUR, BuildingParams
 
@@ -68,6 +67,8 @@ def discretize(b: BuildingParams, dt_h: float) -> tuple[np.ndarray, np.ndarray]:
     """
     if not dt_h > 0:
         raise ValueError(f"building: dt_h must be > 0 h, got {dt_h}")
+    from scipy.linalg import expm  # here, not at the top: a node process that never steps a building skips SciPy
+
     a, bm = continuous(b)
     n, m = a.shape[0], bm.shape[1]
     aug = np.zeros((n + m, n + m))

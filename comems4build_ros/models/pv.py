@@ -103,6 +103,18 @@ def poa_irradiance_w_m2(time, ghi_w_m2, dhi_w_m2, pv: PVParams, site: SiteParams
     # Diffuse cannot exceed global (measurement noise): cap it.
     dhi = np.minimum(dhi, ghi)
     mid = index + pd.Timedelta(minutes=MID_STEP_MINUTES)
+    # the pvlib steps are cached on disk (comems4build_ros.pvlib_cache): a hit skips pvlib's import
+    from ..pvlib_cache import cached
+
+    geometry = {"site": site.model_dump(), "tilt_deg": pv.tilt_deg, "azimuth_deg": pv.azimuth_deg,
+                "albedo": pv.albedo, "sky_model": pv.sky_model}
+    (poa,) = cached("poa", geometry, [mid.asi8, ghi, dhi], len(index),
+                    lambda: (_poa_from_horizontal_quiet(mid, ghi, dhi, pv, site),))
+    return poa
+
+
+def _poa_from_horizontal_quiet(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.ndarray, pv: PVParams,
+                               site: SiteParams) -> np.ndarray:
     with warnings.catch_warnings():
         # pvlib 0.16 still uses pandas attributes deprecated in pandas 3 (dayofyear).
         warnings.filterwarnings("ignore", category=DeprecationWarning, module="pvlib")

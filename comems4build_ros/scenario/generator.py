@@ -140,17 +140,33 @@ def _solar(
     rng: np.random.Generator, time: pd.DatetimeIndex, day: np.ndarray, kc_day: np.ndarray,
     settings: ScenarioSettings, site: SiteParams,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Hourly mean GHI and DHI [W/m2] (clear-sky at the middle of the hour times kc)."""
-    import pvlib
+    """Hourly mean GHI and DHI [W/m2] (clear-sky at the middle of the hour times kc).
+
+    The pvlib part is cached on disk (:mod:`comems4build_ros.pvlib_cache`): a hit gives the
+    same arrays without importing pvlib.
+    """
+    from ..pvlib_cache import cached
 
     s = settings.solar
     mid = time + pd.Timedelta(minutes=30)
-    loc = pvlib.location.Location(site.latitude_deg, site.longitude_deg, tz=site.timezone, altitude=site.altitude_m)
     kc_h = kc_day[day] * (1.0 + _ar1(rng, len(time), s.hourly_phi, s.hourly_sigma * np.sqrt(1 - s.hourly_phi**2)))
     kc_h = np.clip(kc_h, 0.02, s.kc_max)
+    params = {"site": site.model_dump(), "clearsky_model": s.clearsky_model}
+    ghi, dhi = cached("solar", params, [mid.asi8, kc_h], len(time),
+                      lambda: _solar_pvlib(mid, kc_h, s.clearsky_model, site))
+    return ghi, dhi
+
+
+def _solar_pvlib(
+    mid: pd.DatetimeIndex, kc_h: np.ndarray, model: str, site: SiteParams
+) -> tuple[np.ndarray, np.ndarray]:
+    """GHI and DHI [W/m2] at the times ``mid`` with hourly clear-sky index ``kc_h`` [-] (pvlib)."""
+    import pvlib
+
+    loc = pvlib.location.Location(site.latitude_deg, site.longitude_deg, tz=site.timezone, altitude=site.altitude_m)
     with warnings.catch_warnings():  # pandas deprecation notices from inside pvlib
         warnings.simplefilter("ignore", DeprecationWarning)
-        ghi_cs = loc.get_clearsky(mid, model=s.clearsky_model)["ghi"].to_numpy()
+        ghi_cs = loc.get_clearsky(mid, model=model)["ghi"].to_numpy()
         ghi = np.where(ghi_cs > 0, ghi_cs * kc_h, 0.0)
         zenith = loc.get_solarposition(mid)["apparent_zenith"].to_numpy()
         dhi = pvlib.irradiance.erbs(ghi, zenith, mid)["dhi"].to_numpy()

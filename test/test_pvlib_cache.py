@@ -1,0 +1,148 @@
+"""The on-disk cache of pvlib's results: a hit is bit-identical to pvlib, keys cover the
+inputs and parameters, a damaged file or an unwritable directory never changes a result, and a
+process that builds a scenario with a warm cache does not import pvlib at all."""
+
+from __future__ import annotations
+
+import os
+import subprocess
+import sys
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from comems4build_ros import pvlib_cache
+from comems4build_ros.config import load_plant_params
+from comems4build_ros.models import pv
+from comems4build_ros.scenario import generator
+from comems4build_ros.scenario.settings import load_scenario_settings
+
+
+@pytest.fixture()
+def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
+    d = tmp_path / "cache"
+    monkeypatch.setenv(pvlib_cache.CACHE_ENV, str(d))
+    return d
+
+
+@pytest.fixture(scope="module")
+def params():
+    return load_plant_params()
+
+
+def _week() -> tuple[pd.DatetimeIndex, np.ndarray, np.ndarray]:
+    time = pd.date_range("2022-12-05", periods=168, freq="h", tz="Europe/Berlin")
+    rng = np.random.default_rng(7)
+    clear = np.clip(800.0 * np.sin(np.pi * ((time.hour.to_numpy() - 8) / 8.0)), 0.0, None)
+    ghi = clear * rng.uniform(0.1, 1.0, len(time))
+    return time, ghi, ghi * rng.uniform(0.3, 1.0, len(time))
+
+
+def _pvlib_poa(time: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.ndarray, params) -> np.ndarray:
+    mid = time + pd.Timedelta(minutes=pv.MID_STEP_MINUTES)
+    return pv._poa_from_horizontal_quiet(mid, ghi, dhi, params.pv, params.site)
+
+
+def _files(d: Path) -> list[Path]:
+    return sorted(d.glob("pvlib-*.npz")) if d.is_dir() else []
+
+
+def test_poa_miss_then_hit_bit_identical_to_pvlib(cache: Path, params, monkeypatch: pytest.MonkeyPatch) -> None:
+    time, ghi, dhi = _week()
+    expected = _pvlib_poa(time, ghi, dhi, params)
+    first = pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site)
+    assert len(_files(cache)) == 1
+    np.testing.assert_array_equal(first, expected)
+
+    def no_pvlib(*_args, **_kwargs):
+        raise AssertionError("pvlib called on a cache hit")
+
+    monkeypatch.setattr(pv, "_poa_from_horizontal_quiet", no_pvlib)
+    second = pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site)
+    assert second.tobytes() == expected.tobytes()
+    # another tilt, another irradiance value: a different key, so pvlib is called
+    with pytest.raises(AssertionError, match="pvlib called"):
+        pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv.model_copy(update={"tilt_deg": 10.0}), params.site)
+    dhi2 = dhi.copy()
+    dhi2[12] *= 0.5
+    with pytest.raises(AssertionError, match="pvlib called"):
+        pv.poa_irradiance_w_m2(time, ghi, dhi2, params.pv, params.site)
+
+
+def test_damaged_file_is_computed_again(cache: Path, params) -> None:
+    time, ghi, dhi = _week()
+    expected = pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site)
+    (path,) = _files(cache)
+    path.write_bytes(path.read_bytes()[:100])  # cut short, as by a full disk
+    again = pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site)
+    np.testing.assert_array_equal(again, expected)
+    assert pvlib_cache.load("poa", pvlib_cache.key_of("x", {}, []), 168) is None
+    # written anew: the next call reads a whole file
+    with np.load(path) as data:
+        np.testing.assert_array_equal(data["a0"], expected)
+
+
+def test_off_and_unwritable_directory_change_nothing(tmp_path: Path, params, monkeypatch: pytest.MonkeyPatch) -> None:
+    time, ghi, dhi = _week()
+    expected = _pvlib_poa(time, ghi, dhi, params)
+    monkeypatch.setenv(pvlib_cache.CACHE_ENV, "off")
+    assert pvlib_cache.cache_dir() is None
+    np.testing.assert_array_equal(pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site), expected)
+    blocker = tmp_path / "a_file"
+    blocker.write_text("not a directory")
+    monkeypatch.setenv(pvlib_cache.CACHE_ENV, str(blocker / "cache"))
+    np.testing.assert_array_equal(pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site), expected)
+    assert not pvlib_cache.store("poa", "0" * 64, [expected])
+
+
+def test_default_directory_follows_xdg(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
+    monkeypatch.delenv(pvlib_cache.CACHE_ENV, raising=False)
+    monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
+    assert pvlib_cache.cache_dir() == tmp_path / "comems4build_ros"
+
+
+def test_modelled_radiation_hit_bit_identical(cache: Path, params, monkeypatch: pytest.MonkeyPatch) -> None:
+    settings = load_scenario_settings()
+    time = pd.date_range("2022-12-01", periods=24 * 14, freq="h", tz=params.site.timezone)
+    local = time.normalize().tz_localize(None)
+    day = (local - local[0]).days.to_numpy()
+    kc = np.full(int(day.max()) + 1, 0.5)
+
+    def radiation() -> tuple[np.ndarray, np.ndarray]:
+        rng = generator._streams(11)["solar"]
+        return generator._solar(rng, time, day, kc, settings, params.site)
+
+    ghi, dhi = radiation()
+    assert ghi.max() > 100.0 and len(_files(cache)) == 1
+    rng = generator._streams(11)["solar"]  # the same draws, straight from pvlib
+    kc_h = np.clip(kc[day] * (1.0 + generator._ar1(rng, len(time), settings.solar.hourly_phi,
+                                                    settings.solar.hourly_sigma
+                                                    * np.sqrt(1 - settings.solar.hourly_phi**2))),
+                   0.02, settings.solar.kc_max)
+    ref = generator._solar_pvlib(time + pd.Timedelta(minutes=30), kc_h, settings.solar.clearsky_model, params.site)
+    np.testing.assert_array_equal(ghi, ref[0])
+    np.testing.assert_array_equal(dhi, ref[1])
+    monkeypatch.setattr(generator, "_solar_pvlib", lambda *a: (_ for _ in ()).throw(AssertionError("pvlib")))
+    hit = radiation()
+    assert hit[0].tobytes() == ghi.tobytes() and hit[1].tobytes() == dhi.tobytes()
+
+
+def test_warm_cache_scenario_without_pvlib(cache: Path) -> None:
+    """A second process building the default scenario (as a feed node does) never imports pvlib."""
+    code = ("import sys, warnings; warnings.simplefilter('ignore');"
+            "from comems4build_ros.config import load_plant_params;"
+            "from comems4build_ros.scenario.run import load_scenario;"
+            "from comems4build_ros.sim import exogenous_series;"
+            "p = load_plant_params(); s = load_scenario('default', p, None, 2, None, None);"
+            "x = exogenous_series(s, p);"
+            "print('pvlib' in sys.modules, repr(sum(e.p_pv_w for e in x)))")
+    env = {**os.environ, pvlib_cache.CACHE_ENV: str(cache)}
+    runs = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+            for _ in range(2)]
+    for r in runs:
+        assert r.returncode == 0, r.stderr
+    cold, warm = (r.stdout.split() for r in runs)
+    assert cold[0] == "True" and warm[0] == "False"
+    assert cold[1] == warm[1] and float(cold[1]) > 0.0  # the same PV energy
