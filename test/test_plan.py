@@ -165,7 +165,8 @@ def test_netns_network_is_an_option_of_the_plan(tmp_path: Path) -> None:
     assert (plant_host.netns, plant_host.address, ems_host.netns, ems_host.address) == (
         "c4b12p", "10.231.12.1", "c4b12e", "10.231.12.2")
     assert plant_host.env["ROS_STATIC_PEERS"] == "10.231.12.2" and ems_host.env["ROS_STATIC_PEERS"] == "10.231.12.1"
-    assert plant_host.env["FASTDDS_DEFAULT_PROFILES_FILE"].endswith("fastdds_profile_udp.xml")
+    for var in ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE"):  # Fast DDS 2.x and 3.x
+        assert plant_host.env[var].endswith("fastdds_profile_udp.xml")
     assert plan.process("plant_sim").argv[:4] == ("ip", "netns", "exec", "c4b12p")
     assert ("ip", "netns", "add", "c4b12p") in plan.setup and ("ip", "netns", "del", "c4b12e") in plan.teardown
     assert all("netem" in cmd for cmd in plan.optional_setup) and len(plan.optional_setup) == 2

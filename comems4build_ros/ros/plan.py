@@ -44,7 +44,7 @@ import dataclasses
 import json
 import math
 import sys
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -517,6 +517,20 @@ def discovery_server_command(port: int) -> list[str] | None:
     return [str(exe), "-i", "0", "-l", "127.0.0.1", "-p", str(port)]
 
 
+#: Environment variables naming a Fast DDS XML profiles file: ``FASTRTPS_DEFAULT_PROFILES_FILE``
+#: is the one Fast DDS 2.x reads (Jazzy ships 2.14), ``FASTDDS_DEFAULT_PROFILES_FILE`` the one of
+#: Fast DDS 3.x. A process gets both; a user who set either keeps it.
+FASTDDS_PROFILE_VARS = ("FASTRTPS_DEFAULT_PROFILES_FILE", "FASTDDS_DEFAULT_PROFILES_FILE")
+
+
+def profile_env(profile: Path | None, env: Mapping[str, str] | None = None) -> dict[str, str]:
+    """The variables that make Fast DDS 2.x and 3.x load ``profile``; empty when there is no
+    profile or ``env`` (default: none) already names one (the user's choice stands)."""
+    if profile is None or (env is not None and any(v in env for v in FASTDDS_PROFILE_VARS)):
+        return {}
+    return dict.fromkeys(FASTDDS_PROFILE_VARS, str(profile))
+
+
 def fastdds_profile(name: str = FASTDDS_PROFILE) -> Path | None:
     """A Fast DDS profile of ``launch_scripts/`` (default ``fastdds_profile.xml``: deep
     shared-memory port queues): source tree, then installed share."""
@@ -951,9 +965,7 @@ def netns_network(domain_id: int, netem: str | None) -> tuple[dict[str, NetworkS
     addr = {g: f"10.231.{domain_id}.{n}" for g, (_, n) in tags.items()}
     for g, (tag, _n) in tags.items():
         other = next(o for o in tags if o != g)
-        env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_PEERS": addr[other]}
-        if profile is not None:
-            env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+        env = {"ROS_AUTOMATIC_DISCOVERY_RANGE": "SUBNET", "ROS_STATIC_PEERS": addr[other], **profile_env(profile)}
         sides[g] = NetworkSide(g, env, netns=f"c4b{domain_id}{tag}", address=addr[g])
     ns_p, ns_e = sides["plant_side"].netns, sides["ems_side"].netns
     dev_p, dev_e = f"{ns_p}0", f"{ns_e}0"

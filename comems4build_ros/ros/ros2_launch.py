@@ -35,7 +35,7 @@ from pathlib import Path
 from typing import Any
 
 from .exits import exit_meaning
-from .plan import LaunchOptions, RunPlan, fastdds_profile, node_label, plan_run
+from .plan import LaunchOptions, RunPlan, fastdds_profile, node_label, plan_run, profile_env
 from .supervisor import LaunchError, describe_nodes
 from .tokens import write_token_file
 
@@ -113,10 +113,7 @@ def process_env(plan: RunPlan, process: Any) -> dict[str, str]:
     the Fast DDS profile unless the user set one, the domain), then the plan's, the
     side's and the process's own."""
     env = {"PYTHONUNBUFFERED": "1", "ROS_DOMAIN_ID": str(plan.domain_id)}
-    if "FASTDDS_DEFAULT_PROFILES_FILE" not in os.environ and "FASTRTPS_DEFAULT_PROFILES_FILE" not in os.environ:
-        profile = fastdds_profile()
-        if profile is not None:
-            env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+    env.update(profile_env(fastdds_profile(), os.environ))
     return {**env, **plan.env, **plan.sides[process.side].env, **process.env}
 
 

@@ -9,7 +9,8 @@ needs its ``LD_LIBRARY_PATH``) plus ``ROS_DOMAIN_ID`` (a free id, see
 :func:`acquire_domain_id`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST``, ``ROS_LOG_DIR``
 under the output directory, ``PYTHONPATH`` starting with the directory this package
 was imported from (the nodes run the same code as the launcher) and, unless set,
-``FASTDDS_DEFAULT_PROFILES_FILE`` = ``launch_scripts/fastdds_profile.xml`` (deep
+``FASTRTPS_DEFAULT_PROFILES_FILE`` (what Fast DDS 2.x reads; ``FASTDDS_...`` for 3.x too) =
+``launch_scripts/fastdds_profile.xml`` (deep
 shared-memory port queues: without it a briefly descheduled recorder loses messages),
 then the plan's, the network side's and the process's own environment additions.
 
@@ -56,7 +57,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from .exits import CAUSE_TAG, exit_meaning
-from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile, node_label
+from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile, node_label, profile_env
 from .tokens import private_dir, write_token_file
 
 #: Domain ids tried by :func:`acquire_domain_id` (0..101 keep Fast DDS's ports below the
@@ -375,10 +376,7 @@ def child_env(domain_id: int, ros_log_dir: Path, base: dict[str, str] | None = N
         parts = [p for p in env.get("PYTHONPATH", "").split(os.pathsep) if p and p != root]
         env["PYTHONPATH"] = os.pathsep.join([root, *parts])
     env["PYTHONUNBUFFERED"] = "1"
-    if "FASTDDS_DEFAULT_PROFILES_FILE" not in env and "FASTRTPS_DEFAULT_PROFILES_FILE" not in env:
-        profile = fastdds_profile()
-        if profile is not None:
-            env["FASTDDS_DEFAULT_PROFILES_FILE"] = str(profile)
+    env.update(profile_env(fastdds_profile(), env))
     return env
 
 
