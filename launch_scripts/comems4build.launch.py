@@ -7,7 +7,7 @@
 The arguments are those of ``comems4build launch`` (``ros2 launch comems4build_ros
 comems4build.launch.py --show-args`` lists them): ``ems``, ``scenario``, ``start``,
 ``weeks``, ``steps``, ``buildings``, ``seed``, ``namespace``, ``layout``, ``containers``,
-``config``/``set``/``ems_options`` (``;``-separated), ``forecast``, ``step_timeout``,
+``config``/``set``/``ems_options`` (``;``-separated), ``forecast``, ``all_inputs``, ``step_timeout``,
 ``timeout``, ``out``, ``bag``, ``domain`` and ``print_plan``. Both build the same run plan
 (:mod:`comems4build_ros.ros.ros2_launch`), start the same nodes with the same parameters
 and end by the same rule: the launch ends by itself once every recorder has closed its

@@ -66,6 +66,23 @@ def test_forecast_topics_cover_every_forecast_key_and_only_mpc_reads_them(contra
         assert set(t.subscribers) == {"mpc_ems", "mpc_qp_ems"}
 
 
+def test_inputs_not_read_are_the_feed_topics_above_an_ems_level(contract):
+    # what a feed serving one EMS leaves out: the EMS topics of the higher levels, never
+    # feed/truth (the plant's) nor the topics every EMS reads
+    assert contract.inputs_not_read("mpc_ems") == ()
+    fuzzy = set(contract.inputs_not_read("fuzzy_ems"))
+    assert fuzzy == {"feed/t_amb"} | {t.name for t in contract.topics.values() if t.name.startswith("forecast/")}
+    rbc = set(contract.inputs_not_read("rbc_ems"))
+    assert rbc == fuzzy | {"feed/comfort_ahead", "feed/solar", "feed/h2_allowance", "feed/season"}
+    for ems in ("thermostat_ems", "rbc_ems", "fuzzy_ems", "mpc_ems"):
+        read = {t.name for t in contract.subscribed_by(ems)}
+        published = {t.name for t in contract.published_by("feed")}
+        assert read & set(contract.inputs_not_read(ems)) == set()
+        assert published - set(contract.inputs_not_read(ems)) >= read & published | {"feed/truth"}
+    with pytest.raises(ContractError, match="'plant_sim' is not an EMS node"):
+        contract.inputs_not_read("plant_sim")
+
+
 def test_record_layout_is_the_in_process_timeseries_row(contract):
     # plant/record carries one row of sim.py's timeseries (time as unix seconds), so the
     # bag evaluation rebuilds the same table and the same KPIs.

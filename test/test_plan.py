@@ -59,6 +59,28 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
     assert set(plan.sides) == {"local"} and all(p.side == "local" for p in plan.processes)
 
 
+@pytest.mark.parametrize("layout", ["node", "building", "role"])
+def test_feed_publishes_and_recorder_records_what_the_ems_reads(layout: str, tmp_path: Path) -> None:
+    """tab:level_of_information: the feed of an RBC run leaves out what the RBC does not read
+    and the recorder does not wait for it; ``all_inputs`` keeps every input in the bag."""
+    from comems4build_ros.ros.contract import load_contract
+
+    unread = list(load_contract().inputs_not_read("rbc_ems"))
+    assert "forecast/p_pv_w" in unread and "feed/solar" in unread
+    for all_inputs in (False, True):
+        opts = LaunchOptions(ems="rbc", out=tmp_path / f"run{all_inputs}", steps=6, buildings=2, layout=layout,
+                             all_inputs=all_inputs)
+        plan = plan_run(opts, domain_id=3)
+        feeds = [n.params for _, n in plan.nodes("feed")]
+        recorders = [n.params for _, n in plan.nodes("recorder")]
+        assert len(feeds) == 2 and len(recorders) == 2
+        if all_inputs:
+            assert all("for_ems" not in p for p in feeds) and all("skip_topics" not in p for p in recorders)
+        else:
+            assert all(p["for_ems"] == "rbc_ems" for p in feeds)
+            assert all(p["skip_topics"] == unread for p in recorders)
+
+
 def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
     opts = LaunchOptions(ems="rbc", out=tmp_path / "run", weeks=1, buildings=5, buildings_per_recorder=2,
                          layout="role")

@@ -317,6 +317,25 @@ def test_gap_check_of_a_cut_bag_stops_at_each_topics_last_step() -> None:
     assert full == {"/feed/solar": list(range(20, n)), "/state/soc": [7]}
 
 
+def test_inputs_the_ems_does_not_read_are_not_gaps_when_never_published() -> None:
+    """A feed serving the RBC publishes no forecast/*: no message at all on them is no gap for
+    an RBC run, a forecast message lost inside the run still is, and every topic the RBC
+    reads stays checked."""
+    from comems4build_ros.ros.bag_eval import find_gaps
+    from comems4build_ros.ros.contract import load_contract
+
+    contract = load_contract()
+    unread = set(contract.inputs_not_read("rbc_ems"))
+    n = 12
+    seen = {f"/{t.name}": set(range(n)) for t in contract.topics.values() if t.name not in unread}
+    assert find_gaps(contract, "/", n, set(), seen, complete=True, unread=unread) == {}
+    assert set(find_gaps(contract, "/", n, set(), seen, complete=True)) == {f"/{t}" for t in unread}
+    seen["/forecast/p_pv_w"] = set(range(n)) - {3}
+    del seen["/feed/prices"]
+    assert find_gaps(contract, "/", n, set(), seen, complete=True, unread=unread) == {
+        "/forecast/p_pv_w": [3], "/feed/prices": list(range(n))}
+
+
 @pytest.mark.ros
 def test_recorder_ends_only_when_every_per_step_topic_is_complete(tmp_path: Path) -> None:
     """plant/record complete and no message for done_grace_s is not the end while a topic

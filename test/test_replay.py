@@ -52,33 +52,59 @@ def test_full_replay_as_fast_as_possible_is_recorded_again(recorded: Path, tmp_p
     assert again == original
 
 
+def _drive_with_recorded_inputs(ems: str, inputs: Path, tmp_path: Path,
+                                timeout_s: float = 90.0) -> tuple[dict, dict]:
+    """Recorder, ``ems``, an inputs-only replay of the bag ``inputs`` and a plant: the summary of the
+    new bag, and that of the in-process run of ``ems`` on the same scenario."""
+    from comems4build_ros.scenario.run import load_scenario
+    from comems4build_ros.sim import simulate
+
+    bag = tmp_path / f"{ems}_bag"
+    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
+        rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {"bag_path": str(bag)})])
+        group.start(f"{ems}_ems", "ems", [*node_command("ems", ems)])
+        group.start("replay", "replay", [*node_command("replay"), str(inputs), "--inputs-only"])
+        plant = group.start("plant_sim", "plant", [*node_command("plant_sim"),
+                                                   *ros_args("", {"wait_for_recorder": True})])
+        assert _wait_exit(plant, timeout_s) == 0, plant.tail()
+        assert _wait_exit(rec) == 0, rec.tail()
+    params = load_plant_params()
+    summary = evaluate_bag(bag, tmp_path / "eval", params=params)["/"]
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ref = simulate(ems, load_scenario("default", params, None, 1, None, STEPS), params).summary
+    return summary, ref
+
+
 @pytest.mark.skipif(
     not load_contract().may_subscribe("replay", "plant/step"),
     reason="contract: 'replay' is not (yet) a subscriber of plant/step, needed for the lock-step --inputs-only mode",
 )
 def test_inputs_only_replay_drives_another_ems(recorded: Path, tmp_path: Path) -> None:
     """rbc against the inputs recorded with fuzzy gives the in-process rbc run on the same scenario."""
-    from comems4build_ros.scenario.run import load_scenario
-    from comems4build_ros.sim import simulate
-
-    bag = tmp_path / "rbc_bag"
-    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
-        rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {"bag_path": str(bag)})])
-        group.start("rbc_ems", "ems", [*node_command("ems", "rbc")])
-        group.start("replay", "replay", [*node_command("replay"), str(recorded), "--inputs-only"])
-        plant = group.start("plant_sim", "plant", [*node_command("plant_sim"),
-                                                   *ros_args("", {"wait_for_recorder": True})])
-        assert _wait_exit(plant) == 0, plant.tail()
-        assert _wait_exit(rec) == 0, rec.tail()
-    params = load_plant_params()
-    summary = evaluate_bag(bag, tmp_path / "eval", params=params)["/"]
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        ref = simulate("rbc", load_scenario("default", params, None, 1, None, STEPS), params).summary
+    summary, ref = _drive_with_recorded_inputs("rbc", recorded, tmp_path)
     for key in set(ref) - {"wall_s", "ems_s"}:  # ems and scenario too: announced in the bag (ems/info, feed/info)
         assert summary[key] == ref[key], key
     assert summary["ems"] == "rbc" and summary["lost_messages"] == {}
     assert json.loads((tmp_path / "eval" / "summary.json").read_text())["fallback_steps"] == 0
+
+
+def test_a_run_records_the_inputs_of_its_ems_and_all_inputs_drive_the_mpc(recorded: Path, tmp_path: Path) -> None:
+    """tab:level_of_information: the fuzzy run's feed published (and its bag holds) no MPC
+    input; recorded with ``all_inputs``, the same fuzzy run's bag drives an MPC through an
+    inputs-only replay to exactly the in-process MPC run."""
+    unread = {f"/{t}" for t in load_contract().inputs_not_read("fuzzy_ems")}
+    assert "/forecast/p_pv_w" in unread
+    topics = Counter(t for t, *_ in iter_messages(recorded))
+    assert not unread & set(topics) and topics["/feed/solar"] == STEPS
+    full = launch(LaunchOptions(ems="fuzzy", out=tmp_path / "all", weeks=1, steps=STEPS, timeout_s=150,
+                                all_inputs=True)).bag
+    topics = Counter(t for t, *_ in iter_messages(full))
+    assert all(topics[t] >= STEPS for t in unread)
+    summary, ref = _drive_with_recorded_inputs("mpc", full, tmp_path, timeout_s=240.0)
+    for key in set(ref) - {"wall_s", "ems_s"}:
+        assert summary[key] == ref[key], key
+    assert summary["ems"] == "mpc" and summary["lost_messages"] == {}
 
 
 def test_evaluate_refuses_a_bag_with_gaps_unless_accepted(recorded: Path, tmp_path: Path) -> None:

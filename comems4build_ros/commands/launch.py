@@ -31,6 +31,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="option passed to the EMS (repeatable)")
     parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
                         help="forecasts given to the MPC (default: config/forecast.yaml)")
+    parser.add_argument("--all-inputs", action="store_true",
+                        help="the feed publishes every EMS input (tab:level_of_information), also what this EMS does "
+                             "not read, so that the bag can drive any EMS with 'replay --inputs-only'")
     parser.add_argument("--domain-id", metavar="ID", type=DOMAIN_ID, default=None,
                         help="ROS_DOMAIN_ID of the run, 0 .. 232 (default: a free id, locked for the run)")
     parser.add_argument("--step-timeout", metavar="S", type=SECONDS, default=None,
@@ -200,6 +203,7 @@ def launch_options(args: argparse.Namespace) -> Any:
         layout=args.layout,
         namespace=args.namespace,
         bag=Path(args.bag) if args.bag else None,
+        all_inputs=bool(args.all_inputs),
     )
 
 

@@ -246,12 +246,20 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
             last_ns=max(t for t, _ in by_step.values()),
             counters={c: int(last[c]) for c in counter_names},
             gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete, set(info.topics),
-                           withheld.get(ns, set())),
+                           withheld.get(ns, set()), _unread_inputs(contract, ems_names.get(ns))),
             ems=ems_names.get(ns),
             scenario=scenarios.get(ns),
             stand_in=sorted(set(stand_in.get(ns, []))),
         )
     return runs
+
+
+def _unread_inputs(contract: Any, ems: str | None) -> set[str]:
+    """Feed topics the EMS ``ems`` (as announced on ``ems/info``) does not read (none if unknown)."""
+    try:
+        return set(contract.inputs_not_read(contract.ems_node_name(ems))) if ems else set()
+    except ValueError:  # ContractError: an EMS this contract does not know
+        return set()
 
 
 def is_per_step(spec: Any) -> bool:
@@ -279,6 +287,7 @@ def find_gaps(
     complete: bool,
     recorded: set[str] | None = None,
     withheld: set[int] | None = None,
+    unread: set[str] | None = None,
 ) -> dict[str, list[int]]:
     """Steps of a recorded run with no message, per topic of namespace ``ns``.
 
@@ -289,6 +298,9 @@ def find_gaps(
     (``n`` = recorded ``plant/record`` steps), except the fallback steps for the EMS's
     topics (no command is expected there) and the ``withheld`` steps (:data:`WITHHELD_EVENT`)
     for the topics of :func:`withheld_topics` (no state was announced there, by design).
+    A topic of ``unread`` (feed inputs the run's EMS does not read,
+    :meth:`~comems4build_ros.ros.contract.Contract.inputs_not_read`) without any message was
+    not published in the run (a feed serving that EMS), not lost.
     A bag cut short (recorder killed) is checked up to :data:`CUT_TAIL_STEPS` steps before
     its last record (the feed runs ahead and the last messages before the cut need not all
     be in), and each topic with messages only up to its own last recorded step: the
@@ -307,7 +319,7 @@ def find_gaps(
         full = resolve_ns(ns, spec.name)
         if recorded is not None and full not in recorded:
             continue
-        if not is_per_step(spec) or (spec.name == INFO_TOPIC and full not in seen):
+        if not is_per_step(spec) or (spec.name in (unread or set()) | {INFO_TOPIC} and full not in seen):
             continue
         from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
         got = seen.get(full, set())

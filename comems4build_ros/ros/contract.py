@@ -357,6 +357,23 @@ class Contract:
         known = sorted(s.ems for s in self.nodes.values() if s.role == "ems" and s.ems)
         raise ContractError(f"no EMS node for '{ems}' in {self.path} (known: {', '.join(known)})")
 
+    def inputs_not_read(self, ems_node: str) -> tuple[str, ...]:
+        """Feed topics only EMS nodes read, and ``ems_node`` does not (its information level,
+        ``tab:level_of_information``): what a run of that EMS needs no feed to publish.
+
+        Raises
+        ------
+        ContractError
+            If ``ems_node`` is not an EMS node of the contract.
+        """
+        if self.node(ems_node).role != "ems":
+            raise ContractError(f"node '{ems_node}' is not an EMS node of {self.path}")
+        roles = {n.name: n.role for n in self.nodes.values()}
+        return tuple(
+            t.name for t in self.published_by("feed")
+            if t.subscribers and all(roles.get(s) == "ems" for s in t.subscribers) and ems_node not in t.subscribers
+        )
+
     def input_fields(self, node: str) -> frozenset[str]:
         """Observation field names the subscribed array topics of ``node`` deliver (``step`` excluded).
 

@@ -97,6 +97,8 @@ PARAMETERS: dict[str, ParamSpec] = {
     "publish_measured": ParamSpec("publish feed/measured (false when mqtt_bridge publishes the building's meters)",
                                   allowed="true or false"),
     "inputs": ParamSpec("inputs of the feed", allowed="scenario or live"),
+    "for_ems": ParamSpec("EMS node the feed serves: only the topics it reads are published (empty = every EMS topic)",
+                         allowed="an EMS node of the contract (fuzzy_ems, ...) or empty"),
     "live_config": ParamSpec("live-input settings file (empty = config/live_inputs.yaml)",
                              allowed="a file path or empty"),
     "live_cache_dir": ParamSpec("directory of the live-input cache files (empty = ~/.cache/comems4build_ros)",
@@ -114,6 +116,8 @@ PARAMETERS: dict[str, ParamSpec] = {
                             allowed="a namespace, a comma-separated list or a string array"),
     "wait_for_topics": ParamSpec("topics whose publishers must be matched before recorder/ready "
                                  "('*' = those of plant, feed and EMS)", allowed="contract topic names or '*'"),
+    "skip_topics": ParamSpec("topics not recorded (no publisher in the run)",
+                             allowed="contract topic names, a comma-separated list or a string array"),
     "settle_s": ParamSpec("wait after every topic matched, for the other side of discovery", "s", 0.0, None),
     "ready_timeout_s": ParamSpec("declare ready anyway after this wait for publishers", "s", *_POS),
     "optional_wait_s": ParamSpec("extra wait for optional topics (ems/info) before ready", "s", 0.0, None),

@@ -166,6 +166,9 @@ class LaunchOptions:
     namespace : namespace of the run: the building's own for one building (``/`` = none),
         else the namespace under which the buildings ``building_<i>`` run
     bag : bag directory to create (None = ``out/bag``)
+    all_inputs : the feed publishes (and the bag records) every EMS input topic, also those
+        the run's EMS does not read (so that ``replay --inputs-only`` of the bag can drive
+        any EMS); default: only the topics of the EMS's information level
     plant : ``sim`` (``plant_sim`` on ROS) or ``mqtt`` (the simulated building behind MQTT,
         reached through ``mqtt_bridge``; one building, one process per node)
     clock : ``sim``, ``wall`` or ``wall:<factor>`` (wall modes need ``plant="mqtt"``)
@@ -211,6 +214,7 @@ class LaunchOptions:
     netem: str | None = None
     namespace: str = "/"
     bag: Path | None = None
+    all_inputs: bool = False
 
     def __post_init__(self) -> None:
         """An embedded scenario's plant file (``--scenario year``: ``config/year.yaml``) goes first."""
@@ -634,6 +638,8 @@ def building_params(
     if opts.ems_options:
         ems_params["ems_options"] = list(opts.ems_options)
     feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps, wait_for_recorder=True)
+    if not opts.all_inputs:
+        feed_params["for_ems"] = ems_node_name(opts.ems)
     if seed is not None:
         feed_params["seed"] = int(seed)
     if opts.start:
@@ -685,14 +691,28 @@ def backstop_stall_s(opts: LaunchOptions, layout: str) -> float | None:
     return max(STALL_BACKSTOP_FACTOR * window + STALL_MARGIN_S, STALL_BACKSTOP_MIN_S)
 
 
-def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float) -> dict[str, Any]:
-    """Parameters of the recorder of namespace ``ns`` writing the bag directory ``bag``."""
-    return {
+def unread_inputs(opts: LaunchOptions) -> list[str]:
+    """Feed topics the run's EMS does not read (its information level,
+    ``tab:level_of_information``), which its feed leaves out (feed ``for_ems``) and its
+    recorder does not record (``skip_topics``); none with ``all_inputs``."""
+    from .contract import load_contract
+
+    return [] if opts.all_inputs else list(load_contract().inputs_not_read(ems_node_name(opts.ems)))
+
+
+def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float,
+                    skip_topics: Sequence[str] = ()) -> dict[str, Any]:
+    """Parameters of the recorder of namespace ``ns`` writing the bag directory ``bag``
+    (``skip_topics``: topics no node of the run publishes, see :func:`unread_inputs`)."""
+    params: dict[str, Any] = {
         "bag_path": str(bag.resolve()),
         "namespaces": [ns],
         "run_info": json.dumps(info),
         "progress_period_s": progress_period_s,
     }
+    if skip_topics:
+        params["skip_topics"] = list(skip_topics)
+    return params
 
 
 def ems_node_name(ems: str) -> str:
@@ -853,7 +873,7 @@ def _node_processes(
     out: list[ProcessPlan] = []
     for b in buildings:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S)
+        params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S, unread_inputs(opts))
         out.append(ProcessPlan(
             f"{prefix}recorder", "recorder", (*node_command("recorder"), *ros_args("", params)),
             nodes=(NodePlan("recorder", "recorder", "/", params),), finishes=True, progress=True,
@@ -887,7 +907,8 @@ def _contained_nodes(
     process: the recorder's and the plant's timers slower, the plant's step timeout longer)."""
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
     nodes = [NodePlan("recorder", "recorder", b.namespace,
-                      dict(recorder_params(b.namespace, b.bag, info, 0.0), tick_s=CONTAINER_RECORDER_TICK_S))]
+                      dict(recorder_params(b.namespace, b.bag, info, 0.0, unread_inputs(opts)),
+                           tick_s=CONTAINER_RECORDER_TICK_S))]
     for role, params in building_params(opts, b.seed, common, b.token_file).items():
         if role == "plant":
             params = {"step_timeout_s": CONTAINER_STEP_TIMEOUT_S, "watchdog_period_s": CONTAINER_WATCHDOG_PERIOD_S,

@@ -57,6 +57,7 @@ ARGUMENTS: dict[str, tuple[str, str, str]] = {
     "set": ("", "plant parameter overrides KEY=VALUE, ';'-separated", "--set"),
     "ems_options": ("", "EMS options KEY=VALUE, ';'-separated", "--ems-option"),
     "forecast": ("", "forecasts of the MPC: perfect or imperfect (empty = config/forecast.yaml)", "--forecast"),
+    "all_inputs": ("false", "publish and record every EMS input, also what this EMS does not read", "--all-inputs"),
     "step_timeout": ("", "plant_sim's wait for a command before its safe fallback [s]", "--step-timeout"),
     "timeout": ("", "end the launch with an error after this wall time [s] (empty = the plan's limit)",
                 "--timeout"),
@@ -65,6 +66,8 @@ ARGUMENTS: dict[str, tuple[str, str, str]] = {
     "domain": ("", "ROS_DOMAIN_ID of every process (empty = the environment's, else 0)", "--domain-id"),
     "print_plan": ("false", "print the run plan and exit without starting anything", "--print-plan"),
 }
+#: Arguments that are flags of ``comems4build launch`` (true/false).
+FLAG_ARGUMENTS = ("all_inputs", "print_plan")
 #: Arguments holding several items, separated by ``;``.
 LIST_ARGUMENTS = ("config", "set", "ems_options")
 #: Executables of the package that ``ros2 run`` finds (``lib/comems4build_ros/``).
@@ -77,7 +80,7 @@ def command_line(values: dict[str, str]) -> list[str]:
     argv: list[str] = []
     for name, (_default, _help, option) in ARGUMENTS.items():
         value = str(values.get(name, ARGUMENTS[name][0])).strip()
-        if name == "print_plan":
+        if name in FLAG_ARGUMENTS:
             if value.lower() in ("true", "1", "yes"):
                 argv.append(option)
             continue

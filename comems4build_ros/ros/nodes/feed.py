@@ -14,17 +14,22 @@ For each step ``k`` the feed publishes (topics of ``msg_defs/topics.yaml``, elem
 
 The values are those of :class:`comems4build_ros.sim.ObservationBuilder` (MPC level,
 which contains every other level), so an EMS node rebuilds exactly the observation of
-the in-process loop. Pacing: the feed publishes when ``plant/step`` announces the step
-the plant waits for, up to ``lookahead_steps`` steps ahead; a repeated announcement (the
-plant re-announces while it waits, e.g. for a restarted EMS) makes it publish the steps
+the in-process loop. With ``for_ems`` (the contract name of the EMS node of the run, e.g.
+``fuzzy_ems``; the launcher sets it) the feed publishes only the EMS topics that node
+reads, built at its level (``fuzzy_ems``: no ``feed/t_amb``, no ``forecast/*``).
+
+Pacing: the feed publishes when ``plant/step`` announces the step the plant waits for,
+up to ``lookahead_steps`` steps ahead; a repeated announcement (the plant re-announces
+while it waits, e.g. for a restarted EMS) makes it publish the steps
 ``k .. k + lookahead_steps`` again. The feed is never on the critical path of a step.
 It exits with code 0 on ``plant/done`` (end of the run).
 
 Parameters: ``scenario`` (``default`` or a CSV path), ``weeks`` (whole weeks, 0 = the
 default length), ``steps`` (cut the run to its first N steps, 0 = all), ``start`` (ISO
 time, empty = from the beginning), ``seed`` (default scenario only, -1 = the seed of
-``config/scenario.yaml``), ``forecast_mode`` (empty = ``config/forecast.yaml``), ``lookahead_steps``,
-``allow_gap_fill`` (default false) and the plant parameters (see
+``config/scenario.yaml``), ``forecast_mode`` (empty = ``config/forecast.yaml``),
+``lookahead_steps``, ``allow_gap_fill`` (default false), ``for_ems`` (empty = every EMS
+topic) and the plant parameters (see
 :func:`comems4build_ros.ros.parameters.plant_params_from_node`). A scenario with a time gap,
 a non-finite value, or missing values the core loader would interpolate makes the feed
 refuse to start (exit code 2, the message names file, line and column); with
@@ -221,8 +226,18 @@ class Feed(EndsWithRun, ContractNode):
         # With a building behind MQTT its own meters give the PV output and load: the
         # mqtt_bridge publishes feed/measured and the feed leaves it out.
         self.publish_measured = bool(param(self, "publish_measured", True))
-        ems_topics = [t for t in EMS_TOPICS if self.publish_measured or t != "feed/measured"]
-        self._pubs = [ArrayPublisher(self, t, sizes_) for t in (*ems_topics, *forecast_topics)]
+        # Serving one EMS, the feed publishes only what that EMS reads (its information
+        # level, tab:level_of_information); without, every EMS input (any EMS, or a bag
+        # that can later drive any EMS with replay --inputs-only).
+        self.for_ems = str(param(self, "for_ems", ""))
+        self.level = "mpc"
+        unread: set[str] = set()
+        if self.for_ems:
+            unread = set(self.contract.inputs_not_read(self.for_ems))
+            self.level = self.contract.node(self.for_ems).info_level or "mpc"
+        ems_topics = [t for t in EMS_TOPICS if (self.publish_measured or t != "feed/measured") and t not in unread]
+        self.topics = (*ems_topics, *(t for t in forecast_topics if t not in unread))
+        self._pubs = [ArrayPublisher(self, t, sizes_) for t in self.topics]
         self._events = self.contract_publisher("feed/events")
         self._info_pub = self.contract_publisher("feed/info")
         self._pub_fields = [p.layout.fields for p in self._pubs]
@@ -268,7 +283,7 @@ class Feed(EndsWithRun, ContractNode):
         from ...sim import ObservationBuilder, exogenous_series
 
         exo = exogenous_series(scenario, self._params)
-        self._builder = ObservationBuilder(scenario, self._params, "mpc", exo, self._forecast)
+        self._builder = ObservationBuilder(scenario, self._params, self.level, exo, self._forecast)
         self._exo = exo
         self._time_s = [t.timestamp() for t in scenario.time]
         self._spot = scenario.spot_eur_per_mwh.tolist()
@@ -326,7 +341,10 @@ class Feed(EndsWithRun, ContractNode):
 
     def _on_plant_step(self, msg: UInt32) -> None:
         k = int(msg.data)
-        if k >= self.n_steps or not self.recorder_gate():  # not yet: the plant announces again
+        if k >= self.n_steps:
+            return
+        if not self.recorder_gate():  # not yet: answered once the gate opens
+            self.when_gate_opens(lambda: self._on_plant_step(msg))
             return
         last = min(k + self.lookahead, self.n_steps - 1)
         first = k if k <= self._last_request else max(self._next, k)

@@ -44,6 +44,10 @@ known), read by ``comems4build launch``.
 
 The bag directory gets mode 0700: every ``ems/command`` in it carries the run token.
 
+Topics of ``skip_topics`` (contract names; the launcher lists the feed topics the run's
+EMS does not read, which its feed does not publish) are not recorded: no subscription,
+no channel.
+
 Other parameters: ``tick_s`` (housekeeping timer period, default 0.05 s), ``bag_path``
 (directory to create, required), ``run_info`` (JSON string, stored as ``run_info.json`` in
 the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``).
@@ -167,8 +171,12 @@ class Recorder(Node):
         wait = [str(t) for t in param(self, "wait_for_topics", ["*"]) if str(t)]
         if wait == ["*"]:
             wait = default_wait_topics(self.contract)
-        for t in wait:
+        # Topics a run does not publish (the feed serving one EMS leaves out what it does
+        # not read): no subscription, no channel in the bag, no wait for a publisher.
+        self.skip = set(string_list(self, "skip_topics"))
+        for t in (*wait, *sorted(self.skip)):
             self.contract.topic(t)  # ContractError names an unknown topic
+        wait = [t for t in wait if t not in self.skip]
         self.settle_s = float(param(self, "settle_s", SETTLE_S))
         self.ready_timeout_s = float(param(self, "ready_timeout_s", READY_TIMEOUT_S))
         self.stop_when_done = bool(param(self, "stop_when_done", True))
@@ -211,6 +219,8 @@ class Recorder(Node):
         self.done_at: dict[str, float] = {}
         for ns in self.namespaces:
             for spec in self.contract.topics.values():
+                if spec.name in self.skip:
+                    continue
                 full = resolve(ns, spec.name)
                 self.writer.add_topic(full, spec.type, self._bag_qos(spec.qos))
                 holder: list[Any] = []

@@ -113,10 +113,10 @@ class Replay(ContractNode):
                 "set 'source_namespace'"
             )
         messages = sorted(by_ns[ns], key=lambda m: m[1])
-        # every recorded topic gets its publisher, also one without messages (feed/events of
-        # a run without input events): a recorder waits for the publishers of its topics
-        recorded = {hit[1] for hit in (_split(t, names) for t in info.topics) if hit is not None and hit[0] == ns}
-        self._pubs = {name: self.contract_publisher(name) for name in sorted(recorded | {m[0] for m in messages})}
+        # every topic of the replayed set gets its publisher, also one without messages
+        # (feed/events of a run without input events) or not recorded at all (the inputs the
+        # run's EMS did not read): a recorder waits for the publishers of its topics
+        self._pubs = {name: self.contract_publisher(name) for name in sorted(names)}
         self.published = 0
         self._finishing = False
         self.finished = Future()
