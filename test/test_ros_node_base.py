@@ -307,6 +307,35 @@ def test_string_cdr_equals_rclpy_serialisation(text: str) -> None:
     assert deserialize_message(string_cdr(text), String).data == text
 
 
+@pytest.mark.parametrize("value", [0, 1, 2016, 2**32 - 1])
+def test_uint32_cdr_equals_rclpy_serialisation(value: int) -> None:
+    from rclpy.serialization import deserialize_message, serialize_message
+    from std_msgs.msg import UInt32
+
+    from comems4build_ros.ros.cdr import uint32_cdr, uint32_value
+
+    assert uint32_cdr(value) == serialize_message(UInt32(data=value))
+    assert deserialize_message(uint32_cdr(value), UInt32).data == value == uint32_value(uint32_cdr(value))
+    with pytest.raises(ValueError, match="out of range"):
+        uint32_cdr(2**32)
+
+
+@pytest.mark.parametrize("t_ns", [0, 1_669_852_800_000_000_000, 1_669_852_800_999_999_999, -1])
+def test_clock_cdr_equals_rclpy_serialisation(t_ns: int) -> None:
+    from builtin_interfaces.msg import Time
+    from rclpy.serialization import deserialize_message, serialize_message
+    from rosgraph_msgs.msg import Clock
+
+    from comems4build_ros.ros.cdr import clock_cdr
+
+    sec, nanosec = divmod(t_ns, 1_000_000_000)
+    assert clock_cdr(t_ns) == serialize_message(Clock(clock=Time(sec=sec, nanosec=nanosec)))
+    back = deserialize_message(clock_cdr(t_ns), Clock).clock
+    assert back.sec * 1_000_000_000 + back.nanosec == t_ns
+    with pytest.raises(ValueError, match="out of range"):
+        clock_cdr(2**31 * 1_000_000_000)
+
+
 @pytest.mark.parametrize("labels", [[], ["x"], ["step,t_air_c", "ab"], ["a" * 7]])
 def test_parse_array_reads_what_rclpy_serialises(labels) -> None:
     from array import array

@@ -22,7 +22,7 @@ def cdr_prefix(label: str, n: int) -> bytes:
     Layout (alignment counted after the 4-byte encapsulation header): dimension count;
     label length (with the terminating NUL), label, NUL, padding to 4; size; stride; data
     offset; value count; padding to 8; then the values. Equal to rclpy's serialisation
-    (test/test_ros_nodes_common.py).
+    (test/test_ros_node_base.py).
     """
     if sys.byteorder != "little":  # array.tobytes() is native: CDR_LE needs little endian
         raise RuntimeError("ready CDR bytes need a little-endian machine")
@@ -39,9 +39,37 @@ def cdr_prefix(label: str, n: int) -> bytes:
 def string_cdr(text: str) -> bytes:
     """CDR bytes of a ``std_msgs/String`` holding ``text`` (encapsulation CDR_LE, length with
     the NUL, UTF-8 bytes, NUL): what rclpy serialises, without building the message object
-    (test/test_ros_nodes_common.py)."""
+    (test/test_ros_node_base.py)."""
     raw = text.encode("utf-8")
     return b"\x00\x01\x00\x00" + (len(raw) + 1).to_bytes(4, "little") + raw + b"\0"
+
+
+def uint32_cdr(value: int) -> bytes:
+    """CDR bytes of a ``std_msgs/UInt32`` (``plant/step``): encapsulation CDR_LE, the value.
+
+    Raises
+    ------
+    ValueError
+        For a value outside 0 .. 2**32 - 1.
+    """
+    if not 0 <= value < 2**32:
+        raise ValueError(f"UInt32 out of range: {value}")
+    return b"\x00\x01\x00\x00" + value.to_bytes(4, "little")
+
+
+def clock_cdr(t_ns: int) -> bytes:
+    """CDR bytes of a ``rosgraph_msgs/Clock`` at ``t_ns`` [ns since the epoch]: its
+    ``builtin_interfaces/Time`` as int32 ``sec`` and uint32 ``nanosec``, CDR_LE.
+
+    Raises
+    ------
+    ValueError
+        For a time whose seconds do not fit an int32.
+    """
+    sec, nanosec = divmod(t_ns, 1_000_000_000)
+    if not -(2**31) <= sec < 2**31:
+        raise ValueError(f"Clock out of range: {t_ns} ns")
+    return b"\x00\x01\x00\x00" + struct.pack("<iI", sec, nanosec)
 
 
 def _array_data(raw: bytes) -> tuple[int, int]:
@@ -105,8 +133,6 @@ def array_step(raw: bytes) -> int:
     if n < 1:
         raise ValueError("empty Float64MultiArray: no step")
     return int(struct.unpack_from("<d", raw, pos)[0])
-
-
 
 
 def uint32_value(raw: bytes) -> int:

@@ -37,12 +37,11 @@ import time
 from array import array
 from typing import Any
 
-from builtin_interfaces.msg import Time
 from rclpy.duration import Duration
 from rclpy.task import Future
-from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Bool, String, UInt32
 
+from .cdr import clock_cdr, uint32_cdr
 from .exits import EXIT_STALLED
 from .node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
 from .parameters import param, plant_params_from_node
@@ -147,8 +146,6 @@ class LockStepMaster(ContractNode):
         self._clock_pub = self.contract_publisher("clock")
         self._done_pub = self.contract_publisher("plant/done")
         self._events_pub = self.contract_publisher("plant/events")
-        self._step_msg = UInt32()
-        self._clock_msg = Clock()
         self.contract_subscription("recorder/ready", self._on_recorder_ready)
         self.contract_subscription("recorder/progress", self._on_recorder_progress)
 
@@ -300,14 +297,11 @@ class LockStepMaster(ContractNode):
 
     def publish_step(self, k: int) -> None:
         """``plant/step`` = ``k``."""
-        self._step_msg.data = k
-        self._step_pub.publish(self._step_msg)
+        self._step_pub.publish(uint32_cdr(k))  # ready CDR bytes, as the arrays
 
     def publish_clock(self, start_unix_s: float) -> None:
         """``clock``: the end of the step that started at ``start_unix_s`` [s since the epoch]."""
-        end_ns = int(round(start_unix_s * NS_PER_S)) + self.dt_ns
-        self._clock_msg.clock = Time(sec=end_ns // NS_PER_S, nanosec=end_ns % NS_PER_S)
-        self._clock_pub.publish(self._clock_msg)
+        self._clock_pub.publish(clock_cdr(int(round(start_unix_s * NS_PER_S)) + self.dt_ns))
 
     def stats(self) -> dict[str, float]:
         """Run statistics: steps, fault counters and the time held by the recorder [s]."""
