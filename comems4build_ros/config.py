@@ -600,8 +600,19 @@ def check_holiday_calendar(country: str, subdivision: str) -> None:
     """Raise ``ValueError`` naming the parameter unless the ``holidays`` library knows the calendar.
 
     ``country`` is an ISO 3166-1 alpha-2 code (``DE``), ``subdivision`` one of its
-    subdivisions (``BW``) or empty (the national holidays only).
+    subdivisions (``BW``) or empty (the national holidays only). A calendar found once is
+    remembered on disk for the installed ``holidays`` version
+    (:mod:`comems4build_ros.result_cache`): ``holidays`` imports every country's calendar to
+    look one up (0.1 s), in every process that validates the plant parameters.
     """
+    from .result_cache import cached
+
+    calendar = {"country": country, "subdivision": subdivision}
+    cached("holidays", calendar, [], lambda: _check_holiday_calendar(country, subdivision) or (), dists=("holidays",))
+
+
+def _check_holiday_calendar(country: str, subdivision: str) -> None:
+    """:func:`check_holiday_calendar` asking the ``holidays`` library."""
     import holidays
 
     supported = holidays.list_supported_countries()

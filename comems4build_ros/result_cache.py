@@ -1,18 +1,26 @@
-"""On-disk cache of the results of pvlib (the only parts of a scenario that need it).
+"""On-disk cache of results that need a heavy library: pvlib, SciPy's ``expm``, ``holidays``.
 
-Two steps of building a scenario call pvlib: the modelled radiation
-(:func:`comems4build_ros.scenario.generator._solar`: Ineichen clear sky, solar position,
-Erbs decomposition) and the plane-of-array irradiance of the PV array
-(:func:`comems4build_ros.models.pv.poa_irradiance_w_m2`: DNI, Perez transposition). Each
-takes about 0.1 s, but importing pvlib takes 0.5 to 0.8 s (it imports all of its
-subpackages, among them SciPy's ``integrate``). That import was the longest part of a
-``feed`` node's start-up, and every node process, study worker and ``simulate`` call that
-builds a scenario paid it again.
+Each of these results takes milliseconds to compute, but the library behind it takes much
+longer to import, and every node process, study worker and ``simulate`` call paid that
+import again:
+
+* the modelled radiation (:func:`comems4build_ros.scenario.generator._solar`: Ineichen clear
+  sky, solar position, Erbs decomposition) and the plane-of-array irradiance of the PV array
+  (:func:`comems4build_ros.models.pv.poa_irradiance_w_m2`: DNI, Perez transposition):
+  importing pvlib takes 0.5 to 0.8 s (it imports all of its subpackages, among them SciPy's
+  ``integrate``), the longest part of a ``feed`` node's start-up;
+* the building's zero-order-hold discretisation (:func:`comems4build_ros.models.building.discretize`,
+  ``eq:state_update_bldgs``): SciPy's ``linalg`` takes about 0.1 s to import, in ``plant_sim``;
+* the check that the ``holidays`` library knows the comfort calendar
+  (:func:`comems4build_ros.config.check_holiday_calendar`): ``holidays`` imports every
+  country's calendar to find one (0.1 s), in every process that validates the plant
+  parameters.
 
 :func:`cached` stores a result under a key that covers everything it depends on: the input
-arrays (bytes), the parameters (site, PV array, model names), the versions of pvlib, NumPy,
-pandas and this package, and :data:`CACHE_FORMAT`. A hit returns bit-identical arrays (a
-test checks it against pvlib).
+arrays (bytes), the parameters, the versions of the libraries it comes from and of this
+package, and :data:`CACHE_FORMAT`. A hit returns bit-identical arrays (tests check them
+against the libraries). Only results are stored: a failing computation (an unknown holiday
+calendar) raises each time.
 
 Location: the environment variable ``COMEMS4BUILD_CACHE_DIR``; without it
 ``$XDG_CACHE_HOME/comems4build_ros`` (default ``~/.cache/comems4build_ros``, the directory
@@ -26,7 +34,6 @@ from __future__ import annotations
 import hashlib
 import json
 import os
-import tempfile
 import zipfile
 from collections.abc import Callable, Sequence
 from functools import cache
@@ -36,11 +43,15 @@ from typing import Any
 
 import numpy as np
 
+from .fileio import atomic_write
+
 #: Environment variable of the cache directory (``off``: no cache).
 CACHE_ENV = "COMEMS4BUILD_CACHE_DIR"
 #: Raised when a computation behind a cached result changes, so that old files are not used.
-CACHE_FORMAT = 1
+CACHE_FORMAT = 2
 _OFF = ("off", "0", "no", "none", "")
+#: Distributions a pvlib result depends on.
+PVLIB_DISTS = ("pvlib", "numpy", "pandas")
 
 
 def cache_dir() -> Path | None:
@@ -53,9 +64,10 @@ def cache_dir() -> Path | None:
 
 
 @cache
-def _versions() -> tuple[str, ...]:
+def versions(dists: tuple[str, ...]) -> tuple[str, ...]:
+    """``name=version`` of each distribution in ``dists`` and of this package (``?`` if absent)."""
     out = []
-    for dist in ("pvlib", "numpy", "pandas", "comems4build_ros"):
+    for dist in (*dists, "comems4build_ros"):
         try:
             out.append(f"{dist}={metadata.version(dist)}")
         except metadata.PackageNotFoundError:
@@ -63,9 +75,10 @@ def _versions() -> tuple[str, ...]:
     return tuple(out)
 
 
-def key_of(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray]) -> str:
-    """Hex digest naming the result of ``kind`` for ``params`` and the arrays ``inputs``."""
-    head = json.dumps({"format": CACHE_FORMAT, "kind": kind, "params": params, "versions": _versions()},
+def key_of(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray], dists: Sequence[str] = ()) -> str:
+    """Hex digest naming the result of ``kind`` for ``params``, the arrays ``inputs`` and the
+    versions of the distributions ``dists``."""
+    head = json.dumps({"format": CACHE_FORMAT, "kind": kind, "params": params, "versions": versions(tuple(dists))},
                       sort_keys=True, default=str)
     h = hashlib.sha256(head.encode())
     for arr in inputs:
@@ -77,12 +90,12 @@ def key_of(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray]) -> s
 
 def _path(kind: str, key: str) -> Path | None:
     d = cache_dir()
-    return None if d is None else d / f"pvlib-{kind}-{key[:40]}.npz"
+    return None if d is None else d / f"{kind}-{key[:40]}.npz"
 
 
-def load(kind: str, key: str, n: int) -> tuple[np.ndarray, ...] | None:
-    """The cached arrays of ``key`` (each of length ``n``), or None (no file, a different
-    key, a damaged file)."""
+def load(kind: str, key: str, shape: tuple[int, ...] | None = None) -> tuple[np.ndarray, ...] | None:
+    """The cached arrays of ``key`` (each of shape ``shape``, if given), or None (no file, a
+    different key, a damaged file)."""
     path = _path(kind, key)
     if path is None or not path.is_file():
         return None
@@ -94,7 +107,7 @@ def load(kind: str, key: str, n: int) -> tuple[np.ndarray, ...] | None:
             out = tuple(np.array(data[f"a{i}"], dtype=float) for i in range(count))
     except (OSError, ValueError, KeyError, EOFError, zipfile.BadZipFile):
         return None
-    if any(a.shape != (n,) for a in out):
+    if shape is not None and any(a.shape != shape for a in out):
         return None
     return out
 
@@ -105,28 +118,23 @@ def store(kind: str, key: str, arrays: Sequence[np.ndarray]) -> bool:
     path = _path(kind, key)
     if path is None:
         return False
+    named = {f"a{i}": np.asarray(a, dtype=float) for i, a in enumerate(arrays)}
     try:
         path.parent.mkdir(parents=True, exist_ok=True)
-        fd, tmp = tempfile.mkstemp(prefix=f".pvlib-{kind}-", suffix=".npz", dir=path.parent)
-        try:
-            with os.fdopen(fd, "wb") as fh:
-                named = {f"a{i}": np.asarray(a, dtype=float) for i, a in enumerate(arrays)}
-                np.savez(fh, key=np.array(key), count=np.array(len(arrays)), **named)
-            os.replace(tmp, path)
-        finally:
-            if os.path.exists(tmp):
-                os.unlink(tmp)
+        with atomic_write(path, "wb") as fh:
+            np.savez(fh, key=np.array(key), count=np.array(len(arrays)), **named)
     except OSError:
         return False
     return True
 
 
-def cached(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray], n: int,
-           compute: Callable[[], tuple[np.ndarray, ...]]) -> tuple[np.ndarray, ...]:
-    """``compute()`` (arrays of length ``n``), or its result stored earlier for the same
-    ``kind``, ``params`` and ``inputs``."""
-    key = key_of(kind, params, inputs)
-    hit = load(kind, key, n)
+def cached(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray],
+           compute: Callable[[], Sequence[np.ndarray]], *, dists: Sequence[str] = (),
+           shape: tuple[int, ...] | None = None) -> tuple[np.ndarray, ...]:
+    """``compute()`` (float arrays, each of shape ``shape`` if given), or its result stored
+    earlier for the same ``kind``, ``params``, ``inputs`` and versions of ``dists``."""
+    key = key_of(kind, params, inputs, dists)
+    hit = load(kind, key, shape)
     if hit is not None:
         return hit
     result = tuple(np.asarray(a, dtype=float) for a in compute())

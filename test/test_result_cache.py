@@ -1,6 +1,7 @@
-"""The on-disk cache of pvlib's results: a hit is bit-identical to pvlib, keys cover the
-inputs and parameters, a damaged file or an unwritable directory never changes a result, and a
-process that builds a scenario with a warm cache does not import pvlib at all."""
+"""The on-disk cache of results of heavy libraries (pvlib, SciPy's expm, holidays): a hit is
+bit-identical to the library, keys cover the inputs and parameters, a damaged file or an
+unwritable directory never changes a result, and a process that builds a scenario (or a plant)
+with a warm cache does not import pvlib (or SciPy, or holidays' calendars) at all."""
 
 from __future__ import annotations
 
@@ -13,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros import pvlib_cache
+from comems4build_ros import result_cache
 from comems4build_ros.config import load_plant_params
 from comems4build_ros.models import pv
 from comems4build_ros.scenario import generator
@@ -23,7 +24,7 @@ from comems4build_ros.scenario.settings import load_scenario_settings
 @pytest.fixture()
 def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     d = tmp_path / "cache"
-    monkeypatch.setenv(pvlib_cache.CACHE_ENV, str(d))
+    monkeypatch.setenv(result_cache.CACHE_ENV, str(d))
     return d
 
 
@@ -78,7 +79,7 @@ def test_damaged_file_is_computed_again(cache: Path, params) -> None:
     path.write_bytes(path.read_bytes()[:100])  # cut short, as by a full disk
     again = pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site)
     np.testing.assert_array_equal(again, expected)
-    assert pvlib_cache.load("poa", pvlib_cache.key_of("x", {}, []), 168) is None
+    assert result_cache.load("pvlib-poa", result_cache.key_of("x", {}, []), (168,)) is None
     # written anew: the next call reads a whole file
     with np.load(path) as data:
         np.testing.assert_array_equal(data["a0"], expected)
@@ -87,20 +88,20 @@ def test_damaged_file_is_computed_again(cache: Path, params) -> None:
 def test_off_and_unwritable_directory_change_nothing(tmp_path: Path, params, monkeypatch: pytest.MonkeyPatch) -> None:
     time, ghi, dhi = _week()
     expected = _pvlib_poa(time, ghi, dhi, params)
-    monkeypatch.setenv(pvlib_cache.CACHE_ENV, "off")
-    assert pvlib_cache.cache_dir() is None
+    monkeypatch.setenv(result_cache.CACHE_ENV, "off")
+    assert result_cache.cache_dir() is None
     np.testing.assert_array_equal(pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site), expected)
     blocker = tmp_path / "a_file"
     blocker.write_text("not a directory")
-    monkeypatch.setenv(pvlib_cache.CACHE_ENV, str(blocker / "cache"))
+    monkeypatch.setenv(result_cache.CACHE_ENV, str(blocker / "cache"))
     np.testing.assert_array_equal(pv.poa_irradiance_w_m2(time, ghi, dhi, params.pv, params.site), expected)
-    assert not pvlib_cache.store("poa", "0" * 64, [expected])
+    assert not result_cache.store("pvlib-poa", "0" * 64, [expected])
 
 
 def test_default_directory_follows_xdg(monkeypatch: pytest.MonkeyPatch, tmp_path: Path) -> None:
-    monkeypatch.delenv(pvlib_cache.CACHE_ENV, raising=False)
+    monkeypatch.delenv(result_cache.CACHE_ENV, raising=False)
     monkeypatch.setenv("XDG_CACHE_HOME", str(tmp_path))
-    assert pvlib_cache.cache_dir() == tmp_path / "comems4build_ros"
+    assert result_cache.cache_dir() == tmp_path / "comems4build_ros"
 
 
 def test_modelled_radiation_hit_bit_identical(cache: Path, params, monkeypatch: pytest.MonkeyPatch) -> None:
@@ -129,6 +130,16 @@ def test_modelled_radiation_hit_bit_identical(cache: Path, params, monkeypatch: 
     assert hit[0].tobytes() == ghi.tobytes() and hit[1].tobytes() == dhi.tobytes()
 
 
+def _cold_then_warm(code: str, cache: Path) -> tuple[list[str], list[str]]:
+    """Words printed by ``code`` run twice in fresh processes with the cache directory ``cache``."""
+    env = {**os.environ, result_cache.CACHE_ENV: str(cache)}
+    runs = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
+            for _ in range(2)]
+    for r in runs:
+        assert r.returncode == 0, r.stderr
+    return runs[0].stdout.split(), runs[1].stdout.split()
+
+
 def test_warm_cache_scenario_without_pvlib(cache: Path) -> None:
     """A second process building the default scenario (as a feed node does) never imports pvlib."""
     code = ("import sys, warnings; warnings.simplefilter('ignore');"
@@ -138,11 +149,55 @@ def test_warm_cache_scenario_without_pvlib(cache: Path) -> None:
             "p = load_plant_params(); s = load_scenario('default', p, None, 2, None, None);"
             "x = exogenous_series(s, p);"
             "print('pvlib' in sys.modules, repr(sum(e.p_pv_w for e in x)))")
-    env = {**os.environ, pvlib_cache.CACHE_ENV: str(cache)}
-    runs = [subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=120)
-            for _ in range(2)]
-    for r in runs:
-        assert r.returncode == 0, r.stderr
-    cold, warm = (r.stdout.split() for r in runs)
+    cold, warm = _cold_then_warm(code, cache)
     assert cold[0] == "True" and warm[0] == "False"
     assert cold[1] == warm[1] and float(cold[1]) > 0.0  # the same PV energy
+
+
+def test_building_discretisation_hit_bit_identical_to_scipy(cache: Path, params,
+                                                             monkeypatch: pytest.MonkeyPatch) -> None:
+    """eq:state_update_bldgs: Ad and Bd from the cache equal SciPy's expm bit for bit."""
+    from scipy.linalg import expm
+
+    from comems4build_ros.models import building
+
+    ad, bd = building.discretize(params.building, 1.0)
+    a, bm = building.continuous(params.building)
+    aug = np.zeros((6, 6))
+    aug[:3, :3], aug[:3, 3:] = a, bm
+    phi = expm(aug * 3600.0)
+    assert ad.tobytes() == phi[:3, :3].tobytes() and bd.tobytes() == phi[:3, 3:].tobytes()
+    assert len(sorted(cache.glob("expm-*.npz"))) == 1
+    monkeypatch.setattr(building, "_expm", lambda m: (_ for _ in ()).throw(AssertionError("expm")))
+    hit = building.discretize(params.building, 1.0)
+    assert hit[0].tobytes() == ad.tobytes() and hit[1].tobytes() == bd.tobytes()
+    with pytest.raises(AssertionError, match="expm"):  # another time step: another key
+        building.discretize(params.building, 0.5)
+
+
+def test_holiday_calendar_found_once_is_remembered_and_an_unknown_one_always_refused(
+        cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    from comems4build_ros import config
+
+    config.check_holiday_calendar("DE", "BW")
+    assert len(sorted(cache.glob("holidays-*.npz"))) == 1
+    monkeypatch.setattr(config, "_check_holiday_calendar", lambda *a: (_ for _ in ()).throw(AssertionError("asked")))
+    config.check_holiday_calendar("DE", "BW")  # remembered: the library is not asked
+    with pytest.raises(AssertionError, match="asked"):
+        config.check_holiday_calendar("DE", "BY")
+    monkeypatch.undo()
+    monkeypatch.setenv(result_cache.CACHE_ENV, str(cache))
+    for _ in range(2):  # a refusal is never stored
+        with pytest.raises(ValueError, match="holidays_subdivision 'ZZ' is not a subdivision of DE"):
+            config.check_holiday_calendar("DE", "ZZ")
+    assert len(sorted(cache.glob("holidays-*.npz"))) == 1
+
+
+def test_warm_cache_plant_without_scipy_and_holiday_calendars(cache: Path) -> None:
+    """A second process validating the plant parameters and building the plant (as plant_sim
+    does) imports neither SciPy's linalg nor holidays' calendars."""
+    code = ("import sys; from comems4build_ros.config import load_plant_params;"
+            "from comems4build_ros.plant import Plant; Plant(load_plant_params());"
+            "print('scipy.linalg' in sys.modules, 'holidays.countries' in sys.modules)")
+    cold, warm = _cold_then_warm(code, cache)
+    assert cold == ["True", "True"] and warm == ["False", "False"]

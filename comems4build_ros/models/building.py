@@ -67,15 +67,24 @@ def discretize(b: BuildingParams, dt_h: float) -> tuple[np.ndarray, np.ndarray]:
     """
     if not dt_h > 0:
         raise ValueError(f"building: dt_h must be > 0 h, got {dt_h}")
-    from scipy.linalg import expm  # here, not at the top: a node process that never steps a building skips SciPy
+    from ..result_cache import cached
 
     a, bm = continuous(b)
     n, m = a.shape[0], bm.shape[1]
     aug = np.zeros((n + m, n + m))
     aug[:n, :n] = a
     aug[:n, n:] = bm
-    phi = expm(aug * dt_h * SECONDS_PER_HOUR)
+    aug *= dt_h * SECONDS_PER_HOUR
+    # cached on disk (comems4build_ros.result_cache): a hit skips SciPy's import in plant_sim
+    (phi,) = cached("expm", {}, [aug], lambda: (_expm(aug),), dists=("scipy", "numpy"), shape=aug.shape)
     return phi[:n, :n], phi[:n, n:]
+
+
+def _expm(m: np.ndarray) -> np.ndarray:
+    """Matrix exponential of ``m`` (SciPy's Pade approximation with scaling and squaring)."""
+    from scipy.linalg import expm  # here, not at the top: a process that finds it cached skips SciPy
+
+    return expm(m)
 
 
 def steady_state_c(q_sh_w: float, t_amb_c: float, q_s_w_m2: float, b: BuildingParams) -> np.ndarray:

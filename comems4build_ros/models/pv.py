@@ -103,13 +103,14 @@ def poa_irradiance_w_m2(time, ghi_w_m2, dhi_w_m2, pv: PVParams, site: SiteParams
     # Diffuse cannot exceed global (measurement noise): cap it.
     dhi = np.minimum(dhi, ghi)
     mid = index + pd.Timedelta(minutes=MID_STEP_MINUTES)
-    # the pvlib steps are cached on disk (comems4build_ros.pvlib_cache): a hit skips pvlib's import
-    from ..pvlib_cache import cached
+    # the pvlib steps are cached on disk (comems4build_ros.result_cache): a hit skips pvlib's import
+    from ..result_cache import PVLIB_DISTS, cached
 
     geometry = {"site": site.model_dump(), "tilt_deg": pv.tilt_deg, "azimuth_deg": pv.azimuth_deg,
                 "albedo": pv.albedo, "sky_model": pv.sky_model}
-    (poa,) = cached("poa", geometry, [mid.asi8, ghi, dhi], len(index),
-                    lambda: (_poa_from_horizontal_quiet(mid, ghi, dhi, pv, site),))
+    (poa,) = cached("pvlib-poa", geometry, [mid.asi8, ghi, dhi],
+                    lambda: (_poa_from_horizontal_quiet(mid, ghi, dhi, pv, site),),
+                    dists=PVLIB_DISTS, shape=(len(index),))
     return poa
 
 

@@ -142,18 +142,18 @@ def _solar(
 ) -> tuple[np.ndarray, np.ndarray]:
     """Hourly mean GHI and DHI [W/m2] (clear-sky at the middle of the hour times kc).
 
-    The pvlib part is cached on disk (:mod:`comems4build_ros.pvlib_cache`): a hit gives the
+    The pvlib part is cached on disk (:mod:`comems4build_ros.result_cache`): a hit gives the
     same arrays without importing pvlib.
     """
-    from ..pvlib_cache import cached
+    from ..result_cache import PVLIB_DISTS, cached
 
     s = settings.solar
     mid = time + pd.Timedelta(minutes=30)
     kc_h = kc_day[day] * (1.0 + _ar1(rng, len(time), s.hourly_phi, s.hourly_sigma * np.sqrt(1 - s.hourly_phi**2)))
     kc_h = np.clip(kc_h, 0.02, s.kc_max)
     params = {"site": site.model_dump(), "clearsky_model": s.clearsky_model}
-    ghi, dhi = cached("solar", params, [mid.asi8, kc_h], len(time),
-                      lambda: _solar_pvlib(mid, kc_h, s.clearsky_model, site))
+    ghi, dhi = cached("pvlib-solar", params, [mid.asi8, kc_h], lambda: _solar_pvlib(mid, kc_h, s.clearsky_model, site),
+                      dists=PVLIB_DISTS, shape=(len(time),))
     return ghi, dhi
 
 
