@@ -182,27 +182,37 @@ def test_evaluate_refuses_a_missing_bag(tmp_path: Path) -> None:
 
 
 def test_a_paused_recorder_cannot_hang_the_launcher(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """SIGSTOP on the recorder once the run started, never continued: the launcher still ends, by its
-    default overall time limit (made short here), with an error, and leaves no process behind."""
+    """SIGSTOP on the recorder once the run is under way, never continued: the launcher still ends, by
+    its default overall time limit (made short here), with an error, and leaves no process behind.
+
+    The recorder is paused only once the feed publishes (its writers matched the recorder's
+    readers; a feed still waiting for that would stall the plant first) in a run long enough to be
+    under way then, whose plant is never held back by the paused recording (a record window
+    longer than the run)."""
     import threading
 
     from comems4build_ros.ros import plan
     from comems4build_ros.ros.supervisor import LaunchError
 
     monkeypatch.setattr(plan, "TIME_LIMIT_START_S", 25.0)
+    monkeypatch.setattr(plan, "TIME_LIMIT_PER_STEP_S", 0.0)
     out = tmp_path / "run"
     outcome: list[BaseException | None] = []
 
     def run() -> None:
-        try:
-            launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=48))  # no timeout_s: the default applies
+        try:  # no timeout_s: the default applies
+            launch(LaunchOptions(ems="rbc", out=out, weeks=12, plant_node_params={"record_window_steps": 100_000}))
             outcome.append(None)
         except BaseException as exc:  # noqa: BLE001 - reported below
             outcome.append(exc)
 
+    def feed_publishes() -> bool:
+        log = out / "log" / "feed.log"
+        return log.exists() and "matched the recorder's readers" in log.read_text(errors="replace")
+
     thread = threading.Thread(target=run, daemon=True)
     thread.start()
-    _wait_for(lambda: _running(out))
+    _wait_for(feed_publishes)
     os.kill(pid_of(out, "recorder"), signal.SIGSTOP)
     thread.join(timeout=120)
     marker = str(out / "log" / "ros")

@@ -36,6 +36,8 @@ LINGER_CHECK_S = 0.05
 RECORDER_NODE = "recorder"
 #: Longest hold of a node's first publication for its writers to match the recorder [s].
 RECORDER_GATE_TIMEOUT_S = 30.0
+#: Period of the check for an answer held back by the closed gate (:meth:`ContractNode.when_gate_opens`) [s].
+GATE_POLL_S = 0.01
 #: ``(namespace, name)`` of the recorder nodes of this process that have closed their run
 #: (every message taken). In a container process (:mod:`comems4build_ros.ros.container`) such a
 #: recorder stays in the graph until the process ends; the nodes beside it need not wait.
@@ -130,6 +132,25 @@ class ContractNode(Node):
     recorder_node: str = RECORDER_NODE
     _gate_open = False
     _gate_t0: float | None = None
+    _gate_timer: Any = None
+    _gate_action: Callable[[], None] | None = None
+
+    def when_gate_opens(self, action: Callable[[], None]) -> None:
+        """Call ``action`` as soon as :meth:`recorder_gate` opens (polled every
+        :data:`GATE_POLL_S`; a later request replaces a pending one): an answer the gate held
+        back goes out then, not at the master's next repeated announcement (0.5 s later)."""
+        self._gate_action = action
+        if self._gate_timer is None:
+            self._gate_timer = self.create_timer(GATE_POLL_S, self._poll_gate)
+
+    def _poll_gate(self) -> None:
+        if not self.recorder_gate():
+            return
+        self.destroy_timer(self._gate_timer)
+        self._gate_timer = None
+        action, self._gate_action = self._gate_action, None
+        if action is not None:
+            action()
 
     def recorder_gate(self) -> bool:
         """True once this node may publish its first message of the run: without
@@ -143,6 +164,8 @@ class ContractNode(Node):
             self._gate_t0 = now
         if self.recorder_matched():
             self._gate_open = True
+            self.get_logger().info(f"every writer matched the recorder's readers after {now - self._gate_t0:.2f} s: "
+                                   "publishing")
         elif now - self._gate_t0 > RECORDER_GATE_TIMEOUT_S:
             self._gate_open = True
             unmatched = [p.topic_name for p in self.publishers if p.topic_name not in INFRASTRUCTURE_TOPICS

@@ -152,8 +152,15 @@ class EMSNode(EndsWithRun, ContractNode):
             self.get_logger().info(f"run done after {self.steps} decisions: exiting once the recorder has left")
             self.finish_when_recorded("ems/command")
 
+    def _decide_pending(self, step: int) -> None:
+        """Decide ``step`` if all its inputs are still pending (not answered meanwhile)."""
+        entry = self._pending.get(step)
+        if entry is not None and entry[1] == self._full and step > self._answered:
+            self._decide(step, entry[0])
+
     def _decide(self, step: int, fields: dict[str, Any]) -> None:
-        if not self.recorder_gate():  # not yet: the plant's repeated announcement comes back here
+        if not self.recorder_gate():  # not yet: decided once the gate opens (or at a repeated announcement)
+            self.when_gate_opens(lambda: self._decide_pending(step))
             return
         for s in [s for s in self._pending if s <= step]:
             del self._pending[s]
