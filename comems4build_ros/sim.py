@@ -16,7 +16,6 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-import holidays as _holidays
 import numpy as np
 import pandas as pd
 from pydantic import Field
@@ -37,7 +36,7 @@ from .fileio import atomic_dir
 from .models.pv import pv_power_w
 from .plant import Plant
 from .scenario.base import Scenario
-from .scenario.comfort import heating_season_days
+from .scenario.comfort import heating_season_days, holiday_dates
 from .types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, Flows, PlantState
 
 #: Hours of a day and of a week [h].
@@ -191,10 +190,8 @@ class ObservationBuilder:
         self._day_index = [int(((t - t0).total_seconds() / 3600.0) // 24) for t in scenario.time]
         self._hour = [int(t.hour) for t in scenario.time]
         self._weekday = [int(t.weekday()) for t in scenario.time]
-        years = sorted({t.year for t in scenario.time})
-        hol = _holidays.country_holidays(
-            params.comfort.holidays_country, subdiv=params.comfort.holidays_subdivision, years=years
-        )
+        years = tuple(sorted({t.year for t in scenario.time}))
+        hol = holiday_dates(params.comfort.holidays_country, params.comfort.holidays_subdivision, years)
         self._weekend = [wd >= 5 or t.date() in hol for wd, t in zip(self._weekday, scenario.time)]
         self._dloh = dloh_per_day(params)
         sim = params.simulation

@@ -201,3 +201,26 @@ def test_warm_cache_plant_without_scipy_and_holiday_calendars(cache: Path) -> No
             "print('scipy.linalg' in sys.modules, 'holidays.countries' in sys.modules)")
     cold, warm = _cold_then_warm(code, cache)
     assert cold == ["True", "True"] and warm == ["False", "False"]
+
+
+def test_holiday_dates_from_the_cache_equal_the_library(cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The comfort calendar's public holidays (eq:T_min: holidays count as weekend days), read
+    back from the cache, equal the holidays library's; another year is asked of the library."""
+    import holidays
+
+    from comems4build_ros.scenario import comfort
+
+    expected = frozenset(holidays.country_holidays("DE", subdiv="BW", years=[2022, 2023]))
+    comfort.holiday_dates.cache_clear()
+    assert comfort.holiday_dates("DE", "BW", (2022, 2023)) == expected and len(expected) > 20
+    assert len(sorted(cache.glob("holiday-dates-*.npz"))) == 1
+    comfort.holiday_dates.cache_clear()
+
+    def no_library(*_a, **_k):
+        raise AssertionError("library asked")
+
+    monkeypatch.setattr(holidays, "country_holidays", no_library)
+    assert comfort.holiday_dates("DE", "BW", (2022, 2023)) == expected
+    with pytest.raises(AssertionError, match="library asked"):
+        comfort.holiday_dates("DE", "BW", (2024,))
+    comfort.holiday_dates.cache_clear()

@@ -2,9 +2,9 @@
 
 from __future__ import annotations
 
+from datetime import date
 from functools import lru_cache
 
-import holidays as holidays_lib
 import numpy as np
 import pandas as pd
 
@@ -12,10 +12,22 @@ from ..config import ComfortParams
 
 
 @lru_cache(maxsize=32)
-def _holiday_dates(country: str, subdivision: str, years: tuple[int, ...]) -> frozenset:
-    """Public holidays (``datetime.date``) of a country/subdivision in the given years."""
-    cal = holidays_lib.country_holidays(country, subdiv=subdivision or None, years=list(years))
-    return frozenset(cal.keys())
+def holiday_dates(country: str, subdivision: str, years: tuple[int, ...]) -> frozenset[date]:
+    """Public holidays of a country/subdivision (empty: national only) in the given years,
+    from the ``holidays`` library; remembered on disk per library version
+    (:mod:`comems4build_ros.result_cache`: the library imports every country's calendar to
+    look one up, 0.1 s in each feed and EMS process)."""
+    from ..result_cache import cached
+
+    def library() -> tuple[np.ndarray]:
+        import holidays
+
+        cal = holidays.country_holidays(country, subdiv=subdivision or None, years=list(years))
+        return (np.array(sorted(d.toordinal() for d in cal), dtype=float),)
+
+    calendar = {"country": country, "subdivision": subdivision, "years": list(years)}
+    (ordinals,) = cached("holiday-dates", calendar, [], library, dists=("holidays",))
+    return frozenset(date.fromordinal(int(o)) for o in ordinals)
 
 
 def _local_index(time: pd.DatetimeIndex | pd.Timestamp) -> pd.DatetimeIndex:
@@ -35,7 +47,7 @@ def is_off_day(time: pd.DatetimeIndex | pd.Timestamp, comfort: ComfortParams) ->
     if len(idx) == 0:
         return np.zeros(0, dtype=bool)
     years = tuple(range(int(idx.year.min()), int(idx.year.max()) + 1))
-    hol = _holiday_dates(comfort.holidays_country, comfort.holidays_subdivision, years)
+    hol = holiday_dates(comfort.holidays_country, comfort.holidays_subdivision, years)
     weekend = np.asarray(idx.day_of_week >= 5)
     dates = idx.date
     holiday = np.fromiter((d in hol for d in dates), dtype=bool, count=len(dates))

@@ -46,7 +46,7 @@ import numpy as np
 import pandas as pd
 
 from ..config import ConfigError, SiteParams
-from .comfort import _holiday_dates
+from .comfort import holiday_dates
 from .settings import HOURS_PER_DAY, ScenarioSettings
 
 #: Energy conversion [Wh per kWh].
@@ -310,7 +310,7 @@ def _dhw(seed_int: int, time: pd.DatetimeIndex, settings: ScenarioSettings, coun
         for i, year in enumerate(range(int(local.year.min()), int(local.year.max()) + 1)):
             random.seed(seed_int + i)
             hol = sorted(
-                x.timetuple().tm_yday for x in _holiday_dates(country, subdiv, (year,)) if x.timetuple().tm_yday <= 365
+                x.timetuple().tm_yday for x in holiday_dates(country, subdiv, (year,)) if x.timetuple().tm_yday <= 365
             )
             with warnings.catch_warnings():  # pandas deprecation notices from inside OpenDHW
                 warnings.simplefilter("ignore", DeprecationWarning)
@@ -357,7 +357,7 @@ def generate(
     n_days = int(day.max()) + 1
     days = pd.date_range(first, periods=n_days, freq="D").tz_localize(site.timezone)
     years = tuple(range(first.year, int(local_dates.year.max()) + 1))
-    hol = _holiday_dates(country, subdivision, years)
+    hol = holiday_dates(country, subdivision, years)
     off_daily = np.array([(d.day_of_week >= 5) or (d.date() in hol) for d in days])
     rng = _streams(seed)
     anomaly, wind_offset = _episode_profile(days, settings)
