@@ -135,9 +135,12 @@ def _finish(proc: subprocess.Popen, out: Path) -> tuple[int, str]:
 
 def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    proc = _cli(out)  # the launcher picks and locks a free domain id
+    # the launcher picks and locks a free domain id; a year of steps (about 10 s per node), so that
+    # the run is still going when Ctrl-C comes, however late this process sees its start
+    proc = subprocess.Popen([*CLI, "launch", "--ems", "fuzzy", "--scenario", "year", "--weeks", "52", "--out",
+                             str(out), "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
     _wait_for(lambda: _running(out))
-    time.sleep(1.0)
+    time.sleep(0.5)
     proc.send_signal(signal.SIGINT)
     code, err = _finish(proc, out)
     assert code == 130, (err, getattr(proc, "stdout_text", ""))

@@ -162,9 +162,9 @@ def test_an_interrupted_study_resumes_without_running_its_finished_runs_again(
     """Interrupted after two runs finished; --resume (on local processes) takes the stored runs as they are."""
     out = tmp_path / "sweep"
 
-    def sweep(weeks: str = "12") -> list[str | Path]:
-        return ["sweep", "--param", "battery.e_max_kwh=4,5,6,7,8,9", "--ems", "fuzzy", "--weeks", weeks,
-                "--no-progress", "--out", out]
+    def sweep(weeks: str = "52") -> list[str | Path]:  # a year per run (some seconds): time to interrupt
+        return ["sweep", "--param", "battery.e_max_kwh=4,5,6,7,8,9", "--ems", "fuzzy", "--scenario", "year",
+                "--weeks", weeks, "--no-progress", "--out", out]
 
     argv = sweep()
     first = [*argv, "--scheduler", request.getfixturevalue("cluster").address] if where == "dask" \
@@ -197,9 +197,9 @@ def test_an_interrupted_study_resumes_without_running_its_finished_runs_again(
 
     again = _run([*argv, "--jobs", "2"])  # without --resume: refused, the store is kept
     assert again.returncode == 2 and "--resume" in again.stderr and store.is_dir()
-    other = _run([*sweep("11"), "--resume"])
+    other = _run([*sweep("51"), "--resume"])
     assert other.returncode == 2, other.stderr
-    assert "another specification" in other.stderr and "weeks: 12.0 -> 11.0" in other.stderr
+    assert "another specification" in other.stderr and "weeks: 52.0 -> 51.0" in other.stderr
 
     resumed = _run([*argv, "--jobs", "2", "--resume"])
     assert resumed.returncode == 0, resumed.stderr
