@@ -11,6 +11,19 @@ import pytest
 from comems4build_ros.ros.container import ContainerSpecError, load_spec, main, to_parameters
 
 
+@pytest.fixture(autouse=True)
+def _signals_restored():
+    """The container's main, called in this process, ignores SIGINT and SIGTERM while it
+    cleans up (``process.ignore_stop_signals``); restored so that no later test, nor a
+    process it starts (ignored signals are inherited), runs with them ignored."""
+    import signal
+
+    saved = {s: signal.getsignal(s) for s in (signal.SIGINT, signal.SIGTERM)}
+    yield
+    for s, handler in saved.items():
+        signal.signal(s, handler)
+
+
 def _write(tmp_path: Path, obj: object) -> Path:
     path = tmp_path / "spec.json"
     path.write_text(json.dumps(obj) if not isinstance(obj, str) else obj)

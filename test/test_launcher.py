@@ -133,12 +133,21 @@ def _finish(proc: subprocess.Popen, out: Path) -> tuple[int, str]:
     return proc.returncode, err
 
 
+def _default_stop_signals() -> None:
+    """In the child before exec: SIGINT and SIGTERM as by default (a signal ignored in the test
+    process would be inherited, and an interpreter started with SIGINT ignored never raises
+    KeyboardInterrupt)."""
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
+    signal.signal(signal.SIGTERM, signal.SIG_DFL)
+
+
 def test_ctrl_c_stops_every_node_and_closes_the_bag(tmp_path: Path) -> None:
     out = tmp_path / "run"
     # the launcher picks and locks a free domain id; a year of steps (about 10 s per node), so that
     # the run is still going when Ctrl-C comes, however late this process sees its start
     proc = subprocess.Popen([*CLI, "launch", "--ems", "fuzzy", "--scenario", "year", "--weeks", "52", "--out",
-                             str(out), "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+                             str(out), "--no-progress"], stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            preexec_fn=_default_stop_signals)
     _wait_for(lambda: _running(out))
     time.sleep(0.5)
     proc.send_signal(signal.SIGINT)

@@ -169,8 +169,10 @@ def test_an_interrupted_study_resumes_without_running_its_finished_runs_again(
     argv = sweep()
     first = [*argv, "--scheduler", request.getfixturevalue("cluster").address] if where == "dask" \
         else [*argv, "--jobs", "2"]
+    # SIGINT and SIGTERM as by default in the child: an ignored signal of this process is inherited
     proc = subprocess.Popen([*CLI, *map(str, first)], cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE,
-                            text=True)
+                            text=True, preexec_fn=lambda: [signal.signal(s, signal.SIG_DFL)
+                                                           for s in (signal.SIGINT, signal.SIGTERM)])
     err = []
     try:
         assert proc.stderr is not None
