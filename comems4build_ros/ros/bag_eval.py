@@ -312,6 +312,9 @@ def find_gaps(
     last = n if complete else max(0, n - CUT_TAIL_STEPS)
     withheld = withheld or set()
     no_state = withheld_topics(contract) if withheld else set()
+    # published only if the run had them at all: ems/info (an EMS without step info), the
+    # inputs the run's EMS does not read
+    unless_absent = (unread or set()) | {INFO_TOPIC}
     out: dict[str, list[int]] = {}
     for spec in contract.topics.values():
         if spec.name == RECORD_TOPIC:
@@ -319,7 +322,7 @@ def find_gaps(
         full = resolve_ns(ns, spec.name)
         if recorded is not None and full not in recorded:
             continue
-        if not is_per_step(spec) or (spec.name in (unread or set()) | {INFO_TOPIC} and full not in seen):
+        if not is_per_step(spec) or (spec.name in unless_absent and full not in seen):
             continue
         from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
         got = seen.get(full, set())
