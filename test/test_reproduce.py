@@ -51,7 +51,6 @@ def test_five_seeds_the_default_first(base):
 #: docs/calibration.md ("Findings that do not hold"). Strict: a finding that starts to hold
 #: fails the test, so that the list and the document are updated.
 NOT_REPRODUCED = {
-    "rbc_fc_less_than_mpc": "the RBC toggles its FC 3 % more often than the MPC (paper: 3.5 % less); hours hold",
     "no_dhw_cover_at_75": "the MPC spends its saved H2 in weeks 8-9, whose FC heat covers their DHW demand at 75 %",
     "dhw_demand_met": "three morning draws of 209-269 l/h exceed what the RBC's tank holds at that hour",
 }
