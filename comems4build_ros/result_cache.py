@@ -48,7 +48,7 @@ from .fileio import atomic_write
 #: Environment variable of the cache directory (``off``: no cache).
 CACHE_ENV = "COMEMS4BUILD_CACHE_DIR"
 #: Raised when a computation behind a cached result changes, so that old files are not used.
-CACHE_FORMAT = 2
+CACHE_FORMAT = 3
 _OFF = ("off", "0", "no", "none", "")
 #: Distributions a pvlib result depends on.
 PVLIB_DISTS = ("pvlib", "numpy", "pandas")

@@ -26,6 +26,15 @@ def test_split_power_soc_bounds(bp):
     assert p_d == pytest.approx(120.9) and sc
 
 
+def test_split_power_exact_room_is_no_clip(bp):
+    """A request for exactly the room left, computed with other rounding, is no SOC clip."""
+    room = 0.01 * 6500.0 / 0.93  # SOC 0.89 -> 0.9
+    for p in (room * (1 + 1e-15), room + 1e-9):
+        p_ch, _, _, sc = battery.split_power(p, 0.89, bp, 1.0)
+        assert p_ch == pytest.approx(room, rel=1e-12) and not sc
+    assert battery.split_power(room + 1e-3, 0.89, bp, 1.0)[3]  # a milliwatt over: a clip
+
+
 def test_split_power_minimum(bp):
     b = bp.model_copy(update={"p_ch_min_w": 200.0, "p_d_min_w": 200.0})
     assert battery.split_power(100.0, 0.5, b, 1.0) == (0.0, 0.0, True, False)

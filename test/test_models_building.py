@@ -78,3 +78,33 @@ def test_simulate_and_stability(bp):
 def test_invalid_step_raises(bp):
     with pytest.raises(ValueError, match="dt_h"):
         building.discretize(bp, 0.0)
+
+
+def test_discretisation_and_fuzzy_inference_do_not_depend_on_the_blas_kernel(bp, tmp_path):
+    """Ad, Bd and a fuzzy controller's outputs are the same bit for bit with another OpenBLAS
+    kernel (OPENBLAS_CORETYPE; the kernels differ in the last bits of matrix products)."""
+    import os
+    import subprocess
+    import sys
+
+    code = (
+        "import hashlib, numpy as np\n"
+        "from comems4build_ros.config import load_plant_params\n"
+        "from comems4build_ros.models import building\n"
+        "from comems4build_ros.ems.fuzzy.controller import load_flcs\n"
+        "p = load_plant_params()\n"
+        "ad, bd = building.discretize(p.building, 1.0)\n"
+        "flc = load_flcs(p)['fc'][0]\n"
+        "x = np.random.default_rng(1).uniform(0, 1, (500, len(flc.input_names)))\n"
+        "lo = np.array([v.lo for v in flc.inputs]); hi = np.array([v.hi for v in flc.inputs])\n"
+        "y = flc.evaluate(lo + x * (hi - lo))\n"
+        "print(hashlib.sha1(ad.tobytes() + bd.tobytes() + y.tobytes()).hexdigest())\n"
+    )
+    out = []
+    for core in ("Prescott", "Haswell", "SkylakeX"):
+        env = {**os.environ, "OPENBLAS_CORETYPE": core, "COMEMS4BUILD_CACHE_DIR": "off"}
+        run = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True,
+                             timeout=120, cwd=tmp_path)
+        assert run.returncode == 0, run.stderr
+        out.append(run.stdout.strip())
+    assert len(set(out)) == 1, out

@@ -3,7 +3,8 @@
 The fixtures in ``test/fixtures/winter_reference`` are the summaries and weekly tables of the
 default 12-week runs made before those parts existed; the default runs of the three EMS must
 give them bit for bit (wall-clock keys aside), and the winter plant has no electrolyser and
-no cooling, so their flows are exactly zero.
+no cooling, so their flows are exactly zero. The core's arithmetic does not depend on the
+CPU's BLAS kernels (test_models_building), so the same files hold on every machine.
 """
 
 from __future__ import annotations

@@ -13,6 +13,12 @@ from __future__ import annotations
 
 from comems4build_ros.config import W_PER_KW, BatteryParams
 
+#: A request that exceeds what the SOC bounds allow by no more than this [W] is cut without
+#: counting as a clip: an EMS that asks for exactly the room left (charging to SOC_max)
+#: computes it with a rounding that differs from the plant's in the last bits, and which way
+#: those bits fall depends on the CPU's floating-point kernels.
+SOC_CLIP_TOL_W = 1e-6
+
 
 def power_limits_w(soc: float, b: BatteryParams, dt_h: float) -> tuple[float, float]:
     """Largest charging and discharging power [W] the SOC bounds and power limits allow.
@@ -41,9 +47,9 @@ def split_power(p_bess_w: float, soc: float, b: BatteryParams, dt_h: float) -> t
     """Clip a signed set-point to what the battery can do in one step.
 
     A request beyond the power rating is cut to it (``power_clipped``); a request the
-    SOC bounds cannot take is cut to the SOC limit (``soc_clipped``); a non-zero result
-    below the minimum power P_c,min is set to zero (flagged as power or SOC clip by the
-    reason). ``p_bess_w`` must be finite.
+    SOC bounds cannot take is cut to the SOC limit (``soc_clipped`` when the cut exceeds
+    :data:`SOC_CLIP_TOL_W`); a non-zero result below the minimum power P_c,min is set to
+    zero (flagged as power or SOC clip by the reason). ``p_bess_w`` must be finite.
 
     Parameters
     ----------
@@ -78,8 +84,9 @@ def split_power(p_bess_w: float, soc: float, b: BatteryParams, dt_h: float) -> t
         p = 0.0
         power_clipped = True
     if p > room:
-        p = room if room > 0.0 and room >= p_min else 0.0
-        soc_clipped = True
+        cut = room if room > 0.0 and room >= p_min else 0.0
+        soc_clipped = p - cut > SOC_CLIP_TOL_W
+        p = cut
     if p_bess_w > 0.0:
         return p, 0.0, power_clipped, soc_clipped
     return 0.0, p, power_clipped, soc_clipped

@@ -298,11 +298,12 @@ class FuzzySystem:
         """
         act = self.activation(x)
         agg = np.minimum(act[:, :, None], self._out_mf[None, :, :]).max(axis=1)
-        area = agg @ self._w_area
+        # row sums of products, not ``@``: a BLAS product's rounding depends on the CPU's kernel
+        area = (agg * self._w_area).sum(axis=1)
         if np.any(area <= 0.0):
             bad = np.atleast_2d(np.asarray(x, dtype=float))[np.argmax(area <= 0.0)]
             raise ValueError(f"{self.name}: no rule fires for inputs {dict(zip(self.input_names, bad.tolist()))}")
-        return (agg @ self._w_moment) / area
+        return (agg * self._w_moment).sum(axis=1) / area
 
     def __call__(self, *values: float) -> float:
         """Crisp output for one input vector given as positional values."""
@@ -329,7 +330,7 @@ class FuzzySystem:
     def term_centroid(self, term: str) -> float:
         """Centroid of one output term alone (the crisp output when only it fires fully)."""
         mf = self._out_mf[self.output.term_names.index(term)]
-        return float((mf @ self._w_moment) / (mf @ self._w_area))
+        return float((mf * self._w_moment).sum() / (mf * self._w_area).sum())
 
     def rule_text(self, index: int) -> str:
         """The rule as written in the file."""

@@ -368,7 +368,7 @@ class MILPModel:
             C["dhw"][t].expr[V["p_hp_dhw"][t]] = -cv * float(h.cop_dhw[t])
             exo = k.bd[:, 1] * h.t_amb_c[t] + k.bd[:, 2] * h.ghi_w_m2[t]
             if t == 0:
-                exo = exo + k.ad @ x0
+                exo = exo + (k.ad * x0).sum(axis=1)  # not @: BLAS rounding depends on the CPU
             for i, cname in enumerate(("air", "wall_in", "wall_out")):
                 C[cname][t].changeRHS(float(exo[i]))
                 C[cname][t].expr[V["p_hp_sh"][t]] = -k.bd[i, 0] * float(h.cop_sh[t])
