@@ -96,7 +96,9 @@ def test_a_run_records_the_inputs_of_its_ems_and_all_inputs_drive_the_mpc(record
     unread = {f"/{t}" for t in load_contract().inputs_not_read("fuzzy_ems")}
     assert "/forecast/p_pv_w" in unread
     topics = Counter(t for t, *_ in iter_messages(recorded))
-    assert not unread & set(topics) and topics["/feed/solar"] == STEPS
+    # at least one answer per step: the feed answers every announcement, and the plant repeats
+    # one every republish_period_s while its answer is late (a loaded machine)
+    assert not unread & set(topics) and topics["/feed/solar"] >= STEPS
     full = launch(LaunchOptions(ems="fuzzy", out=tmp_path / "all", weeks=1, steps=STEPS, timeout_s=150,
                                 all_inputs=True)).bag
     topics = Counter(t for t, *_ in iter_messages(full))
