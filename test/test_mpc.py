@@ -127,6 +127,25 @@ def test_three_step_running_fc_is_kept_on(params3):
     assert tuple(int(round(v)) for v in ctrl.last_result.plan["s_fc"]) == best
 
 
+@pytest.mark.parametrize("dump", [False, True])
+def test_full_tank_and_fc_heat(params3, dump):
+    """eq:DHW_heat as printed (``fc_heat_dump: false``, the default): recovered FC heat must enter the
+    tank, so with the tank at V_max and no draw the plan keeps the FC off at a high price; with the
+    dump allowed it runs the FC and dumps its heat."""
+    assert MPCController(params3, {}).options.fc_heat_dump is False
+    ctrl = MPCController(params3, {"mip_rel_gap": 0.0, "warm_start": False, "fc_heat_dump": dump})
+    v_max = params3.dhw.v_max_l
+    action = ctrl.act(mpc_obs(3, prices=(0.6, 0.6, 0.6), load_w=2500.0, v_dhw=v_max))
+    plan = ctrl.last_result.plan
+    assert ctrl.last_result.optimal
+    if dump:
+        assert action.p_fc_w > 0.0 and plan["q_dump"][0] > 0.0
+        assert np.all(plan["v_dhw"] <= v_max + 1e-6)
+    else:
+        assert action.p_fc_w == 0.0 and np.all(plan["q_dump"] == 0.0)
+        assert np.all(np.round(plan["s_fc"]) == 0)
+
+
 def test_names_are_time_indexed(params):
     ctrl = MPCController(params, {})
     names = set(ctrl.model.prob.constraints)

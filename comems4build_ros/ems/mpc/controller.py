@@ -110,7 +110,8 @@ class MPCController:
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
         self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
                                o.relax_battery_binary,
-                               YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur))
+                               YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur),
+                               o.fc_heat_dump)
         self.backend = make_backend(o.solver, self.model.form, o.mip_rel_gap, o.time_limit_s, o.threads,
                                     o.warm_start, highs_options=o.highs_options, gurobi_options=o.gurobi_options)
         self.step_info: dict[str, float] = {}

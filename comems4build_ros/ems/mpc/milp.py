@@ -13,7 +13,9 @@ Per step ``t`` (0 = step k of the closed loop), powers in W, energies via ``dt_h
   ``P_buy - P_sell + P_FC + P_d - P_ch - P_HP,SH - P_HP,DHW = P_load - P_PV``
 - ``soc_{t}`` (eq:batt_soc), ``loh_{t}`` (eq:LOH, constant eta_el_mpc), ``dhw_{t}``
   (eq:DHW_model with eq:DHW_heat: HP heat at the 45 degC COP plus recovered FC heat
-  ``k_fc_heat * P_FC`` minus dumped heat ``q_dump <= k_fc_heat * P_FC``), ``air_{t}``,
+  ``k_fc_heat * P_FC`` minus dumped heat ``q_dump <= k_fc_heat * P_FC``; with
+  ``fc_heat_dump`` off ``q_dump`` is 0, eq:DHW_heat as printed: all recovered heat enters
+  the tank, so the FC runs only while the tank can take its heat), ``air_{t}``,
   ``wall_in_{t}``, ``wall_out_{t}`` (eq:state_update_bldgs with Q_h,SH = COP_55 P_HP,SH).
 - Soft bounds with slack variables ``sl_*_{t}`` (heavy linear penalty): comfort
   ``comfort_lo_{t}``/``comfort_hi_{t}`` (eq:T_min), tank ``dhw_lo_{t}``/``dhw_hi_{t}``,
@@ -139,6 +141,9 @@ class MILPModel:
         steps are relaxed to [0, 1] ("relaxed tail"). ``None`` or ``>= n``: all binary.
     relax_battery_binary : relax the single battery binary while the sell price is >= 0
         (formulation ``tight``; see the module docstring)
+    year : terms of the year-round plant (electrolyser, seasonal H2 target)
+    fc_heat_dump : whether recovered FC heat the tank cannot take may be dumped (``q_dump``);
+        ``False`` (default) = eq:DHW_heat as printed (see the module docstring)
     """
 
     def __init__(
@@ -150,6 +155,7 @@ class MILPModel:
         integer_steps: int | None = None,
         relax_battery_binary: bool = False,
         year: YearTerms | None = None,
+        fc_heat_dump: bool = False,
     ) -> None:
         if formulation not in ("tight", "paper"):
             raise ValueError(f"formulation: unknown value '{formulation}' (tight, paper)")
@@ -161,6 +167,7 @@ class MILPModel:
         self.integer_steps = self.n if integer_steps is None else max(0, min(int(integer_steps), self.n))
         self.relax_battery_binary = relax_battery_binary
         self.year = year or YearTerms()
+        self.fc_heat_dump = fc_heat_dump
         self.prob = pulp.LpProblem("mpc_horizon", pulp.LpMinimize)
         self.v: dict[str, list[pulp.LpVariable]] = {}
         self.c: dict[str, list[pulp.LpConstraint]] = {}
@@ -189,6 +196,8 @@ class MILPModel:
         k, n, paper = self.const, self.n, self.formulation == "paper"
         for name in ("p_buy", "p_sell", "q_dump", "t_wall_in", "t_wall_out", "v_dhw", "soc", "loh"):
             self._var(name, None if name.startswith("t_") else 0.0)
+        if not self.fc_heat_dump:
+            self._var("q_dump", 0.0, 0.0)
         self._var("t_air", None)
         self._var("p_ch", 0.0, k.p_ch_max_w)
         self._var("p_dis", 0.0, k.p_d_max_w)

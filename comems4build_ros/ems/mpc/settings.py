@@ -39,6 +39,7 @@ class MILPOptions(_Options):
     formulation: Literal["tight", "paper"] = "tight"
     integer_steps: int = Field(default=24, ge=1)
     relax_battery_binary: bool = False
+    fc_heat_dump: bool = False
     big_m_loose_w: float = Field(default=1e5, gt=0)
     log_fallback: bool = True
     highs_options: dict[str, bool | int | float | str] = Field(default_factory=dict)
