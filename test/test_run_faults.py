@@ -417,9 +417,11 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
     with acquire_domain_id() as did:
         pass  # a free domain id for the run, joined below by the spoofer
     out = tmp_path / "run"
-    # a step time-out of 5 s: the EMS is paused for a fallback step and the spoofing, which a loaded
-    # machine can stretch; 3 silent steps of 2 s would end the run as stalled (by design) before it is over
-    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", "5", "--domain-id", str(did))
+    # a step time-out of 20 s: the EMS is paused for a fallback step and the spoofing, which a loaded
+    # machine can stretch; 3 silent steps end the run as stalled (by design) before it is over. With 5 s,
+    # 500 candidates (5 batches, each waiting for its acknowledgements) reached the plant over 14 s, the
+    # plant fell back 3 times in a row and ended the run (once in a fresh clone's suite)
+    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", "20", "--domain-id", str(did))
     contract = load_contract()
     # DHW at 37 %, the rest idle: hp_mod, hp_mode, p_fc_w, p_bess_w, p_el_w (in range, distinctive)
     spoof = [0.37, 2.0, 0.0, 0.0, 0.0]
@@ -471,7 +473,7 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
                 cmd.publish(Float64MultiArray(data=[float(k), *spoof, float(t)]))
             cmd.wait_for_all_acked(Duration(seconds=5))  # within the writer's history depth (1000)
         # the plant falls back for k after its step time-out and announces k + 1
-        _wait_for(lambda: steps[-1] > k or spin(0.02), 30, "the announcement of the next step")
+        _wait_for(lambda: steps[-1] > k or spin(0.02), 60, "the announcement of the next step")
         k1 = steps[-1]
         values = array("d", [float(k1), *spoof])  # with the run's secret, as only the run's user can:
         cmd.publish(Float64MultiArray(data=[*values, command_mac(secret_key(token), values.tobytes())]))
