@@ -19,6 +19,7 @@ from __future__ import annotations
 import numpy as np
 
 from comems4build_ros.config import SECONDS_PER_HOUR, BuildingParams
+from comems4build_ros.numerics import rowdot
 
 
 def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
@@ -120,5 +121,5 @@ def simulate(x0, u, Ad: np.ndarray, Bd: np.ndarray) -> np.ndarray:
     x = np.empty((len(u) + 1, 3))
     x[0] = x0
     for k in range(len(u)):
-        x[k + 1] = (Ad * x[k]).sum(axis=1) + (Bd * u[k]).sum(axis=1)  # not @: CPU-independent rounding
+        x[k + 1] = rowdot(Ad, x[k]) + rowdot(Bd, u[k])
     return x

@@ -45,6 +45,7 @@ from typing import Any
 import numpy as np
 
 from ...config import ConfigError, PlantParams, check_known_keys, finite_number
+from ...numerics import rowdot
 
 #: Rule base sections in a file: the paper's snapshot rules and ours.
 RULE_SECTIONS = ("rules_paper", "rules_design")
@@ -298,12 +299,11 @@ class FuzzySystem:
         """
         act = self.activation(x)
         agg = np.minimum(act[:, :, None], self._out_mf[None, :, :]).max(axis=1)
-        # row sums of products, not ``@``: a BLAS product's rounding depends on the CPU's kernel
-        area = (agg * self._w_area).sum(axis=1)
+        area = rowdot(agg, self._w_area)
         if np.any(area <= 0.0):
             bad = np.atleast_2d(np.asarray(x, dtype=float))[np.argmax(area <= 0.0)]
             raise ValueError(f"{self.name}: no rule fires for inputs {dict(zip(self.input_names, bad.tolist()))}")
-        return (agg * self._w_moment).sum(axis=1) / area
+        return rowdot(agg, self._w_moment) / area
 
     def __call__(self, *values: float) -> float:
         """Crisp output for one input vector given as positional values."""
@@ -330,7 +330,7 @@ class FuzzySystem:
     def term_centroid(self, term: str) -> float:
         """Centroid of one output term alone (the crisp output when only it fires fully)."""
         mf = self._out_mf[self.output.term_names.index(term)]
-        return float((mf * self._w_moment).sum() / (mf * self._w_area).sum())
+        return float(rowdot(mf, self._w_moment) / rowdot(mf, self._w_area))
 
     def rule_text(self, index: int) -> str:
         """The rule as written in the file."""

@@ -74,6 +74,7 @@ import numpy as np
 import pulp
 
 from ...config import W_PER_KW
+from ...numerics import rowdot
 from .horizon import HorizonData, PlantConstants
 from .solvers import MatrixForm
 
@@ -195,9 +196,8 @@ class MILPModel:
     def _build(self) -> None:
         k, n, paper = self.const, self.n, self.formulation == "paper"
         for name in ("p_buy", "p_sell", "q_dump", "t_wall_in", "t_wall_out", "v_dhw", "soc", "loh"):
-            self._var(name, None if name.startswith("t_") else 0.0)
-        if not self.fc_heat_dump:
-            self._var("q_dump", 0.0, 0.0)
+            up = 0.0 if name == "q_dump" and not self.fc_heat_dump else None  # eq:DHW_heat as printed: no dump
+            self._var(name, None if name.startswith("t_") else 0.0, up)
         self._var("t_air", None)
         self._var("p_ch", 0.0, k.p_ch_max_w)
         self._var("p_dis", 0.0, k.p_d_max_w)
@@ -377,7 +377,7 @@ class MILPModel:
             C["dhw"][t].expr[V["p_hp_dhw"][t]] = -cv * float(h.cop_dhw[t])
             exo = k.bd[:, 1] * h.t_amb_c[t] + k.bd[:, 2] * h.ghi_w_m2[t]
             if t == 0:
-                exo = exo + (k.ad * x0).sum(axis=1)  # not @: BLAS rounding depends on the CPU
+                exo = exo + rowdot(k.ad, x0)
             for i, cname in enumerate(("air", "wall_in", "wall_out")):
                 C[cname][t].changeRHS(float(exo[i]))
                 C[cname][t].expr[V["p_hp_sh"][t]] = -k.bd[i, 0] * float(h.cop_sh[t])

@@ -32,6 +32,7 @@ import osqp
 import scipy.sparse as sp
 
 from ...config import W_PER_KW, PlantParams
+from ...numerics import rowdot
 from ...types import HP_DHW, HP_OFF, HP_SH, Action
 from ..base import Observation
 from ..fallback import safe_action
@@ -187,7 +188,7 @@ class QPModel:
         eq("dhw", dhw)
         up[L["fc_heat_dump"]] = 0.0
         exo = np.outer(h.t_amb_c, k.bd[:, 1]) + np.outer(h.ghi_w_m2, k.bd[:, 2])
-        exo[0] += (k.ad * h.x0).sum(axis=1)  # not @: BLAS rounding depends on the CPU
+        exo[0] += rowdot(k.ad, h.x0)
         for i, label in enumerate(("air", "wall_in", "wall_out")):
             eq(label, exo[:, i])
         lo[L["comfort_lo"]] = h.t_min_c
