@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from test_mpc import mpc_obs
+from test_mpc import mpc_obs, params3  # noqa: F401 (fixture)
 
 from comems4build_ros.config import load_plant_params
 from comems4build_ros.ems.mpc import MPCController, QPController
@@ -67,3 +67,23 @@ def test_qp_cost_is_a_lower_bound_of_the_milp(params):
     bat_qp = np.sum(c.sigma_b_ch_eur_per_kwh * p["p_ch"] + c.sigma_b_d_eur_per_kwh * p["p_dis"]) / 1000
     bat_milp = np.sum(c.sigma_b_ch_eur_per_kwh * m["p_ch"] + c.sigma_b_d_eur_per_kwh * m["p_dis"]) / 1000
     assert grid_qp + life_qp + bat_qp <= grid_milp + life_milp + bat_milp + 0.02
+
+
+@pytest.mark.parametrize("dump", [False, True])
+def test_full_tank_and_fc_heat(params3, dump):  # noqa: F811 (fixture)
+    """As the MILP: with eq:DHW_heat as printed (``fc_heat_dump: false``, the default) the recovered
+    FC heat must enter the tank, so with the tank at V_max and no draw the relaxed plan keeps the FC
+    off at a high price, up to the heat the tank loses; with the dump allowed it runs the FC and dumps its heat."""
+    assert QPController(params3, {}).options.fc_heat_dump is False
+    ctrl = QPController(params3, {"fc_heat_dump": dump, "eps_abs": 1e-5, "eps_rel": 1e-5, "max_iter": 200000})
+    v_max = params3.dhw.v_max_l
+    action = ctrl.act(mpc_obs(3, prices=(0.6, 0.6, 0.6), load_w=2500.0, v_dhw=v_max))
+    plan = ctrl.last_plan
+    assert ctrl.step_info["fallback"] == 0.0
+    if dump:
+        assert action.p_fc_w > 0.0 and plan["q_dump"][0] > 100.0
+    else:
+        assert action.p_fc_w == 0.0 and np.all(np.abs(plan["q_dump"]) < 1.0)
+        # at most the standing losses (eq:DHW_model) are made up by recovered heat
+        k = ctrl.const
+        assert np.all(k.k_fc_heat * plan["p_fc"] <= k.q_dhw_loss_w + 5.0)

@@ -11,6 +11,9 @@ charge and discharge are not excluded (both at once only lose energy). Quadratic
 - ``w_comfort_track * (T_air[t] - (T_min[t] + margin))^2`` tracks the lower comfort band,
 - ``w_reg * P^2`` on every power makes the problem strictly convex.
 
+Recovered FC heat is read as in the MILP (option ``fc_heat_dump``, default false: eq:DHW_heat
+as printed, all of it enters the tank; true: ``q_dump <= k_fc_heat * P_FC`` may be dumped).
+
 Powers are in kW and SOC and LOH in kWh inside the QP (scaling for OSQP; the penalties
 per unit SOC / LOH are converted). The problem matrix is set up once;
 each step updates ``q``, ``l``, ``u`` and the COP-dependent entries of ``A`` in place and
@@ -209,6 +212,8 @@ class QPModel:
         vb_up[:, _J["p_fc"]] = k.p_fc_max_w / W_PER_KW
         vb_up[:, _J["p_hp_sh"]] = h.p_hp_max_w / W_PER_KW
         vb_up[:, _J["p_hp_dhw"]] = h.p_hp_max_w / W_PER_KW
+        if not o.fc_heat_dump:  # eq:DHW_heat as printed: every kWh of recovered heat enters the tank
+            vb_up[:, _J["q_dump"]] = 0.0
         lo[self.m_con:] = vb_lo.ravel()
         up[self.m_con:] = vb_up.ravel()
         # linear objective

@@ -63,6 +63,7 @@ class QPOptions(_Options):
     max_iter: int = Field(default=20000, gt=0)
     polish: bool = True
     time_limit_s: float = Field(default=5.0, ge=0)
+    fc_heat_dump: bool = False
 
 
 def default_mpc_file() -> Path:
