@@ -21,6 +21,7 @@ from ...config import W_PER_KW, ConfigError, PlantParams, Section, config_dir, r
 class _Options(Section):
     loh_min_mode: Literal["day", "step"] = "day"
     fc_lifecycle_eta: Literal["eta_el_mpc", "eta_sys", "one"] = "one"
+    fc_heat_dump: bool = False
     penalty_comfort_eur_per_kh: float = Field(default=100.0, gt=0)
     penalty_dhw_eur_per_lh: float = Field(default=1.0, gt=0)
     penalty_soc_eur_per_h: float = Field(default=1000.0, gt=0)
@@ -39,7 +40,6 @@ class MILPOptions(_Options):
     formulation: Literal["tight", "paper"] = "tight"
     integer_steps: int = Field(default=24, ge=1)
     relax_battery_binary: bool = False
-    fc_heat_dump: bool = False
     big_m_loose_w: float = Field(default=1e5, gt=0)
     log_fallback: bool = True
     highs_options: dict[str, bool | int | float | str] = Field(default_factory=dict)
@@ -63,7 +63,6 @@ class QPOptions(_Options):
     max_iter: int = Field(default=20000, gt=0)
     polish: bool = True
     time_limit_s: float = Field(default=5.0, ge=0)
-    fc_heat_dump: bool = False
 
 
 def default_mpc_file() -> Path:
