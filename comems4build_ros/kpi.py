@@ -27,6 +27,9 @@ HOURS_PER_WEEK = 168.0
 DISCOMFORT_TOL_KH = 0.01
 #: The H2 store counts as empty within this fraction of LOH_min. [-]
 LOH_EMPTY_TOL = 1e-6
+#: A step counts as one with unmet hot-water demand above this heat flow: 1e-3 W over a
+#: 1-h step is the KPIs' energy resolution of 1e-6 kWh. [W]
+DHW_UNMET_TOL_W = 1e-3
 #: When within a step the air temperature is compared with the comfort band
 #: (``eq:discomfort`` samples ``T_air[k]`` without saying where in step ``k``):
 #: ``end`` = the state at the end of the step (the plant's ``T_air[k]``), ``start`` = the
@@ -251,6 +254,16 @@ def h2_empty_at(ts: pd.DataFrame, loh_min: float, dt_h: float = 1.0) -> str | No
     return (start + pd.Timedelta(hours=dt_h)).isoformat()
 
 
+def dhw_unmet_steps(ts: pd.DataFrame) -> tuple[int, str | None]:
+    """Steps whose hot-water draw and standing loss the tank could not serve (``q_dhw_unmet_w``
+    above :data:`DHW_UNMET_TOL_W`: the tank sat at V_DHW,min, ``sec:dhw``), and the ISO start
+    time of the first of them (``None`` if there is none)."""
+    hit = np.flatnonzero(ts["q_dhw_unmet_w"].to_numpy(dtype=float) > DHW_UNMET_TOL_W)
+    if hit.size == 0:
+        return 0, None
+    return int(hit.size), pd.Timestamp(ts["time"].iloc[int(hit[0])]).isoformat()
+
+
 def heat_recovered_at(ts: pd.DataFrame, eta_sys: float, dt_h: float = 1.0) -> pd.Series:
     """FC heat of each step at system efficiency ``eta_sys`` for the run's own dispatch [kWh].
 
@@ -302,7 +315,9 @@ def summarize(
     included), ``full_weeks`` and ``partial_week_h`` say which. ``fallback_steps`` counts
     the steps on a safe fallback action, whether the plant applied it (no valid command in
     time, column ``fallback``) or the EMS did (no solution, column ``ems_fallback``);
-    ``ems_fallback_steps`` the latter alone. KPIs are rounded to :data:`KPI_RESOLUTION`.
+    ``ems_fallback_steps`` the latter alone. ``dhw_unmet_steps`` and ``dhw_unmet_first``
+    say in how many steps, and from when, the tank could not serve the hot-water demand
+    (:func:`dhw_unmet_steps`). KPIs are rounded to :data:`KPI_RESOLUTION`.
 
     Parameters
     ----------
@@ -321,6 +336,7 @@ def summarize(
     plant_fb = ts["fallback"].astype(float).to_numpy() > 0.5 if "fallback" in ts else np.zeros(len(ts), bool)
     ems_fb = ts["ems_fallback"].astype(float).to_numpy() > 0.5 if "ems_fallback" in ts else np.zeros(len(ts), bool)
     slack = int((ts["ems_slack_used"].astype(float) > 0.5).sum()) if "ems_slack_used" in ts else 0
+    unmet_steps, unmet_first = dhw_unmet_steps(ts)
     total = _week_kpis(ts, dt_h, t_comfort)
     price_mean = float(np.mean(ts["price_buy_eur_per_kwh"].to_numpy(dtype=float)))
     loh_end = float(ts["loh"].iloc[-1])
@@ -356,6 +372,8 @@ def summarize(
         "loh_end": loh_end,
         "h2_empty_at": h2_empty_at(ts, loh_min, dt_h),
         "dhw_unmet_kwh": total["dhw_unmet_kwh"],
+        "dhw_unmet_steps": unmet_steps,
+        "dhw_unmet_first": unmet_first,
         "max_balance_residual_w": float(np.max(np.abs(ts["balance_residual_w"].to_numpy(dtype=float)))),
         "clipped_actions": int(total["clipped_steps"]),
         "fallback_steps": int(np.count_nonzero(plant_fb | ems_fb)),

@@ -220,6 +220,17 @@ def test_mpc_that_never_solves_counts_its_fallbacks(tmp_path: Path, capsys: pyte
     assert "warning: 6 of 6 steps ran on the safe fallback action" in err
 
 
+def test_unmet_hot_water_is_warned_not_only_counted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    """A tank started near V_DHW,min cannot serve the first morning draw: the run says so."""
+    code, _, err = run_cli(["simulate", "--ems", "rbc", "--hours", "24", "--set", "simulation.v_dhw_init_l=41",
+                            "--set", "dhw.v_max_l=120", "--no-progress", "--out", tmp_path / "r"], capsys)
+    assert code == 0, err
+    summary = json.loads((tmp_path / "r" / "summary.json").read_text())
+    assert summary["dhw_unmet_steps"] >= 1 and summary["dhw_unmet_kwh"] > 0
+    assert (f"warning: the hot-water demand was not met in {summary['dhw_unmet_steps']} of 24 steps" in err
+            and summary["dhw_unmet_first"] in err)
+
+
 # ---------------------------------------------------------------------------- input files
 def _variant(good: Path, tmp_path: Path, kind: str) -> Path:
     text = good.read_text()

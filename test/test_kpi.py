@@ -73,6 +73,18 @@ def test_heat_recovery_dhw_and_unmet() -> None:
     assert w.loc[0, "dhw_unmet_kwh"] == pytest.approx(0.25)
 
 
+def test_dhw_unmet_steps_and_first_step() -> None:
+    """Steps above the tolerance count; the first is named by its start time."""
+    ts = make_ts(6, q_dhw_unmet_w=[0, kpi.DHW_UNMET_TOL_W / 2, 0, 250, 0, 40])
+    s = kpi.summarize(ts, kpi.weekly_kpis(ts, 1.0), loh_min=0.0)
+    assert s["dhw_unmet_steps"] == 2
+    assert s["dhw_unmet_first"] == pd.Timestamp("2022-12-01 03:00", tz="Europe/Berlin").isoformat()
+    assert s["dhw_unmet_kwh"] == pytest.approx(0.29, abs=1e-6)
+    ok = make_ts(3)
+    s0 = kpi.summarize(ok, kpi.weekly_kpis(ok, 1.0), loh_min=0.0)
+    assert s0["dhw_unmet_steps"] == 0 and s0["dhw_unmet_first"] is None
+
+
 def test_weeks_split_and_partial_week() -> None:
     n = 168 * 2 + 24
     t_air = np.full(n, 21.0)

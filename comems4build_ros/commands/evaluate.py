@@ -69,4 +69,8 @@ def run(args: argparse.Namespace) -> int:
     if len(summaries) > 1 or "/" not in summaries:
         written += [out / "weekly.csv", out / "summary.json"]
     print(f"wrote {len(written)} files: {', '.join(str(p) for p in written)}")
+    from .simulate import warn_run
+
+    for s in summaries.values():
+        warn_run(s, "evaluate")
     return 0

@@ -82,8 +82,14 @@ def run(args: argparse.Namespace) -> int:
 
 
 def warn_run(summary: dict, command: str) -> None:
-    """Warnings at the end of a run: fallback steps, a synthetic extension, a partial week."""
+    """Warnings at the end of a run: fallback steps, unmet hot-water demand, a synthetic extension."""
     n, steps = summary.get("fallback_steps") or 0, summary.get("steps") or 0
+    unmet = summary.get("dhw_unmet_steps") or 0
+    if unmet:
+        print(f"comems4build {command}: warning: the hot-water demand was not met in {unmet} of {steps} steps "
+              f"({summary.get('dhw_unmet_kwh', 0.0):.3g} kWh in all, the first from {summary.get('dhw_unmet_first')}): "
+              "the tank was at V_DHW,min; see dhw_unmet_kwh in summary.json and q_dhw_unmet_w per step",
+              file=sys.stderr)
     if n:
         ems_n = summary.get("ems_fallback_steps") or 0
         print(f"comems4build {command}: warning: {n} of {steps} steps ran on the safe fallback action "
