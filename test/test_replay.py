@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 
 from comems4build_ros.config import load_plant_params
-from comems4build_ros.ros.bag import iter_messages
+from comems4build_ros.ros.bag import decode, iter_messages
 from comems4build_ros.ros.bag_eval import evaluate_bag
 from comems4build_ros.ros.contract import load_contract
 from comems4build_ros.ros.launcher import launch
@@ -62,8 +62,11 @@ def _drive_with_recorded_inputs(ems: str, inputs: Path, tmp_path: Path,
     bag = tmp_path / f"{ems}_bag"
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
         rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {"bag_path": str(bag)})])
-        group.start(f"{ems}_ems", "ems", [*node_command("ems", ems)])
-        group.start("replay", "replay", [*node_command("replay"), str(inputs), "--inputs-only"])
+        # as the launcher starts the feed and the EMS: their first message waits until their
+        # writers matched the recorder's readers (else the first steps can miss in the bag)
+        gate = ros_args("", {"wait_for_recorder": True})
+        group.start(f"{ems}_ems", "ems", [*node_command("ems", ems), *gate])
+        group.start("replay", "replay", [*node_command("replay"), str(inputs), "--inputs-only", *gate])
         plant = group.start("plant_sim", "plant", [*node_command("plant_sim"),
                                                    *ros_args("", {"wait_for_recorder": True})])
         assert _wait_exit(plant, timeout_s) == 0, plant.tail()
@@ -140,3 +143,57 @@ def test_evaluate_refuses_a_bag_with_gaps_unless_accepted(recorded: Path, tmp_pa
     assert summary["lost_messages"] == {"/state/soc": 3}
     assert "wrote 3 files:" in res.stdout and "timeseries.csv" in res.stdout
     assert summary["wall_s"] is None and summary["bag_duration_s"] > 0  # the bag's duration is not a wall time
+
+
+def test_inputs_only_replay_holds_its_inputs_until_the_recorder_has_matched(recorded: Path, tmp_path: Path) -> None:
+    """With ``wait_for_recorder`` the replay answers the plant's announcement only once its
+    writers have matched a recorder's readers (``ContractNode.recorder_gate``): no input goes
+    out while no recorder listens, and the held answer for step 0 reaches the recorder's bag."""
+    import rclpy
+    from rclpy.executors import SingleThreadedExecutor
+    from rclpy.node import Node
+
+    contract = load_contract()
+    step_spec, cal_spec = contract.topic("plant/step"), contract.topic("feed/calendar")
+    bag = tmp_path / "bag"
+    with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
+        ctx = rclpy.context.Context()
+        rclpy.init(context=ctx, domain_id=did)
+        node = Node("gate_observer", context=ctx)
+        executor = SingleThreadedExecutor(context=ctx)
+        executor.add_node(node)
+        got: list[int] = []
+        try:
+            step_pub = node.create_publisher(step_spec.msg_class(), "plant/step", step_spec.qos_profile())
+            node.create_subscription(cal_spec.msg_class(), "feed/calendar", lambda m: got.append(int(m.data[0])),
+                                     cal_spec.qos_profile())
+            announce = step_spec.msg_class()(data=0)
+
+            def spin_for(seconds: float, until=lambda: False) -> None:
+                t_end, t_pub = time.monotonic() + seconds, 0.0
+                while time.monotonic() < t_end and not until():
+                    if time.monotonic() - t_pub > 0.2:  # repeated, as the plant repeats a late step
+                        step_pub.publish(announce)
+                        t_pub = time.monotonic()
+                    executor.spin_once(timeout_sec=0.05)
+
+            rep = group.start("replay", "replay", [*node_command("replay"), str(recorded), "--inputs-only",
+                                                   *ros_args("", {"wait_for_recorder": True})])
+            spin_for(60.0, lambda: step_pub.get_subscription_count() > 0 and node.count_publishers("feed/calendar") > 0)
+            assert step_pub.get_subscription_count() > 0, rep.tail()
+            spin_for(3.0)  # announced for 3 s: the gate is closed, nothing is published
+            assert got == [], f"published before a recorder listened: steps {got}"
+            rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {
+                "bag_path": str(bag), "stop_when_done": False})])
+            spin_for(60.0, lambda: 0 in got)
+            assert 0 in got, rep.tail()
+            time.sleep(1.5)  # the recorder writes its chunk (chunk_period_s 1 s), then closes on SIGINT
+            rec.proc.send_signal(2)
+            assert _wait_exit(rec) == 0, rec.tail()
+        finally:
+            executor.shutdown()
+            node.destroy_node()
+            rclpy.try_shutdown(context=ctx)
+    steps = {int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
+             for t, _, _, raw in iter_messages(bag) if t == "/feed/calendar"}
+    assert 0 in steps

@@ -24,7 +24,11 @@ and publishes the recorded inputs of steps ``k .. k + lookahead_steps`` when the
 announces step ``k`` on ``plant/step`` (a repeated announcement makes it publish them
 again); ``rate`` does not apply. It exits once the plant has announced the last step.
 The recorded messages are grouped by their element 0 (``step``), the first message per
-topic and step is used.
+topic and step is used. With a recorder in the new run, give ``wait_for_recorder:=true``
+(as the launcher gives the feed): the first inputs are then published only once every
+writer of the node has matched the recorder's readers
+(:meth:`~comems4build_ros.ros.node.ContractNode.recorder_gate`); without it, the inputs of
+the first steps can reach the EMS but not the recorder, and the new bag has gaps.
 """
 
 from __future__ import annotations
@@ -85,6 +89,7 @@ class Replay(ContractNode):
         self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
         wanted_ns = cli.source_namespace or str(param(self, "source_namespace", ""))
         self.wait_s = float(param(self, "wait_for_subscribers_s", WAIT_FOR_SUBSCRIBERS_S))
+        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.settle_s = float(param(self, "settle_s", SETTLE_S))
         self._t_created = time.monotonic()
         self._matched_at: float | None = None
@@ -196,6 +201,9 @@ class Replay(ContractNode):
 
     # ------------------------------------------------------------------ inputs only
     def _on_plant_step(self, msg: Any) -> None:
+        if not self.recorder_gate():  # not yet: answered once the gate opens
+            self.when_gate_opens(lambda: self._on_plant_step(msg))
+            return
         k = int(msg.data)
         last = min(k + self.lookahead, self.last_step)
         first = k if k <= self._last_request else max(self._next, k)
