@@ -71,8 +71,12 @@ def test_year_inputs_replayed_drive_the_rbc(tmp_path: Path) -> None:
 
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
         rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {"bag_path": str(bag)})])
-        group.start("rbc_ems", "ems", [*node_command("ems", "rbc"), *ros_args("", {"config_files": files})])
-        group.start("replay", "replay", [*node_command("replay"), str(rec_run.bag), "--inputs-only"])
+        # the replay and the EMS as the launcher starts the feed and the EMS: their first message
+        # waits until their writers matched the recorder's readers (else the first steps can miss)
+        group.start("rbc_ems", "ems", [*node_command("ems", "rbc"), *ros_args(
+            "", {"config_files": files, "wait_for_recorder": True})])
+        group.start("replay", "replay", [*node_command("replay"), str(rec_run.bag), "--inputs-only",
+                                         *ros_args("", {"wait_for_recorder": True})])
         plant = group.start("plant_sim", "plant", [*node_command("plant_sim"), *ros_args(
             "", {"wait_for_recorder": True, "config_files": files})])
         assert wait(plant) == 0, plant.tail()

@@ -167,6 +167,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         make_executor,
         print_cpu,
         spin_until_done,
+        stop_signalled,
     )
 
     makers: dict[str, Any] = {}
@@ -223,7 +224,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
     except (KeyboardInterrupt, ExternalShutdownException):
         code = interrupted_code(nodes, f"container {role}")
     except RuntimeError:
-        if rclpy.ok():  # see run_node: a context shut down from elsewhere
+        if rclpy.ok() and not stop_signalled():  # see run_node: a context shut down from elsewhere, a signal
             raise
         code = interrupted_code(nodes, f"container {role}")
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:

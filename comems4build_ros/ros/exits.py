@@ -27,6 +27,12 @@ EXIT_CODES = {
 #: Prefix of the one line on stderr that names why a node ended a run early (read by the
 #: supervisor from the node's log: :func:`comems4build_ros.ros.process.report_cause`).
 CAUSE_TAG = "cause:"
+#: Prefix of the line on stderr with which a node process starts its clean-up, followed by
+#: the exit code its run decided (:func:`comems4build_ros.ros.process.cleanup_deadline`).
+CLEANUP_TAG = "cleaning up:"
+#: First line of what :mod:`faulthandler` writes when the C-level backstop of a hung
+#: clean-up fires (``Timeout (0:00:30)!``, then the stack of every thread); it then exits 1.
+BACKSTOP_MARK = "Timeout ("
 
 
 def exit_meaning(code: int) -> str:

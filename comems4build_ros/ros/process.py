@@ -28,7 +28,7 @@ from rclpy.task import Future
 
 from ..config import ConfigError
 from .contract import ContractError
-from .exits import CAUSE_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED
+from .exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 #: Environment variable choosing the executor of the node processes: ``lean`` (default,
 #: :class:`comems4build_ros.ros.executor.LeanExecutor`) or ``single`` (rclpy's
@@ -77,13 +77,28 @@ def init_rclpy(args: list[str] | None) -> None:
 
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
     if threading.current_thread() is threading.main_thread():
-        signal.signal(signal.SIGINT, signal.default_int_handler)
-        signal.signal(signal.SIGTERM, _stop_on_sigterm)
+        signal.signal(signal.SIGINT, _stop_on_signal)
+        signal.signal(signal.SIGTERM, _stop_on_signal)
 
 
-def _stop_on_sigterm(signum: int, frame: Any) -> None:
-    """SIGTERM handler: stop like Ctrl-C."""
+#: The stop signal (SIGINT or SIGTERM) this process received, None before one came.
+_stop_signal: int | None = None
+
+
+def _stop_on_signal(signum: int, frame: Any) -> None:
+    """SIGINT and SIGTERM handler: note the signal (:func:`stop_signalled`), stop like Ctrl-C."""
+    global _stop_signal
+    _stop_signal = signum
     raise KeyboardInterrupt(f"signal {signum}")
+
+
+def stop_signalled() -> bool:
+    """Whether a stop signal came. The KeyboardInterrupt of :func:`_stop_on_signal` can be
+    raised while rclpy's pybind11 code converts an argument in Python (``take_message``);
+    pybind11 then reports it as ``RuntimeError: Unable to convert call argument`` (seen
+    once: a container stopped by SIGTERM exited 1 instead of 3). A RuntimeError after a
+    stop signal is that interruption."""
+    return _stop_signal is not None
 
 
 def spin_until_done(executor: Any, future: Future) -> None:
@@ -126,8 +141,9 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     except RuntimeError:
         # a context shut down from elsewhere between the executor's check and its next wait
         # set makes rclpy raise RCLError (a RuntimeError: "the given context is not valid")
-        # instead of ExternalShutdownException. That is the same clean external shutdown.
-        if rclpy.ok():
+        # instead of ExternalShutdownException. That is the same clean external shutdown; so
+        # is a stop signal that pybind11 turned into a RuntimeError (stop_signalled).
+        if rclpy.ok() and not stop_signalled():
             raise
         code = interrupted_code([node], name)
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
@@ -192,7 +208,26 @@ def report_cause(label: str, text: str) -> None:
 CLEANUP_TIMEOUT_S = 20.0
 
 
-def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S) -> Any:
+#: Seconds after :data:`CLEANUP_TIMEOUT_S` at which the C-level backstop of
+#: :func:`cleanup_deadline` ends a clean-up that holds the interpreter.
+CLEANUP_BACKSTOP_S = 10.0
+
+
+class _Deadline:
+    """The two watchdogs of :func:`cleanup_deadline`; ``cancel()`` stops both."""
+
+    def __init__(self, timer: Any) -> None:
+        self.timer = timer
+
+    def cancel(self) -> None:
+        import faulthandler
+
+        self.timer.cancel()
+        faulthandler.cancel_dump_traceback_later()
+
+
+def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S,
+                     backstop_s: float = CLEANUP_BACKSTOP_S) -> Any:
     """Start a watchdog that ends the process with ``code`` if the clean-up hangs; returns it.
 
     A SIGINT that lands while rclpy holds one of its locks has been seen to leave the
@@ -200,7 +235,16 @@ def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S
     run's outcome is decided by then, so after ``timeout_s`` the watchdog says so on stderr
     and exits with the same code without the clean-up. ``cancel()`` it once the clean-up
     is done.
+
+    That watchdog is a Python thread: a clean-up stuck inside native code that holds the
+    interpreter lock stops it too (seen once: a recorder that had closed its bag did not
+    exit in 80 s, and only SIGKILL ended it). :data:`CLEANUP_BACKSTOP_S` later,
+    ``faulthandler``'s C-level watchdog writes the stack of every thread to stderr (the
+    node's log: where it hung) and exits with code 1 (``backstop_s`` after ``timeout_s``).
+    Its first line, ``[<label>] cleaning up: exit code <code>``, tells the supervisor what
+    the run had decided (:meth:`comems4build_ros.ros.supervisor.Child.decided_before_hang`).
     """
+    import faulthandler
     import os
     import threading
 
@@ -212,7 +256,9 @@ def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S
     timer = threading.Timer(timeout_s, expire)
     timer.daemon = True
     timer.start()
-    return timer
+    print(f"[{label}] {CLEANUP_TAG} exit code {code}", file=sys.stderr, flush=True)
+    faulthandler.dump_traceback_later(timeout_s + backstop_s, exit=True, file=sys.stderr)
+    return _Deadline(timer)
 
 
 def ignore_stop_signals() -> None:

@@ -56,7 +56,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
-from .exits import CAUSE_TAG, exit_meaning
+from .exits import BACKSTOP_MARK, CAUSE_TAG, CLEANUP_TAG, exit_meaning
 from .plan import STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES, RunPlan, fastdds_profile, node_label, profile_env
 from .tokens import private_dir, write_token_file
 
@@ -184,6 +184,21 @@ class Child:
             return None
         lines = [ln for ln in text.splitlines() if f"] {CAUSE_TAG} " in ln]
         return lines[-1].strip() if lines else None
+
+    def decided_before_hang(self) -> int | None:
+        """The exit code the node's run had decided when its clean-up hung and the C-level
+        backstop ended it with code 1 (:func:`~comems4build_ros.ros.process.cleanup_deadline`:
+        a ``cleaning up: exit code N`` line of the log, later the backstop's ``Timeout (``),
+        or None if that is not what happened."""
+        try:
+            text = self.log_path.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return None
+        head, tag, rest = text.rpartition(f"] {CLEANUP_TAG} exit code ")
+        if not tag or BACKSTOP_MARK not in rest:
+            return None
+        word = rest.split(maxsplit=1)[0] if rest.split() else ""
+        return int(word) if word.lstrip("-").isdigit() else None
 
     def paused(self) -> bool:
         """The process is stopped (SIGSTOP, state ``T`` in ``/proc/<pid>/stat``)."""
@@ -468,14 +483,14 @@ def supervise(
         if report is not None:
             report(r, n)
         for c in group.children:
-            code = c.proc.poll()
+            code = exit_code(c)
             # exit 0 of a node: its part of the run is complete (exits.py); anything else cuts the run
             if code is None or (c.finishes and code == 0):
                 continue
             raise left_error(c, code)
-        if recorders and all(c.proc.poll() == 0 for c in recorders):
+        if recorders and all(exit_code(c) == 0 for c in recorders):
             return t_first_record
-        plants_done = all(p.proc.poll() == 0 for p in plants)
+        plants_done = all(exit_code(p) == 0 for p in plants)
         if plants_done and not recorders:
             return t_first_record
         if plants_done:
@@ -485,7 +500,7 @@ def supervise(
                 print(f"launcher: {len(running)} recorder(s) still running {RECORDER_DRAIN_S:g} s after the last "
                       "plant exited; stopping them (SIGINT closes the bag)", file=sys.stderr)
                 group.stop(running, RECORDER_GRACE_S)
-                bad = [c for c in running if c.proc.returncode != 0]
+                bad = [c for c in running if exit_code(c) != 0]
                 if bad:
                     raise LaunchError(
                         "recorder(s) " + ", ".join(f"'{c.name}' (exit {c.proc.returncode})" for c in bad)
@@ -502,6 +517,24 @@ def supervise(
                 f"run not finished within the time limit of {timeout_s:g} s (recorded {r} of {n or '?'} steps; "
                 f"{_paused(group)}; --timeout sets the limit)"
             )
+
+
+_HUNG_REPORTED: set[int] = set()
+
+
+def exit_code(c: Child) -> int | None:
+    """``c``'s exit code, None while it runs. A process whose clean-up hung after its run had
+    decided exit 0, and that the C-level backstop ended with 1, counts as 0: its part of the
+    run (a recorder's bag: closed before the clean-up) is complete. Said once on stderr,
+    naming its log, where the stacks of the hang are."""
+    code = c.proc.poll()
+    if code == 1 and c.decided_before_hang() == 0:
+        if c.proc.pid not in _HUNG_REPORTED:
+            _HUNG_REPORTED.add(c.proc.pid)
+            print(f"launcher: warning: node '{c.name}' had finished its run (exit code 0) but its clean-up hung and "
+                  f"its watchdog ended it; the stacks are in {c.log_path}", file=sys.stderr, flush=True)
+        return 0
+    return code
 
 
 def left_error(c: Child, code: int) -> LaunchError:
