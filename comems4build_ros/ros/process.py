@@ -237,8 +237,9 @@ def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S
     is done.
 
     That watchdog is a Python thread: a clean-up stuck inside native code that holds the
-    interpreter lock stops it too (seen once: a recorder that had closed its bag did not
-    exit in 80 s, and only SIGKILL ended it). :data:`CLEANUP_BACKSTOP_S` later,
+    interpreter lock stops it too (seen once: a recorder that had closed its bag ignored
+    it, and SIGINT and SIGTERM too; only the launcher's SIGKILL, about 100 s after the end of
+    the run, ended it). :data:`CLEANUP_BACKSTOP_S` later,
     ``faulthandler``'s C-level watchdog writes the stack of every thread to stderr (the
     node's log: where it hung) and exits with code 1 (``backstop_s`` after ``timeout_s``).
     Its first line, ``[<label>] cleaning up: exit code <code>``, tells the supervisor what

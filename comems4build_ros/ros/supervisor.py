@@ -167,22 +167,22 @@ class Child:
     stage: int = STAGE_NODES
     finishes: bool = False
     nodes: tuple[str, ...] = ()  # full names of the ROS nodes the process runs ("/building_0/plant_sim")
+    hang_reported: bool = False  # exit_code() has warned of a clean-up hang after a complete run
+
+    def log_text(self) -> str:
+        """The node's log so far ("" if it cannot be read)."""
+        try:
+            return self.log_path.read_text(encoding="utf-8", errors="replace")
+        except OSError:
+            return ""
 
     def tail(self, lines: int = 8) -> str:
         """Last lines of the node's log."""
-        try:
-            text = self.log_path.read_text(encoding="utf-8", errors="replace")
-        except OSError:
-            return ""
-        return "\n".join(text.rstrip().splitlines()[-lines:])
+        return "\n".join(self.log_text().rstrip().splitlines()[-lines:])
 
     def cause(self) -> str | None:
         """The last ``[<node>] cause: <text>`` line of the log (:mod:`comems4build_ros.ros.exits`), or None."""
-        try:
-            text = self.log_path.read_text(encoding="utf-8", errors="replace")
-        except OSError:
-            return None
-        lines = [ln for ln in text.splitlines() if f"] {CAUSE_TAG} " in ln]
+        lines = [ln for ln in self.log_text().splitlines() if f"] {CAUSE_TAG} " in ln]
         return lines[-1].strip() if lines else None
 
     def decided_before_hang(self) -> int | None:
@@ -190,11 +190,7 @@ class Child:
         backstop ended it with code 1 (:func:`~comems4build_ros.ros.process.cleanup_deadline`:
         a ``cleaning up: exit code N`` line of the log, later the backstop's ``Timeout (``),
         or None if that is not what happened."""
-        try:
-            text = self.log_path.read_text(encoding="utf-8", errors="replace")
-        except OSError:
-            return None
-        head, tag, rest = text.rpartition(f"] {CLEANUP_TAG} exit code ")
+        _, tag, rest = self.log_text().rpartition(f"] {CLEANUP_TAG} exit code ")
         if not tag or BACKSTOP_MARK not in rest:
             return None
         word = rest.split(maxsplit=1)[0] if rest.split() else ""
@@ -519,9 +515,6 @@ def supervise(
             )
 
 
-_HUNG_REPORTED: set[int] = set()
-
-
 def exit_code(c: Child) -> int | None:
     """``c``'s exit code, None while it runs. A process whose clean-up hung after its run had
     decided exit 0, and that the C-level backstop ended with 1, counts as 0: its part of the
@@ -529,8 +522,8 @@ def exit_code(c: Child) -> int | None:
     naming its log, where the stacks of the hang are."""
     code = c.proc.poll()
     if code == 1 and c.decided_before_hang() == 0:
-        if c.proc.pid not in _HUNG_REPORTED:
-            _HUNG_REPORTED.add(c.proc.pid)
+        if not c.hang_reported:
+            c.hang_reported = True
             print(f"launcher: warning: node '{c.name}' had finished its run (exit code 0) but its clean-up hung and "
                   f"its watchdog ended it; the stacks are in {c.log_path}", file=sys.stderr, flush=True)
         return 0
