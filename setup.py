@@ -66,7 +66,7 @@ setup(
     license="Apache-2.0",
     entry_points={
         "console_scripts": [
-            "comems4build = comems4build_ros.cli:main",
+            "comems4build = comems4build_ros.app.cli:main",
             *(f"{name} = {_entry(mod)}" for name, mod in NODES.items()),
         ],
     },

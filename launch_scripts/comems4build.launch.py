@@ -9,13 +9,13 @@ comems4build.launch.py --show-args`` lists them): ``ems``, ``scenario``, ``start
 ``weeks``, ``steps``, ``buildings``, ``seed``, ``namespace``, ``layout``, ``containers``,
 ``config``/``set``/``ems_options`` (``;``-separated), ``forecast``, ``all_inputs``, ``step_timeout``,
 ``timeout``, ``out``, ``bag``, ``domain`` and ``print_plan``. Both build the same run plan
-(:mod:`comems4build_ros.ros.ros2_launch`), start the same nodes with the same parameters
+(:mod:`comems4build_ros.app.ros2_launch`), start the same nodes with the same parameters
 and end by the same rule: the launch ends by itself once every recorder has closed its
 bag, and exits non-zero when a node fails or the time limit passes. Evaluate the bag
 with ``comems4build evaluate <out>/bag --out <out>``.
 """
 
-from comems4build_ros.ros.ros2_launch import launch_description
+from comems4build_ros.app.ros2_launch import launch_description
 
 
 def generate_launch_description():  # noqa: ANN201 (the launch API's entry point)

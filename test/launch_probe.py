@@ -5,7 +5,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from comems4build_ros.ros.supervisor import processes_with_env
+from comems4build_ros.run.supervisor import processes_with_env
 
 
 def pid_of(out: Path, name: str) -> int:
@@ -24,7 +24,7 @@ def records_on_disk(bag: Path) -> bool:
     """Whether a plant/record message (of any namespace) can be read now from the closed chunks
     of the bag being written; a size alone is not enough, the first chunks may hold only the
     feed's inputs."""
-    from comems4build_ros.ros.bag import iter_messages
+    from comems4build_ros.bags.bag import iter_messages
 
     if not any(bag.rglob("*.mcap")):
         return False

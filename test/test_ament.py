@@ -10,7 +10,7 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.ros.supervisor import ProcessGroup, acquire_domain_id, child_env
+from comems4build_ros.run.supervisor import ProcessGroup, acquire_domain_id, child_env
 
 PACKAGE = "comems4build_ros"
 #: Every executable ``ros2 run comems4build_ros <exe>`` must find (setup.py NODES).

@@ -22,9 +22,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.cli import main
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.scenario import resolve_scenario, write_scenario_csv
+from comems4build_ros.app.cli import main
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.scenario import resolve_scenario, write_scenario_csv
 
 FIXTURES = Path(__file__).parent / "fixtures"
 PRICES = FIXTURES / "awattar_15min.json"
@@ -393,7 +393,7 @@ def _in_small_mount(tmp_path: Path, options: str, argv: list, fill: bool = False
     """
     mnt = tmp_path / "mnt"
     mnt.mkdir()
-    code = "import sys; from comems4build_ros.cli import main; sys.exit(main(sys.argv[1:]))"
+    code = "import sys; from comems4build_ros.app.cli import main; sys.exit(main(sys.argv[1:]))"
     filler = 'cat /dev/zero > "$1/filler" 2>/dev/null; ' if fill else ""
     script = f'mount -t tmpfs -o {options} tmpfs "$1" && {{ {filler}true; }} && shift && exec "$@"'
     cmd = ["unshare", "--user", "--map-root-user", "--mount", "sh", "-c", script, "sh", str(mnt),
@@ -463,9 +463,9 @@ def test_failed_write_leaves_no_partial_files(write_number: int, tmp_path: Path,
 @pytest.fixture(scope="module")
 def recorded_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A bag of a 400-step thermostat run written by the project's BagWriter, one chunk per 24 steps."""
-    from comems4build_ros.ros.bag import BagWriter, typestore
-    from comems4build_ros.ros.contract import load_contract
-    from comems4build_ros.sim import TIMESERIES_COLUMNS, simulate
+    from comems4build_ros.bags.bag import BagWriter, typestore
+    from comems4build_ros.core.loop import TIMESERIES_COLUMNS, simulate
+    from comems4build_ros.wire.contract import load_contract
 
     params = load_plant_params()
     n = 400

@@ -22,8 +22,8 @@ import pytest
 import yaml
 from test_bad_input import PRICES, SOLAR, TEMPERATURE, recorded_bag, run_cli  # noqa: F401 (a fixture)
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.scenario import resolve_scenario, write_scenario_csv
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.scenario import resolve_scenario, write_scenario_csv
 
 FIXTURES = Path(__file__).parent / "fixtures"
 
@@ -353,7 +353,7 @@ def test_evaluate_without_timeseries_leaves_no_older_timeseries(recorded_bag: Pa
 
 def _interrupt_at(monkeypatch: pytest.MonkeyPatch, n: int) -> None:
     """A Ctrl-C (KeyboardInterrupt) in the ``n``-th run of a comparison or sweep, after the earlier ones wrote."""
-    from comems4build_ros.report import runner
+    from comems4build_ros.study import runner
 
     real, calls = runner.run_task, {"n": 0}
 

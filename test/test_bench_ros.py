@@ -11,7 +11,7 @@ import pytest
 
 pytestmark = pytest.mark.ros
 
-CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main(sys.argv[1:]))"]
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main(sys.argv[1:]))"]
 
 
 def test_bench_ros_runs_both_layouts_and_reports_no_loss(tmp_path: Path) -> None:

@@ -16,7 +16,7 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.ros.supervisor import ProcessGroup, exit_code
+from comems4build_ros.run.supervisor import ProcessGroup, exit_code
 
 HANG = {
     # the watchdog thread can run: it exits with the decided code
@@ -74,7 +74,7 @@ def test_a_stop_signal_that_rclpy_turned_into_a_runtime_error_is_a_stop() -> Non
     """SIGTERM's KeyboardInterrupt raised inside rclpy's pybind11 argument conversion comes out
     as ``RuntimeError: Unable to convert call argument``: the node still ends as stopped by a
     signal (exit 3, with its cause line), not with a traceback and exit 1."""
-    from comems4build_ros.ros.exits import EXIT_INTERRUPTED
+    from comems4build_ros.wire.exits import EXIT_INTERRUPTED
 
     script = textwrap.dedent("""
         import os, signal, sys, time

@@ -8,7 +8,7 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from comems4build_ros.cli import main
+from comems4build_ros.app.cli import main
 
 
 def test_unknown_ems_exits_2(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
@@ -62,9 +62,9 @@ def test_simulate_thermostat_12_weeks_writes_three_files(tmp_path: Path) -> None
 
 
 def test_readme_command_table_is_generated_from_the_parsers() -> None:
-    """Every option of every subcommand is in the README (regenerate: python -m comems4build_ros.commands.table
+    """Every option of every subcommand is in the README (regenerate: python -m comems4build_ros.app.commands.table
     --update-doc README.md)."""
-    from comems4build_ros.commands.table import BEGIN, END, command_table, rows
+    from comems4build_ros.app.commands.table import BEGIN, END, command_table, rows
 
     readme = (Path(__file__).resolve().parents[1] / "README.md").read_text(encoding="utf-8")
     block = readme.split(BEGIN, 1)[1].split(END, 1)[0].strip()

@@ -4,8 +4,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.scenario import comfort_bounds, is_off_day
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.scenario import comfort_bounds, is_off_day
 
 TZ = "Europe/Berlin"
 

@@ -6,8 +6,8 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.cli import main
-from comems4build_ros.commands.compare import parse_etas, run_name
+from comems4build_ros.app.cli import main
+from comems4build_ros.app.commands.compare import parse_etas, run_name
 
 
 def test_parse_etas() -> None:

@@ -6,7 +6,7 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.config import ConfigError, load_plant_params, read_ros_params
+from comems4build_ros.core.config import ConfigError, load_plant_params, read_ros_params
 
 
 def test_defaults_load_with_paper_values() -> None:

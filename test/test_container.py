@@ -77,8 +77,8 @@ def test_to_parameters_types() -> None:
 @pytest.mark.ros
 def test_three_buildings_in_the_role_layout_equal_in_process(tmp_path: Path) -> None:
     """3 buildings, 2 per recorder process: 5 node processes, each building equals its in-process run."""
-    from comems4build_ros.ros.launcher import launch
-    from comems4build_ros.ros.plan import LaunchOptions
+    from comems4build_ros.run.launcher import launch
+    from comems4build_ros.run.plan import LaunchOptions
 
     out = tmp_path / "run"
     launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, layout="role",
@@ -93,9 +93,9 @@ def test_three_buildings_in_two_containers_equal_in_process(tmp_path: Path) -> N
     """Layout ``building``: every node of buildings 0 and 2 in one container process, of
     building 1 in another; each building equals its in-process run, nothing lost, and the
     EMS and feed beside a finished recorder end at once (no linger for the recorder to leave)."""
-    from comems4build_ros.ros.launcher import launch
     from comems4build_ros.ros.node import LINGER_S
-    from comems4build_ros.ros.plan import LaunchOptions
+    from comems4build_ros.run.launcher import launch
+    from comems4build_ros.run.plan import LaunchOptions
 
     out = tmp_path / "run"
     res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, containers=2, timeout_s=150))
@@ -110,12 +110,12 @@ def test_three_buildings_in_two_containers_equal_in_process(tmp_path: Path) -> N
 
 def assert_buildings_equal_in_process(out: Path, n: int) -> None:
     """Each building's summary of the launch in ``out`` equals its in-process run; complete bags."""
-    from comems4build_ros.config import load_plant_params
-    from comems4build_ros.ros.bag_eval import lost_messages
-    from comems4build_ros.ros.supervisor import processes_with_env
-    from comems4build_ros.scenario.run import load_scenario
-    from comems4build_ros.scenario.settings import load_scenario_settings
-    from comems4build_ros.sim import simulate
+    from comems4build_ros.bags.evaluation import lost_messages
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario.run import load_scenario
+    from comems4build_ros.core.scenario.settings import load_scenario_settings
+    from comems4build_ros.run.supervisor import processes_with_env
 
     params = load_plant_params()
     seed = load_scenario_settings().seed

@@ -1,4 +1,4 @@
-"""Tests of the topic contract (msg_defs/topics.yaml and comems4build_ros/ros/contract.py)."""
+"""Tests of the topic contract (msg_defs/topics.yaml and comems4build_ros/wire/contract.py)."""
 
 from __future__ import annotations
 
@@ -7,9 +7,12 @@ from pathlib import Path
 import pytest
 import yaml
 
-from comems4build_ros import kpi
-from comems4build_ros.ems.base import FORECAST_KEYS, INFO_LEVELS
-from comems4build_ros.ros.contract import (
+from comems4build_ros.core import kpi
+from comems4build_ros.core.ems.base import FORECAST_KEYS, INFO_LEVELS
+from comems4build_ros.core.loop import TIMESERIES_COLUMNS
+from comems4build_ros.core.types import ACTION_FIELDS, EXOGENOUS_FIELDS, FLOW_FIELDS, STATE_FIELDS
+from comems4build_ros.ros.interfaces import message_class, qos_profile
+from comems4build_ros.wire.contract import (
     ALLOWED_TYPES,
     ContractError,
     load_contract,
@@ -19,8 +22,6 @@ from comems4build_ros.ros.contract import (
     relative,
     resolve,
 )
-from comems4build_ros.sim import TIMESERIES_COLUMNS
-from comems4build_ros.types import ACTION_FIELDS, EXOGENOUS_FIELDS, FLOW_FIELDS, STATE_FIELDS
 
 SIZES = {"horizon": 24, "comfort_ahead": 6}
 
@@ -156,11 +157,11 @@ def test_qos_profiles_build(contract):
     from rclpy.qos import DurabilityPolicy, ReliabilityPolicy
 
     for t in contract.topics.values():
-        t.msg_class()
-        p = t.qos_profile()
+        message_class(t)
+        p = qos_profile(t)
         assert p.reliability == ReliabilityPolicy.RELIABLE
         assert p.depth >= 1
-    assert contract.topic("recorder/ready").qos_profile().durability == DurabilityPolicy.TRANSIENT_LOCAL
+    assert qos_profile(contract.topic("recorder/ready")).durability == DurabilityPolicy.TRANSIENT_LOCAL
 
 
 def _doc(contract_file: Path) -> dict:

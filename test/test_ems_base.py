@@ -4,11 +4,11 @@ from __future__ import annotations
 
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.ems import UnknownEMSError, make_controller
-from comems4build_ros.ems.base import COMMON_FIELDS, FUZZY_FIELDS, MPC_FIELDS, InformationError, Observation
-from comems4build_ros.ems.fallback import safe_action
-from comems4build_ros.types import HP_DHW, HP_OFF, HP_SH
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.ems import UnknownEMSError, make_controller
+from comems4build_ros.core.ems.base import COMMON_FIELDS, FUZZY_FIELDS, MPC_FIELDS, InformationError, Observation
+from comems4build_ros.core.ems.fallback import safe_action
+from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
 
 
 def full_data() -> dict:

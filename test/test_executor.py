@@ -22,7 +22,7 @@ pytestmark = pytest.mark.ros
 
 @pytest.fixture()
 def context() -> Iterator[object]:
-    from comems4build_ros.ros.supervisor import acquire_domain_id
+    from comems4build_ros.run.supervisor import acquire_domain_id
 
     with acquire_domain_id() as did:
         os.environ["ROS_DOMAIN_ID"] = str(did)

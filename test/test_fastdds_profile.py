@@ -17,14 +17,14 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.ros.plan import (
+from comems4build_ros.run.plan import (
     FASTDDS_PROFILE,
     FASTDDS_PROFILE_VARS,
     FASTDDS_UDP_PROFILE,
     fastdds_profile,
     profile_env,
 )
-from comems4build_ros.ros.supervisor import acquire_domain_id, child_env
+from comems4build_ros.run.supervisor import acquire_domain_id, child_env
 
 #: Prints the sizes [bytes] of the Fast DDS shared-memory segments (not ports) this process maps.
 PROBE = """

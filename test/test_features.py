@@ -4,8 +4,8 @@ import math
 
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.ems.features import (
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.ems.features import (
     DailyH2Allowance,
     chi_dhw,
     chi_sh,

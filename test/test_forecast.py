@@ -5,9 +5,9 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from comems4build_ros.config import ConfigError
-from comems4build_ros.ems.base import FORECAST_KEYS
-from comems4build_ros.sim import ForecastModel, load_forecast_settings
+from comems4build_ros.core.config import ConfigError
+from comems4build_ros.core.ems.base import FORECAST_KEYS
+from comems4build_ros.core.loop import ForecastModel, load_forecast_settings
 
 
 def series(n: int = 96) -> dict[str, list[float]]:

@@ -2,11 +2,11 @@
 
 import pytest
 
-from comems4build_ros.config import ConfigError, load_plant_params
-from comems4build_ros.ems import make_controller
-from comems4build_ros.ems.base import COMMON_FIELDS, FUZZY_FIELDS, InformationError, Observation
-from comems4build_ros.ems.fuzzy import FuzzyEMS
-from comems4build_ros.types import HP_DHW, HP_OFF, HP_SH
+from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.ems import make_controller
+from comems4build_ros.core.ems.base import COMMON_FIELDS, FUZZY_FIELDS, InformationError, Observation
+from comems4build_ros.core.ems.fuzzy import FuzzyEMS
+from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
 
 
 @pytest.fixture(scope="module")
@@ -180,9 +180,9 @@ def test_options_override_and_errors(params):
 
 
 def test_short_closed_loop_run(params):
-    from comems4build_ros.scenario import default_scenario
-    from comems4build_ros.sim import simulate
-    from comems4build_ros.types import CLIP_FC_RANGE, CLIP_HP_MOD, CLIP_HP_MODE
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario import default_scenario
+    from comems4build_ros.core.types import CLIP_FC_RANGE, CLIP_HP_MOD, CLIP_HP_MODE
 
     result = simulate("fuzzy", default_scenario(params, weeks=1), params)
     ts = result.timeseries

@@ -6,8 +6,8 @@ import warnings
 import numpy as np
 import pytest
 
-from comems4build_ros.config import ConfigError, load_plant_params
-from comems4build_ros.ems.fuzzy import build_system, device_quantities, load_flcs
+from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.ems.fuzzy import build_system, device_quantities, load_flcs
 
 FLCS = ("flex", "fc", "battery")
 

@@ -3,10 +3,10 @@
 import numpy as np
 import pytest
 
-from comems4build_ros.cli import main
-from comems4build_ros.commands.fuzzy_surface import surfaces
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.ems.fuzzy import load_flcs
+from comems4build_ros.app.cli import main
+from comems4build_ros.app.commands.fuzzy_surface import surfaces
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.ems.fuzzy import load_flcs
 
 PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
 
@@ -23,7 +23,7 @@ def test_writes_four_figures_as_pdf_svg_png(tmp_path):
 def test_figures_pass_the_layout_check():
     import matplotlib.pyplot as plt
 
-    from comems4build_ros.commands.fuzzy_surface import surface_figure, surfaces_figure
+    from comems4build_ros.app.commands.fuzzy_surface import surface_figure, surfaces_figure
     from comems4build_ros.report.style import layout_problems, paper_style
 
     maps = surfaces(_systems(), chi=0.5, n=11)

@@ -6,7 +6,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros import kpi
+from comems4build_ros.core import kpi
 
 
 def make_ts(n: int, **cols: object) -> pd.DataFrame:

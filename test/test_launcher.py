@@ -17,22 +17,22 @@ from launch_probe import pid_of, records_on_disk
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.ros.bag_eval import lost_messages
-from comems4build_ros.ros.launcher import launch
-from comems4build_ros.ros.plan import LaunchOptions
-from comems4build_ros.ros.supervisor import processes_with_env
-from comems4build_ros.sim import simulate
+from comems4build_ros.bags.evaluation import lost_messages
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.loop import simulate
+from comems4build_ros.run.launcher import launch
+from comems4build_ros.run.plan import LaunchOptions
+from comems4build_ros.run.supervisor import processes_with_env
 
 pytestmark = pytest.mark.ros
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # not in in-process summaries
-#: ``comems4build`` of this tree (``-m comems4build_ros.cli`` would define a second UsageError class).
-CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+#: ``comems4build`` of this tree (``-m comems4build_ros.app.cli`` would define a second UsageError class).
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
 
 
 def _reference(ems: str, steps: int, seed: int | None = None) -> dict:
     """In-process summary over the same scenario window as the feed builds it."""
-    from comems4build_ros.scenario.run import load_scenario
+    from comems4build_ros.core.scenario.run import load_scenario
 
     params = load_plant_params()
     scenario = load_scenario("default", params, None, 1, seed, steps)
@@ -76,7 +76,7 @@ def test_launch_fuzzy_equals_in_process_and_bag_opens(tmp_path: Path) -> None:
 
 
 def test_two_buildings_under_namespaces_with_seeds(tmp_path: Path) -> None:
-    from comems4build_ros.scenario.settings import load_scenario_settings
+    from comems4build_ros.core.scenario.settings import load_scenario_settings
 
     out = tmp_path / "run"
     launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=24, buildings=2, timeout_s=150))
@@ -203,8 +203,8 @@ def test_a_paused_recorder_cannot_hang_the_launcher(tmp_path: Path, monkeypatch:
     longer than the run)."""
     import threading
 
-    from comems4build_ros.ros import plan
-    from comems4build_ros.ros.supervisor import LaunchError
+    from comems4build_ros.run import plan
+    from comems4build_ros.run.supervisor import LaunchError
 
     monkeypatch.setattr(plan, "TIME_LIMIT_START_S", 25.0)
     monkeypatch.setattr(plan, "TIME_LIMIT_PER_STEP_S", 0.0)

@@ -1,4 +1,4 @@
-"""Live inputs (comems4build_ros.live_inputs) against a local HTTP server serving recorded
+"""Live inputs (comems4build_ros.core.scenario.live) against a local HTTP server serving recorded
 aWATTar / forecast answers, including missing, late (timeout) and malformed ones."""
 
 from __future__ import annotations
@@ -14,8 +14,9 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.live_inputs import (
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.scenario import _tariff  # the buy tariff of eq:costs, as the scenario builds it
+from comems4build_ros.core.scenario.live import (
     FetchError,
     PriceSource,
     WeatherSource,
@@ -23,7 +24,7 @@ from comems4build_ros.live_inputs import (
     live_scenario,
     load_live_settings,
 )
-from comems4build_ros.scenario import _tariff  # the buy tariff of eq:costs, as the scenario builds it
+from comems4build_ros.ros.interfaces import qos_profile
 
 TZ = "Europe/Berlin"
 #: The recorded day: 2022-12-01 local (aWATTar answers for today and tomorrow).
@@ -160,7 +161,7 @@ def test_http_get_names_every_attempt(server):
 
 
 def test_weather_forecast_and_live_scenario(server, tmp_path):
-    from comems4build_ros.scenario.run import load_scenario
+    from comems4build_ros.core.scenario.run import load_scenario
 
     hours = pd.date_range(DAY0, periods=24, freq="h")
     answer = {"hourly": {"time": [t.strftime("%Y-%m-%dT%H:%M") for t in hours],
@@ -207,10 +208,10 @@ def test_feed_node_live_inputs_publishes_warning_and_uses_last_valid_prices(serv
     from rclpy.node import Node
     from std_msgs.msg import Float64MultiArray, String, UInt32
 
-    from comems4build_ros.config import config_dir
-    from comems4build_ros.ros.contract import load_contract
-    from comems4build_ros.ros.plan import ros_args
-    from comems4build_ros.ros.supervisor import acquire_domain_id
+    from comems4build_ros.core.config import config_dir
+    from comems4build_ros.run.plan import ros_args
+    from comems4build_ros.run.supervisor import acquire_domain_id
+    from comems4build_ros.wire.contract import load_contract
 
     now = pd.Timestamp.now(tz=TZ).floor("h")
     day = now.normalize()
@@ -243,10 +244,10 @@ def test_feed_node_live_inputs_publishes_warning_and_uses_last_valid_prices(serv
         events: list[str] = []
         prices: dict[int, list[float]] = {}
         node.create_subscription(String, "feed/events", lambda m: events.append(m.data),
-                                 contract.topic("feed/events").qos_profile())
+                                 qos_profile(contract.topic("feed/events")))
         node.create_subscription(Float64MultiArray, "feed/prices", lambda m: prices.setdefault(int(m.data[0]),
-                                 list(m.data)), contract.topic("feed/prices").qos_profile())
-        step_pub = node.create_publisher(UInt32, "plant/step", contract.topic("plant/step").qos_profile())
+                                 list(m.data)), qos_profile(contract.topic("feed/prices")))
+        step_pub = node.create_publisher(UInt32, "plant/step", qos_profile(contract.topic("plant/step")))
         try:
             deadline = time.monotonic() + 120
             while time.monotonic() < deadline and not (0 in prices and events):

@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.models import building
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.models import building
 
 
 @pytest.fixture(scope="module")
@@ -89,9 +89,9 @@ def test_discretisation_and_fuzzy_inference_do_not_depend_on_the_blas_kernel(bp,
 
     code = (
         "import hashlib, numpy as np\n"
-        "from comems4build_ros.config import load_plant_params\n"
-        "from comems4build_ros.models import building\n"
-        "from comems4build_ros.ems.fuzzy.controller import load_flcs\n"
+        "from comems4build_ros.core.config import load_plant_params\n"
+        "from comems4build_ros.core.models import building\n"
+        "from comems4build_ros.core.ems.fuzzy.controller import load_flcs\n"
         "p = load_plant_params()\n"
         "ad, bd = building.discretize(p.building, 1.0)\n"
         "flc = load_flcs(p)['fc'][0]\n"

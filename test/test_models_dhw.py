@@ -2,8 +2,8 @@
 
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.models import dhw
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.models import dhw
 
 
 @pytest.fixture(scope="module")

@@ -6,11 +6,11 @@ import math
 
 import pytest
 
-from comems4build_ros.config import ConfigError, load_plant_params
-from comems4build_ros.models.cooling import dew_point_c, eer, p_el_max_cool_w
-from comems4build_ros.models.electrolyser import ElectrolyserTable, compression_wh_per_kg
-from comems4build_ros.plant import Plant
-from comems4build_ros.types import CLIP_EL_H2, CLIP_EL_RANGE, HP_COOL, Action, Exogenous
+from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.models.cooling import dew_point_c, eer, p_el_max_cool_w
+from comems4build_ros.core.models.electrolyser import ElectrolyserTable, compression_wh_per_kg
+from comems4build_ros.core.plant import Plant
+from comems4build_ros.core.types import CLIP_EL_H2, CLIP_EL_RANGE, HP_COOL, Action, Exogenous
 
 YEAR = {"electrolyser.n_modules": 1, "cooling.enabled": True, "simulation.loh_init": 0.1}
 

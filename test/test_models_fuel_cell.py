@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.models import fuel_cell
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.models import fuel_cell
 
 F = 96485.33212  # C/mol
 LHV = 241.8e3  # J/mol

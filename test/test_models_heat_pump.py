@@ -3,8 +3,8 @@
 import numpy as np
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.models import heat_pump
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.models import heat_pump
 
 
 @pytest.fixture(scope="module")

@@ -4,8 +4,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.models import pv
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.models import pv
 
 
 @pytest.fixture(scope="module")
@@ -85,7 +85,7 @@ def test_nan_temperature_raises(params):
 
 
 def test_unknown_sky_model_rejected():
-    from comems4build_ros.config import ConfigError
+    from comems4build_ros.core.config import ConfigError
 
     with pytest.raises(ConfigError, match="pv.sky_model"):
         load_plant_params(overrides={"pv.sky_model": "nonsense"})

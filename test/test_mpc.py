@@ -1,4 +1,4 @@
-"""Tests of the MILP MPC (comems4build_ros.ems.mpc): costs, small known optima, soft bounds,
+"""Tests of the MILP MPC (comems4build_ros.core.ems.mpc): costs, small known optima, soft bounds,
 fallback on a real solver failure, and the information restriction."""
 
 from __future__ import annotations
@@ -10,13 +10,13 @@ from types import MappingProxyType
 import numpy as np
 import pytest
 
-from comems4build_ros.config import W_PER_KW, load_plant_params
-from comems4build_ros.ems.base import FORECAST_KEYS, InformationError, Observation
-from comems4build_ros.ems.fallback import safe_action
-from comems4build_ros.ems.mpc import MPCController
-from comems4build_ros.ems.mpc.horizon import loh_min_schedule
-from comems4build_ros.ems.mpc.settings import lifecycle_costs
-from comems4build_ros.types import HP_OFF
+from comems4build_ros.core.config import W_PER_KW, load_plant_params
+from comems4build_ros.core.ems.base import FORECAST_KEYS, InformationError, Observation
+from comems4build_ros.core.ems.fallback import safe_action
+from comems4build_ros.core.ems.mpc import MPCController
+from comems4build_ros.core.ems.mpc.horizon import loh_min_schedule
+from comems4build_ros.core.ems.mpc.settings import lifecycle_costs
+from comems4build_ros.core.types import HP_OFF
 
 SELL = 0.0794
 
@@ -218,7 +218,7 @@ def test_cbc_and_highs_agree(params3):
 
 
 def test_unknown_solver_and_option_raise(params):
-    from comems4build_ros.config import ConfigError
+    from comems4build_ros.core.config import ConfigError
 
     with pytest.raises(ConfigError, match="solver"):
         MPCController(params, {"solver": "cplex"})
@@ -241,15 +241,15 @@ def test_mpc_refuses_fields_outside_its_level(params):
 
 @pytest.fixture(scope="module")
 def week():
-    from comems4build_ros.scenario import default_scenario
+    from comems4build_ros.core.scenario import default_scenario
 
     p = load_plant_params()
     return p, default_scenario(p, weeks=1)
 
 
 def _action_at(params, scenario, k):
-    from comems4build_ros.plant import Plant
-    from comems4build_ros.sim import ObservationBuilder, exogenous_series
+    from comems4build_ros.core.loop import ObservationBuilder, exogenous_series
+    from comems4build_ros.core.plant import Plant
 
     builder = ObservationBuilder(scenario, params, "mpc", exogenous_series(scenario, params))
     obs = builder.build(k, Plant(params).initial_state())

@@ -1,4 +1,4 @@
-"""Tests of the continuous OSQP variant (comems4build_ros.ems.mpc.qp)."""
+"""Tests of the continuous OSQP variant (comems4build_ros.core.ems.mpc.qp)."""
 
 from __future__ import annotations
 
@@ -6,10 +6,10 @@ import numpy as np
 import pytest
 from test_mpc import mpc_obs, params3  # noqa: F401 (fixture)
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.ems.mpc import MPCController, QPController
-from comems4build_ros.ems.mpc.qp import _round_semicontinuous
-from comems4build_ros.types import HP_OFF
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.ems.mpc import MPCController, QPController
+from comems4build_ros.core.ems.mpc.qp import _round_semicontinuous
+from comems4build_ros.core.types import HP_OFF
 
 
 @pytest.fixture(scope="module")

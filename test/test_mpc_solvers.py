@@ -10,10 +10,10 @@ import pytest
 import test_mpc
 from test_mpc import fc_enumeration, mpc_obs
 
-from comems4build_ros.config import ConfigError
-from comems4build_ros.ems.mpc import MPCController
-from comems4build_ros.ems.mpc import solvers as solvers_mod
-from comems4build_ros.ems.mpc.solvers import gurobi_available
+from comems4build_ros.core.config import ConfigError
+from comems4build_ros.core.ems.mpc import MPCController
+from comems4build_ros.core.ems.mpc import solvers as solvers_mod
+from comems4build_ros.core.ems.mpc.solvers import gurobi_available
 
 needs_gurobi = pytest.mark.skipif(not gurobi_available(),
                                   reason="gurobipy is not installed (optional extra: pip install .[gurobi])")

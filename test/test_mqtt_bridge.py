@@ -36,16 +36,17 @@ from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 from std_msgs.msg import Float64MultiArray, String, UInt32  # noqa: E402
 
-from comems4build_ros.config import load_plant_params  # noqa: E402
+from comems4build_ros.core.config import load_plant_params  # noqa: E402
+from comems4build_ros.core.loop import simulate  # noqa: E402
 from comems4build_ros.mqtt.broker import free_port  # noqa: E402
 from comems4build_ros.mqtt.client import MqttLink  # noqa: E402
 from comems4build_ros.mqtt.discovery import DISCOVERY_SCHEMA, validate_discovery  # noqa: E402
 from comems4build_ros.mqtt.topicmap import SETPOINTS, load_topic_map  # noqa: E402
-from comems4build_ros.ros.contract import load_contract  # noqa: E402
-from comems4build_ros.ros.launcher import launch  # noqa: E402
-from comems4build_ros.ros.plan import LaunchOptions, ros_args  # noqa: E402
-from comems4build_ros.ros.supervisor import acquire_domain_id  # noqa: E402
-from comems4build_ros.sim import simulate  # noqa: E402
+from comems4build_ros.ros.interfaces import qos_profile  # noqa: E402
+from comems4build_ros.run.launcher import launch  # noqa: E402
+from comems4build_ros.run.plan import LaunchOptions, ros_args  # noqa: E402
+from comems4build_ros.run.supervisor import acquire_domain_id  # noqa: E402
+from comems4build_ros.wire.contract import load_contract  # noqa: E402
 
 pytestmark = pytest.mark.ros
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # only in summaries from a bag
@@ -55,7 +56,7 @@ KPI_KEYS = ("cost_eur_week_median", "discomfort_kh_week_median", "buy_kwh_week_m
 
 
 def _reference(weeks: int, steps: int | None = None) -> dict:
-    from comems4build_ros.scenario.run import load_scenario
+    from comems4build_ros.core.scenario.run import load_scenario
 
     params = load_plant_params()
     scenario = load_scenario("default", params, None, weeks, None, steps)
@@ -219,7 +220,7 @@ class Rig:
         self.plant_steps: list[int] = []
         self.command = command
         self.cmd_pub = self.node.create_publisher(Float64MultiArray, "ems/command",
-                                                  c.topic("ems/command").qos_profile())
+                                                  qos_profile(c.topic("ems/command")))
 
         def on_state(msg: Float64MultiArray) -> None:
             k = int(msg.data[0])
@@ -230,13 +231,13 @@ class Rig:
                 self.cmd_pub.publish(Float64MultiArray(data=[float(k), *self.command(k), RIG_TOKEN]))
 
         self.node.create_subscription(Float64MultiArray, "state/t_air_c", on_state,
-                                      c.topic("state/t_air_c").qos_profile())
+                                      qos_profile(c.topic("state/t_air_c")))
         self.node.create_subscription(String, "bridge/alarm", lambda m: self.ros_alarms.append(json.loads(m.data)),
-                                      c.topic("bridge/alarm").qos_profile())
+                                      qos_profile(c.topic("bridge/alarm")))
         self.node.create_subscription(String, "plant/events", lambda m: self.events.append(m.data),
-                                      c.topic("plant/events").qos_profile())
+                                      qos_profile(c.topic("plant/events")))
         self.node.create_subscription(UInt32, "plant/step", lambda m: self.plant_steps.append(int(m.data)),
-                                      c.topic("plant/step").qos_profile())
+                                      qos_profile(c.topic("plant/step")))
         sp = [s.topic for s in self.map.setpoints.values()]
         self.link = MqttLink(self.map.broker, "test_building", [*sp, self.map.alarm_topic, self.map.run_topic,
                                                                  "homeassistant/#", self.map.state_topic,
@@ -489,7 +490,7 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
     ],
 )
 def test_launch_refuses_bad_plant_options_with_exit_2(tmp_path: Path, args: list[str], message: str) -> None:
-    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
     proc = subprocess.run([*cli, "launch", "--ems", "fuzzy", *args, "--out", str(tmp_path / "x")],
                           capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
@@ -497,7 +498,7 @@ def test_launch_refuses_bad_plant_options_with_exit_2(tmp_path: Path, args: list
 
 
 def test_plan_options_plant_mqtt_and_clock(tmp_path: Path) -> None:
-    from comems4build_ros.ros.plan import plan_run
+    from comems4build_ros.run.plan import plan_run
 
     plan = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, weeks=1, plant="mqtt", clock="wall:3600"), 7)
     names = [p.name for p in plan.processes]

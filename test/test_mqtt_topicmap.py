@@ -10,7 +10,8 @@ import pytest
 from hypothesis import given
 from hypothesis import strategies as st
 
-from comems4build_ros.config import ConfigError, load_plant_params
+from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.types import HP_DHW, Action
 from comems4build_ros.mqtt.clock import ClockError, parse_clock
 from comems4build_ros.mqtt.discovery import (
     DISCOVERY_SCHEMA,
@@ -20,7 +21,6 @@ from comems4build_ros.mqtt.discovery import (
 )
 from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog
 from comems4build_ros.mqtt.topicmap import MeasurementSpec, PayloadError, SetpointSpec, load_topic_map
-from comems4build_ros.types import HP_DHW, Action
 
 
 @pytest.fixture(scope="module")

@@ -5,7 +5,7 @@ import hashlib
 import numpy as np
 import pytest
 
-from comems4build_ros.scenario.measured import data_dir
+from comems4build_ros.core.scenario.measured import data_dir
 
 #: SHA-256 of each shipped data file (sources in comems4build_ros/data/README.md).
 CHECKSUMS = {

@@ -8,8 +8,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.kpi import heat_recovered_at
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.kpi import heat_recovered_at
 from comems4build_ros.report import paper as pp
 from comems4build_ros.report.runs import RunData, RunSpec
 

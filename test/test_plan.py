@@ -1,4 +1,4 @@
-"""Run plans (``comems4build_ros.ros.plan``): built from launch options without starting a process."""
+"""Run plans (``comems4build_ros.run.plan``): built from launch options without starting a process."""
 
 from __future__ import annotations
 
@@ -9,7 +9,8 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.ros.plan import (
+from comems4build_ros.core.scenario.settings import load_scenario_settings
+from comems4build_ros.run.plan import (
     CONTAINER_STEP_TIMEOUT_S,
     DISCOVERY_PORT_BASE,
     STAGE_NODES,
@@ -19,7 +20,6 @@ from comems4build_ros.ros.plan import (
     node_label,
     plan_run,
 )
-from comems4build_ros.scenario.settings import load_scenario_settings
 
 
 def _param(argv: tuple[str, ...], name: str) -> str:
@@ -63,7 +63,7 @@ def test_one_building_one_process_per_node(tmp_path: Path) -> None:
 def test_feed_publishes_and_recorder_records_what_the_ems_reads(layout: str, tmp_path: Path) -> None:
     """tab:level_of_information: the feed of an RBC run leaves out what the RBC does not read
     and the recorder does not wait for it; ``all_inputs`` keeps every input in the bag."""
-    from comems4build_ros.ros.contract import load_contract
+    from comems4build_ros.wire.contract import load_contract
 
     unread = list(load_contract().inputs_not_read("rbc_ems"))
     assert "forecast/p_pv_w" in unread and "feed/solar" in unread
@@ -110,7 +110,7 @@ def test_several_buildings_one_process_per_role(tmp_path: Path) -> None:
 @pytest.mark.parametrize("layout", ["node", "role", "building"])
 def test_nodes_of_each_process_are_named_with_the_building_they_serve(layout: str, tmp_path: Path) -> None:
     """What the launcher names when a process leaves the run (``supervisor.left_error``)."""
-    from comems4build_ros.ros.supervisor import describe_nodes
+    from comems4build_ros.run.supervisor import describe_nodes
 
     plan = plan_run(LaunchOptions(ems="rbc", out=tmp_path, weeks=1, buildings=2, layout=layout), domain_id=1)
     labels = {p.name: [node_label(n) for n in p.nodes] for p in plan.processes}

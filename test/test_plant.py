@@ -4,10 +4,10 @@ import math
 
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.models import fuel_cell
-from comems4build_ros.plant import Plant
-from comems4build_ros.types import (
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.models import fuel_cell
+from comems4build_ros.core.plant import Plant
+from comems4build_ros.core.types import (
     CLIP_BESS_POWER,
     CLIP_BESS_SOC,
     CLIP_FC_H2,

@@ -6,11 +6,11 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from comems4build_ros.config import SECONDS_PER_HOUR, W_PER_KW, load_plant_params
-from comems4build_ros.models import dhw as dhw_model
-from comems4build_ros.models import heat_pump
-from comems4build_ros.plant import Plant
-from comems4build_ros.types import HP_DHW, HP_OFF, HP_SH, Action, Exogenous, PlantState
+from comems4build_ros.core.config import SECONDS_PER_HOUR, W_PER_KW, load_plant_params
+from comems4build_ros.core.models import dhw as dhw_model
+from comems4build_ros.core.models import heat_pump
+from comems4build_ros.core.plant import Plant
+from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH, Action, Exogenous, PlantState
 
 PARAMS = load_plant_params()
 PLANT = Plant(PARAMS)

@@ -10,12 +10,12 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros import progress as pg
-from comems4build_ros.cli import main
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.report.runner import RunTask, run_tasks
-from comems4build_ros.scenario import resolve_scenario
-from comems4build_ros.sim import simulate
+from comems4build_ros.app.cli import main
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.loop import simulate
+from comems4build_ros.core.scenario import resolve_scenario
+from comems4build_ros.run import progress as pg
+from comems4build_ros.study.runner import RunTask, run_tasks
 
 
 class FakeTerminal(io.StringIO):

@@ -2,11 +2,11 @@
 
 import pytest
 
-from comems4build_ros.config import ConfigError, load_plant_params
-from comems4build_ros.ems import make_controller
-from comems4build_ros.ems.base import COMMON_FIELDS, InformationError, Observation
-from comems4build_ros.ems.rbc import RuleBasedController
-from comems4build_ros.types import HP_DHW, HP_OFF, HP_SH
+from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.ems import make_controller
+from comems4build_ros.core.ems.base import COMMON_FIELDS, InformationError, Observation
+from comems4build_ros.core.ems.rbc import RuleBasedController
+from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
 
 DAY = tuple(0.20 + 0.01 * i for i in range(24))  # 24 distinct prices 0.20 .. 0.43
 
@@ -117,9 +117,9 @@ def test_bad_option_named(params):
 
 
 def test_short_closed_loop_run(params):
-    from comems4build_ros.scenario import default_scenario
-    from comems4build_ros.sim import simulate
-    from comems4build_ros.types import CLIP_FC_RANGE, CLIP_HP_MOD, CLIP_HP_MODE
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario import default_scenario
+    from comems4build_ros.core.types import CLIP_FC_RANGE, CLIP_HP_MOD, CLIP_HP_MODE
 
     ts = simulate("rbc", default_scenario(params, weeks=1), params).timeseries
     assert len(ts) == 168

@@ -18,9 +18,9 @@ from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
 
-from comems4build_ros.ros.bag import BagInfo, BagWriter, decode, iter_messages, typestore
-from comems4build_ros.ros.plan import node_command, ros_args
-from comems4build_ros.ros.supervisor import ProcessGroup, acquire_domain_id, child_env
+from comems4build_ros.bags.bag import BagInfo, BagWriter, decode, iter_messages, typestore
+from comems4build_ros.run.plan import node_command, ros_args
+from comems4build_ros.run.supervisor import ProcessGroup, acquire_domain_id, child_env
 
 ARRAY = "std_msgs/msg/Float64MultiArray"
 
@@ -83,7 +83,7 @@ WRITER_SCRIPT = textwrap.dedent(
     """
     import sys, time
     import numpy as np
-    from comems4build_ros.ros.bag import BagWriter, typestore
+    from comems4build_ros.bags.bag import BagWriter, typestore
     ts = typestore()
     cls, lay = ts.types["std_msgs/msg/Float64MultiArray"], ts.types["std_msgs/msg/MultiArrayLayout"]
     w = BagWriter(sys.argv[1], chunk_period_s=0.1)
@@ -136,12 +136,12 @@ PUBLISHER_SCRIPT = textwrap.dedent(
     import rclpy
     from rclpy.duration import Duration
     from std_msgs.msg import Float64MultiArray
-    from comems4build_ros.ros.contract import load_contract
+    from comems4build_ros.wire.contract import load_contract
     n, pause = int(sys.argv[1]), float(sys.argv[2])
     rclpy.init()
     node = rclpy.create_node("test_publisher")
     spec = load_contract().topic("state/soc")
-    pub = node.create_publisher(Float64MultiArray, "/state/soc", spec.qos_profile())
+    pub = node.create_publisher(Float64MultiArray, "/state/soc", qos_profile(spec))
     t0 = time.monotonic()
     while pub.get_subscription_count() == 0 and time.monotonic() - t0 < 30:
         time.sleep(0.05)
@@ -250,7 +250,7 @@ def test_bag_writer_writes_the_bytes_rosbags_writes(tmp_path: Path) -> None:
     the channel records differ only by the ``topic_type_hash`` that rosbag2's writer adds."""
     from rosbags.rosbag2 import StoragePlugin, Writer
 
-    from comems4build_ros.ros.bag import METADATA_VERSION, qos_for_bag, ros_type_to_bag_type, set_ros_distro
+    from comems4build_ros.bags.bag import METADATA_VERSION, qos_for_bag, ros_type_to_bag_type, set_ros_distro
 
     msgs = [("/state/soc", 1_000 + 7 * k, _array([k, 0.5])) for k in range(50)]
     msgs += [("/plant/step", 5_000 + k, bytes(typestore().serialize_cdr(typestore().types["std_msgs/msg/UInt32"](k),
@@ -304,8 +304,8 @@ def test_bag_writer_writes_the_bytes_rosbags_writes(tmp_path: Path) -> None:
 def test_gap_check_of_a_cut_bag_stops_at_each_topics_last_step() -> None:
     """A killed recorder leaves topics cut at different steps (its queues were apart): a cut bag
     is checked per topic up to its own last step; a complete bag up to the last record."""
-    from comems4build_ros.ros.bag_eval import find_gaps
-    from comems4build_ros.ros.contract import load_contract
+    from comems4build_ros.bags.evaluation import find_gaps
+    from comems4build_ros.wire.contract import load_contract
 
     contract = load_contract()
     n = 40
@@ -321,8 +321,8 @@ def test_inputs_the_ems_does_not_read_are_not_gaps_when_never_published() -> Non
     """A feed serving the RBC publishes no forecast/*: no message at all on them is no gap for
     an RBC run, a forecast message lost inside the run still is, and every topic the RBC
     reads stays checked."""
-    from comems4build_ros.ros.bag_eval import find_gaps
-    from comems4build_ros.ros.contract import load_contract
+    from comems4build_ros.bags.evaluation import find_gaps
+    from comems4build_ros.wire.contract import load_contract
 
     contract = load_contract()
     unread = set(contract.inputs_not_read("rbc_ems"))

@@ -10,13 +10,14 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.ros.bag import decode, iter_messages
-from comems4build_ros.ros.bag_eval import evaluate_bag
-from comems4build_ros.ros.contract import load_contract
-from comems4build_ros.ros.launcher import launch
-from comems4build_ros.ros.plan import LaunchOptions, node_command, ros_args
-from comems4build_ros.ros.supervisor import ProcessGroup, acquire_domain_id, child_env
+from comems4build_ros.bags.bag import decode, iter_messages
+from comems4build_ros.bags.evaluation import evaluate_bag
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.ros.interfaces import message_class, qos_profile
+from comems4build_ros.run.launcher import launch
+from comems4build_ros.run.plan import LaunchOptions, node_command, ros_args
+from comems4build_ros.run.supervisor import ProcessGroup, acquire_domain_id, child_env
+from comems4build_ros.wire.contract import load_contract
 
 pytestmark = pytest.mark.ros
 STEPS = 24
@@ -56,8 +57,8 @@ def _drive_with_recorded_inputs(ems: str, inputs: Path, tmp_path: Path,
                                 timeout_s: float = 90.0) -> tuple[dict, dict]:
     """Recorder, ``ems``, an inputs-only replay of the bag ``inputs`` and a plant: the summary of the
     new bag, and that of the in-process run of ``ems`` on the same scenario."""
-    from comems4build_ros.scenario.run import load_scenario
-    from comems4build_ros.sim import simulate
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario.run import load_scenario
 
     bag = tmp_path / f"{ems}_bag"
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
@@ -117,7 +118,7 @@ def test_evaluate_refuses_a_bag_with_gaps_unless_accepted(recorded: Path, tmp_pa
     import subprocess
     import sys
 
-    from comems4build_ros.ros.bag import BagWriter, bag_info, decode
+    from comems4build_ros.bags.bag import BagWriter, bag_info, decode
 
     info = bag_info(recorded)
     gappy = tmp_path / "gappy"
@@ -130,7 +131,7 @@ def test_evaluate_refuses_a_bag_with_gaps_unless_accepted(recorded: Path, tmp_pa
                 continue
             w.write(topic, t_ns, raw)
     (gappy / "run_info.json").write_text((recorded / "run_info.json").read_text())
-    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())", "evaluate"]
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())", "evaluate"]
     res = subprocess.run([*cli, str(gappy), "--out", str(tmp_path / "e1")], capture_output=True, text=True,
                          timeout=120)
     assert res.returncode == 2, res.stderr
@@ -164,10 +165,10 @@ def test_inputs_only_replay_holds_its_inputs_until_the_recorder_has_matched(reco
         executor.add_node(node)
         got: list[int] = []
         try:
-            step_pub = node.create_publisher(step_spec.msg_class(), "plant/step", step_spec.qos_profile())
-            node.create_subscription(cal_spec.msg_class(), "feed/calendar", lambda m: got.append(int(m.data[0])),
-                                     cal_spec.qos_profile())
-            announce = step_spec.msg_class()(data=0)
+            step_pub = node.create_publisher(message_class(step_spec), "plant/step", qos_profile(step_spec))
+            node.create_subscription(message_class(cal_spec), "feed/calendar", lambda m: got.append(int(m.data[0])),
+                                     qos_profile(cal_spec))
+            announce = message_class(step_spec)(data=0)
 
             def spin_for(seconds: float, until=lambda: False) -> None:
                 t_end, t_pub = time.monotonic() + seconds, 0.0

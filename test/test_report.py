@@ -19,7 +19,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.cli import main
+from comems4build_ros.app.cli import main
 from comems4build_ros.report import figures as rf
 from comems4build_ros.report import findings as fd
 from comems4build_ros.report.build import SUMMARY_TABLE, WEEKLY_TABLE, build_report, read_report_inputs, weekly_rows

@@ -19,32 +19,35 @@ import pandas as pd
 import pytest
 import yaml
 
-from comems4build_ros.config import ConfigError, load_plant_params
+from comems4build_ros.app.commands.reproduce import reproduce
+from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.loop import simulate
+from comems4build_ros.core.scenario import default_scenario
 from comems4build_ros.report import findings as fd
 from comems4build_ros.report import reproduce as rp
 from comems4build_ros.report.figures import CAPTIONS, FIGURES
 from comems4build_ros.report.reproduce_doc import unexplained
-from comems4build_ros.scenario import default_scenario
-from comems4build_ros.sim import simulate
+from comems4build_ros.report.runs import read_run
+from comems4build_ros.study import reproduce as sr
 
 ROOT = Path(__file__).resolve().parents[1]
 #: The command line as the installed ``comems4build`` runs it (main() maps errors to exit 2).
-CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main(sys.argv[1:]))"]
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main(sys.argv[1:]))"]
 CALIBRATION_DOC = ROOT / "docs" / "calibration.md"
 
 
 @pytest.fixture(scope="module")
 def base(tmp_path_factory):
     out = tmp_path_factory.mktemp("reproduce")
-    res = rp.reproduce(out, with_study=False, jobs=2)
+    res = reproduce(out, with_study=False, jobs=2)
     return out, json.loads(res.json.read_text(encoding="utf-8"))
 
 
 def test_five_seeds_the_default_first(base):
     report = base[1]
-    study = rp.load_study()
+    study = sr.load_study()
     assert report["seeds"] == list(study.seeds) and len(report["seeds"]) >= 5
-    assert rp.check_defaults(study) == []  # the first seed is the default scenario's
+    assert sr.check_defaults(study) == []  # the first seed is the default scenario's
 
 
 #: Findings this reproduction does not reproduce, each explained with measured figures in
@@ -118,7 +121,7 @@ def test_figures_as_before_the_year_round_plant(base):
 
 def test_h2_figures_reported(base):
     rows = {r["ems"]: r for r in base[1]["h2"]}
-    for e in rp.EMS:
+    for e in sr.EMS:
         r = rows[e]
         assert 0 <= r["fc_kwh_week_min"] <= r["fc_kwh_week_max"] <= r["h2_kwh_week_max"]
         assert r["h2_left_value_eur"] == pytest.approx(r["loh_end_pct"] / 100 * 1800 * r["price_buy_mean_eur_per_kwh"])
@@ -156,8 +159,8 @@ def test_two_week_run_is_the_start_of_the_twelve_week_run(base, ems):
 
 
 def test_study_file_defaults_match_config():
-    study = rp.load_study()
-    assert rp.check_defaults(study) == []
+    study = sr.load_study()
+    assert sr.check_defaults(study) == []
     keys = {a.key for a in study.ambiguities}
     assert {"fc_lifecycle_cost", "h2_carry_over", "fc_cap_to_demand", "hp_zero", "battery_grid_charging",
             "rbc_thresholds", "discomfort_sample", "building_envelope", "appliance_load",
@@ -177,14 +180,14 @@ def test_a_drifted_default_is_refused(tmp_path):
         a = next(a for a in s["ambiguities"] if a["key"] == "tariff_offset")
         a["default"] = "a110"
 
-    study = rp.load_study(_study_file(tmp_path, drift))
-    problems = rp.check_defaults(study)
+    study = sr.load_study(_study_file(tmp_path, drift))
+    problems = sr.check_defaults(study)
     assert problems and "grid.buy_offset_eur_per_kwh" in problems[0]
     def swap(s):  # the default scenario's seed second; as many seeds as findings_seeds asks for
         s["seeds"] = [1, 57, *(n for n in s["seeds"] if n not in (1, 57))]
 
-    other_first = rp.load_study(_study_file(tmp_path, swap))
-    assert any(p.startswith("seeds: the first seed 1") for p in rp.check_defaults(other_first))
+    other_first = sr.load_study(_study_file(tmp_path, swap))
+    assert any(p.startswith("seeds: the first seed 1") for p in sr.check_defaults(other_first))
 
 
 @pytest.mark.parametrize("edit, message", [
@@ -200,14 +203,14 @@ def test_a_drifted_default_is_refused(tmp_path):
 ])
 def test_bad_study_files_are_named(tmp_path, edit, message):
     with pytest.raises(ConfigError, match=re.escape(message)):
-        rp.load_study(_study_file(tmp_path, edit))
+        sr.load_study(_study_file(tmp_path, edit))
 
 
 def test_plan_reuses_base_runs_and_makes_no_run_for_kpi_only_readings():
-    study = rp.load_study()
-    tasks, cases = rp.plan(study)
+    study = sr.load_study()
+    tasks, cases = sr.plan(study)
     seeds = study.seeds
-    assert {f"base_{e}_s{s}" for e in rp.EMS for s in seeds} <= set(tasks)
+    assert {f"base_{e}_s{s}" for e in sr.EMS for s in seeds} <= set(tasks)
     kpi = next(a for a in study.ambiguities if a.kpi_only)
     assert not any(name.startswith(kpi.key) for name in tasks)
     for case in cases:
@@ -216,8 +219,8 @@ def test_plan_reuses_base_runs_and_makes_no_run_for_kpi_only_readings():
             assert case.runs[seeds[0]]["mpc"] == f"base_mpc_s{seeds[0]}"
             assert case.runs[seeds[0]]["fuzzy"] == f"h2_carry_over__{case.reading}__fuzzy_s{seeds[0]}"
     heat = next(a for a in study.ambiguities if any(r.heat for r in a.readings))
-    rerun = len(rp.EMS) * len(seeds) if heat.default != "rerun" else 0
-    expected = len(rp.EMS) * len(seeds) + rerun + len(seeds) * sum(
+    rerun = len(sr.EMS) * len(seeds) if heat.default != "rerun" else 0
+    expected = len(sr.EMS) * len(seeds) + rerun + len(seeds) * sum(
         len(a.ems) * (len(a.readings) - 1) for a in study.ambiguities if not a.kpi_only and a is not heat)
     assert len(tasks) == expected
 
@@ -235,7 +238,7 @@ def test_cli_study_on_one_week(tmp_path):
     report = json.loads((out / "reproduce.json").read_text(encoding="utf-8"))
     assert report["runs_made"] == 4  # 3 base runs + the fuzzy run of the other h2_carry_over reading
     cases = {(r["ambiguity"], r["reading"]) for r in report["study"]}
-    readings = {a.key: [r.name for r in a.readings] for a in rp.load_study().ambiguities}
+    readings = {a.key: [r.name for r in a.readings] for a in sr.load_study().ambiguities}
     assert cases == {("discomfort_sample", n) for n in readings["discomfort_sample"]} | {
         ("h2_carry_over", n) for n in readings["h2_carry_over"]}
     start = next(r for r in report["study"] if r["reading"] == "start")
@@ -244,7 +247,7 @@ def test_cli_study_on_one_week(tmp_path):
     md = (out / "reproduce.md").read_text(encoding="utf-8")
     assert "Interpretation study" in md and "(default)" in md
     # an evaluation-only reading keeps what the controller reported (the RBC's own H2 limit)
-    rbc = rp.read_run(out / "runs" / "base_rbc_s57")
+    rbc = read_run(out / "runs" / "base_rbc_s57")
     rbc.summary["rbc_loh_floor"] = 0.1
     again = rp.reevaluate(rbc, load_plant_params(overrides={"comfort.discomfort_sample": "start"}))
     assert again.summary["rbc_loh_floor"] == 0.1
@@ -278,7 +281,7 @@ def test_cli_bad_options_exit_2(tmp_path, args, message):
 
 
 def test_usage_error_exits_2_when_run_as_a_module(tmp_path):
-    """``python -m comems4build_ros.cli``: a usage error raised by a command is an exit 2 with its message."""
-    proc = subprocess.run([sys.executable, "-m", "comems4build_ros.cli", "reproduce", "--out", str(tmp_path / "r"),
+    """``python -m comems4build_ros.app.cli``: a usage error raised by a command is an exit 2 with its message."""
+    proc = subprocess.run([sys.executable, "-m", "comems4build_ros.app.cli", "reproduce", "--out", str(tmp_path / "r"),
                            "--from-json", "a.json", "--from-runs", "b"], capture_output=True, text=True, timeout=120)
     assert proc.returncode == 2 and "exclude each other" in proc.stderr and "Traceback" not in proc.stderr

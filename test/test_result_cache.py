@@ -14,11 +14,11 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros import result_cache
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.models import pv
-from comems4build_ros.scenario import generator
-from comems4build_ros.scenario.settings import load_scenario_settings
+from comems4build_ros.core import result_cache
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.models import pv
+from comems4build_ros.core.scenario import generator
+from comems4build_ros.core.scenario.settings import load_scenario_settings
 
 
 @pytest.fixture()
@@ -143,9 +143,9 @@ def _cold_then_warm(code: str, cache: Path) -> tuple[list[str], list[str]]:
 def test_warm_cache_scenario_without_pvlib(cache: Path) -> None:
     """A second process building the default scenario (as a feed node does) never imports pvlib."""
     code = ("import sys, warnings; warnings.simplefilter('ignore');"
-            "from comems4build_ros.config import load_plant_params;"
-            "from comems4build_ros.scenario.run import load_scenario;"
-            "from comems4build_ros.sim import exogenous_series;"
+            "from comems4build_ros.core.config import load_plant_params;"
+            "from comems4build_ros.core.scenario.run import load_scenario;"
+            "from comems4build_ros.core.loop import exogenous_series;"
             "p = load_plant_params(); s = load_scenario('default', p, None, 2, None, None);"
             "x = exogenous_series(s, p);"
             "print('pvlib' in sys.modules, repr(sum(e.p_pv_w for e in x)))")
@@ -160,7 +160,7 @@ def test_building_discretisation_hit_bit_identical_to_scipy(cache: Path, params,
     building.EXPM_DIGITS significant digits) bit for bit."""
     from scipy.linalg import expm
 
-    from comems4build_ros.models import building
+    from comems4build_ros.core.models import building
 
     ad, bd = building.discretize(params.building, 1.0)
     a, bm = building.continuous(params.building)
@@ -180,7 +180,7 @@ def test_building_discretisation_hit_bit_identical_to_scipy(cache: Path, params,
 
 def test_holiday_calendar_found_once_is_remembered_and_an_unknown_one_always_refused(
         cache: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    from comems4build_ros import config
+    from comems4build_ros.core import config
 
     config.check_holiday_calendar("DE", "BW")
     assert len(sorted(cache.glob("holidays-*.npz"))) == 1
@@ -199,8 +199,8 @@ def test_holiday_calendar_found_once_is_remembered_and_an_unknown_one_always_ref
 def test_warm_cache_plant_without_scipy_and_holiday_calendars(cache: Path) -> None:
     """A second process validating the plant parameters and building the plant (as plant_sim
     does) imports neither SciPy's linalg nor holidays' calendars."""
-    code = ("import sys; from comems4build_ros.config import load_plant_params;"
-            "from comems4build_ros.plant import Plant; Plant(load_plant_params());"
+    code = ("import sys; from comems4build_ros.core.config import load_plant_params;"
+            "from comems4build_ros.core.plant import Plant; Plant(load_plant_params());"
             "print('scipy.linalg' in sys.modules, 'holidays.countries' in sys.modules)")
     cold, warm = _cold_then_warm(code, cache)
     assert cold == ["True", "True"] and warm == ["False", "False"]
@@ -211,7 +211,7 @@ def test_holiday_dates_from_the_cache_equal_the_library(cache: Path, monkeypatch
     back from the cache, equal the holidays library's; another year is asked of the library."""
     import holidays
 
-    from comems4build_ros.scenario import comfort
+    from comems4build_ros.core.scenario import comfort
 
     expected = frozenset(holidays.country_holidays("DE", subdiv="BW", years=[2022, 2023]))
     comfort.holiday_dates.cache_clear()

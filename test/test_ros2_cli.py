@@ -25,8 +25,8 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.sim import simulate
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.loop import simulate
 
 pytestmark = pytest.mark.ros
 
@@ -41,7 +41,7 @@ CLI_DEPENDENCIES = {"argcomplete": "argcomplete", "importlib_metadata": "importl
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 EXECUTABLES = ("feed", "fuzzy_ems", "mpc_ems", "mqtt_bridge", "mqtt_plant", "plant_sim", "rbc_ems", "recorder",
                "replay")
-CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
 
 
 def cli_folder() -> Path:
@@ -76,7 +76,7 @@ def ros2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
 
 @pytest.fixture()
 def domain_id():
-    from comems4build_ros.ros.supervisor import acquire_domain_id
+    from comems4build_ros.run.supervisor import acquire_domain_id
 
     with acquire_domain_id() as did:
         yield did
@@ -92,7 +92,7 @@ def run_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, timeout: 
 
 def reference(ems: str, steps: int, seed: int | None = None) -> dict:
     """In-process summary over the window the feed builds (default scenario, first week)."""
-    from comems4build_ros.scenario.run import load_scenario
+    from comems4build_ros.core.scenario.run import load_scenario
 
     params = load_plant_params()
     with warnings.catch_warnings():
@@ -165,7 +165,7 @@ def test_ros2_launch_one_namespaced_building_gives_the_in_process_kpis(ros2, dom
 @pytest.mark.parametrize("ems, layout", [("fuzzy", "building"), ("mpc", "node")])
 def test_ros2_launch_several_buildings_give_the_in_process_kpis_per_building(ros2, domain_id, tmp_path, ems,
                                                                               layout) -> None:
-    from comems4build_ros.scenario.settings import load_scenario_settings
+    from comems4build_ros.core.scenario.settings import load_scenario_settings
 
     steps = 24 if ems == "mpc" else 30
     res = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", f"ems:={ems}", "weeks:=1",
@@ -279,7 +279,7 @@ def test_ros2_launch_fails_at_once_when_a_node_leaves(ros2, domain_id, tmp_path)
     import threading
     import time
 
-    from comems4build_ros.ros.supervisor import processes_with_env
+    from comems4build_ros.run.supervisor import processes_with_env
 
     out = tmp_path / "run"
     env = dict(ros2["env"], ROS_DOMAIN_ID=str(domain_id), ROS_LOG_DIR=str(tmp_path / "ros_log"),

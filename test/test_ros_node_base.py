@@ -17,12 +17,12 @@ import pytest
 
 rclpy = pytest.importorskip("rclpy")
 
-from comems4build_ros.config import ConfigError, load_plant_params, scenario_config_files  # noqa: E402
-from comems4build_ros.ros.contract import ContractError, load_contract  # noqa: E402
-from comems4build_ros.ros.ems_command import CommandError, command_bounds, command_to_action  # noqa: E402
+from comems4build_ros.core.config import ConfigError, load_plant_params, scenario_config_files  # noqa: E402
+from comems4build_ros.core.types import HP_DHW  # noqa: E402
 from comems4build_ros.ros.node import ArrayPublisher, ContractNode, layout_sizes  # noqa: E402
 from comems4build_ros.ros.parameters import plant_params_from_node  # noqa: E402
-from comems4build_ros.types import HP_DHW  # noqa: E402
+from comems4build_ros.wire.contract import ContractError, load_contract  # noqa: E402
+from comems4build_ros.wire.ems_command import CommandError, command_bounds, command_to_action  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -32,7 +32,7 @@ REPO = Path(__file__).resolve().parents[1]
 @pytest.fixture()
 def domain_id():
     """A ROS domain id locked for this test (the launcher's lock files)."""
-    from comems4build_ros.ros.supervisor import acquire_domain_id
+    from comems4build_ros.run.supervisor import acquire_domain_id
 
     with acquire_domain_id() as did:
         yield did
@@ -115,7 +115,7 @@ def test_array_publisher_packs_in_layout_order(context, params):
 
 
 def test_layout_sizes_follow_the_in_process_loop(params):
-    from comems4build_ros.sim import BOUNDS_AHEAD, PRICE_WINDOW
+    from comems4build_ros.core.loop import BOUNDS_AHEAD, PRICE_WINDOW
 
     s = layout_sizes(params)
     assert s == {"horizon": PRICE_WINDOW, "comfort_ahead": BOUNDS_AHEAD + 1}
@@ -278,7 +278,7 @@ def test_ready_cdr_bytes_equal_rclpy_serialisation(params) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-    from comems4build_ros.ros.cdr import cdr_prefix
+    from comems4build_ros.wire.cdr import cdr_prefix
 
     contract = load_contract()
     for spec in contract.topics.values():
@@ -301,7 +301,7 @@ def test_string_cdr_equals_rclpy_serialisation(text: str) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
     from std_msgs.msg import String
 
-    from comems4build_ros.ros.cdr import string_cdr
+    from comems4build_ros.wire.cdr import string_cdr
 
     assert string_cdr(text) == serialize_message(String(data=text))
     assert deserialize_message(string_cdr(text), String).data == text
@@ -312,7 +312,7 @@ def test_uint32_cdr_equals_rclpy_serialisation(value: int) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
     from std_msgs.msg import UInt32
 
-    from comems4build_ros.ros.cdr import uint32_cdr, uint32_value
+    from comems4build_ros.wire.cdr import uint32_cdr, uint32_value
 
     assert uint32_cdr(value) == serialize_message(UInt32(data=value))
     assert deserialize_message(uint32_cdr(value), UInt32).data == value == uint32_value(uint32_cdr(value))
@@ -326,7 +326,7 @@ def test_clock_cdr_equals_rclpy_serialisation(t_ns: int) -> None:
     from rclpy.serialization import deserialize_message, serialize_message
     from rosgraph_msgs.msg import Clock
 
-    from comems4build_ros.ros.cdr import clock_cdr
+    from comems4build_ros.wire.cdr import clock_cdr
 
     sec, nanosec = divmod(t_ns, 1_000_000_000)
     assert clock_cdr(t_ns) == serialize_message(Clock(clock=Time(sec=sec, nanosec=nanosec)))
@@ -343,7 +343,7 @@ def test_parse_array_reads_what_rclpy_serialises(labels) -> None:
     from rclpy.serialization import serialize_message
     from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
-    from comems4build_ros.ros.cdr import parse_array
+    from comems4build_ros.wire.cdr import parse_array
 
     values = array("d", [3.0, -0.1, 1e300, 7.25])
     msg = Float64MultiArray(data=values)

@@ -1,7 +1,7 @@
 """The node set over real DDS: separate processes for plant_sim, feed and the EMS.
 
 * Closed loop over ROS gives exactly the timeseries and KPIs of the in-process loop
-  (``comems4build_ros.sim.simulate``) for thermostat, RBC, fuzzy and MPC over 2 days.
+  (``comems4build_ros.core.loop.simulate``) for thermostat, RBC, fuzzy and MPC over 2 days.
 * Each node's actual DDS endpoints (graph API) are exactly those the contract declares.
 * Faults: an EMS killed mid-run (fallback after the timeout, resume after restart), invalid
   and wrong-step commands (rejected, counted, logged with topic and field), a scenario with
@@ -35,10 +35,11 @@ from rclpy._rclpy_pybind11 import NodeNameNonExistentError  # noqa: E402
 from rclpy.executors import SingleThreadedExecutor  # noqa: E402
 from rclpy.node import Node  # noqa: E402
 
-from comems4build_ros.config import load_plant_params  # noqa: E402
-from comems4build_ros.ros.contract import load_contract, relative  # noqa: E402
+from comems4build_ros.core.config import load_plant_params  # noqa: E402
+from comems4build_ros.core.loop import TIMESERIES_COLUMNS  # noqa: E402
+from comems4build_ros.ros.interfaces import message_class, qos_profile  # noqa: E402
 from comems4build_ros.ros.node import layout_sizes  # noqa: E402
-from comems4build_ros.sim import TIMESERIES_COLUMNS  # noqa: E402
+from comems4build_ros.wire.contract import load_contract, relative  # noqa: E402
 
 pytestmark = pytest.mark.ros
 
@@ -59,7 +60,7 @@ TIMING_COLUMNS = ("ems_solve_s",)
 @pytest.fixture()
 def domain_id() -> Iterator[int]:
     """A ROS domain id nobody else uses during the test (same lock files as the launcher)."""
-    from comems4build_ros.ros.supervisor import acquire_domain_id
+    from comems4build_ros.run.supervisor import acquire_domain_id
 
     with acquire_domain_id() as did:
         yield did
@@ -183,14 +184,14 @@ class Graph:
             ("plant/done", Bool, on_done),
             ("state/t_air_c", Float64MultiArray, on_state),
         ):
-            self.subs[topic] = self.node.create_subscription(typ, topic, cb, c.topic(topic).qos_profile())
+            self.subs[topic] = self.node.create_subscription(typ, topic, cb, qos_profile(c.topic(topic)))
         # The rest, as the recorder reads them, until the run has started (the plant's
         # writers have matched them then); dropped at the first state so that the
         # observer keeps up with the plant.
-        self._extra = [self.node.create_subscription(spec.msg_class(), spec.name, lambda _raw: None,
-                                                     spec.qos_profile(), raw=True)
+        self._extra = [self.node.create_subscription(message_class(spec), spec.name, lambda _raw: None,
+                                                     qos_profile(spec), raw=True)
                        for spec in c.topics.values() if spec.name not in self.subs and spec.publishers]
-        self._ready_pub = self.node.create_publisher(Bool, "recorder/ready", c.topic("recorder/ready").qos_profile())
+        self._ready_pub = self.node.create_publisher(Bool, "recorder/ready", qos_profile(c.topic("recorder/ready")))
 
     def ready(self, topics: tuple[str, ...] = ("plant/record", "plant/done", "state/t_air_c"), timeout: float = 60.0):
         """Wait until the observer is matched with the publishers of ``topics``, then say
@@ -276,8 +277,8 @@ def graph(tmp_path: Path, domain_id: int) -> Iterator[Graph]:
 
 def in_process(ems: str, steps: int = STEPS):
     """The in-process run of ``ems`` on the first ``steps`` steps of the default scenario."""
-    from comems4build_ros.scenario import resolve_scenario
-    from comems4build_ros.sim import simulate
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario import resolve_scenario
 
     params = load_plant_params()
     scen = dataclasses.replace(resolve_scenario("default", params, weeks=1), n_steps=steps)
@@ -286,7 +287,7 @@ def in_process(ems: str, steps: int = STEPS):
 
 def assert_same_run(ros_ts: pd.DataFrame, ref) -> None:
     """Every column and every summary figure equal (bit for bit where numeric)."""
-    from comems4build_ros.sim import evaluate_timeseries
+    from comems4build_ros.core.loop import evaluate_timeseries
 
     ref_ts = ref.timeseries
     assert list(ros_ts.columns) == list(ref_ts.columns)
@@ -315,7 +316,7 @@ EMS_CASES = ["thermostat", "rbc", "fuzzy", "mpc"]
 
 @pytest.mark.parametrize("ems", EMS_CASES)
 def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
-    from comems4build_ros.ems import UnknownEMSError, controller_class
+    from comems4build_ros.core.ems import UnknownEMSError, controller_class
 
     try:
         level = controller_class(ems).info_level
@@ -380,7 +381,7 @@ def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Gr
     # a window of 12 steps the plant announces no step beyond 12 until the EMS is dead (a
     # fast EMS would otherwise answer all 48 steps before the kill lands).
     progress = graph.node.create_publisher(UInt32, "recorder/progress",
-                                           graph.contract.topic("recorder/progress").qos_profile())
+                                           qos_profile(graph.contract.topic("recorder/progress")))
 
     def kill_on_step(step: int) -> None:  # SIGKILL the EMS the moment the plant announces step 12
         if step == 12 and not killed_at:
@@ -439,7 +440,7 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
 
     graph.collect()
     cmd_pub = graph.node.create_publisher(
-        Float64MultiArray, "ems/command", graph.contract.topic("ems/command").qos_profile()
+        Float64MultiArray, "ems/command", qos_profile(graph.contract.topic("ems/command"))
     )
     graph.start_feed(steps=3)
     graph.start_plant(wait_for_recorder=True, step_timeout_s=2.0, startup_timeout_s=2.0)
@@ -492,7 +493,7 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
 @pytest.fixture(scope="module")
 def scenario_csv(tmp_path_factory) -> Path:
     """One week (plus look-ahead) of the default scenario written as a scenario CSV."""
-    from comems4build_ros.scenario import resolve_scenario, write_scenario_csv
+    from comems4build_ros.core.scenario import resolve_scenario, write_scenario_csv
 
     path = tmp_path_factory.mktemp("scen") / "week.csv"
     write_scenario_csv(resolve_scenario("default", load_plant_params(), weeks=1), path)
@@ -524,8 +525,8 @@ def test_feed_refuses_a_scenario_with_nan_or_gap(graph: Graph, scenario_csv: Pat
 
 def test_feed_check_refuses_non_finite_series_and_irregular_steps() -> None:
     """The feed's own check on a Scenario object (whatever loader produced it)."""
-    from comems4build_ros.scenario import resolve_scenario
-    from comems4build_ros.scenario.run import ScenarioInputError, check_scenario
+    from comems4build_ros.core.scenario import resolve_scenario
+    from comems4build_ros.core.scenario.run import ScenarioInputError, check_scenario
 
     scen = resolve_scenario("default", load_plant_params(), weeks=1)
     bad = dataclasses.replace(scen, p_load_w=scen.p_load_w.copy())
@@ -543,7 +544,7 @@ def test_feed_check_refuses_non_finite_series_and_irregular_steps() -> None:
 
 
 def _series_names() -> tuple[str, ...]:
-    from comems4build_ros.scenario.base import SERIES
+    from comems4build_ros.core.scenario.base import SERIES
 
     return SERIES
 
@@ -552,7 +553,7 @@ def test_nodes_started_by_hand_exit_at_the_end_and_the_bag_knows_ems_and_scenari
     """Recorder, EMS, feed and plant with their default parameters all exit 0 by themselves after the
     run (end-of-run signal plant/done), and the bag, recorded without the launcher's run_info, names
     the EMS and the scenario."""
-    from comems4build_ros.ros.bag_eval import evaluate_bag
+    from comems4build_ros.bags.evaluation import evaluate_bag
 
     bag = graph.tmp / "bag"
     graph.start("recorder", ["-m", "comems4build_ros.ros.nodes.recorder", *_ros_args({"bag_path": str(bag)})])
@@ -569,6 +570,6 @@ def test_nodes_started_by_hand_exit_at_the_end_and_the_bag_knows_ems_and_scenari
 
 def in_process_scenario_name() -> str:
     """Name of the default scenario as the in-process summary reports it."""
-    from comems4build_ros.scenario.run import load_scenario
+    from comems4build_ros.core.scenario.run import load_scenario
 
     return load_scenario("default", load_plant_params(), None, 1, None, 24).name

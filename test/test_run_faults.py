@@ -44,11 +44,12 @@ import pytest
 from launch_probe import pid_of, records_on_disk
 
 from comems4build_ros.mqtt.broker import free_port
-from comems4build_ros.ros.supervisor import processes_with_env
+from comems4build_ros.ros.interfaces import qos_profile
+from comems4build_ros.run.supervisor import processes_with_env
 
 pytestmark = pytest.mark.ros
 #: ``comems4build`` of this tree.
-CLI = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
 #: Step time-out of the runs [s]: with the launcher's 3 stall steps a silent node is named after 6 s.
 STEP_TIMEOUT = "2"
 #: A node's departure must fail the launch within this [s] (what the launcher promises).
@@ -300,7 +301,7 @@ def test_container_killed_damage_attributed_to_its_own_building(tmp_path: Path) 
 def _live_config(tmp_path: Path, url: str) -> Path:
     import yaml
 
-    from comems4build_ros.config import config_dir
+    from comems4build_ros.core.config import config_dir
 
     doc = yaml.safe_load((config_dir() / "live_inputs.yaml").read_text())
     doc["/**"]["ros__parameters"]["live_inputs"]["prices"].update(url=url, retries=1, timeout_s=2.0, retry_delay_s=0.0)
@@ -321,7 +322,7 @@ def test_live_inputs_that_cannot_be_fetched_are_refused_naming_the_source(tmp_pa
                              capture_output=True, text=True, timeout=120)
         assert not out.exists()  # refused before anything started or was written
     else:
-        from comems4build_ros.ros.plan import node_command, ros_args
+        from comems4build_ros.run.plan import node_command, ros_args
 
         env = {**os.environ, "ROS_LOG_DIR": str(tmp_path / "ros_log"), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
         res = subprocess.run([*node_command("feed"), *ros_args("", {"weeks": 1, "inputs": "live", "live_config":
@@ -338,7 +339,7 @@ def test_live_run_states_its_stand_in_prices_on_the_console_in_the_summary_and_t
     day standing in) and the scenario's weather are stated, not hidden."""
     from test_live_inputs import Server, awattar_answer
 
-    from comems4build_ros.ros.bag import decode, iter_messages
+    from comems4build_ros.bags.bag import decode, iter_messages
 
     first = pd.Timestamp.now(tz="Europe/Berlin").floor("h") - pd.Timedelta(hours=1)
     server = Server()
@@ -411,9 +412,9 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
     from rclpy.node import Node
     from std_msgs.msg import Float64MultiArray, UInt32
 
-    from comems4build_ros.ros.contract import load_contract
-    from comems4build_ros.ros.supervisor import acquire_domain_id
-    from comems4build_ros.ros.tokens import command_mac, secret_key
+    from comems4build_ros.run.supervisor import acquire_domain_id
+    from comems4build_ros.wire.contract import load_contract
+    from comems4build_ros.wire.tokens import command_mac, secret_key
 
     with acquire_domain_id() as did:
         pass  # a free domain id for the run, joined below by the spoofer
@@ -445,11 +446,11 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
         ex = SingleThreadedExecutor(context=ctx)
         ex.add_node(node)
         node.create_subscription(UInt32, "/plant/step", lambda m: steps.append(int(m.data)),
-                                 contract.topic("plant/step").qos_profile())
+                                 qos_profile(contract.topic("plant/step")))
         sniffed: list[float] = []  # the tokens of the EMS's commands as DDS carries them (in clear)
         node.create_subscription(Float64MultiArray, "/ems/command", lambda m: sniffed.append(float(m.data[-1])),
-                                 contract.topic("ems/command").qos_profile())
-        cmd = node.create_publisher(Float64MultiArray, "/ems/command", contract.topic("ems/command").qos_profile())
+                                 qos_profile(contract.topic("ems/command")))
+        cmd = node.create_publisher(Float64MultiArray, "/ems/command", qos_profile(contract.topic("ems/command")))
 
         def spin(seconds: float) -> bool:
             t_end = time.monotonic() + seconds

@@ -6,8 +6,8 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.scenario import (
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.scenario import (
     ScenarioError,
     ScenarioWarning,
     default_scenario,
@@ -224,7 +224,7 @@ def test_clean_file_gives_no_warning(tmp_path, params):
 
 
 def test_cli_exit_code_2_on_bad_csv(tmp_path, capsys):
-    from comems4build_ros.cli import main
+    from comems4build_ros.app.cli import main
 
     df = rows().drop(columns="p_load_w")
     path = write(tmp_path, df)

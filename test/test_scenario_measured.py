@@ -4,10 +4,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros import scenario as sc
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.scenario import measured as ms
-from comems4build_ros.scenario.loaders import read_dwd_temperature
+from comems4build_ros.core import scenario as sc
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.scenario import measured as ms
+from comems4build_ros.core.scenario.loaders import read_dwd_temperature
 
 HOURS = 12 * 168
 

@@ -7,10 +7,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros import scenario as sc
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.scenario import stats as st
-from comems4build_ros.scenario.generator import dynamisation_factor, opendhw_offday_mass_ratio
+from comems4build_ros.core import scenario as sc
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.scenario import stats as st
+from comems4build_ros.core.scenario.generator import dynamisation_factor, opendhw_offday_mass_ratio
 
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "scenario.md"
 

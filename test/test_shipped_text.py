@@ -14,7 +14,7 @@ from pathlib import Path
 import matplotlib.pyplot as plt
 import pytest
 
-from comems4build_ros.cli import main
+from comems4build_ros.app.cli import main
 from comems4build_ros.report import figures as rf
 from comems4build_ros.report.build import read_report_inputs
 

@@ -16,7 +16,7 @@ import pandas as pd
 import pytest
 from test_bad_input import param_file, run_cli
 
-from comems4build_ros.economics import crf, cycle_closes, load_costs
+from comems4build_ros.core.economics import crf, cycle_closes, load_costs
 from comems4build_ros.report.sizing import pareto_figure, pareto_mask
 from comems4build_ros.report.style import layout_problems
 
@@ -31,7 +31,7 @@ def study(tmp_path_factory: pytest.TempPathFactory) -> tuple[Path, str]:
     import sys
 
     out = tmp_path_factory.mktemp("size") / "study"
-    proc = subprocess.run([sys.executable, "-m", "comems4build_ros.cli", "size", "--ems", "rbc,fuzzy", *GRID,
+    proc = subprocess.run([sys.executable, "-m", "comems4build_ros.app.cli", "size", "--ems", "rbc,fuzzy", *GRID,
                            *WINDOW, "--jobs", "2", "--no-progress", "--out", str(out)],
                           capture_output=True, text=True, timeout=600)
     assert proc.returncode == 0, proc.stderr

@@ -23,13 +23,13 @@ from pathlib import Path
 import psutil
 import pytest
 
-from comems4build_ros.cli import main
+from comems4build_ros.app.cli import main
 from comems4build_ros.study.cluster import LocalDaskCluster, _alive, free_port
 from comems4build_ros.study.executor import ExecutorError, check_environment
 from comems4build_ros.study.spec import environment
 
 REPO = Path(__file__).resolve().parents[1]
-CLI = [sys.executable, "-m", "comems4build_ros.cli"]
+CLI = [sys.executable, "-m", "comems4build_ros.app.cli"]
 #: Timing entries of a summary (they differ between any two runs of the same specification).
 TIMING = ("wall_s", "ems_s", "task_wall_s")
 #: Time limit of one study command in these tests [s].

@@ -8,9 +8,10 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from comems4build_ros.cli import main
+from comems4build_ros.app.cli import main
 from comems4build_ros.report.style import layout_problems, paper_style
-from comems4build_ros.report.sweep import SWEEP_KPIS, grid, kpi_figure, markdown_table, param_label, parse_param
+from comems4build_ros.report.sweep import SWEEP_KPIS, kpi_figure, markdown_table, param_label
+from comems4build_ros.study.sweep import grid, parse_param
 
 
 def test_tiny_sweep(tmp_path: Path) -> None:

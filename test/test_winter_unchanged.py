@@ -15,9 +15,9 @@ from pathlib import Path
 
 import pytest
 
-from comems4build_ros.config import load_plant_params
-from comems4build_ros.scenario import resolve_scenario
-from comems4build_ros.sim import simulate, write_run
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.loop import simulate, write_run
+from comems4build_ros.core.scenario import resolve_scenario
 
 REF = Path(__file__).parent / "fixtures" / "winter_reference"
 WALL_KEYS = ("wall_s", "ems_s")

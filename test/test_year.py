@@ -6,10 +6,10 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.config import load_plant_params, scenario_config_files
-from comems4build_ros.scenario import resolve_scenario
-from comems4build_ros.scenario.comfort import heating_season_days
-from comems4build_ros.sim import simulate
+from comems4build_ros.core.config import load_plant_params, scenario_config_files
+from comems4build_ros.core.loop import simulate
+from comems4build_ros.core.scenario import resolve_scenario
+from comems4build_ros.core.scenario.comfort import heating_season_days
 
 
 @pytest.fixture(scope="module")
@@ -34,7 +34,7 @@ def test_year_scenario_window_and_data(params) -> None:
     assert sc.meta["t_amb_filled"]["from"] == "2023-02-15T01:00:00+01:00"  # record ends 2023-02-14 23 UTC
     assert sc.meta["t_amb_filled"]["hours"] == 8760 - 8425
     prices = pd.read_csv(
-        __import__("comems4build_ros.scenario.measured", fromlist=["data_dir"]).data_dir()
+        __import__("comems4build_ros.core.scenario.measured", fromlist=["data_dir"]).data_dir()
         / "DE_LU_day_ahead_EURperMWh_2022-03-01_2023-02-28_hourly.csv")
     assert np.array_equal(sc.spot_eur_per_mwh, prices["price_EUR_per_MWh"].to_numpy(float))
     # summer bound in the cooling season, the paper's in winter
@@ -90,7 +90,7 @@ def test_rbc_year_closes_the_balance(params) -> None:
 
 
 def test_compare_year_writes_the_year_report(tmp_path) -> None:
-    from comems4build_ros.cli import main
+    from comems4build_ros.app.cli import main
 
     out = tmp_path / "cmp"
     rc = main(["compare", "--scenario", "year", "--ems", "rbc,fuzzy", "--start", "2022-11-21T00:00:00",
@@ -115,7 +115,7 @@ def test_sankey_flows_balance(params) -> None:
 
 
 def test_sweep_over_the_year_tabulates_the_sizing_figures(tmp_path) -> None:
-    from comems4build_ros.cli import main
+    from comems4build_ros.app.cli import main
 
     out = tmp_path / "sweep"
     rc = main(["sweep", "--param", "electrolyser.n_modules=1,2", "--ems", "rbc", "--scenario", "year",

@@ -14,11 +14,11 @@ from pathlib import Path
 import pandas as pd
 import pytest
 
-from comems4build_ros.config import load_plant_params, scenario_config_files
-from comems4build_ros.ros.launcher import launch
-from comems4build_ros.ros.plan import LaunchOptions
-from comems4build_ros.scenario.run import load_scenario
-from comems4build_ros.sim import simulate
+from comems4build_ros.core.config import load_plant_params, scenario_config_files
+from comems4build_ros.core.loop import simulate
+from comems4build_ros.core.scenario.run import load_scenario
+from comems4build_ros.run.launcher import launch
+from comems4build_ros.run.plan import LaunchOptions
 
 pytestmark = pytest.mark.ros
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
@@ -53,9 +53,9 @@ def test_year_inputs_replayed_drive_the_rbc(tmp_path: Path) -> None:
     the evaluated bag equals the in-process RBC run of that window."""
     import time
 
-    from comems4build_ros.ros.bag_eval import evaluate_bag
-    from comems4build_ros.ros.plan import node_command, ros_args
-    from comems4build_ros.ros.supervisor import ProcessGroup, acquire_domain_id, child_env
+    from comems4build_ros.bags.evaluation import evaluate_bag
+    from comems4build_ros.run.plan import node_command, ros_args
+    from comems4build_ros.run.supervisor import ProcessGroup, acquire_domain_id, child_env
 
     rec_run = launch(LaunchOptions(ems="fuzzy", out=tmp_path / "rec", scenario="year", start=START, steps=STEPS,
                                    timeout_s=240))
@@ -98,9 +98,9 @@ def test_year_cli_launch_and_evaluate_across_the_heating_season_start(tmp_path: 
 
     from rosbags.highlevel import AnyReader
 
-    from comems4build_ros.sim import write_run
+    from comems4build_ros.core.loop import write_run
 
-    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
     start, steps = "2022-11-30T18:00:00", 12
     out = tmp_path / "run"
     proc = subprocess.run([*cli, "launch", "--ems", "fuzzy", "--scenario", "year", "--start", start, "--steps",
@@ -145,7 +145,7 @@ def test_bench_year_prints_the_figures_and_the_ros_run_equals_in_process(tmp_pat
     import subprocess
     import sys
 
-    cli = [sys.executable, "-c", "import sys; from comems4build_ros.cli import main; sys.exit(main())"]
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
     proc = subprocess.run([*cli, "bench", "year", "--ems", "rbc,fuzzy", "--weeks", "0.25", "--ros",
                            "--ros-ems", "fuzzy", "--timeout", "240", "--out", str(tmp_path / "bench")],
                           capture_output=True, text=True, timeout=400)

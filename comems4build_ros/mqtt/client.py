@@ -27,7 +27,7 @@ from pathlib import Path
 
 import paho.mqtt.client as paho
 
-from .topicmap import BrokerSettings
+from comems4build_ros.mqtt.topicmap import BrokerSettings
 
 #: Shortest wait between reconnect attempts [s].
 RECONNECT_MIN_S = 0.1

@@ -26,7 +26,7 @@ import json
 from dataclasses import dataclass
 from typing import Any
 
-from .topicmap import TopicMap
+from comems4build_ros.mqtt.topicmap import TopicMap
 
 #: Required payload fields per component (HA MQTT discovery); ``unit_of_measurement``
 #: is required, and checked, for sensors with a device class of :data:`DEVICE_CLASS_UNITS`.

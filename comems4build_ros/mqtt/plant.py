@@ -1,6 +1,6 @@
 """``mqtt_plant``: the simulated building with its I/O over MQTT instead of ROS.
 
-The same :class:`comems4build_ros.plant.Plant`, scenario and initial state as
+The same :class:`comems4build_ros.core.plant.Plant`, scenario and initial state as
 ``plant_sim`` and the in-process loop, but it talks to the world like a real building
 behind Home Assistant: it publishes its measurements on the topics of the topic map
 (``config/mqtt.yaml``, same units and scaling as a real install) and applies the
@@ -23,7 +23,7 @@ Clock (:mod:`comems4build_ros.mqtt.clock`):
 After the last step it repeats the last record until the bridge has announced the end
 on ``<base>/step`` (or ``done_timeout_s`` passed), then exits 0. SIGINT or SIGTERM
 before that end the process with exit code 3 (the run was cut; see
-:mod:`comems4build_ros.ros.exits`).
+:mod:`comems4build_ros.wire.exits`).
 """
 
 from __future__ import annotations
@@ -34,13 +34,13 @@ import sys
 import time
 from typing import Any
 
-from ..config import ConfigError, PlantParams, load_plant_params
-from ..plant import Plant
-from ..sim import STATE_COLUMNS, exogenous_series
-from ..types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, Flows, PlantState
-from .client import BrokerConfigError, MqttLink
-from .clock import Clock, ClockError, parse_clock
-from .topicmap import SETPOINTS, PayloadError, TopicMap, load_topic_map
+from comems4build_ros.core.config import ConfigError, PlantParams, load_plant_params
+from comems4build_ros.core.loop import STATE_COLUMNS, exogenous_series
+from comems4build_ros.core.plant import Plant
+from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, Flows, PlantState
+from comems4build_ros.mqtt.client import BrokerConfigError, MqttLink
+from comems4build_ros.mqtt.clock import Clock, ClockError, parse_clock
+from comems4build_ros.mqtt.topicmap import SETPOINTS, PayloadError, TopicMap, load_topic_map
 
 #: Default repeat period of the last messages while waiting [s].
 REPUBLISH_S = 0.5
@@ -257,7 +257,7 @@ def _sleep_until(t_unix_s: float, handle: Any) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``mqtt_plant``; exit code 2 for bad options or files."""
-    from ..scenario.run import check_scenario, load_scenario
+    from comems4build_ros.core.scenario.run import check_scenario, load_scenario
 
     ap = argparse.ArgumentParser(prog="mqtt_plant", description="simulated building with its I/O over MQTT")
     ap.add_argument("--topic-map", default=None, help="topic map (default config/mqtt.yaml)")
@@ -304,7 +304,7 @@ def main(argv: list[str] | None = None) -> int:
           f"{topic_map.broker.url}", file=sys.stderr, flush=True)
     import signal
 
-    from ..ros.exits import CAUSE_TAG, EXIT_INTERRUPTED
+    from comems4build_ros.wire.exits import CAUSE_TAG, EXIT_INTERRUPTED
 
     def on_sigterm(signum: int, frame: Any) -> None:
         raise KeyboardInterrupt(f"signal {signum}")

@@ -3,7 +3,7 @@
 * :class:`MeasurementWatchdog` keeps the latest value of every measurement with its
   receive time and reports, for a step, every measurement that is missing, older than
   its ``max_age_s`` or outside its physical ``range`` (``config/mqtt.yaml``). The bridge
-  then sends the safe fallback action (:func:`comems4build_ros.ems.fallback.safe_action`)
+  then sends the safe fallback action (:func:`comems4build_ros.core.ems.fallback.safe_action`)
   instead of the EMS's command and publishes an alarm, in the same step.
 * :class:`CommandLimiter` clamps every set-point to its device limits and to its ramp
   limit per step, and holds back set-point messages that come faster than
@@ -17,8 +17,8 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass, field
 
-from ..types import HP_DHW, HP_OFF, HP_SH, Action
-from .topicmap import TopicMap
+from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH, Action
+from comems4build_ros.mqtt.topicmap import TopicMap
 
 
 @dataclass(frozen=True)

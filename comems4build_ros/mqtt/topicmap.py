@@ -21,8 +21,8 @@ from urllib.parse import urlsplit
 
 from pydantic import Field, field_validator, model_validator
 
-from ..config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
-from ..types import HP_DHW, HP_OFF, HP_SH
+from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
+from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
 
 #: Measurements the bridge knows: SI name -> meaning [unit]. The first four are required.
 MEASUREMENTS: dict[str, str] = {
@@ -53,7 +53,7 @@ class PayloadError(ValueError):
 
 
 class _Model(Section):
-    """A topic-map section: the parameter rule of :class:`~comems4build_ros.config.Section`."""
+    """A topic-map section: the parameter rule of :class:`~comems4build_ros.core.config.Section`."""
 
 
 class _Scaled(_Model):

@@ -18,14 +18,14 @@ from typing import Any
 
 import pandas as pd
 
-from ..config import load_plant_params
-from ..kpi import median_weeks
-from . import figures
-from .document import Document
-from .figures import CAPTIONS
-from .findings import Context, evaluate_findings
-from .paper import Evidence, evaluate_statements, fmt, load_paper_results, printed
-from .runs import Manifest, RunData, RunDirError, read_comparison
+from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.kpi import median_weeks
+from comems4build_ros.report import figures
+from comems4build_ros.report.document import Document
+from comems4build_ros.report.figures import CAPTIONS
+from comems4build_ros.report.findings import Context, evaluate_findings
+from comems4build_ros.report.paper import Evidence, evaluate_statements, fmt, load_paper_results, printed
+from comems4build_ros.report.runs import Manifest, RunData, RunDirError, read_comparison
 
 #: Weekly table columns: (weekly.csv column, header, unit, decimals).
 WEEKLY_TABLE = (
@@ -222,7 +222,7 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
 
     doc.h(2, "Inputs each EMS may use")
     doc.p("The information level of each EMS after the paper's table of the level of information (sec:information), "
-          "generated from the observation fields each level may read (comems4build_ros/ems/base.py).")
+          "generated from the observation fields each level may read (comems4build_ros/core/ems/base.py).")
     ih, ir = figures.level_of_information_rows(levels)
     doc.table(ih, ir)
 
@@ -258,6 +258,6 @@ def statement_rows(figs: list, statements: Any) -> list[list[str]]:
 
 
 def _level_of(ems: str) -> str:
-    from ..ems import controller_class
+    from comems4build_ros.core.ems import controller_class
 
     return str(controller_class(ems).info_level)

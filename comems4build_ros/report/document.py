@@ -19,7 +19,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from .style import figure_files
+from comems4build_ros.report.style import figure_files
 
 #: Cells that say "no value" and do not decide a column's alignment.
 PLACEHOLDERS = frozenset({"", "-", "–", "n/a", "never", "not run", "none"})

@@ -35,12 +35,12 @@ from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.lines import Line2D  # noqa: E402
 from matplotlib.patches import Patch  # noqa: E402
 
-from ..config import W_PER_KW  # noqa: E402
-from ..ems.base import INFO_LEVELS  # noqa: E402
-from . import style  # noqa: E402
-from .paper import paper_windows  # noqa: E402
-from .runs import RunData  # noqa: E402
-from .style import SIGNAL_COLOURS, axis_label, figsize, save_figure, styled  # noqa: E402
+from comems4build_ros.core.config import W_PER_KW  # noqa: E402
+from comems4build_ros.core.ems.base import INFO_LEVELS  # noqa: E402
+from comems4build_ros.report import style  # noqa: E402
+from comems4build_ros.report.paper import paper_windows  # noqa: E402
+from comems4build_ros.report.runs import RunData  # noqa: E402
+from comems4build_ros.report.style import SIGNAL_COLOURS, axis_label, figsize, save_figure, styled  # noqa: E402
 
 #: One colour per EMS (see :mod:`~comems4build_ros.report.style`).
 EMS_COLOURS = style.EMS_COLOURS
@@ -431,7 +431,7 @@ def level_of_information_rows(levels: Mapping[str, str]) -> tuple[list[str], lis
 
     Parameters
     ----------
-    levels : EMS name -> its information level (:data:`~comems4build_ros.ems.base.INFO_LEVELS`)
+    levels : EMS name -> its information level (:data:`~comems4build_ros.core.ems.base.INFO_LEVELS`)
     """
     header = ["EMS (level)", *(c for c, _ in INFO_COLUMNS)]
     rows = []

@@ -8,7 +8,7 @@ run summaries, weekly tables and timeseries; nothing is hard-coded. A finding wh
 were not run is reported as ``n/a``.
 
 Thresholds used by the checks (named constants below): a week "without discomfort" has
-at most :data:`~comems4build_ros.kpi.DISCOMFORT_TOL_KH`; H2 "left" means more than
+at most :data:`~comems4build_ros.core.kpi.DISCOMFORT_TOL_KH`; H2 "left" means more than
 :data:`H2_LEFT_TOL` of the store above LOH_min; "full permissible power" is at least
 :data:`FULL_POWER_SHARE` of ``zeta * P_FC,max``; the hysteresis band is
 :data:`HYSTERESIS_BAND_K` inside each comfort bound.
@@ -23,10 +23,10 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-from ..config import PlantParams
-from ..kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
-from .paper import H2_EMPTY_TOL, h2_empty_days_before_end, h2_floor
-from .runs import RunData
+from comems4build_ros.core.config import PlantParams
+from comems4build_ros.core.kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
+from comems4build_ros.report.paper import H2_EMPTY_TOL, h2_empty_days_before_end, h2_floor
+from comems4build_ros.report.runs import RunData
 
 #: "H2 left" at the end: LOH above LOH_min by more than this fraction of the store [-]
 #: (the same threshold as "empty", ``paper.H2_EMPTY_TOL``).

@@ -25,9 +25,9 @@ import numpy as np
 import pandas as pd
 import yaml
 
-from ..config import PlantParams
-from ..kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
-from .runs import RunData
+from comems4build_ros.core.config import PlantParams
+from comems4build_ros.core.kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
+from comems4build_ros.report.runs import RunData
 
 #: Data file with the paper's statements (source label inside).
 PAPER_RESULTS_FILE = Path(__file__).with_name("paper_results.yaml")
@@ -304,11 +304,11 @@ def h2_floor(ems: str, loh_min: float) -> float:
     """The H2 level at which the store of ``ems`` counts as empty [-].
 
     The plant's ``loh_min``, except for the RBC, which stops its FC at its own limit
-    (``rbc.loh_reserve`` in ``config/rbc.yaml``; :func:`comems4build_ros.ems.rbc.loh_floor`).
+    (``rbc.loh_reserve`` in ``config/rbc.yaml``; :func:`comems4build_ros.core.ems.rbc.loh_floor`).
     """
     if ems != "rbc":
         return loh_min
-    from ..ems.rbc import load_rbc_options
+    from comems4build_ros.core.ems.rbc import load_rbc_options
 
     return max(loh_min, load_rbc_options().loh_reserve)
 

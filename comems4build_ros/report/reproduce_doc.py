@@ -12,9 +12,9 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
-from .document import Document
-from .figures import CAPTIONS
-from .paper import printed
+from comems4build_ros.report.document import Document
+from comems4build_ros.report.figures import CAPTIONS
+from comems4build_ros.report.paper import printed
 
 #: Title of both documents.
 TITLE = "ComEMS4Build: reproducing the paper"

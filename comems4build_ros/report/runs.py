@@ -17,7 +17,7 @@ from typing import Any
 
 import pandas as pd
 
-from ..kpi import REQUIRED_COLUMNS
+from comems4build_ros.core.kpi import REQUIRED_COLUMNS
 
 #: Name of the manifest file in a comparison directory.
 MANIFEST = "compare.json"

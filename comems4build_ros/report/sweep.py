@@ -9,9 +9,7 @@ The paper names a sensitivity analysis of the components as future work
 
 from __future__ import annotations
 
-import itertools
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -21,8 +19,9 @@ matplotlib.use("Agg")
 import matplotlib.pyplot as plt  # noqa: E402
 import pandas as pd  # noqa: E402
 
-from . import style  # noqa: E402
-from .style import figsize, save_figure, styled  # noqa: E402
+from comems4build_ros.report import style  # noqa: E402
+from comems4build_ros.report.style import figsize, save_figure, styled  # noqa: E402
+from comems4build_ros.study.sweep import SweepCase  # noqa: E402
 
 #: KPIs tabulated and plotted by default: (summary.json key, axis label with unit).
 SWEEP_KPIS: tuple[tuple[str, str], ...] = (
@@ -101,53 +100,6 @@ def _value_text(path: str, value: Any) -> str:
     unit = unit.rstrip("]")
     unit = "" if unit in ("–", "-") else f" {unit}"
     return f"{name} = {value}{unit}"
-
-
-@dataclass
-class SweepCase:
-    """One point of the grid: EMS, parameter values and run directory name."""
-
-    ems: str
-    values: dict[str, Any]
-    name: str
-
-
-def parse_param(text: str) -> tuple[str, list[Any]]:
-    """``"battery.e_max_kwh=5,10"`` -> ``("battery.e_max_kwh", [5, 10])`` (values as YAML scalars).
-
-    Raises
-    ------
-    ValueError
-        If the text is not ``PATH=V1[,V2...]`` with a dotted path.
-    """
-    import yaml
-
-    path, sep, vals = text.partition("=")
-    path = path.strip()
-    if not sep or "." not in path or not vals.strip():
-        raise ValueError(f"--param '{text}': expected SECTION.KEY=V1,V2,... (e.g. battery.e_max_kwh=5,10)")
-    values = [yaml.safe_load(v) for v in vals.split(",")]
-    if any(v is None for v in values):
-        raise ValueError(f"--param '{text}': empty value")
-    if len({repr(v) for v in values}) != len(values):
-        raise ValueError(f"--param '{text}': a value is given twice")
-    return path, values
-
-
-def _slug(value: Any) -> str:
-    return str(value).replace("/", "_").replace(" ", "")
-
-
-def grid(params: Mapping[str, Sequence[Any]], emss: Sequence[str]) -> list[SweepCase]:
-    """Every EMS x every combination of the parameter values, with unique run names."""
-    keys = list(params)
-    cases = []
-    for ems in emss:
-        for combo in itertools.product(*(params[k] for k in keys)):
-            values = dict(zip(keys, combo))
-            name = "__".join([ems, *(f"{k}={_slug(v)}" for k, v in values.items())])
-            cases.append(SweepCase(ems, values, name))
-    return cases
 
 
 def table(cases: Sequence[SweepCase], summaries: Sequence[Mapping[str, Any]],

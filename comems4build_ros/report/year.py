@@ -30,13 +30,13 @@ import pandas as pd  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.sankey import Sankey  # noqa: E402
 
-from ..config import load_plant_params  # noqa: E402
-from . import style  # noqa: E402
-from .build import Report  # noqa: E402
-from .document import Document  # noqa: E402
-from .figures import _date_axis, _local_naive, colour, label, ordered  # noqa: E402
-from .runs import RunData, RunDirError, read_comparison  # noqa: E402
-from .style import axis_label, figsize, save_figure, styled  # noqa: E402
+from comems4build_ros.core.config import load_plant_params  # noqa: E402
+from comems4build_ros.report import style  # noqa: E402
+from comems4build_ros.report.build import Report  # noqa: E402
+from comems4build_ros.report.document import Document  # noqa: E402
+from comems4build_ros.report.figures import _date_axis, _local_naive, colour, label, ordered  # noqa: E402
+from comems4build_ros.report.runs import RunData, RunDirError, read_comparison  # noqa: E402
+from comems4build_ros.report.style import axis_label, figsize, save_figure, styled  # noqa: E402
 
 #: Year KPI rows of the report: (summary key, label, unit, decimals).
 YEAR_TABLE = (

@@ -9,7 +9,7 @@ under its own namespace with its parameters as ``parameter_overrides``, and spin
 all on one executor. The nodes still talk over DDS (one participant per process, rclpy's
 default), so the topics, the lock-step protocol, the contract checks and the bags are
 those of separate processes. Two layouts of the run plan use it
-(:mod:`comems4build_ros.ros.plan`):
+(:mod:`comems4build_ros.run.plan`):
 
 * ``building`` (role ``container``): one process runs every node of a few buildings
   (recorder, EMS, feed and plant), each spec entry naming its node role (``"role":
@@ -51,7 +51,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
-from .exits import EXIT_BAD_INPUT
+from comems4build_ros.wire.exits import EXIT_BAD_INPUT
 
 #: Roles of the nodes a container runs.
 NODE_ROLES = ("plant", "feed", "ems", "recorder")
@@ -126,19 +126,19 @@ def to_parameters(params: dict[str, Any]) -> list[Any]:
 def node_factory(role: str, spec: dict[str, Any]) -> Any:
     """``make(namespace, parameter_overrides) -> Node`` for ``role``."""
     if role == "plant":
-        from .nodes.plant_sim import PlantSim
+        from comems4build_ros.ros.nodes.plant_sim import PlantSim
 
         return lambda **kw: PlantSim(**kw)
     if role == "feed":
-        from .nodes.feed import Feed
+        from comems4build_ros.ros.nodes.feed import Feed
 
         return lambda **kw: Feed(**kw)  # may get scenario= (prepare_feed_scenarios)
     if role == "recorder":
-        from .nodes.recorder import Recorder
+        from comems4build_ros.ros.nodes.recorder import Recorder
 
         return lambda **kw: Recorder(**kw)
     if role == "ems":
-        from .nodes.ems_node import EMSNode
+        from comems4build_ros.ros.nodes.ems_node import EMSNode
 
         ems = spec.get("ems")
         if not isinstance(ems, str) or not ems:
@@ -157,9 +157,8 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
     from rclpy.executors import ExternalShutdownException
     from rclpy.task import Future
 
-    from ..config import ConfigError
-    from .contract import ContractError
-    from .process import (
+    from comems4build_ros.core.config import ConfigError
+    from comems4build_ros.ros.process import (
         cleanup_deadline,
         ignore_stop_signals,
         init_rclpy,
@@ -169,6 +168,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         spin_until_done,
         stop_signalled,
     )
+    from comems4build_ros.wire.contract import ContractError
 
     makers: dict[str, Any] = {}
     roles = [entry_role(e, role) for e in spec["nodes"]]
@@ -255,7 +255,7 @@ def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str
     import os
     from concurrent.futures import ProcessPoolExecutor
 
-    from .nodes.feed import prepare_scenario
+    from comems4build_ros.ros.nodes.feed import prepare_scenario
 
     nodes = [e for e in spec["nodes"] if entry_role(e, role) == "feed"]
     workers = min(len(nodes), os.cpu_count() or 1)

@@ -18,7 +18,7 @@ owns what does not depend on what is stepped:
 * the run's fault counters and statistics (:meth:`stats`), fault events on
   ``plant/events`` (:meth:`event`), ``clock`` (:meth:`publish_clock`);
 * stalls (:meth:`check_stall`, with ``stall_steps`` > 0): the run ends with exit code
-  :data:`~comems4build_ros.ros.exits.EXIT_STALLED`, naming the silent party, once the
+  :data:`~comems4build_ros.wire.exits.EXIT_STALLED`, naming the silent party, once the
   EMS has sent nothing for ``stall_steps`` step time-outs in a row (every one of them a
   fallback step), or once no step was possible for ``stall_steps`` step time-outs while
   the master waited for anything else than the EMS (the feed's inputs, the recorder's
@@ -41,12 +41,12 @@ from rclpy.duration import Duration
 from rclpy.task import Future
 from std_msgs.msg import Bool, String, UInt32
 
-from .cdr import clock_cdr, uint32_cdr
-from .exits import EXIT_STALLED
-from .node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
-from .parameters import param, plant_params_from_node
-from .process import report_cause
-from .tokens import command_mac, read_token_file, secret_key
+from comems4build_ros.ros.node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
+from comems4build_ros.ros.parameters import param, plant_params_from_node
+from comems4build_ros.ros.process import report_cause
+from comems4build_ros.wire.cdr import clock_cdr, uint32_cdr
+from comems4build_ros.wire.exits import EXIT_STALLED
+from comems4build_ros.wire.tokens import command_mac, read_token_file, secret_key
 
 #: Default wait for the command of a step once the EMS has answered at least once [s].
 STEP_TIMEOUT_S = 5.0
@@ -185,7 +185,7 @@ class LockStepMaster(ContractNode):
     # ------------------------------------------------------------------ commands
     def accept_token(self, data: Any, step: int) -> bool:
         """Whether the valid command ``data`` (float64 array, the token last) comes from
-        the run's EMS (:mod:`comems4build_ros.ros.tokens`): with a run secret its token is
+        the run's EMS (:mod:`comems4build_ros.wire.tokens`): with a run secret its token is
         the authentication code of its other elements; else the token is ``ems_token``, or
         else that of the run's first valid command. Any other command is counted in
         ``foreign_commands``, logged on plant/events and ignored."""
@@ -279,7 +279,7 @@ class LockStepMaster(ContractNode):
     def stall(self, cause: str) -> None:
         """End the run early: log ``cause`` (naming the silent party), publish it on
         plant/events (kind ``stall``, in the bag) and on stderr as the process's cause line,
-        and finish with exit code :data:`~comems4build_ros.ros.exits.EXIT_STALLED`."""
+        and finish with exit code :data:`~comems4build_ros.wire.exits.EXIT_STALLED`."""
         if self.stalled or self.finished.done():
             return
         self.stalled = True

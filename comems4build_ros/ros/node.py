@@ -9,7 +9,7 @@
   node's writers matched the recorder (:meth:`ContractNode.recorder_gate`), and the end of
   the node until the recorder has left (:meth:`ContractNode.finish_when_recorded`).
 * :class:`ArrayPublisher` publishes one contract array topic in its layout order, as
-  ready CDR bytes (:mod:`comems4build_ros.ros.cdr`).
+  ready CDR bytes (:mod:`comems4build_ros.wire.cdr`).
 """
 
 from __future__ import annotations
@@ -21,9 +21,10 @@ from typing import Any
 
 from rclpy.node import Node
 
-from ..config import PlantParams
-from .cdr import cdr_prefix
-from .contract import Contract, ContractError, Layout, load_contract, relative, sizes
+from comems4build_ros.core.config import PlantParams
+from comems4build_ros.ros.interfaces import message_class, qos_profile
+from comems4build_ros.wire.cdr import cdr_prefix
+from comems4build_ros.wire.contract import Contract, ContractError, Layout, load_contract, relative, sizes
 
 #: Topics rclpy itself creates for every node (parameter events, logging); not in the contract.
 INFRASTRUCTURE_TOPICS = frozenset({"/parameter_events", "/rosout"})
@@ -94,12 +95,12 @@ class ContractNode(Node):
     def contract_publisher(self, topic: str) -> Any:
         """Publisher of the contract topic ``topic`` with its type and QoS."""
         spec = self.contract.topic(topic)
-        return self.create_publisher(spec.msg_class(), topic, spec.qos_profile())
+        return self.create_publisher(message_class(spec), topic, qos_profile(spec))
 
     def contract_subscription(self, topic: str, callback: Callable[[Any], None], raw: bool = False) -> Any:
         """Subscription to the contract topic ``topic`` with its type and QoS."""
         spec = self.contract.topic(topic)
-        return self.create_subscription(spec.msg_class(), topic, callback, spec.qos_profile(), raw=raw)
+        return self.create_subscription(message_class(spec), topic, callback, qos_profile(spec), raw=raw)
 
     def finish_when_recorded(self, topic: str, code: int = 0, timeout_s: float | None = None) -> None:
         """Complete ``self.finished`` with ``code`` once no recorder subscribes to ``topic``.
@@ -273,7 +274,7 @@ class ArrayPublisher:
 
 def layout_sizes(params: PlantParams) -> dict[str, int]:
     """Layout size symbols for ``params`` (horizon and comfort look-ahead of sim.py)."""
-    from ..ems.base import BOUNDS_AHEAD, PRICE_WINDOW
+    from comems4build_ros.core.ems.base import BOUNDS_AHEAD, PRICE_WINDOW
 
     out = sizes(params, comfort_ahead=BOUNDS_AHEAD + 1)
     out["horizon"] = PRICE_WINDOW  # the loop's price window and forecast length [steps]

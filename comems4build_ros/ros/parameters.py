@@ -6,7 +6,7 @@ unit, a ``floating_point_range`` or ``integer_range`` for numbers, the allowed v
 ``additional_constraints`` for the others), so ``ros2 param describe`` shows what it is.
 The plant parameters a node takes from ``--params-file config/plant.yaml`` or ``-p
 battery.e_max_kwh:=...`` (``<section>.<key>``) get theirs from the validated model
-:class:`comems4build_ros.config.PlantParams`: the field's bounds and the unit of its
+:class:`comems4build_ros.core.config.PlantParams`: the field's bounds and the unit of its
 name's suffix (``_kwh``, ``_w``, ``_c``, ...).
 
 The nodes are created with ``automatically_declare_parameters_from_overrides``, so a
@@ -151,7 +151,7 @@ PARAMETERS: dict[str, ParamSpec] = {
 
 def plant_param_spec(name: str) -> ParamSpec | None:
     """Meaning of the plant parameter ``<section>.<key>`` (None if ``name`` is not one)."""
-    from ..config import PlantParams
+    from comems4build_ros.core.config import PlantParams
 
     section, dot, key = name.partition(".")
     model = PlantParams.model_fields.get(section)
@@ -276,7 +276,7 @@ def plant_params_from_node(node: Any) -> Any:
     ConfigError
         Naming the file or override and the parameter that is invalid.
     """
-    from ..config import PLANT_SECTIONS, load_plant_params, parse_assignments
+    from comems4build_ros.core.config import PLANT_SECTIONS, load_plant_params, parse_assignments
 
     files = string_list(node, "config_files")
     ros_overrides: dict[str, Any] = {}

@@ -4,7 +4,7 @@
 does the same for several nodes): the lean single-threaded executor
 (:mod:`comems4build_ros.ros.executor`), clean shutdown on Ctrl-C / SIGTERM (executor
 shutdown, destroy node, ``rclpy.try_shutdown``) and the exit codes the supervisor reads
-(:data:`~comems4build_ros.ros.exits.EXIT_CODES`): 0 only once the node's part of the run is complete, a distinct code
+(:data:`~comems4build_ros.wire.exits.EXIT_CODES`): 0 only once the node's part of the run is complete, a distinct code
 for bad input, for a signal before the end of the run and for a stalled run.
 
 Signals: rclpy's own SIGINT/SIGTERM handlers are not installed (:func:`init_rclpy`). Their
@@ -26,9 +26,9 @@ from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.task import Future
 
-from ..config import ConfigError
-from .contract import ContractError
-from .exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED
+from comems4build_ros.core.config import ConfigError
+from comems4build_ros.wire.contract import ContractError
+from comems4build_ros.wire.exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED
 
 #: Environment variable choosing the executor of the node processes: ``lean`` (default,
 #: :class:`comems4build_ros.ros.executor.LeanExecutor`) or ``single`` (rclpy's
@@ -51,7 +51,7 @@ def make_executor() -> Any:
     if name == "single":
         return SingleThreadedExecutor()
     if name == "lean":
-        from .executor import LeanExecutor
+        from comems4build_ros.ros.executor import LeanExecutor
 
         return LeanExecutor()
     raise ValueError(f"environment variable {EXECUTOR_ENV}={name!r}: one of {', '.join(EXECUTORS)}")
@@ -243,7 +243,7 @@ def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S
     ``faulthandler``'s C-level watchdog writes the stack of every thread to stderr (the
     node's log: where it hung) and exits with code 1 (``backstop_s`` after ``timeout_s``).
     Its first line, ``[<label>] cleaning up: exit code <code>``, tells the supervisor what
-    the run had decided (:meth:`comems4build_ros.ros.supervisor.Child.decided_before_hang`).
+    the run had decided (:meth:`comems4build_ros.run.supervisor.Child.decided_before_hang`).
     """
     import faulthandler
     import os

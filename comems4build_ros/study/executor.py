@@ -1,7 +1,7 @@
 """One way to run a study's many runs: local worker processes or a Dask cluster, resumable.
 
 A study (``compare``, ``sweep``, ``reproduce``, ``size``, and any command with a set of runs) hands
-its runs (:class:`Job` objects, e.g. :class:`comems4build_ros.report.runner.RunTask`) to
+its runs (:class:`Job` objects, e.g. :class:`comems4build_ros.study.runner.RunTask`) to
 :func:`run_jobs` with a :class:`StudyExecutor`, which says where they execute and where the
 finished ones are stored:
 
@@ -19,7 +19,7 @@ interrupted study resumes (``--resume``) without running its finished runs again
 that dies during a run (killed, out of memory) costs that run only: it runs again on
 another worker, up to :data:`MAX_ATTEMPTS` times. Progress: one line per event with the
 runs done, running and failed (and the Dask dashboard's address), and one bar per running
-run on a terminal (:class:`comems4build_ros.progress.RunProgress`).
+run on a terminal (:class:`comems4build_ros.run.progress.RunProgress`).
 """
 
 from __future__ import annotations
@@ -46,9 +46,9 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
-from ..progress import ProgressCallback, RunProgress, echo
-from .spec import differences, environment, spec_hash
-from .store import RunStore, StoredRun, StoreError, materialize, place
+from comems4build_ros.run.progress import ProgressCallback, RunProgress, echo
+from comems4build_ros.study.spec import differences, environment, spec_hash
+from comems4build_ros.study.store import RunStore, StoredRun, StoreError, materialize, place
 
 #: Times a run is started when its worker dies under it (then the study fails naming it).
 MAX_ATTEMPTS = 3
@@ -579,8 +579,8 @@ def prepare_worker() -> dict[str, Any]:
     """Run on each worker when a study connects: import the simulation, return the environment record."""
     import importlib
 
-    for module in ("sim", "scenario", "ems", "kpi"):
-        importlib.import_module(f"comems4build_ros.{module}")
+    for module in ("loop", "scenario", "ems", "kpi"):
+        importlib.import_module(f"comems4build_ros.core.{module}")
     return environment()
 
 
@@ -623,7 +623,7 @@ class StudyExecutor:
     run), turns SIGTERM into KeyboardInterrupt for the block, locks the store and checks it
     (a store with finished runs and no ``resume`` is refused:
     :class:`~comems4build_ros.study.store.StoreError`), and makes the executor the one
-    :func:`comems4build_ros.report.runner.run_tasks` uses when given none. Call
+    :func:`comems4build_ros.study.runner.run_tasks` uses when given none. Call
     :meth:`complete` once the study's results are in place: it removes the store.
 
     Parameters

@@ -26,6 +26,8 @@ from importlib import metadata
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.paths import PACKAGE_DIR
+
 #: Libraries whose version is part of the environment record (numerical results depend on them).
 LIBRARIES = ("numpy", "scipy", "pandas", "scikit-fuzzy", "PuLP", "highspy", "osqp", "pvlib", "holidays")
 #: File suffixes left out of the code digest (byte code differs between installs of the same source).
@@ -58,16 +60,15 @@ def environment() -> dict[str, Any]:
 
     ``package``: version of comems4build_ros; ``code``: digest of the package directory
     (modules and shipped data); ``config``: digest of the default parameter files
-    (:func:`comems4build_ros.config.config_dir`); ``python``: major.minor version; one entry
+    (:func:`comems4build_ros.core.config.config_dir`); ``python``: major.minor version; one entry
     per library of :data:`LIBRARIES`: its version.
     """
-    from .. import __version__
-    from ..config import config_dir
+    from comems4build_ros import __version__
+    from comems4build_ros.core.config import config_dir
 
-    package_dir = Path(__file__).resolve().parents[1]
     record: dict[str, Any] = {
         "package": __version__,
-        "code": _tree_digest(package_dir),
+        "code": _tree_digest(PACKAGE_DIR),
         "config": _tree_digest(config_dir()),
         "python": ".".join(platform.python_version_tuple()[:2]),
         "implementation": sys.implementation.name,

@@ -140,7 +140,7 @@ def write_run_files(dest: Path, files: Mapping[str, bytes], record: Mapping[str,
 
 def place(out_dir: str | Path, files: Mapping[str, bytes], record: Mapping[str, Any]) -> Path:
     """Write a run's files and record into ``out_dir``, replacing what was there whole (all or nothing)."""
-    from ..fileio import atomic_dir
+    from comems4build_ros.files.outputs import atomic_dir
 
     with atomic_dir(out_dir, replaces=("*",)) as stage:
         write_run_files(stage, files, record)
@@ -149,7 +149,7 @@ def place(out_dir: str | Path, files: Mapping[str, bytes], record: Mapping[str, 
 
 def materialize(run: StoredRun, out_dir: str | Path) -> Path:
     """Copy a stored run into ``out_dir``, replacing what was there whole (all or nothing)."""
-    from ..fileio import atomic_dir
+    from comems4build_ros.files.outputs import atomic_dir
 
     with atomic_dir(out_dir, replaces=("*",)) as stage:
         for entry in run.path.iterdir():

@@ -1,13 +1,13 @@
 """EMS nodes: ``fuzzy_ems``, ``rbc_ems``, ``mpc_ems`` (and ``thermostat_ems``, ``mpc_qp_ems``).
 
 One module for every EMS: the node wraps the controller of the core
-(:func:`comems4build_ros.ems.make_controller`) and is swapped by starting another node;
+(:func:`comems4build_ros.core.ems.make_controller`) and is swapped by starting another node;
 all publish ``ems/command``. Each node subscribes to exactly the topics its row of
 ``tab:level_of_information`` allows (the contract lists the node as a subscriber of
 those topics only; :class:`~comems4build_ros.ros.node.ContractNode` refuses anything
 else). From the messages tagged with step ``k`` it rebuilds the very
-:class:`~comems4build_ros.ems.base.Observation` the in-process loop builds with
-:class:`comems4build_ros.sim.ObservationBuilder` (labels = observation fields, float64
+:class:`~comems4build_ros.core.ems.base.Observation` the in-process loop builds with
+:class:`comems4build_ros.core.loop.ObservationBuilder` (labels = observation fields, float64
 values unchanged, vectors as tuples), calls the controller once per step and publishes
 the command for step ``k`` (and the controller's ``step_info`` on ``ems/info``).
 
@@ -15,7 +15,7 @@ A repeated state announcement for a step already answered (the plant repeats whi
 waits, e.g. if the first command was lost during discovery) is answered with the same
 command again; the controller is never called twice for a step.
 
-Every command carries a token (:mod:`comems4build_ros.ros.tokens`): with the run secret
+Every command carries a token (:mod:`comems4build_ros.wire.tokens`): with the run secret
 of ``run_token_file`` (a file of mode 0600 the launcher writes) the command's own
 authentication code, else the plain ``run_token`` (visible to every local user) or,
 without either, one derived from the node's fully qualified name, so a restarted EMS
@@ -40,16 +40,16 @@ from typing import Any
 
 from rclpy.task import Future
 
-from ...config import parse_assignments
-from ...ems import make_controller
-from ...ems.base import Observation
-from ...types import ACTION_FIELDS
-from ..cdr import parse_array, string_cdr
-from ..contract import ContractError, load_contract, nest
-from ..node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
-from ..parameters import param, plant_params_from_node
-from ..process import run_node
-from ..tokens import command_mac, default_token, read_token_file, secret_key
+from comems4build_ros.core.config import parse_assignments
+from comems4build_ros.core.ems import make_controller
+from comems4build_ros.core.ems.base import Observation
+from comems4build_ros.core.types import ACTION_FIELDS
+from comems4build_ros.ros.node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
+from comems4build_ros.ros.parameters import param, plant_params_from_node
+from comems4build_ros.ros.process import run_node
+from comems4build_ros.wire.cdr import parse_array, string_cdr
+from comems4build_ros.wire.contract import ContractError, load_contract, nest
+from comems4build_ros.wire.tokens import command_mac, default_token, read_token_file, secret_key
 
 #: Topic whose repeated message for an answered step triggers a re-send of the command.
 RESEND_TRIGGER_TOPIC = "state/t_air_c"

@@ -12,7 +12,7 @@ For each step ``k`` the feed publishes (topics of ``msg_defs/topics.yaml``, elem
 * once at start-up ``feed/info`` (transient local): scenario name, start, steps, forecast
   mode and seed as JSON, so that a bag recorded without the launcher knows its scenario.
 
-The values are those of :class:`comems4build_ros.sim.ObservationBuilder` (MPC level,
+The values are those of :class:`comems4build_ros.core.loop.ObservationBuilder` (MPC level,
 which contains every other level), so an EMS node rebuilds exactly the observation of
 the in-process loop. With ``for_ems`` (the contract name of the EMS node of the run, e.g.
 ``fuzzy_ems``; the launcher sets it) the feed publishes only the EMS topics that node
@@ -45,12 +45,12 @@ from typing import Any
 from rclpy.task import Future
 from std_msgs.msg import String, UInt32
 
-from ...scenario.base import Scenario
-from ...scenario.run import check_scenario, load_scenario
-from ...types import EXOGENOUS_FIELDS, PlantState
-from ..node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
-from ..parameters import param, plant_params_from_node
-from ..process import run_node
+from comems4build_ros.core.scenario.base import Scenario
+from comems4build_ros.core.scenario.run import check_scenario, load_scenario
+from comems4build_ros.core.types import EXOGENOUS_FIELDS, PlantState
+from comems4build_ros.ros.node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
+from comems4build_ros.ros.parameters import param, plant_params_from_node
+from comems4build_ros.ros.process import run_node
 
 NODE_NAME = "feed"
 #: Feed topics besides feed/truth, published for every step.
@@ -83,7 +83,7 @@ def scenario_args(values: dict[str, Any], params: Any) -> tuple[Any, ...]:
 def prepare_scenario(node_params: dict[str, Any]) -> tuple[Scenario, list[str]]:
     """The scenario a feed node with ROS parameters ``node_params`` (``config_files``,
     ``overrides`` and :data:`SCENARIO_PARAMS`) loads, and the loader's notes; no rclpy."""
-    from ...config import load_plant_params, parse_assignments
+    from comems4build_ros.core.config import load_plant_params, parse_assignments
 
     overrides = parse_assignments(node_params.get("overrides") or [], "parameter 'overrides':")
     params = load_plant_params([f for f in node_params.get("config_files") or [] if f], overrides)
@@ -96,7 +96,7 @@ class LiveFeed:
     """Live prices and weather for the feed (parameter ``inputs:=live``; docs/real_building.md).
 
     The run's steps are laid on the wall-clock hours from the current hour
-    (:func:`comems4build_ros.live_inputs.live_scenario`). Prices and weather are fetched
+    (:func:`comems4build_ros.core.scenario.live.live_scenario`). Prices and weather are fetched
     once, blocking, on start, then by a worker thread on their schedule; new values are
     taken into the steps not yet published. Without a live price for the first hour (a
     failed fetch and no cached price for it) the node refuses to start (exit code 2, the
@@ -116,7 +116,7 @@ class LiveFeed:
 
         import pandas as pd
 
-        from ...live_inputs import PriceSource, WeatherSource, load_live_settings
+        from comems4build_ros.core.scenario.live import PriceSource, WeatherSource, load_live_settings
 
         self.feed = feed
         self.base = base
@@ -146,7 +146,7 @@ class LiveFeed:
         inputs of each step stand-in values replace)."""
         import pandas as pd
 
-        from ...live_inputs import live_scenario, stand_in_state
+        from comems4build_ros.core.scenario.live import live_scenario, stand_in_state
 
         with self.lock:
             scenario = live_scenario(self.base, self.params, self.start_time, self.prices, self.weather)
@@ -156,9 +156,9 @@ class LiveFeed:
     def published(self, k: int) -> None:
         """Step ``k`` is published for the first time: from the run's first step on, and
         whenever it changes, the inputs that stand-in values replace are stated on
-        ``feed/events`` (:data:`~comems4build_ros.live_inputs.STAND_IN_EVENT`, read by
+        ``feed/events`` (:data:`~comems4build_ros.core.scenario.live.STAND_IN_EVENT`, read by
         evaluate into ``live_inputs`` of the summary)."""
-        from ...live_inputs import STAND_IN_EVENT
+        from comems4build_ros.core.scenario.live import STAND_IN_EVENT
 
         state = self.states[k]
         if k > 0 and state == self.stated:
@@ -208,7 +208,7 @@ class Feed(EndsWithRun, ContractNode):
         ``scenario``: the scenario of the node's parameters prepared beforehand
         (:func:`prepare_scenario`, used by the feed host to build many in parallel)."""
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
-        from ...sim import load_forecast_settings
+        from comems4build_ros.core.loop import load_forecast_settings
 
         params = plant_params_from_node(self)
         values = {name: param(self, name, default) for name, default in SCENARIO_PARAMS.items()}
@@ -280,7 +280,7 @@ class Feed(EndsWithRun, ContractNode):
 
     def _use_scenario(self, scenario: Scenario) -> None:
         """Build the observation values of every step from ``scenario`` (again when live inputs change)."""
-        from ...sim import ObservationBuilder, exogenous_series
+        from comems4build_ros.core.loop import ObservationBuilder, exogenous_series
 
         exo = exogenous_series(scenario, self._params)
         self._builder = ObservationBuilder(scenario, self._params, self.level, exo, self._forecast)

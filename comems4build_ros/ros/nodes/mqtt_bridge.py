@@ -35,7 +35,7 @@ wall modes, outside its range, unreadable). On any finding, or while the EMS swi
 off or the fallback switch on, the bridge does not hand the measurements to the EMS (no
 ``state/*`` and no ``feed/measured`` for that step, by design: the step is named by a
 ``withheld`` event on ``plant/events``, so the recorder and the bag's gap check expect no
-such message), it sends :func:`comems4build_ros.ems.fallback.safe_action` as the
+such message), it sends :func:`comems4build_ros.core.ems.fallback.safe_action` as the
 set-points of that very step and publishes an alarm on ``bridge/alarm`` (ROS) and ``<base>/alarm`` (MQTT). Every
 command is clamped to the device limits and ramp limits and rate-limited
 (``min_interval_s``); changes are logged on ``plant/events`` and counted. An EMS silent
@@ -58,22 +58,22 @@ from typing import Any
 import numpy as np
 from std_msgs.msg import Float64MultiArray, String
 
-from ... import kpi
-from ...config import W_PER_KW
-from ...ems.fallback import safe_action
-from ...mqtt.client import MqttLink
-from ...mqtt.clock import parse_clock
-from ...mqtt.discovery import AVAILABLE, NOT_AVAILABLE, PAYLOAD_OFF, PAYLOAD_ON, discovery_messages
-from ...mqtt.plant import BRIDGE_RECORD_FIELDS
-from ...mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
-from ...mqtt.topicmap import PayloadError, load_topic_map
-from ...types import ACTION_FIELDS, Action
-from ..contract import WITHHELD_EVENT
-from ..ems_command import CommandError, check_token
-from ..lockstep import STATE_TOPICS, LockStepMaster
-from ..node import ArrayPublisher
-from ..parameters import param
-from ..process import run_node
+from comems4build_ros.core import kpi
+from comems4build_ros.core.config import W_PER_KW
+from comems4build_ros.core.ems.fallback import safe_action
+from comems4build_ros.core.types import ACTION_FIELDS, Action
+from comems4build_ros.mqtt.client import MqttLink
+from comems4build_ros.mqtt.clock import parse_clock
+from comems4build_ros.mqtt.discovery import AVAILABLE, NOT_AVAILABLE, PAYLOAD_OFF, PAYLOAD_ON, discovery_messages
+from comems4build_ros.mqtt.plant import BRIDGE_RECORD_FIELDS
+from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
+from comems4build_ros.mqtt.topicmap import PayloadError, load_topic_map
+from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
+from comems4build_ros.ros.node import ArrayPublisher
+from comems4build_ros.ros.parameters import param
+from comems4build_ros.ros.process import run_node
+from comems4build_ros.wire.contract import WITHHELD_EVENT
+from comems4build_ros.wire.ems_command import CommandError, check_token
 
 NODE_NAME = "mqtt_bridge"
 #: Lock-step: alarm when the building has sent nothing for this long [s].

@@ -1,6 +1,6 @@
 """``plant_sim``: the building plant as a ROS 2 node, master of the lock-step loop.
 
-The node owns a :class:`comems4build_ros.plant.Plant` and advances it one step at a
+The node owns a :class:`comems4build_ros.core.plant.Plant` and advances it one step at a
 time, only when both the inputs of the step (``feed/truth``) and a valid command for the
 step (``ems/command``) have arrived. Protocol (docs/ros_nodes.md):
 
@@ -15,7 +15,7 @@ step (``ems/command``) have arrived. Protocol (docs/ros_nodes.md):
    repeated every ``republish_period_s`` (a restarted EMS or a late subscriber picks it
    up). After ``step_timeout_s`` without a valid command (``startup_timeout_s`` before
    the first command or fallback of the run) the plant applies the safe fallback
-   (:func:`comems4build_ros.ems.fallback.safe_action`), logs and counts it
+   (:func:`comems4build_ros.core.ems.fallback.safe_action`), logs and counts it
    (``fallback_steps``) and moves on; the EMS takes over again as soon as it answers.
 3. Step the plant, announce ``k + 1``, then publish ``plant/record`` (one timeseries row
    of the in-process loop) and ``clock`` (end of step ``k``).
@@ -36,13 +36,13 @@ from typing import Any
 
 from std_msgs.msg import Float64MultiArray
 
-from ...ems.fallback import safe_action
-from ...plant import Plant
-from ...types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, PlantState
-from ..ems_command import CommandError, command_bounds, command_to_action
-from ..lockstep import STATE_TOPICS, LockStepMaster
-from ..node import ArrayPublisher
-from ..process import run_node
+from comems4build_ros.core.ems.fallback import safe_action
+from comems4build_ros.core.plant import Plant
+from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, PlantState
+from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
+from comems4build_ros.ros.node import ArrayPublisher
+from comems4build_ros.ros.process import run_node
+from comems4build_ros.wire.ems_command import CommandError, command_bounds, command_to_action
 
 NODE_NAME = "plant_sim"
 #: Interval of the "waiting for feed/truth" warning [s].

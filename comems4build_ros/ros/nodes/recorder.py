@@ -3,7 +3,7 @@
 For each namespace of the parameter ``namespaces`` (default: the node's own namespace)
 the node subscribes to every topic of ``msg_defs/topics.yaml`` with ``raw=True`` and
 writes the CDR bytes unchanged, stamped with the receive time [ns since the epoch] (as
-``ros2 bag record`` does), through :class:`comems4build_ros.ros.bag.BagWriter`: rosbags
+``ros2 bag record`` does), through :class:`comems4build_ros.bags.bag.BagWriter`: rosbags
 0.11.9, metadata version 8 (what Jazzy's ``ros2 bag info`` reads), Jazzy typestore.
 
 Crash safety: the pending MCAP chunk is written out and flushed when it is
@@ -24,7 +24,7 @@ End of run: with ``stop_when_done`` (default) the node closes the bag and exits 
 ``plant/done`` (or the last ``plant/record``) arrived from every namespace, every ``plant/record`` of the run
 (``n_steps`` from ``feed/truth``) is in, every other topic published once a step has every
 step (EMS topics: every step without a fallback; the bridge's state topics: every step
-without a ``withheld`` event, :data:`~comems4build_ros.ros.bag_eval.WITHHELD_EVENT`;
+without a ``withheld`` event, :data:`~comems4build_ros.bags.evaluation.WITHHELD_EVENT`;
 :meth:`Recorder.behind`), and no message
 of any topic has come for
 ``done_grace_s`` (its queues are drained; late ``ems/info`` of the last step); once done
@@ -67,13 +67,21 @@ from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, UInt32
 
-from ..bag import BagWriter, decode, qos_for_bag
-from ..bag_eval import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, is_per_step, withheld_topics
-from ..cdr import array_step, parse_array, uint32_value
-from ..contract import EVENTS_TOPIC, WITHHELD_EVENT, Contract, event_step_kind, load_contract, resolve
-from ..node import FINISHED_LOCAL_RECORDERS, no_default_event_callbacks
-from ..parameters import param, string_list
-from ..process import run_node
+from comems4build_ros.bags.bag import BagWriter, decode, qos_for_bag
+from comems4build_ros.bags.evaluation import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, is_per_step, withheld_topics
+from comems4build_ros.ros.interfaces import message_class, qos_profile
+from comems4build_ros.ros.node import FINISHED_LOCAL_RECORDERS, no_default_event_callbacks
+from comems4build_ros.ros.parameters import param, string_list
+from comems4build_ros.ros.process import run_node
+from comems4build_ros.wire.cdr import array_step, parse_array, uint32_value
+from comems4build_ros.wire.contract import (
+    EVENTS_TOPIC,
+    WITHHELD_EVENT,
+    Contract,
+    event_step_kind,
+    load_contract,
+    resolve,
+)
 
 NODE_NAME = "recorder"
 #: History depth of every recording subscription: how many messages per topic may queue
@@ -231,7 +239,7 @@ class Recorder(Node):
                                         spec.name in no_state)
                     self.per_step[ns].append(counter)
                 sub = self.create_subscription(
-                    spec.msg_class(), full, self._callback(ns, spec.name, full, holder, counter),
+                    message_class(spec), full, self._callback(ns, spec.name, full, holder, counter),
                     self._record_qos(spec.qos),
                     raw=True, event_callbacks=no_default_event_callbacks("subscription"),
                 )
@@ -244,10 +252,10 @@ class Recorder(Node):
         progress_spec = self.contract.topic(PROGRESS_TOPIC)
         for ns in self.namespaces:
             self._ready_pubs.append(
-                self.create_publisher(ready_spec.msg_class(), resolve(ns, ready_spec.name), ready_spec.qos_profile())
+                self.create_publisher(message_class(ready_spec), resolve(ns, ready_spec.name), qos_profile(ready_spec))
             )
             self._progress_pubs[ns] = self.create_publisher(
-                progress_spec.msg_class(), resolve(ns, PROGRESS_TOPIC), progress_spec.qos_profile()
+                message_class(progress_spec), resolve(ns, PROGRESS_TOPIC), qos_profile(progress_spec)
             )
         self.contiguous = dict.fromkeys(self.namespaces, 0)  # steps 0..c-1 of plant/record written
         self._ahead: dict[str, set[int]] = {ns: set() for ns in self.namespaces}

@@ -42,10 +42,10 @@ from typing import Any
 from rclpy.duration import Duration
 from rclpy.task import Future
 
-from ..bag import BagInfo, decode, iter_messages
-from ..node import ContractNode
-from ..parameters import param
-from ..process import run_node
+from comems4build_ros.bags.bag import BagInfo, decode, iter_messages
+from comems4build_ros.ros.node import ContractNode
+from comems4build_ros.ros.parameters import param
+from comems4build_ros.ros.process import run_node
 
 NODE_NAME = "replay"
 #: Messages published at most per timer tick.

@@ -1,0 +1,211 @@
+"""Speed of the ROS 2 node set: step round trip, 12-week fuzzy run, throughput with N buildings.
+
+``comems4build bench ros`` prints, in one run:
+
+1. the 12-week fuzzy run over ROS (``comems4build launch``: plant_sim, feed, fuzzy_ems
+   and the recorder as separate processes over Fast DDS) next to the same run
+   in-process, with a check that both summaries are equal (timing entries aside);
+2. the median and 99th percentile of the step round trip plant -> EMS -> plant in that
+   run, as measured by plant_sim (from the state announcement of step k to the arrival
+   of the command for step k; ``plant/events`` "stats" line in the bag);
+3. the throughput with ``--buildings 1, 4, 16`` (N independent buildings under
+   ``/building_<i>``; see :mod:`comems4build_ros.ros.container`): wall time and
+   building-steps per second.
+
+The one-building run goes twice: one OS process per node (the default of ``launch``) and
+composed into one container process (``launch --layout building``: recorder, EMS, feed
+and plant as four rclpy nodes of one process, still exchanging every message through
+DDS). Runs with more buildings use ``--layout`` (default ``building``, the launcher's
+default: one container per core, ``--containers`` to change).
+
+Targets on 2 cores: round trip median < 2 ms and p99 < 10 ms, 12-week fuzzy run over ROS
+< 5 s (one process per node as well as composed), 16 buildings x 12 weeks < 2 min, and no
+message lost by the recorder in any run.
+Wall times include process start-up (imports, scenario generation) and the bag
+evaluation is not included. Figures depend on the load of the machine: the benchmark
+prints the load average before and after each run.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+import os
+import tempfile
+import time
+import warnings
+from pathlib import Path
+from typing import Any
+
+from comems4build_ros.app.commands.options import BUILDINGS, COUNT, SECONDS, WEEKS
+
+TARGET_RTT_MEDIAN_MS = 2.0
+TARGET_RTT_P99_MS = 10.0
+TARGET_FUZZY_12W_S = 5.0
+TARGET_16_BUILDINGS_S = 120.0
+TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # only in summaries from a bag
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``comems4build bench ros``."""
+    parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12, help="run length [weeks], > 0 (default 12)")
+    parser.add_argument("--buildings", metavar="N[,N...]", default="1,4,16",
+                        help="building counts of the throughput runs (default 1,4,16)")
+    parser.add_argument("--ems", metavar="NAME", default="fuzzy", help="EMS of every run (default fuzzy)")
+    parser.add_argument("--out", metavar="DIR", default=None,
+                        help="keep the runs in this directory (default: a temporary one)")
+    parser.add_argument("--layout", choices=("building", "role", "node"), default="building",
+                        help="process layout of the runs with more than one building (launch --layout; default "
+                             "building, the launcher's default)")
+    parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
+                        help="container processes of the layout 'building' (default: one per core)")
+    parser.add_argument("--timeout", metavar="S", type=SECONDS, default=600.0,
+                        help="give up a throughput run after this [s], > 0")
+
+
+def plant_stats(bag: Path) -> dict[str, dict[str, float]]:
+    """plant_sim's end-of-run statistics per namespace, from the ``plant/events`` "stats" lines."""
+    from comems4build_ros.bags.bag import decode, iter_messages
+
+    out: dict[str, dict[str, float]] = {}
+    for topic, msgtype, _t, raw in iter_messages(bag):
+        if not topic.endswith("plant/events"):
+            continue
+        parts = str(decode(msgtype, raw).data).split()
+        if len(parts) > 2 and parts[1] == "stats":
+            ns = topic[: -len("/plant/events")] or "/"
+            out[ns] = {k: float(v) for k, v in (p.split("=", 1) for p in parts[2:] if "=" in p)}
+    return out
+
+
+def _load() -> str:
+    one, five, _ = os.getloadavg()
+    return f"load average {one:.2f} (1 min), {five:.2f} (5 min) on {os.cpu_count()} cores"
+
+
+def _mark(ok: bool) -> str:
+    return "meets target" if ok else "MISSES target"
+
+
+def _options(args: argparse.Namespace, out: Path, weeks: float, buildings: int, layout: str) -> Any:
+    """LaunchOptions of one benchmark run in ``layout`` (node, building or role)."""
+    from comems4build_ros.run.plan import LaunchOptions
+    from comems4build_ros.run.progress import is_terminal
+
+    return LaunchOptions(ems=args.ems, out=out, weeks=weeks, buildings=buildings, timeout_s=args.timeout,
+                         progress=is_terminal(), layout=layout,
+                         containers=args.containers if layout == "building" else None)
+
+
+def _layout_label(opts: Any) -> str:
+    from comems4build_ros.run.plan import container_count, effective_layout
+
+    layout = effective_layout(opts)
+    if layout == "building":
+        return f"{container_count(opts)} container process(es)"
+    return "one process per node" if layout == "node" else "one process per role"
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the benchmark and print the figures."""
+    from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.bags.evaluation import lost_messages
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario.run import load_scenario
+    from comems4build_ros.files.outputs import check_out_dir
+    from comems4build_ros.run.launcher import launch
+    from comems4build_ros.run.supervisor import LaunchError
+
+    try:  # each count by the rule of launch --buildings
+        counts = [BUILDINGS(x.strip()) for x in str(args.buildings).split(",") if x.strip()]
+    except argparse.ArgumentTypeError as exc:
+        raise UsageError(f"--buildings {args.buildings}: {exc}") from None
+    if not counts:
+        raise UsageError(f"--buildings '{args.buildings}': no count given")
+    if args.out:
+        check_out_dir(args.out)
+    root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bench_ros_"))
+    root.mkdir(parents=True, exist_ok=True)
+    params = load_plant_params()
+    weeks = args.weeks
+    whole = math.ceil(weeks - 1e-9)
+    steps = int(round(weeks * 168))
+    many_layout = getattr(args, "layout", None) or "building"
+
+    print(f"== 1. {args.ems}, {weeks:g} weeks ({steps} steps): ROS node set vs in-process   [{_load()}]")
+    t0 = time.perf_counter()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        scenario = load_scenario("default", params, None, whole, None, steps if steps != whole * 168 else None)
+        ref = simulate(args.ems, scenario, params)
+    t_in = time.perf_counter() - t0
+    print(f"in-process: {t_in:7.2f} s (scenario + run; run alone {ref.summary['wall_s']:.2f} s)")
+    one: dict[str, Any] = {}
+    for layout in ("node", "building"):  # separate processes (the default), then composed into one container
+        opts = _options(args, root / f"{args.ems}_{weeks:g}w_{layout}", weeks, 1, layout)
+        res = one[layout] = launch(opts)
+        summary = res.summaries["/"]
+        diff = sorted(k for k in set(ref.summary) | set(summary) - set(TIMING_KEYS)
+                      if k not in TIMING_KEYS and ref.summary.get(k) != summary.get(k))
+        lost = lost_messages(res.bag)
+        print(f"over ROS, {_layout_label(opts)}: {res.wall_s:7.2f} s (process start to end of run; "
+              f"{res.run_s:.2f} s after the first record)  -> {_mark(res.wall_s < TARGET_FUZZY_12W_S)} "
+              f"< {TARGET_FUZZY_12W_S:g} s")
+        print(f"   summaries equal (timing aside): {'yes' if not diff else 'NO, differ in ' + ', '.join(diff)}; "
+              f"messages lost by the recorder: {sum(lost.values())}   ({_load()})")
+
+    print(f"\n== 2. step round trip plant -> {args.ems}_ems -> plant over DDS (measured by plant_sim)")
+    for layout, res in one.items():
+        stats = plant_stats(res.bag).get("/", {})
+        med, p99 = stats.get("rtt_median_ms", float("nan")), stats.get("rtt_p99_ms", float("nan"))
+        print(f"{layout:>8} layout, {int(stats.get('steps', 0))} steps: median {med:.3f} ms -> "
+              f"{_mark(med < TARGET_RTT_MEDIAN_MS)} < {TARGET_RTT_MEDIAN_MS:g} ms; "
+              f"p99 {p99:.3f} ms -> {_mark(p99 < TARGET_RTT_P99_MS)} < {TARGET_RTT_P99_MS:g} ms")
+
+    print(f"\n== 3. throughput, {args.ems}, {weeks:g} weeks per building; 1 building as above, more in layout "
+          f"'{many_layout}'")
+    print(f"{'buildings':>9} {'layout':>8} {'procs':>5} {'wall_s':>8} {'run_s':>8} {'building-steps/s':>17} "
+          f"{'rtt_med_ms':>10} {'rtt_p99_ms':>10} {'fallback':>8} {'held_s':>7} {'lost':>5}  load after (1 min)")
+    rows: list[tuple[int, str, Any]] = []
+    for n in counts:
+        if n == 1:
+            for layout, res in one.items():
+                rows.append((1, layout, res))
+                _print_row(*rows[-1], steps)
+            continue
+        print(f"   ({_load()})", flush=True)
+        try:
+            rows.append((n, many_layout, launch(_options(args, root / f"{args.ems}_{weeks:g}w_x{n}", weeks, n,
+                                                         many_layout))))
+        except LaunchError as exc:
+            print(f"{n:>9} {many_layout:>8} FAILED: {str(exc).splitlines()[0]}", flush=True)
+            continue
+        _print_row(*rows[-1], steps)
+    w16 = [r.wall_s for n, _, r in rows if n == 16]
+    if 16 in counts and not w16:
+        print(f"16 buildings x {weeks:g} weeks: failed -> MISSES target < {TARGET_16_BUILDINGS_S:g} s")
+    if w16:
+        print(f"16 buildings x {weeks:g} weeks: {w16[0]:.1f} s -> {_mark(w16[0] < TARGET_16_BUILDINGS_S)} "
+              f"< {TARGET_16_BUILDINGS_S:g} s")
+    print(f"\nruns kept in {root}")
+    return 0
+
+
+def _print_row(n: int, layout: str, r: Any, steps: int) -> None:
+    """One row of the throughput table (statistics from the bag)."""
+    from comems4build_ros.bags.evaluation import lost_messages
+
+    st = plant_stats(r.bag)
+    vals = {key: sorted(v.get(key, float("nan")) for v in st.values()) for key in ("rtt_median_ms", "rtt_p99_ms")}
+
+    def mid(key: str) -> float:
+        return vals[key][len(vals[key]) // 2] if vals[key] else float("nan")
+
+    lost_n = sum(lost_messages(r.bag).values())
+    procs = len(list((r.out / "log").glob("*.log")))
+    fb = sum(int(v.get("fallback_steps", 0)) for v in st.values())
+    held = max((v.get("held_for_recorder_s", 0.0) for v in st.values()), default=0.0)
+    print(f"{n:>9} {layout:>8} {procs:>5} {r.wall_s:8.2f} {r.run_s:8.2f} {n * steps / r.wall_s:17.1f} "
+          f"{mid('rtt_median_ms'):10.3f} {mid('rtt_p99_ms'):10.3f} {fb:>8} {held:7.2f} {lost_n:>5}  "
+          f"{os.getloadavg()[0]:.2f}", flush=True)

@@ -1,0 +1,88 @@
+"""``comems4build`` command line.
+
+Each subcommand lives in ``comems4build_ros/app/commands/<module>.py`` exposing
+``add_arguments(parser)`` and ``run(args) -> int``; heavy imports happen inside ``run``
+so that ``comems4build --help`` stays fast. Exit codes: 0 success, 1 failure of the
+job, 2 invalid usage or input (unknown EMS, unreadable file, invalid option, an output
+that cannot be written).
+"""
+
+from __future__ import annotations
+
+import argparse
+import importlib
+import sys
+
+#: subcommand -> (module under comems4build_ros.app.commands, one-line help)
+COMMANDS: dict[str, tuple[str, str]] = {
+    "simulate": ("simulate", "one EMS in-process over a scenario; writes DIR/timeseries.csv (every state, command "
+                             "and flow per step), DIR/weekly.csv (one row per week, a partial week marked) and "
+                             "DIR/summary.json"),
+    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros, study"),
+    "data": ("data", "build scenario CSVs from real sources (aWATTar, DWD, DHWCalc, load CSV)"),
+    "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D) as "
+                                       "PDF, SVG and PNG"),
+    "launch": ("launch", "the ROS 2 node set (plant_sim, feed, EMS, recorder) as separate processes over DDS on an "
+                         "isolated domain; writes DIR/bag/ (MCAP), DIR/weekly.csv and DIR/summary.json from the bag"),
+    "evaluate": ("evaluate", "weekly KPIs and summary from any recorded bag (a damaged bag is salvaged and marked "
+                             "incomplete)"),
+    "compare": ("compare", "RBC, fuzzy and MPC on one scenario; DIR/report.md, DIR/report.html (contents, figures "
+                           "linked to their vector versions) and the paper-style figures as PDF, SVG and 300 dpi PNG; "
+                           "a progress bar per run on a terminal"),
+    "sweep": ("sweep", "sensitivity grid on local processes or a Dask cluster; one table and one plot per KPI "
+                       "(PDF, SVG, PNG)"),
+    "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
+    "size": ("size", "sizing study over the year: a grid or sampled design of PV, battery, electrolyser, FC and "
+                     "H2 store sizes per EMS; annual cost (energy, annuities, O&M, wear), self-sufficiency, whether "
+                     "the seasonal cycle closes, the Pareto front; table, figure and report"),
+}
+
+
+class UsageError(Exception):
+    """Invalid input or option; reported with exit code 2."""
+
+
+def build_parser() -> argparse.ArgumentParser:
+    """Parser with every available subcommand."""
+    parser = argparse.ArgumentParser(prog="comems4build", description=__doc__.splitlines()[0])
+    sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
+    for name, (module, help_text) in COMMANDS.items():
+        try:
+            mod = importlib.import_module(f"comems4build_ros.app.commands.{module}")
+        except ModuleNotFoundError as exc:
+            if exc.name != f"comems4build_ros.app.commands.{module}":
+                raise
+            continue  # subcommand not built yet
+        p = sub.add_parser(name, help=help_text, description=help_text)
+        mod.add_arguments(p)
+        p.set_defaults(_run=mod.run)
+    return parser
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Entry point of ``comems4build``; returns the exit code."""
+    from comems4build_ros.core.config import ConfigError
+
+    parser = build_parser()
+    args = parser.parse_args(argv)
+    try:
+        return int(args._run(args) or 0)
+    except (UsageError, ConfigError, FileNotFoundError, ValueError) as exc:
+        print(f"comems4build {args.command}: error: {exc}", file=sys.stderr)
+        return 2
+    except OSError as exc:  # an output that cannot be written (full disk, read-only, removed directory)
+        where = f"{exc.filename}: " if exc.filename else ""
+        print(f"comems4build {args.command}: error: {where}{exc.strerror or exc}; nothing partial was kept",
+              file=sys.stderr)
+        return 2
+    except KeyboardInterrupt:
+        print(f"comems4build {args.command}: interrupted", file=sys.stderr)
+        return 130
+
+
+if __name__ == "__main__":
+    # ``python -m comems4build_ros.app.cli``: run the package's module, not this ``__main__`` copy,
+    # whose exception classes (UsageError, ...) are not the ones the commands raise.
+    from comems4build_ros.app.cli import main as _main
+
+    sys.exit(_main())

@@ -1,0 +1,101 @@
+"""``comems4build data``: build scenario CSVs from real sources.
+
+- ``data fetch-prices --start DATE --end DATE --out prices.json`` downloads aWATTar
+  day-ahead prices (internet access needed; urllib only).
+- ``data build --prices X.json --temperature Y.txt --solar Z.txt [--dhw D.txt] [--load L.csv]
+  --out scenario.csv`` combines the sources into a scenario CSV (hourly, local time with UTC
+  offset); DHW and load come from the default generator when not given, which it says.
+"""
+
+from __future__ import annotations
+
+import argparse
+
+from comems4build_ros.app.commands.options import SEED, integer
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Subcommands ``fetch-prices`` and ``build``."""
+    sub = parser.add_subparsers(dest="data_command", metavar="ACTION", required=True)
+    fetch = sub.add_parser("fetch-prices", help="download aWATTar day-ahead prices as JSON (needs internet)")
+    fetch.add_argument("--start", metavar="ISO", required=True,
+                       help="first hour, ISO date/time (naive = site local time)")
+    fetch.add_argument("--end", metavar="ISO", required=True, help="end (exclusive), ISO date/time")
+    fetch.add_argument("--out", metavar="FILE.json", required=True, help="JSON file to write")
+    fetch.add_argument("--config", metavar="FILE", action="append", default=[],
+                       help="extra plant parameter file (site time zone)")
+
+    build = sub.add_parser("build", help="combine price, weather, DHW and load sources into a scenario CSV")
+    build.add_argument("--prices", metavar="FILE.json", required=True, help="aWATTar marketdata JSON")
+    build.add_argument("--temperature", metavar="FILE", required=True,
+                       help="DWD air temperature, 10-minute (TT_10) or hourly (TT_TU)")
+    build.add_argument("--solar", metavar="FILE", required=True,
+                       help="DWD 10-minute solar radiation (GS_10, DS_10 in J/cm2)")
+    build.add_argument("--dhw", metavar="FILE", help="DHWCalc output (l/h per step, one year); default: generator")
+    build.add_argument("--dhw-year", metavar="YEAR", type=integer(1900, 2200),
+                       help="calendar year of the DHWCalc file, 1900 .. 2200 (default: first year built)")
+    build.add_argument("--load", metavar="FILE.csv",
+                       help="household load CSV (time + power column); default: generator")
+    build.add_argument("--load-column", metavar="NAME", help="power column of the load CSV")
+    build.add_argument("--load-unit", choices=("W", "kW"), help="unit of the power column (default: from its name)")
+    build.add_argument("--start", metavar="ISO",
+                       help="first hour (ISO; naive = site local time); default: first common hour")
+    build.add_argument("--end", metavar="ISO", help="end, exclusive (ISO); default: last common hour + 1 h")
+    build.add_argument("--seed", metavar="N", type=SEED,
+                       help="seed of the generator for DHW/load not given (0 .. 2^32-1)")
+    build.add_argument("--config", metavar="FILE", action="append", default=[],
+                       help="extra plant parameter file (site, holidays)")
+    build.add_argument("--out", metavar="FILE.csv", required=True, help="scenario CSV to write")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run ``fetch-prices`` or ``build``."""
+    from comems4build_ros.app.commands.options import UsageError, load_params
+    from comems4build_ros.core.config import check_input_file
+    from comems4build_ros.core.scenario import loaders
+    from comems4build_ros.files.outputs import check_out_file, write_text_atomic
+
+    params = load_params(args.config)
+    tz = params.site.timezone
+    check_out_file(args.out)
+
+    # --start / --end: ISO 8601, naive = site time (no DST gap, no ambiguous hour), checked before any file is read
+    start, end = (loaders.local_time(text, tz, option) if text else None
+                  for text, option in ((args.start, "--start"), (args.end, "--end")))
+    if start is not None and end is not None and end <= start:
+        raise UsageError("--end must be after --start")
+
+    if args.data_command == "fetch-prices":
+        import urllib.error
+
+        try:
+            text = loaders.fetch_awattar(start, end)
+        except (urllib.error.URLError, TimeoutError, OSError) as exc:
+            print(f"comems4build data fetch-prices: download failed: {exc}")
+            return 1
+        out = write_text_atomic(args.out, text)
+        series = loaders.read_awattar_json(out)
+        print(f"wrote {out}: {len(series)} hourly prices {series.index[0]} .. {series.index[-1]}")
+        return 0
+
+    for option in ("prices", "temperature", "solar", "dhw", "load"):
+        path = getattr(args, option)
+        if path is not None:
+            check_input_file(path, f"--{option}")
+    prices = (args.prices, loaders.read_awattar_json(args.prices))
+    temperature = (args.temperature, loaders.read_dwd_temperature(args.temperature))
+    solar = (args.solar, loaders.read_dwd_solar(args.solar))
+    dhw = None
+    if args.dhw:
+        year = args.dhw_year or (start.year if start is not None else prices[1].index[0].tz_convert(tz).year)
+        dhw = (args.dhw, loaders.read_dhwcalc(args.dhw, year, tz))
+    load = (args.load, loaders.read_load_csv(args.load, args.load_column, args.load_unit)) if args.load else None
+    frame, provenance = loaders.build_scenario_frame(
+        params, prices, temperature, solar, dhw=dhw, load=load, start=args.start, end=args.end, seed=args.seed
+    )
+    out = loaders.write_frame_csv(frame, args.out, tz)
+    first, last = frame.index[0].tz_convert(tz), frame.index[-1].tz_convert(tz)
+    print(f"wrote {out}: {len(frame)} hours {first.isoformat()} .. {last.isoformat()}")
+    for col, source in provenance.items():
+        print(f"  {col:18s} <- {source}")
+    return 0

@@ -1,0 +1,76 @@
+"""``comems4build evaluate``: weekly KPIs and summary from a recorded bag."""
+
+from __future__ import annotations
+
+import argparse
+import json
+from pathlib import Path
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``evaluate``."""
+    parser.add_argument("bag", help="rosbag2 directory (MCAP storage) or .mcap file; a bag cut by SIGKILL is read too")
+    parser.add_argument("--out", metavar="DIR", required=True,
+                        help="output directory (timeseries.csv, weekly.csv, summary.json)")
+    parser.add_argument("--config", action="append", default=None, metavar="FILE",
+                        help="parameter file merged over config/plant.yaml (default: the bag's run_info.json)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one plant parameter (with --config or alone)")
+    parser.add_argument("--no-timeseries", action="store_true", help="do not write timeseries.csv")
+    parser.add_argument("--accept-gaps", action="store_true",
+                        help="evaluate a bag that misses messages on some topic (default: refuse, exit 2)")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Read the bag, compute the KPIs, write the files."""
+    from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.app.commands.options import check_config_files
+    from comems4build_ros.app.commands.simulate import parse_assignments
+    from comems4build_ros.bags.evaluation import building_dir, evaluate_bag, read_run_info
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.loop import RUN_FILES
+    from comems4build_ros.files.outputs import atomic_dir, check_out_dir
+
+    bag = Path(args.bag)
+    if not bag.exists():
+        raise UsageError(f"bag {bag}: no such file or directory")
+    check_out_dir(args.out)
+    params = None
+    if args.config is not None or args.set:
+        check_config_files(args.config or [])
+        info = read_run_info(bag)
+        files = args.config if args.config is not None else info.get("config_files") or []
+        overrides = dict(info.get("overrides") or {}) if args.config is None else {}
+        overrides.update(parse_assignments(args.set, "--set"))
+        params = load_plant_params(files, overrides)
+    # all or nothing: the results go to a temporary directory, then replace those of an earlier evaluate
+    # (no older timeseries.csv or building_<i>/ stays beside them)
+    with atomic_dir(args.out, replaces=(*RUN_FILES, "building_*")) as stage:
+        summaries = evaluate_bag(bag, stage, params=params, timeseries=not args.no_timeseries,
+                                 accept_gaps=args.accept_gaps)
+    damaged = {ns: s["bag_incomplete"] for ns, s in summaries.items() if "bag_incomplete" in s}
+    for ns, d in damaged.items():  # each building with its own bag's damage
+        why = "; ".join(d["damage"]) or ("no metadata.yaml (recorder killed?); read the .mcap directly"
+                                          if not d["metadata_yaml"] else "")
+        if d.get("run_cut"):
+            why = f"run cut short: {d['run_cut'].get('cause')}" + (f"; {why}" if why else "")
+        where = "" if len(summaries) == 1 else f" (building {ns.strip('/') or 'root'})"
+        print(f"bag {bag}{where}: incomplete: {d['steps_recorded']} of {d['steps_expected'] or '?'} steps recorded"
+              + (f"; {why}" if why else ""))
+    if not damaged:
+        print(f"bag {bag}: complete")
+    keys = ("weeks", "steps", "cost_eur_week_median", "discomfort_kh_week_median", "loh_end", "fallback_steps")
+    for ns, s in summaries.items():  # with what was cut or stood in (a run on live inputs), where it applies
+        marks = {k: s[k] for k in ("bag_incomplete", "live_inputs") if k in s}
+        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **marks}))
+    out = Path(args.out)
+    names = [n for n in RUN_FILES if not (args.no_timeseries and n == "timeseries.csv")]
+    written = [p for p in (building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names) if p.exists()]
+    if len(summaries) > 1 or "/" not in summaries:
+        written += [out / "weekly.csv", out / "summary.json"]
+    print(f"wrote {len(written)} files: {', '.join(str(p) for p in written)}")
+    from comems4build_ros.app.commands.simulate import warn_run
+
+    for s in summaries.values():
+        warn_run(s, "evaluate")
+    return 0

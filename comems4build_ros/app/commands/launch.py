@@ -1,0 +1,316 @@
+"""``comems4build launch``: the ROS 2 node set as separate processes, evaluated from the bag."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from comems4build_ros.app.commands.options import (
+    BUILDINGS,
+    COUNT,
+    DOMAIN_ID,
+    MAX_BUILDINGS,
+    SECONDS,
+    SEED,
+    add_scenario_options,
+)
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``launch``."""
+    parser.add_argument("--ems", metavar="NAME", required=True,
+                        help="EMS node: fuzzy, rbc, mpc (also thermostat, mpc-qp)")
+    add_scenario_options(parser, hours=False, seed=False, extend=False)
+    parser.add_argument("--steps", metavar="N", type=COUNT, default=None,
+                        help="cut the run to its first N steps, integer >= 1 (short runs)")
+    parser.add_argument("--buildings", metavar="N", type=BUILDINGS, default=1,
+                        help="independent buildings under /building_<i>/, scenario seed + i, integer 1 .. "
+                             f"{MAX_BUILDINGS} (default 1)")
+    parser.add_argument("--seed", metavar="N", type=SEED, default=None,
+                        help="scenario seed of building 0 (default scenario; 0 .. 2^32-1)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="parameter file merged over config/plant.yaml (repeatable)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one plant parameter, e.g. --set battery.e_max_kwh=10 (repeatable)")
+    parser.add_argument("--ems-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="option passed to the EMS (repeatable)")
+    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
+                        help="forecasts given to the MPC (default: config/forecast.yaml)")
+    parser.add_argument("--all-inputs", action="store_true",
+                        help="the feed publishes every EMS input (tab:level_of_information), also what this EMS does "
+                             "not read, so that the bag can drive any EMS with 'replay --inputs-only'")
+    parser.add_argument("--domain-id", metavar="ID", type=DOMAIN_ID, default=None,
+                        help="ROS_DOMAIN_ID of the run, 0 .. 232 (default: a free id, locked for the run)")
+    parser.add_argument("--step-timeout", metavar="S", type=SECONDS, default=None,
+                        help="plant_sim's wait for a command before its safe fallback [s], > 0")
+    parser.add_argument("--timeout", metavar="S", type=SECONDS, default=None,
+                        help="give up after this wall time [s], > 0")
+    parser.add_argument("--plant", choices=("sim", "mqtt"), default="sim",
+                        help="sim: plant_sim on ROS; mqtt: the simulated building behind MQTT via mqtt_bridge")
+    parser.add_argument("--clock", metavar="sim|wall|wall:F", type=_clock, default="sim",
+                        help="sim (lock-step), wall (a step per hour), wall:<factor> (faster); wall needs --plant mqtt")
+    parser.add_argument("--broker", metavar="URL", type=_broker_url, default=None,
+                        help="MQTT broker, mqtt://host:port or mqtts://host:port (default: an embedded amqtt broker)")
+    parser.add_argument("--topic-map", metavar="FILE", default=None, help="MQTT topic map (default config/mqtt.yaml)")
+    parser.add_argument("--inputs", choices=("scenario", "live"), default="scenario",
+                        help="feed inputs: the scenario (default) or live aWATTar prices and weather (real buildings; "
+                             "refused with exit code 2 when no live price for the current hour can be had)")
+    parser.add_argument("--live-config", metavar="FILE", default=None,
+                        help="live-input settings for --inputs live (default config/live_inputs.yaml)")
+    parser.add_argument("--out", metavar="DIR", required=True,
+                        help="output directory (bag/, log/, weekly.csv, summary.json)")
+    parser.add_argument("--bag", metavar="DIR", default=None,
+                        help="bag directory to create (default DIR/bag of --out)")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+    parser.add_argument("--network", choices=("local", "netns"), default="local",
+                        help="local (default) or netns: plant+feed and EMS+recorder in two network namespaces "
+                             "joined by a veth pair, DDS over UDP with unicast discovery (root, 'ip netns')")
+    parser.add_argument("--netem", default=None, metavar="ARGS", type=_netem,
+                        help="with --network netns: 'tc netem' arguments of the link, e.g. 'delay 5ms loss 1%%' "
+                             "(skipped with a note where the kernel lacks netem)")
+    parser.add_argument("--layout", choices=("node", "building", "role"), default=None,
+                        help="processes: node = one per node (default for 1 building), building = container "
+                             "processes each running every node of some buildings (default for more), role = one "
+                             "per role for all buildings")
+    parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
+                        help="container processes of --layout building (implies it), building i in container "
+                             "i mod N (default: one per core)")
+    parser.add_argument("--namespace", metavar="NS", type=_namespace, default="/",
+                        help="ROS namespace of the building (one building) or of the buildings' namespaces "
+                             "building_<i> (default /)")
+    parser.add_argument("--print-plan", action="store_true",
+                        help="print the run plan (processes, nodes, parameters) and exit without starting anything")
+
+
+def _clock(text: str) -> str:
+    """``--clock`` value, checked by :func:`comems4build_ros.mqtt.clock.parse_clock`."""
+    from comems4build_ros.mqtt.clock import ClockError, parse_clock
+
+    try:
+        return parse_clock(text).spec()
+    except ClockError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _namespace(text: str) -> str:
+    """``--namespace`` value: an absolute ROS namespace (:func:`comems4build_ros.run.plan.namespaces`)."""
+    from comems4build_ros.run.plan import namespaces
+
+    try:
+        return namespaces(1, text)[0]
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _netem(text: str) -> str:
+    """``--netem`` value, checked by :func:`comems4build_ros.app.commands.netem.check_netem` (tc-netem(8))."""
+    from comems4build_ros.app.commands.netem import NetemError, check_netem
+
+    try:
+        return check_netem(text)
+    except NetemError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def _broker_url(text: str) -> str:
+    """``--broker`` value, checked by :func:`comems4build_ros.mqtt.topicmap.check_broker_url`."""
+    from comems4build_ros.mqtt.topicmap import check_broker_url
+
+    try:
+        return check_broker_url(text)
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(str(exc)) from None
+
+
+def check_plant_options(args: argparse.Namespace) -> None:
+    """``--plant``, ``--clock``, ``--broker``, ``--topic-map``, ``--netem`` and their combinations.
+
+    A bad combination raises :class:`UsageError` naming the options; with ``--plant mqtt``
+    the topic map is read and validated whole (:class:`~comems4build_ros.core.config.ConfigError`
+    naming the file and the parameter).
+    """
+    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.core.config import check_input_file
+
+    if args.topic_map is not None:
+        check_input_file(args.topic_map, "--topic-map")
+    if args.plant != "mqtt" and (args.clock != "sim" or args.broker or args.topic_map):
+        raise UsageError("--clock wall, --broker and --topic-map need --plant mqtt")
+    if args.plant == "mqtt" and args.buildings != 1:
+        raise UsageError("--plant mqtt runs one building (--buildings 1)")
+    if args.netem is not None and args.network != "netns":
+        raise UsageError("--netem needs --network netns")
+    layout = getattr(args, "layout", None)
+    if layout in ("node", "role") and getattr(args, "containers", None) is not None:
+        raise UsageError(f"--containers needs --layout building, not --layout {layout}")
+    if (layout == "building" or getattr(args, "containers", None) is not None) and (
+            args.plant != "sim" or args.network != "local"):
+        raise UsageError("--layout building and --containers need --plant sim and --network local")
+    if args.broker and args.network != "local":
+        raise UsageError("--broker needs --network local (the netns namespaces reach no other host)")
+    if args.plant == "mqtt":  # the whole topic map, as bridge and building will read it, before they start
+        from comems4build_ros.mqtt.topicmap import load_topic_map
+
+        load_topic_map(args.topic_map, args.broker)
+
+
+def launch_options(args: argparse.Namespace) -> Any:
+    """Check every input of ``launch`` (before anything starts) and return its
+    :class:`~comems4build_ros.run.plan.LaunchOptions`; the ROS 2 launch file builds its
+    plan through this same function (:mod:`comems4build_ros.app.ros2_launch`).
+
+    Raises
+    ------
+    UsageError
+        Naming the option, file or parameter that is invalid.
+    """
+    from comems4build_ros.app.commands.options import UsageError, ems_controller, load_params
+    from comems4build_ros.app.commands.simulate import parse_assignments
+    from comems4build_ros.core.ems import UnknownEMSError, controller_class
+    from comems4build_ros.run.plan import LaunchOptions
+
+    try:
+        controller_class(args.ems)
+    except UnknownEMSError as exc:
+        raise UsageError(str(exc)) from None
+    check_plant_options(args)
+    overrides = parse_assignments(args.set, "--set")
+    params = load_params(args.config, overrides)
+    ems_controller(args.ems, params, args.ems_option)  # the EMS node's own checks, before any node starts
+    check_feed_scenario(args, params)
+    check_live_inputs(args, params)
+    return LaunchOptions(
+        ems=args.ems,
+        out=Path(args.out),
+        scenario=args.scenario,
+        weeks=args.weeks,
+        steps=args.steps,
+        start=args.start,
+        buildings=args.buildings,
+        seed=args.seed,
+        config_files=list(args.config),
+        overrides=overrides,
+        ems_options=list(args.ems_option),
+        forecast=args.forecast,
+        domain_id=args.domain_id,
+        timeout_s=args.timeout,
+        progress=not args.no_progress and sys.stderr.isatty(),
+        plant_node_params={} if args.step_timeout is None else {"step_timeout_s": float(args.step_timeout)},
+        plant=args.plant,
+        clock=args.clock,
+        broker_url=args.broker,
+        topic_map=args.topic_map,
+        inputs=args.inputs,
+        live_config=getattr(args, "live_config", None),
+        network=args.network,
+        netem=args.netem,
+        containers=args.containers,
+        layout=args.layout,
+        namespace=args.namespace,
+        bag=Path(args.bag) if args.bag else None,
+        all_inputs=bool(args.all_inputs),
+    )
+
+
+def run(args: argparse.Namespace) -> int:
+    """Validate every input, then launch, wait, evaluate; print the main figures."""
+    from comems4build_ros.app.commands.options import add_scenario_config
+
+    add_scenario_config(args)
+    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.app.commands.simulate import warn_run
+    from comems4build_ros.files.outputs import check_out_dir
+    from comems4build_ros.run.launcher import launch
+    from comems4build_ros.run.supervisor import LaunchError
+
+    opts = launch_options(args)
+    if args.print_plan:
+        from comems4build_ros.run.plan import plan_run
+
+        print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
+        return 0
+    check_out_dir(args.out)
+    bag = Path(args.bag) if args.bag else Path(args.out) / "bag"
+    if bag.exists():
+        raise UsageError(f"--out {args.out}: {bag} exists (choose another --out or --bag, or remove it)")
+    keys = ("weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
+            "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "fallback_steps")
+    try:
+        result = launch(opts)
+    except LaunchError as exc:
+        # first: that the run was cut and why (the message names the node, its exit code and log)
+        print(f"comems4build launch: {exc}", file=sys.stderr)
+        for ns, s in exc.summaries.items():
+            inc = s.get("bag_incomplete", {})
+            print(json.dumps({"building": ns, "run_cut": True, "steps_recorded": inc.get("steps_recorded"),
+                              "steps_expected": inc.get("steps_expected"), **{k: s.get(k) for k in keys}}))
+        if exc.summaries:
+            print(f"comems4build launch: the run was cut short: the figures above cover only the steps recorded; "
+                  f"{bag} is kept and marked incomplete (run_cut.json), summaries in {args.out}", file=sys.stderr)
+        return 1
+    for ns, s in result.summaries.items():
+        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}}))
+    print(f"ROS domain {result.domain_id}: {len(result.summaries)} building(s), wall {result.wall_s:.1f} s "
+          f"(run {result.run_s:.1f} s after the first record)")
+    print(f"wrote {result.bag}, {result.out / 'weekly.csv'}, {result.out / 'summary.json'}")
+    for s in result.summaries.values():
+        warn_run(s, "launch")
+    return 0
+
+
+def check_live_inputs(args: argparse.Namespace, params: Any) -> None:
+    """``--live-config`` (needs ``--inputs live``) and, for a run on live inputs, a live
+    price for the current hour, fetched as the feed will fetch it (or cached): without it
+    the run is refused (:class:`UsageError` naming the source URL), before any node starts.
+    ``--print-plan`` fetches nothing."""
+    import shutil
+    import tempfile
+    import time
+
+    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.core.config import check_input_file
+    from comems4build_ros.core.scenario.live import LiveInputsError, PriceSource, load_live_settings
+
+    live_config = getattr(args, "live_config", None)
+    if live_config is not None:
+        if args.inputs != "live":
+            raise UsageError("--live-config needs --inputs live")
+        check_input_file(live_config, "--live-config")
+    if args.inputs != "live":
+        return
+    settings = load_live_settings(live_config).prices
+    if args.print_plan:
+        return
+    cache = Path(settings.cache_file) if settings.cache_file else Path(args.out) / "live_prices.json"
+    with tempfile.TemporaryDirectory(prefix="comems4build_live_") as tmp:
+        probe = cache
+        if not cache.parent.is_dir():  # nothing is written before the run: fetch into a scratch cache
+            probe = Path(tmp) / cache.name
+            if cache.is_file():
+                shutil.copy(cache, probe)
+        prices = PriceSource(settings, params.site.timezone, probe, lambda text: None)
+        prices.refresh(force=True)
+        try:
+            prices.require(time.time())
+        except LiveInputsError as exc:
+            raise UsageError(f"--inputs live: {exc}") from None
+
+
+def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
+    """Build building 0's scenario exactly as its ``feed`` node will, before any node starts.
+
+    The feed's own loader and checks run here (a bad file, a window outside the data, a
+    run longer than the scenario, missing values the feed refuses), so that a bad
+    scenario ends the launch with exit code 2 instead of a feed exiting after start-up.
+    """
+    from comems4build_ros.app.commands.options import check_start
+    from comems4build_ros.core.scenario.run import check_scenario, load_scenario
+    from comems4build_ros.run.plan import feed_window
+
+    check_start(args.start, params)
+    weeks, steps = feed_window(args.weeks, args.steps)
+    scenario = load_scenario(args.scenario, params, args.start, weeks or None, args.seed, steps or None)
+    check_scenario(scenario, params.simulation.time_step_h)

@@ -1,0 +1,253 @@
+"""Shared option types and checks of the command line.
+
+Every numeric option of every subcommand is parsed by one of the types below, so that a
+value outside its allowed range (``--weeks 0``, ``--weeks inf``, ``--jobs -1``) ends in
+argparse's usage error (exit code 2) naming the option, the value and the allowed range,
+before any work starts. The ranges are stated in the option's help text by
+:func:`range_text`.
+
+Output paths are checked before a run starts with :func:`comems4build_ros.files.outputs.check_out_dir`
+and :func:`~comems4build_ros.files.outputs.check_out_file`.
+"""
+
+from __future__ import annotations
+
+import argparse
+import math
+from collections.abc import Callable, Mapping, Sequence
+from typing import Any
+
+from comems4build_ros.app.cli import UsageError
+
+__all__ = ["UsageError"]  # re-exported for the commands
+
+#: Largest ROS 2 domain id (the DDS port formula of ROS 2 allows 0..232).
+ROS_DOMAIN_ID_MAX = 232
+#: Largest seed of numpy's generators accepted here (unsigned 32 bit, like the ROS parameter).
+SEED_MAX = 2**32 - 1
+
+
+def range_text(lo: float | None = None, hi: float | None = None, lo_open: bool = False, hi_open: bool = False) -> str:
+    """Human text of an interval: ``> 0``, ``>= 1``, ``in [0, 1]``, ``in (0, 1]``."""
+    def num(x: float) -> str:
+        return str(int(x)) if float(x).is_integer() else f"{x:g}"
+
+    if lo is not None and hi is not None:
+        return f"in {'(' if lo_open else '['}{num(lo)}, {num(hi)}{')' if hi_open else ']'}"
+    if lo is not None:
+        return f"{'>' if lo_open else '>='} {num(lo)}"
+    if hi is not None:
+        return f"{'<' if hi_open else '<='} {num(hi)}"
+    return "finite"
+
+
+def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> Callable[[str], float]:
+    what = "an integer" if kind is int else "a finite number"
+    allowed = range_text(lo, hi, lo_open, hi_open)
+
+    def parse(text: str) -> float:
+        try:
+            value = kind(text)
+        except (TypeError, ValueError):
+            raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})") from None
+        if kind is float and not math.isfinite(value):
+            raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})")
+        low_bad = lo is not None and (value <= lo if lo_open else value < lo)
+        high_bad = hi is not None and (value >= hi if hi_open else value > hi)
+        if low_bad or high_bad:
+            raise argparse.ArgumentTypeError(f"{text} is outside the allowed range: {what} {allowed}")
+        return value
+
+    parse.__name__ = "integer" if kind is int else "number"  # argparse names the type in its messages
+    return parse
+
+
+def real(lo: float | None = None, hi: float | None = None, lo_open: bool = False,
+         hi_open: bool = False) -> Callable[[str], float]:
+    """argparse type: a finite float within the interval (``lo_open``: ``lo`` itself excluded)."""
+    return _number(float, lo, hi, lo_open, hi_open)
+
+
+def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
+    """argparse type: an integer within ``[lo, hi]``."""
+    return _number(int, lo, hi, False, False)  # type: ignore[return-value]
+
+
+#: Run length in weeks: finite and > 0 (whole hours are checked with the scenario).
+WEEKS = real(0, lo_open=True)
+#: Run length in hours: an integer >= 1.
+HOURS = integer(1)
+#: A count of runs, buildings, steps or repeats: an integer >= 1.
+COUNT = integer(1)
+#: A duration in seconds: finite and > 0.
+SECONDS = real(0, lo_open=True)
+#: A seed: 0 .. 2**32-1.
+SEED = integer(0, SEED_MAX)
+#: A ROS 2 domain id: 0 .. 232.
+DOMAIN_ID = integer(0, ROS_DOMAIN_ID_MAX)
+#: A fraction: finite, in [0, 1].
+FRACTION = real(0, 1)
+#: Most buildings of one ROS launch: a plan of 1000 buildings is built in about 2 s (100000 did not
+#: finish in 5 min); the runs measured go up to 16 (``bench ros``).
+MAX_BUILDINGS = 1000
+#: A number of buildings of a launch: 1 .. MAX_BUILDINGS.
+BUILDINGS = integer(1, MAX_BUILDINGS)
+
+
+def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,
+                         extend: bool = True) -> None:
+    """``--scenario``, ``--start``, ``--weeks`` / ``--hours``, ``--seed`` and ``--extend`` of a run."""
+    parser.add_argument("--scenario", metavar="default|year|synthetic|FILE.csv", default="default",
+                        help="'default' (the paper's winter, measured data), 'year' (the year around it from "
+                             "2022-03-01 with an electrolyser and cooling, config/year.yaml), 'synthetic' (the "
+                             "seeded generator) or a scenario CSV file")
+    parser.add_argument("--start", metavar="ISO", default=None,
+                        help="first step of the window (ISO date/time; naive = site time)")
+    group = parser.add_mutually_exclusive_group()
+    group.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
+                       help="run length in weeks, > 0 (fractions giving whole hours allowed; default: the "
+                            "scenario's whole weeks)")
+    if hours:
+        group.add_argument("--hours", type=HOURS, default=None, metavar="H",
+                           help="run length in hours, integer >= 1 (short tries; instead of --weeks)")
+    if seed:
+        parser.add_argument("--seed", metavar="N", type=SEED, default=None,
+                            help="seed of the generated scenario data (default scenario, --extend synthetic; "
+                                 "default: config/scenario.yaml)")
+    if extend:
+        parser.add_argument("--extend", choices=("synthetic",), default=None,
+                            help="a run longer than the scenario's data is refused unless this is given: "
+                                 "'synthetic' appends generated data after the data's end (summary.json "
+                                 "says so under scenario_extended)")
+
+
+def add_scenario_config(args: argparse.Namespace) -> None:
+    """Put the plant file of an embedded scenario (``--scenario year``: ``config/year.yaml``)
+    in front of ``args.config``, so that ``--config`` files and ``--set`` still override it."""
+    from comems4build_ros.core.config import scenario_config_files
+
+    args.config = scenario_config_files(getattr(args, "scenario", "default"), args.config)
+
+
+def check_config_files(paths: Sequence[str], option: str = "--config") -> None:
+    """Each ``--config`` file exists and is a regular file (a directory or device is named as such)."""
+    from comems4build_ros.core.config import check_input_file
+
+    for path in paths:
+        check_input_file(path, option)
+
+
+def load_params(config: Sequence[str], overrides: Mapping[str, Any] | None = None) -> Any:
+    """Plant parameters of ``--config`` files and ``--set`` overrides, the files checked first."""
+    from comems4build_ros.core.config import load_plant_params
+
+    check_config_files(config)
+    return load_plant_params(config, overrides)
+
+
+def ems_names(text: str) -> list[str]:
+    """``--ems rbc,fuzzy,mpc`` of ``compare`` and ``sweep``: registered names, each once, at least one."""
+    from comems4build_ros.core.ems import UnknownEMSError, controller_class
+
+    names = [e.strip() for e in text.split(",") if e.strip()]
+    if not names:
+        raise UsageError(f"--ems '{text}': no EMS given")
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise UsageError(f"--ems {text}: '{name}' given twice (its runs would overwrite each other)")
+        try:
+            controller_class(name)
+        except UnknownEMSError as exc:
+            raise UsageError(f"--ems {name}: {exc}") from None
+    return names
+
+
+def ems_controller(name: str, params: Any, items: Sequence[str]) -> Any:
+    """The EMS ``name`` built with its ``--ems-option`` items by the constructor its node or loop uses.
+
+    So every option is checked by the controller's own rules (unknown keys, ranges, an
+    inverted hysteresis) before anything runs or starts; an unknown EMS is named as
+    ``--ems``, a bad option (:class:`~comems4build_ros.core.config.ConfigError`) by its key.
+    """
+    from comems4build_ros.core.config import parse_assignments
+    from comems4build_ros.core.ems import UnknownEMSError, make_controller
+    from comems4build_ros.core.ems.base import check_mpc_horizon
+
+    options = parse_assignments(items, "--ems-option")
+    try:
+        controller = make_controller(name, params, options)
+    except UnknownEMSError as exc:
+        raise UsageError(f"--ems {name}: {exc}") from None
+    if controller.info_level == "mpc":  # the horizon the loop's observation carries
+        check_mpc_horizon(params.simulation.horizon_h, params.simulation.time_step_h)
+    return controller
+
+
+def check_start(start: str | None, params: Any) -> None:
+    """``--start``: ISO 8601, naive = site time, not in a DST gap nor ambiguous (the message names ``--start``)."""
+    from comems4build_ros.core.scenario.csvio import local_time
+
+    if start is not None:
+        local_time(start, params.site.timezone, "--start")
+
+
+def scenario_of(args: argparse.Namespace, params: Any) -> Any:
+    """The run's scenario from the options of :func:`add_scenario_options`."""
+    from comems4build_ros.core.scenario import resolve_scenario
+
+    check_start(args.start, params)
+    return resolve_scenario(args.scenario, params, start=args.start, weeks=args.weeks,
+                            hours=getattr(args, "hours", None), seed=getattr(args, "seed", None),
+                            extend=getattr(args, "extend", None))
+
+
+#: URL schemes of a Dask scheduler address (TLS when the cluster is configured for it).
+SCHEDULER_SCHEMES = ("tcp", "tls")
+
+
+def scheduler_address(text: str) -> str:
+    """argparse type of ``--scheduler``: ``tcp://HOST:PORT`` (or ``tls://``), port 1..65535."""
+    from urllib.parse import urlsplit
+
+    form = "tcp://HOST:PORT (or tls://HOST:PORT), e.g. tcp://10.0.0.5:8786"
+    try:
+        url = urlsplit(text)
+        port = url.port
+    except ValueError as exc:
+        raise argparse.ArgumentTypeError(f"'{text}' is not {form} ({exc})") from None
+    if url.scheme not in SCHEDULER_SCHEMES or not url.hostname or port is None or url.path not in ("", "/") \
+            or url.query or url.username or url.password:
+        raise argparse.ArgumentTypeError(f"'{text}' is not {form}")
+    if not 1 <= port <= 65535:
+        raise argparse.ArgumentTypeError(f"'{text}': port {port} is outside 1..65535")
+    return f"{url.scheme}://{url.netloc}"
+
+
+def add_executor_options(parser: argparse.ArgumentParser, jobs_default: str = "CPU count") -> None:
+    """``--jobs``, ``--scheduler``, ``--resume``: where a study's runs execute and whether it resumes."""
+    parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
+                        help=f"parallel runs in local worker processes, integer >= 1 (default: {jobs_default}; "
+                             "at most the CPU count)")
+    parser.add_argument("--scheduler", metavar="tcp://HOST:PORT", type=scheduler_address, default=None,
+                        help="run on the workers of this Dask scheduler instead of local processes (docs/cluster.md); "
+                             "every worker must run the same code, parameter files and library versions")
+    parser.add_argument("--resume", action="store_true",
+                        help="take the runs an interrupted study of the same --out finished (OUT/.runstore) instead "
+                             "of running them again; a stored run of another specification is refused")
+
+
+def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = None) -> Any:
+    """The :class:`~comems4build_ros.study.executor.StudyExecutor` of ``--jobs``/``--scheduler``/``--resume``.
+
+    Its store is ``out/.runstore``; ``jobs`` replaces ``--jobs`` when given (a command's own
+    default). Enter it before any run: it connects and checks the cluster, and refuses a
+    store of an unfinished study without ``--resume``.
+    """
+    from comems4build_ros.study.executor import DaskBackend, LocalBackend, StudyExecutor
+    from comems4build_ros.study.store import RunStore
+
+    if args.scheduler and args.jobs is not None:
+        raise UsageError("--jobs and --scheduler exclude each other (with --scheduler the cluster's workers run "
+                         "the runs, as many at once as they have threads)")
+    backend = DaskBackend(args.scheduler) if args.scheduler else LocalBackend(jobs if jobs is not None else args.jobs)
+    return StudyExecutor(backend, RunStore.of(out), resume=args.resume)

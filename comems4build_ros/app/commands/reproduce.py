@@ -1,0 +1,180 @@
+"""``comems4build reproduce``: the paper's stated figures beside ours, its findings, figures and the study."""
+
+from __future__ import annotations
+
+import argparse
+from collections.abc import Callable, Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from comems4build_ros.app.commands.options import add_executor_options, real
+
+if TYPE_CHECKING:
+    from comems4build_ros.report.reproduce import ReproduceResult
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``reproduce``."""
+    parser.add_argument("--out", metavar="DIR", required=True, help="output directory (reproduce.md, reproduce.html, "
+                                                     "reproduce.json, figures/, runs/)")
+    parser.add_argument("--no-study", action="store_true",
+                        help="only the default runs on every seed, the stated figures, the findings and the figures "
+                             "(no interpretation study)")
+    parser.add_argument("--only", default=None, metavar="KEY[,KEY...]",
+                        help="study only these ambiguities of config/reproduce.yaml")
+    add_executor_options(parser)
+    parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
+                        help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
+                             "checks that do not compare with the paper's table)")
+    parser.add_argument("--seeds", default=None, metavar="N[,N...]",
+                        help="seeds of the modelled radiation and appliance load, integers in 0..2^32-1 (default: "
+                             "the study's, config/reproduce.yaml; the first is the default scenario's)")
+    parser.add_argument("--no-figures", action="store_true", help="do not draw the paper's figures")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
+    parser.add_argument("--update-doc", default=None, metavar="MD",
+                        help="also write the tables between the reproduce markers of MD (docs/calibration.md)")
+    parser.add_argument("--from-json", default=None, metavar="FILE",
+                        help="no runs: write the documents (and --update-doc) from an earlier reproduce.json")
+    parser.add_argument("--from-runs", default=None, metavar="DIR",
+                        help="no runs: evaluate the run directories of an earlier reproduce --out DIR of the same "
+                             "study again (after a change to the evaluation); the runs must come from the same "
+                             "code and config/")
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the reproduction and print where the report is."""
+    from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.app.commands.options import study_executor
+    from comems4build_ros.files.outputs import check_out_dir
+
+    if args.from_json and args.from_runs:
+        raise UsageError("--from-json and --from-runs exclude each other")
+    if (args.from_json or args.from_runs) and (args.scheduler or args.resume):
+        raise UsageError("--scheduler and --resume apply to runs; --from-json and --from-runs make none")
+    if args.from_json:
+        import json
+        from pathlib import Path
+
+        from comems4build_ros.report.reproduce_doc import update_doc, write_documents
+
+        try:
+            report = json.loads(Path(args.from_json).read_text(encoding="utf-8"))
+        except (OSError, json.JSONDecodeError) as exc:
+            raise UsageError(f"--from-json {args.from_json}: {exc}") from None
+        out = Path(args.out)
+        out.mkdir(parents=True, exist_ok=True)
+        src = Path(args.from_json).parent
+        report = {**report, "figures": {k: v for k, v in report.get("figures", {}).items() if (src / v).is_file()}}
+        if report["figures"] and src.resolve() != out.resolve():
+            import shutil
+
+            shutil.copytree(src / "figures", out / "figures", dirs_exist_ok=True)
+        md, html = write_documents(report, out)
+        print(f"wrote {md}, {html}")
+        if args.update_doc:
+            print(f"updated {update_doc(args.update_doc, report, out)}")
+        return 0
+    if args.from_runs:
+        from pathlib import Path
+
+        if not (Path(args.from_runs) / "runs").is_dir():
+            raise UsageError(f"--from-runs {args.from_runs}: no runs/ directory (the --out of an earlier reproduce)")
+    check_out_dir(args.out)
+    only = [k for k in args.only.split(",") if k] if args.only else None
+    seeds = None
+    if args.seeds is not None:
+        try:
+            seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
+        except ValueError:
+            raise UsageError(f"--seeds {args.seeds}: a comma-separated list of integers") from None
+        if not seeds or len(set(seeds)) != len(seeds) or not all(0 <= s < 2**32 for s in seeds):
+            raise UsageError(f"--seeds {args.seeds}: distinct integers in 0..2^32-1")
+
+    with study_executor(args, args.out) as executor:  # the runs' executor; finished runs kept in OUT/.runstore
+        res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
+                        seeds=seeds, show_progress=False if args.no_progress else None,
+                        from_runs=args.from_runs, figures=not args.no_figures)
+        executor.complete()
+
+    def pct(x: float | None) -> str:
+        return "-" if x is None else f"{100 * x:.1f} %"
+
+    print(f"seed-median relative error: every stated figure {pct(res.median_rel_error)}, headline table "
+          f"{pct(res.table_rel_error)}; cost ratios " + ", ".join(f"{k} {v:.2f}" for k, v in res.ratios.items())
+          + f"; ComEMS4Build's FC vs MPC: hours {res.fc['fuzzy_hours']:+.1f} %, "
+          f"toggles {res.fc['fuzzy_toggles']:+.1f} %"
+          + f"; findings held {res.findings_held} of {res.findings_total}")
+    made = (f"runs of {args.from_runs} evaluated again" if args.from_runs
+            else f"{res.runs_made} runs in {res.wall_s:.0f} s")
+    print(f"{made}; wrote {res.markdown}, {res.html}, {res.json}")
+    if args.update_doc:
+        import json
+
+        from comems4build_ros.report.reproduce_doc import update_doc
+
+        print(f"updated {update_doc(args.update_doc, json.loads(res.json.read_text(encoding='utf-8')), res.out)}")
+    return 0
+
+
+def reproduce(
+    out_dir: str | Path,
+    with_study: bool = True,
+    jobs: int | None = None,
+    study_path: str | Path | None = None,
+    weeks: float | None = None,
+    only: Sequence[str] | None = None,
+    seeds: Sequence[int] | None = None,
+    progress: Callable[[int, int, str], None] | None = None,
+    show_progress: bool | None = None,
+    from_runs: str | Path | None = None,
+    figures: bool = True,
+) -> ReproduceResult:
+    """Make the study's runs, then evaluate them beside the paper.
+
+    The runs are those of :mod:`comems4build_ros.study.reproduce`, the evaluation is
+    :mod:`comems4build_ros.report.reproduce`.
+
+    Parameters
+    ----------
+    out_dir : output directory (runs go to ``out_dir/runs/<name>``)
+    with_study, study_path, weeks, only, seeds : what to run
+        (:func:`comems4build_ros.study.reproduce.prepare`)
+    jobs : parallel processes (default: CPU count)
+    progress : callback ``(done, total, name)`` after each run
+    show_progress : one progress bar per run on stderr (None = when stderr is a terminal)
+    from_runs : no simulation: evaluate the run directories of an earlier ``reproduce`` of
+        the same study (``from_runs/runs/<name>``) again, e.g. after a change to the
+        evaluation; the runs are taken as they are (they must come from the same code and
+        configuration). Wall time and run count are those of the earlier command, read
+        from its ``reproduce.json``.
+    figures : draw the paper's figures from the default seed's runs
+    """
+    import json
+    import time
+
+    from comems4build_ros.core.config import ConfigError
+    from comems4build_ros.report.reproduce import evaluate
+    from comems4build_ros.study.reproduce import make_runs, missing_runs, prepare
+
+    t0 = time.perf_counter()
+    prepared = prepare(with_study, study_path, weeks, only, seeds)
+    out = Path(out_dir)
+    if from_runs is not None:
+        runs_dir = Path(from_runs) / "runs"
+        missing = missing_runs(prepared, runs_dir)
+        if missing:
+            raise ConfigError(f"{runs_dir}: no run directory with a summary.json for {', '.join(missing)} "
+                              f"(this study needs {len(prepared.tasks)} runs)")
+        earlier: dict[str, Any] = {}
+        earlier_json = Path(from_runs) / "reproduce.json"
+        if earlier_json.is_file():
+            try:
+                earlier = json.loads(earlier_json.read_text(encoding="utf-8"))
+            except json.JSONDecodeError as exc:
+                raise ConfigError(f"{earlier_json}: {exc}") from None
+        out.mkdir(parents=True, exist_ok=True)
+        return evaluate(prepared, runs_dir, out, int(earlier.get("runs_made", 0)), float(earlier.get("wall_s", 0.0)),
+                        runs_from=str(from_runs), figures=figures)
+    runs_dir = out / "runs"
+    made = make_runs(prepared, runs_dir, jobs=jobs, progress=progress, show_progress=show_progress)
+    return evaluate(prepared, runs_dir, out, made, time.perf_counter() - t0, figures=figures)

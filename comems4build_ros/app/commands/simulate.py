@@ -1,0 +1,101 @@
+"""``comems4build simulate``: one EMS in-process over a scenario."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import sys
+
+from comems4build_ros.app.commands.options import add_scenario_options
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``simulate``."""
+    parser.add_argument("--ems", metavar="NAME", required=True, help="EMS name: thermostat, rbc, fuzzy, mpc, mpc-qp")
+    add_scenario_options(parser)
+    parser.add_argument(
+        "--config", action="append", default=[], metavar="FILE",
+        help="parameter file merged over config/plant.yaml (repeatable)",
+    )
+    parser.add_argument(
+        "--set", action="append", default=[], metavar="KEY=VALUE",
+        help="override one plant parameter, e.g. --set battery.e_max_kwh=10 (repeatable)",
+    )
+    parser.add_argument("--ems-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="option passed to the EMS, e.g. --ems-option solver=CBC (repeatable)")
+    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
+                        help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
+    parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
+
+
+def parse_assignments(items: list[str], what: str) -> dict[str, object]:
+    """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}`` (values parsed as YAML scalars;
+    :func:`comems4build_ros.core.config.parse_assignments`, a bad item is a usage error)."""
+    from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.core.config import ConfigError
+    from comems4build_ros.core.config import parse_assignments as parse
+
+    if any(not str(item).strip() for item in items):
+        raise UsageError(f"{what} '' is not KEY=VALUE")
+    try:
+        return parse(items, what)
+    except ConfigError as exc:
+        raise UsageError(str(exc)) from None
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run the simulation and write timeseries.csv, weekly.csv and summary.json."""
+    from comems4build_ros.app.commands.options import add_scenario_config
+
+    add_scenario_config(args)
+    from comems4build_ros.app.commands.options import UsageError, ems_controller, load_params, scenario_of
+    from comems4build_ros.core.ems import UnknownEMSError, controller_class
+    from comems4build_ros.core.loop import load_forecast_settings, simulate, write_run
+    from comems4build_ros.files.outputs import check_out_dir
+    from comems4build_ros.run.progress import ProgressBar
+
+    try:
+        controller_class(args.ems)
+    except UnknownEMSError as exc:
+        raise UsageError(str(exc)) from None
+    params = load_params(args.config, parse_assignments(args.set, "--set"))
+    controller = ems_controller(args.ems, params, args.ems_option)
+    check_out_dir(args.out)
+    scenario = scenario_of(args, params)
+    with ProgressBar(f"simulate {args.ems}", unit="h", enable=False if args.no_progress else None) as bar:
+        result = simulate(
+            controller, scenario, params,
+            progress=bar,
+            forecast=load_forecast_settings(**({"mode": args.forecast} if args.forecast else {})),
+        )
+    out = write_run(result, args.out)
+    s = result.summary
+    keys = (
+        "weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
+        "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "max_balance_residual_w", "wall_s",
+    )
+    print(json.dumps({k: s[k] for k in keys}, indent=1))
+    print(f"wrote {out / 'timeseries.csv'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
+    warn_run(s, "simulate")
+    return 0
+
+
+def warn_run(summary: dict, command: str) -> None:
+    """Warnings at the end of a run: fallback steps, unmet hot-water demand, a synthetic extension."""
+    n, steps = summary.get("fallback_steps") or 0, summary.get("steps") or 0
+    unmet = summary.get("dhw_unmet_steps") or 0
+    if unmet:
+        print(f"comems4build {command}: warning: the hot-water demand was not met in {unmet} of {steps} steps "
+              f"({summary.get('dhw_unmet_kwh', 0.0):.3g} kWh in all, the first from {summary.get('dhw_unmet_first')}): "
+              "the tank was at V_DHW,min; see dhw_unmet_kwh in summary.json and q_dhw_unmet_w per step",
+              file=sys.stderr)
+    if n:
+        ems_n = summary.get("ems_fallback_steps") or 0
+        print(f"comems4build {command}: warning: {n} of {steps} steps ran on the safe fallback action "
+              f"({ems_n} because the EMS found no solution or failed, {n - ems_n} because no valid command "
+              "came in time); see fallback_steps in summary.json", file=sys.stderr)
+    ext = summary.get("scenario_extended")
+    if ext:
+        print(f"comems4build {command}: note: the scenario was extended with {ext['rows']} generated hours from "
+              f"{ext['from']} ({ext['method']}, seed {ext['seed']})", file=sys.stderr)

@@ -1,0 +1,187 @@
+"""``comems4build size``: a sizing study of the H2 house over the year (docs/sizing.md)."""
+
+from __future__ import annotations
+
+import argparse
+import json
+import math
+import sys
+import time
+from pathlib import Path
+from typing import Any
+
+from comems4build_ros.app.commands.options import COUNT, SEED, WEEKS, add_executor_options
+
+
+def add_arguments(parser: argparse.ArgumentParser) -> None:
+    """Options of ``size``."""
+    from comems4build_ros.study.sizing import AXES
+
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help="comma-separated EMS names")
+    for axis in AXES:
+        parser.add_argument(axis.option, metavar="V1,V2,...", default=None,
+                            help=f"{axis.label} [{axis.unit}], {'integers >= 0' if axis.integer else 'values > 0'} "
+                                 "(default: the year plant's size)")
+    parser.add_argument("--sample", metavar="N", type=COUNT, default=None,
+                        help="instead of the grid of all combinations: N points of a Latin hypercube between the "
+                             "smallest and largest value of each size option")
+    parser.add_argument("--design-seed", metavar="N", type=SEED, default=0,
+                        help="seed of --sample's design (default 0)")
+    parser.add_argument("--costs", action="append", default=[], metavar="FILE",
+                        help="cost file merged over config/costs.yaml (repeatable; the keys it gives replace)")
+    parser.add_argument("--start", metavar="ISO", default=None,
+                        help="first step inside the year (ISO date/time; naive = site time; default 2022-03-01)")
+    parser.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
+                        help="run length in weeks, > 0 (default: the year's 52; shorter runs are checks: their "
+                             "annual figures are scaled to 52 weeks)")
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help="parameter file merged over config/plant.yaml and config/year.yaml (repeatable)")
+    parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
+                        help="override one plant parameter for every run (not one of the sized ones)")
+    add_executor_options(parser)
+    parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
+
+
+def parse_values(text: str, option: str, integer: bool) -> list[float]:
+    """``"6,9.6,12"`` of a size option -> its values (positive; integers >= 0 for ``integer``), each once."""
+    from comems4build_ros.app.cli import UsageError
+
+    values: list[float] = []
+    for item in text.split(","):
+        item = item.strip()
+        try:
+            v = float(item)
+        except ValueError:
+            raise UsageError(f"{option} '{text}': '{item}' is not a number") from None
+        if not math.isfinite(v):
+            raise UsageError(f"{option} '{text}': '{item}' is not a finite number")
+        if integer:
+            if v != int(v) or v < 0:
+                raise UsageError(f"{option} '{text}': '{item}' is not an integer >= 0")
+            v = int(v)
+        elif v <= 0:
+            raise UsageError(f"{option} '{text}': '{item}' must be > 0")
+        if v in values:
+            raise UsageError(f"{option} '{text}': {item} is given twice")
+        values.append(v)
+    return values
+
+
+def run(args: argparse.Namespace) -> int:
+    """Run every size point for every EMS over the year; write size.csv, size.md, figures/, report.*."""
+    from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.app.commands.options import (
+        add_scenario_config,
+        check_config_files,
+        ems_names,
+        scenario_of,
+        study_executor,
+    )
+    from comems4build_ros.app.commands.simulate import parse_assignments
+    from comems4build_ros.core.config import ConfigError, load_plant_params
+    from comems4build_ros.core.economics import load_costs
+    from comems4build_ros.files.outputs import atomic_dir, check_out_dir
+    from comems4build_ros.study.sizing import (
+        AXES,
+        grid_points,
+        plant_sizes,
+        point_name,
+        sampled_points,
+        size_overrides,
+    )
+
+    args.scenario = "year"
+    add_scenario_config(args)
+    emss = ems_names(args.ems)
+    check_config_files(args.config)
+    check_config_files(args.costs, "--costs")
+    costs = load_costs(args.costs)
+    overrides = parse_assignments(args.set, "--set")
+    base = load_plant_params(args.config, overrides)
+    default = plant_sizes(base)
+    values: dict[str, list[float]] = {}
+    for axis in AXES:
+        text = getattr(args, axis.option[2:].replace("-", "_"))
+        values[axis.key] = parse_values(text, axis.option, axis.integer) if text is not None else [default[axis.key]]
+    if args.sample is not None:
+        try:
+            points = sampled_points(values, args.sample, args.design_seed)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+        design = f"Latin hypercube, {args.sample} samples, seed {args.design_seed}"
+    else:
+        points = grid_points(values)
+        design = "grid " + " x ".join(str(len(values[a.key])) for a in AXES)
+    sized = []
+    sized_keys = set()
+    for p in points:
+        try:
+            ov, realised = size_overrides(p, base)
+        except ValueError as exc:
+            raise UsageError(str(exc)) from None
+        clash = sorted(set(ov) & set(overrides))
+        if clash:
+            raise UsageError(f"--set {clash[0]}: a sized parameter; give the size option instead")
+        key = tuple(realised[a.key] for a in AXES)
+        if key in sized_keys:
+            continue  # two requested sizes realised alike (PV rounded to whole modules)
+        sized_keys.add(key)
+        try:
+            plant = load_plant_params(args.config, {**overrides, **ov})  # every point's plant checked before any run
+        except ConfigError as exc:
+            raise UsageError(f"size point {point_name('', realised).lstrip('_')}: {exc}") from None
+        sized.append((realised, {**overrides, **ov}, plant))
+    try:
+        scenario_of(args, base)  # the window inside the year, checked once before any run
+    except UsageError:
+        raise
+    except ValueError as exc:
+        raise UsageError(f"--start/--weeks: {exc}") from None
+    check_out_dir(args.out)
+    meta: dict[str, Any] = {"ems": emss, "design": design, "points": len(sized), "start": args.start,
+                            "weeks": args.weeks or 52, "values": values, "set": overrides,
+                            "costs": [str(Path(c).resolve()) for c in args.costs],
+                            "executor": args.scheduler or f"local processes (--jobs {args.jobs or 'CPU count'})"}
+    print(f"size: {len(sized) * len(emss)} runs ({len(emss)} EMS x {len(sized)} size points, {design})",
+          file=sys.stderr)
+    with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+        with atomic_dir(args.out) as stage:  # runs/, tables, figures and report replace an older study's when done
+            df = _size(args, emss, sized, costs, meta, stage)
+        executor.complete()
+    out = Path(args.out)
+    for ems, sub in df.groupby("ems", sort=False):
+        ok = sub[sub["closes"] == True]  # noqa: E712
+        names = ", ".join(Path(r).name for r in ok["run"]) or "none"
+        print(f"{ems}: {len(ok)} of {len(sub)} size points close the seasonal cycle: {names}")
+    print(f"{len(df)} runs in {meta['wall_s']:.1f} s; wrote {out / 'size.csv'}, {out / 'size.md'}, "
+          f"{out / 'figures' / 'pareto.png'}, {out / 'report.md'} and {out / 'report.html'}")
+    return 0
+
+
+def _size(args: argparse.Namespace, emss: list[str], sized: list, costs: Any, meta: dict[str, Any],
+          out: Path) -> Any:
+    """Run every EMS at every size point into ``out/runs/``; write the outputs; the table."""
+    from comems4build_ros.report.sizing import row, table, write_outputs
+    from comems4build_ros.study.runner import RunTask, run_tasks
+    from comems4build_ros.study.sizing import point_name
+
+    tasks, cases = [], []
+    for ems in emss:
+        for realised, ov, plant in sized:
+            name = point_name(ems, realised)
+            usable = plant.battery.e_max_kwh * (plant.battery.soc_max - plant.battery.soc_min)
+            cases.append((ems, name, realised, usable))
+            tasks.append(RunTask(ems=ems, out_dir=str(out / "runs" / name), scenario="year", start=args.start,
+                                 weeks=args.weeks, overrides=ov, config=[str(Path(c).resolve()) for c in args.config],
+                                 timeseries=False))
+    t0 = time.perf_counter()
+    summaries = run_tasks(tasks, progress=False if args.no_progress else None)
+    meta["wall_s"] = time.perf_counter() - t0
+    df = table([row(ems, name, realised, s, costs, usable)
+                for (ems, name, realised, usable), s in zip(cases, summaries)])
+    write_outputs(df, meta, costs, out)
+    (out / "size.json").write_text(json.dumps({**meta, "interest_rate": costs.interest_rate,
+                                               "cost_items": costs.items}, indent=2, default=str) + "\n",
+                                   encoding="utf-8")
+    return df

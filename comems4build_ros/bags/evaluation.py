@@ -1,0 +1,597 @@
+"""A recorded run read back: the per-step timeseries, the gap check and the KPIs of a bag.
+
+:func:`read_runs` rebuilds every building's timeseries from ``plant/record`` (one row of
+the in-process loop per step), :func:`find_gaps` names the steps a topic published once a
+step lacks (:func:`is_per_step`, the rule the recorder's end of run shares), and
+:func:`evaluate_bag` computes weekly KPIs and the summary with the in-process KPI code
+(``comems4build evaluate``, ``comems4build launch``). The bag itself is read through
+:mod:`comems4build_ros.bags.bag`. No rclpy here.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+from comems4build_ros.bags.bag import NS_PER_S, BagInfo, bag_set, decode, iter_messages, ns_key
+from comems4build_ros.wire.contract import EVENTS_TOPIC, WITHHELD_EVENT, event_step_kind
+
+#: Topic (relative contract name) with one timeseries row per step.
+RECORD_TOPIC = "plant/record"
+#: Topic carrying the EMS's per-step ``step_info`` as JSON.
+INFO_TOPIC = "ems/info"
+#: Topic carrying the run length (element ``n_steps``).
+TRUTH_TOPIC = "feed/truth"
+#: The plant's step announcements (data = step).
+STEP_TOPIC = "plant/step"
+#: The feed's scenario description (JSON, once).
+FEED_INFO_TOPIC = "feed/info"
+FEED_EVENTS_TOPIC = "feed/events"
+#: Steps before the last record of a cut bag that the gap check leaves out (feed
+#: look-ahead + 1) [steps].
+CUT_TAIL_STEPS = 5
+#: File the recorder writes next to the MCAP file with the run's description.
+RUN_INFO_FILE = "run_info.json"
+#: File the launcher writes next to the MCAP file of a run it cut short (why, which node).
+RUN_CUT_FILE = "run_cut.json"
+#: Node role of the MQTT bridge in the contract (what it publishes is what it can withhold).
+BRIDGE_ROLE = "bridge"
+
+
+@dataclass
+class BagRun:
+    """One building's run rebuilt from a bag.
+
+    Attributes
+    ----------
+    namespace : ``/`` or ``/building_<i>``
+    timeseries : one row per step, columns of ``comems4build_ros.core.loop.TIMESERIES_COLUMNS``
+        (plus ``ems_<key>`` when the EMS published its step_info for every step)
+    n_steps : steps of the run according to ``feed/truth`` (None if never recorded)
+    first_ns, last_ns : receive times of the first message and of the last ``plant/record`` [ns]
+    counters : the plant's fault counters after the last recorded step
+    gaps : topic -> steps of the recorded run with no message on it (:func:`find_gaps`)
+    ems, scenario : EMS name (from ``ems/info``) and scenario description (``feed/info``)
+        as the nodes announced them, None if not recorded
+    stand_in : for a run on live inputs, ``(step, state)`` of the feed's ``stand_in`` lines on
+        ``feed/events`` (:data:`~comems4build_ros.core.scenario.live.STAND_IN_EVENT`: which inputs
+        stand-in values replace from that step on); empty otherwise
+    """
+
+    namespace: str
+    timeseries: Any
+    n_steps: int | None
+    first_ns: int
+    last_ns: int
+    counters: dict[str, int] = field(default_factory=dict)
+    gaps: dict[str, list[int]] = field(default_factory=dict)
+    ems: str | None = None
+    scenario: dict[str, Any] | None = None
+    stand_in: list[tuple[int, str]] = field(default_factory=list)
+
+    def stand_in_steps(self) -> dict[str, int]:
+        """Recorded steps whose price, and whose weather, stand-in values replaced
+        (:attr:`stand_in`; both 0 for a run on live inputs without any)."""
+        from comems4build_ros.core.scenario.live import STAND_IN_STATES
+
+        n = len(self.timeseries)
+        out = {"stand_in_price_steps": 0, "stand_in_weather_steps": 0}
+        marks = sorted(m for m in self.stand_in if m[1] in STAND_IN_STATES and m[0] < n)
+        for i, (k, state) in enumerate(marks):
+            end = marks[i + 1][0] if i + 1 < len(marks) else n
+            if "prices" in state:
+                out["stand_in_price_steps"] += end - k
+            if "weather" in state:
+                out["stand_in_weather_steps"] += end - k
+        return out
+
+    @property
+    def complete(self) -> bool:
+        """Every step of the run is in the bag."""
+        return self.n_steps is not None and len(self.timeseries) == self.n_steps
+
+
+def read_run_info(path: str | Path) -> dict[str, Any]:
+    """The ``run_info.json`` beside the MCAP file (``{}`` if absent)."""
+    import json
+
+    p = bag_set(path)[0]
+    f = (p if p.is_dir() else p.parent) / RUN_INFO_FILE
+    if not f.is_file():
+        return {}
+    try:
+        out = json.loads(f.read_text(encoding="utf-8"))
+    except json.JSONDecodeError as exc:
+        raise ValueError(f"{f}: invalid JSON: {exc}") from None
+    if not isinstance(out, dict):
+        raise ValueError(f"{f}: expected a JSON object")
+    return out
+
+
+def _split(topic: str, name: str) -> str | None:
+    """Namespace of ``topic`` if it ends with the contract name ``name``."""
+    if topic == f"/{name}":
+        return "/"
+    if topic.endswith(f"/{name}"):
+        return topic[: -len(name) - 1]
+    return None
+
+
+def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
+    """Rebuild the per-step timeseries of every namespace of a bag.
+
+    Parameters
+    ----------
+    path : rosbag2 directory or ``.mcap`` file (complete or cut short by a SIGKILL)
+    timezone : time zone of the ``time`` column (the site's, ``site.timezone``)
+    info : filled like :func:`iter_messages` does
+
+    Raises
+    ------
+    ValueError
+        If the bag has no ``plant/record`` topic, a record does not match the contract
+        layout, or steps are missing in the middle of a run (naming topic and steps).
+    """
+    import json
+
+    import pandas as pd
+
+    from comems4build_ros.core.loop import TIMESERIES_COLUMNS
+    from comems4build_ros.core.scenario.live import STAND_IN_EVENT
+    from comems4build_ros.wire.contract import load_contract
+
+    contract = load_contract()
+    layout = contract.topic(RECORD_TOPIC).layout({})
+    truth_layout = contract.topic(TRUTH_TOPIC).layout({})
+    n_idx = truth_layout.index["n_steps"]
+    info = info if info is not None else BagInfo(Path(path), [], False)
+    records: dict[str, dict[int, tuple[int, Any]]] = {}
+    infos: dict[str, dict[int, dict[str, float]]] = {}
+    ems_names: dict[str, str] = {}
+    scenarios: dict[str, dict[str, Any]] = {}
+    n_steps: dict[str, int] = {}
+    seen: dict[str, set[int]] = {}  # topic -> steps with a message (gap check)
+    withheld: dict[str, set[int]] = {}  # namespace -> steps without state by design (WITHHELD_EVENT)
+    stand_in: dict[str, list[tuple[int, str]]] = {}  # namespace -> the feed's stand_in lines (live inputs)
+    first_ns: int | None = None
+    for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
+        first_ns = t_ns if first_ns is None else min(first_ns, t_ns)
+        ns = _split(topic, RECORD_TOPIC)
+        if ns is not None:
+            data = decode(msgtype, raw).data
+            if len(data) != layout.length:
+                raise ValueError(
+                    f"bag {path}: topic '{topic}': {len(data)} elements, the contract layout has {layout.length}"
+                )
+            step = int(data[0])
+            records.setdefault(ns, {}).setdefault(step, (t_ns, data))
+            continue
+        if msgtype.endswith("Float64MultiArray"):
+            data = decode(msgtype, raw).data
+            if len(data):
+                seen.setdefault(topic, set()).add(int(data[0]))
+            ns = _split(topic, TRUTH_TOPIC)
+            if ns is not None and ns not in n_steps:
+                n_steps[ns] = int(data[n_idx])
+            continue
+        ns = _split(topic, INFO_TOPIC)
+        if ns is not None:
+            try:
+                msg = json.loads(decode(msgtype, raw).data)
+                step = int(msg["step"])
+                infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
+            except (ValueError, KeyError, TypeError) as exc:
+                raise ValueError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
+            seen.setdefault(topic, set()).add(step)
+            if isinstance(msg.get("ems"), str):
+                ems_names.setdefault(ns, msg["ems"])
+            continue
+        ns = _split(topic, STEP_TOPIC)
+        if ns is not None:
+            seen.setdefault(topic, set()).add(int(decode(msgtype, raw).data))
+            continue
+        ns = _split(topic, EVENTS_TOPIC)
+        if ns is not None:
+            step_kind = event_step_kind(decode(msgtype, raw).data)
+            if step_kind is not None and step_kind[1] == WITHHELD_EVENT:
+                withheld.setdefault(ns, set()).add(step_kind[0])
+            continue
+        ns = _split(topic, FEED_EVENTS_TOPIC)
+        if ns is not None:
+            line = decode(msgtype, raw).data
+            step_kind = event_step_kind(line)
+            if step_kind is not None and step_kind[1] == STAND_IN_EVENT:
+                stand_in.setdefault(ns, []).append((step_kind[0], line.split(None, 2)[2].split(":", 1)[0]))
+            continue
+        ns = _split(topic, FEED_INFO_TOPIC)
+        if ns is not None:
+            try:
+                scenarios.setdefault(ns, dict(json.loads(decode(msgtype, raw).data)))
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"bag {path}: topic '{topic}': invalid JSON: {exc}") from None
+    if not records:
+        topics = ", ".join(sorted(info.topics)) or "none"
+        damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
+        raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
+    columns = [c for c in TIMESERIES_COLUMNS if c != "time"]
+    counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands", "foreign_commands")
+    runs: dict[str, BagRun] = {}
+    for ns in sorted(records, key=ns_key):
+        by_step = records[ns]
+        steps = sorted(by_step)
+        expected = list(range(len(steps)))
+        if steps != expected:
+            missing = sorted(set(range(steps[-1] + 1)) - set(steps))
+            raise ValueError(
+                f"bag {path}: topic '{resolve_ns(ns, RECORD_TOPIC)}': steps missing in the middle of the run: "
+                f"{_ranges(missing)} (recorder overloaded or messages lost)"
+            )
+        rows = [layout.unpack(by_step[k][1]) for k in steps]
+        ts = pd.DataFrame({c: [r[c] for r in rows] for c in columns})
+        times = pd.to_datetime([r["time_unix_s"] for r in rows], unit="s", utc=True).tz_convert(timezone)
+        ts.insert(0, "time", [t.isoformat() for t in times])
+        ts = ts[list(TIMESERIES_COLUMNS)]
+        step_infos = infos.get(ns, {})
+        if step_infos and all(k in step_infos for k in steps):
+            ts = pd.concat([ts, pd.DataFrame([step_infos[k] for k in steps]).add_prefix("ems_")], axis=1)
+        last = rows[-1]
+        complete = n_steps.get(ns) is not None and len(steps) == n_steps[ns]
+        fallback = {k for k, r in zip(steps, rows) if r["fallback"]}
+        runs[ns] = BagRun(
+            namespace=ns,
+            timeseries=ts,
+            n_steps=n_steps.get(ns),
+            first_ns=int(first_ns or 0),
+            last_ns=max(t for t, _ in by_step.values()),
+            counters={c: int(last[c]) for c in counter_names},
+            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete, set(info.topics),
+                           withheld.get(ns, set()), _unread_inputs(contract, ems_names.get(ns))),
+            ems=ems_names.get(ns),
+            scenario=scenarios.get(ns),
+            stand_in=sorted(set(stand_in.get(ns, []))),
+        )
+    return runs
+
+
+def _unread_inputs(contract: Any, ems: str | None) -> set[str]:
+    """Feed topics the EMS ``ems`` (as announced on ``ems/info``) does not read (none if unknown)."""
+    try:
+        return set(contract.inputs_not_read(contract.ems_node_name(ems))) if ems else set()
+    except ValueError:  # ContractError: an EMS this contract does not know
+        return set()
+
+
+def is_per_step(spec: Any) -> bool:
+    """Whether a contract topic carries one message per step (its step in the message):
+    every ``Float64MultiArray`` topic (element 0), ``plant/step`` and ``ems/info``. The gap
+    check and the recorder's end of run expect each step of these."""
+    return bool(spec.is_array) or spec.name in (STEP_TOPIC, INFO_TOPIC)
+
+
+def withheld_topics(contract: Any) -> set[str]:
+    """Topics published once a step that a step named by a :data:`WITHHELD_EVENT` lacks by
+    design: those the MQTT bridge publishes besides ``plant/step`` and ``plant/record``
+    (``state/*``, ``feed/measured``)."""
+    bridges = {name for name, spec in contract.nodes.items() if spec.role == BRIDGE_ROLE}
+    return {spec.name for spec in contract.topics.values()
+            if is_per_step(spec) and spec.name not in (STEP_TOPIC, RECORD_TOPIC) and bridges & set(spec.publishers)}
+
+
+def find_gaps(
+    contract: Any,
+    ns: str,
+    n: int,
+    fallback: set[int],
+    seen: dict[str, set[int]],
+    complete: bool,
+    recorded: set[str] | None = None,
+    withheld: set[int] | None = None,
+    unread: set[str] | None = None,
+) -> dict[str, list[int]]:
+    """Steps of a recorded run with no message, per topic of namespace ``ns``.
+
+    Checked: every ``Float64MultiArray`` topic of the contract (element 0 is the step),
+    ``plant/step`` and, if the EMS published it at all, ``ems/info``, among the topics the
+    bag records (``recorded``: its connections; None = all; a topic left out of a
+    recording is not a gap); steps ``0 .. n-1``
+    (``n`` = recorded ``plant/record`` steps), except the fallback steps for the EMS's
+    topics (no command is expected there) and the ``withheld`` steps (:data:`WITHHELD_EVENT`)
+    for the topics of :func:`withheld_topics` (no state was announced there, by design).
+    A topic of ``unread`` (feed inputs the run's EMS does not read,
+    :meth:`~comems4build_ros.wire.contract.Contract.inputs_not_read`) without any message was
+    not published in the run (a feed serving that EMS), not lost.
+    A bag cut short (recorder killed) is checked up to :data:`CUT_TAIL_STEPS` steps before
+    its last record (the feed runs ahead and the last messages before the cut need not all
+    be in), and each topic with messages only up to its own last recorded step: the
+    recorder's queues of different topics can be many steps apart when it is killed (what
+    it had not written is the cut, reported as ``bag_incomplete``; a step missing inside a
+    topic's recorded span is a gap).
+    """
+    roles = {name: spec.role for name, spec in contract.nodes.items()}
+    last = n if complete else max(0, n - CUT_TAIL_STEPS)
+    withheld = withheld or set()
+    no_state = withheld_topics(contract) if withheld else set()
+    # published only if the run had them at all: ems/info (an EMS without step info), the
+    # inputs the run's EMS does not read
+    unless_absent = (unread or set()) | {INFO_TOPIC}
+    out: dict[str, list[int]] = {}
+    for spec in contract.topics.values():
+        if spec.name == RECORD_TOPIC:
+            continue
+        full = resolve_ns(ns, spec.name)
+        if recorded is not None and full not in recorded:
+            continue
+        if not is_per_step(spec) or (spec.name in unless_absent and full not in seen):
+            continue
+        from_ems = any(roles.get(p) == "ems" for p in spec.publishers)
+        got = seen.get(full, set())
+        end = last if complete or not got else min(last, max(got) + 1)
+        skip = (fallback if from_ems else set()) | (withheld if spec.name in no_state else set())
+        missing = [k for k in range(end) if k not in got and k not in skip]
+        if missing:
+            out[full] = missing
+    return out
+
+
+class BagGapError(ValueError):
+    """The bag misses messages in the middle of a run (names topics and steps)."""
+
+
+def describe_gaps(gaps: dict[str, list[int]]) -> str:
+    """``topic: N step(s) (ranges)`` per topic, one per line."""
+    return "\n".join(f"  {t}: {len(steps)} step(s) missing ({_ranges(steps)})" for t, steps in sorted(gaps.items()))
+
+
+def resolve_ns(ns: str, name: str) -> str:
+    """``/`` + ``a/b`` -> ``/a/b``; ``/building_1`` + ``a/b`` -> ``/building_1/a/b``."""
+    return f"{ns.rstrip('/')}/{name}"
+
+
+def _ranges(values: list[int]) -> str:
+    """``[1, 2, 3, 7]`` -> ``"1-3, 7"`` (at most 10 ranges)."""
+    out: list[str] = []
+    start = prev = None
+    for v in values:
+        if start is None:
+            start = prev = v
+        elif v == prev + 1:
+            prev = v
+        else:
+            out.append(f"{start}-{prev}" if prev != start else f"{start}")
+            start = prev = v
+    if start is not None:
+        out.append(f"{start}-{prev}" if prev != start else f"{start}")
+    return ", ".join(out[:10]) + (" ..." if len(out) > 10 else "")
+
+
+def building_dir(out: Path, namespace: str, n_namespaces: int) -> Path:
+    """Output directory of one namespace: ``out`` itself for a single root-namespace run."""
+    return out if n_namespaces == 1 and namespace == "/" else out / namespace.strip("/")
+
+
+def evaluate_bag(
+    path: str | Path,
+    out: str | Path,
+    params: Any = None,
+    wall_s: float | None = None,
+    timeseries: bool = True,
+    accept_gaps: bool = False,
+) -> dict[str, dict[str, Any]]:
+    """Weekly KPIs and summary of every building in a bag, with the in-process KPI code.
+
+    Writes, per namespace, ``timeseries.csv`` (optional), ``weekly.csv`` and
+    ``summary.json`` through :func:`comems4build_ros.core.loop.write_run` (into ``out`` for a
+    single building in the root namespace, else into ``out/building_<i>/``, and then
+    ``out/weekly.csv`` with a ``building`` column and ``out/summary.json`` with one
+    summary per building).
+
+    Parameters
+    ----------
+    path : rosbag2 directory or ``.mcap`` file
+    out : output directory
+    params : plant parameters (default: those named in the bag's ``run_info.json``)
+    wall_s : wall time of the run [s] for the summary (the launcher's; None for a bag
+        evaluated on its own: the bag does not know it)
+    accept_gaps : evaluate a bag with messages missing on some topic (default: refuse)
+
+    Summary entries besides the KPIs (as in-process): ``ems``, ``scenario``, ``forecast``
+    from ``run_info.json`` or, without it, as the EMS (``ems/info``) and the feed
+    (``feed/info``) announced them in the bag; ``wall_s``; ``ems_s`` = None (the
+    controller's own compute time is not in the bag); ``bag_duration_s`` (receive time of
+    the last record minus that of the first message); ``lost_messages`` (topic -> steps
+    without a message, ``{}`` for a complete recording). An incomplete run or bag adds
+    ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
+    read, whether an ``.mcap`` file ended early, and the damage found in this building's
+    own bag, see :class:`BagInfo`; for a run the launcher cut short also ``run_cut``, its
+    :data:`RUN_CUT_FILE`, whose cause is repeated as the summary's ``run_cut``, with
+    ``nodes_here``: the nodes of this building among those of the process that left, so
+    that a building whose own nodes all ran on is told apart from the one that lost them); a
+    partial last week is left out of the weekly medians like any
+    partial week. Fault counters of the plant other than fallback steps are added as
+    ``ros_faults`` when non-zero. A run on live inputs adds ``live_inputs``: the recorded
+    steps whose price (``stand_in_price_steps``) and whose weather
+    (``stand_in_weather_steps``) stand-in values replaced, as the feed stated them on
+    ``feed/events``. Every file is written all-or-nothing.
+
+    Raises
+    ------
+    BagGapError
+        When some topic misses messages and ``accept_gaps`` is false (naming the
+        topics and the steps).
+
+    Returns
+    -------
+    namespace -> summary
+    """
+    import json
+
+    import pandas as pd
+
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.loop import evaluate_timeseries, write_run
+    from comems4build_ros.files.outputs import atomic_dir
+
+    out = Path(out)
+    run_info = read_run_info(path)
+    if params is None:
+        params = load_plant_params(run_info.get("config_files") or [], run_info.get("overrides") or {})
+    runs, bag_of = read_bag_set(path, params.site.timezone)
+    gaps = {t: steps for run in runs.values() for t, steps in run.gaps.items()}
+    if gaps and not accept_gaps:
+        raise BagGapError(
+            f"bag {path}: messages missing (lost in the recording) on {len(gaps)} topic(s):\n{describe_gaps(gaps)}\n"
+            "KPIs from plant/record would still be exact, but the bag is not a complete record of the run; "
+            "evaluate it anyway with --accept-gaps"
+        )
+    summaries: dict[str, dict[str, Any]] = {}
+    weekly_parts = []
+    for ns, run in runs.items():
+        info, cut = bag_of[ns]  # the bag of this building: its own damage and cut, no other's
+        scen = run.scenario or {}
+        extra: dict[str, Any] = {
+            "ems": run_info.get("ems") or run.ems,
+            "scenario": run_info.get("scenario") or scenario_label(scen.get("scenario")),
+            "wall_s": wall_s,
+            "ems_s": None,
+            "forecast": run_info.get("forecast") if run_info else _forecast_of(run.ems, scen.get("forecast")),
+            "bag_duration_s": (run.last_ns - run.first_ns) / NS_PER_S,
+            "lost_messages": {t: len(steps) for t, steps in sorted(run.gaps.items())},
+        }
+        if not run.complete or not info.complete or info.damage or cut:
+            extra["bag_incomplete"] = {
+                "steps_recorded": len(run.timeseries),
+                "steps_expected": run.n_steps,
+                "metadata_yaml": info.complete,
+                "truncated_mcap": info.truncated,
+                "damage": list(info.damage),
+            }
+            if cut:
+                extra["bag_incomplete"]["run_cut"] = dict(cut, nodes_here=nodes_of(cut.get("nodes") or [], ns))
+                extra["run_cut"] = cut.get("cause")
+        if run.stand_in:  # a run on live inputs: how many steps ran on stand-in values
+            extra["live_inputs"] = run.stand_in_steps()
+        faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
+        if faults:
+            extra["ros_faults"] = faults
+        result = evaluate_timeseries(run.timeseries, params, extra)
+        write_run(result, building_dir(out, ns, len(runs)), timeseries=timeseries)
+        summaries[ns] = result.summary
+        weekly_parts.append(result.weekly.assign(building=ns.strip("/") or "root"))
+    if len(runs) > 1 or "/" not in runs:
+        weekly = pd.concat(weekly_parts, ignore_index=True)
+        weekly = weekly[["building", *[c for c in weekly.columns if c != "building"]]]
+        combined = {"buildings": {ns.strip("/"): s for ns, s in summaries.items()}}
+        with atomic_dir(out) as tmp:
+            weekly.to_csv(tmp / "weekly.csv", index=False)
+            (tmp / "summary.json").write_text(json.dumps(combined, indent=2, default=_json_default) + "\n", "utf-8")
+    return summaries
+
+
+BagOf = dict[str, tuple[BagInfo, dict[str, Any]]]
+
+
+def nodes_of(nodes: list[str], namespace: str) -> list[str]:
+    """The full node names of ``nodes`` that lie in ``namespace`` (``/`` or ``/building_<i>``)."""
+    return [n for n in nodes if isinstance(n, str) and (n.rpartition("/")[0] or "/") == namespace]
+
+
+def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], BagOf]:
+    """Every building's run of the bag (or set of per-building bags) at ``path``, each with
+    the :class:`BagInfo` of its own bag and that bag's :data:`RUN_CUT_FILE` (``{}`` if none).
+
+    Each bag of a set is read on its own, so damage (a truncated MCAP file of a killed
+    recorder) is attributed to the building whose bag has it. A bag of a set with no
+    ``plant/record`` at all (its recorder died before the first step) is left out; if no
+    bag has one, the ValueError names them.
+    """
+    parts = bag_set(path)
+    runs: dict[str, BagRun] = {}
+    bag_of: BagOf = {}
+    errors: list[str] = []
+    for part in parts:
+        info = BagInfo(part, [], False)
+        try:
+            part_runs = read_runs(part, timezone, info)
+        except ValueError as exc:
+            if len(parts) == 1:
+                raise
+            errors.append(str(exc))
+            continue
+        cut = read_run_cut(part)
+        for ns, run in part_runs.items():
+            runs[ns] = run
+            bag_of[ns] = (info, cut)
+    if not runs:
+        raise ValueError("; ".join(errors))
+    return runs, bag_of
+
+
+def read_run_cut(path: str | Path) -> dict[str, Any]:
+    """The :data:`RUN_CUT_FILE` of one bag (``{}`` if the run was not cut or the file is unreadable)."""
+    import json
+
+    p = Path(path)
+    f = (p if p.is_dir() else p.parent) / RUN_CUT_FILE
+    try:
+        doc = json.loads(f.read_text(encoding="utf-8"))
+    except (OSError, ValueError):
+        return {}
+    return doc if isinstance(doc, dict) else {}
+
+
+def mark_run_cut(path: str | Path, cut: dict[str, Any]) -> list[Path]:
+    """Write ``cut`` (why the run was cut: cause, process, exit code, log) as
+    :data:`RUN_CUT_FILE` into every bag under ``path`` that exists; returns the files."""
+    import json
+
+    from comems4build_ros.files.outputs import write_text_atomic
+
+    p = Path(path)
+    if not p.exists():
+        return []
+    out = []
+    for part in bag_set(p):
+        d = part if part.is_dir() else part.parent
+        f = d / RUN_CUT_FILE
+        write_text_atomic(f, json.dumps(cut, indent=2) + "\n")
+        out.append(f)
+    return out
+
+
+def _json_default(value: Any) -> Any:
+    import math
+
+    import numpy as np
+
+    if isinstance(value, np.generic):
+        value = value.item()
+        return None if isinstance(value, float) and not math.isfinite(value) else value
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+def lost_messages(path: str | Path) -> dict[str, int]:
+    """Per topic of every namespace, steps of the recorded run with no message (:func:`find_gaps`).
+
+    A complete recording gives ``{}``; used by the tests and ``bench ros`` to show that
+    the recorder kept up.
+    """
+    runs, _ = read_bag_set(path, "UTC")
+    return {t: len(steps) for run in runs.values() for t, steps in sorted(run.gaps.items())}
+
+
+def scenario_label(name: Any) -> str | None:
+    """The feed's scenario name (``Scenario.name``, as the in-process summary has it), None if absent."""
+    return name if isinstance(name, str) and name else None
+
+
+def _forecast_of(ems: str | None, mode: Any) -> str | None:
+    """Forecast mode of the summary: the feed's mode for an MPC-level EMS, else None (as in-process)."""
+    if ems is None or not isinstance(mode, str):
+        return None
+    from comems4build_ros.core.ems import UnknownEMSError, controller_class
+
+    try:
+        return mode if controller_class(ems).info_level == "mpc" else None
+    except UnknownEMSError:
+        return None

@@ -1,0 +1,178 @@
+"""The cost-optimal MILP model-predictive controller (``--ems mpc``, paper sec:MPC).
+
+Each step: build the horizon numbers from the observation (:func:`.horizon.build_horizon`),
+update the MILP in place, warm-start it with the previous plan shifted by one step, solve,
+and apply the first step of the plan. A solve that ends without proven optimality (time
+limit) still uses the best solution found; a solve with no solution at all applies the
+shared safe fallback (:func:`comems4build_ros.core.ems.fallback.safe_action`: hot water to
+V_min, rooms to T_air,min, battery and FC idle, the grid covers the load), counts it in
+``step_info["fallback"]`` and logs it; the run never stops.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import math
+import sys
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+
+from comems4build_ros.core.config import PlantParams
+from comems4build_ros.core.ems.base import Observation
+from comems4build_ros.core.ems.fallback import safe_action
+from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon, season_schedules
+from comems4build_ros.core.ems.mpc.milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
+from comems4build_ros.core.ems.mpc.settings import MILPOptions, load_options
+from comems4build_ros.core.ems.mpc.solvers import make_backend
+from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
+
+#: Values below this are treated as zero when turning a plan into an action [W] / [-].
+POWER_EPS_W = 1e-3
+#: step_info keys reported every step (the loop records them as ems_<key>).
+STEP_INFO_KEYS = (
+    "solve_s", "status", "optimal", "objective_eur", "gap", "fallback", "slack_used",
+    "slack_t_lo_k", "slack_t_hi_k", "slack_v_lo_l", "slack_v_hi_l", "slack_soc", "slack_loh",
+    "slack_steps_plan",
+)
+#: Status codes of step_info["status"]: 1 optimal, 2 feasible (not proven optimal), 0 no solution.
+STATUS_OPTIMAL, STATUS_FEASIBLE, STATUS_NONE = 1, 2, 0
+
+
+def penalties_from(opts: Any) -> Penalties:
+    """Soft-bound penalties from validated options."""
+    return Penalties(opts.penalty_comfort_eur_per_kh, opts.penalty_dhw_eur_per_lh, opts.penalty_soc_eur_per_h,
+                     opts.penalty_loh_eur_per_h)
+
+
+def action_from_plan(plan: Mapping[str, np.ndarray], h: HorizonData, const: PlantConstants) -> Action:
+    """First step of a plan as an :class:`Action` (the plant clips whatever remains off-limits)."""
+    p_sh = float(plan["p_hp_sh"][0])
+    p_dhw = float(plan["p_hp_dhw"][0])
+    pmax = float(h.p_hp_max_w[0])
+    if max(p_sh, p_dhw) <= POWER_EPS_W or pmax <= 0:
+        mode, mod = HP_OFF, 0.0
+    elif p_sh >= p_dhw:
+        mode, mod = HP_SH, min(p_sh / pmax, 1.0)
+    else:
+        mode, mod = HP_DHW, min(p_dhw / pmax, 1.0)
+    if "p_hp_cool" in plan:  # year-round plant with cooling
+        p_cool = float(plan["p_hp_cool"][0])
+        pc = float(h.p_cool_max_w[0])
+        if p_cool > POWER_EPS_W and pc > 0 and p_cool > max(p_sh, p_dhw):
+            mode, mod = HP_COOL, min(p_cool / pc, 1.0)
+    p_fc = float(plan["p_fc"][0])
+    p_bess = float(plan["p_ch"][0] - plan["p_dis"][0])
+    p_el = float(plan["p_el"][0]) if "p_el" in plan else 0.0
+    return Action(
+        hp_mod=mod,
+        hp_mode=mode,
+        p_fc_w=p_fc if p_fc > POWER_EPS_W else 0.0,
+        p_bess_w=p_bess if abs(p_bess) > POWER_EPS_W else 0.0,
+        p_el_w=p_el if p_el > POWER_EPS_W else 0.0,
+    )
+
+
+def slack_info(plan: Mapping[str, np.ndarray] | None, tol: float) -> dict[str, float]:
+    """Slack of the applied step (t = 0) per bound, and the number of plan steps with any slack."""
+    keys = {"sl_t_lo": "slack_t_lo_k", "sl_t_hi": "slack_t_hi_k", "sl_v_lo": "slack_v_lo_l",
+            "sl_v_hi": "slack_v_hi_l", "sl_soc_lo": "slack_soc", "sl_soc_hi": "slack_soc", "sl_loh": "slack_loh"}
+    out = dict.fromkeys(keys.values(), 0.0)
+    if plan is None:
+        out.update(slack_used=0.0, slack_steps_plan=0.0)
+        return out
+    any_step = np.zeros(len(plan["sl_t_lo"]), dtype=bool)
+    for name, key in keys.items():
+        out[key] += float(plan[name][0])
+        any_step |= plan[name] > tol
+    out["slack_used"] = 1.0 if any(plan[name][0] > tol for name in SLACKS) else 0.0
+    out["slack_steps_plan"] = float(any_step.sum())
+    return out
+
+
+class MPCController:
+    """MILP MPC over a 24 h horizon (``eq:mpc_objective``).
+
+    Parameters
+    ----------
+    params : plant parameters (the MPC's forecasting models)
+    options : overrides of ``config/mpc.yaml`` section ``mpc`` (see :class:`.settings.MILPOptions`)
+    """
+
+    name = "mpc"
+    info_level = "mpc"
+
+    def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
+        self.params = params
+        self.options: MILPOptions = load_options(MILPOptions, "mpc", options)  # type: ignore[assignment]
+        o = self.options
+        self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
+        self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
+                               o.relax_battery_binary,
+                               YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur),
+                               o.fc_heat_dump)
+        self.backend = make_backend(o.solver, self.model.form, o.mip_rel_gap, o.time_limit_s, o.threads,
+                                    o.warm_start, highs_options=o.highs_options, gurobi_options=o.gurobi_options)
+        self.step_info: dict[str, float] = {}
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the previous plan and the counters."""
+        self._prev_plan: dict[str, np.ndarray] | None = None
+        self.n_fallback = 0
+        self.n_slack = 0
+        self.n_solves = 0
+        self.last_result: SolveResult | None = None
+        self.last_horizon: HorizonData | None = None
+        self.step_info = dict.fromkeys(STEP_INFO_KEYS, 0.0)
+        self._season_loh0: float | None = None
+
+    def plan(self, obs: Observation) -> SolveResult:
+        """Update and solve the horizon problem for ``obs`` (no action, no counters)."""
+        h = build_horizon(obs, self.const, self.options.loh_min_mode)
+        if self.const.year_round:  # seasonal schedules (memory: the LOH at the season's start)
+            left = float(obs.heating_season_days_left)
+            if left <= 0.0:
+                self._season_loh0 = None
+            elif self._season_loh0 is None:
+                self._season_loh0 = float(obs.loh)
+            bound, target = season_schedules(float(obs.days_to_heating_season), left, self._season_loh0,
+                                             self.const, self.options.loh_season_target)
+            h = dataclasses.replace(h, loh_min=bound, loh_season=target)
+        self.last_horizon = h
+        self.model.update(h)
+        self.model.set_start(shift_plan(self._prev_plan) if self.options.warm_start and self._prev_plan else None)
+        return self.model.solve(self.backend)
+
+    def act(self, obs: Observation) -> Action:
+        """Solve the horizon problem and return its first step (or the safe fallback)."""
+        res = self.plan(obs)
+        h = self.last_horizon
+        self.last_result = res
+        self.n_solves += 1
+        tol = self.options.slack_report_tol
+        if res.has_solution:
+            action = action_from_plan(res.plan, h, self.const)
+            self._prev_plan = res.plan
+            status = STATUS_OPTIMAL if res.optimal else STATUS_FEASIBLE
+        else:
+            action = safe_action(obs.t_air_c, obs.v_dhw_l, h.t_min_c[0], self.params)
+            self._prev_plan = None
+            self.n_fallback += 1
+            status = STATUS_NONE
+            if self.options.log_fallback:
+                print(f"mpc: step {obs.step}: no solution ({res.status}, {res.solve_s:.3f} s); "
+                      f"safe fallback {action} (fallback #{self.n_fallback})", file=sys.stderr)
+        info = slack_info(res.plan if res.has_solution else None, tol)
+        self.n_slack += int(info["slack_used"])
+        info.update(
+            solve_s=res.solve_s,
+            status=float(status),
+            optimal=1.0 if res.optimal else 0.0,
+            objective_eur=res.objective,
+            gap=res.gap if math.isfinite(res.gap) else math.nan,
+            fallback=0.0 if res.has_solution else 1.0,
+        )
+        self.step_info = {key: float(info[key]) for key in STEP_INFO_KEYS}
+        return action

@@ -1,0 +1,299 @@
+"""Numbers of one horizon problem, built from an MPC observation only.
+
+:class:`PlantConstants` holds what the MPC knows from the plant parameters (its
+"forecasting models", ``tab:level_of_information``): the discretised 4R3C building, the
+DHW tank, battery, FC and H2 store constants, the lifecycle costs. :func:`build_horizon`
+combines them with one :class:`~comems4build_ros.core.ems.base.Observation` of level "mpc"
+into a :class:`HorizonData`: the initial states of step ``k - 1`` and the 24-step
+forecast from step ``k``. Nothing else enters the optimisation, so the controllers can
+only use what the plant published (a test perturbs the scenario beyond the horizon).
+
+The MILP (:mod:`.milp`) and the QP (:mod:`.qp`) are both built from these numbers.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from comems4build_ros.core.config import W_PER_KW, PlantParams
+from comems4build_ros.core.ems.base import Observation
+from comems4build_ros.core.ems.mpc.settings import LifecycleCosts, lifecycle_costs
+from comems4build_ros.core.models import building, dhw, heat_pump
+
+
+@dataclass(frozen=True)
+class PlantConstants:
+    """Constants of the MPC's linear plant model (from :class:`PlantParams`).
+
+    Attributes
+    ----------
+    n : horizon steps [-]; dt_h : step [h]
+    ad, bd : building ZOH matrices, x = [T_air, T_w_in, T_w_out], u = [Q_h_SH W, T_amb degC, q_s W/m2]
+        (eq:state_update_bldgs)
+    l_per_wh : DHW volume change per Wh of heat at T_DHW [l/Wh] (eq:DHW_model)
+    q_dhw_loss_w : standing loss [W]; v_min_l, v_max_l : usable volume bounds [l]
+    soc_per_wh_ch, soc_per_wh_d : SOC change per Wh charged (eta_ch / E) and per Wh
+        discharged (1 / (eta_d E)) [1/Wh] (eq:batt_soc)
+    loh_per_wh_fc : LOH drop per Wh of FC electricity at constant eta_el_mpc [1/Wh] (eq:LOH)
+    k_fc_heat : recovered heat per W of FC electricity, (eta_sys - eta_el_mpc) / eta_el_mpc [-]
+        (eq:FC_sys_efficiency)
+    p_fc_min_w, p_fc_max_w : FC power range, max = zeta * P_max [W]
+    costs : lifecycle costs (eq:batt_andFC_operation_degradation)
+    """
+
+    n: int
+    dt_h: float
+    ad: np.ndarray
+    bd: np.ndarray
+    l_per_wh: float
+    q_dhw_loss_w: float
+    v_min_l: float
+    v_max_l: float
+    soc_min: float
+    soc_max: float
+    soc_per_wh_ch: float
+    soc_per_wh_d: float
+    p_ch_max_w: float
+    p_d_max_w: float
+    p_ch_min_w: float
+    p_d_min_w: float
+    loh_per_wh_fc: float
+    loh_init: float
+    loh_lower: float
+    loh_upper: float
+    k_fc_heat: float
+    p_fc_min_w: float
+    p_fc_max_w: float
+    hp_mod_min: float
+    t_supply_sh_c: float
+    t_supply_dhw_c: float
+    costs: LifecycleCosts
+    params: PlantParams
+    #: year-round plant: electrolyser (P_EL range [W], LOH gain per Wh of intake at its rated
+    #: efficiency, compression included [1/Wh]) and cooling (capacity [W]); 0 where not installed
+    el: bool = False
+    p_el_min_w: float = 0.0
+    p_el_max_w: float = 0.0
+    loh_per_wh_el: float = 0.0
+    cooling: bool = False
+    q_cool_max_w: float = 0.0
+
+    @property
+    def year_round(self) -> bool:
+        """An electrolyser or cooling is installed: the MILP gets their variables."""
+        return self.el or self.cooling
+
+    @classmethod
+    def from_params(cls, params: PlantParams, fc_lifecycle_eta: str = "eta_el_mpc") -> PlantConstants:
+        """Derive the constants; ``fc_lifecycle_eta`` as in :func:`.settings.lifecycle_costs`."""
+        sim, b, fc, h2, hp, tank = (params.simulation, params.battery, params.fuel_cell, params.hydrogen,
+                                    params.heat_pump, params.dhw)
+        dt_h = sim.time_step_h
+        ad, bd = building.discretize(params.building, dt_h)
+        w_per_l_per_h = float(dhw.heat_w_from_l_per_h(1.0, tank))  # [W] carried by 1 l/h
+        e_b_wh = b.e_max_kwh * W_PER_KW
+        return cls(
+            n=int(round(sim.horizon_h / dt_h)),
+            dt_h=dt_h,
+            ad=np.asarray(ad, dtype=float),
+            bd=np.asarray(bd, dtype=float),
+            l_per_wh=1.0 / w_per_l_per_h,
+            q_dhw_loss_w=tank.q_loss_w,
+            v_min_l=tank.v_min_l,
+            v_max_l=tank.v_max_l,
+            soc_min=b.soc_min,
+            soc_max=b.soc_max,
+            soc_per_wh_ch=b.eta_ch / e_b_wh,
+            soc_per_wh_d=1.0 / (b.eta_d * e_b_wh),
+            p_ch_max_w=b.p_ch_max_w,
+            p_d_max_w=b.p_d_max_w,
+            p_ch_min_w=b.p_ch_min_w,
+            p_d_min_w=b.p_d_min_w,
+            loh_per_wh_fc=1.0 / (fc.eta_el_mpc * h2.e_max_kwh * W_PER_KW),
+            loh_init=sim.loh_init,
+            loh_lower=h2.loh_min,
+            loh_upper=h2.loh_max,
+            k_fc_heat=max(fc.eta_sys - fc.eta_el_mpc, 0.0) / fc.eta_el_mpc,
+            p_fc_min_w=fc.p_min_w,
+            p_fc_max_w=fc.zeta * fc.p_max_w,
+            hp_mod_min=hp.mod_min,
+            t_supply_sh_c=hp.t_supply_sh_c,
+            t_supply_dhw_c=hp.t_supply_dhw_c,
+            costs=lifecycle_costs(params, fc_lifecycle_eta),
+            params=params,
+            **_year_constants(params),
+        )
+
+
+@dataclass(frozen=True)
+class HorizonData:
+    """One horizon problem (arrays of length ``n``, index 0 = step k).
+
+    Attributes
+    ----------
+    x0 : building state at the end of step k-1 [degC] (T_air, T_w_in, T_w_out)
+    soc0, loh0 : battery and H2 levels [-]; v0_l : usable DHW volume [l]
+    fc_on_prev : FC on in step k-1 (eq:on_off_logic)
+    t_amb_c, ghi_w_m2, p_pv_w, p_load_w : weather, PV and appliance forecasts
+    q_dhw_dem_w : DHW demand as heat [W]; t_min_c, t_max_c : comfort bounds [degC]
+    price_buy_eur_per_kwh : buy tariff; price_sell_eur_per_kwh : sell tariff (scalar)
+    cop_sh, cop_dhw : COP at 55 / 45 degC supply and forecast T_amb [-]
+    p_hp_max_w : P_el,HP,max at forecast T_amb [W]
+    loh_min : lower LOH bound per step (eq:LOHmin_MPC) [-]
+    """
+
+    x0: np.ndarray
+    soc0: float
+    loh0: float
+    v0_l: float
+    fc_on_prev: bool
+    t_amb_c: np.ndarray
+    ghi_w_m2: np.ndarray
+    p_pv_w: np.ndarray
+    p_load_w: np.ndarray
+    q_dhw_dem_w: np.ndarray
+    t_min_c: np.ndarray
+    t_max_c: np.ndarray
+    price_buy_eur_per_kwh: np.ndarray
+    price_sell_eur_per_kwh: float
+    cop_sh: np.ndarray
+    cop_dhw: np.ndarray
+    p_hp_max_w: np.ndarray
+    loh_min: np.ndarray
+    #: year-round plant: EL on in step k-1, EER and cooling intake limit at forecast T_amb,
+    #: the soft seasonal LOH target per step (None where not installed)
+    el_on_prev: bool = False
+    eer: np.ndarray | None = None
+    p_cool_max_w: np.ndarray | None = None
+    loh_season: np.ndarray | None = None
+
+    @property
+    def n(self) -> int:
+        """Horizon steps."""
+        return len(self.t_amb_c)
+
+
+def _year_constants(params: PlantParams) -> dict:
+    """Electrolyser and cooling constants of :class:`PlantConstants` (empty for the paper's plant)."""
+    from comems4build_ros.core.models.electrolyser import ElectrolyserTable
+
+    out: dict = {}
+    table = ElectrolyserTable(params.electrolyser)
+    if table.n:
+        out.update(el=True, p_el_min_w=table.p_min_w, p_el_max_w=table.p_max_w,
+                   loh_per_wh_el=table.efficiency(1.0) / (params.hydrogen.e_max_kwh * W_PER_KW))
+    if params.cooling.enabled:
+        out.update(cooling=True, q_cool_max_w=params.cooling.q_cool_max_w)
+    return out
+
+
+def season_schedules(
+    days_to_season: float, season_days_left: float, loh_season_start: float | None, const: PlantConstants,
+    target: float,
+) -> tuple[np.ndarray, np.ndarray]:
+    """Hard lower bound (eq:LOHmin_MPC over the heating season) and soft seasonal target per horizon step [-].
+
+    Inside the heating season: the bound falls linearly from ``loh_season_start`` (the LOH
+    when the season began) to ``simulation.loh_season_end`` at its end, the bound of the
+    current day over the whole horizon (the paper's ``day`` reading); no target. Outside it:
+    the store's own LOH_min as bound, and a target rising linearly from ``loh_season_end``
+    at the end of the last season to ``target`` at the start of the next (over the days
+    between two seasons).
+    """
+    sim = const.params.simulation
+    end = sim.loh_season_end
+    n = const.n
+    if season_days_left > 0.0 and loh_season_start is not None:
+        season_len = _season_length_days(sim)
+        day_no = np.floor(season_len - season_days_left) + 1.0
+        bound = loh_season_start - max(loh_season_start - end, 0.0) * day_no / season_len
+        return np.full(n, max(bound, const.loh_lower)), np.zeros(n)
+    gap = 365.0 - _season_length_days(sim)
+    ahead = days_to_season - np.arange(n) * const.dt_h / 24.0
+    share = np.clip(1.0 - ahead / gap, 0.0, 1.0)
+    return np.full(n, const.loh_lower), end + (target - end) * share
+
+
+def _season_length_days(sim) -> float:
+    """Days of the heating season (``heating_season_start`` .. ``_end``, a non-leap year)."""
+    import datetime as _dt
+
+    sm, sd = (int(x) for x in sim.heating_season_start.split("-"))
+    em, ed = (int(x) for x in sim.heating_season_end.split("-"))
+    start = _dt.date(2001, sm, sd)
+    end = _dt.date(2001 if (em, ed) > (sm, sd) else 2002, em, ed)
+    return float((end - start).days)
+
+
+def loh_min_schedule(
+    day_index: int, hour_of_day: int, dloh_per_day: float, const: PlantConstants, mode: str
+) -> np.ndarray:
+    """Lower LOH bound of each horizon step, eq:deltaLOH / eq:LOHmin_MPC [-].
+
+    ``LOH_min = LOH_init - dLOH * (number of the day)`` with the day counted from 1
+    (LOH_init = LOH_max in the paper). Mode ``day`` (the paper's): the bound of the
+    current day holds over the whole horizon; ``step``: each step gets the bound of the
+    day it falls in. Never below the store's own ``loh_min``.
+    """
+    steps = np.arange(const.n)
+    if mode == "day":
+        day_no = np.full(const.n, day_index + 1)
+    elif mode == "step":
+        day_no = day_index + 1 + ((hour_of_day + steps * const.dt_h) // 24).astype(int)
+    else:
+        raise ValueError(f"loh_min_mode: unknown value '{mode}' (day, step)")
+    return np.maximum(const.loh_init - dloh_per_day * day_no, const.loh_lower)
+
+
+def build_horizon(obs: Observation, const: PlantConstants, loh_min_mode: str = "day") -> HorizonData:
+    """Horizon numbers from an observation of level "mpc" (and the plant constants)."""
+    fc = obs.forecast
+    n = const.n
+
+    def series(key: str) -> np.ndarray:
+        arr = np.asarray(fc[key], dtype=float)
+        if arr.shape != (n,):
+            raise ValueError(f"MPC observation: forecast '{key}' has {arr.size} values, expected {n}")
+        if not np.all(np.isfinite(arr)):
+            raise ValueError(f"MPC observation: forecast '{key}' holds NaN or inf")
+        return arr
+
+    t_amb = series("t_amb_c")
+    hp = const.params.heat_pump
+    dhw_l = series("dhw_l_per_h")
+    return HorizonData(
+        x0=np.array([obs.t_air_c, obs.t_wall_in_c, obs.t_wall_out_c], dtype=float),
+        soc0=float(obs.soc),
+        loh0=float(obs.loh),
+        v0_l=float(obs.v_dhw_l),
+        fc_on_prev=bool(obs.fc_on_prev),
+        t_amb_c=t_amb,
+        ghi_w_m2=series("ghi_w_m2"),
+        p_pv_w=series("p_pv_w"),
+        p_load_w=series("p_load_w"),
+        q_dhw_dem_w=np.asarray(dhw.heat_w_from_l_per_h(dhw_l, const.params.dhw), dtype=float),
+        t_min_c=series("t_min_c"),
+        t_max_c=series("t_max_c"),
+        price_buy_eur_per_kwh=series("price_buy_eur_per_kwh"),
+        price_sell_eur_per_kwh=float(obs.price_sell_eur_per_kwh),
+        cop_sh=np.asarray(heat_pump.cop(t_amb, const.t_supply_sh_c, hp), dtype=float),
+        cop_dhw=np.asarray(heat_pump.cop(t_amb, const.t_supply_dhw_c, hp), dtype=float),
+        p_hp_max_w=np.asarray(heat_pump.p_el_max_w(t_amb, hp), dtype=float),
+        loh_min=loh_min_schedule(int(obs.day_index), int(obs.hour_of_day), float(obs.dloh_per_day), const,
+                                 loh_min_mode),
+        **(_year_horizon(obs, t_amb, const) if const.year_round else {}),
+    )
+
+
+def _year_horizon(obs: Observation, t_amb: np.ndarray, const: PlantConstants) -> dict:
+    """The year-round plant's horizon numbers (the seasonal schedules are set by the controller)."""
+    from comems4build_ros.core.models.cooling import eer
+
+    out: dict = {"el_on_prev": bool(obs.el_on_prev)}
+    if const.cooling:
+        e = np.asarray(eer(t_amb, const.params.cooling), dtype=float)
+        out.update(eer=e, p_cool_max_w=const.q_cool_max_w / e)
+    return out
+

@@ -1,0 +1,399 @@
+"""The in-process closed loop: scenario -> observation -> EMS -> plant -> KPIs.
+
+``simulate`` runs one EMS over a scenario and returns the per-step timeseries, the
+weekly KPI table and the run summary; ``write_run`` stores them as ``timeseries.csv``,
+``weekly.csv`` and ``summary.json``. The ROS nodes reuse :class:`ObservationBuilder`,
+:func:`exogenous_series` and :func:`record_row`, so both paths compute identical numbers.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import time as _time
+from collections.abc import Callable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pydantic import Field
+
+from comems4build_ros.core import kpi
+from comems4build_ros.core.config import PlantParams, Section, config_dir, read_ros_params, validate
+from comems4build_ros.core.ems import make_controller
+from comems4build_ros.core.ems.base import (
+    BOUNDS_AHEAD,
+    FORECAST_KEYS,
+    INFO_LEVELS,
+    PRICE_WINDOW,
+    Controller,
+    Observation,
+    check_mpc_horizon,
+)
+from comems4build_ros.core.models.pv import pv_power_w
+from comems4build_ros.core.plant import Plant
+from comems4build_ros.core.scenario.base import Scenario
+from comems4build_ros.core.scenario.comfort import heating_season_days, holiday_dates
+from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, Flows, PlantState
+from comems4build_ros.files.outputs import atomic_dir
+
+#: Hours of a day and of a week [h].
+HOURS_PER_DAY = 24.0
+HOURS_PER_WEEK = 168.0
+
+#: Applied-command columns (what the EMS asked for, before the plant clipped it).
+COMMAND_COLUMNS = tuple(f"cmd_{name}" for name in ACTION_FIELDS)
+#: Exogenous columns not already among the flows.
+EXO_COLUMNS = ("t_amb_c", "ghi_w_m2", "dhw_l_per_h", "t_min_c", "t_max_c", "spot_eur_per_mwh")
+#: Fixed timeseries columns, in file order (EMS info columns ``ems_*`` follow).
+TIMESERIES_COLUMNS = ("time", "step", *FLOW_FIELDS, *STATE_COLUMNS, *COMMAND_COLUMNS, *EXO_COLUMNS, "fallback")
+
+
+def dloh_per_day(params: PlantParams) -> float:
+    """Daily permissible H2 use ``eq:deltaLOH``: ``24 h * LOH_init / N`` as a fraction/day.
+
+    ``N`` is the number of steps of the whole winter (``simulation.season_weeks``, the
+    paper's twelve weeks), not of the run: a run shorter than the season spends H2 at the
+    season's pace, so that the first weeks of a long run and a short run agree.
+
+    Parameters
+    ----------
+    params : plant parameters (initial LOH, step length, season length)
+    """
+    sim = params.simulation
+    steps_per_day = HOURS_PER_DAY / sim.time_step_h
+    season_steps = sim.season_weeks * HOURS_PER_WEEK / sim.time_step_h
+    return sim.loh_init * steps_per_day / season_steps
+
+
+def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]:
+    """Per-step :class:`Exogenous` records for the whole scenario (PV computed once)."""
+    p_pv = pv_power_w(
+        scenario.time, scenario.ghi_w_m2, scenario.dhi_w_m2, scenario.t_amb_c, params.pv, params.site
+    )
+    cols = zip(
+        scenario.t_amb_c.tolist(),
+        scenario.ghi_w_m2.tolist(),
+        np.asarray(p_pv, dtype=float).tolist(),
+        scenario.p_load_w.tolist(),
+        scenario.dhw_l_per_h.tolist(),
+        scenario.price_buy_eur_per_kwh.tolist(),
+        scenario.price_sell_eur_per_kwh.tolist(),
+        scenario.t_min_c.tolist(),
+        scenario.t_max_c.tolist(),
+    )
+    return [Exogenous(*c) for c in cols]
+
+
+class ForecastSettings(Section):
+    """Forecast settings (``config/forecast.yaml``); see that file for the sources."""
+
+    mode: str = Field(pattern="^(perfect|imperfect)$")
+    seed: int
+    sigma_t_amb_k_24h: float = Field(ge=0)
+    sigma_ghi_rel_24h: float = Field(ge=0)
+
+
+def load_forecast_settings(path: str | Path | None = None, **overrides: Any) -> ForecastSettings:
+    """Read the ``forecast`` section of ``config/forecast.yaml`` (or ``path``), with overrides."""
+    path = Path(path) if path else config_dir() / "forecast.yaml"
+    data = dict(read_ros_params(path).get("forecast", {}))
+    data.update(overrides)
+    return validate(ForecastSettings, data, str(path))
+
+
+class ForecastModel:
+    """The 24-step forecasts the MPC receives (``forecast`` field of the observation).
+
+    ``perfect``: the scenario's future values (the paper's setting). ``imperfect``:
+    persistence for ``p_load_w`` and ``dhw_l_per_h`` (value 24 h earlier; before the
+    first day, the first value), noisy ``t_amb_c`` (additive Gaussian) and ``ghi_w_m2`` /
+    ``p_pv_w`` (one multiplicative Gaussian factor, clipped at 0), with standard deviation
+    ``sigma_24h * sqrt(lead / 24)``; lead 0 is the measured current step and stays exact.
+    The noise of step ``k`` is drawn from a generator seeded with ``(seed, k)``, so runs
+    are reproducible and the in-process and ROS paths see identical forecasts.
+    """
+
+    def __init__(self, series: Mapping[str, list[float]], settings: ForecastSettings, steps_per_day: int) -> None:
+        self._series = series
+        self._s = settings
+        self._day = steps_per_day
+        lead = np.arange(PRICE_WINDOW, dtype=float)
+        self._scale = np.sqrt(lead / steps_per_day)
+
+    def window(self, k: int) -> dict[str, tuple[float, ...]]:
+        """Forecast of every key in :data:`FORECAST_KEYS` for steps ``k .. k+23``."""
+        s = self._series
+        out = {key: s[key][k : k + PRICE_WINDOW] for key in FORECAST_KEYS}
+        if self._s.mode == "imperfect":
+            day = self._day
+            for key in ("p_load_w", "dhw_l_per_h"):
+                vals = s[key]
+                out[key] = [vals[k]] + [vals[max(k + i - day, 0)] for i in range(1, PRICE_WINDOW)]
+            rng = np.random.default_rng((self._s.seed, k))
+            e_t = rng.standard_normal(PRICE_WINDOW) * self._s.sigma_t_amb_k_24h * self._scale
+            f_g = np.clip(1.0 + rng.standard_normal(PRICE_WINDOW) * self._s.sigma_ghi_rel_24h * self._scale, 0.0, None)
+            out["t_amb_c"] = (np.asarray(out["t_amb_c"]) + e_t).tolist()
+            out["ghi_w_m2"] = (np.asarray(out["ghi_w_m2"]) * f_g).tolist()
+            out["p_pv_w"] = (np.asarray(out["p_pv_w"]) * f_g).tolist()
+        return {key: tuple(v) for key, v in out.items()}
+
+
+class ObservationBuilder:
+    """Builds the :class:`Observation` of one information level for each step.
+
+    Parameters
+    ----------
+    scenario : the run's inputs
+    params : plant parameters
+    level : information level (``basic``, ``fuzzy``, ``mpc``)
+    exo : per-step exogenous records from :func:`exogenous_series`
+    forecast : forecast settings for the MPC level (default: ``config/forecast.yaml``)
+    """
+
+    def __init__(
+        self,
+        scenario: Scenario,
+        params: PlantParams,
+        level: str,
+        exo: Sequence[Exogenous],
+        forecast: ForecastSettings | None = None,
+    ) -> None:
+        if level not in INFO_LEVELS:
+            raise ValueError(f"unknown information level '{level}'")
+        if level == "mpc":
+            check_mpc_horizon(params.simulation.horizon_h, params.simulation.time_step_h)
+        self.level = level
+        self._fields = INFO_LEVELS[level]
+        pad = PRICE_WINDOW
+
+        def padded(values: Sequence[float]) -> list[float]:
+            vals = list(values)
+            return vals + [vals[-1]] * pad
+
+        self._exo = exo
+        self._prices = padded(scenario.price_buy_eur_per_kwh.tolist())
+        self._t_min = padded(scenario.t_min_c.tolist())
+        self._series = {
+            "t_amb_c": padded(scenario.t_amb_c.tolist()),
+            "ghi_w_m2": padded(scenario.ghi_w_m2.tolist()),
+            "p_pv_w": padded([e.p_pv_w for e in exo]),
+            "p_load_w": padded(scenario.p_load_w.tolist()),
+            "dhw_l_per_h": padded(scenario.dhw_l_per_h.tolist()),
+            "t_min_c": self._t_min,
+            "t_max_c": padded(scenario.t_max_c.tolist()),
+            "price_buy_eur_per_kwh": self._prices,
+        }
+        t0 = scenario.time[0]
+        self._day_index = [int(((t - t0).total_seconds() / 3600.0) // 24) for t in scenario.time]
+        self._hour = [int(t.hour) for t in scenario.time]
+        self._weekday = [int(t.weekday()) for t in scenario.time]
+        years = tuple(sorted({t.year for t in scenario.time}))
+        hol = holiday_dates(params.comfort.holidays_country, params.comfort.holidays_subdivision, years)
+        self._weekend = [wd >= 5 or t.date() in hol for wd, t in zip(self._weekday, scenario.time)]
+        self._dloh = dloh_per_day(params)
+        sim = params.simulation
+        to_season, season_left = heating_season_days(scenario.time, sim.heating_season_start, sim.heating_season_end)
+        self._to_season = to_season.tolist()
+        self._season_left = season_left.tolist()
+        self._forecast = ForecastModel(
+            self._series,
+            forecast or load_forecast_settings(),
+            int(round(24.0 / params.simulation.time_step_h)),
+        )
+
+    def data(self, k: int, state: PlantState) -> dict[str, Any]:
+        """All fields of the level for step ``k`` given the state at the end of ``k-1``."""
+        e = self._exo[k]
+        d: dict[str, Any] = {
+            "step": k,
+            "day_index": self._day_index[k],
+            "hour_of_day": self._hour[k],
+            "weekday": self._weekday[k],
+            "is_weekend": self._weekend[k],
+            "t_air_c": state.t_air_c,
+            "v_dhw_l": state.v_dhw_l,
+            "soc": state.soc,
+            "loh": state.loh,
+            "hp_mod_prev": state.hp_mod,
+            "p_pv_w": e.p_pv_w,
+            "p_load_w": e.p_load_w,
+            "t_min_c": e.t_min_c,
+            "t_max_c": e.t_max_c,
+            "price_buy_eur_per_kwh": e.price_buy_eur_per_kwh,
+            "price_sell_eur_per_kwh": e.price_sell_eur_per_kwh,
+            "prices_buy_24h": tuple(self._prices[k : k + PRICE_WINDOW]),
+        }
+        if self.level in ("fuzzy", "mpc"):
+            d["t_min_5h_c"] = tuple(self._t_min[k : k + BOUNDS_AHEAD + 1])
+            d["ghi_w_m2"] = e.ghi_w_m2
+            d["dloh_per_day"] = self._dloh
+            d["fc_on_prev"] = bool(state.fc_on)
+            d["el_on_prev"] = bool(state.el_on)
+            d["days_to_heating_season"] = self._to_season[k]
+            d["heating_season_days_left"] = self._season_left[k]
+        if self.level == "mpc":
+            d["t_amb_c"] = e.t_amb_c
+            d["t_wall_in_c"] = state.t_wall_in_c
+            d["t_wall_out_c"] = state.t_wall_out_c
+            d["forecast"] = self._forecast.window(k)
+        return d
+
+    def build(self, k: int, state: PlantState) -> Observation:
+        """The :class:`Observation` for step ``k``."""
+        return Observation(self.level, self.data(k, state))
+
+
+def record_row(
+    time_iso: str,
+    k: int,
+    flows: Flows,
+    state: PlantState,
+    command: Action,
+    exo: Exogenous,
+    ghi_spot: tuple[float, float],
+    fallback: bool,
+) -> list[Any]:
+    """One timeseries row in :data:`TIMESERIES_COLUMNS` order.
+
+    ``ghi_spot`` is ``(ghi_w_m2, spot_eur_per_mwh)``; ``ghi_w_m2`` is also in ``exo`` but
+    the spot price is not, so both come together from the scenario.
+    """
+    row: list[Any] = [time_iso, k]
+    row.extend(getattr(flows, f) for f in FLOW_FIELDS)
+    row.extend(getattr(state, f) for f in STATE_COLUMNS)
+    row.extend(getattr(command, f) for f in ACTION_FIELDS)
+    row.extend((exo.t_amb_c, ghi_spot[0], exo.dhw_l_per_h, exo.t_min_c, exo.t_max_c, ghi_spot[1]))
+    row.append(bool(fallback))
+    return row
+
+
+@dataclass
+class RunResult:
+    """Outputs of one run: per-step timeseries, weekly KPIs and the summary."""
+
+    timeseries: pd.DataFrame
+    weekly: pd.DataFrame
+    summary: dict[str, Any] = field(default_factory=dict)
+    monthly: pd.DataFrame | None = None  # year-round plants (electrolyser or cooling) only
+
+
+def is_year_round(params: PlantParams) -> bool:
+    """The plant has an electrolyser or cooling: its runs get the year's KPIs and monthly table."""
+    return params.electrolyser.n_modules > 0 or params.cooling.enabled
+
+
+def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[str, Any] | None = None) -> RunResult:
+    """Weekly KPIs and summary of a timeseries (shared by in-process and bag evaluation)."""
+    dt_h = params.simulation.time_step_h
+    sample, t0 = params.comfort.discomfort_sample, params.simulation.t_air_init_c
+    weekly = kpi.weekly_kpis(ts, dt_h, sample, t0)
+    summary = kpi.summarize(
+        ts, weekly, params.hydrogen.loh_min, dt_h, extra=extra, e_h2_max_kwh=params.hydrogen.e_max_kwh,
+        t_comfort=kpi.comfort_sample_c(ts, sample, t0),
+    )
+    summary["discomfort_sample"] = sample
+    monthly = None
+    if is_year_round(params):
+        t_c = kpi.comfort_sample_c(ts, sample, t0)
+        sim = params.simulation
+        summary.update(kpi.year_kpis(ts, weekly, dt_h, sim.heating_season_start, sim.heating_season_end, t_c))
+        summary["loh_init"] = sim.loh_init
+        monthly = kpi.monthly_table(ts, dt_h, t_c)
+    return RunResult(ts, weekly, summary, monthly)
+
+
+def simulate(
+    ems: str | Controller,
+    scenario: Scenario,
+    params: PlantParams,
+    ems_options: Mapping[str, Any] | None = None,
+    progress: Callable[[int, int], None] | None = None,
+    forecast: ForecastSettings | None = None,
+) -> RunResult:
+    """Run one EMS in closed loop with the plant over ``scenario.n_steps`` steps.
+
+    Parameters
+    ----------
+    ems : EMS name (see :data:`comems4build_ros.core.ems.REGISTRY`) or a controller object
+    scenario : inputs of the run
+    params : plant parameters
+    ems_options : options passed to the controller's constructor (name only)
+    progress : called as ``progress(steps done, total steps)`` after every step (for a bar,
+        see :mod:`comems4build_ros.run.progress`); None = silent
+    forecast : forecast settings for an MPC (default ``config/forecast.yaml``: perfect)
+    """
+    t_start = _time.perf_counter()
+    ctrl = make_controller(ems, params, ems_options) if isinstance(ems, str) else ems
+    ctrl.reset()
+    plant = Plant(params)
+    exo = exogenous_series(scenario, params)
+    forecast = forecast or load_forecast_settings()
+    builder = ObservationBuilder(scenario, params, ctrl.info_level, exo, forecast)
+    times = [t.isoformat() for t in scenario.time[: scenario.n_steps]]
+    ghi = scenario.ghi_w_m2.tolist()
+    spot = scenario.spot_eur_per_mwh.tolist()
+    state = plant.initial_state()
+    rows: list[list[Any]] = []
+    infos: list[dict[str, float]] = []
+    n_steps = scenario.n_steps
+    ems_s = 0.0
+    for k in range(n_steps):
+        obs = builder.build(k, state)
+        t0 = _time.perf_counter()
+        action = ctrl.act(obs)
+        ems_s += _time.perf_counter() - t0
+        info = getattr(ctrl, "step_info", None)
+        if info:
+            infos.append(dict(info))
+        state, flows = plant.step(state, action, exo[k])
+        rows.append(record_row(times[k], k, flows, state, action, exo[k], (ghi[k], spot[k]), False))
+        if progress is not None:
+            progress(k + 1, n_steps)
+    ts = pd.DataFrame(rows, columns=list(TIMESERIES_COLUMNS))
+    if infos and len(infos) == len(ts):
+        info_df = pd.DataFrame(infos).add_prefix("ems_")
+        ts = pd.concat([ts, info_df], axis=1)
+    wall = _time.perf_counter() - t_start
+    extra = {
+        "ems": ctrl.name,
+        "scenario": scenario.name,
+        "wall_s": wall,
+        "ems_s": ems_s,
+        "forecast": forecast.mode if ctrl.info_level == "mpc" else None,
+    }
+    if scenario.meta.get("extended"):
+        extra["scenario_extended"] = dict(scenario.meta["extended"])
+    return evaluate_timeseries(ts, params, extra)
+
+
+def _json_default(value: Any) -> Any:
+    if isinstance(value, np.generic):
+        return value.item()
+    raise TypeError(f"not JSON serialisable: {type(value).__name__}")
+
+
+#: Files of a run directory (:func:`write_run`; ``monthly.csv`` for year-round plants only).
+RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json", "monthly.csv")
+
+
+def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
+    """Write ``timeseries.csv`` (optional), ``weekly.csv`` and ``summary.json`` to ``out_dir``.
+
+    All or nothing: the files are written into a temporary directory inside ``out_dir``
+    and renamed into place only when every one was written (:func:`~.fileio.atomic_dir`),
+    so a failure (e.g. a full disk) leaves no partial result; a ``timeseries.csv`` of an
+    earlier run in ``out_dir`` is removed when this one writes none.
+    """
+    out = Path(out_dir)
+    clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.summary.items()}
+    with atomic_dir(out, replaces=RUN_FILES) as tmp:  # no older timeseries.csv stays beside a run without one
+        if timeseries:
+            result.timeseries.to_csv(tmp / "timeseries.csv", index=False)
+        result.weekly.to_csv(tmp / "weekly.csv", index=False)
+        if result.monthly is not None:
+            result.monthly.to_csv(tmp / "monthly.csv", index=False)
+        (tmp / "summary.json").write_text(json.dumps(clean, indent=2, default=_json_default) + "\n", encoding="utf-8")
+    return out

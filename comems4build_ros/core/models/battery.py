@@ -1,0 +1,92 @@
+"""Battery energy storage system (BESS), ``eq:batt_soc`` .. ``eq:s_summ``.
+
+    SOC[k] = SOC[k-1] + (eta_ch * P_ch[k] * t_s - P_d[k] / eta_d * t_s) / E_B,max      (eq:batt_soc)
+    SOC_min <= SOC[k] <= SOC_max                                                         (eq:SOC_const)
+    s_c * P_c,min <= P_c <= s_c * P_c,max,  s_ch + s_d <= 1                              (eq:bat_ch_dis_const)
+
+One signed set-point ``p_bess_w`` (> 0 charging, < 0 discharging) maps to exactly one of
+P_ch and P_d, so the battery never charges and discharges in the same step
+(``eq:s_summ``). Self-discharge is neglected as in the paper.
+"""
+
+from __future__ import annotations
+
+from comems4build_ros.core.config import W_PER_KW, BatteryParams
+
+#: A request that exceeds what the SOC bounds allow by no more than this [W] is cut without
+#: counting as a clip: an EMS that asks for exactly the room left (charging to SOC_max)
+#: computes it with a rounding that differs from the plant's in the last bits, and which way
+#: those bits fall depends on the CPU's floating-point kernels.
+SOC_CLIP_TOL_W = 1e-6
+
+
+def power_limits_w(soc: float, b: BatteryParams, dt_h: float) -> tuple[float, float]:
+    """Largest charging and discharging power [W] the SOC bounds and power limits allow.
+
+    Parameters
+    ----------
+    soc : float
+        SOC[k-1] [-].
+    b : BatteryParams
+    dt_h : float
+        Step [h].
+
+    Returns
+    -------
+    (p_ch_max_w, p_d_max_w) : tuple of float
+        Upper limits of P_ch and P_d in this step [W] (``eq:SOC_const`` and
+        ``eq:bat_ch_dis_const`` together).
+    """
+    e_wh = b.e_max_kwh * W_PER_KW
+    room_ch = max(0.0, (b.soc_max - soc) * e_wh / (b.eta_ch * dt_h))
+    room_d = max(0.0, (soc - b.soc_min) * e_wh * b.eta_d / dt_h)
+    return min(b.p_ch_max_w, room_ch), min(b.p_d_max_w, room_d)
+
+
+def split_power(p_bess_w: float, soc: float, b: BatteryParams, dt_h: float) -> tuple[float, float, bool, bool]:
+    """Clip a signed set-point to what the battery can do in one step.
+
+    A request beyond the power rating is cut to it (``power_clipped``); a request the
+    SOC bounds cannot take is cut to the SOC limit (``soc_clipped`` when the cut exceeds
+    :data:`SOC_CLIP_TOL_W`); a non-zero result below the minimum power P_c,min is set to
+    zero (flagged as power or SOC clip by the reason). ``p_bess_w`` must be finite.
+
+    Parameters
+    ----------
+    p_bess_w : float
+        Requested power [W], > 0 charging, < 0 discharging.
+    soc : float
+        SOC[k-1] [-].
+    b : BatteryParams
+    dt_h : float
+        Step [h].
+
+    Returns
+    -------
+    (p_ch_w, p_d_w, power_clipped, soc_clipped)
+        Feasible charging and discharging power [W] (at most one non-zero) and the flags.
+    """
+    power_clipped = False
+    soc_clipped = False
+    if p_bess_w > 0.0:
+        p_rated, p_min, eta = b.p_ch_max_w, b.p_ch_min_w, b.eta_ch
+        room = (b.soc_max - soc) * b.e_max_kwh * W_PER_KW / (eta * dt_h)
+    elif p_bess_w < 0.0:
+        p_rated, p_min, eta = b.p_d_max_w, b.p_d_min_w, b.eta_d
+        room = (soc - b.soc_min) * b.e_max_kwh * W_PER_KW * eta / dt_h
+    else:
+        return 0.0, 0.0, False, False
+    p = abs(p_bess_w)
+    if p > p_rated:
+        p = p_rated
+        power_clipped = True
+    if p < p_min:
+        p = 0.0
+        power_clipped = True
+    if p > room:
+        cut = room if room > 0.0 and room >= p_min else 0.0
+        soc_clipped = p - cut > SOC_CLIP_TOL_W
+        p = cut
+    if p_bess_w > 0.0:
+        return p, 0.0, power_clipped, soc_clipped
+    return 0.0, p, power_clipped, soc_clipped

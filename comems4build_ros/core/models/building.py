@@ -1,0 +1,125 @@
+"""4R3C building model, ``eq:dT_i`` .. ``eq:dT_wout`` and ``eq:state_update_bldgs``.
+
+    C_air dT_air/dt  = (T_w,in - T_air)/R_w,air + (T_amb - T_air)/R_air,amb + g_s q_s + f_conv Q_h,SH   (eq:dT_i)
+    C_w   dT_w,in/dt = (T_air - T_w,in)/R_w,air + (T_w,out - T_w,in)/R_w + (1 - f_conv) Q_h,SH         (eq:dT_win)
+    C_w   dT_w,out/dt = (T_w,in - T_w,out)/R_w + (T_amb,eq - T_w,out)/R_w,amb                           (eq:dT_wout)
+
+with the sol-air temperature T_amb,eq = T_amb + a_sol * q_s at the exterior surface.
+State x = [T_air, T_w,in, T_w,out] [degC], input u = [Q_h,SH [W], T_amb [degC], q_s [W/m2]].
+The continuous system dx/dt = A x + B u is discretised once with a zero-order hold
+(inputs constant over the step): with M = [[A, B], [0, 0]] * t_s,
+expm(M) = [[A_d, B_d], [0, I]] and x[k+1] = A_d x[k] + B_d u[k] (``eq:state_update_bldgs``).
+
+The default parameters (``config/plant.yaml``, section ``building``) are calibrated in
+``docs/models.md``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+from comems4build_ros.core.config import SECONDS_PER_HOUR, BuildingParams
+from comems4build_ros.core.numerics import rowdot
+
+
+def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
+    """Continuous-time matrices A [1/s] and B of dx/dt = A x + B u.
+
+    Returns
+    -------
+    (A, B) : numpy.ndarray of shape (3, 3) and (3, 3)
+    """
+    ca, cw = b.c_air_j_per_k, b.c_wall_j_per_k
+    g_wa = 1.0 / b.r_w_air_k_per_w
+    g_aa = 1.0 / b.r_air_amb_k_per_w
+    g_w = 1.0 / b.r_w_k_per_w
+    g_wamb = 1.0 / b.r_w_amb_k_per_w
+    a = np.array(
+        [
+            [-(g_wa + g_aa) / ca, g_wa / ca, 0.0],
+            [g_wa / cw, -(g_wa + g_w) / cw, g_w / cw],
+            [0.0, g_w / cw, -(g_w + g_wamb) / cw],
+        ]
+    )
+    bm = np.array(
+        [
+            [b.f_conv / ca, g_aa / ca, b.g_s_m2 / ca],
+            [(1.0 - b.f_conv) / cw, 0.0, 0.0],
+            [0.0, g_wamb / cw, g_wamb * b.a_sol_k_m2_per_w / cw],
+        ]
+    )
+    return a, bm
+
+
+def discretize(b: BuildingParams, dt_h: float) -> tuple[np.ndarray, np.ndarray]:
+    """Zero-order-hold discretisation, ``eq:state_update_bldgs``.
+
+    Parameters
+    ----------
+    b : BuildingParams
+    dt_h : float
+        Step t_s [h] (> 0).
+
+    Returns
+    -------
+    (Ad, Bd) : numpy.ndarray of shape (3, 3) each
+        x[k+1] = Ad x[k] + Bd u[k] for x = [T_air, T_w,in, T_w,out] [degC] and
+        u = [Q_h,SH [W], T_amb [degC], q_s [W/m2]].
+    """
+    if not dt_h > 0:
+        raise ValueError(f"building: dt_h must be > 0 h, got {dt_h}")
+    from comems4build_ros.core.result_cache import cached
+
+    a, bm = continuous(b)
+    n, m = a.shape[0], bm.shape[1]
+    aug = np.zeros((n + m, n + m))
+    aug[:n, :n] = a
+    aug[:n, n:] = bm
+    aug *= dt_h * SECONDS_PER_HOUR
+    # cached on disk (comems4build_ros.core.result_cache): a hit skips SciPy's import in plant_sim
+    (phi,) = cached("expm", {}, [aug], lambda: (_expm(aug),), dists=("scipy", "numpy"), shape=aug.shape)
+    return phi[:n, :n], phi[:n, n:]
+
+
+#: Significant digits kept of the discretised matrices: SciPy's ``expm`` multiplies matrices
+#: through OpenBLAS, whose kernels (chosen by the CPU) differ in the last bits; rounded to 12
+#: digits (a relative 1e-12, far below the model's accuracy) every CPU gets the same Ad and Bd,
+#: and so the same runs.
+EXPM_DIGITS = 12
+
+
+def _expm(m: np.ndarray) -> np.ndarray:
+    """Matrix exponential of ``m`` (SciPy's Pade approximation with scaling and squaring)."""
+    from scipy.linalg import expm  # here, not at the top: a process that finds it cached skips SciPy
+
+    phi = expm(m)
+    return np.array([[float(f"{v:.{EXPM_DIGITS - 1}e}") for v in row] for row in phi])
+
+
+def steady_state_c(q_sh_w: float, t_amb_c: float, q_s_w_m2: float, b: BuildingParams) -> np.ndarray:
+    """Equilibrium node temperatures [degC] for constant inputs (solves A x + B u = 0)."""
+    a, bm = continuous(b)
+    return np.linalg.solve(a, -bm @ np.array([q_sh_w, t_amb_c, q_s_w_m2], dtype=float))
+
+
+def simulate(x0, u, Ad: np.ndarray, Bd: np.ndarray) -> np.ndarray:
+    """Free-run the discrete model over an input sequence.
+
+    Parameters
+    ----------
+    x0 : array-like, shape (3,)
+        Initial state [degC].
+    u : array-like, shape (n, 3)
+        Inputs per step.
+
+    Returns
+    -------
+    numpy.ndarray, shape (n + 1, 3)
+        States x[0..n] [degC].
+    """
+    u = np.asarray(u, dtype=float)
+    x = np.empty((len(u) + 1, 3))
+    x[0] = x0
+    for k in range(len(u)):
+        x[k + 1] = rowdot(Ad, x[k]) + rowdot(Bd, u[k])
+    return x

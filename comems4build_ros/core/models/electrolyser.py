@@ -1,0 +1,111 @@
+"""Electrolyser (EL) modules that fill the H2 store, with compression to the store's pressure.
+
+Each of ``n_modules`` identical modules runs at the same load x (H2 output as a fraction
+of its rated output), x in {0} U [x_min, 1]. Per module:
+
+    P_stack(x)  piecewise linear over the datasheet/part-load points (stack + balance of plant)
+    m_H2(x)   = x * m_rated,            m_rated = h2_rated_nl_per_h * rho_n
+    P_comp(x) = m_H2(x) * w_comp,       w_comp = R T ln(p_store / p_out) / (M_H2 eta_comp)
+    P_EL(x)   = P_stack(x) + P_comp(x)  (what the EL draws from the house's bus)
+    P_H2(x)   = m_H2(x) * LHV           (what enters the store, ``eq:LOH`` in LHV terms)
+
+A start (the EL was off in the previous step) produces no H2 for ``start_lost_h`` of the
+step while drawing its power (warm-up of the stack). While installed and off, each module
+draws ``p_standby_w``. The stack's waste heat P_stack - P_H2 is recovered into the DHW tank
+with the share ``heat_recovery`` (the compressor's heat is not).
+
+Constants: LHV 33.33 kWh/kg and normal density 0.08988 kg/Nm3 of hydrogen (0 degC,
+1.01325 bar), molar mass 2.016 g/mol, R = 8.314 J/(mol K).
+"""
+
+from __future__ import annotations
+
+import bisect
+import math
+
+from comems4build_ros.core.config import SECONDS_PER_HOUR, ElectrolyserParams
+
+#: Lower heating value of hydrogen [Wh/kg].
+LHV_WH_PER_KG = 33_330.0
+#: Density of hydrogen at normal conditions (0 degC, 1.01325 bar) [kg/Nm3].
+RHO_N_KG_PER_M3 = 0.08988
+#: Molar mass of H2 [kg/mol] and the gas constant [J/(mol K)].
+M_H2_KG_PER_MOL = 2.01588e-3
+R_J_PER_MOL_K = 8.314462618
+#: Litres per cubic metre.
+L_PER_M3 = 1000.0
+
+
+def compression_wh_per_kg(el: ElectrolyserParams) -> float:
+    """Electrical work of compressing 1 kg of H2 from ``p_out_bar`` to ``p_store_bar`` [Wh/kg].
+
+    Isothermal ideal-gas work at ``t_compression_c`` divided by ``eta_compressor``; zero
+    when the store's pressure is not above the EL's output pressure.
+    """
+    if el.p_store_bar <= el.p_out_bar:
+        return 0.0
+    t_k = el.t_compression_c + 273.15
+    w_j_per_kg = R_J_PER_MOL_K * t_k * math.log(el.p_store_bar / el.p_out_bar) / M_H2_KG_PER_MOL
+    return w_j_per_kg / el.eta_compressor / SECONDS_PER_HOUR
+
+
+class ElectrolyserTable:
+    """Operating curve of the installed electrolyser modules (all running at one load).
+
+    Parameters
+    ----------
+    el : ElectrolyserParams
+    """
+
+    def __init__(self, el: ElectrolyserParams) -> None:
+        self.n = int(el.n_modules)
+        self.x_points = [float(x) for x in el.load_points]
+        self.p_stack_points = [float(p) for p in el.p_el_points_w]
+        self.m_rated_kg_per_h = el.h2_rated_nl_per_h / L_PER_M3 * RHO_N_KG_PER_M3
+        self.h2_rated_w = self.m_rated_kg_per_h * LHV_WH_PER_KG  # LHV power at rated output, per module
+        self.p_comp_rated_w = self.m_rated_kg_per_h * compression_wh_per_kg(el)
+        self.x_min = self.x_points[0]
+        self.p_total_points = [
+            self.n * (p + x * self.p_comp_rated_w) for x, p in zip(self.x_points, self.p_stack_points)
+        ]
+        self.p_min_w = self.p_total_points[0] if self.n else 0.0
+        self.p_max_w = self.p_total_points[-1] if self.n else 0.0
+        self.p_standby_w = self.n * float(el.p_standby_w)
+        self.heat_recovery = float(el.heat_recovery)
+        self.start_lost_h = float(el.start_lost_h)
+
+    def p_stack_w(self, x: float) -> float:
+        """Stack and balance-of-plant power of all modules at load ``x`` [W] (x in [x_min, 1])."""
+        xs, ps = self.x_points, self.p_stack_points
+        if x <= xs[0]:
+            return self.n * ps[0]
+        j = min(bisect.bisect_right(xs, x) - 1, len(xs) - 2)
+        return self.n * (ps[j] + (x - xs[j]) * (ps[j + 1] - ps[j]) / (xs[j + 1] - xs[j]))
+
+    def p_total_w(self, x: float) -> float:
+        """Electrical intake of all modules at load ``x``, compression included [W]."""
+        return self.p_stack_w(x) + self.n * x * self.p_comp_rated_w
+
+    def load_of_power(self, p_w: float) -> float:
+        """Load x at which the modules draw ``p_w`` [W] (``p_w`` in [p_min_w, p_max_w])."""
+        ps, xs = self.p_total_points, self.x_points
+        if p_w <= ps[0]:
+            return xs[0]
+        if p_w >= ps[-1]:
+            return 1.0
+        j = bisect.bisect_right(ps, p_w) - 1
+        return xs[j] + (p_w - ps[j]) * (xs[j + 1] - xs[j]) / (ps[j + 1] - ps[j])
+
+    def h2_w(self, x: float) -> float:
+        """H2 output of all modules at load ``x`` in steady operation, LHV power [W]."""
+        return self.n * x * self.h2_rated_w
+
+    def efficiency(self, x: float) -> float:
+        """LHV efficiency P_H2 / P_EL at load ``x``, compression included [-]."""
+        return self.h2_w(x) / self.p_total_w(x)
+
+    def specific_kwh_per_nm3(self, x: float, compression: bool = False) -> float:
+        """Electricity per normal cubic metre of H2 at load ``x`` [kWh/Nm3] (datasheet figure: without compression)."""
+        nm3_per_h = self.n * x * self.m_rated_kg_per_h / RHO_N_KG_PER_M3
+        p = self.p_total_w(x) if compression else self.p_stack_w(x)
+        return p / 1000.0 / nm3_per_h

@@ -1,0 +1,212 @@
+"""PEM fuel cell and hydrogen store, ``eq:molar_flows`` .. ``eq:FC_sys_efficiency``, ``eq:LOH``.
+
+The paper writes the molar hydrogen flow as a function of the electrical output,
+``n_FC = f(P_el,FC)`` (``eq:molar_flows``), and the electrical efficiency from it with
+Faraday's law and the lower heating value (``eq:efficiency_FC``). Here ``f`` comes from a
+cell polarization curve (Horizon H-2000 PEM stack datasheet: 48 cells, 2000 W at about
+28.8 V / 70 A, about 26 l/min H2 at full power):
+
+    V_cell(i) = E_ocv - A * ln(1 + i / i_T) - R_ohm * i                  [V]
+    P_el(i)   = N_cells * V_cell(i) * i                                   [W]
+    n_FC(i)   = N_cells * i / (2 F)                                       [mol/s]   (eq:molar_flows)
+    eta_el    = P_el / (n_FC * LHV) = V_cell / (LHV / 2F) = V_cell / 1.253 V        (eq:efficiency_FC)
+    Q_hr      = n_FC * LHV * (eta_sys - eta_el)                           [W]       (eq:FC_sys_efficiency)
+
+The output rises with the current on the branch ``0 <= i <= i_mpp`` (maximum power
+point); requests are solved on that branch, so the efficiency falls with the load.
+Hydrogen is counted as LHV power ``P_H2 = n_FC * LHV`` [W]; the store's level falls by
+``P_H2 * t_s / E_H2,max`` per step (``eq:LOH``).
+
+:class:`FuelCellTable` precomputes ``P_H2(P_el)`` on a fine uniform grid so that the plant
+step looks it up with plain float arithmetic.
+"""
+
+from __future__ import annotations
+
+import bisect
+
+import numpy as np
+
+from comems4build_ros.core.config import FuelCellParams
+
+#: Faraday constant [C/mol] (CODATA 2018, exact).
+FARADAY_C_PER_MOL = 96485.33212
+#: Lower heating value of hydrogen [J/mol]: the enthalpy of formation of water vapour, 241.8 kJ/mol
+#: (NIST Chemistry WebBook).
+LHV_H2_J_PER_MOL = 241.8e3
+#: Electrons transferred per H2 molecule.
+ELECTRONS_PER_H2 = 2
+#: Thermoneutral-at-LHV cell voltage LHV / (2F) [V] (about 1.253 V): eta_el = V_cell / this.
+V_LHV_V = LHV_H2_J_PER_MOL / (ELECTRONS_PER_H2 * FARADAY_C_PER_MOL)
+
+_NEWTON_MAX_ITER = 60
+_NEWTON_TOL_W = 1e-9
+
+
+def cell_voltage_v(i_a, fc: FuelCellParams):
+    """Cell voltage V_cell(i) [V] of the polarization model (vectorised).
+
+    Parameters
+    ----------
+    i_a : numeric
+        Stack current [A] (>= 0).
+    fc : FuelCellParams
+        ``e_ocv_v`` [V], ``a_tafel_v`` [V], ``i_tafel_a`` [A], ``r_ohm_ohm`` [Ohm].
+    """
+    i = np.asarray(i_a, dtype=float)
+    return fc.e_ocv_v - fc.a_tafel_v * np.log1p(i / fc.i_tafel_a) - fc.r_ohm_ohm * i
+
+
+def stack_power_w(i_a, fc: FuelCellParams):
+    """Stack electrical output P = N_cells * V_cell(i) * i [W] (vectorised)."""
+    i = np.asarray(i_a, dtype=float)
+    return fc.n_cells * cell_voltage_v(i, fc) * i
+
+
+def _dpower_di(i, fc: FuelCellParams):
+    """dP/di [W/A]."""
+    dv = -fc.a_tafel_v / (fc.i_tafel_a + i) - fc.r_ohm_ohm
+    return fc.n_cells * (cell_voltage_v(i, fc) + i * dv)
+
+
+def max_power_point(fc: FuelCellParams) -> tuple[float, float]:
+    """Current [A] and output [W] at the maximum of P(i) (end of the monotone branch)."""
+    lo, hi = 0.0, 1.0
+    while _dpower_di(hi, fc) > 0.0:
+        lo, hi = hi, 2.0 * hi
+        if hi > 1e7:
+            raise ValueError("fuel_cell: polarization curve has no maximum power point")
+    for _ in range(200):
+        mid = 0.5 * (lo + hi)
+        if _dpower_di(mid, fc) > 0.0:
+            lo = mid
+        else:
+            hi = mid
+    i_mpp = 0.5 * (lo + hi)
+    return i_mpp, float(stack_power_w(i_mpp, fc))
+
+
+def current_for_power_a(p_el_w, fc: FuelCellParams):
+    """Stack current [A] that delivers ``p_el_w`` on the monotone branch (vectorised).
+
+    Newton's method from i = 0: P(i) is increasing and concave on the branch, so the
+    iterates approach the root from below and never overshoot.
+
+    Raises
+    ------
+    ValueError
+        If a request is negative, not finite or above the curve's maximum power.
+    """
+    p = np.asarray(p_el_w, dtype=float)
+    if not np.all(np.isfinite(p)) or np.any(p < 0):
+        raise ValueError("fuel_cell: electrical power must be finite and >= 0 W")
+    i_mpp, p_mpp = max_power_point(fc)
+    if np.any(p > p_mpp):
+        raise ValueError(f"fuel_cell: {float(np.max(p)):.1f} W exceeds the stack's maximum power {p_mpp:.1f} W")
+    i = np.zeros_like(p)
+    for _ in range(_NEWTON_MAX_ITER):
+        f = stack_power_w(i, fc) - p
+        if np.all(np.abs(f) < _NEWTON_TOL_W):
+            break
+        i = np.minimum(i - f / _dpower_di(i, fc), i_mpp)
+    return i
+
+
+def h2_molar_flow_mol_s(i_a, fc: FuelCellParams):
+    """Hydrogen consumption n_FC = N_cells * i / (2F) [mol/s], ``eq:molar_flows`` (Faraday)."""
+    return fc.n_cells * np.asarray(i_a, dtype=float) / (ELECTRONS_PER_H2 * FARADAY_C_PER_MOL)
+
+
+def operating_point(p_el_w, fc: FuelCellParams):
+    """Hydrogen LHV power and electrical efficiency for an electrical output (vectorised).
+
+    Parameters
+    ----------
+    p_el_w : numeric
+        Electrical output P_el,FC [W] (0 = off).
+    fc : FuelCellParams
+
+    Returns
+    -------
+    (p_h2_w, eta_el)
+        Hydrogen consumed as LHV power n_FC * LHV [W] and eta_el,FC [-]
+        (``eq:efficiency_FC``; 0 where the cell is off).
+    """
+    p = np.asarray(p_el_w, dtype=float)
+    i = current_for_power_a(p, fc)
+    p_h2 = h2_molar_flow_mol_s(i, fc) * LHV_H2_J_PER_MOL
+    with np.errstate(invalid="ignore", divide="ignore"):
+        eta = np.where(p_h2 > 0.0, p / np.where(p_h2 > 0.0, p_h2, 1.0), 0.0)
+    if p.ndim == 0:
+        return float(p_h2), float(eta)
+    return p_h2, eta
+
+
+class FuelCellTable:
+    """P_H2(P_el) on a uniform grid for fast scalar lookups in the plant step.
+
+    Parameters
+    ----------
+    fc : FuelCellParams
+    n_points : int
+        Grid points between 0 W and ``fc.p_max_w`` (the interpolation error of the
+        default 4097 points is below 1e-6 relative over [P_min, P_max]).
+
+    Raises
+    ------
+    ValueError
+        If the polarization curve cannot deliver ``fc.p_max_w``.
+    """
+
+    def __init__(self, fc: FuelCellParams, n_points: int = 4097) -> None:
+        _, p_mpp = max_power_point(fc)
+        if p_mpp < fc.p_max_w:
+            raise ValueError(
+                f"fuel_cell: the polarization curve peaks at {p_mpp:.1f} W, below p_max_w = {fc.p_max_w} W; "
+                "check e_ocv_v, a_tafel_v, i_tafel_a, r_ohm_ohm"
+            )
+        grid = np.linspace(0.0, fc.p_max_w, n_points)
+        i = current_for_power_a(grid, fc)
+        h2 = h2_molar_flow_mol_s(i, fc) * LHV_H2_J_PER_MOL
+        self.p_top_w = float(fc.p_max_w)
+        self.step_w = float(grid[1] - grid[0])
+        self._inv_step = 1.0 / self.step_w
+        self._n = n_points
+        self._p: list[float] = grid.tolist()
+        self._h2: list[float] = h2.tolist()
+
+    def h2_power_w(self, p_el_w: float) -> float:
+        """Hydrogen LHV power [W] for an output 0 <= p_el_w <= p_max_w [W] (linear interpolation)."""
+        x = p_el_w * self._inv_step
+        j = int(x)
+        if j >= self._n - 1:
+            return self._h2[-1]
+        h = self._h2
+        return h[j] + (x - j) * (h[j + 1] - h[j])
+
+    def el_power_w(self, p_h2_w: float) -> float:
+        """Electrical output [W] that consumes ``p_h2_w`` of hydrogen (inverse lookup)."""
+        h = self._h2
+        if p_h2_w <= 0.0:
+            return 0.0
+        if p_h2_w >= h[-1]:
+            return self._p[-1]
+        j = bisect.bisect_right(h, p_h2_w) - 1
+        frac = (p_h2_w - h[j]) / (h[j + 1] - h[j])
+        return self._p[j] + frac * self.step_w
+
+
+def efficiency_summary(fc: FuelCellParams) -> dict[str, float]:
+    """eta_el at P_min, at the datasheet point (70 A), at P_nom and at zeta * P_max [-]."""
+    points = {
+        "p_min": fc.p_min_w,
+        "p_nom": fc.p_nom_w,
+        "zeta_p_max": fc.zeta * fc.p_max_w,
+        "p_max": fc.p_max_w,
+    }
+    out = {f"eta_el_{k}": operating_point(v, fc)[1] for k, v in points.items()}
+    i_ds = 70.0  # Horizon H-2000 datasheet point, 70 A
+    out["eta_el_datasheet_70a"] = float(cell_voltage_v(i_ds, fc)) / V_LHV_V
+    grid = np.linspace(fc.p_min_w, fc.zeta * fc.p_max_w, 201)
+    out["eta_el_mean_operating_range"] = float(np.mean(operating_point(grid, fc)[1]))
+    return out

@@ -1,0 +1,443 @@
+"""Live inputs for a real building: aWATTar day-ahead prices and an HTTP JSON weather forecast.
+
+Used by the feed only when asked (``inputs:=live``); the scenario stays the default
+source. Settings: ``config/live_inputs.yaml``.
+
+* :class:`PriceSource` fetches the aWATTar market data (EPEX SPOT day-ahead, EUR/MWh)
+  for today and tomorrow on start and then once a day after the publication time, with
+  ``retries`` attempts per fetch, a ``timeout_s`` per attempt and, after a failed fetch,
+  another try ``retry_later_s`` later. Every valid answer is merged into the known prices
+  and written to a cache file (atomically), which is read back on the next start.
+* :class:`WeatherSource` fetches an hourly forecast (ambient temperature, global
+  horizontal irradiance) from any HTTP JSON source whose keys are configured.
+
+A missing, late (timeout) or malformed answer never replaces valid data: the last valid
+values stay in use and a warning goes to the ``warn`` callback (the feed publishes it on
+``feed/events``). Hours without a live price take the price of the same hour on the
+latest day that has one (the last valid day-ahead profile). A run does not start without
+a live price (fetched now, or cached) for its first hour (:meth:`PriceSource.require`):
+``comems4build launch --inputs live`` checks it before any node starts (exit code 2
+naming the source URL), and so does the feed node itself.
+
+:func:`live_scenario` lays a run's scenario on the wall-clock hours from now and puts the
+live values in, so the feed's :class:`~comems4build_ros.core.loop.ObservationBuilder` works
+on it unchanged.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+import tempfile
+import time
+import urllib.error
+import urllib.parse
+import urllib.request
+from collections.abc import Callable
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pandas as pd
+from pydantic import Field
+
+from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
+from comems4build_ros.core.scenario import scenario_from_frame
+from comems4build_ros.core.scenario.base import CSV_COLUMNS, Scenario
+from comems4build_ros.core.scenario.csvio import ScenarioError
+from comems4build_ros.core.scenario.loaders import MS_PER_HOUR, parse_awattar
+
+SECONDS_PER_DAY = 86400.0
+USER_AGENT = "comems4build_ros"
+
+
+class FetchError(RuntimeError):
+    """Every attempt of a fetch failed (the message lists each attempt's reason)."""
+
+
+class LiveInputsError(ConfigError):
+    """A run on live inputs cannot start: no live price for its first hour (names the source URL)."""
+
+
+class _Model(Section):
+    """A live-input section: the parameter rule of :class:`~comems4build_ros.core.config.Section`."""
+
+
+class _FetchSettings(_Model):
+    timeout_s: float = Field(gt=0)  # per attempt [s]
+    retries: int = Field(ge=1)  # attempts per fetch
+    retry_delay_s: float = Field(ge=0)  # wait between attempts [s]
+    cache_file: str = ""
+
+
+class PriceSettings(_FetchSettings):
+    """``live_inputs.prices`` of ``config/live_inputs.yaml``."""
+
+    url: str = Field(pattern=r"^https?://")
+    publication_time: str = Field(pattern=r"^([01]\d|2[0-3]):[0-5]\d$")
+    days_ahead: int = Field(ge=1, le=7)
+    retry_later_s: float = Field(gt=0)
+
+
+class WeatherSettings(_FetchSettings):
+    """``live_inputs.weather`` of ``config/live_inputs.yaml``."""
+
+    url: str = ""
+    time_key: str
+    time_format: str = Field(pattern="^(iso|unix_s|unix_ms)$")
+    t_amb_key: str
+    ghi_key: str
+    refresh_s: float = Field(gt=0)
+
+
+class LiveSettings(_Model):
+    """The ``live_inputs`` section."""
+
+    prices: PriceSettings
+    weather: WeatherSettings
+
+
+def load_live_settings(path: str | Path | None = None) -> LiveSettings:
+    """Read ``config/live_inputs.yaml`` (or ``path``); errors name the file and parameter."""
+    path = Path(path) if path else config_dir() / "live_inputs.yaml"
+    data = read_ros_params(path).get("live_inputs")
+    if not isinstance(data, dict):
+        raise ConfigError(f"{path}: no 'live_inputs' section")
+    return validate(LiveSettings, data, str(path))
+
+
+def http_get(url: str, timeout_s: float, retries: int, retry_delay_s: float,
+             sleep: Callable[[float], None] = time.sleep) -> str:
+    """GET ``url`` with up to ``retries`` attempts; the body as text.
+
+    Raises
+    ------
+    FetchError
+        After the last failed attempt, naming the URL and every attempt's reason (HTTP
+        status, timeout, connection refused, ...).
+    """
+    errors = []
+    for attempt in range(1, retries + 1):
+        try:
+            request = urllib.request.Request(url, headers={"User-Agent": USER_AGENT})
+            with urllib.request.urlopen(request, timeout=timeout_s) as response:  # noqa: S310 (configured URL)
+                return response.read().decode("utf-8")
+        except urllib.error.HTTPError as exc:
+            errors.append(f"attempt {attempt}: HTTP {exc.code} {exc.reason}")
+        except (TimeoutError, urllib.error.URLError, OSError, UnicodeDecodeError) as exc:
+            reason = getattr(exc, "reason", exc)
+            errors.append(f"attempt {attempt}: {'timeout' if isinstance(reason, TimeoutError) else reason}")
+        if attempt < retries:
+            sleep(retry_delay_s)
+    raise FetchError(f"{url}: {retries} attempt(s) failed: " + "; ".join(errors))
+
+
+def write_json_atomic(path: Path, doc: Any) -> None:
+    """Write ``doc`` as JSON through a temporary file in the same directory and a rename."""
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", dir=path.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8") as fh:
+            json.dump(doc, fh)
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def _series_to_doc(series: pd.Series) -> dict[str, float]:
+    return {str(int(t.timestamp())): float(v) for t, v in series.items()}
+
+
+def _series_from_doc(doc: Any, name: str) -> pd.Series:
+    index = pd.to_datetime([int(k) for k in doc], unit="s", utc=True)
+    return pd.Series([float(v) for v in doc.values()], index=index, name=name).sort_index()
+
+
+class _CachedSource:
+    """What both sources share: settings, time zone, cache file, warning callback, clock."""
+
+    def __init__(self, settings: Any, timezone: str, cache_path: Path, warn: Callable[[str], None],
+                 now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
+        self.settings = settings
+        self.tz = timezone
+        self.cache_path = Path(cache_path)
+        self.warn = warn
+        self.now = now
+        self.sleep = sleep
+        self.last_attempt: float | None = None
+        self.warnings = 0
+        self.last_warning = ""
+
+    def _warn(self, text: str) -> None:
+        self.warnings += 1
+        self.last_warning = text
+        self.warn(text)
+
+
+class PriceSource(_CachedSource):
+    """aWATTar day-ahead prices with retries, a daily schedule and a cache (module docstring).
+
+    Parameters
+    ----------
+    settings : price settings
+    timezone : the site's time zone (publication time and "today")
+    cache_path : cache file (JSON: UTC hour start [s] -> price [EUR/MWh])
+    warn : receives one line per failed fetch
+    now : clock [s since the epoch] (tests pass their own)
+    sleep : wait between attempts (tests pass their own)
+    """
+
+    def __init__(self, settings: PriceSettings, timezone: str, cache_path: Path, warn: Callable[[str], None],
+                 now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
+        super().__init__(settings, timezone, cache_path, warn, now, sleep)
+        self.prices = pd.Series(dtype=float, name="spot_eur_per_mwh")
+        self.last_success: float | None = None
+        if self.cache_path.is_file():
+            try:
+                doc = json.loads(self.cache_path.read_text(encoding="utf-8"))
+                self.prices = _series_from_doc(doc["prices"], "spot_eur_per_mwh")
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                self._warn(f"cache {self.cache_path} unreadable ({exc}); starting without cached prices")
+
+    def _local_midnight(self, t: float) -> pd.Timestamp:
+        return pd.Timestamp(t, unit="s", tz="UTC").tz_convert(self.tz).normalize()
+
+    def next_due(self) -> float:
+        """When the next fetch is due [s since the epoch]: now if never fetched, else the next
+        publication time after the last success (or ``retry_later_s`` after a failure)."""
+        if self.last_attempt is None:
+            return -math.inf
+        if self.last_success is None or self.last_success < self.last_attempt:
+            return self.last_attempt + self.settings.retry_later_s
+        hh, mm = (int(x) for x in self.settings.publication_time.split(":"))
+        day = self._local_midnight(self.last_success)
+        publication = day + pd.Timedelta(hours=hh, minutes=mm)
+        if publication.timestamp() <= self.last_success:
+            publication += pd.Timedelta(days=1)
+        return publication.timestamp()
+
+    def url_for(self, t: float) -> str:
+        """Request URL for today (local) and ``days_ahead - 1`` following days."""
+        start = self._local_midnight(t)
+        end = start + pd.Timedelta(days=self.settings.days_ahead)
+        query = urllib.parse.urlencode({"start": int(start.timestamp() * 1000), "end": int(end.timestamp() * 1000)})
+        return f"{self.settings.url}?{query}"
+
+    def refresh(self, force: bool = False) -> bool:
+        """Fetch if due (or ``force``); True if new prices were merged. Failures only warn."""
+        t = self.now()
+        if not force and t < self.next_due():
+            return False
+        self.last_attempt = t
+        url = self.url_for(t)
+        s = self.settings
+        try:
+            text = http_get(url, s.timeout_s, s.retries, s.retry_delay_s, self.sleep)
+            series = parse_awattar(text, url)
+        except (FetchError, ScenarioError) as exc:
+            self._warn(f"day-ahead prices: {exc}; using the last valid prices ({self.describe()})")
+            return False
+        today = self._local_midnight(t).tz_convert("UTC")
+        if series.index.max() < today:
+            self._warn(f"day-ahead prices: {url}: no price for today or later; using the last valid prices "
+                       f"({self.describe()})")
+            return False
+        self.prices = series.combine_first(self.prices).sort_index()
+        self.last_success = t
+        write_json_atomic(self.cache_path, {"source": s.url, "fetched_unix_s": t,
+                                            "prices": _series_to_doc(self.prices)})
+        return True
+
+    def has_price(self, t: float) -> bool:
+        """Whether a live price (fetched now or cached) is known for the hour of ``t`` itself
+        (no other day's price standing in for it)."""
+        hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h")
+        return hour in self.prices.index and not math.isnan(float(self.prices[hour]))
+
+    def known(self, times: pd.DatetimeIndex) -> np.ndarray:
+        """For each hour start in ``times``: whether a live price is known for that hour itself
+        (False where :meth:`values` gives another day's price standing in for it)."""
+        if self.prices.empty:
+            return np.zeros(len(times), dtype=bool)
+        known = self.prices.reindex(pd.DatetimeIndex(times).tz_convert("UTC"))
+        return ~np.isnan(known.to_numpy(dtype=float))
+
+    def require(self, t: float) -> None:
+        """Refuse a run on live inputs without a live price for the hour of ``t`` (its first step).
+
+        Raises
+        ------
+        LiveInputsError
+            Naming the source URL and why (the last failed fetch, or what is known).
+        """
+        if self.has_price(t):
+            return
+        hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h").tz_convert(self.tz)
+        why = self.last_warning or f"no price for that hour in the answer ({self.describe()})"
+        raise LiveInputsError(
+            f"live inputs: no day-ahead price for the run's first hour {hour.isoformat()} from {self.settings.url} "
+            f"({why}). A run on live inputs does not start on stand-in prices (the scenario's laid on today's "
+            "hours); check the network and the source, or run on the scenario's inputs (--inputs scenario)")
+
+    def describe(self) -> str:
+        """Which prices are known (for warnings)."""
+        if self.prices.empty:
+            return "none known yet"
+        return f"{len(self.prices)} h known up to {self.prices.index.max().isoformat()}"
+
+    def values(self, times: pd.DatetimeIndex) -> np.ndarray:
+        """Spot price [EUR/MWh] for each hour start in ``times``; hours without a live price
+        take the same local hour of the latest day that has one; NaN if none is known."""
+        out = np.full(len(times), np.nan)
+        if self.prices.empty:
+            return out
+        utc = pd.DatetimeIndex(times).tz_convert("UTC")
+        known = self.prices.reindex(utc)
+        out[:] = known.to_numpy(dtype=float)
+        missing = np.flatnonzero(np.isnan(out))
+        if missing.size:
+            local = self.prices.copy()
+            local.index = local.index.tz_convert(self.tz)
+            by_hour = local.groupby(local.index.hour).last()  # latest day's value per local hour
+            hours = pd.DatetimeIndex(times).tz_convert(self.tz).hour[missing]
+            out[missing] = by_hour.reindex(hours).to_numpy(dtype=float)
+        return out
+
+
+def _dig(doc: Any, dotted: str, source: str) -> Any:
+    cur = doc
+    for part in dotted.split("."):
+        if not isinstance(cur, dict) or part not in cur:
+            raise ScenarioError(f"{source}: key '{dotted}' missing")
+        cur = cur[part]
+    return cur
+
+
+def parse_weather(text: str, settings: WeatherSettings, timezone: str, source: str) -> pd.DataFrame:
+    """Hourly ``t_amb_c`` [degC] and ``ghi_w_m2`` [W/m2] of a forecast answer, UTC index.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the source and the key for bad JSON, a missing key, lists of different
+        lengths, a time that cannot be read or a value that is not a finite number.
+    """
+    try:
+        doc = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise ScenarioError(f"{source}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
+    times = _dig(doc, settings.time_key, source)
+    cols = {"t_amb_c": _dig(doc, settings.t_amb_key, source), "ghi_w_m2": _dig(doc, settings.ghi_key, source)}
+    if not isinstance(times, list) or not times:
+        raise ScenarioError(f"{source}: key '{settings.time_key}' is not a non-empty list")
+    for name, values in cols.items():
+        key = settings.t_amb_key if name == "t_amb_c" else settings.ghi_key
+        if not isinstance(values, list) or len(values) != len(times):
+            raise ScenarioError(f"{source}: key '{key}' is not a list of {len(times)} values")
+        for i, v in enumerate(values):
+            if isinstance(v, bool) or not isinstance(v, int | float) or not math.isfinite(v):
+                raise ScenarioError(f"{source}: key '{key}'[{i}]: {v!r} is not a number")
+    try:
+        if settings.time_format == "iso":
+            idx = pd.DatetimeIndex(pd.to_datetime(times))
+            idx = idx.tz_localize(timezone) if idx.tz is None else idx
+        else:
+            unit = "s" if settings.time_format == "unix_s" else "ms"
+            idx = pd.DatetimeIndex(pd.to_datetime(times, unit=unit, utc=True))
+    except (ValueError, TypeError) as exc:
+        raise ScenarioError(f"{source}: key '{settings.time_key}': unreadable time ({exc})") from None
+    frame = pd.DataFrame(cols, index=idx.tz_convert("UTC"), dtype=float)
+    return frame.resample("1h").mean().dropna()
+
+
+class WeatherSource(_CachedSource):
+    """HTTP JSON weather forecast with retries, periodic refresh and a cache (module docstring)."""
+
+    def __init__(self, settings: WeatherSettings, timezone: str, cache_path: Path, warn: Callable[[str], None],
+                 now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
+        super().__init__(settings, timezone, cache_path, warn, now, sleep)
+        self.frame = pd.DataFrame(columns=["t_amb_c", "ghi_w_m2"], dtype=float)
+        if self.cache_path.is_file():
+            try:
+                doc = json.loads(self.cache_path.read_text(encoding="utf-8"))
+                self.frame = pd.DataFrame({k: _series_from_doc(doc[k], k) for k in ("t_amb_c", "ghi_w_m2")})
+            except (OSError, ValueError, KeyError, TypeError) as exc:
+                self._warn(f"weather cache {self.cache_path} unreadable ({exc}); starting without it")
+
+    @property
+    def enabled(self) -> bool:
+        """False when no URL is configured."""
+        return bool(self.settings.url)
+
+    def refresh(self, force: bool = False) -> bool:
+        """Fetch if ``refresh_s`` passed (or ``force``); True if new values were merged."""
+        t = self.now()
+        if not self.enabled or (not force and self.last_attempt is not None
+                                and t - self.last_attempt < self.settings.refresh_s):
+            return False
+        self.last_attempt = t
+        s = self.settings
+        try:
+            frame = parse_weather(http_get(s.url, s.timeout_s, s.retries, s.retry_delay_s, self.sleep), s, self.tz,
+                                  s.url)
+        except (FetchError, ScenarioError) as exc:
+            self._warn(f"weather forecast: {exc}; using the last valid forecast "
+                      f"({len(self.frame)} h known)")
+            return False
+        self.frame = frame.combine_first(self.frame).sort_index()
+        write_json_atomic(self.cache_path, {k: _series_to_doc(self.frame[k]) for k in ("t_amb_c", "ghi_w_m2")})
+        return True
+
+    def values(self, times: pd.DatetimeIndex, name: str) -> np.ndarray:
+        """Forecast ``name`` for each hour start of ``times`` (NaN where the forecast has none)."""
+        if self.frame.empty:
+            return np.full(len(times), np.nan)
+        return self.frame[name].reindex(pd.DatetimeIndex(times).tz_convert("UTC")).to_numpy(dtype=float)
+
+
+#: Kind of the ``feed/events`` line that states, from its step on, which live inputs stand-in
+#: values replace (:func:`stand_in_state`): ``<step> stand_in <state>: <explanation>``.
+STAND_IN_EVENT = "stand_in"
+#: States of :data:`STAND_IN_EVENT` lines: nothing replaced, or the inputs replaced.
+STAND_IN_STATES = ("none", "prices", "weather", "prices+weather")
+
+
+def stand_in_state(times: pd.DatetimeIndex, prices: PriceSource,
+                   weather: WeatherSource | None = None) -> list[str]:
+    """For each hour start in ``times``, which live inputs :func:`live_scenario` had to replace
+    by stand-in values (one of :data:`STAND_IN_STATES`): prices without a live price for
+    the hour (the same hour of the latest day with prices stands in), weather where the
+    forecast has no value or no weather source is configured (the scenario's stands in)."""
+    price = ~prices.known(times)
+    wx = np.ones(len(times), dtype=bool)
+    if weather is not None and weather.enabled:
+        wx = np.isnan(weather.values(times, "t_amb_c")) | np.isnan(weather.values(times, "ghi_w_m2"))
+    return [STAND_IN_STATES[int(p) + 2 * int(w)] for p, w in zip(price, wx)]
+
+
+def live_scenario(base: Scenario, params: PlantParams, start: pd.Timestamp, prices: PriceSource,
+                  weather: WeatherSource | None = None) -> Scenario:
+    """``base`` laid on the hours from ``start`` with the live prices and weather in it.
+
+    The load and hot-water series of ``base`` are kept step by step; the comfort bounds
+    are recomputed for the new hours (``eq:T_min``); the spot price comes from ``prices``
+    (the scenario's where no live price is known at all); ambient temperature and global
+    irradiance come from ``weather`` where it has values, with the diffuse part limited
+    to the global value.
+    """
+    start = pd.Timestamp(start).tz_convert(params.site.timezone).floor("h")
+    time_index = pd.date_range(start, periods=len(base.time), freq=pd.Timedelta(milliseconds=MS_PER_HOUR))
+    frame = pd.DataFrame({c: getattr(base, c) for c in CSV_COLUMNS if c != "time" and hasattr(base, c)},
+                         index=time_index)
+    spot = prices.values(time_index)
+    frame["spot_eur_per_mwh"] = np.where(np.isnan(spot), frame["spot_eur_per_mwh"], spot)
+    frame = frame.drop(columns=["price_buy_eur_per_kwh"], errors="ignore")  # tariff from the live spot price
+    if weather is not None and weather.enabled:
+        for name in ("t_amb_c", "ghi_w_m2"):
+            v = weather.values(time_index, name)
+            frame[name] = np.where(np.isnan(v), frame[name], v)
+        frame["dhi_w_m2"] = np.minimum(frame["dhi_w_m2"], frame["ghi_w_m2"])
+    meta = dict(base.meta, live_inputs={"start": start.isoformat(), "prices": prices.describe()})
+    return scenario_from_frame(f"{base.name}+live", frame, params, base.n_steps, meta)

@@ -1,0 +1,1 @@
+"""The bottom layer: files the package writes (atomic, all or nothing) and reads."""

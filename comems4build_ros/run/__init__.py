@@ -1,0 +1,1 @@
+"""The run plan of a ROS launch, its supervisor and the launcher."""

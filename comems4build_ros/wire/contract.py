@@ -1,0 +1,564 @@
+"""The topic contract (``msg_defs/topics.yaml``): loading, validation and queries.
+
+The YAML file is the single source of truth for every topic of the node set: name
+(relative, so namespaces such as ``/building_3/`` work), interface type, unit, the nodes
+that may publish and subscribe, QoS, and for ``Float64MultiArray`` topics the label of
+each element. The nodes create their publishers and subscriptions from it (and
+:mod:`comems4build_ros.ros.node` refuses any pub/sub the contract does not declare),
+the recorder records every topic in it, the bag evaluation decodes the layouts, and the
+docs table is generated from it (:func:`markdown_table`).
+
+This module imports no rclpy: the message classes and QoS profiles of rclpy are built from
+its specs by :mod:`comems4build_ros.ros.interfaces`.
+
+Layout labels: ``name`` is one element; ``name[size]`` is ``size`` consecutive elements,
+where ``size`` is an integer or a symbol resolved by :func:`sizes` (``horizon`` = the
+MPC horizon and day-ahead window [steps], ``comfort_ahead`` = the fuzzy EMS's comfort
+look-ahead [steps]); ``a.b[size]`` is entry ``b`` of the mapping ``a`` (the MPC's
+``forecast``). Element 0 of every array topic is ``step``.
+"""
+
+from __future__ import annotations
+
+import functools
+import re
+import sys
+from array import array
+from collections.abc import Iterable, Mapping, Sequence
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from comems4build_ros.core.config import load_yaml
+from comems4build_ros.files.paths import PACKAGE, SOURCE_ROOT, shared_path
+
+#: The lock-step master's event topic: one line ``<step> <kind> <detail>`` per event.
+EVENTS_TOPIC = "plant/events"
+#: Kind of the ``plant/events`` line of a step whose state the master did not announce by
+#: design (the MQTT bridge's safety fallback): no ``state/*`` and no ``feed/measured`` for
+#: it (:func:`comems4build_ros.bags.evaluation.withheld_topics`), and no command. The
+#: recorder and the bag's gap check expect none.
+WITHHELD_EVENT = "withheld"
+
+
+def event_step_kind(line: str) -> tuple[int, str] | None:
+    """``(step, kind)`` of a ``plant/events`` line ``<step> <kind> <detail>`` (None if malformed)."""
+    parts = line.split(None, 2)
+    if len(parts) < 2:
+        return None
+    try:
+        return int(parts[0]), parts[1]
+    except ValueError:
+        return None
+
+
+CONTRACT_FILE = "topics.yaml"
+
+#: Interface types the contract may use: std_msgs and rosgraph_msgs/Clock only (installable from PyPI, readable
+#: by any ROS 2 tool without this package).
+ALLOWED_TYPES = frozenset(
+    {
+        "std_msgs/msg/Float64",
+        "std_msgs/msg/Float64MultiArray",
+        "std_msgs/msg/UInt32",
+        "std_msgs/msg/Bool",
+        "std_msgs/msg/String",
+        "rosgraph_msgs/msg/Clock",
+    }
+)
+ARRAY_TYPE = "std_msgs/msg/Float64MultiArray"
+NODE_ROLES = frozenset({"plant", "feed", "ems", "recorder", "replay", "bridge"})
+QOS_KEYS = frozenset({"reliability", "history", "depth", "durability"})
+TOPIC_KEYS = frozenset({"type", "unit", "publishers", "subscribers", "qos", "layout", "description"})
+_LABEL_RE = re.compile(
+    r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)"  # name or head.key
+    r"(?:\[(?P<size>[A-Za-z0-9_]+)\])?$"  # optional [size]
+)
+_TOPIC_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(?:/[A-Za-z][A-Za-z0-9_]*)*$")
+
+#: Default comfort look-ahead of the fuzzy EMS in steps (k .. k+5, sec:information).
+COMFORT_AHEAD_STEPS = 6
+
+
+class ContractError(ValueError):
+    """The contract file is invalid, or a node breaks it."""
+
+
+@dataclass(frozen=True)
+class QoSSpec:
+    """QoS of one topic (``reliable``/``best_effort``, ``keep_last``, depth, durability)."""
+
+    reliability: str = "reliable"
+    history: str = "keep_last"
+    depth: int = 100
+    durability: str = "volatile"
+
+
+@dataclass(frozen=True)
+class Field:
+    """One decoded entry of an array layout: a scalar (``size`` None) or a vector."""
+
+    name: str  # label name without size, may be dotted (``forecast.t_amb_c``)
+    start: int  # index of the first element
+    size: int | None  # None for a scalar
+
+    @property
+    def stop(self) -> int:
+        """Index after the last element."""
+        return self.start + (1 if self.size is None else self.size)
+
+
+@dataclass(frozen=True)
+class Layout:
+    """Resolved layout of a ``Float64MultiArray`` topic."""
+
+    topic: str
+    fields: tuple[Field, ...]
+    length: int
+    integer: frozenset[str] = frozenset()
+    boolean: frozenset[str] = frozenset()
+
+    @functools.cached_property
+    def labels(self) -> tuple[str, ...]:
+        """One label per element (vectors as ``name[i]``)."""
+        out: list[str] = []
+        for f in self.fields:
+            out.extend([f.name] if f.size is None else [f"{f.name}[{i}]" for i in range(f.size)])
+        return tuple(out)
+
+    @functools.cached_property
+    def dim_label(self) -> str:
+        """Label of the message's one ``MultiArrayDimension``: the field names in order,
+        comma-separated, vectors as ``name[size]`` (what ``ros2 topic echo`` shows)."""
+        return ",".join(f.name if f.size is None else f"{f.name}[{f.size}]" for f in self.fields)
+
+    @functools.cached_property
+    def index(self) -> dict[str, int]:
+        """Label -> element index (vectors: index of the first element under the bare name)."""
+        out = {label: i for i, label in enumerate(self.labels)}
+        out.update({f.name: f.start for f in self.fields})
+        return out
+
+    def pack(self, values: Mapping[str, Any]) -> array:
+        """Values by field name -> ``array('d')`` in layout order (vectors as sequences).
+
+        Raises
+        ------
+        ContractError
+            If a field is missing or a vector has the wrong length.
+        """
+        out = array("d")
+        for f in self.fields:
+            try:
+                value = values[f.name]
+            except KeyError:
+                raise ContractError(f"topic '{self.topic}': no value for field '{f.name}'") from None
+            if f.size is None:
+                out.append(float(value))
+            else:
+                seq = np.asarray(value, dtype=float).ravel()
+                if seq.size != f.size:
+                    raise ContractError(
+                        f"topic '{self.topic}': field '{f.name}' has {seq.size} elements, layout says {f.size}"
+                    )
+                out.extend(seq.tolist())
+        return out
+
+    def unpack(self, data: Sequence[float]) -> dict[str, Any]:
+        """Element sequence -> field name -> value (int/bool labels converted, vectors as float tuples).
+
+        Dotted names are returned flat (``"forecast.t_amb_c"``); see :func:`nest`.
+
+        Raises
+        ------
+        ContractError
+            If the length differs from the layout.
+        """
+        if len(data) != self.length:
+            raise ContractError(f"topic '{self.topic}': {len(data)} elements, layout has {self.length}")
+        out: dict[str, Any] = {}
+        for f in self.fields:
+            if f.size is None:
+                v = data[f.start]
+                if f.name in self.boolean:
+                    out[f.name] = bool(v > 0.5)
+                elif f.name in self.integer:
+                    out[f.name] = int(v)
+                else:
+                    out[f.name] = float(v)
+            else:
+                out[f.name] = tuple(float(x) for x in data[f.start : f.stop])
+        return out
+
+
+def nest(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """``{"forecast.t_amb_c": x}`` -> ``{"forecast": {"t_amb_c": x}}`` (one level)."""
+    out: dict[str, Any] = {}
+    for key, value in flat.items():
+        head, dot, tail = key.partition(".")
+        if dot:
+            out.setdefault(head, {})[tail] = value
+        else:
+            out[key] = value
+    return out
+
+
+@dataclass(frozen=True)
+class TopicSpec:
+    """One topic of the contract."""
+
+    name: str
+    type: str
+    unit: str
+    publishers: tuple[str, ...]
+    subscribers: tuple[str, ...]
+    qos: QoSSpec
+    layout_labels: tuple[str, ...] = ()
+    description: str = ""
+    contract: Contract | None = field(default=None, repr=False, compare=False)
+
+    @property
+    def is_array(self) -> bool:
+        """True for ``Float64MultiArray`` topics."""
+        return self.type == ARRAY_TYPE
+
+    def layout(self, sizes: Mapping[str, int]) -> Layout:
+        """The resolved layout, symbols in ``name[symbol]`` looked up in ``sizes``.
+
+        Raises
+        ------
+        ContractError
+            For a non-array topic or an unknown size symbol.
+        """
+        if not self.is_array:
+            raise ContractError(f"topic '{self.name}' ({self.type}) has no array layout")
+        fields_: list[Field] = []
+        pos = 0
+        for raw in self.layout_labels:
+            m = _LABEL_RE.match(raw)
+            assert m is not None  # checked at load
+            size_s = m.group("size")
+            if size_s is None:
+                size = None
+            elif size_s.isdigit():
+                size = int(size_s)
+            else:
+                try:
+                    size = int(sizes[size_s])
+                except KeyError:
+                    raise ContractError(f"topic '{self.name}': unknown layout size symbol '{size_s}'") from None
+            fields_.append(Field(m.group("name"), pos, size))
+            pos += 1 if size is None else size
+        integer = self.contract.integer_labels if self.contract else frozenset()
+        boolean = self.contract.boolean_labels if self.contract else frozenset()
+        return Layout(self.name, tuple(fields_), pos, integer, boolean)
+
+    def field_names(self) -> tuple[str, ...]:
+        """Field names of the layout without sizes (``step`` included)."""
+        return tuple(_LABEL_RE.match(raw).group("name") for raw in self.layout_labels)  # type: ignore[union-attr]
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of the contract."""
+
+    name: str
+    role: str
+    ems: str | None = None
+    info_level: str | None = None
+    subscribes_all: bool = False
+    publishes_all: bool = False
+
+
+@dataclass
+class Contract:
+    """All topics and nodes of ``msg_defs/topics.yaml``."""
+
+    path: Path
+    version: int
+    topics: dict[str, TopicSpec]
+    nodes: dict[str, NodeSpec]
+    integer_labels: frozenset[str]
+    boolean_labels: frozenset[str]
+
+    def topic(self, name: str) -> TopicSpec:
+        """Topic spec by relative name (a leading ``/`` or namespace is not accepted).
+
+        Raises
+        ------
+        ContractError
+            If the topic is not in the contract.
+        """
+        try:
+            return self.topics[name]
+        except KeyError:
+            raise ContractError(f"topic '{name}' is not in the contract {self.path}") from None
+
+    def node(self, name: str) -> NodeSpec:
+        """Node spec by name."""
+        try:
+            return self.nodes[name]
+        except KeyError:
+            raise ContractError(f"node '{name}' is not in the contract {self.path}") from None
+
+    def may_publish(self, node: str, topic: str) -> bool:
+        """True if ``node`` may publish ``topic``."""
+        spec = self.topics.get(topic)
+        nspec = self.nodes.get(node)
+        if spec is None or nspec is None:
+            return False
+        return nspec.publishes_all or node in spec.publishers
+
+    def may_subscribe(self, node: str, topic: str) -> bool:
+        """True if ``node`` may subscribe to ``topic``."""
+        spec = self.topics.get(topic)
+        nspec = self.nodes.get(node)
+        if spec is None or nspec is None:
+            return False
+        return nspec.subscribes_all or node in spec.subscribers
+
+    def published_by(self, node: str) -> tuple[TopicSpec, ...]:
+        """Topics ``node`` is declared to publish (explicitly, not via ``publishes_all``)."""
+        return tuple(t for t in self.topics.values() if node in t.publishers)
+
+    def subscribed_by(self, node: str) -> tuple[TopicSpec, ...]:
+        """Topics ``node`` is declared to subscribe to (explicitly)."""
+        return tuple(t for t in self.topics.values() if node in t.subscribers)
+
+    def ems_node_name(self, ems: str) -> str:
+        """Node name of the EMS ``ems`` (e.g. ``fuzzy`` -> ``fuzzy_ems``)."""
+        for spec in self.nodes.values():
+            if spec.role == "ems" and spec.ems == ems:
+                return spec.name
+        known = sorted(s.ems for s in self.nodes.values() if s.role == "ems" and s.ems)
+        raise ContractError(f"no EMS node for '{ems}' in {self.path} (known: {', '.join(known)})")
+
+    def inputs_not_read(self, ems_node: str) -> tuple[str, ...]:
+        """Feed topics only EMS nodes read, and ``ems_node`` does not (its information level,
+        ``tab:level_of_information``): what a run of that EMS needs no feed to publish.
+
+        Raises
+        ------
+        ContractError
+            If ``ems_node`` is not an EMS node of the contract.
+        """
+        if self.node(ems_node).role != "ems":
+            raise ContractError(f"node '{ems_node}' is not an EMS node of {self.path}")
+        roles = {n.name: n.role for n in self.nodes.values()}
+        return tuple(
+            t.name for t in self.published_by("feed")
+            if t.subscribers and all(roles.get(s) == "ems" for s in t.subscribers) and ems_node not in t.subscribers
+        )
+
+    def input_fields(self, node: str) -> frozenset[str]:
+        """Observation field names the subscribed array topics of ``node`` deliver (``step`` excluded).
+
+        Dotted labels count as their head (``forecast.t_amb_c`` -> ``forecast``).
+        """
+        names: set[str] = set()
+        for t in self.subscribed_by(node):
+            if t.is_array:
+                names.update(n.partition(".")[0] for n in t.field_names())
+        names.discard("step")
+        return frozenset(names)
+
+
+def contract_path() -> Path:
+    """Path of ``topics.yaml``: source tree first, then the installed share directory."""
+    found = shared_path("msg_defs", "msg_defs", CONTRACT_FILE)
+    if found is None:
+        raise ContractError(f"cannot find the topic contract ({SOURCE_ROOT / 'msg_defs' / CONTRACT_FILE} or "
+                            f"{Path(sys.prefix) / 'share' / PACKAGE / 'msg_defs' / CONTRACT_FILE})")
+    return found
+
+
+def sizes(params: Any = None, comfort_ahead: int | None = None) -> dict[str, int]:
+    """Values of the layout size symbols.
+
+    Parameters
+    ----------
+    params : ``PlantParams`` (``simulation.horizon_h`` [h] / ``time_step_h`` [h] gives
+        ``horizon`` in steps); ``None`` uses the defaults of ``config/plant.yaml``.
+    comfort_ahead : comfort look-ahead [steps]; default :data:`COMFORT_AHEAD_STEPS`.
+    """
+    if params is None:
+        from comems4build_ros.core.config import load_plant_params
+
+        params = load_plant_params()
+    sim = params.simulation
+    horizon = int(round(sim.horizon_h / sim.time_step_h))
+    return {"horizon": horizon, "comfort_ahead": int(comfort_ahead or COMFORT_AHEAD_STEPS)}
+
+
+def _err(path: Path, where: str, msg: str) -> ContractError:
+    return ContractError(f"{path}: {where}: {msg}")
+
+
+def _names(path: Path, where: str, value: Any) -> tuple[str, ...]:
+    if value is None:
+        return ()
+    if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
+        raise _err(path, where, "must be a list of names")
+    return tuple(value)
+
+
+def parse_contract(doc: Any, path: Path) -> Contract:
+    """Validate a loaded YAML document and build the :class:`Contract`.
+
+    Raises
+    ------
+    ContractError
+        Naming the file, the topic or node and the rule broken.
+    """
+    if not isinstance(doc, Mapping):
+        raise _err(path, "top level", "expected a mapping with 'version', 'nodes' and 'topics'")
+    unknown = set(doc) - {"version", "defaults", "integer_labels", "boolean_labels", "nodes", "topics"}
+    if unknown:
+        raise _err(path, "top level", f"unknown key(s): {', '.join(sorted(unknown))}")
+    version = doc.get("version")
+    if version != 1:
+        raise _err(path, "version", f"expected 1, got {version!r}")
+    default_qos = dict((doc.get("defaults") or {}).get("qos") or {})
+
+    nodes: dict[str, NodeSpec] = {}
+    for name, raw in (doc.get("nodes") or {}).items():
+        where = f"node '{name}'"
+        raw = raw or {}
+        if not isinstance(raw, Mapping):
+            raise _err(path, where, "must be a mapping")
+        extra = set(raw) - {"role", "ems", "info_level", "subscribes_all", "publishes_all"}
+        if extra:
+            raise _err(path, where, f"unknown key(s): {', '.join(sorted(extra))}")
+        role = raw.get("role")
+        if role not in NODE_ROLES:
+            raise _err(path, where, f"role must be one of {', '.join(sorted(NODE_ROLES))}, got {role!r}")
+        if role == "ems" and (not raw.get("ems") or not raw.get("info_level")):
+            raise _err(path, where, "an EMS node needs 'ems' and 'info_level'")
+        nodes[name] = NodeSpec(
+            name=name,
+            role=role,
+            ems=raw.get("ems"),
+            info_level=raw.get("info_level"),
+            subscribes_all=bool(raw.get("subscribes_all", False)),
+            publishes_all=bool(raw.get("publishes_all", False)),
+        )
+    if not nodes:
+        raise _err(path, "nodes", "no nodes declared")
+
+    topics: dict[str, TopicSpec] = {}
+    raw_topics = doc.get("topics")
+    if not isinstance(raw_topics, Mapping) or not raw_topics:
+        raise _err(path, "topics", "must be a non-empty mapping")
+    contract = Contract(
+        path=path,
+        version=int(version),
+        topics=topics,
+        nodes=nodes,
+        integer_labels=frozenset(doc.get("integer_labels") or ()),
+        boolean_labels=frozenset(doc.get("boolean_labels") or ()),
+    )
+    for name, raw in raw_topics.items():
+        where = f"topic '{name}'"
+        if not isinstance(name, str) or not _TOPIC_RE.match(name):
+            raise _err(path, where, "name must be relative ('a/b', letters, digits, '_')")
+        if not isinstance(raw, Mapping):
+            raise _err(path, where, "must be a mapping")
+        extra = set(raw) - TOPIC_KEYS
+        if extra:
+            raise _err(path, where, f"unknown key(s): {', '.join(sorted(extra))}")
+        type_name = raw.get("type")
+        if type_name not in ALLOWED_TYPES:
+            raise _err(path, where, f"type must be one of {', '.join(sorted(ALLOWED_TYPES))}, got {type_name!r}")
+        if not raw.get("unit"):
+            raise _err(path, where, "needs a 'unit'")
+        pubs = _names(path, f"{where}.publishers", raw.get("publishers"))
+        subs = _names(path, f"{where}.subscribers", raw.get("subscribers"))
+        if not pubs:
+            raise _err(path, f"{where}.publishers", "at least one publisher needed")
+        for n in (*pubs, *subs):
+            if n not in nodes:
+                raise _err(path, where, f"node '{n}' is not declared under 'nodes'")
+        qos_raw = {**default_qos, **(raw.get("qos") or {})}
+        if set(qos_raw) - QOS_KEYS:
+            raise _err(path, f"{where}.qos", f"unknown key(s): {', '.join(sorted(set(qos_raw) - QOS_KEYS))}")
+        qos = QoSSpec(**qos_raw)
+        if qos.reliability not in ("reliable", "best_effort"):
+            raise _err(path, f"{where}.qos.reliability", f"'reliable' or 'best_effort', got {qos.reliability!r}")
+        if qos.history not in ("keep_last", "keep_all"):
+            raise _err(path, f"{where}.qos.history", f"'keep_last' or 'keep_all', got {qos.history!r}")
+        if qos.durability not in ("volatile", "transient_local"):
+            raise _err(path, f"{where}.qos.durability", f"'volatile' or 'transient_local', got {qos.durability!r}")
+        if not isinstance(qos.depth, int) or qos.depth < 1:
+            raise _err(path, f"{where}.qos.depth", f"positive integer needed, got {qos.depth!r}")
+        layout = raw.get("layout")
+        if type_name == ARRAY_TYPE:
+            if not isinstance(layout, list) or not layout:
+                raise _err(path, f"{where}.layout", "a Float64MultiArray topic needs a non-empty label list")
+            if layout[0] != "step":
+                raise _err(path, f"{where}.layout", "the first element must be 'step'")
+            seen: set[str] = set()
+            for label in layout:
+                m = _LABEL_RE.match(str(label))
+                if not m:
+                    raise _err(path, f"{where}.layout", f"invalid label {label!r}")
+                if m.group("name") in seen:
+                    raise _err(path, f"{where}.layout", f"duplicate label '{m.group('name')}'")
+                seen.add(m.group("name"))
+        elif layout is not None:
+            raise _err(path, f"{where}.layout", f"only {ARRAY_TYPE} topics have a layout")
+        topics[name] = TopicSpec(
+            name=name,
+            type=type_name,
+            unit=str(raw["unit"]),
+            publishers=pubs,
+            subscribers=subs,
+            qos=qos,
+            layout_labels=tuple(str(x) for x in (layout or ())),
+            description=str(raw.get("description", "")),
+            contract=contract,
+        )
+    return contract
+
+
+@functools.lru_cache(maxsize=4)
+def _load_cached(path: str) -> Contract:
+    p = Path(path)
+    return parse_contract(load_yaml(p, "the topic contract", ContractError), p)
+
+
+def load_contract(path: str | Path | None = None) -> Contract:
+    """Load (and cache) the contract; ``None`` = the package's ``msg_defs/topics.yaml``."""
+    return _load_cached(str(Path(path) if path is not None else contract_path()))
+
+
+def resolve(namespace: str, topic: str) -> str:
+    """Absolute topic name of a relative contract name under ``namespace`` (``/`` = root)."""
+    ns = namespace.rstrip("/")
+    return f"{ns}/{topic}" if ns else f"/{topic}"
+
+
+def relative(namespace: str, full_name: str) -> str | None:
+    """Contract name of an absolute topic ``full_name`` under ``namespace`` (None if outside)."""
+    ns = namespace.rstrip("/") + "/"
+    if full_name.startswith(ns):
+        return full_name[len(ns) :]
+    return None
+
+
+def markdown_table(contract: Contract | None = None, topics: Iterable[str] | None = None) -> str:
+    """Markdown table of the topics (name, type, unit, publishers, subscribers, layout)."""
+    c = contract or load_contract()
+    rows = [
+        "| topic | type | unit | publishers | subscribers (+ recorder) | layout |",
+        "|---|---|---|---|---|---|",
+    ]
+    for name in topics or c.topics:
+        t = c.topic(name)
+        layout = ", ".join(t.layout_labels) if t.layout_labels else ""
+        rows.append(
+            f"| `{t.name}` | {t.type.replace('/msg/', '/')} | {t.unit} | {', '.join(t.publishers)} | "
+            f"{', '.join(t.subscribers) or '-'} | {layout} |"
+        )
+    return "\n".join(rows)

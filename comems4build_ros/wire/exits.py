@@ -1,0 +1,47 @@
+"""Exit codes of the node processes and how a node names why it ended a run early (no rclpy here).
+
+The supervisor (:mod:`comems4build_ros.run.supervisor`) reads them: exit code 0 means the
+process's part of the run is complete (a node exits 0 only after ``plant/done``, a
+lock-step master only after its last step); every other code while the run is in
+progress fails the launch, named by :data:`EXIT_CODES` and by the last
+``[<node>] cause: ...`` line of the process's log (:data:`CAUSE_TAG`).
+"""
+
+from __future__ import annotations
+
+#: Exit code of a node that refused to start (bad parameters, scenario or contract).
+EXIT_BAD_INPUT = 2
+#: Exit code of a node stopped by SIGINT or SIGTERM before its part of the run was
+#: complete (:func:`comems4build_ros.ros.process.run_complete`); after it, a signal ends the node with 0.
+EXIT_INTERRUPTED = 3
+#: Exit code of a lock-step master that ended the run because another party fell silent
+#: (:meth:`comems4build_ros.ros.lockstep.LockStepMaster.stall`).
+EXIT_STALLED = 4
+#: What each non-zero exit code of a node process means (the supervisor's messages).
+EXIT_CODES = {
+    1: "error",
+    EXIT_BAD_INPUT: "bad input",
+    EXIT_INTERRUPTED: "stopped by a signal before the end of its run",
+    EXIT_STALLED: "run stalled",
+}
+#: Prefix of the one line on stderr that names why a node ended a run early (read by the
+#: supervisor from the node's log: :func:`comems4build_ros.ros.process.report_cause`).
+CAUSE_TAG = "cause:"
+#: Prefix of the line on stderr with which a node process starts its clean-up, followed by
+#: the exit code its run decided (:func:`comems4build_ros.ros.process.cleanup_deadline`).
+CLEANUP_TAG = "cleaning up:"
+#: First line of what :mod:`faulthandler` writes when the C-level backstop of a hung
+#: clean-up fires (``Timeout (0:00:30)!``, then the stack of every thread); it then exits 1.
+BACKSTOP_MARK = "Timeout ("
+
+
+def exit_meaning(code: int) -> str:
+    """Words for a process's exit code (a negative code is the signal that killed it)."""
+    import signal
+
+    if code < 0:
+        try:
+            return f"killed by {signal.Signals(-code).name}"
+        except ValueError:
+            return f"killed by signal {-code}"
+    return EXIT_CODES.get(code, "error")
