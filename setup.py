@@ -1,34 +1,66 @@
 """ament_python set-up for comems4build_ros.
 
 ``pip install .`` installs the Python package, the console scripts, and (through
-``data_files``) the ament index marker, ``package.xml``, the ``config/`` and
-``msg_defs/`` data files and the ``ros2 run`` executables under
-``lib/comems4build_ros/``.
+``data_files``) the ament index marker, ``package.xml``, the ``config/``, ``msg_defs/`` and
+launch files and the ``ros2 run`` executables under ``lib/comems4build_ros/``. The
+executables are the nodes of :data:`NODES` and one per EMS of ``config/ems.yaml`` (named
+after its node); their ``ros2 run`` wrappers are written into ``build/lib_scripts/`` here.
 """
 
 from pathlib import Path
 
+import yaml
 from setuptools import find_packages, setup
 
 PACKAGE = "comems4build_ros"
 HERE = Path(__file__).parent
 
-#: ROS executables: console-script name -> module with ``main()``.
+#: ROS executables other than the EMS: executable -> (module with ``main()``, what it is).
 NODES = {
-    "plant_sim": "comems4build_ros.ros.nodes.plant_sim",
-    "feed": "comems4build_ros.ros.nodes.feed",
-    "fuzzy_ems": "comems4build_ros.ros.nodes.ems_node:main_fuzzy",
-    "rbc_ems": "comems4build_ros.ros.nodes.ems_node:main_rbc",
-    "mpc_ems": "comems4build_ros.ros.nodes.ems_node:main_mpc",
-    "recorder": "comems4build_ros.ros.nodes.recorder",
-    "replay": "comems4build_ros.ros.nodes.replay",
-    "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
-    "mqtt_plant": "comems4build_ros.mqtt.plant",
+    "plant_sim": ("comems4build_ros.ros.nodes.plant_sim", "the plant simulator, master of the lock-step loop"),
+    "feed": ("comems4build_ros.ros.nodes.feed", "the scenario feed (prices, weather, comfort bounds, forecasts)"),
+    "recorder": ("comems4build_ros.ros.nodes.recorder", "the recorder of every topic into a rosbag2/MCAP bag"),
+    "replay": ("comems4build_ros.ros.nodes.replay", "the replay of a recorded bag"),
+    "mqtt_bridge": ("comems4build_ros.ros.nodes.mqtt_bridge", "the bridge to a house behind MQTT"),
+    "mqtt_plant": ("comems4build_ros.mqtt.plant", "the plant simulator behind MQTT"),
 }
+#: The module of every EMS node (its ``main()`` finds the EMS by the executable's name).
+EMS_NODE_MODULE = "comems4build_ros.ros.nodes.ems_node"
+
+#: The ``ros2 run`` wrapper. Its second line is both shell and Python: run by /bin/sh it runs
+#: the file again with ``<prefix>/bin/python`` (the virtual environment's interpreter when
+#: installed into one) or else ``python3`` (a ROS 2 install); Python reads it as a string.
+WRAPPER = (
+    "#!/bin/sh\n"
+    "''''true; py=\"$(dirname \"$0\")/../../bin/python\"; [ -x \"$py\" ] || py=python3; "
+    "exec \"$py\" \"$0\" \"$@\" # '''\n"
+    '"""``ros2 run comems4build_ros {name}``: {summary}."""\n'
+    "\n"
+    "import sys\n"
+    "\n"
+    "from {module} import main\n"
+    "\n"
+    "sys.exit(main())\n"
+)
 
 
-def _entry(module: str) -> str:
-    return module if ":" in module else f"{module}:main"
+def executables() -> dict[str, tuple[str, str]]:
+    """Every ``ros2 run`` executable: :data:`NODES` and the ``node`` of each EMS of ``config/ems.yaml``."""
+    table = yaml.safe_load((HERE / "config" / "ems.yaml").read_text(encoding="utf-8"))["ems"]
+    return {**NODES, **{row["node"]: (EMS_NODE_MODULE, row["summary"]) for row in table.values()}}
+
+
+def lib_scripts() -> list[str]:
+    """Write the ``ros2 run`` executables into ``build/lib_scripts/``; their paths (relative)."""
+    out = HERE / "build" / "lib_scripts"
+    out.mkdir(parents=True, exist_ok=True)
+    paths = []
+    for name, (module, summary) in executables().items():
+        path = out / name
+        path.write_text(WRAPPER.format(name=name, summary=summary, module=module), encoding="utf-8")
+        path.chmod(0o755)
+        paths.append(str(path.relative_to(HERE)))
+    return paths
 
 
 def _tree(src: str, dest: str) -> list[tuple[str, list[str]]]:
@@ -53,7 +85,7 @@ setup(
         *_tree("config", f"share/{PACKAGE}/config"),
         *_tree("msg_defs", f"share/{PACKAGE}/msg_defs"),
         *_tree("launch_scripts", f"share/{PACKAGE}/launch"),
-        *_tree("lib_scripts", f"lib/{PACKAGE}"),
+        (f"lib/{PACKAGE}", lib_scripts()),
     ],
     install_requires=["setuptools"],
     # Optional MILP solver for the MPC (``solver: gurobi``, config/mpc.yaml): ``pip install .[gurobi]``.
@@ -67,7 +99,7 @@ setup(
     entry_points={
         "console_scripts": [
             "comems4build = comems4build_ros.app.cli:main",
-            *(f"{name} = {_entry(mod)}" for name, mod in NODES.items()),
+            *(f"{name} = {module}:main" for name, (module, _) in executables().items()),
         ],
     },
 )

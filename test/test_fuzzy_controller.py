@@ -2,16 +2,11 @@
 
 import pytest
 
-from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.config import ConfigError
 from comems4build_ros.core.ems import make_controller
 from comems4build_ros.core.ems.base import COMMON_FIELDS, FUZZY_FIELDS, InformationError, Observation
 from comems4build_ros.core.ems.fuzzy import FuzzyEMS
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
-
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 def obs_data(**changes):

@@ -12,10 +12,6 @@ from comems4build_ros.core.ems.fuzzy import build_system, device_quantities, loa
 FLCS = ("flex", "fc", "battery")
 
 
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
-
 
 @pytest.fixture(scope="module")
 def flcs(params):

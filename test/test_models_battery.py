@@ -46,3 +46,19 @@ def test_power_limits(bp):
     assert battery.power_limits_w(0.5, bp, 1.0) == (1000.0, 1000.0)
     ch, d = battery.power_limits_w(0.9, bp, 1.0)
     assert ch == 0.0 and d == 1000.0
+
+
+def test_step_is_eq_batt_soc(bp):
+    """SOC[k] = SOC[k-1] + (eta_ch P_ch - P_d / eta_d) t_s / E_B,max, by hand."""
+    p_ch, p_dis, soc, power_clip, soc_clip = battery.step(800.0, 0.5, bp, 1.0)
+    assert (p_ch, p_dis, power_clip, soc_clip) == (800.0, 0.0, False, False)
+    assert soc == pytest.approx(0.5 + 0.93 * 800.0 / 6500.0)
+    p_ch, p_dis, soc, *_ = battery.step(-650.0, 0.5, bp, 1.0)
+    assert (p_ch, p_dis) == (0.0, 650.0) and soc == pytest.approx(0.5 - 650.0 / 0.93 / 6500.0)
+
+
+def test_step_stays_within_the_soc_bounds(bp):
+    _, _, soc, _, soc_clip = battery.step(1000.0, 0.89, bp, 1.0)
+    assert soc == pytest.approx(0.9) and soc <= 0.9 and soc_clip
+    _, _, soc, _, soc_clip = battery.step(-1000.0, 0.1, bp, 1.0)
+    assert soc == 0.1 and soc_clip

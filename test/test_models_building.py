@@ -108,3 +108,32 @@ def test_discretisation_and_fuzzy_inference_do_not_depend_on_the_blas_kernel(bp,
         assert run.returncode == 0, run.stderr
         out.append(run.stdout.strip())
     assert len(set(out)) == 1, out
+
+
+# ------------------------------------------------------------------ the building model of the plant step
+def test_rc_building_step_is_eq_state_update_bldgs(bp):
+    """RCBuilding.step equals x[k+1] = A_d x[k] + B_d u[k] of the discretised model."""
+    from comems4build_ros.core.types import Exogenous
+
+    model = building.RCBuilding(bp, 1.0)
+    assert isinstance(model, building.BuildingModel) and model.name == "rc"
+    x = (20.5, 19.0, 8.0)
+    exo = Exogenous(t_amb_c=-3.0, ghi_w_m2=250.0, p_pv_w=0.0, p_load_w=400.0, dhw_l_per_h=0.0,
+                    price_buy_eur_per_kwh=0.3, price_sell_eur_per_kwh=0.08, t_min_c=21.0, t_max_c=24.0)
+    ad, bd = building.discretize(bp, 1.0)
+    expected = ad @ np.array(x) + bd @ np.array([3000.0, -3.0, 250.0])
+    assert np.allclose(model.step(x, 3000.0, exo), expected, rtol=0, atol=1e-10)
+
+
+def test_rc_building_starts_on_the_steady_profile_without_sun(bp):
+    """The initial walls are the equilibrium of a house held at T_air,init by heat into the air, without sun."""
+    air_heated = bp.model_copy(update={"f_conv": 1.0})
+    model = building.RCBuilding(air_heated, 1.0)
+    t_air, t_wi, t_wo = model.initial_temperatures(21.0, 4.2)
+    assert t_air == 21.0 and 4.2 < t_wo < t_wi < 21.0
+    lo, hi = 0.0, 20000.0  # the heat that holds the air at 21 degC, by bisection
+    for _ in range(100):
+        q = 0.5 * (lo + hi)
+        lo, hi = (q, hi) if building.steady_state_c(q, 4.2, 0.0, air_heated)[0] < 21.0 else (lo, q)
+    x = building.steady_state_c(0.5 * (lo + hi), 4.2, 0.0, air_heated)
+    assert x == pytest.approx([21.0, t_wi, t_wo], abs=1e-6)

@@ -5,6 +5,7 @@ import pytest
 
 from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.models import fuel_cell
+from comems4build_ros.core.types import CLIP_FC_H2, CLIP_FC_RANGE
 
 F = 96485.33212  # C/mol
 LHV = 241.8e3  # J/mol
@@ -97,3 +98,37 @@ def test_efficiency_summary(fc):
     s = fuel_cell.efficiency_summary(fc)
     assert s["eta_el_p_min"] > s["eta_el_mean_operating_range"] > s["eta_el_zeta_p_max"]
     assert s["eta_el_datasheet_70a"] == pytest.approx(0.47883, abs=1e-5)
+
+
+# ------------------------------------------------------------------ the device of the plant step
+@pytest.fixture(scope="module")
+def cell(params):
+    return fuel_cell.FuelCell(params.fuel_cell, params.hydrogen)
+
+
+def test_run_is_the_operating_point_and_eq_fc_sys_efficiency(cell, fc):
+    """At 1 kW: P_H2 from the polarization curve, Q_hr = eta_sys * P_H2 - P_el, LOH down by P_H2 t_s / E."""
+    p_fc, p_h2, eta, q_rec, loh, clip = cell.run(1000.0, 0.5, 1.0)
+    p_h2_exact, eta_exact = fuel_cell.operating_point(1000.0, fc)
+    assert p_fc == 1000.0 and clip == 0
+    assert p_h2 == pytest.approx(p_h2_exact, rel=1e-6) and eta == pytest.approx(eta_exact, rel=1e-6)
+    assert q_rec == pytest.approx(0.75 * p_h2 - 1000.0)
+    assert loh == pytest.approx(0.5 - p_h2 / 1.8e6)
+
+
+@pytest.mark.parametrize(("request_w", "expected_w", "clip"), [
+    (0.0, 0.0, 0), (-5.0, 0.0, CLIP_FC_RANGE), (300.0, 399.2, CLIP_FC_RANGE), (150.0, 0.0, CLIP_FC_RANGE),
+    (2441.6, 0.8 * 2441.6, CLIP_FC_RANGE),  # zeta * P_max
+])
+def test_run_onto_zero_or_p_min_to_zeta_p_max(cell, request_w, expected_w, clip):
+    p_fc, *_, c = cell.run(request_w, 0.5, 1.0)
+    assert p_fc == pytest.approx(expected_w) and c == clip
+
+
+def test_run_limited_by_the_store(cell):
+    """With 1.5 kWh of H2 left the cell delivers what that H2 gives and empties the store."""
+    p_fc, p_h2, _, _, loh, clip = cell.run(1500.0, 1500.0 / 1.8e6, 1.0)
+    assert clip == CLIP_FC_H2 and p_h2 == pytest.approx(1500.0, rel=1e-9) and loh == pytest.approx(0.0, abs=1e-12)
+    assert 399.2 < p_fc < 1500.0
+    p_fc, p_h2, *_ = cell.run(1500.0, 500.0 / 1.8e6, 1.0)  # too little H2 for P_min: off
+    assert (p_fc, p_h2) == (0.0, 0.0)

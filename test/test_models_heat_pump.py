@@ -5,6 +5,7 @@ import pytest
 
 from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.models import heat_pump
+from comems4build_ros.core.types import CLIP_HP_DHW_FULL, CLIP_HP_MOD, HP_COOL, HP_DHW, HP_OFF, HP_SH
 
 
 @pytest.fixture(scope="module")
@@ -51,3 +52,54 @@ def test_heat_capacity_about_5kw_at_a7(hp):
     q7 = heat_pump.heat_capacity_w(7.0, 55.0, hp)
     assert 4800.0 < q7 < 5200.0
     assert heat_pump.heat_capacity_w(-15.0, 55.0, hp) < q7
+
+
+# ------------------------------------------------------------------ the device of the plant step
+@pytest.mark.parametrize(("request_mod", "mode", "expected"), [
+    (0.5, HP_SH, (0.5, HP_SH, 0)),
+    (1.4, HP_DHW, (1.0, HP_DHW, CLIP_HP_MOD)),
+    (0.15, HP_SH, (0.2, HP_SH, CLIP_HP_MOD)),  # from half of eta_min on: raised to eta_min (eq:zetas)
+    (0.05, HP_SH, (0.0, HP_OFF, CLIP_HP_MOD)),  # below half of it: off
+    (0.7, HP_OFF, (0.0, HP_OFF, CLIP_HP_MOD)),  # a modulation without a circuit
+    (0.0, HP_SH, (0.0, HP_OFF, 0)),  # a circuit without modulation is off, no clip
+    (-0.3, HP_SH, (0.0, HP_OFF, CLIP_HP_MOD)),
+])
+def test_modulation_onto_zero_or_eta_min_to_one(request_mod, mode, expected):
+    assert heat_pump.modulation(request_mod, mode, 0.2) == expected
+
+
+@pytest.mark.parametrize("t_amb", [-20.0, -15.0, -9.3, 0.0, 2.0, 4.7, 7.0, 13.1, 20.0, 31.0])
+def test_device_cop_is_the_model_cop(params, t_amb):
+    """The plant's scalar evaluation of the COP tables equals heat_pump.cop (up to the last bit)."""
+    dev = heat_pump.HeatPump(params.heat_pump, params.cooling)
+    for mode, t_sup in ((HP_SH, 55.0), (HP_DHW, 45.0)):
+        c, p_max = dev.operating_point(mode, t_amb)
+        assert c == pytest.approx(heat_pump.cop(t_amb, t_sup, params.heat_pump), rel=1e-15)
+        assert p_max == pytest.approx(heat_pump.p_el_max_w(t_amb, params.heat_pump), rel=1e-15)
+
+
+def test_device_run_heat_is_cop_times_modulated_intake(params):
+    """eq:heat_flux_SH at A2: P_el,max(2 degC) = 1650 W, COP55(2) = 1.6 + 17/35 * 2.55."""
+    dev = heat_pump.HeatPump(params.heat_pump, params.cooling)
+    mode, mod, c, p_max, p_el, q, clip = dev.run(0.5, HP_SH, 2.0)
+    cop55 = 1.6 + 17.0 / 35.0 * (4.15 - 1.6)
+    assert (mode, mod, clip) == (HP_SH, 0.5, 0)
+    assert c == pytest.approx(cop55) and p_max == pytest.approx(1650.0)
+    assert p_el == pytest.approx(825.0) and q == pytest.approx(825.0 * cop55)
+    assert dev.run(0.0, HP_SH, 2.0) == (HP_OFF, 0.0, 0.0, 0.0, 0.0, 0.0, 0)
+
+
+def test_device_fit_heat_to_what_the_tank_takes(params):
+    dev = heat_pump.HeatPump(params.heat_pump, params.cooling)
+    mod, p_el, q, clip = dev.fit_heat(1500.0, 4.0, 1500.0)  # 1500 W of 6000 W at full modulation
+    assert clip == CLIP_HP_DHW_FULL and mod == pytest.approx(0.25)
+    assert p_el == pytest.approx(375.0) and q == pytest.approx(1500.0)
+    assert dev.fit_heat(600.0, 4.0, 1500.0) == (0.0, 0.0, 0.0, CLIP_HP_DHW_FULL)  # 0.1 < eta_min: off
+    assert dev.fit_heat(-5.0, 4.0, 1500.0)[0] == 0.0
+
+
+def test_device_cooling_intake_is_capacity_over_eer():
+    p = load_plant_params(overrides={"cooling.enabled": True})
+    dev = heat_pump.HeatPump(p.heat_pump, p.cooling)
+    eer, p_max = dev.operating_point(HP_COOL, 25.0)  # EER 6.7 .. 4.3 over 15 .. 35 degC: 5.5 at 25
+    assert eer == pytest.approx(5.5) and p_max == pytest.approx(3000.0 / 5.5)

@@ -8,11 +8,6 @@ from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.models import pv
 
 
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
-
-
 def test_power_from_irradiance_hand_computed(params):
     # G = 800 W/m2, T_amb = 5 degC: T_cell = 5 + (50 - 20) / 800 * 800 = 35 degC,
     # derate = 1 - 0.005 * (35 - 25) = 0.95,

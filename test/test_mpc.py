@@ -21,10 +21,6 @@ from comems4build_ros.core.types import HP_OFF
 SELL = 0.0794
 
 
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
-
 
 @pytest.fixture(scope="module")
 def params3():

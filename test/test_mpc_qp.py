@@ -6,15 +6,9 @@ import numpy as np
 import pytest
 from test_mpc import mpc_obs, params3  # noqa: F401 (fixture)
 
-from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.ems.mpc import MPCController, QPController
 from comems4build_ros.core.ems.mpc.qp import _round_semicontinuous
 from comems4build_ros.core.types import HP_OFF
-
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 def test_round_semicontinuous():

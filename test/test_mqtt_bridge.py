@@ -45,7 +45,6 @@ from comems4build_ros.mqtt.topicmap import SETPOINTS, load_topic_map  # noqa: E4
 from comems4build_ros.ros.interfaces import qos_profile  # noqa: E402
 from comems4build_ros.run.launcher import launch  # noqa: E402
 from comems4build_ros.run.plan import LaunchOptions, ros_args  # noqa: E402
-from comems4build_ros.run.supervisor import acquire_domain_id  # noqa: E402
 from comems4build_ros.wire.contract import load_contract  # noqa: E402
 
 pytestmark = pytest.mark.ros
@@ -297,11 +296,6 @@ RIG_TOKEN = 7.0
 #: The scripted EMS: hp_mod, hp_mode, p_fc_w, p_bess_w; step 1 asks the battery for 5 kW.
 NORMAL = [0.6, 1.0, 0.0, 200.0, 0.0]  # hp_mod, hp_mode, p_fc_w, p_bess_w, p_el_w
 
-
-@pytest.fixture()
-def domain_id() -> Iterator[int]:
-    with acquire_domain_id() as did:
-        yield did
 
 
 def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_switch_and_last_will(

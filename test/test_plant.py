@@ -28,10 +28,6 @@ from comems4build_ros.core.types import (
 J_PER_L = 0.998 * 4186.0 * 35.0  # heat per litre of DHW [J/l]
 
 
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
-
 
 @pytest.fixture(scope="module")
 def plant(params):

@@ -2,7 +2,7 @@
 
 import pytest
 
-from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.config import ConfigError
 from comems4build_ros.core.ems import make_controller
 from comems4build_ros.core.ems.base import COMMON_FIELDS, InformationError, Observation
 from comems4build_ros.core.ems.rbc import RuleBasedController
@@ -10,10 +10,6 @@ from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
 
 DAY = tuple(0.20 + 0.01 * i for i in range(24))  # 24 distinct prices 0.20 .. 0.43
 
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 def basic(**changes):

@@ -15,7 +15,6 @@ import pandas as pd
 import pytest
 
 from comems4build_ros.core import result_cache
-from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.models import pv
 from comems4build_ros.core.scenario import generator
 from comems4build_ros.core.scenario.settings import load_scenario_settings
@@ -27,10 +26,6 @@ def cache(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> Path:
     monkeypatch.setenv(result_cache.CACHE_ENV, str(d))
     return d
 
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 def _week() -> tuple[pd.DatetimeIndex, np.ndarray, np.ndarray]:

@@ -74,13 +74,6 @@ def ros2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
     return {"argv": [sys.executable, str(site / "bin" / "ros2")], "env": env}
 
 
-@pytest.fixture()
-def domain_id():
-    from comems4build_ros.run.supervisor import acquire_domain_id
-
-    with acquire_domain_id() as did:
-        yield did
-
 
 def run_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, timeout: float = 300,
              **kw: object) -> subprocess.CompletedProcess:

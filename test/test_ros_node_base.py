@@ -8,7 +8,6 @@ from __future__ import annotations
 
 import math
 import os
-import stat
 import subprocess
 import sys
 from pathlib import Path
@@ -29,14 +28,6 @@ pytestmark = pytest.mark.ros
 REPO = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture()
-def domain_id():
-    """A ROS domain id locked for this test (the launcher's lock files)."""
-    from comems4build_ros.run.supervisor import acquire_domain_id
-
-    with acquire_domain_id() as did:
-        yield did
-
 
 @pytest.fixture()
 def context(tmp_path, monkeypatch, domain_id):
@@ -48,10 +39,6 @@ def context(tmp_path, monkeypatch, domain_id):
     yield ctx
     rclpy.try_shutdown(context=ctx)
 
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 def test_undeclared_publisher_and_subscription_are_refused(context):
@@ -225,15 +212,8 @@ def test_invalid_ros_parameter_names_the_parameter(context):
 
 
 # ---------------------------------------------------------------------- ros2 run lookup
-EXECUTABLES = ("plant_sim", "feed", "fuzzy_ems", "rbc_ems", "mpc_ems", "recorder", "replay")
-
-
-def test_lib_scripts_are_executable_in_the_source_tree():
-    for name in EXECUTABLES:
-        path = REPO / "lib_scripts" / name
-        assert path.is_file(), path
-        assert path.stat().st_mode & stat.S_IXUSR, f"{path} is not executable"
-        assert path.read_text().startswith("#!/bin/sh\n")
+EXECUTABLES = ("plant_sim", "feed", "fuzzy_ems", "rbc_ems", "mpc_ems", "thermostat_ems", "mpc_qp_ems", "recorder",
+               "replay")
 
 
 def test_ros2_run_lookup_finds_every_executable(monkeypatch):

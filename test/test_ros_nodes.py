@@ -57,15 +57,6 @@ TIMING_COLUMNS = ("ems_solve_s",)
 
 
 # ---------------------------------------------------------------------- harness
-@pytest.fixture()
-def domain_id() -> Iterator[int]:
-    """A ROS domain id nobody else uses during the test (same lock files as the launcher)."""
-    from comems4build_ros.run.supervisor import acquire_domain_id
-
-    with acquire_domain_id() as did:
-        yield did
-
-
 class Graph:
     """Node processes of one test plus an observer node in the test process.
 

@@ -6,7 +6,6 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.scenario import (
     ScenarioError,
     ScenarioWarning,
@@ -17,10 +16,6 @@ from comems4build_ros.core.scenario import (
 
 HOURS = 48
 
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 def rows(n: int = HOURS) -> pd.DataFrame:

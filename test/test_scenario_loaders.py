@@ -8,17 +8,12 @@ import pandas as pd
 import pytest
 
 from comems4build_ros.app.cli import main
-from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.scenario import ScenarioError, ScenarioWarning, load_scenario_csv
 from comems4build_ros.core.scenario import loaders as ld
 
 FIX = __import__("pathlib").Path(__file__).resolve().parent / "fixtures"
 T0 = pd.Timestamp("2022-12-01 00:00", tz="UTC")
 
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 def test_j_per_cm2_to_w_m2():

@@ -5,16 +5,11 @@ import pandas as pd
 import pytest
 
 from comems4build_ros.core import scenario as sc
-from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.scenario import measured as ms
 from comems4build_ros.core.scenario.loaders import read_dwd_temperature
 
 HOURS = 12 * 168
 
-
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
 
 
 @pytest.fixture(scope="module")

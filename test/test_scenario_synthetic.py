@@ -15,10 +15,6 @@ from comems4build_ros.core.scenario.generator import dynamisation_factor, opendh
 DOCS = Path(__file__).resolve().parents[1] / "docs" / "scenario.md"
 
 
-@pytest.fixture(scope="module")
-def params():
-    return load_plant_params()
-
 
 @pytest.fixture(scope="module")
 def default(params):

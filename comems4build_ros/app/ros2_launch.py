@@ -34,7 +34,15 @@ import shlex
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.run.plan import LaunchOptions, RunPlan, fastdds_profile, node_label, plan_run, profile_env
+from comems4build_ros.run.plan import (
+    LaunchOptions,
+    RunPlan,
+    fastdds_profile,
+    node_label,
+    plan_run,
+    profile_env,
+    ros_node_executables,
+)
 from comems4build_ros.run.supervisor import LaunchError, describe_nodes
 from comems4build_ros.wire.exits import exit_meaning
 from comems4build_ros.wire.tokens import write_token_file
@@ -70,9 +78,6 @@ ARGUMENTS: dict[str, tuple[str, str, str]] = {
 FLAG_ARGUMENTS = ("all_inputs", "print_plan")
 #: Arguments holding several items, separated by ``;``.
 LIST_ARGUMENTS = ("config", "set", "ems_options")
-#: Executables of the package that ``ros2 run`` finds (``lib/comems4build_ros/``).
-ROS2_RUN_EXECUTABLES = frozenset({"plant_sim", "feed", "fuzzy_ems", "rbc_ems", "mpc_ems", "recorder", "replay",
-                                  "mqtt_bridge"})
 
 
 def command_line(values: dict[str, str]) -> list[str]:
@@ -128,7 +133,7 @@ def process_action(plan: RunPlan, process: Any) -> Any:
     env = process_env(plan, process)
     output = "log" if process.progress else "screen"  # the recorders' progress lines go to the log
     exe = Path(process.argv[0]).name
-    if len(process.nodes) == 1 and exe in ROS2_RUN_EXECUTABLES and process.side == "local":
+    if len(process.nodes) == 1 and exe in ros_node_executables() and process.side == "local":
         node = process.nodes[0]
         params = {k: v for k, v in node.params.items() if not (isinstance(v, (list, tuple)) and not v)}
         return Node(package=PACKAGE, executable=exe, name=node.name, namespace=node.namespace,

@@ -589,9 +589,9 @@ def _forecast_of(ems: str | None, mode: Any) -> str | None:
     """Forecast mode of the summary: the feed's mode for an MPC-level EMS, else None (as in-process)."""
     if ems is None or not isinstance(mode, str):
         return None
-    from comems4build_ros.core.ems import UnknownEMSError, controller_class
+    from comems4build_ros.core.ems import UnknownEMSError, ems_entry
 
     try:
-        return mode if controller_class(ems).info_level == "mpc" else None
+        return mode if ems_entry(ems).info_level == "mpc" else None
     except UnknownEMSError:
         return None

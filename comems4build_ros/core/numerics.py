@@ -8,6 +8,8 @@ The core uses :func:`rowdot` instead wherever a result feeds a run.
 
 from __future__ import annotations
 
+import bisect
+
 import numpy as np
 
 
@@ -18,3 +20,34 @@ def rowdot(a: np.ndarray, x: np.ndarray) -> np.ndarray:
     sum is the same on every CPU.
     """
     return (a * x).sum(axis=-1)
+
+
+class PiecewiseLinear:
+    """Scalar piecewise-linear interpolation over a table, held constant outside it.
+
+    ``y = y_j + (x - x_j) * (y_{j+1} - y_j) / (x_{j+1} - x_j)`` on the interval holding ``x``.
+    The plant step evaluates its device tables with it in plain float arithmetic (a scalar
+    ``numpy.interp`` call costs about ten times as much); ``numpy.interp`` orders the same
+    operations otherwise and can differ from it in the last bit.
+
+    Parameters
+    ----------
+    xs : increasing abscissae (at least two)
+    ys : ordinates, one per abscissa
+    """
+
+    __slots__ = ("xs", "ys")
+
+    def __init__(self, xs, ys) -> None:
+        self.xs = [float(x) for x in xs]
+        self.ys = [float(y) for y in ys]
+
+    def __call__(self, x: float) -> float:
+        xs = self.xs
+        if x <= xs[0]:
+            return self.ys[0]
+        if x >= xs[-1]:
+            return self.ys[-1]
+        j = bisect.bisect_right(xs, x) - 1
+        y0 = self.ys[j]
+        return y0 + (x - xs[j]) * (self.ys[j + 1] - y0) / (xs[j + 1] - xs[j])

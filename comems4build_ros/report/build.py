@@ -258,6 +258,6 @@ def statement_rows(figs: list, statements: Any) -> list[list[str]]:
 
 
 def _level_of(ems: str) -> str:
-    from comems4build_ros.core.ems import controller_class
+    from comems4build_ros.core.ems import ems_entry
 
-    return str(controller_class(ems).info_level)
+    return str(ems_entry(ems).info_level)

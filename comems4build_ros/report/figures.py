@@ -42,10 +42,6 @@ from comems4build_ros.report.paper import paper_windows  # noqa: E402
 from comems4build_ros.report.runs import RunData  # noqa: E402
 from comems4build_ros.report.style import SIGNAL_COLOURS, axis_label, figsize, save_figure, styled  # noqa: E402
 
-#: One colour per EMS (see :mod:`~comems4build_ros.report.style`).
-EMS_COLOURS = style.EMS_COLOURS
-#: Display names of the EMS.
-EMS_LABELS = style.EMS_LABELS
 #: Longest span whose date axis labels every day [d].
 DAY_LABEL_MAX_DAYS = 8
 #: Longest span whose date axis writes day and month at about eight ticks [d].

@@ -334,12 +334,12 @@ def _report(prepared: Prepared, results: list[dict[str, Any]], base_runs: Mappin
 def _draw_figures(case: Case, data: Mapping[str, RunData], study: Study, params: PlantParams,
                   out: Path) -> dict[str, Path]:
     """The paper's figures from the default seed's runs of ``case`` (``out/figures``)."""
-    from comems4build_ros.core.ems import controller_class
+    from comems4build_ros.core.ems import ems_entry
     from comems4build_ros.report import figures as fig
 
     sr = _seed_runs(dataclasses.replace(case, runs={study.seeds[0]: case.runs[study.seeds[0]]}), data, study)[0]
     variants = {**{(e, study.eta_sys): r for e, r in sr.runs.items()}, **sr.variants}
-    levels = {e: str(controller_class(e).info_level) for e in sr.runs}
+    levels = {e: str(ems_entry(e).info_level) for e in sr.runs}
     inputs = fig.FigureInputs(dict(sr.runs), variants, levels, params.site.timezone, study.eta_sys,
                               params.dhw.v_max_l)
     return fig.all_figures(inputs, out / "figures")

@@ -15,11 +15,11 @@ from typing import Any
 from comems4build_ros.report.document import Document
 from comems4build_ros.report.figures import CAPTIONS
 from comems4build_ros.report.paper import printed
+from comems4build_ros.report.style import ems_label as _label
 
 #: Title of both documents.
 TITLE = "ComEMS4Build: reproducing the paper"
 EMS = ("mpc", "fuzzy", "rbc")
-EMS_LABEL = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC", "input": "input"}
 #: The headline figures listed per reading in the study tables: (statement key, short label).
 STUDY_FIGURES = (("cost", "cost"), ("buy", "bought"), ("sell", "sold"), ("bess_charged", "BESS charged"),
                  ("loh_end", "LOH left"))
@@ -60,7 +60,7 @@ def _figure_rows(report: Mapping[str, Any], case: Mapping[str, Any]) -> list[lis
                 err = _pct(f["rel_error"])
             else:
                 err = f"held on {f['held']} of {f['runs']}"
-        rows.append([s["label"] + (" *" if s["table"] else ""), s["unit"], s["where"], EMS_LABEL[f["ems"]],
+        rows.append([s["label"] + (" *" if s["table"] else ""), s["unit"], s["where"], _label(f["ems"]),
                      printed(f["paper"], s["unit"]), ours, err])
     return rows
 
@@ -80,7 +80,7 @@ def _summary(doc: Document, report: Mapping[str, Any]) -> None:
         lo, hi = p * (1 - tol), p * (1 + tol)
         a, b = key.split("/")
         v = ratios[key]["median"]
-        rows.append([f"cost ratio {EMS_LABEL[a]} / {EMS_LABEL[b]} (paper {p:.2f})", f"{lo:.2f}..{hi:.2f}",
+        rows.append([f"cost ratio {_label(a)} / {_label(b)} (paper {p:.2f})", f"{lo:.2f}..{hi:.2f}",
                      f"{v:.2f} [{ratios[key]['low']:.2f}..{ratios[key]['high']:.2f}]", _met(lo <= v <= hi)])
     fc = base["fc"]
     for key, band, paper in (("fuzzy_hours", t["fuzzy_fc_hours_pct"], "+48.44 %"),
@@ -130,7 +130,7 @@ def _fc(doc: Document, report: Mapping[str, Any]) -> None:
     rows = []
     for r in report["h2"]:
         rows.append([
-            EMS_LABEL[r["ems"]], _num(r["fc_working_hours"], 0), _num(r["fc_toggles"], 0),
+            _label(r["ems"]), _num(r["fc_working_hours"], 0), _num(r["fc_toggles"], 0),
             _num(r["fc_mean_load_w"], 0), _num(r["fc_mean_eta_el"], 3),
             f"{_num(r['fc_kwh_week_min'], 1)}..{_num(r['fc_kwh_week_max'], 1)}",
             f"{_num(r['h2_kwh_week_min'], 1)}..{_num(r['h2_kwh_week_max'], 1)}",
@@ -205,7 +205,7 @@ def _study(doc: Document, report: Mapping[str, Any]) -> None:
             r = results[(a["key"], rd["name"])]
             for e in a["ems"]:
                 d = r["discomfort"][e]
-                fig_rows.append([rd["name"], EMS_LABEL[e]]
+                fig_rows.append([rd["name"], _label(e)]
                                 + [_num(r["values"].get(f"{key}/{e}")) for key, _ in STUDY_FIGURES]
                                 + [_num(d["median_kh"]), _num(d["weeks"], 0)])
         doc.table(["reading", "EMS", *(lab for _, lab in STUDY_FIGURES), "discomfort median [Kh/week]",

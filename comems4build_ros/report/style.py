@@ -4,7 +4,7 @@
   8 pt in the paper. Widths follow Elsevier's artwork sizes (single column 90 mm, 1.5
   columns 140 mm, double column 190 mm; :func:`figsize`).
 - **Colours**: the colour-blind-safe palette of Okabe and Ito ("Color Universal Design",
-  2008; :data:`OKABE_ITO`); one colour per EMS in every figure (:data:`EMS_COLOURS`) and
+  2008; :data:`OKABE_ITO`); one colour per EMS in every figure (its row of ``config/ems.yaml``) and
   fixed colours for the signals (:data:`SIGNAL_COLOURS`), with line styles as a second cue.
 - **Labels**: mathtext symbols of the paper with units in brackets (:data:`SYMBOLS`,
   :func:`axis_label`), never raw column names.
@@ -34,6 +34,8 @@ import matplotlib.pyplot as plt  # noqa: E402
 from matplotlib.figure import Figure  # noqa: E402
 from matplotlib.text import Text  # noqa: E402
 
+from comems4build_ros.core.ems import ems_table  # noqa: E402
+
 #: Millimetres per inch.
 MM_PER_INCH = 25.4
 #: Figure widths of a two-column journal page [mm] (Elsevier artwork sizes).
@@ -58,19 +60,8 @@ OKABE_ITO: dict[str, str] = {
 }
 #: Neutral grey for bounds and secondary signals.
 GREY = "#7A7A7A"
-#: One colour per EMS, the same in every figure.
-EMS_COLOURS: dict[str, str] = {
-    "mpc": OKABE_ITO["blue"],
-    "fuzzy": OKABE_ITO["bluish_green"],
-    "rbc": OKABE_ITO["vermillion"],
-    "thermostat": GREY,
-    "mpc-qp": OKABE_ITO["reddish_purple"],
-}
-#: Colours for EMS not listed above.
+#: Colours for EMS without a colour of their own.
 SPARE_COLOURS = (OKABE_ITO["orange"], OKABE_ITO["sky_blue"], OKABE_ITO["black"], OKABE_ITO["yellow"])
-#: Display names of the EMS.
-EMS_LABELS: dict[str, str] = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC", "thermostat": "Thermostat",
-                              "mpc-qp": "MPC-QP"}
 #: Fixed colours of the signals in time-series figures.
 SIGNAL_COLOURS: dict[str, str] = {
     "main": OKABE_ITO["black"],
@@ -150,15 +141,15 @@ def figsize(width: str | float, height_mm: float) -> tuple[float, float]:
 
 
 def ems_colour(ems: str) -> str:
-    """The EMS's colour (stable for names outside :data:`EMS_COLOURS`)."""
-    if ems in EMS_COLOURS:
-        return EMS_COLOURS[ems]
-    return SPARE_COLOURS[sum(map(ord, ems)) % len(SPARE_COLOURS)]
+    """The EMS's colour (``config/ems.yaml``; a stable spare colour for a name outside the table)."""
+    entry = ems_table().get(ems)
+    return entry.colour if entry else SPARE_COLOURS[sum(map(ord, ems)) % len(SPARE_COLOURS)]
 
 
 def ems_label(ems: str) -> str:
-    """Display name of an EMS."""
-    return EMS_LABELS.get(ems, ems)
+    """Display name of an EMS (``config/ems.yaml``; the name itself outside the table)."""
+    entry = ems_table().get(ems)
+    return entry.label if entry else ems
 
 
 #: rcParams of the style.

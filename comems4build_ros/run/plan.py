@@ -61,10 +61,11 @@ NODE_MODULES: dict[str, str] = {
     "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
     "mqtt_plant": "comems4build_ros.mqtt.plant",
 }
+#: Executables of :data:`NODE_MODULES` that are no ROS node.
+NOT_ROS_NODES = frozenset({"mqtt_plant"})
 #: Module of the embedded MQTT broker (``plant="mqtt"`` without a broker URL).
 BROKER_MODULE = "comems4build_ros.mqtt.broker"
-#: EMS name -> console script (EMS without one run as ``python -m ...ems_node --ems NAME``).
-EMS_SCRIPTS: dict[str, str] = {"fuzzy": "fuzzy_ems", "rbc": "rbc_ems", "mpc": "mpc_ems"}
+#: Module of every EMS node (its executable is the EMS's ``node`` of ``config/ems.yaml``).
 EMS_MODULE = "comems4build_ros.ros.nodes.ems_node"
 #: Module of the container processes (layouts ``building`` and ``role``).
 CONTAINER_MODULE = "comems4build_ros.ros.container"
@@ -467,14 +468,15 @@ def python_module(module: str) -> list[str]:
 def node_command(executable: str, ems: str | None = None) -> list[str]:
     """Command line of a node: the venv's console script if installed, else ``python -m``.
 
-    ``executable`` is a key of :data:`NODE_MODULES` or ``"ems"`` (then ``ems`` names it).
+    ``executable`` is a key of :data:`NODE_MODULES` or ``"ems"`` (then ``ems`` names it and
+    its executable is its ``node`` of ``config/ems.yaml``).
     """
     bindir = Path(sys.executable).parent
     if executable == "ems":
         if ems is None:
             raise ValueError("node_command('ems') needs the EMS name")
-        script = EMS_SCRIPTS.get(ems)
-        if script and (bindir / script).is_file():
+        script = ems_node_name(ems)
+        if (bindir / script).is_file():
             return [str(bindir / script)]
         return [*python_module(EMS_MODULE), "--ems", ems]
     module = NODE_MODULES[executable]
@@ -595,10 +597,10 @@ def building_seeds(opts: LaunchOptions) -> list[int | None]:
 
 def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[str, Any]:
     """The run's description stored in the bag (``run_info.json``): what evaluate needs."""
-    from comems4build_ros.core.ems import controller_class
+    from comems4build_ros.core.ems import ems_entry
     from comems4build_ros.core.loop import load_forecast_settings
 
-    level = controller_class(opts.ems).info_level
+    level = ems_entry(opts.ems).info_level
     forecast = load_forecast_settings(**({"mode": opts.forecast} if opts.forecast else {})).mode
     name = opts.scenario if opts.scenario in ("default", "year") else Path(opts.scenario).name
     if opts.inputs == "live":  # the scenario's steps laid on the wall-clock hours, live prices and weather in
@@ -662,9 +664,11 @@ def run_steps(opts: LaunchOptions) -> int:
 
 def default_time_limit(opts: LaunchOptions) -> float:
     """Overall time limit of a launch without ``timeout_s`` [s] (see :data:`TIME_LIMIT_START_S`)."""
+    from comems4build_ros.core.ems import ems_entry
     from comems4build_ros.mqtt.clock import parse_clock
 
-    per = TIME_LIMIT_PER_STEP_MPC_S if opts.ems.startswith("mpc") else TIME_LIMIT_PER_STEP_S
+    planning = ems_entry(opts.ems).info_level == "mpc"  # an optimiser over the horizon's forecasts
+    per = TIME_LIMIT_PER_STEP_MPC_S if planning else TIME_LIMIT_PER_STEP_S
     clock = parse_clock(opts.clock)
     if clock.wall:  # a wall clock paces the steps (hourly steps of the default time step)
         per += clock.period_s
@@ -712,11 +716,19 @@ def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s:
     return params
 
 
-def ems_node_name(ems: str) -> str:
-    """Node name of the EMS ``ems`` in the topic contract (``fuzzy_ems``, ``mpc_qp_ems``, ...)."""
-    from comems4build_ros.wire.contract import load_contract
+def ros_node_executables() -> frozenset[str]:
+    """The package's executables that run one ROS node (``ros2 run comems4build_ros X``): the
+    node executables of :data:`NODE_MODULES` and the node of each EMS of ``config/ems.yaml``."""
+    from comems4build_ros.core.ems import ems_table
 
-    return load_contract().ems_node_name(ems)
+    return frozenset(set(NODE_MODULES) - NOT_ROS_NODES | {e.node for e in ems_table().values()})
+
+
+def ems_node_name(ems: str) -> str:
+    """Node name and executable of the EMS ``ems`` (``fuzzy_ems``, ``mpc_qp_ems``, ...; ``config/ems.yaml``)."""
+    from comems4build_ros.core.ems import ems_entry
+
+    return ems_entry(ems).node
 
 
 def check_plant_options(opts: LaunchOptions) -> None:

@@ -26,8 +26,6 @@ from comems4build_ros.study.runner import RunTask, run_tasks
 EMS = ("mpc", "fuzzy", "rbc")
 
 
-#: Display names.
-EMS_LABEL = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC"}
 
 
 #: Study file.

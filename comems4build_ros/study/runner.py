@@ -27,10 +27,7 @@ from comems4build_ros.study.executor import RunFailedError
 if TYPE_CHECKING:
     from comems4build_ros.study.executor import StudyExecutor
 
-__all__ = ["EMS_WEIGHT", "RunFailedError", "RunTask", "run_task", "run_tasks"]
-
-#: Relative cost of one step per EMS (orders tasks longest first; unknown EMS count 1).
-EMS_WEIGHT = {"mpc": 50.0, "mpc-qp": 10.0, "fuzzy": 2.0, "rbc": 1.0, "thermostat": 1.0}
+__all__ = ["RunFailedError", "RunTask", "run_task", "run_tasks"]
 
 
 @dataclass
@@ -73,9 +70,12 @@ class RunTask:
 
     @property
     def weight(self) -> float:
-        """Relative cost of the run (:data:`EMS_WEIGHT` times its weeks; longest first)."""
+        """Relative cost of the run: its EMS's ``weight`` (``config/ems.yaml``) times its weeks (longest first)."""
+        from comems4build_ros.core.ems import ems_table
+
         default_weeks = 52.0 if str(self.scenario) == "year" else 12.0  # the year's 52 weeks, else the winter's 12
-        return EMS_WEIGHT.get(self.ems, 1.0) * float(self.weeks or default_weeks)
+        entry = ems_table().get(self.ems)
+        return (entry.weight if entry else 1.0) * float(self.weeks or default_weeks)
 
     def _input_files(self) -> list[str]:
         from comems4build_ros.core.scenario import EMBEDDED

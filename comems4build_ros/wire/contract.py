@@ -55,6 +55,8 @@ def event_step_kind(line: str) -> tuple[int, str] | None:
 
 
 CONTRACT_FILE = "topics.yaml"
+#: In a topic's ``publishers``/``subscribers``: every EMS node (``ems``), or those of a level (``ems:<level>``).
+EMS_GROUP = "ems"
 
 #: Interface types the contract may use: std_msgs and rosgraph_msgs/Clock only (installable from PyPI, readable
 #: by any ROS 2 tool without this package).
@@ -404,8 +406,114 @@ def _names(path: Path, where: str, value: Any) -> tuple[str, ...]:
     return tuple(value)
 
 
-def parse_contract(doc: Any, path: Path) -> Contract:
+def _ems_groups(ems_nodes: Mapping[str, tuple[str, str]]) -> dict[str, tuple[str, ...]]:
+    """``ems`` and ``ems:<level>`` -> the EMS nodes they stand for (levels of ``tab:level_of_information``)."""
+    from comems4build_ros.core.ems.base import INFO_LEVELS
+
+    groups = {EMS_GROUP: tuple(ems_nodes)}
+    for level, fields in INFO_LEVELS.items():
+        groups[f"{EMS_GROUP}:{level}"] = tuple(n for n, (_, lv) in ems_nodes.items() if fields <= INFO_LEVELS[lv])
+    return groups
+
+
+def _parse_nodes(doc: Mapping[str, Any], path: Path, ems_nodes: Mapping[str, tuple[str, str]]) -> dict[str, NodeSpec]:
+    """The ``nodes`` of the contract, and the EMS nodes (name -> (EMS, information level))."""
+    nodes: dict[str, NodeSpec] = {}
+    for name, raw in (doc.get("nodes") or {}).items():
+        where = f"node '{name}'"
+        raw = raw or {}
+        if not isinstance(raw, Mapping):
+            raise _err(path, where, "must be a mapping")
+        extra = set(raw) - {"role", "subscribes_all", "publishes_all"}
+        if extra:
+            raise _err(path, where, f"unknown key(s): {', '.join(sorted(extra))}")
+        role = raw.get("role")
+        if role not in NODE_ROLES or role == "ems":
+            raise _err(path, where, f"role must be one of {', '.join(sorted(NODE_ROLES - {'ems'}))} (the EMS nodes "
+                                    f"are those of config/ems.yaml), got {role!r}")
+        nodes[name] = NodeSpec(name=name, role=role, subscribes_all=bool(raw.get("subscribes_all", False)),
+                               publishes_all=bool(raw.get("publishes_all", False)))
+    for name, (ems, level) in ems_nodes.items():
+        if name in nodes:
+            raise _err(path, f"node '{name}'", "is also the node of an EMS in config/ems.yaml")
+        nodes[name] = NodeSpec(name=name, role="ems", ems=ems, info_level=level)
+    if not nodes:
+        raise _err(path, "nodes", "no nodes declared")
+    return nodes
+
+
+def _parse_qos(raw: Mapping[str, Any], default_qos: Mapping[str, Any], path: Path, where: str) -> QoSSpec:
+    qos_raw = {**default_qos, **(raw.get("qos") or {})}
+    if set(qos_raw) - QOS_KEYS:
+        raise _err(path, f"{where}.qos", f"unknown key(s): {', '.join(sorted(set(qos_raw) - QOS_KEYS))}")
+    qos = QoSSpec(**qos_raw)
+    if qos.reliability not in ("reliable", "best_effort"):
+        raise _err(path, f"{where}.qos.reliability", f"'reliable' or 'best_effort', got {qos.reliability!r}")
+    if qos.history not in ("keep_last", "keep_all"):
+        raise _err(path, f"{where}.qos.history", f"'keep_last' or 'keep_all', got {qos.history!r}")
+    if qos.durability not in ("volatile", "transient_local"):
+        raise _err(path, f"{where}.qos.durability", f"'volatile' or 'transient_local', got {qos.durability!r}")
+    if not isinstance(qos.depth, int) or qos.depth < 1:
+        raise _err(path, f"{where}.qos.depth", f"positive integer needed, got {qos.depth!r}")
+    return qos
+
+
+def _check_layout(layout: Any, type_name: str, path: Path, where: str) -> None:
+    if type_name == ARRAY_TYPE:
+        if not isinstance(layout, list) or not layout:
+            raise _err(path, f"{where}.layout", "a Float64MultiArray topic needs a non-empty label list")
+        if layout[0] != "step":
+            raise _err(path, f"{where}.layout", "the first element must be 'step'")
+        seen: set[str] = set()
+        for label in layout:
+            m = _LABEL_RE.match(str(label))
+            if not m:
+                raise _err(path, f"{where}.layout", f"invalid label {label!r}")
+            if m.group("name") in seen:
+                raise _err(path, f"{where}.layout", f"duplicate label '{m.group('name')}'")
+            seen.add(m.group("name"))
+    elif layout is not None:
+        raise _err(path, f"{where}.layout", f"only {ARRAY_TYPE} topics have a layout")
+
+
+def _parse_topic(name: Any, raw: Any, contract: Contract, groups: Mapping[str, tuple[str, ...]],
+                 default_qos: Mapping[str, Any]) -> TopicSpec:
+    path, where = contract.path, f"topic '{name}'"
+    if not isinstance(name, str) or not _TOPIC_RE.match(name):
+        raise _err(path, where, "name must be relative ('a/b', letters, digits, '_')")
+    if not isinstance(raw, Mapping):
+        raise _err(path, where, "must be a mapping")
+    extra = set(raw) - TOPIC_KEYS
+    if extra:
+        raise _err(path, where, f"unknown key(s): {', '.join(sorted(extra))}")
+    type_name = raw.get("type")
+    if type_name not in ALLOWED_TYPES:
+        raise _err(path, where, f"type must be one of {', '.join(sorted(ALLOWED_TYPES))}, got {type_name!r}")
+    if not raw.get("unit"):
+        raise _err(path, where, "needs a 'unit'")
+    pubs, subs = (tuple(n for item in _names(path, f"{where}.{key}", raw.get(key)) for n in groups.get(item, (item,)))
+                  for key in ("publishers", "subscribers"))
+    if not pubs:
+        raise _err(path, f"{where}.publishers", "at least one publisher needed")
+    for n in (*pubs, *subs):
+        if n not in contract.nodes:
+            raise _err(path, where, f"node '{n}' is not declared under 'nodes' (nor an EMS node of config/ems.yaml)")
+    layout = raw.get("layout")
+    _check_layout(layout, type_name, path, where)
+    return TopicSpec(name=name, type=type_name, unit=str(raw["unit"]), publishers=pubs, subscribers=subs,
+                     qos=_parse_qos(raw, default_qos, path, where), layout_labels=tuple(str(x) for x in (layout or ())),
+                     description=str(raw.get("description", "")), contract=contract)
+
+
+def parse_contract(doc: Any, path: Path, ems_nodes: Mapping[str, tuple[str, str]] | None = None) -> Contract:
     """Validate a loaded YAML document and build the :class:`Contract`.
+
+    Parameters
+    ----------
+    doc : the YAML document
+    path : its file (named in errors)
+    ems_nodes : EMS node name -> (EMS name, information level); default the rows of
+        ``config/ems.yaml`` (:func:`comems4build_ros.core.ems.ems_table`)
 
     Raises
     ------
@@ -420,105 +528,21 @@ def parse_contract(doc: Any, path: Path) -> Contract:
     version = doc.get("version")
     if version != 1:
         raise _err(path, "version", f"expected 1, got {version!r}")
-    default_qos = dict((doc.get("defaults") or {}).get("qos") or {})
+    if ems_nodes is None:
+        from comems4build_ros.core.ems import ems_table
 
-    nodes: dict[str, NodeSpec] = {}
-    for name, raw in (doc.get("nodes") or {}).items():
-        where = f"node '{name}'"
-        raw = raw or {}
-        if not isinstance(raw, Mapping):
-            raise _err(path, where, "must be a mapping")
-        extra = set(raw) - {"role", "ems", "info_level", "subscribes_all", "publishes_all"}
-        if extra:
-            raise _err(path, where, f"unknown key(s): {', '.join(sorted(extra))}")
-        role = raw.get("role")
-        if role not in NODE_ROLES:
-            raise _err(path, where, f"role must be one of {', '.join(sorted(NODE_ROLES))}, got {role!r}")
-        if role == "ems" and (not raw.get("ems") or not raw.get("info_level")):
-            raise _err(path, where, "an EMS node needs 'ems' and 'info_level'")
-        nodes[name] = NodeSpec(
-            name=name,
-            role=role,
-            ems=raw.get("ems"),
-            info_level=raw.get("info_level"),
-            subscribes_all=bool(raw.get("subscribes_all", False)),
-            publishes_all=bool(raw.get("publishes_all", False)),
-        )
-    if not nodes:
-        raise _err(path, "nodes", "no nodes declared")
-
-    topics: dict[str, TopicSpec] = {}
+        ems_nodes = {e.node: (e.name, e.info_level) for e in ems_table().values()}
+    nodes = _parse_nodes(doc, path, ems_nodes)
     raw_topics = doc.get("topics")
     if not isinstance(raw_topics, Mapping) or not raw_topics:
         raise _err(path, "topics", "must be a non-empty mapping")
-    contract = Contract(
-        path=path,
-        version=int(version),
-        topics=topics,
-        nodes=nodes,
-        integer_labels=frozenset(doc.get("integer_labels") or ()),
-        boolean_labels=frozenset(doc.get("boolean_labels") or ()),
-    )
+    contract = Contract(path=path, version=int(version), topics={}, nodes=nodes,
+                        integer_labels=frozenset(doc.get("integer_labels") or ()),
+                        boolean_labels=frozenset(doc.get("boolean_labels") or ()))
+    groups = _ems_groups(ems_nodes)
+    default_qos = dict((doc.get("defaults") or {}).get("qos") or {})
     for name, raw in raw_topics.items():
-        where = f"topic '{name}'"
-        if not isinstance(name, str) or not _TOPIC_RE.match(name):
-            raise _err(path, where, "name must be relative ('a/b', letters, digits, '_')")
-        if not isinstance(raw, Mapping):
-            raise _err(path, where, "must be a mapping")
-        extra = set(raw) - TOPIC_KEYS
-        if extra:
-            raise _err(path, where, f"unknown key(s): {', '.join(sorted(extra))}")
-        type_name = raw.get("type")
-        if type_name not in ALLOWED_TYPES:
-            raise _err(path, where, f"type must be one of {', '.join(sorted(ALLOWED_TYPES))}, got {type_name!r}")
-        if not raw.get("unit"):
-            raise _err(path, where, "needs a 'unit'")
-        pubs = _names(path, f"{where}.publishers", raw.get("publishers"))
-        subs = _names(path, f"{where}.subscribers", raw.get("subscribers"))
-        if not pubs:
-            raise _err(path, f"{where}.publishers", "at least one publisher needed")
-        for n in (*pubs, *subs):
-            if n not in nodes:
-                raise _err(path, where, f"node '{n}' is not declared under 'nodes'")
-        qos_raw = {**default_qos, **(raw.get("qos") or {})}
-        if set(qos_raw) - QOS_KEYS:
-            raise _err(path, f"{where}.qos", f"unknown key(s): {', '.join(sorted(set(qos_raw) - QOS_KEYS))}")
-        qos = QoSSpec(**qos_raw)
-        if qos.reliability not in ("reliable", "best_effort"):
-            raise _err(path, f"{where}.qos.reliability", f"'reliable' or 'best_effort', got {qos.reliability!r}")
-        if qos.history not in ("keep_last", "keep_all"):
-            raise _err(path, f"{where}.qos.history", f"'keep_last' or 'keep_all', got {qos.history!r}")
-        if qos.durability not in ("volatile", "transient_local"):
-            raise _err(path, f"{where}.qos.durability", f"'volatile' or 'transient_local', got {qos.durability!r}")
-        if not isinstance(qos.depth, int) or qos.depth < 1:
-            raise _err(path, f"{where}.qos.depth", f"positive integer needed, got {qos.depth!r}")
-        layout = raw.get("layout")
-        if type_name == ARRAY_TYPE:
-            if not isinstance(layout, list) or not layout:
-                raise _err(path, f"{where}.layout", "a Float64MultiArray topic needs a non-empty label list")
-            if layout[0] != "step":
-                raise _err(path, f"{where}.layout", "the first element must be 'step'")
-            seen: set[str] = set()
-            for label in layout:
-                m = _LABEL_RE.match(str(label))
-                if not m:
-                    raise _err(path, f"{where}.layout", f"invalid label {label!r}")
-                if m.group("name") in seen:
-                    raise _err(path, f"{where}.layout", f"duplicate label '{m.group('name')}'")
-                seen.add(m.group("name"))
-        elif layout is not None:
-            raise _err(path, f"{where}.layout", f"only {ARRAY_TYPE} topics have a layout")
-        topics[name] = TopicSpec(
-            name=name,
-            type=type_name,
-            unit=str(raw["unit"]),
-            publishers=pubs,
-            subscribers=subs,
-            qos=qos,
-            layout_labels=tuple(str(x) for x in (layout or ())),
-            description=str(raw.get("description", "")),
-            contract=contract,
-        )
+        contract.topics[name] = _parse_topic(name, raw, contract, groups, default_qos)
     return contract
 
 

@@ -11,7 +11,7 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from comems4build_ros.app.commands.options import add_executor_options, add_scenario_options
+from comems4build_ros.app.commands.options import add_executor_options, add_scenario_options, ems_help
 
 if TYPE_CHECKING:
     from comems4build_ros.report.build import Report
@@ -25,7 +25,7 @@ DEFAULT_ETAS = "0.75,0.90"
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``compare``."""
     parser.add_argument("--ems", metavar="NAME[,NAME...]", default=DEFAULT_EMS,
-                        help=f"comma-separated EMS names (default {DEFAULT_EMS})")
+                        help=f"{ems_help(many=True)} (default {DEFAULT_EMS})")
     add_scenario_options(parser, hours=False)
     parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
                         help="run in-process or through the ROS 2 node set (bags evaluated)")
@@ -102,7 +102,7 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import check_config_files, ems_names, scenario_of, study_executor
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.config import load_plant_params
-    from comems4build_ros.core.ems import controller_class
+    from comems4build_ros.core.ems import ems_entry
     from comems4build_ros.files.outputs import atomic_dir, check_out_dir
     from comems4build_ros.report.runs import RunDirError
 
@@ -123,7 +123,7 @@ def run(args: argparse.Namespace) -> int:
     if not args.out:
         raise UsageError("--out is required (unless --from-runs)")
     emss = ems_names(args.ems)
-    levels = {ems: str(controller_class(ems).info_level) for ems in emss}
+    levels = {ems: str(ems_entry(ems).info_level) for ems in emss}
     check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
     etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)

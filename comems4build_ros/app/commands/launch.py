@@ -16,13 +16,14 @@ from comems4build_ros.app.commands.options import (
     SECONDS,
     SEED,
     add_scenario_options,
+    ems_help,
 )
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``launch``."""
     parser.add_argument("--ems", metavar="NAME", required=True,
-                        help="EMS node: fuzzy, rbc, mpc (also thermostat, mpc-qp)")
+                        help=ems_help())
     add_scenario_options(parser, hours=False, seed=False, extend=False)
     parser.add_argument("--steps", metavar="N", type=COUNT, default=None,
                         help="cut the run to its first N steps, integer >= 1 (short runs)")

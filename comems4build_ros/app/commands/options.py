@@ -145,6 +145,14 @@ def load_params(config: Sequence[str], overrides: Mapping[str, Any] | None = Non
     return load_plant_params(config, overrides)
 
 
+def ems_help(many: bool = False) -> str:
+    """Help text of an ``--ems`` option: the EMS of ``config/ems.yaml``."""
+    from comems4build_ros.core.ems import ems_names as table_names
+
+    names = ", ".join(table_names())
+    return f"comma-separated EMS names, of {names}" if many else f"EMS name: {names}"
+
+
 def ems_names(text: str) -> list[str]:
     """``--ems rbc,fuzzy,mpc`` of ``compare`` and ``sweep``: registered names, each once, at least one."""
     from comems4build_ros.core.ems import UnknownEMSError, controller_class

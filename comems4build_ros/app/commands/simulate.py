@@ -6,12 +6,12 @@ import argparse
 import json
 import sys
 
-from comems4build_ros.app.commands.options import add_scenario_options
+from comems4build_ros.app.commands.options import add_scenario_options, ems_help
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``simulate``."""
-    parser.add_argument("--ems", metavar="NAME", required=True, help="EMS name: thermostat, rbc, fuzzy, mpc, mpc-qp")
+    parser.add_argument("--ems", metavar="NAME", required=True, help=ems_help())
     add_scenario_options(parser)
     parser.add_argument(
         "--config", action="append", default=[], metavar="FILE",

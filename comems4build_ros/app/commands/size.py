@@ -10,14 +10,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.app.commands.options import COUNT, SEED, WEEKS, add_executor_options
+from comems4build_ros.app.commands.options import COUNT, SEED, WEEKS, add_executor_options, ems_help
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``size``."""
     from comems4build_ros.study.sizing import AXES
 
-    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help="comma-separated EMS names")
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help=ems_help(many=True))
     for axis in AXES:
         parser.add_argument(axis.option, metavar="V1,V2,...", default=None,
                             help=f"{axis.label} [{axis.unit}], {'integers >= 0' if axis.integer else 'values > 0'} "

@@ -8,7 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from comems4build_ros.app.commands.options import add_executor_options, add_scenario_options
+from comems4build_ros.app.commands.options import add_executor_options, add_scenario_options, ems_help
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -16,7 +16,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", required=True, metavar="PATH=V1,V2,...",
                         help="dotted plant parameter and its values, e.g. battery.e_max_kwh=5,6.5,10 (repeatable; "
                              "the grid is the product of all)")
-    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help="comma-separated EMS names")
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help=ems_help(many=True))
     add_scenario_options(parser, hours=False)
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")

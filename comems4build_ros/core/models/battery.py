@@ -90,3 +90,26 @@ def split_power(p_bess_w: float, soc: float, b: BatteryParams, dt_h: float) -> t
     if p_bess_w > 0.0:
         return p, 0.0, power_clipped, soc_clipped
     return 0.0, p, power_clipped, soc_clipped
+
+
+def step(p_bess_w: float, soc: float, b: BatteryParams, dt_h: float) -> tuple[float, float, float, bool, bool]:
+    """One step of the battery for a signed set-point (``eq:batt_soc`` with the limits of :func:`split_power`).
+
+    Parameters
+    ----------
+    p_bess_w : requested power [W], > 0 charging, < 0 discharging (finite)
+    soc : SOC[k-1] [-]
+    b : BatteryParams
+    dt_h : step t_s [h]
+
+    Returns
+    -------
+    (P_ch [W], P_d [W], SOC[k] [-], power_clipped, soc_clipped)
+    """
+    p_ch, p_dis, power_clipped, soc_clipped = split_power(p_bess_w, soc, b, dt_h)
+    soc_new = soc + (b.eta_ch * p_ch - p_dis / b.eta_d) * dt_h / (b.e_max_kwh * W_PER_KW)
+    if soc_new > b.soc_max:
+        soc_new = b.soc_max
+    elif soc_new < b.soc_min:
+        soc_new = b.soc_min
+    return p_ch, p_dis, soc_new, power_clipped, soc_clipped

@@ -12,14 +12,26 @@ expm(M) = [[A_d, B_d], [0, I]] and x[k+1] = A_d x[k] + B_d u[k] (``eq:state_upda
 
 The default parameters (``config/plant.yaml``, section ``building``) are calibrated in
 ``docs/models.md``.
+
+The plant sees its building model through :class:`BuildingModel`: per step the heat of the
+emission system into the floor (negative when cooling) and the weather go in, the node
+temperatures come out. :class:`RCBuilding` is the paper's 4R3C model; another model (a
+detailed one, in co-simulation) implements the same two methods and leaves the devices as
+they are.
 """
 
 from __future__ import annotations
+
+from typing import Protocol, runtime_checkable
 
 import numpy as np
 
 from comems4build_ros.core.config import SECONDS_PER_HOUR, BuildingParams
 from comems4build_ros.core.numerics import rowdot
+from comems4build_ros.core.types import Exogenous
+
+#: Node temperatures of a building model: (T_air, T_w,in, T_w,out) [degC].
+Temperatures = tuple[float, float, float]
 
 
 def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
@@ -123,3 +135,67 @@ def simulate(x0, u, Ad: np.ndarray, Bd: np.ndarray) -> np.ndarray:
     for k in range(len(u)):
         x[k + 1] = rowdot(Ad, x[k]) + rowdot(Bd, u[k])
     return x
+
+
+@runtime_checkable
+class BuildingModel(Protocol):
+    """The thermal model of the house's rooms as the plant uses it.
+
+    ``name`` names the model (``rc`` for the paper's 4R3C). A model that keeps a state of
+    its own (a simulator in co-simulation) advances it at each :meth:`step` call; the plant
+    calls it once per step, in order.
+    """
+
+    name: str
+
+    def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
+        """Node temperatures at the start of a run [degC] for the air at ``t_air_c`` and ambient ``t_amb_c``."""
+        ...
+
+    def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
+        """Node temperatures at the end of a step [degC].
+
+        Parameters
+        ----------
+        temps : node temperatures at its start [degC]
+        q_floor_w : heat into the floor from the emission system [W] (negative: cooling)
+        exo : the step's weather and loads (``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], ...)
+        """
+        ...
+
+
+class RCBuilding:
+    """The paper's 4R3C building model (``eq:state_update_bldgs``) for steps of ``dt_h`` hours.
+
+    Parameters
+    ----------
+    b : BuildingParams
+    dt_h : step t_s [h]
+    """
+
+    name = "rc"
+    __slots__ = ("params", "Ad", "Bd", "_ad", "_bd")
+
+    def __init__(self, b: BuildingParams, dt_h: float) -> None:
+        self.params = b
+        self.Ad, self.Bd = discretize(b, dt_h)
+        self._ad = [[float(v) for v in row] for row in self.Ad]
+        self._bd = [[float(v) for v in row] for row in self.Bd]
+
+    def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
+        """The walls on the steady-state profile between the air at ``t_air_c`` and ``t_amb_c`` without sun [degC]."""
+        b = self.params
+        r_chain = b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w
+        dt = t_air_c - t_amb_c
+        return (t_air_c, t_air_c - dt * b.r_w_air_k_per_w / r_chain,
+                t_air_c - dt * (b.r_w_air_k_per_w + b.r_w_k_per_w) / r_chain)
+
+    def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
+        """x[k+1] = A_d x[k] + B_d u[k] with u = [Q_h,SH, T_amb, q_s] (plain float arithmetic)."""
+        x0, x1, x2 = temps
+        t_amb, q_s = exo.t_amb_c, exo.ghi_w_m2
+        a0, a1, a2 = self._ad
+        b0, b1, b2 = self._bd
+        return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s,
+                a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s,
+                a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s)

@@ -24,6 +24,7 @@ import bisect
 import math
 
 from comems4build_ros.core.config import SECONDS_PER_HOUR, ElectrolyserParams
+from comems4build_ros.core.types import CLIP_EL_H2, CLIP_EL_RANGE
 
 #: Lower heating value of hydrogen [Wh/kg].
 LHV_WH_PER_KG = 33_330.0
@@ -103,6 +104,65 @@ class ElectrolyserTable:
     def efficiency(self, x: float) -> float:
         """LHV efficiency P_H2 / P_EL at load ``x``, compression included [-]."""
         return self.h2_w(x) / self.p_total_w(x)
+
+    def run(self, p_req_w: float, loh: float, was_on: bool, dt_h: float, loh_max: float,
+            e_h2_wh: float) -> tuple[float, float, bool, float, float, int]:
+        """One step of the modules for a requested intake.
+
+        The request goes onto {0} U [P_EL,min, P_EL,max] (from half of P_EL,min on it is
+        raised to it), then down to what fits into the store below LOH_max (off below the
+        minimal load). Off, the modules draw their standby power; a start loses
+        ``start_lost_h`` of the step's H2.
+
+        Parameters
+        ----------
+        p_req_w : requested intake [W] (finite)
+        loh : LOH after the fuel cell's draw of this step [-]
+        was_on : the modules produced in the previous step
+        dt_h : step t_s [h]
+        loh_max : upper bound of the store [-]
+        e_h2_wh : the store's LHV energy content [Wh]
+
+        Returns
+        -------
+        (intake [W], H2 made as LHV power [W], producing, recoverable heat [W], LOH after
+         the step [-], clip bits)
+        """
+        clip = 0
+        if self.n == 0:
+            return 0.0, 0.0, False, 0.0, loh, (CLIP_EL_RANGE if p_req_w != 0.0 else 0)
+        p_min, p_max = self.p_min_w, self.p_max_w
+        if p_req_w <= 0.0:
+            if p_req_w < 0.0:
+                clip |= CLIP_EL_RANGE
+            return self.p_standby_w, 0.0, False, 0.0, loh, clip
+        if p_req_w < p_min:
+            clip |= CLIP_EL_RANGE
+            if p_req_w < 0.5 * p_min:
+                return self.p_standby_w, 0.0, False, 0.0, loh, clip
+            p_req_w = p_min
+        elif p_req_w > p_max:
+            clip |= CLIP_EL_RANGE
+            p_req_w = p_max
+        x = self.load_of_power(p_req_w)
+        f_prod = 1.0 if was_on else max(0.0, 1.0 - self.start_lost_h / dt_h)
+        room_w = (loh_max - loh) * e_h2_wh / dt_h
+        h2 = self.h2_w(x) * f_prod
+        if h2 > room_w:
+            clip |= CLIP_EL_H2
+            x_fit = room_w / (self.h2_w(1.0) * f_prod) if f_prod > 0.0 else 0.0
+            if x_fit < self.x_min:
+                return self.p_standby_w, 0.0, False, 0.0, loh, clip
+            x = x_fit
+            h2 = min(self.h2_w(x) * f_prod, room_w)
+        p_el = self.p_total_w(x)
+        waste = self.p_stack_w(x) - h2
+        q_rec = self.heat_recovery * waste if waste > 0.0 else 0.0
+        if h2 > 0.0:
+            loh = loh + h2 * dt_h / e_h2_wh
+            if loh > loh_max:
+                loh = loh_max
+        return p_el, h2, True, q_rec, loh, clip
 
     def specific_kwh_per_nm3(self, x: float, compression: bool = False) -> float:
         """Electricity per normal cubic metre of H2 at load ``x`` [kWh/Nm3] (datasheet figure: without compression)."""

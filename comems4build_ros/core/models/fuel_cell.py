@@ -27,7 +27,8 @@ import bisect
 
 import numpy as np
 
-from comems4build_ros.core.config import FuelCellParams
+from comems4build_ros.core.config import W_PER_KW, FuelCellParams, HydrogenParams
+from comems4build_ros.core.types import CLIP_FC_H2, CLIP_FC_RANGE
 
 #: Faraday constant [C/mol] (CODATA 2018, exact).
 FARADAY_C_PER_MOL = 96485.33212
@@ -194,6 +195,89 @@ class FuelCellTable:
         j = bisect.bisect_right(h, p_h2_w) - 1
         frac = (p_h2_w - h[j]) / (h[j + 1] - h[j])
         return self._p[j] + frac * self.step_w
+
+
+class FuelCell:
+    """The fuel cell and the H2 store of the plant step (``eq:molar_flows`` .. ``eq:FC_sys_efficiency``, ``eq:LOH``).
+
+    Parameters
+    ----------
+    fc : FuelCellParams
+    h2 : HydrogenParams
+
+    Raises
+    ------
+    ValueError
+        If the polarization curve cannot deliver ``fc.p_max_w``.
+    """
+
+    __slots__ = ("table", "p_min_w", "p_top_w", "eta_sys", "e_h2_wh", "loh_min", "loh_max")
+
+    def __init__(self, fc: FuelCellParams, h2: HydrogenParams) -> None:
+        self.table = FuelCellTable(fc)
+        self.p_min_w = float(fc.p_min_w)
+        self.p_top_w = float(fc.zeta * fc.p_max_w)
+        self.eta_sys = float(fc.eta_sys)
+        self.e_h2_wh = h2.e_max_kwh * W_PER_KW
+        self.loh_min = float(h2.loh_min)
+        self.loh_max = float(h2.loh_max)
+
+    def run(self, p_req_w: float, loh: float, dt_h: float) -> tuple[float, float, float, float, float, int]:
+        """One step for a requested output.
+
+        The request goes onto {0} U [P_min, zeta P_max] (from half of P_min on it is raised
+        to P_min, below it the cell stays off), then down to what the store holds above
+        LOH_min (off if that is below P_min).
+
+        Parameters
+        ----------
+        p_req_w : requested electrical output [W] (finite)
+        loh : LOH[k-1] [-]
+        dt_h : step t_s [h]
+
+        Returns
+        -------
+        (P_el,FC [W], hydrogen drawn as LHV power [W], eta_el,FC [-], recoverable heat
+         Q_hr,FC [W], LOH after the draw [-], clip bits)
+        """
+        clip = 0
+        p_min = self.p_min_w
+        p_fc = p_req_w
+        if p_fc <= 0.0:
+            if p_fc < 0.0:
+                clip = CLIP_FC_RANGE
+            p_fc = 0.0
+        elif p_fc < p_min:
+            p_fc = p_min if p_fc >= 0.5 * p_min else 0.0
+            clip = CLIP_FC_RANGE
+        elif p_fc > self.p_top_w:
+            p_fc = self.p_top_w
+            clip = CLIP_FC_RANGE
+        p_h2 = 0.0
+        if p_fc > 0.0:
+            table = self.table
+            p_h2 = table.h2_power_w(p_fc)
+            h2_avail = (loh - self.loh_min) * self.e_h2_wh / dt_h
+            if p_h2 > h2_avail:
+                clip |= CLIP_FC_H2
+                p_fc = table.el_power_w(h2_avail)
+                if p_fc < p_min:
+                    p_fc = 0.0
+                    p_h2 = 0.0
+                else:
+                    p_h2 = min(table.h2_power_w(p_fc), h2_avail)
+        if p_fc > 0.0:
+            eta_el = p_fc / p_h2
+            q_rec = self.eta_sys * p_h2 - p_fc
+            if q_rec < 0.0:
+                q_rec = 0.0
+        else:
+            eta_el = 0.0
+            q_rec = 0.0
+        loh_new = loh - p_h2 * dt_h / self.e_h2_wh
+        if loh_new < self.loh_min:
+            loh_new = self.loh_min
+        return p_fc, p_h2, eta_el, q_rec, loh_new, clip
 
 
 def efficiency_summary(fc: FuelCellParams) -> dict[str, float]:

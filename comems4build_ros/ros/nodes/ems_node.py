@@ -1,4 +1,4 @@
-"""EMS nodes: ``fuzzy_ems``, ``rbc_ems``, ``mpc_ems`` (and ``thermostat_ems``, ``mpc_qp_ems``).
+"""EMS nodes: one per EMS of ``config/ems.yaml`` (``fuzzy_ems``, ``rbc_ems``, ``mpc_ems``, ...).
 
 One module for every EMS: the node wraps the controller of the core
 (:func:`comems4build_ros.core.ems.make_controller`) and is swapped by starting another node;
@@ -36,6 +36,7 @@ import json
 import sys
 from array import array
 from collections.abc import Callable
+from pathlib import Path
 from typing import Any
 
 from rclpy.task import Future
@@ -67,7 +68,7 @@ class EMSNode(EndsWithRun, ContractNode):
 
     Parameters
     ----------
-    ems : EMS name of the registry (``fuzzy``, ``rbc``, ``mpc``, ``mpc-qp``, ``thermostat``)
+    ems : EMS name of ``config/ems.yaml`` (``fuzzy``, ``rbc``, ``mpc``, ``mpc-qp``, ``thermostat``)
     node_kwargs : passed to ``rclpy.node.Node`` (e.g. ``namespace``, ``parameter_overrides``)
     """
 
@@ -185,34 +186,30 @@ class EMSNode(EndsWithRun, ContractNode):
         self.steps += 1
 
 
-def main(args: list[str] | None = None, ems: str | None = None) -> int:
-    """Run the EMS node ``ems``; without it, the name after ``--ems`` on the command line.
+def ems_of_program(program: str) -> str | None:
+    """The EMS whose executable ``program`` is (``.../fuzzy_ems`` -> ``fuzzy``; ``config/ems.yaml``), else None."""
+    from comems4build_ros.core.ems import ems_table
 
-    ``python -m comems4build_ros.ros.nodes.ems_node --ems thermostat --ros-args ...``
-    runs an EMS that has no console script of its own (thermostat, mpc-qp).
+    name = Path(program).name
+    return next((e.name for e in ems_table().values() if e.node == name), None)
+
+
+def main(args: list[str] | None = None, ems: str | None = None) -> int:
+    """Run the EMS node ``ems``; without it, the EMS whose executable this is, or the one after ``--ems``.
+
+    Every EMS of ``config/ems.yaml`` has an executable named after its node (``fuzzy_ems``,
+    ``ros2 run comems4build_ros fuzzy_ems``); ``python -m comems4build_ros.ros.nodes.ems_node
+    --ems NAME --ros-args ...`` runs any of them.
     """
+    argv = list(sys.argv[1:] if args is None else args)
     if ems is None:
-        argv = list(sys.argv[1:] if args is None else args)
+        ems = ems_of_program(sys.argv[0])
+    if ems is None:
         if "--ems" not in argv or argv.index("--ems") + 1 >= len(argv):
             print("ems_node: error: give the EMS as '--ems NAME'", file=sys.stderr)
             return 2
         ems = argv[argv.index("--ems") + 1]
     return run_node(lambda: EMSNode(ems), args, f"{ems}_ems")
-
-
-def main_fuzzy(args: list[str] | None = None) -> int:
-    """Entry point of ``fuzzy_ems``: ComEMS4Build (sec:FLC)."""
-    return main(args, "fuzzy")
-
-
-def main_rbc(args: list[str] | None = None) -> int:
-    """Entry point of ``rbc_ems``: the rule-based controller (sec:RBC)."""
-    return main(args, "rbc")
-
-
-def main_mpc(args: list[str] | None = None) -> int:
-    """Entry point of ``mpc_ems``: the MILP MPC (sec:MPC)."""
-    return main(args, "mpc")
 
 
 if __name__ == "__main__":

@@ -1,0 +1,29 @@
+"""Fixtures shared by the test modules.
+
+``params`` is the default plant (``config/plant.yaml``), built once per module; a module that
+tests another plant defines its own ``params``. ``domain_id`` is a ROS 2 domain id locked for
+one test with the launcher's own lock files, so tests that start nodes never meet.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Iterator
+
+import pytest
+
+from comems4build_ros.core.config import PlantParams, load_plant_params
+
+
+@pytest.fixture(scope="module")
+def params() -> PlantParams:
+    """The default plant parameters."""
+    return load_plant_params()
+
+
+@pytest.fixture()
+def domain_id() -> Iterator[int]:
+    """A ROS domain id nobody else uses during the test (the launcher's lock files)."""
+    from comems4build_ros.run.supervisor import acquire_domain_id
+
+    with acquire_domain_id() as did:
+        yield did
