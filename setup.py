@@ -22,7 +22,7 @@ NODES = {
     "recorder": ("comems4build_ros.ros.nodes.recorder", "the recorder of every topic into a rosbag2/MCAP bag"),
     "replay": ("comems4build_ros.ros.nodes.replay", "the replay of a recorded bag"),
     "mqtt_bridge": ("comems4build_ros.ros.nodes.mqtt_bridge", "the bridge to a house behind MQTT"),
-    "mqtt_plant": ("comems4build_ros.mqtt.plant", "the plant simulator behind MQTT"),
+    "mqtt_plant": ("comems4build_ros.mqtt.plant_sim", "the plant simulator behind MQTT"),
 }
 #: The module of every EMS node (its ``main()`` finds the EMS by the executable's name).
 EMS_NODE_MODULE = "comems4build_ros.ros.nodes.ems_node"

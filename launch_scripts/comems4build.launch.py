@@ -1,12 +1,12 @@
 """ROS 2 launch file of the node set: the run plan of ``comems4build launch``, started by ``ros2 launch``.
 
     ros2 launch comems4build_ros comems4build.launch.py ems:=rbc weeks:=1 out:=/tmp/run
-    ros2 launch comems4build_ros comems4build.launch.py ems:=fuzzy buildings:=4 namespace:=/site
+    ros2 launch comems4build_ros comems4build.launch.py ems:=fuzzy houses:=4 namespace:=/site
     ros2 launch comems4build_ros comems4build.launch.py ems:=mpc weeks:=1 print_plan:=true
 
 The arguments are those of ``comems4build launch`` (``ros2 launch comems4build_ros
 comems4build.launch.py --show-args`` lists them): ``ems``, ``scenario``, ``start``,
-``weeks``, ``steps``, ``buildings``, ``seed``, ``namespace``, ``layout``, ``containers``,
+``weeks``, ``steps``, ``houses``, ``seed``, ``namespace``, ``layout``, ``containers``,
 ``config``/``set``/``ems_options`` (``;``-separated), ``forecast``, ``all_inputs``, ``step_timeout``,
 ``timeout``, ``out``, ``bag``, ``domain`` and ``print_plan``. Both build the same run plan
 (:mod:`comems4build_ros.app.ros2_launch`), start the same nodes with the same parameters

@@ -71,7 +71,7 @@ NUMERIC = [
     (["launch", "--ems", "fuzzy", "--weeks", "0"], "--weeks"),
     (["launch", "--ems", "fuzzy", "--weeks", "nan"], "--weeks"),
     (["launch", "--ems", "fuzzy", "--steps", "0"], "--steps"),
-    (["launch", "--ems", "fuzzy", "--buildings", "0"], "--buildings"),
+    (["launch", "--ems", "fuzzy", "--houses", "0"], "--houses"),
     (["launch", "--ems", "fuzzy", "--domain-id", "500"], "--domain-id"),
     (["launch", "--ems", "fuzzy", "--timeout", "inf"], "--timeout"),
     (["launch", "--ems", "fuzzy", "--step-timeout", "-1"], "--step-timeout"),

@@ -1,4 +1,4 @@
-"""Container processes (layouts role and building): spec checks, parameters, closed loop equals in-process."""
+"""Container processes (layouts role and house): spec checks, parameters, closed loop equals in-process."""
 
 from __future__ import annotations
 
@@ -54,9 +54,9 @@ def test_load_spec_names_the_file_and_entry(tmp_path: Path) -> None:
 def test_main_exit_code_2_on_bad_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["--role", "plant", "--spec", str(tmp_path / "missing.json")]) == 2
     assert "missing.json" in capsys.readouterr().err
-    spec = _write(tmp_path, {"nodes": [{"namespace": "/building_0"}]})
+    spec = _write(tmp_path, {"nodes": [{"namespace": "/house_0"}]})
     assert main(["--role", "container", "--spec", str(spec)]) == 2  # a container's entries name their role
-    assert "node '/building_0' of a container needs a 'role'" in capsys.readouterr().err
+    assert "node '/house_0' of a container needs a 'role'" in capsys.readouterr().err
 
 
 def test_to_parameters_types() -> None:
@@ -75,41 +75,41 @@ def test_to_parameters_types() -> None:
 
 
 @pytest.mark.ros
-def test_three_buildings_in_the_role_layout_equal_in_process(tmp_path: Path) -> None:
-    """3 buildings, 2 per recorder process: 5 node processes, each building equals its in-process run."""
+def test_three_houses_in_the_role_layout_equal_in_process(tmp_path: Path) -> None:
+    """3 houses, 2 per recorder process: 5 node processes, each house equals its in-process run."""
     from comems4build_ros.run.launcher import launch
     from comems4build_ros.run.plan import LaunchOptions
 
     out = tmp_path / "run"
-    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, layout="role",
-                         buildings_per_recorder=2, timeout_s=150))
+    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, houses=3, layout="role",
+                         houses_per_recorder=2, timeout_s=150))
     logs = sorted(p.name for p in (out / "log").glob("*.log"))
     assert logs == ["role_ems.log", "role_feed.log", "role_plant.log", "role_recorder_0.log", "role_recorder_1.log"]
-    assert_buildings_equal_in_process(out, 3)
+    assert_houses_equal_in_process(out, 3)
 
 
 @pytest.mark.ros
-def test_three_buildings_in_two_containers_equal_in_process(tmp_path: Path) -> None:
-    """Layout ``building``: every node of buildings 0 and 2 in one container process, of
-    building 1 in another; each building equals its in-process run, nothing lost, and the
+def test_three_houses_in_two_containers_equal_in_process(tmp_path: Path) -> None:
+    """Layout ``house``: every node of houses 0 and 2 in one container process, of
+    house 1 in another; each house equals its in-process run, nothing lost, and the
     EMS and feed beside a finished recorder end at once (no linger for the recorder to leave)."""
     from comems4build_ros.ros.node import LINGER_S
     from comems4build_ros.run.launcher import launch
     from comems4build_ros.run.plan import LaunchOptions
 
     out = tmp_path / "run"
-    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, buildings=3, containers=2, timeout_s=150))
+    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, houses=3, containers=2, timeout_s=150))
     assert sorted(p.name for p in (out / "log").glob("*.log")) == ["container_0.log", "container_1.log"]
     log0 = (out / "log" / "container_0.log").read_text()
-    for ns in ("building_0", "building_2"):
+    for ns in ("house_0", "house_2"):
         for node in ("recorder", "fuzzy_ems", "feed", "plant_sim"):
             assert f"[{ns}.{node}]" in log0, (ns, node)
-    assert_buildings_equal_in_process(out, 3)
+    assert_houses_equal_in_process(out, 3)
     assert res.run_s < LINGER_S  # the 30-step run did not wait out the linger for a recorder to leave
 
 
-def assert_buildings_equal_in_process(out: Path, n: int) -> None:
-    """Each building's summary of the launch in ``out`` equals its in-process run; complete bags."""
+def assert_houses_equal_in_process(out: Path, n: int) -> None:
+    """Each house's summary of the launch in ``out`` equals its in-process run; complete bags."""
     from comems4build_ros.bags.evaluation import lost_messages
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.loop import simulate
@@ -120,7 +120,7 @@ def assert_buildings_equal_in_process(out: Path, n: int) -> None:
     params = load_plant_params()
     seed = load_scenario_settings().seed
     for i in range(n):
-        per = json.loads((out / f"building_{i}" / "summary.json").read_text())
+        per = json.loads((out / f"house_{i}" / "summary.json").read_text())
         with warnings.catch_warnings():
             warnings.simplefilter("ignore")
             ref = simulate("fuzzy", load_scenario("default", params, None, 1, seed + i, 30), params).summary
@@ -130,6 +130,6 @@ def assert_buildings_equal_in_process(out: Path, n: int) -> None:
         for k in sorted(keys):
             assert per[k] == ref[k] or (per[k] != per[k] and ref[k] != ref[k]), (i, k)  # NaN == NaN
         assert per["steps"] == 30
-    assert (out / "bag" / f"building_{n - 1}" / "metadata.yaml").is_file()
-    assert lost_messages(out / "bag") == {}  # no message lost on any topic of any building
+    assert (out / "bag" / f"house_{n - 1}" / "metadata.yaml").is_file()
+    assert lost_messages(out / "bag") == {}  # no message lost on any topic of any house
     assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []

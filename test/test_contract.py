@@ -147,10 +147,10 @@ def test_may_publish_and_subscribe(contract):
 
 def test_namespace_helpers():
     assert resolve("/", "state/soc") == "/state/soc"
-    assert resolve("/building_3", "state/soc") == "/building_3/state/soc"
-    assert relative("/building_3", "/building_3/state/soc") == "state/soc"
+    assert resolve("/house_3", "state/soc") == "/house_3/state/soc"
+    assert relative("/house_3", "/house_3/state/soc") == "state/soc"
     assert relative("/", "/clock") == "clock"
-    assert relative("/building_3", "/building_4/state/soc") is None
+    assert relative("/house_3", "/house_4/state/soc") is None
 
 
 def test_qos_profiles_build(contract):

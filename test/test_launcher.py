@@ -75,24 +75,24 @@ def test_launch_fuzzy_equals_in_process_and_bag_opens(tmp_path: Path) -> None:
     assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []
 
 
-def test_two_buildings_under_namespaces_with_seeds(tmp_path: Path) -> None:
+def test_two_houses_under_namespaces_with_seeds(tmp_path: Path) -> None:
     from comems4build_ros.core.scenario.settings import load_scenario_settings
 
     out = tmp_path / "run"
-    launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=24, buildings=2, timeout_s=150))
-    # more than one building: container processes, one per core, at most one per building (docs/ros_tools.md)
+    launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=24, houses=2, timeout_s=150))
+    # more than one house: container processes, one per core, at most one per house (docs/ros_tools.md)
     assert sorted(p.name for p in (out / "log").glob("*.log")) == [
         f"container_{j}.log" for j in range(min(2, os.cpu_count() or 1))]
-    combined = json.loads((out / "summary.json").read_text())["buildings"]
-    assert sorted(combined) == ["building_0", "building_1"]
+    combined = json.loads((out / "summary.json").read_text())["houses"]
+    assert sorted(combined) == ["house_0", "house_1"]
     seed = load_scenario_settings().seed
     for i in range(2):
-        per = json.loads((out / f"building_{i}" / "summary.json").read_text())
+        per = json.loads((out / f"house_{i}" / "summary.json").read_text())
         _same(per, _reference("rbc", 24, seed + i))
-    assert combined["building_0"]["cost_eur_total"] != combined["building_1"]["cost_eur_total"]
-    with AnyReader([out / "bag" / "building_0", out / "bag" / "building_1"]) as reader:  # one bag per building
+    assert combined["house_0"]["cost_eur_total"] != combined["house_1"]["cost_eur_total"]
+    with AnyReader([out / "bag" / "house_0", out / "bag" / "house_1"]) as reader:  # one bag per house
         topics = {c.topic for c in reader.connections}
-    assert {"/building_0/plant/record", "/building_1/ems/command"} <= topics
+    assert {"/house_0/plant/record", "/house_1/ems/command"} <= topics
     assert lost_messages(out / "bag") == {}
 
 

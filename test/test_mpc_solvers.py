@@ -20,8 +20,8 @@ needs_gurobi = pytest.mark.skipif(not gurobi_available(),
 EXACT = {"mip_rel_gap": 0.0, "time_limit_s": 60.0, "log_fallback": False}
 #: Lifecycle reading of the 3-step enumeration cases (the same in controller and enumeration).
 FC_ETA = "eta_sys"
-#: the plant parameters, full and 3-step (fixtures of test_mpc)
-params, params3 = test_mpc.params, test_mpc.params3
+
+params3 = test_mpc.params3  # the 3-step plant; the full one is the shared fixture (conftest)
 
 
 def varied_observations(n: int, sell: float = 0.0794) -> list:

@@ -1,11 +1,11 @@
 """The MQTT bridge with real brokers (amqtt processes) and real rclpy nodes in processes.
 
 * ``launch --plant mqtt`` (embedded broker): EMS -> mqtt_bridge -> MQTT -> simulated
-  building -> MQTT -> mqtt_bridge -> EMS gives the in-process KPIs exactly over 2 weeks;
+  house -> MQTT -> mqtt_bridge -> EMS gives the in-process KPIs exactly over 2 weeks;
   a 1-week ``wall:3600`` run gives them within 1 %.
-* The broker is killed and restarted mid-run: the bridge and the building reconnect and
+* The broker is killed and restarted mid-run: the bridge and the house reconnect and
   the run completes with no step lost, equal to in-process.
-* Safety, with a scripted building (MQTT client in this test) and a scripted EMS (rclpy
+* Safety, with a scripted house (MQTT client in this test) and a scripted EMS (rclpy
   node in this test) around a real bridge process: an out-of-range measurement gets the
   fallback set-points and an alarm (MQTT and ROS) in the same step, a command beyond the
   device limits is clamped and counted, a measurement that stops updating is flagged
@@ -177,9 +177,9 @@ def test_broker_restart_mid_run_loses_no_step(tmp_path: Path, broker: Broker) ->
     assert connects >= 2, "the bridge did not reconnect"
 
 
-# ---------------------------------------------------------------------- scripted building and EMS
+# ---------------------------------------------------------------------- scripted house and EMS
 class Rig:
-    """A real bridge process between a scripted building (MQTT) and a scripted EMS (rclpy)."""
+    """A real bridge process between a scripted house (MQTT) and a scripted EMS (rclpy)."""
 
     def __init__(self, tmp: Path, domain_id: int, broker: Broker, clock: str, command: Callable[[int], list[float]],
                  tagged: bool = True):
@@ -187,7 +187,7 @@ class Rig:
 
         from comems4build_ros.mqtt.topicmap import default_map_file
 
-        # a real building: no simulator record topic
+        # a real house: no simulator record topic
         doc = yaml.safe_load(default_map_file().read_text())
         doc["/**"]["ros__parameters"]["mqtt"]["sim_record_topic"] = ""
         if not tagged:  # measurements without step tags, as from real devices
@@ -374,7 +374,7 @@ def test_stale_measurement_gets_fallback_within_one_step_wall_clock(
                 stop_soc = now > t0 + 3.0
             else:
                 stop_soc = False
-            if now >= t_next:  # a real building: plain values every 0.5 s, no step tags
+            if now >= t_next:  # a real house: plain values every 0.5 s, no step tags
                 rig.measure(GOOD, None, skip=("soc",) if stop_soc else ())
                 if not stop_soc:
                     t_last_soc = now
@@ -479,7 +479,7 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
     [
         (["--clock", "wall"], "--clock wall, --broker and --topic-map need --plant mqtt"),
         (["--plant", "mqtt", "--clock", "wall:0"], "--clock: clock 'wall:0'"),
-        (["--plant", "mqtt", "--buildings", "2"], "--plant mqtt runs one building"),
+        (["--plant", "mqtt", "--houses", "2"], "--plant mqtt runs one house"),
         (["--plant", "mqtt", "--topic-map", "/nonexistent/m.yaml"], "--topic-map /nonexistent/m.yaml: no such file"),
     ],
 )
@@ -509,7 +509,7 @@ def test_plan_options_plant_mqtt_and_clock(tmp_path: Path) -> None:
     live = plan_run(LaunchOptions(ems="rbc", out=tmp_path, weeks=1, inputs="live"), 7)
     assert live.process("feed").nodes[0].params["inputs"] == "live"
     assert "plant_sim" in [p.name for p in live.processes]
-    for bad, message in ((dict(clock="wall"), "need plant 'mqtt'"), (dict(plant="mqtt", buildings=2), "one building"),
+    for bad, message in ((dict(clock="wall"), "need plant 'mqtt'"), (dict(plant="mqtt", houses=2), "one house"),
                          (dict(plant="ros"), "expected 'sim' or 'mqtt'"), (dict(plant="mqtt", clock="wall:-1"),
                                                                            "wall:<factor>")):
         with pytest.raises(ValueError, match=message):

@@ -1,4 +1,4 @@
-"""Report building from run directories: figures, numbers parsed back, findings, bad run directories.
+"""Report house from run directories: figures, numbers parsed back, findings, bad run directories.
 
 One short comparison (1 week; thermostat, RBC and fuzzy at 75 % and 90 % FC system
 efficiency, in-process) is run once per module through the ``compare`` command; the tests

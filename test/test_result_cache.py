@@ -136,7 +136,7 @@ def _cold_then_warm(code: str, cache: Path) -> tuple[list[str], list[str]]:
 
 
 def test_warm_cache_scenario_without_pvlib(cache: Path) -> None:
-    """A second process building the default scenario (as a feed node does) never imports pvlib."""
+    """A second process house the default scenario (as a feed node does) never imports pvlib."""
     code = ("import sys, warnings; warnings.simplefilter('ignore');"
             "from comems4build_ros.core.config import load_plant_params;"
             "from comems4build_ros.core.scenario.run import load_scenario;"
@@ -192,7 +192,7 @@ def test_holiday_calendar_found_once_is_remembered_and_an_unknown_one_always_ref
 
 
 def test_warm_cache_plant_without_scipy_and_holiday_calendars(cache: Path) -> None:
-    """A second process validating the plant parameters and building the plant (as plant_sim
+    """A second process validating the plant parameters and house the plant (as plant_sim
     does) imports neither SciPy's linalg nor holidays' calendars."""
     code = ("import sys; from comems4build_ros.core.config import load_plant_params;"
             "from comems4build_ros.core.plant import Plant; Plant(load_plant_params());"

@@ -121,14 +121,14 @@ def _plan_text(stdout: str) -> str:
 
 
 @pytest.mark.parametrize("launch_args, cli_args", [
-    (["ems:=rbc", "weeks:=1", "namespace:=/building_0"],
-     ["--ems", "rbc", "--weeks", "1", "--namespace", "/building_0"]),
-    (["ems:=fuzzy", "buildings:=4", "steps:=30", "weeks:=1", "containers:=2", "set:=battery.e_max_kwh=8",
+    (["ems:=rbc", "weeks:=1", "namespace:=/house_0"],
+     ["--ems", "rbc", "--weeks", "1", "--namespace", "/house_0"]),
+    (["ems:=fuzzy", "houses:=4", "steps:=30", "weeks:=1", "containers:=2", "set:=battery.e_max_kwh=8",
       "config:=" + str(REPO / "config" / "plant.yaml")],
-     ["--ems", "fuzzy", "--buildings", "4", "--steps", "30", "--weeks", "1", "--containers", "2", "--set",
+     ["--ems", "fuzzy", "--houses", "4", "--steps", "30", "--weeks", "1", "--containers", "2", "--set",
       "battery.e_max_kwh=8", "--config", str(REPO / "config" / "plant.yaml")]),
-    (["ems:=mpc", "buildings:=2", "layout:=role", "weeks:=0.5", "ems_options:=time_limit_s=5", "namespace:=/site"],
-     ["--ems", "mpc", "--buildings", "2", "--layout", "role", "--weeks", "0.5", "--ems-option", "time_limit_s=5",
+    (["ems:=mpc", "houses:=2", "layout:=role", "weeks:=0.5", "ems_options:=time_limit_s=5", "namespace:=/site"],
+     ["--ems", "mpc", "--houses", "2", "--layout", "role", "--weeks", "0.5", "--ems-option", "time_limit_s=5",
       "--namespace", "/site"]),
 ])
 def test_launch_file_and_comems4build_launch_print_the_same_plan(ros2, domain_id, tmp_path, launch_args,
@@ -144,31 +144,31 @@ def test_launch_file_and_comems4build_launch_print_the_same_plan(ros2, domain_id
     assert "ROS domain 9" in b.stdout
 
 
-def test_ros2_launch_one_namespaced_building_gives_the_in_process_kpis(ros2, domain_id, tmp_path) -> None:
-    """``namespace:=/building_0`` (the recorder's namespaces given through launch_ros) writes the bag."""
+def test_ros2_launch_one_namespaced_house_gives_the_in_process_kpis(ros2, domain_id, tmp_path) -> None:
+    """``namespace:=/house_0`` (the recorder's namespaces given through launch_ros) writes the bag."""
     res = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", "ems:=rbc", "weeks:=1",
-                          "steps:=36", "namespace:=/building_0", f"out:={tmp_path / 'run'}"], domain_id, tmp_path)
+                          "steps:=36", "namespace:=/house_0", f"out:={tmp_path / 'run'}"], domain_id, tmp_path)
     assert res.returncode == 0, res.stdout[-3000:]
     summary = evaluate(tmp_path / "run" / "bag", tmp_path / "eval")
-    got = summary["buildings"]["building_0"]
+    got = summary["houses"]["house_0"]
     assert got["lost_messages"] == {} and got["steps"] == 36
     same_kpis(got, reference("rbc", 36))
 
 
-@pytest.mark.parametrize("ems, layout", [("fuzzy", "building"), ("mpc", "node")])
-def test_ros2_launch_several_buildings_give_the_in_process_kpis_per_building(ros2, domain_id, tmp_path, ems,
+@pytest.mark.parametrize("ems, layout", [("fuzzy", "house"), ("mpc", "node")])
+def test_ros2_launch_several_houses_give_the_in_process_kpis_per_house(ros2, domain_id, tmp_path, ems,
                                                                               layout) -> None:
     from comems4build_ros.core.scenario.settings import load_scenario_settings
 
     steps = 24 if ems == "mpc" else 30
     res = run_ros2(ros2, ["launch", "comems4build_ros", "comems4build.launch.py", f"ems:={ems}", "weeks:=1",
-                          f"steps:={steps}", "buildings:=2", f"layout:={layout}", f"out:={tmp_path / 'run'}"],
+                          f"steps:={steps}", "houses:=2", f"layout:={layout}", f"out:={tmp_path / 'run'}"],
                    domain_id, tmp_path)
     assert res.returncode == 0, res.stdout[-3000:]
     summary = evaluate(tmp_path / "run" / "bag", tmp_path / "eval")
     seed = load_scenario_settings().seed
     for i in range(2):
-        got = summary["buildings"][f"building_{i}"]
+        got = summary["houses"][f"house_{i}"]
         assert got["lost_messages"] == {} and got["steps"] == steps
         same_kpis(got, reference(ems, steps, seed + i))
 

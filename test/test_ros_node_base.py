@@ -64,10 +64,10 @@ def test_undeclared_publisher_and_subscription_are_refused(context):
 def test_enforcement_under_a_namespace(context):
     from std_msgs.msg import Float64MultiArray
 
-    node = ContractNode("rbc_ems", context=context, namespace="/building_2")
+    node = ContractNode("rbc_ems", context=context, namespace="/house_2")
     try:
         node.contract_subscription("state/soc", lambda msg: None)
-        assert node.resolve_topic_name("state/soc") == "/building_2/state/soc"
+        assert node.resolve_topic_name("state/soc") == "/house_2/state/soc"
         with pytest.raises(ContractError, match="outside its namespace"):
             node.create_publisher(Float64MultiArray, "/ems/command", 10)
         with pytest.raises(ContractError, match="'rbc_ems' may not subscribe to 'feed/solar'"):
@@ -349,11 +349,11 @@ def test_every_parameter_has_a_description_unit_and_range(context, tmp_path):
     from rclpy.parameter import Parameter
 
     from comems4build_ros.ros.nodes.ems_node import EMSNode
-    from comems4build_ros.ros.nodes.plant_sim import PlantSim
+    from comems4build_ros.ros.nodes.plant_sim import PlantSimNode
     from comems4build_ros.ros.nodes.recorder import Recorder
 
     overrides = [Parameter("battery.e_max_kwh", value=8.0), Parameter("step_timeout_s", value=3)]
-    nodes = [PlantSim(context=context, parameter_overrides=overrides), EMSNode("fuzzy", context=context),
+    nodes = [PlantSimNode(context=context, parameter_overrides=overrides), EMSNode("fuzzy", context=context),
              Recorder(context=context, parameter_overrides=[Parameter("bag_path", value=str(tmp_path / "bag"))])]
     try:
         for node in nodes:
@@ -380,13 +380,13 @@ def test_every_parameter_has_a_description_unit_and_range(context, tmp_path):
 def test_parameter_outside_its_range_is_refused(context):
     from rclpy.parameter import Parameter
 
-    from comems4build_ros.ros.nodes.plant_sim import PlantSim
+    from comems4build_ros.ros.nodes.plant_sim import PlantSimNode
 
     with pytest.raises(ValueError, match="record_window_steps"):
-        PlantSim(context=context, parameter_overrides=[Parameter("record_window_steps", value=0)])
+        PlantSimNode(context=context, parameter_overrides=[Parameter("record_window_steps", value=0)])
 
 
-@pytest.mark.parametrize("given", ["/building_0", "/building_0, /building_1", ["/building_0", "/building_1"]])
+@pytest.mark.parametrize("given", ["/house_0", "/house_0, /house_1", ["/house_0", "/house_1"]])
 def test_recorder_takes_namespaces_as_string_or_array(context, tmp_path, given):
     """launch_ros hands a list of one substitution over as a string: both forms work."""
     from rclpy.parameter import Parameter
@@ -396,7 +396,7 @@ def test_recorder_takes_namespaces_as_string_or_array(context, tmp_path, given):
     node = Recorder(context=context, parameter_overrides=[Parameter("bag_path", value=str(tmp_path / "bag")),
                                                           Parameter("namespaces", value=given)])
     try:
-        want = [given] if given == "/building_0" else ["/building_0", "/building_1"]
+        want = [given] if given == "/house_0" else ["/house_0", "/house_1"]
         assert node.namespaces == want
     finally:
         node.destroy_node()
@@ -407,9 +407,9 @@ def test_a_silent_ems_whose_feed_stopped_answering_names_the_feed(context):
     ahead. Its stall message then names the feed as well, not the EMS alone."""
     import time
 
-    from comems4build_ros.ros.nodes.plant_sim import PlantSim
+    from comems4build_ros.ros.nodes.plant_sim import PlantSimNode
 
-    node = PlantSim(context=context)
+    node = PlantSimNode(context=context)
     try:
         now = time.monotonic()
         node._t_truth = now - 0.2  # the feed answered the last announcement

@@ -5,8 +5,8 @@ and broker processes over DDS and MQTT, an amqtt broker of the test, and an rclp
 the test that spoofs commands. One case per row of each class:
 
 * a node that leaves during a run (SIGTERM to plant_sim, to the EMS, SIGINT to feed, a
-  container of layout ``building``, the EMS process of layout ``role``, SIGTERM to the
-  simulated building behind MQTT, the embedded MQTT broker killed, an external broker
+  container of layout ``house``, the EMS process of layout ``role``, SIGTERM to the
+  simulated house behind MQTT, the embedded MQTT broker killed, an external broker
   killed and not restarted): the launch exits 1 within
   10 s of the departure, the console's first line says the run was cut and names the
   node (or the broker's URL), the bag is kept and marked incomplete (``run_cut.json``,
@@ -14,9 +14,9 @@ the test that spoofs commands. One case per row of each class:
 * a stall (the EMS or the feed paused: alive but silent) is named with the silent node;
 * the MQTT bridge's safety fallback steps (no state by design) are no lost messages: no
   warning, ``lost_messages`` empty, ``evaluate`` accepts the bag without ``--accept-gaps``;
-* SIGKILL of one container of a 2-building run: the launcher names the nodes that died with
-  it (building_0's), and each building's summary lists the damage of its own bag only and
-  which of its own nodes left (``nodes_here``: none for the intact building);
+* SIGKILL of one container of a 2-house run: the launcher names the nodes that died with
+  it (house_0's), and each house's summary lists the damage of its own bag only and
+  which of its own nodes left (``nodes_here``: none for the intact house);
 * live inputs that cannot be fetched: the launch (exit 2, before anything starts) and the
   feed node (exit 2) refuse, naming the source URL; steps of a live run beyond the known
   prices, and the scenario's weather, are stated on the console, in summary.json and in the bag;
@@ -165,12 +165,12 @@ FAULTS = {
                     ["node 'fuzzy_ems' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
     "feed SIGINT": ([], "plant_sim", "feed", signal.SIGINT,
                     ["node 'feed' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
-    "container SIGTERM": (["--buildings", "2", "--containers", "2"], "container_0", "container_1", signal.SIGTERM,
+    "container SIGTERM": (["--houses", "2", "--containers", "2"], "container_0", "container_1", signal.SIGTERM,
                           ["node 'container_1' exited with code 3",
-                           "(it ran recorder, fuzzy_ems, feed, plant_sim of /building_1)"],
+                           "(it ran recorder, fuzzy_ems, feed, plant_sim of /house_1)"],
                           DEPARTURE_LIMIT_S),
-    "role EMS SIGTERM": (["--buildings", "2", "--layout", "role"], "role_plant", "role_ems", signal.SIGTERM,
-                         ["node 'role_ems' exited with code 3", "(it ran fuzzy_ems of /building_0, /building_1)"],
+    "role EMS SIGTERM": (["--houses", "2", "--layout", "role"], "role_plant", "role_ems", signal.SIGTERM,
+                         ["node 'role_ems' exited with code 3", "(it ran fuzzy_ems of /house_0, /house_1)"],
                          DEPARTURE_LIMIT_S),
     "mqtt_plant SIGTERM": (["--plant", "mqtt", "--weeks", "2"], "mqtt_bridge", "mqtt_plant", signal.SIGTERM,
                            ["node 'mqtt_plant' exited with code 3", "stopped by a signal"], DEPARTURE_LIMIT_S),
@@ -206,7 +206,7 @@ def test_a_node_that_leaves_or_falls_silent_fails_the_launch_naming_it(tmp_path:
     assert json.loads(cut_files[0].read_text())["cause"] in first
     assert (out / "summary.json").is_file(), err  # the launcher says why the cut bag could not be evaluated
     summary = json.loads((out / "summary.json").read_text())
-    for s in summary.get("buildings", {"/": summary}).values():
+    for s in summary.get("houses", {"/": summary}).values():
         assert s["run_cut"] and s["bag_incomplete"]["run_cut"]["cause"] in first
         assert s["bag_incomplete"]["steps_recorded"] < s["bag_incomplete"]["steps_expected"]
 
@@ -269,32 +269,32 @@ def test_mqtt_fallback_steps_without_state_are_no_lost_messages(tmp_path: Path, 
     print(f"fallback steps without state (withheld): {summary['fallback_steps']}")
 
 
-def test_container_killed_damage_attributed_to_its_own_building(tmp_path: Path) -> None:
+def test_container_killed_damage_attributed_to_its_own_house(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    # fuzzy (the slower EMS per step): each building's 12 weeks take some seconds in its container,
+    # fuzzy (the slower EMS per step): each house's 12 weeks take some seconds in its container,
     # and the kill comes as soon as both bags have records in closed chunks on disk (1 s chunk
-    # period; building_1's first step can come later than building_0's: once, it had none yet)
-    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--buildings", "2", "--containers", "2",
+    # period; house_1's first step can come later than house_0's: once, it had none yet)
+    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--houses", "2", "--containers", "2",
               "--step-timeout", STEP_TIMEOUT)
     run.wait_running("container_0")
-    _wait_for(lambda: all(records_on_disk(out / "bag" / b) for b in ("building_0", "building_1"))
-              or run.proc.poll() is not None, what="both buildings' records on disk")
+    _wait_for(lambda: all(records_on_disk(out / "bag" / b) for b in ("house_0", "house_1"))
+              or run.proc.poll() is not None, what="both houses' records on disk")
     assert run.proc.poll() is None, "the run ended before the fault"
-    assert not (out / "bag" / "building_0" / "metadata.yaml").exists(), "building_0's run ended before the fault"
+    assert not (out / "bag" / "house_0" / "metadata.yaml").exists(), "house_0's run ended before the fault"
     os.kill(pid_of(out, "container_0"), signal.SIGKILL)
     code, err = run.finish()
     assert code == 1 and "node 'container_0' exited with code -9 (killed by SIGKILL)" in err, err
-    first = err.splitlines()[0]  # the nodes that died with the container: building_0's, none of building_1's
-    assert "(it ran recorder, fuzzy_ems, feed, plant_sim of /building_0)" in first and "/building_1" not in first, first
-    b0 = json.loads((out / "building_0" / "summary.json").read_text())["bag_incomplete"]
-    b1 = json.loads((out / "building_1" / "summary.json").read_text())["bag_incomplete"]
-    assert sorted(b0["run_cut"]["nodes_here"]) == [f"/building_0/{n}" for n in ("feed", "fuzzy_ems", "plant_sim",
+    first = err.splitlines()[0]  # the nodes that died with the container: house_0's, none of house_1's
+    assert "(it ran recorder, fuzzy_ems, feed, plant_sim of /house_0)" in first and "/house_1" not in first, first
+    b0 = json.loads((out / "house_0" / "summary.json").read_text())["bag_incomplete"]
+    b1 = json.loads((out / "house_1" / "summary.json").read_text())["bag_incomplete"]
+    assert sorted(b0["run_cut"]["nodes_here"]) == [f"/house_0/{n}" for n in ("feed", "fuzzy_ems", "plant_sim",
                                                                                  "recorder")]
-    assert b1["run_cut"]["nodes_here"] == []  # cut by the other building's loss: its own nodes all ran on
+    assert b1["run_cut"]["nodes_here"] == []  # cut by the other house's loss: its own nodes all ran on
     assert b0["metadata_yaml"] is False  # its recorder was killed with its container
     assert b1["metadata_yaml"] is True and b1["damage"] == [] and b1["truncated_mcap"] is False
-    assert all("building_1" not in d for d in b0["damage"]) and all("building_0" not in d for d in b1["damage"])
-    print("building_0:", b0, "\nbuilding_1:", b1)
+    assert all("house_1" not in d for d in b0["damage"]) and all("house_0" not in d for d in b1["damage"])
+    print("house_0:", b0, "\nhouse_1:", b1)
 
 
 # ---------------------------------------------------------------------- live inputs that cannot be fetched

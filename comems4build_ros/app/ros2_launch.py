@@ -56,11 +56,11 @@ ARGUMENTS: dict[str, tuple[str, str, str]] = {
     "start": ("", "ISO 8601 start of the run's window (CSV scenarios)", "--start"),
     "weeks": ("", "run length [weeks] (empty = the scenario's default)", "--weeks"),
     "steps": ("", "cut the run to its first N steps (empty = all)", "--steps"),
-    "buildings": ("1", "independent buildings under <namespace>/building_<i>", "--buildings"),
-    "seed": ("", "scenario seed of building 0 (default scenario)", "--seed"),
-    "namespace": ("/", "namespace of the building (one building) or of the buildings", "--namespace"),
-    "layout": ("", "processes: node, building or role (empty = the default for the building count)", "--layout"),
-    "containers": ("", "container processes of layout 'building' (empty = one per core)", "--containers"),
+    "houses": ("1", "independent houses under <namespace>/house_<i>", "--houses"),
+    "seed": ("", "scenario seed of house 0 (default scenario)", "--seed"),
+    "namespace": ("/", "namespace of the house (one house) or of the houses", "--namespace"),
+    "layout": ("", "processes: node, house or role (empty = the default for the house count)", "--layout"),
+    "containers": ("", "container processes of layout 'house' (empty = one per core)", "--containers"),
     "config": ("", "parameter files merged over config/plant.yaml, ';'-separated", "--config"),
     "set": ("", "plant parameter overrides KEY=VALUE, ';'-separated", "--set"),
     "ems_options": ("", "EMS options KEY=VALUE, ';'-separated", "--ems-option"),
@@ -155,7 +155,7 @@ def plan_actions(plan: RunPlan) -> list[Any]:
         for path, text in p.files:
             Path(path).parent.mkdir(parents=True, exist_ok=True)
             Path(path).write_text(text, encoding="utf-8")
-    if len(plan.buildings) > 1:
+    if len(plan.houses) > 1:
         plan.bag.mkdir(parents=True, exist_ok=True)
     for path, token in plan.secrets:
         write_token_file(path, token)

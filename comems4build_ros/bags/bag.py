@@ -289,7 +289,7 @@ def _locate(path: str | Path) -> tuple[Path, list[Path], bool]:
 def bag_set(path: str | Path) -> list[Path]:
     """The bags under ``path``: ``[path]`` for a bag or ``.mcap`` file, else its sub-directories holding bags.
 
-    ``comems4build launch --buildings N`` writes one bag per building, ``bag/building_<i>/``.
+    ``comems4build launch --houses N`` writes one bag per house, ``bag/house_<i>/``.
     """
     p = Path(path)
     if not p.is_dir() or any(p.glob("*.mcap")) or (p / "metadata.yaml").exists():
@@ -407,6 +407,6 @@ def decode(msgtype: str, raw: bytes | memoryview) -> Any:
 
 
 def ns_key(ns: str) -> tuple[int, str]:
-    """Sort key of a namespace or bag name: ``building_2`` before ``building_10``."""
+    """Sort key of a namespace or bag name: ``house_2`` before ``house_10``."""
     tail = ns.rsplit("_", 1)[-1]
     return (int(tail), ns) if tail.isdigit() else (-1, ns)

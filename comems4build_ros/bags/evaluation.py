@@ -1,6 +1,6 @@
 """A recorded run read back: the per-step timeseries, the gap check and the KPIs of a bag.
 
-:func:`read_runs` rebuilds every building's timeseries from ``plant/record`` (one row of
+:func:`read_runs` rebuilds every house's timeseries from ``plant/record`` (one row of
 the in-process loop per step), :func:`find_gaps` names the steps a topic published once a
 step lacks (:func:`is_per_step`, the rule the recorder's end of run shares), and
 :func:`evaluate_bag` computes weekly KPIs and the summary with the in-process KPI code
@@ -41,11 +41,11 @@ BRIDGE_ROLE = "bridge"
 
 @dataclass
 class BagRun:
-    """One building's run rebuilt from a bag.
+    """One house's run rebuilt from a bag.
 
     Attributes
     ----------
-    namespace : ``/`` or ``/building_<i>``
+    namespace : ``/`` or ``/house_<i>``
     timeseries : one row per step, columns of ``comems4build_ros.core.loop.TIMESERIES_COLUMNS``
         (plus ``ems_<key>`` when the EMS published its step_info for every step)
     n_steps : steps of the run according to ``feed/truth`` (None if never recorded)
@@ -344,7 +344,7 @@ def describe_gaps(gaps: dict[str, list[int]]) -> str:
 
 
 def resolve_ns(ns: str, name: str) -> str:
-    """``/`` + ``a/b`` -> ``/a/b``; ``/building_1`` + ``a/b`` -> ``/building_1/a/b``."""
+    """``/`` + ``a/b`` -> ``/a/b``; ``/house_1`` + ``a/b`` -> ``/house_1/a/b``."""
     return f"{ns.rstrip('/')}/{name}"
 
 
@@ -365,7 +365,7 @@ def _ranges(values: list[int]) -> str:
     return ", ".join(out[:10]) + (" ..." if len(out) > 10 else "")
 
 
-def building_dir(out: Path, namespace: str, n_namespaces: int) -> Path:
+def house_dir(out: Path, namespace: str, n_namespaces: int) -> Path:
     """Output directory of one namespace: ``out`` itself for a single root-namespace run."""
     return out if n_namespaces == 1 and namespace == "/" else out / namespace.strip("/")
 
@@ -378,13 +378,13 @@ def evaluate_bag(
     timeseries: bool = True,
     accept_gaps: bool = False,
 ) -> dict[str, dict[str, Any]]:
-    """Weekly KPIs and summary of every building in a bag, with the in-process KPI code.
+    """Weekly KPIs and summary of every house in a bag, with the in-process KPI code.
 
     Writes, per namespace, ``timeseries.csv`` (optional), ``weekly.csv`` and
     ``summary.json`` through :func:`comems4build_ros.core.loop.write_run` (into ``out`` for a
-    single building in the root namespace, else into ``out/building_<i>/``, and then
-    ``out/weekly.csv`` with a ``building`` column and ``out/summary.json`` with one
-    summary per building).
+    single house in the root namespace, else into ``out/house_<i>/``, and then
+    ``out/weekly.csv`` with a ``house`` column and ``out/summary.json`` with one
+    summary per house).
 
     Parameters
     ----------
@@ -402,11 +402,11 @@ def evaluate_bag(
     the last record minus that of the first message); ``lost_messages`` (topic -> steps
     without a message, ``{}`` for a complete recording). An incomplete run or bag adds
     ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
-    read, whether an ``.mcap`` file ended early, and the damage found in this building's
+    read, whether an ``.mcap`` file ended early, and the damage found in this house's
     own bag, see :class:`BagInfo`; for a run the launcher cut short also ``run_cut``, its
     :data:`RUN_CUT_FILE`, whose cause is repeated as the summary's ``run_cut``, with
-    ``nodes_here``: the nodes of this building among those of the process that left, so
-    that a building whose own nodes all ran on is told apart from the one that lost them); a
+    ``nodes_here``: the nodes of this house among those of the process that left, so
+    that a house whose own nodes all ran on is told apart from the one that lost them); a
     partial last week is left out of the weekly medians like any
     partial week. Fault counters of the plant other than fallback steps are added as
     ``ros_faults`` when non-zero. A run on live inputs adds ``live_inputs``: the recorded
@@ -447,7 +447,7 @@ def evaluate_bag(
     summaries: dict[str, dict[str, Any]] = {}
     weekly_parts = []
     for ns, run in runs.items():
-        info, cut = bag_of[ns]  # the bag of this building: its own damage and cut, no other's
+        info, cut = bag_of[ns]  # the bag of this house: its own damage and cut, no other's
         scen = run.scenario or {}
         extra: dict[str, Any] = {
             "ems": run_info.get("ems") or run.ems,
@@ -475,13 +475,13 @@ def evaluate_bag(
         if faults:
             extra["ros_faults"] = faults
         result = evaluate_timeseries(run.timeseries, params, extra)
-        write_run(result, building_dir(out, ns, len(runs)), timeseries=timeseries)
+        write_run(result, house_dir(out, ns, len(runs)), timeseries=timeseries)
         summaries[ns] = result.summary
-        weekly_parts.append(result.weekly.assign(building=ns.strip("/") or "root"))
+        weekly_parts.append(result.weekly.assign(house=ns.strip("/") or "root"))
     if len(runs) > 1 or "/" not in runs:
         weekly = pd.concat(weekly_parts, ignore_index=True)
-        weekly = weekly[["building", *[c for c in weekly.columns if c != "building"]]]
-        combined = {"buildings": {ns.strip("/"): s for ns, s in summaries.items()}}
+        weekly = weekly[["house", *[c for c in weekly.columns if c != "house"]]]
+        combined = {"houses": {ns.strip("/"): s for ns, s in summaries.items()}}
         with atomic_dir(out) as tmp:
             weekly.to_csv(tmp / "weekly.csv", index=False)
             (tmp / "summary.json").write_text(json.dumps(combined, indent=2, default=_json_default) + "\n", "utf-8")
@@ -492,16 +492,16 @@ BagOf = dict[str, tuple[BagInfo, dict[str, Any]]]
 
 
 def nodes_of(nodes: list[str], namespace: str) -> list[str]:
-    """The full node names of ``nodes`` that lie in ``namespace`` (``/`` or ``/building_<i>``)."""
+    """The full node names of ``nodes`` that lie in ``namespace`` (``/`` or ``/house_<i>``)."""
     return [n for n in nodes if isinstance(n, str) and (n.rpartition("/")[0] or "/") == namespace]
 
 
 def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], BagOf]:
-    """Every building's run of the bag (or set of per-building bags) at ``path``, each with
+    """Every house's run of the bag (or set of per-house bags) at ``path``, each with
     the :class:`BagInfo` of its own bag and that bag's :data:`RUN_CUT_FILE` (``{}`` if none).
 
     Each bag of a set is read on its own, so damage (a truncated MCAP file of a killed
-    recorder) is attributed to the building whose bag has it. A bag of a set with no
+    recorder) is attributed to the house whose bag has it. A bag of a set with no
     ``plant/record`` at all (its recorder died before the first step) is left out; if no
     bag has one, the ValueError names them.
     """

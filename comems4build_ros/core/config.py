@@ -313,7 +313,7 @@ class SimulationParams(Section):
 
 
 class SiteParams(Section):
-    """Location of the building (degrees, metres, IANA time zone)."""
+    """Location of the house (degrees, metres, IANA time zone)."""
 
     latitude_deg: float = Field(ge=-90, le=90)
     longitude_deg: float = Field(ge=-180, le=180)

@@ -87,7 +87,7 @@ def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]
     return [Exogenous(*c) for c in cols]
 
 
-class ForecastSettings(Section):
+class ForecastParams(Section):
     """Forecast settings (``config/forecast.yaml``); see that file for the sources."""
 
     mode: str = Field(pattern="^(perfect|imperfect)$")
@@ -96,12 +96,12 @@ class ForecastSettings(Section):
     sigma_ghi_rel_24h: float = Field(ge=0)
 
 
-def load_forecast_settings(path: str | Path | None = None, **overrides: Any) -> ForecastSettings:
+def load_forecast_settings(path: str | Path | None = None, **overrides: Any) -> ForecastParams:
     """Read the ``forecast`` section of ``config/forecast.yaml`` (or ``path``), with overrides."""
     path = Path(path) if path else config_dir() / "forecast.yaml"
     data = dict(read_ros_params(path).get("forecast", {}))
     data.update(overrides)
-    return validate(ForecastSettings, data, str(path))
+    return validate(ForecastParams, data, str(path))
 
 
 class ForecastModel:
@@ -116,7 +116,7 @@ class ForecastModel:
     are reproducible and the in-process and ROS paths see identical forecasts.
     """
 
-    def __init__(self, series: Mapping[str, list[float]], settings: ForecastSettings, steps_per_day: int) -> None:
+    def __init__(self, series: Mapping[str, list[float]], settings: ForecastParams, steps_per_day: int) -> None:
         self._series = series
         self._s = settings
         self._day = steps_per_day
@@ -159,7 +159,7 @@ class ObservationBuilder:
         params: PlantParams,
         level: str,
         exo: Sequence[Exogenous],
-        forecast: ForecastSettings | None = None,
+        forecast: ForecastParams | None = None,
     ) -> None:
         if level not in INFO_LEVELS:
             raise ValueError(f"unknown information level '{level}'")
@@ -311,7 +311,7 @@ def simulate(
     params: PlantParams,
     ems_options: Mapping[str, Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
-    forecast: ForecastSettings | None = None,
+    forecast: ForecastParams | None = None,
 ) -> RunResult:
     """Run one EMS in closed loop with the plant over ``scenario.n_steps`` steps.
 

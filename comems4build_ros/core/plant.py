@@ -1,4 +1,4 @@
-"""The building plant: one step of every device model and the power balance.
+"""The plant of a house: one step of every device model and the power balance.
 
 :class:`Plant` owns the device models of :mod:`comems4build_ros.core.models` and advances the
 state by one step for any action. It clips the action to what the devices can do,

@@ -105,7 +105,7 @@ def atomic_dir(path: str | Path, replaces: Iterable[str] = ()) -> Iterator[Path]
     Only when all of them are written does each top-level entry replace the entry of the
     same name in ``path`` (a directory as a whole, so no file of an older result stays
     inside it), and the entries matching a pattern of ``replaces`` (``fnmatch``, e.g.
-    ``timeseries.csv``, ``building_*``) that the block did not write are removed: the
+    ``timeseries.csv``, ``house_*``) that the block did not write are removed: the
     result in ``path`` is the new one, whole, beside the entries of ``path`` that are no
     result. Renames within one file system need no space, so a failure or an interruption
     while writing leaves ``path`` as it was (and removes it again if it created it and it

@@ -27,7 +27,7 @@ from pathlib import Path
 
 import paho.mqtt.client as paho
 
-from comems4build_ros.mqtt.topicmap import BrokerSettings
+from comems4build_ros.mqtt.topicmap import BrokerParams
 
 #: Shortest wait between reconnect attempts [s].
 RECONNECT_MIN_S = 0.1
@@ -47,7 +47,7 @@ class Message:
     t_recv: float
 
 
-def read_password(settings: BrokerSettings, environ: dict[str, str] | None = None) -> str | None:
+def read_password(settings: BrokerParams, environ: dict[str, str] | None = None) -> str | None:
     """The broker password from ``password_file`` (first line) or ``password_env``; None if neither.
 
     Raises
@@ -73,7 +73,7 @@ def read_password(settings: BrokerSettings, environ: dict[str, str] | None = Non
     return None
 
 
-def tls_context(settings: BrokerSettings) -> ssl.SSLContext:
+def tls_context(settings: BrokerParams) -> ssl.SSLContext:
     """TLS context for ``mqtts://``: the CA file (or the system's), optional client certificate."""
     try:
         ctx = ssl.create_default_context(cafile=settings.ca_file or None)
@@ -101,7 +101,7 @@ class MqttLink:
 
     def __init__(
         self,
-        settings: BrokerSettings,
+        settings: BrokerParams,
         client_id: str,
         subscriptions: Iterable[str] = (),
         will: tuple[str, str] | None = None,

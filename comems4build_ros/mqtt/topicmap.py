@@ -131,7 +131,7 @@ class _Scaled(_Model):
 
 
 class MeasurementSpec(_Scaled):
-    """One building measurement on MQTT (``range`` and ``max_age_s`` feed the watchdog)."""
+    """One house measurement on MQTT (``range`` and ``max_age_s`` feed the watchdog)."""
 
     range: tuple[float, float]
     max_age_s: float | None = Field(default=None, gt=0)
@@ -167,7 +167,7 @@ class MeasurementSpec(_Scaled):
             raise PayloadError(f"topic '{self.topic}': {text[:40]!r} is not a number") from None
 
     def encode(self, value: float, step: int | None = None) -> bytes:
-        """Payload of the SI ``value`` (the simulated building publishes with it)."""
+        """Payload of the SI ``value`` (the simulated house publishes with it)."""
         return self.encode_text(self.from_si(value), step)
 
 
@@ -235,7 +235,7 @@ def check_broker_url(url: str) -> str:
     return str(url)
 
 
-class BrokerSettings(_Model):
+class BrokerParams(_Model):
     """Broker address and credentials (the password itself is never stored here)."""
 
     url: str
@@ -282,7 +282,7 @@ class DeviceInfo(_Model):
 class TopicMap(_Model):
     """The whole ``mqtt`` section of ``config/mqtt.yaml``."""
 
-    broker: BrokerSettings
+    broker: BrokerParams
     base_topic: str = Field(min_length=1)
     node_id: str = Field(pattern=r"^[A-Za-z0-9_-]+$")
     discovery_prefix: str = "homeassistant"
@@ -365,7 +365,7 @@ class TopicMap(_Model):
 
     @property
     def step_topic(self) -> str:
-        """The step the bridge announced last (the simulated building's acknowledgement)."""
+        """The step the bridge announced last (the simulated house's acknowledgement)."""
         return self.topic("step")
 
 

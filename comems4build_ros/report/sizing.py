@@ -137,7 +137,7 @@ def report(df: pd.DataFrame, meta: Mapping[str, Any], costs: economics.Costs, fi
           "electrolyser's hour life over their working hours per year, the battery's cycle life N_B over its "
           "equivalent full cycles per year, tab:degradation_HESS) + O&M (a share of the investment per year, "
           "the FC's hourly O&M and on/off costs, tab:degradation_HESS). Components not sized (heat pump, tank, "
-          "building) are the same at every point and left out. Self-sufficiency = 1 - bought / (appliances + "
+          "house) are the same at every point and left out. Self-sufficiency = 1 - bought / (appliances + "
           "heat pump + electrolyser).")
     doc.p("The seasonal cycle closes when the summer fills the store (LOH at the heating season's start above "
           "LOH_init; not tested for a run starting inside the season), the store ends the run with at least the "

@@ -3,7 +3,7 @@
 ``python -m comems4build_ros.ros.container --role plant|feed|ems|recorder|container --spec FILE.json``
 
 rclpy has no component container, so this module is one: it creates the very node
-classes of ``comems4build_ros.ros.nodes`` (:class:`PlantSim`, :class:`Feed`,
+classes of ``comems4build_ros.ros.nodes`` (:class:`PlantSimNode`, :class:`Feed`,
 :class:`EMSNode`, :class:`Recorder`), one ``rclpy`` node per entry of its spec file, each
 under its own namespace with its parameters as ``parameter_overrides``, and spins them
 all on one executor. The nodes still talk over DDS (one participant per process, rclpy's
@@ -11,20 +11,20 @@ default), so the topics, the lock-step protocol, the contract checks and the bag
 those of separate processes. Two layouts of the run plan use it
 (:mod:`comems4build_ros.run.plan`):
 
-* ``building`` (role ``container``): one process runs every node of a few buildings
+* ``house`` (role ``container``): one process runs every node of a few houses
   (recorder, EMS, feed and plant), each spec entry naming its node role (``"role":
-  "plant"``): one process wake-up per step of a building instead of one in each of four
+  "plant"``): one process wake-up per step of a house instead of one in each of four
   processes;
 * ``role`` (roles ``plant``, ``feed``, ``ems``, ``recorder``): one process per role runs
-  that role's node of every building (and one recorder process per few buildings); with
-  16 buildings one process per node meant ~65 DDS participants, whose discovery did not
+  that role's node of every house (and one recorder process per few houses); with
+  16 houses one process per node meant ~65 DDS participants, whose discovery did not
   finish in minutes on 2 cores (docs/ros_tools.md).
 
 Spec file (JSON, written by the launcher)::
 
     {"ems": "fuzzy",                       # EMS name (role ems only)
      "progress_period_s": 0.25,            # recorder only: one summed progress line per period
-     "nodes": [{"namespace": "/building_0", "params": {"config_files": [...], ...},
+     "nodes": [{"namespace": "/house_0", "params": {"config_files": [...], ...},
                 "role": "plant"},      # container processes only
                ...]}
 
@@ -126,9 +126,9 @@ def to_parameters(params: dict[str, Any]) -> list[Any]:
 def node_factory(role: str, spec: dict[str, Any]) -> Any:
     """``make(namespace, parameter_overrides) -> Node`` for ``role``."""
     if role == "plant":
-        from comems4build_ros.ros.nodes.plant_sim import PlantSim
+        from comems4build_ros.ros.nodes.plant_sim import PlantSimNode
 
-        return lambda **kw: PlantSim(**kw)
+        return lambda **kw: PlantSimNode(**kw)
     if role == "feed":
         from comems4build_ros.ros.nodes.feed import Feed
 
@@ -247,7 +247,7 @@ def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str
     worker processes.
 
     Generating one default scenario takes about 1.5 s of CPU; a feed container with 16
-    buildings would spend 16 x that before the first step. The workers are forked before
+    houses would spend 16 x that before the first step. The workers are forked before
     rclpy is initialised (one per core, at most one per node). A node whose scenario
     fails here is left to its own constructor, which reports the error as usual.
     """

@@ -1,6 +1,6 @@
 """A lean single-threaded executor for the lock-step loop.
 
-Profile of one building's 12-week run with rclpy's ``SingleThreadedExecutor``
+Profile of one house's 12-week run with rclpy's ``SingleThreadedExecutor``
 (py-spy, docs/ros_tools.md "Profile of a step"): 30 to 45 % of every node's CPU time went
 to the executor itself, not to the callbacks. For every single callback it gathers the
 entities of every node, enters each handle's context, builds a new ``WaitSet``, waits,

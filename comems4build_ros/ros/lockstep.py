@@ -2,7 +2,7 @@
 
 A lock-step master announces step ``k`` (the state at its start on ``state/*``, then
 ``plant/step`` = ``k``), waits for the EMS's command for ``k``, applies it (the plant
-model, or the building behind MQTT), publishes the step's ``plant/record`` and ``clock``,
+model, or the house behind MQTT), publishes the step's ``plant/record`` and ``clock``,
 and goes on to ``k + 1`` (docs/ros_nodes.md "Lock-step protocol"). :class:`LockStepMaster`
 owns what does not depend on what is stepped:
 
@@ -22,7 +22,7 @@ owns what does not depend on what is stepped:
   EMS has sent nothing for ``stall_steps`` step time-outs in a row (every one of them a
   fallback step), or once no step was possible for ``stall_steps`` step time-outs while
   the master waited for anything else than the EMS (the feed's inputs, the recorder's
-  progress, the building behind MQTT: :meth:`waiting_for`);
+  progress, the house behind MQTT: :meth:`waiting_for`);
 * the end of the run (:meth:`finish_run`): the statistics line, ``plant/done``, the
   acknowledgement of the last messages, and the exit once the recorder has left.
 
@@ -316,9 +316,9 @@ class LockStepMaster(ContractNode):
         could take its last messages out of a busy recorder's queue).
 
         The acknowledgements are polled by a timer (:data:`ACK_POLL_S`), not awaited in the
-        callback: a container process spins every building's plant on one executor, and a
+        callback: a container process spins every house's plant on one executor, and a
         blocking wait (DDS acknowledges on the writer's heartbeat period, seconds) would stall
-        the other buildings' steps at every end of run. The line is logged first: whoever
+        the other houses' steps at every end of run. The line is logged first: whoever
         sees plant/done can rely on it being in the log. ``before_done`` (optional) is
         called between the log line and plant/done.
         """

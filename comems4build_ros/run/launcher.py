@@ -1,18 +1,18 @@
 """Python launcher of the node set: separate OS processes on an isolated ROS 2 domain.
 
 :func:`launch` locks a free ROS domain id, builds the plan of the run
-(:func:`comems4build_ros.run.plan.plan_run`: per building ``plant_sim``, ``feed`` and
-the EMS node, plus the recorders, each as its own OS process or, for several buildings,
+(:func:`comems4build_ros.run.plan.plan_run`: per house ``plant_sim``, ``feed`` and
+the EMS node, plus the recorders, each as its own OS process or, for several houses,
 one process per role), has the supervisor start and watch it
 (:func:`comems4build_ros.run.supervisor.run_plan`), then evaluates the bag with the
 in-process KPI code (:func:`comems4build_ros.bags.evaluation.evaluate_bag`). No rclpy in this
 process.
 
-``--buildings N``: building ``i`` runs under the namespace ``/building_<i>`` with
+``--houses N``: house ``i`` runs under the namespace ``/house_<i>`` with
 scenario seed ``seed + i`` (default scenario) and its own recorder writing
-``bag/building_<i>/`` (one recorder for all namespaces spent its time in rclpy's executor,
+``bag/house_<i>/`` (one recorder for all namespaces spent its time in rclpy's executor,
 whose per-wake-up bookkeeping grows with the square of the number of subscriptions: 512
-subscriptions for 16 buildings could not keep up).
+subscriptions for 16 houses could not keep up).
 """
 
 from __future__ import annotations
@@ -59,13 +59,13 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     if bag.exists():
         raise FileExistsError(f"{bag} exists: choose another --out or remove it")
     params = load_plant_params(opts.config_files, opts.overrides)
-    bar = ProgressBar(f"launch {opts.ems} x{opts.buildings}", unit="step",
+    bar = ProgressBar(f"launch {opts.ems} x{opts.houses}", unit="step",
                       enable=bool(opts.progress) and opts.on_progress is None)
     try:
         with acquire_domain_id(opts.domain_id) as domain_id:
             plan = plan_run(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
-            if len(plan.buildings) > 1:
+            if len(plan.houses) > 1:
                 bag.mkdir(parents=True, mode=0o700)  # the bags hold the run tokens (ems/command)
             try:
                 times = run_plan(plan, opts.on_progress or bar)

@@ -2,7 +2,7 @@
 
 A :class:`RunPlan` is plain data, built by :func:`plan_run` from the
 :class:`LaunchOptions` of ``comems4build launch`` without starting anything: the
-buildings (namespace, scenario seed, bag directory), the network sides (where a set of
+houses (namespace, scenario seed, bag directory), the network sides (where a set of
 processes runs: this machine as it is, or a network namespace with its own address), and
 the processes (command line, the nodes each runs with their namespace and parameters,
 the files to write before the start, environment additions, and the exit rule). The
@@ -11,28 +11,28 @@ launcher (:mod:`comems4build_ros.run.launcher`) joins the two and evaluates the 
 
 Every way to run is an option of the plan, never a branch through the supervisor:
 
-* ``layout``: ``node`` (one OS process per node, the default for one building),
-  ``building`` (``containers`` container processes, one per core by default, each
-  running every node, recorder included, of its share of the buildings: ROS 2
-  composition; the default for more buildings) or ``role`` (one process per role
-  running that role's nodes of every building, recorders split by
-  ``buildings_per_recorder``; the default for more buildings on the ``netns`` network);
+* ``layout``: ``node`` (one OS process per node, the default for one house),
+  ``house`` (``containers`` container processes, one per core by default, each
+  running every node, recorder included, of its share of the houses: ROS 2
+  composition; the default for more houses) or ``role`` (one process per role
+  running that role's nodes of every house, recorders split by
+  ``houses_per_recorder``; the default for more houses on the ``netns`` network);
   see :mod:`comems4build_ros.ros.container`;
 * ``discovery_server``: a Fast DDS discovery server process and ``ROS_DISCOVERY_SERVER``
   in every other process's environment;
-* ``plant``: ``sim`` (``plant_sim`` on ROS) or ``mqtt``: the building behind MQTT, i.e.
+* ``plant``: ``sim`` (``plant_sim`` on ROS) or ``mqtt``: the house behind MQTT, i.e.
   an embedded amqtt broker process (unless ``broker_url``), ``mqtt_plant`` (the simulated
-  building) and ``mqtt_bridge`` in ``plant_sim``'s place, the feed with
+  house) and ``mqtt_bridge`` in ``plant_sim``'s place, the feed with
   ``publish_measured:=false`` (docs/real_building.md);
-* ``clock``: ``sim``, ``wall`` or ``wall:<factor>`` for the bridge and the building
+* ``clock``: ``sim``, ``wall`` or ``wall:<factor>`` for the bridge and the house
   (wall modes with ``plant="mqtt"`` only);
 * ``inputs``: ``scenario`` or ``live`` (the feed's live prices and weather);
-* ``network``: ``local`` (every process on this host as it is) or ``netns`` (separate
-  hosts: plant and feed in one Linux network namespace, EMS and recorder in another,
+* ``network``: ``local`` (every process on this machine as it is) or ``netns`` (separate
+  network sides: plant and feed in one Linux network namespace, EMS and recorder in another,
   joined by a veth pair; UDP only, unicast discovery through ``ROS_STATIC_PEERS``;
   optionally ``netem`` delay and loss on the link). The plan carries the commands that
   set the namespaces up and tear them down; the supervisor runs them. With
-  ``plant="mqtt"`` the embedded broker, the building and the bridge are on the plant's side.
+  ``plant="mqtt"`` the embedded broker, the house and the bridge are on the plant's side.
 
 ``RunPlan.describe()`` prints the plan (``comems4build launch --print-plan``); the tests
 check plans without processes.
@@ -59,7 +59,7 @@ NODE_MODULES: dict[str, str] = {
     "recorder": "comems4build_ros.ros.nodes.recorder",
     "replay": "comems4build_ros.ros.nodes.replay",
     "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
-    "mqtt_plant": "comems4build_ros.mqtt.plant",
+    "mqtt_plant": "comems4build_ros.mqtt.plant_sim",
 }
 #: Executables of :data:`NODE_MODULES` that are no ROS node.
 NOT_ROS_NODES = frozenset({"mqtt_plant"})
@@ -67,16 +67,16 @@ NOT_ROS_NODES = frozenset({"mqtt_plant"})
 BROKER_MODULE = "comems4build_ros.mqtt.broker"
 #: Module of every EMS node (its executable is the EMS's ``node`` of ``config/ems.yaml``).
 EMS_MODULE = "comems4build_ros.ros.nodes.ems_node"
-#: Module of the container processes (layouts ``building`` and ``role``).
+#: Module of the container processes (layouts ``house`` and ``role``).
 CONTAINER_MODULE = "comems4build_ros.ros.container"
 #: Recorder progress line period [s].
 PROGRESS_PERIOD_S = 0.25
 #: UDP port of the discovery server: this base + the (locked) domain id.
 DISCOVERY_PORT_BASE = 11811
-#: Buildings per recorder process in layout ``role`` (one recorder process for all 16 buildings
+#: Houses per recorder process in layout ``role`` (one recorder process for all 16 houses
 #: would hold 16 x 32 subscriptions in one executor, see the module docstring of the launcher).
-ROLE_BUILDINGS_PER_RECORDER = 4
-#: Container processes: plant_sim's step timeout [s]. One EMS process may answer every building in
+ROLE_HOUSES_PER_RECORDER = 4
+#: Container processes: plant_sim's step timeout [s]. One EMS process may answer every house in
 #: turn, so on a loaded machine a command can come later than the 5 s meant to detect a
 #: dead EMS (a dead container process stops the launch anyway). Overridden by ``plant_node_params``.
 CONTAINER_STEP_TIMEOUT_S = 60.0
@@ -84,13 +84,13 @@ CONTAINER_STEP_TIMEOUT_S = 60.0
 #: (instead of 0.02 s and 0.05 s: N nodes' timers wake one shared executor N times as often).
 CONTAINER_WATCHDOG_PERIOD_S = 0.1
 CONTAINER_RECORDER_TICK_S = 0.2
-#: Process layouts: one process per node, one process per role for all buildings, or
-#: container processes each running every node of a share of the buildings.
-LAYOUTS = ("node", "role", "building")
+#: Process layouts: one process per node, one process per role for all houses, or
+#: container processes each running every node of a share of the houses.
+LAYOUTS = ("node", "role", "house")
 #: Networks: this host as it is, or two network namespaces joined by a veth pair.
 NETWORKS = ("local", "netns")
 #: Network side of each role in the ``netns`` network (the others: everything in ``local``).
-#: (An MQTT broker goes with the building it serves, on the plant's host.)
+#: (An MQTT broker goes with the house it serves, on the plant's side.)
 NETNS_SIDE_OF_ROLE = {"plant": "plant_side", "feed": "plant_side", "broker": "plant_side", "ems": "ems_side",
                        "recorder": "ems_side"}
 #: Fast DDS profile given to every node unless the user sets one (see the file's comment).
@@ -103,7 +103,7 @@ STAGE_NODES, STAGE_RECORDERS, STAGE_SERVICES = 0, 1, 2
 #: Name of the network side of a plan that runs everything on this machine as it is.
 LOCAL_SIDE = "local"
 #: Default overall time limit of a launch: this start-up allowance plus
-#: :data:`TIME_LIMIT_PER_STEP_S` per building-step (:data:`TIME_LIMIT_PER_STEP_MPC_S` for
+#: :data:`TIME_LIMIT_PER_STEP_S` per house-step (:data:`TIME_LIMIT_PER_STEP_MPC_S` for
 #: an MPC; plus the step period of a wall clock) [s]. A run that needs longer (a paused or
 #: hung node) is stopped with an error.
 TIME_LIMIT_START_S = 300.0
@@ -112,7 +112,7 @@ TIME_LIMIT_PER_STEP_MPC_S = 1.0
 #: ``stall_steps`` of every lock-step master of a launch: the run ends, naming the silent
 #: node, once the EMS has sent nothing for this many steps in a row (each a fallback after
 #: the step time-out) or no step was possible for as many step time-outs (feed, recorder,
-#: building behind MQTT silent). Within a launch a node cannot come back (any node that
+#: house behind MQTT silent). Within a launch a node cannot come back (any node that
 #: leaves fails the launch), so a long silence is a fault, not a restart to wait for.
 STALL_STEPS = 3
 #: Step time-out of the lock-step master when not given (plant_sim's and mqtt_bridge's default) [s].
@@ -140,8 +140,8 @@ class LaunchOptions:
     weeks : run length [weeks] (None = the scenario's default)
     steps : cut the run to its first ``steps`` steps (short test runs; None = all)
     start : ISO start time (CSV scenarios)
-    buildings : number of independent buildings
-    seed : scenario seed of building 0 (default scenario; None = the configured seed)
+    houses : number of independent houses
+    seed : scenario seed of house 0 (default scenario; None = the configured seed)
     config_files : parameter files merged over ``config/plant.yaml``
     overrides : ``section.key`` -> value overrides of the plant parameters
     ems_options : options of the EMS (``key=value`` strings)
@@ -153,29 +153,29 @@ class LaunchOptions:
     on_progress : called as ``on_progress(recorded steps, total steps)`` while the run goes
         (instead of the bar; e.g. a worker's reporter to a parent's bars)
     plant_node_params : extra ROS parameters of plant_sim (e.g. ``step_timeout_s``)
-    discovery_server : use a Fast DDS discovery server (None = with more than one building
+    discovery_server : use a Fast DDS discovery server (None = with more than one house
         in layout ``node``; never in the container layouts)
     layout : process layout (:data:`LAYOUTS`, see :func:`effective_layout`): ``node`` (one
-        process per node), ``building`` (container processes, each running every node of
-        its share of the buildings) or ``role`` (one container process per role for all
-        buildings, see :mod:`comems4build_ros.ros.container`); None = the default (``node``
-        for one building, ``building`` for more; ``role`` for more on the ``netns``
-        network, ``building`` whenever ``containers`` is given)
-    buildings_per_recorder : buildings recorded by one recorder process in layout ``role``
-    containers : container processes of layout ``building`` (recorder, EMS, feed and plant
-        of building i in container i mod ``containers``; at most one container per
-        building); None = one per core (:func:`container_count`)
-    namespace : namespace of the run: the building's own for one building (``/`` = none),
-        else the namespace under which the buildings ``building_<i>`` run
+        process per node), ``house`` (container processes, each running every node of
+        its share of the houses) or ``role`` (one container process per role for all
+        houses, see :mod:`comems4build_ros.ros.container`); None = the default (``node``
+        for one house, ``house`` for more; ``role`` for more on the ``netns``
+        network, ``house`` whenever ``containers`` is given)
+    houses_per_recorder : houses recorded by one recorder process in layout ``role``
+    containers : container processes of layout ``house`` (recorder, EMS, feed and plant
+        of house i in container i mod ``containers``; at most one container per
+        house); None = one per core (:func:`container_count`)
+    namespace : namespace of the run: the house's own for one house (``/`` = none),
+        else the namespace under which the houses ``house_<i>`` run
     bag : bag directory to create (None = ``out/bag``)
     all_inputs : the feed publishes (and the bag records) every EMS input topic, also those
         the run's EMS does not read (so that ``replay --inputs-only`` of the bag can drive
         any EMS); default: only the topics of the EMS's information level
-    plant : ``sim`` (``plant_sim`` on ROS) or ``mqtt`` (the simulated building behind MQTT,
-        reached through ``mqtt_bridge``; one building, one process per node)
+    plant : ``sim`` (``plant_sim`` on ROS) or ``mqtt`` (the simulated house behind MQTT,
+        reached through ``mqtt_bridge``; one house, one process per node)
     clock : ``sim``, ``wall`` or ``wall:<factor>`` (wall modes need ``plant="mqtt"``)
     broker_url : broker of the MQTT plant (None = an embedded amqtt broker on a free port)
-    topic_map : topic map of bridge and building (None = ``config/mqtt.yaml``)
+    topic_map : topic map of bridge and house (None = ``config/mqtt.yaml``)
     inputs : ``scenario`` (default) or ``live`` (the feed's live prices and weather,
         ``config/live_inputs.yaml``, cache files in ``out``)
     live_config : live-input settings file of ``inputs="live"`` (None = ``config/live_inputs.yaml``)
@@ -191,7 +191,7 @@ class LaunchOptions:
     weeks: float | None = None
     steps: int | None = None
     start: str | None = None
-    buildings: int = 1
+    houses: int = 1
     seed: int | None = None
     config_files: list[str] = field(default_factory=list)
     overrides: dict[str, Any] = field(default_factory=dict)
@@ -204,7 +204,7 @@ class LaunchOptions:
     plant_node_params: dict[str, Any] = field(default_factory=dict)
     discovery_server: bool | None = None
     layout: str | None = None
-    buildings_per_recorder: int = ROLE_BUILDINGS_PER_RECORDER
+    houses_per_recorder: int = ROLE_HOUSES_PER_RECORDER
     containers: int | None = None
     plant: str = "sim"
     clock: str = "sim"
@@ -226,35 +226,35 @@ class LaunchOptions:
 
 
 def effective_layout(opts: LaunchOptions) -> str:
-    """The process layout of ``opts`` (:data:`LAYOUTS`): ``layout`` as given, else ``building``
-    when ``containers`` is given, else ``node`` for one building and ``building`` (network
-    ``local``) or ``role`` (``netns``: containers cannot span two hosts) for more.
+    """The process layout of ``opts`` (:data:`LAYOUTS`): ``layout`` as given, else ``house``
+    when ``containers`` is given, else ``node`` for one house and ``house`` (network
+    ``local``) or ``role`` (``netns``: containers cannot span two network sides) for more.
 
     Raises
     ------
     ValueError
-        For an unknown layout, or ``containers`` with a layout other than ``building``.
+        For an unknown layout, or ``containers`` with a layout other than ``house``.
     """
     if opts.layout is not None and opts.layout not in LAYOUTS:
         raise ValueError(f"layout '{opts.layout}': one of {', '.join(LAYOUTS)}")
-    if opts.containers is not None and opts.layout not in (None, "building"):
-        raise ValueError(f"containers need layout 'building', not '{opts.layout}'")
+    if opts.containers is not None and opts.layout not in (None, "house"):
+        raise ValueError(f"containers need layout 'house', not '{opts.layout}'")
     if opts.layout is not None:
         return opts.layout
     if opts.containers is not None:
-        return "building"
-    if opts.buildings == 1:
+        return "house"
+    if opts.houses == 1:
         return "node"
-    return "building" if opts.network == "local" else "role"
+    return "house" if opts.network == "local" else "role"
 
 
 def container_count(opts: LaunchOptions) -> int:
-    """Container processes of layout ``building``: ``containers``, or one per core, at most
+    """Container processes of layout ``house``: ``containers``, or one per core, at most
     one per building."""
     import os
 
     n = opts.containers if opts.containers is not None else (os.cpu_count() or 1)
-    return max(1, min(n, opts.buildings))
+    return max(1, min(n, opts.houses))
 
 
 # ---------------------------------------------------------------------- plan records
@@ -266,7 +266,7 @@ class NodePlan:
     ----------
     role : plant, feed, ems or recorder
     name : node name (``plant_sim``, ``feed``, ``fuzzy_ems``, ``recorder``)
-    namespace : ``/`` or ``/building_<i>``
+    namespace : ``/`` or ``/house_<i>``
     params : ROS parameters of the node
     """
 
@@ -277,9 +277,9 @@ class NodePlan:
 
 
 def node_label(node: NodePlan) -> str:
-    """The node's full name under the namespace of the building it serves (``/building_0/plant_sim``,
+    """The node's full name under the namespace of the house it serves (``/house_0/plant_sim``,
     ``/feed``): what the launcher names when the node's process leaves the run. A recorder
-    started at ``/`` for one building's bag (layout ``node``) is ``/building_0/recorder``."""
+    started at ``/`` for one house's bag (layout ``node``) is ``/house_0/recorder``."""
     ns = node.namespace
     recorded = node.params.get("namespaces") if node.role == "recorder" else None
     if ns == "/" and isinstance(recorded, list) and len(recorded) == 1:
@@ -293,7 +293,7 @@ class ProcessPlan:
 
     Attributes
     ----------
-    name : name in messages and of the log file (``plant_sim``, ``building_3/feed``, ``role_ems``)
+    name : name in messages and of the log file (``plant_sim``, ``house_3/feed``, ``role_ems``)
     role : plant, feed, ems, recorder or discovery (what the exit rule looks at)
     argv : command line
     nodes : the ROS nodes the process runs (empty for a service such as the discovery server)
@@ -340,8 +340,8 @@ class NetworkSide:
 
 
 @dataclass(frozen=True)
-class BuildingPlan:
-    """One building: namespace, scenario seed (None = configured), bag directory and the
+class HousePlan:
+    """One house: namespace, scenario seed (None = configured), bag directory and the
     run token its EMS puts in every command (plant_sim applies no other token's commands)."""
 
     namespace: str
@@ -358,10 +358,10 @@ class RunPlan:
     Attributes
     ----------
     ems : EMS name
-    out : output directory; ``bag`` the bag directory (or set of per-building bags)
+    out : output directory; ``bag`` the bag directory (or set of per-house bags)
     domain_id : ROS domain id of every process
     layout : ``node`` or ``role`` (:data:`LAYOUTS`)
-    buildings : the buildings, in namespace order
+    houses : the houses, in namespace order
     sides : network sides by name
     processes : processes in start order
     env : environment additions of every process (besides the isolation variables the
@@ -382,7 +382,7 @@ class RunPlan:
     bag: Path
     domain_id: int
     layout: str
-    buildings: tuple[BuildingPlan, ...]
+    houses: tuple[HousePlan, ...]
     sides: dict[str, NetworkSide]
     processes: tuple[ProcessPlan, ...]
     env: dict[str, str] = field(default_factory=dict)
@@ -408,7 +408,7 @@ class RunPlan:
     def describe(self) -> str:
         """Human-readable plan: network sides, processes and the nodes each runs."""
         lines = [
-            f"run plan: EMS {self.ems}, {len(self.buildings)} building(s), layout '{self.layout}', "
+            f"run plan: EMS {self.ems}, {len(self.houses)} house(s), layout '{self.layout}', "
             f"ROS domain {self.domain_id}, {len(self.processes)} process(es), "
             f"time limit {'none' if self.timeout_s is None else f'{self.timeout_s:g} s'}",
             f"bag: {self.bag}",
@@ -443,7 +443,7 @@ class RunPlan:
             "layout": self.layout,
             "timeout_s": self.timeout_s,
             "env": self.env,
-            "buildings": [{"namespace": b.namespace, "seed": b.seed, "bag": str(b.bag)} for b in self.buildings],
+            "houses": [{"namespace": b.namespace, "seed": b.seed, "bag": str(b.bag)} for b in self.houses],
             "sides": [{"name": g.name, "env": g.env, "netns": g.netns, "address": g.address}
                        for g in self.sides.values()],
             "setup": [list(c) for c in (*self.setup, *self.optional_setup)],
@@ -545,31 +545,31 @@ def fastdds_profile(name: str = FASTDDS_PROFILE) -> Path | None:
 
 
 # ---------------------------------------------------------------------- the planner
-def bag_dir(bag: Path, ns: str, buildings: int) -> Path:
-    """Bag of the building in namespace ``ns``: ``bag`` itself for one building, else
-    ``bag/building_<i>`` (the namespace's last segment)."""
-    return bag if buildings == 1 else bag / ns.rstrip("/").rsplit("/", 1)[-1]
+def bag_dir(bag: Path, ns: str, houses: int) -> Path:
+    """Bag of the house in namespace ``ns``: ``bag`` itself for one house, else
+    ``bag/house_<i>`` (the namespace's last segment)."""
+    return bag if houses == 1 else bag / ns.rstrip("/").rsplit("/", 1)[-1]
 
 
-def namespaces(buildings: int, namespace: str = "/") -> list[str]:
-    """Namespaces of the buildings: ``[namespace]`` for one building, else
-    ``[<namespace>/building_0, ...]`` (``/building_<i>`` under the root namespace).
+def namespaces(houses: int, namespace: str = "/") -> list[str]:
+    """Namespaces of the houses: ``[namespace]`` for one house, else
+    ``[<namespace>/house_0, ...]`` (``/house_<i>`` under the root namespace).
 
     Raises
     ------
     ValueError
-        For fewer than one building or a namespace that is not absolute.
+        For fewer than one house or a namespace that is not absolute.
     """
-    if buildings < 1:
-        raise ValueError(f"--buildings must be >= 1, got {buildings}")
+    if houses < 1:
+        raise ValueError(f"--houses must be >= 1, got {houses}")
     if not namespace.startswith("/") or "//" in namespace or not all(
             part.replace("_", "a").isalnum() and not part[0].isdigit() for part in namespace.strip("/").split("/")
             if namespace.strip("/")):
         raise ValueError(f"namespace '{namespace}': an absolute ROS namespace such as / or /site_3 is expected")
     root = "/" + namespace.strip("/") if namespace.strip("/") else "/"
-    if buildings == 1:
+    if houses == 1:
         return [root]
-    return [f"{root.rstrip('/')}/building_{i}" for i in range(buildings)]
+    return [f"{root.rstrip('/')}/house_{i}" for i in range(houses)]
 
 
 def feed_window(weeks: float | None, steps: int | None) -> tuple[int, int]:
@@ -585,14 +585,14 @@ def feed_window(weeks: float | None, steps: int | None) -> tuple[int, int]:
     return whole, (0 if n == whole * HOURS_PER_WEEK else n)
 
 
-def building_seeds(opts: LaunchOptions) -> list[int | None]:
-    """Scenario seed of each building: ``seed + i`` for several buildings on the default scenario."""
+def house_seeds(opts: LaunchOptions) -> list[int | None]:
+    """Scenario seed of each house: ``seed + i`` for several houses on the default scenario."""
     from comems4build_ros.core.scenario.settings import load_scenario_settings
 
-    if opts.buildings > 1 and opts.scenario == "default":
+    if opts.houses > 1 and opts.scenario == "default":
         base = opts.seed if opts.seed is not None else load_scenario_settings().seed
-        return [base + i for i in range(opts.buildings)]
-    return [opts.seed] * opts.buildings
+        return [base + i for i in range(opts.houses)]
+    return [opts.seed] * opts.houses
 
 
 def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[str, Any]:
@@ -613,7 +613,7 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
         "weeks": opts.weeks,
         "steps": opts.steps,
         "start": opts.start,
-        "buildings": [{"namespace": ns, "seed": s} for ns, s in zip(namespaces(opts.buildings, opts.namespace), seeds)],
+        "houses": [{"namespace": ns, "seed": s} for ns, s in zip(namespaces(opts.houses, opts.namespace), seeds)],
         "config_files": [str(Path(f).resolve()) for f in opts.config_files],
         "overrides": opts.overrides,
         "ems_options": opts.ems_options,
@@ -621,12 +621,12 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
     }
 
 
-def building_params(
+def house_params(
     opts: LaunchOptions, seed: int | None, common: dict[str, Any], token_file: str = ""
 ) -> dict[str, dict[str, Any]]:
-    """Parameters of the EMS, feed and plant of one building (role -> parameters).
+    """Parameters of the EMS, feed and plant of one house (role -> parameters).
 
-    ``token_file``: the building's run token file (EMS ``run_token_file``, plant
+    ``token_file``: the house's run token file (EMS ``run_token_file``, plant
     ``ems_token_file``); the token itself is never a parameter value (any local user sees
     command lines, and any DDS participant reads parameters with ``ros2 param get``).
     """
@@ -655,7 +655,7 @@ def building_params(
 
 
 def run_steps(opts: LaunchOptions) -> int:
-    """Steps per building of the run (12 weeks when the length is not given)."""
+    """Steps per house of the run (12 weeks when the length is not given)."""
     from comems4build_ros.core.scenario import HOURS_PER_WEEK
 
     weeks, steps = feed_window(opts.weeks, opts.steps)
@@ -672,7 +672,7 @@ def default_time_limit(opts: LaunchOptions) -> float:
     clock = parse_clock(opts.clock)
     if clock.wall:  # a wall clock paces the steps (hourly steps of the default time step)
         per += clock.period_s
-    return TIME_LIMIT_START_S + per * run_steps(opts) * opts.buildings
+    return TIME_LIMIT_START_S + per * run_steps(opts) * opts.houses
 
 
 def backstop_stall_s(opts: LaunchOptions, layout: str) -> float | None:
@@ -685,7 +685,7 @@ def backstop_stall_s(opts: LaunchOptions, layout: str) -> float | None:
     steps = int(opts.plant_node_params.get("stall_steps", STALL_STEPS))
     if steps <= 0:
         return None
-    default = CONTAINER_STEP_TIMEOUT_S if layout in ("role", "building") else DEFAULT_STEP_TIMEOUT_S
+    default = CONTAINER_STEP_TIMEOUT_S if layout in ("role", "house") else DEFAULT_STEP_TIMEOUT_S
     step_timeout = float(opts.plant_node_params.get("step_timeout_s", default))
     clock = parse_clock(opts.clock)
     window = steps * (step_timeout + (clock.period_s if clock.wall else 0.0))
@@ -742,16 +742,16 @@ def check_plant_options(opts: LaunchOptions) -> None:
     clock = parse_clock(opts.clock)
     if opts.plant != "mqtt" and (clock.wall or opts.broker_url or opts.topic_map):
         raise ValueError("clock 'wall', a broker URL and a topic map need plant 'mqtt' (plant_sim runs lock-step)")
-    if opts.plant == "mqtt" and (opts.buildings > 1 or effective_layout(opts) != "node"):
-        raise ValueError("plant 'mqtt' runs one building, one process per node")
+    if opts.plant == "mqtt" and (opts.houses > 1 or effective_layout(opts) != "node"):
+        raise ValueError("plant 'mqtt' runs one house, one process per node")
     if opts.plant == "mqtt" and opts.broker_url and opts.network != "local":
         raise ValueError("a broker URL needs network 'local' (the 'netns' namespaces reach no other host)")
 
 
 def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]]) -> list[ProcessPlan]:
     """``plant="mqtt"``: the embedded broker (unless ``broker_url``; a free port now), the
-    simulated building with the feed's scenario window, and ``mqtt_bridge`` in plant_sim's
-    place. Bridge and building finish (exit 0 at the end); the broker stops last."""
+    simulated house with the feed's scenario window, and ``mqtt_bridge`` in plant_sim's
+    place. Bridge and house finish (exit 0 at the end); the broker stops last."""
     from comems4build_ros.mqtt.broker import free_port
 
     out: list[ProcessPlan] = []
@@ -793,7 +793,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     Raises
     ------
     ValueError
-        For an invalid building count, layout or ``buildings_per_recorder``.
+        For an invalid house count, layout or ``houses_per_recorder``.
     """
     from comems4build_ros.core.config import load_plant_params
 
@@ -801,34 +801,34 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     bag = Path(opts.bag) if opts.bag is not None else out / "bag"
     if params is None:
         params = load_plant_params(opts.config_files, opts.overrides)
-    ns_list = namespaces(opts.buildings, opts.namespace)
+    ns_list = namespaces(opts.houses, opts.namespace)
     check_plant_options(opts)
-    seeds = building_seeds(opts)
+    seeds = house_seeds(opts)
     info = run_info(opts, params, seeds)
     layout = effective_layout(opts)
     if opts.network not in NETWORKS:
         raise ValueError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
-    if layout == "role" and opts.buildings_per_recorder < 1:
-        raise ValueError(f"buildings_per_recorder must be >= 1, got {opts.buildings_per_recorder}")
-    if layout == "building" and opts.containers is not None and opts.containers < 1:
+    if layout == "role" and opts.houses_per_recorder < 1:
+        raise ValueError(f"houses_per_recorder must be >= 1, got {opts.houses_per_recorder}")
+    if layout == "house" and opts.containers is not None and opts.containers < 1:
         raise ValueError(f"containers must be >= 1, got {opts.containers}")
-    if layout == "building" and opts.network != "local":
+    if layout == "house" and opts.network != "local":
         raise ValueError("containers run on this host (network 'local'): 'netns' splits plant and EMS between hosts")
     common: dict[str, Any] = {"config_files": info["config_files"]}
     if opts.overrides:
         common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
     secret_dir = (out / SECRETS_DIR).resolve()
-    buildings = tuple(BuildingPlan(ns, seed, bag_dir(bag, ns, opts.buildings), new_token(),
+    houses = tuple(HousePlan(ns, seed, bag_dir(bag, ns, opts.houses), new_token(),
                                    str(secret_dir / f"{ns.strip('/').replace('/', '__') or 'root'}.token"))
                       for ns, seed in zip(ns_list, seeds))
 
-    if layout in ("role", "building"):
-        processes = _container_processes(opts, buildings, common, bag, info, out / "containers")
+    if layout in ("role", "house"):
+        processes = _container_processes(opts, houses, common, bag, info, out / "containers")
     else:
-        processes = _node_processes(opts, buildings, common, bag, info)
+        processes = _node_processes(opts, houses, common, bag, info)
     use_server = opts.discovery_server
     if use_server is None:
-        use_server = opts.buildings > 1 and layout == "node" and opts.network == "local"
+        use_server = opts.houses > 1 and layout == "node" and opts.network == "local"
     if use_server and opts.network != "local":
         raise ValueError("a discovery server is not planned for the 'netns' network (unicast peers are used)")
     if use_server:
@@ -861,7 +861,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         bag=bag,
         domain_id=domain_id,
         layout=layout,
-        buildings=buildings,
+        houses=houses,
         sides=sides,
         setup=setup,
         optional_setup=optional_setup,
@@ -871,16 +871,16 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         timeout_s=None if opts.timeout_s == math.inf else (
             opts.timeout_s if opts.timeout_s is not None else default_time_limit(opts)),
         stall_s=backstop_stall_s(opts, layout),
-        secrets=tuple((b.token_file, b.token) for b in buildings),
+        secrets=tuple((b.token_file, b.token) for b in houses),
     )
 
 
 def _node_processes(
-    opts: LaunchOptions, buildings: Sequence[BuildingPlan], common: dict[str, Any], bag: Path, info: dict[str, Any]
+    opts: LaunchOptions, houses: Sequence[HousePlan], common: dict[str, Any], bag: Path, info: dict[str, Any]
 ) -> list[ProcessPlan]:
     """Layout ``node``: one recorder per building, then EMS, feed and plant of each building."""
     out: list[ProcessPlan] = []
-    for b in buildings:
+    for b in houses:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
         params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S, unread_inputs(opts))
         out.append(ProcessPlan(
@@ -889,14 +889,14 @@ def _node_processes(
             stop_stage=STAGE_RECORDERS,
         ))
     ems_name = ems_node_name(opts.ems)
-    for b in buildings:
+    for b in houses:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = building_params(opts, b.seed, common, b.token_file)
+        params = house_params(opts, b.seed, common, b.token_file)
         ns = b.namespace
         out.append(ProcessPlan(f"{prefix}{opts.ems}_ems", "ems",
                                (*node_command("ems", opts.ems), *ros_args(ns, params["ems"])),
                                nodes=(NodePlan("ems", ems_name, ns, params["ems"]),), finishes=True))
-        if opts.plant == "mqtt":  # the building's meters give PV and load (mqtt_bridge)
+        if opts.plant == "mqtt":  # the house's meters give PV and load (mqtt_bridge)
             params["feed"]["publish_measured"] = False
         out.append(ProcessPlan(f"{prefix}feed", "feed", (*node_command("feed"), *ros_args(ns, params["feed"])),
                                nodes=(NodePlan("feed", "feed", ns, params["feed"]),), finishes=True))
@@ -910,15 +910,15 @@ def _node_processes(
 
 
 def _contained_nodes(
-    opts: LaunchOptions, b: BuildingPlan, common: dict[str, Any], bag: Path, info: dict[str, Any]
+    opts: LaunchOptions, b: HousePlan, common: dict[str, Any], bag: Path, info: dict[str, Any]
 ) -> list[NodePlan]:
-    """Recorder, EMS, feed and plant of building ``b`` as nodes of a container
+    """Recorder, EMS, feed and plant of house ``b`` as nodes of a container
     process: the recorder's and the plant's timers slower, the plant's step timeout longer)."""
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
     nodes = [NodePlan("recorder", "recorder", b.namespace,
                       dict(recorder_params(b.namespace, b.bag, info, 0.0, unread_inputs(opts)),
                            tick_s=CONTAINER_RECORDER_TICK_S))]
-    for role, params in building_params(opts, b.seed, common, b.token_file).items():
+    for role, params in house_params(opts, b.seed, common, b.token_file).items():
         if role == "plant":
             params = {"step_timeout_s": CONTAINER_STEP_TIMEOUT_S, "watchdog_period_s": CONTAINER_WATCHDOG_PERIOD_S,
                       **params}
@@ -942,30 +942,30 @@ def _container_process(name: str, role: str, nodes: Sequence[NodePlan], spec_dir
 
 def _container_processes(
     opts: LaunchOptions,
-    buildings: Sequence[BuildingPlan],
+    houses: Sequence[HousePlan],
     common: dict[str, Any],
     bag: Path,
     info: dict[str, Any],
     spec_dir: Path,
 ) -> list[ProcessPlan]:
-    """Processes of :mod:`comems4build_ros.ros.container` for the layouts ``role`` and ``building``.
+    """Processes of :mod:`comems4build_ros.ros.container` for the layouts ``role`` and ``house``.
 
-    ``role``: recorder processes (one per ``buildings_per_recorder``), then one
-    EMS, one feed and one plant process for all buildings. ``building``: container process
-    j runs recorder, EMS, feed and plant of every building i with i mod n = j (n =
-    ``containers``, at most the number of buildings).
+    ``role``: recorder processes (one per ``houses_per_recorder``), then one
+    EMS, one feed and one plant process for all houses. ``house``: container process
+    j runs recorder, EMS, feed and plant of every house i with i mod n = j (n =
+    ``containers``, at most the number of houses).
     """
-    if effective_layout(opts) == "building":
+    if effective_layout(opts) == "house":
         n = container_count(opts)
         return [_container_process(f"container_{j}", "container",
-                              [node for b in buildings[j::n] for node in _contained_nodes(opts, b, common, bag, info)],
+                              [node for b in houses[j::n] for node in _contained_nodes(opts, b, common, bag, info)],
                               spec_dir, opts.ems, True)
                 for j in range(n)]
     by_role: dict[str, list[NodePlan]] = {"recorder": [], "ems": [], "feed": [], "plant": []}
-    for b in buildings:
+    for b in houses:
         for node in _contained_nodes(opts, b, common, bag, info):
             by_role[node.role].append(node)
-    per = opts.buildings_per_recorder
+    per = opts.houses_per_recorder
     recorders = by_role["recorder"]
     out = [_container_process(f"role_recorder_{j // per}", "recorder", recorders[j:j + per], spec_dir, opts.ems, True)
            for j in range(0, len(recorders), per)]
@@ -981,7 +981,7 @@ def netns_network(domain_id: int, netem: str | None) -> tuple[dict[str, NetworkS
     """Two network namespaces joined by a veth pair: network sides and set-up/tear-down commands.
 
     Names carry the (locked) domain id, so concurrent launches do not collide: namespaces
-    ``c4b<id>p`` (plant host) and ``c4b<id>e`` (EMS host), link ``10.231.<id>.0/24`` with
+    ``c4b<id>p`` (the plant's side) and ``c4b<id>e`` (the EMS's side), link ``10.231.<id>.0/24`` with
     ``.1`` on the plant side and ``.2`` on the EMS side. Each side's processes get UDP-only
     Fast DDS (:data:`FASTDDS_UDP_PROFILE`), ``ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET`` and the
     other side as ``ROS_STATIC_PEERS`` (unicast discovery, no multicast needed).

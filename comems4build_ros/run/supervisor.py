@@ -31,7 +31,7 @@ process, its exit code and what it means, the cause the node gave (the last
 exited 0 (the bags are closed), whatever the other processes do; then everything still
 running is stopped, a process that ignores SIGINT and SIGTERM (or is paused) is killed.
 
-Stalls: the lock-step master ends a run whose EMS, feed, recorder or building fell silent
+Stalls: the lock-step master ends a run whose EMS, feed, recorder or house fell silent
 (``stall_steps`` step time-outs, naming it). As a backstop for a master that is itself
 paused or hung, the supervisor ends a run in which no step was recorded for the plan's
 ``stall_s`` (naming every paused process, state ``T``); the plan's overall time limit
@@ -168,14 +168,14 @@ def _child_setup(nice: int) -> Callable[[], None]:
 class Child:
     """One running node process."""
 
-    name: str  # e.g. "plant_sim" or "building_3/plant_sim"
+    name: str  # e.g. "plant_sim" or "house_3/plant_sim"
     role: str  # plant, feed, ems, recorder, replay
     proc: subprocess.Popen
     log_path: Path
     stdout_reader: threading.Thread | None = None
     stage: int = STAGE_NODES
     finishes: bool = False
-    nodes: tuple[str, ...] = ()  # full names of the ROS nodes the process runs ("/building_0/plant_sim")
+    nodes: tuple[str, ...] = ()  # full names of the ROS nodes the process runs ("/house_0/plant_sim")
     hang_reported: bool = False  # exit_code() has warned of a clean-up hang after a complete run
 
     def log_text(self) -> str:
@@ -431,7 +431,7 @@ class Progress:
             self.recorded[i], self.total[i] = recorded, total
 
     def get(self) -> tuple[int, int]:
-        """Recorded steps of all buildings, and their total (0 until every recorder knows its own)."""
+        """Recorded steps of all houses, and their total (0 until every recorder knows its own)."""
         with self._lock:
             return sum(self.recorded), (sum(self.total) if all(self.total) else 0)
 
@@ -557,8 +557,8 @@ def left_error(c: Child, code: int) -> LaunchError:
 
 def describe_nodes(nodes: Sequence[str], max_namespaces: int = 4) -> str:
     """The nodes of a process that runs several, in words: node names per set of namespaces,
-    e.g. ``plant_sim, feed, rbc_ems, recorder of /building_0`` or ``rbc_ems of /building_0 ..
-    /building_7 (8 buildings)``."""
+    e.g. ``plant_sim, feed, rbc_ems, recorder of /house_0`` or ``rbc_ems of /house_0 ..
+    /house_7 (8 houses)``."""
     by_name: dict[str, list[str]] = {}
     for full in nodes:
         ns, _, name = full.rpartition("/")
@@ -569,7 +569,7 @@ def describe_nodes(nodes: Sequence[str], max_namespaces: int = 4) -> str:
     parts = []
     for spaces, names in groups.items():
         where = (", ".join(spaces) if len(spaces) <= max_namespaces
-                 else f"{spaces[0]} .. {spaces[-1]} ({len(spaces)} buildings)")
+                 else f"{spaces[0]} .. {spaces[-1]} ({len(spaces)} houses)")
         parts.append(f"{', '.join(names)} of {where}")
     return "; ".join(parts)
 

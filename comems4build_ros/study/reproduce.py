@@ -267,9 +267,9 @@ def current_ems_option(ems: str, dotted: str, params: PlantParams) -> Any:
 
         return _dotted(load_rbc_options().model_dump(), dotted)
     if ems == "mpc":
-        from comems4build_ros.core.ems.mpc.settings import MILPOptions, load_options
+        from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
 
-        return _dotted(load_options(MILPOptions, "mpc", None).model_dump(), dotted)
+        return _dotted(load_options(MILPParams, "mpc", None).model_dump(), dotted)
     if ems == "fuzzy":
         from comems4build_ros.core.ems.fuzzy.controller import load_flcs
 

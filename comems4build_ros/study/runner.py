@@ -190,7 +190,7 @@ def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     except LaunchError as exc:
         raise RunFailedError(f"{out}: ROS run of {task.ems} failed: {exc}") from None
     if len(result.summaries) != 1:
-        raise RunFailedError(f"{out}: expected one building in the bag, got {len(result.summaries)}")
+        raise RunFailedError(f"{out}: expected one house in the bag, got {len(result.summaries)}")
     summary = dict(next(iter(result.summaries.values())))
     from comems4build_ros.core.config import load_plant_params, scenario_config_files
 

@@ -38,7 +38,7 @@ def cdr_prefix(label: str, n: int) -> bytes:
 
 def string_cdr(text: str) -> bytes:
     """CDR bytes of a ``std_msgs/String`` holding ``text`` (encapsulation CDR_LE, length with
-    the NUL, UTF-8 bytes, NUL): what rclpy serialises, without building the message object
+    the NUL, UTF-8 bytes, NUL): what rclpy serialises, without house the message object
     (test/test_ros_node_base.py)."""
     raw = text.encode("utf-8")
     return b"\x00\x01\x00\x00" + (len(raw) + 1).to_bytes(4, "little") + raw + b"\0"

@@ -1,7 +1,7 @@
 """The topic contract (``msg_defs/topics.yaml``): loading, validation and queries.
 
 The YAML file is the single source of truth for every topic of the node set: name
-(relative, so namespaces such as ``/building_3/`` work), interface type, unit, the nodes
+(relative, so namespaces such as ``/house_3/`` work), interface type, unit, the nodes
 that may publish and subscribe, QoS, and for ``Float64MultiArray`` topics the label of
 each element. The nodes create their publishers and subscriptions from it (and
 :mod:`comems4build_ros.ros.node` refuses any pub/sub the contract does not declare),

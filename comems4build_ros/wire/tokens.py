@@ -4,8 +4,8 @@ Every command carries, as its last element, a token of the EMS that sent it; the
 master applies the commands of one EMS only and counts every other command as foreign.
 Two modes:
 
-* **run secret** (what the launcher uses): one secret per building, drawn by
-  :func:`new_token` and given to that building's EMS and plant in a token file
+* **run secret** (what the launcher uses): one secret per house, drawn by
+  :func:`new_token` and given to that house's EMS and plant in a token file
   (:func:`write_token_file`: mode 0600 in a directory of mode 0700; parameters
   ``run_token_file`` and ``ems_token_file``), never on a command line, in a parameter
   value, a log line or a world-readable file. The token of each command is then its authentication code
@@ -55,7 +55,7 @@ def default_token(fully_qualified_name: str) -> int:
 
 
 def new_token() -> int:
-    """A random run secret for one building of a launch (1 .. 2^53 - 1)."""
+    """A random run secret for one house of a launch (1 .. 2^53 - 1)."""
     return secrets.randbelow(MAX_TOKEN - 1) + 1
 
 

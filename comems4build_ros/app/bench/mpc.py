@@ -303,7 +303,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print the tables."""
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.ems.mpc import MPCController
-    from comems4build_ros.core.ems.mpc.settings import MILPOptions, load_options
+    from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
     from comems4build_ros.core.ems.mpc.solvers import available_solvers
     from comems4build_ros.core.loop import simulate
     from comems4build_ros.core.scenario import default_scenario
@@ -313,7 +313,7 @@ def run(args: argparse.Namespace) -> int:
     if args.out:
         check_out_dir(args.out)
     params = load_plant_params()
-    defaults = load_options(MILPOptions, "mpc", {})
+    defaults = load_options(MILPParams, "mpc", {})
     print(f"bench mpc: default settings {defaults.model_dump()}")
     solvers = available_solvers()
     print(f"solvers available: {', '.join(solvers)}" + ("" if "gurobi" in solvers else " (gurobipy not installed)"))

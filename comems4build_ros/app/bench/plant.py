@@ -5,7 +5,7 @@ scenario (2016 hourly steps for 12 weeks, repeated) with random but valid action
 prints the steps per second and the time one 12-week run of the plant takes. Target:
 at least 20,000 steps/s.
 
-It then prints the paper's sizing rule for the default building (``sec:parameters``):
+It then prints the paper's sizing rule for the default house (``sec:parameters``):
 the full H2 store at the FC's mean electrical efficiency should cover about half of the
 winter electricity demand of heat pump and appliances. The demand is estimated twice:
 an ideal heater that keeps T_air exactly at T_air,min (least heat, DHW demand and losses
@@ -79,7 +79,7 @@ def time_plant(plant, exo: list, actions: list, repeats: int) -> dict[str, float
 
 
 def sizing_check(params, scenario, exo: list) -> dict[str, Any]:
-    """The paper's H2 sizing rule for the configured building and scenario.
+    """The paper's H2 sizing rule for the configured house and scenario.
 
     Returns energies over the run [kWh] and the share of the HP + appliance electricity
     that the full store covers at the FC's mean electrical efficiency (mean of eta_el over

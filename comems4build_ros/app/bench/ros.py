@@ -1,4 +1,4 @@
-"""Speed of the ROS 2 node set: step round trip, 12-week fuzzy run, throughput with N buildings.
+"""Speed of the ROS 2 node set: step round trip, 12-week fuzzy run, throughput with N houses.
 
 ``comems4build bench ros`` prints, in one run:
 
@@ -8,18 +8,18 @@
 2. the median and 99th percentile of the step round trip plant -> EMS -> plant in that
    run, as measured by plant_sim (from the state announcement of step k to the arrival
    of the command for step k; ``plant/events`` "stats" line in the bag);
-3. the throughput with ``--buildings 1, 4, 16`` (N independent buildings under
-   ``/building_<i>``; see :mod:`comems4build_ros.ros.container`): wall time and
-   building-steps per second.
+3. the throughput with ``--houses 1, 4, 16`` (N independent houses under
+   ``/house_<i>``; see :mod:`comems4build_ros.ros.container`): wall time and
+   house-steps per second.
 
-The one-building run goes twice: one OS process per node (the default of ``launch``) and
-composed into one container process (``launch --layout building``: recorder, EMS, feed
+The one-house run goes twice: one OS process per node (the default of ``launch``) and
+composed into one container process (``launch --layout house``: recorder, EMS, feed
 and plant as four rclpy nodes of one process, still exchanging every message through
-DDS). Runs with more buildings use ``--layout`` (default ``building``, the launcher's
+DDS). Runs with more houses use ``--layout`` (default ``house``, the launcher's
 default: one container per core, ``--containers`` to change).
 
 Targets on 2 cores: round trip median < 2 ms and p99 < 10 ms, 12-week fuzzy run over ROS
-< 5 s (one process per node as well as composed), 16 buildings x 12 weeks < 2 min, and no
+< 5 s (one process per node as well as composed), 16 houses x 12 weeks < 2 min, and no
 message lost by the recorder in any run.
 Wall times include process start-up (imports, scenario generation) and the bag
 evaluation is not included. Figures depend on the load of the machine: the benchmark
@@ -37,28 +37,28 @@ import warnings
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.app.commands.options import BUILDINGS, COUNT, SECONDS, WEEKS
+from comems4build_ros.app.commands.options import COUNT, HOUSES, SECONDS, WEEKS
 
 TARGET_RTT_MEDIAN_MS = 2.0
 TARGET_RTT_P99_MS = 10.0
 TARGET_FUZZY_12W_S = 5.0
-TARGET_16_BUILDINGS_S = 120.0
+TARGET_16_HOUSES_S = 120.0
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # only in summaries from a bag
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench ros``."""
     parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12, help="run length [weeks], > 0 (default 12)")
-    parser.add_argument("--buildings", metavar="N[,N...]", default="1,4,16",
-                        help="building counts of the throughput runs (default 1,4,16)")
+    parser.add_argument("--houses", metavar="N[,N...]", default="1,4,16",
+                        help="house counts of the throughput runs (default 1,4,16)")
     parser.add_argument("--ems", metavar="NAME", default="fuzzy", help="EMS of every run (default fuzzy)")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="keep the runs in this directory (default: a temporary one)")
-    parser.add_argument("--layout", choices=("building", "role", "node"), default="building",
-                        help="process layout of the runs with more than one building (launch --layout; default "
-                             "building, the launcher's default)")
+    parser.add_argument("--layout", choices=("house", "role", "node"), default="house",
+                        help="process layout of the runs with more than one house (launch --layout; default "
+                             "house, the launcher's default)")
     parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
-                        help="container processes of the layout 'building' (default: one per core)")
+                        help="container processes of the layout 'house' (default: one per core)")
     parser.add_argument("--timeout", metavar="S", type=SECONDS, default=600.0,
                         help="give up a throughput run after this [s], > 0")
 
@@ -87,21 +87,21 @@ def _mark(ok: bool) -> str:
     return "meets target" if ok else "MISSES target"
 
 
-def _options(args: argparse.Namespace, out: Path, weeks: float, buildings: int, layout: str) -> Any:
-    """LaunchOptions of one benchmark run in ``layout`` (node, building or role)."""
+def _options(args: argparse.Namespace, out: Path, weeks: float, houses: int, layout: str) -> Any:
+    """LaunchOptions of one benchmark run in ``layout`` (node, house or role)."""
     from comems4build_ros.run.plan import LaunchOptions
     from comems4build_ros.run.progress import is_terminal
 
-    return LaunchOptions(ems=args.ems, out=out, weeks=weeks, buildings=buildings, timeout_s=args.timeout,
+    return LaunchOptions(ems=args.ems, out=out, weeks=weeks, houses=houses, timeout_s=args.timeout,
                          progress=is_terminal(), layout=layout,
-                         containers=args.containers if layout == "building" else None)
+                         containers=args.containers if layout == "house" else None)
 
 
 def _layout_label(opts: Any) -> str:
     from comems4build_ros.run.plan import container_count, effective_layout
 
     layout = effective_layout(opts)
-    if layout == "building":
+    if layout == "house":
         return f"{container_count(opts)} container process(es)"
     return "one process per node" if layout == "node" else "one process per role"
 
@@ -117,12 +117,12 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.run.launcher import launch
     from comems4build_ros.run.supervisor import LaunchError
 
-    try:  # each count by the rule of launch --buildings
-        counts = [BUILDINGS(x.strip()) for x in str(args.buildings).split(",") if x.strip()]
+    try:  # each count by the rule of launch --houses
+        counts = [HOUSES(x.strip()) for x in str(args.houses).split(",") if x.strip()]
     except argparse.ArgumentTypeError as exc:
-        raise UsageError(f"--buildings {args.buildings}: {exc}") from None
+        raise UsageError(f"--houses {args.houses}: {exc}") from None
     if not counts:
-        raise UsageError(f"--buildings '{args.buildings}': no count given")
+        raise UsageError(f"--houses '{args.houses}': no count given")
     if args.out:
         check_out_dir(args.out)
     root = Path(args.out) if args.out else Path(tempfile.mkdtemp(prefix="bench_ros_"))
@@ -131,7 +131,7 @@ def run(args: argparse.Namespace) -> int:
     weeks = args.weeks
     whole = math.ceil(weeks - 1e-9)
     steps = int(round(weeks * 168))
-    many_layout = getattr(args, "layout", None) or "building"
+    many_layout = getattr(args, "layout", None) or "house"
 
     print(f"== 1. {args.ems}, {weeks:g} weeks ({steps} steps): ROS node set vs in-process   [{_load()}]")
     t0 = time.perf_counter()
@@ -142,7 +142,7 @@ def run(args: argparse.Namespace) -> int:
     t_in = time.perf_counter() - t0
     print(f"in-process: {t_in:7.2f} s (scenario + run; run alone {ref.summary['wall_s']:.2f} s)")
     one: dict[str, Any] = {}
-    for layout in ("node", "building"):  # separate processes (the default), then composed into one container
+    for layout in ("node", "house"):  # separate processes (the default), then composed into one container
         opts = _options(args, root / f"{args.ems}_{weeks:g}w_{layout}", weeks, 1, layout)
         res = one[layout] = launch(opts)
         summary = res.summaries["/"]
@@ -163,9 +163,9 @@ def run(args: argparse.Namespace) -> int:
               f"{_mark(med < TARGET_RTT_MEDIAN_MS)} < {TARGET_RTT_MEDIAN_MS:g} ms; "
               f"p99 {p99:.3f} ms -> {_mark(p99 < TARGET_RTT_P99_MS)} < {TARGET_RTT_P99_MS:g} ms")
 
-    print(f"\n== 3. throughput, {args.ems}, {weeks:g} weeks per building; 1 building as above, more in layout "
+    print(f"\n== 3. throughput, {args.ems}, {weeks:g} weeks per house; 1 house as above, more in layout "
           f"'{many_layout}'")
-    print(f"{'buildings':>9} {'layout':>8} {'procs':>5} {'wall_s':>8} {'run_s':>8} {'building-steps/s':>17} "
+    print(f"{'houses':>9} {'layout':>8} {'procs':>5} {'wall_s':>8} {'run_s':>8} {'house-steps/s':>17} "
           f"{'rtt_med_ms':>10} {'rtt_p99_ms':>10} {'fallback':>8} {'held_s':>7} {'lost':>5}  load after (1 min)")
     rows: list[tuple[int, str, Any]] = []
     for n in counts:
@@ -184,10 +184,10 @@ def run(args: argparse.Namespace) -> int:
         _print_row(*rows[-1], steps)
     w16 = [r.wall_s for n, _, r in rows if n == 16]
     if 16 in counts and not w16:
-        print(f"16 buildings x {weeks:g} weeks: failed -> MISSES target < {TARGET_16_BUILDINGS_S:g} s")
+        print(f"16 houses x {weeks:g} weeks: failed -> MISSES target < {TARGET_16_HOUSES_S:g} s")
     if w16:
-        print(f"16 buildings x {weeks:g} weeks: {w16[0]:.1f} s -> {_mark(w16[0] < TARGET_16_BUILDINGS_S)} "
-              f"< {TARGET_16_BUILDINGS_S:g} s")
+        print(f"16 houses x {weeks:g} weeks: {w16[0]:.1f} s -> {_mark(w16[0] < TARGET_16_HOUSES_S)} "
+              f"< {TARGET_16_HOUSES_S:g} s")
     print(f"\nruns kept in {root}")
     return 0
 

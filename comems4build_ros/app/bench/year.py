@@ -6,7 +6,7 @@ to build the scenario, the wall time of the run (controller, plant, KPIs) and th
 in the EMS; for the MPC the median and 95th percentile of its solves; and the seasonal
 figures (LOH on 2022-12-01 and at the end, heating-season weeks with discomfort). With
 ``--ros`` it then runs the ``--ros-ems`` year over ROS 2 composed into one container process
-(``launch --layout building --containers 1``: plant_sim, feed, the EMS and the recorder as
+(``launch --layout house --containers 1``: plant_sim, feed, the EMS and the recorder as
 rclpy nodes of one process, every message still through DDS) and checks that its summary
 equals the in-process one.
 
@@ -128,7 +128,7 @@ def run(args: argparse.Namespace) -> int:
         steps = None if args.weeks is None else int(round(args.weeks * 168))
         t0 = time.perf_counter()
         launch(LaunchOptions(ems=args.ros_ems, out=out, scenario="year", weeks=args.weeks, steps=steps,
-                             timeout_s=args.timeout, layout="building", containers=1))
+                             timeout_s=args.timeout, layout="house", containers=1))
         wall = time.perf_counter() - t0
         import json
 

@@ -26,7 +26,7 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.cli import UsageError
     from comems4build_ros.app.commands.options import check_config_files
     from comems4build_ros.app.commands.simulate import parse_assignments
-    from comems4build_ros.bags.evaluation import building_dir, evaluate_bag, read_run_info
+    from comems4build_ros.bags.evaluation import evaluate_bag, house_dir, read_run_info
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.loop import RUN_FILES
     from comems4build_ros.files.outputs import atomic_dir, check_out_dir
@@ -44,17 +44,17 @@ def run(args: argparse.Namespace) -> int:
         overrides.update(parse_assignments(args.set, "--set"))
         params = load_plant_params(files, overrides)
     # all or nothing: the results go to a temporary directory, then replace those of an earlier evaluate
-    # (no older timeseries.csv or building_<i>/ stays beside them)
-    with atomic_dir(args.out, replaces=(*RUN_FILES, "building_*")) as stage:
+    # (no older timeseries.csv or house_<i>/ stays beside them)
+    with atomic_dir(args.out, replaces=(*RUN_FILES, "house_*")) as stage:
         summaries = evaluate_bag(bag, stage, params=params, timeseries=not args.no_timeseries,
                                  accept_gaps=args.accept_gaps)
     damaged = {ns: s["bag_incomplete"] for ns, s in summaries.items() if "bag_incomplete" in s}
-    for ns, d in damaged.items():  # each building with its own bag's damage
+    for ns, d in damaged.items():  # each house with its own bag's damage
         why = "; ".join(d["damage"]) or ("no metadata.yaml (recorder killed?); read the .mcap directly"
                                           if not d["metadata_yaml"] else "")
         if d.get("run_cut"):
             why = f"run cut short: {d['run_cut'].get('cause')}" + (f"; {why}" if why else "")
-        where = "" if len(summaries) == 1 else f" (building {ns.strip('/') or 'root'})"
+        where = "" if len(summaries) == 1 else f" (house {ns.strip('/') or 'root'})"
         print(f"bag {bag}{where}: incomplete: {d['steps_recorded']} of {d['steps_expected'] or '?'} steps recorded"
               + (f"; {why}" if why else ""))
     if not damaged:
@@ -62,10 +62,10 @@ def run(args: argparse.Namespace) -> int:
     keys = ("weeks", "steps", "cost_eur_week_median", "discomfort_kh_week_median", "loh_end", "fallback_steps")
     for ns, s in summaries.items():  # with what was cut or stood in (a run on live inputs), where it applies
         marks = {k: s[k] for k in ("bag_incomplete", "live_inputs") if k in s}
-        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}, **marks}))
+        print(json.dumps({"house": ns, **{k: s.get(k) for k in keys}, **marks}))
     out = Path(args.out)
     names = [n for n in RUN_FILES if not (args.no_timeseries and n == "timeseries.csv")]
-    written = [p for p in (building_dir(out, ns, len(summaries)) / n for ns in summaries for n in names) if p.exists()]
+    written = [p for p in (house_dir(out, ns, len(summaries)) / n for ns in summaries for n in names) if p.exists()]
     if len(summaries) > 1 or "/" not in summaries:
         written += [out / "weekly.csv", out / "summary.json"]
     print(f"wrote {len(written)} files: {', '.join(str(p) for p in written)}")

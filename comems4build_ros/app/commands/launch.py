@@ -9,10 +9,10 @@ from pathlib import Path
 from typing import Any
 
 from comems4build_ros.app.commands.options import (
-    BUILDINGS,
     COUNT,
     DOMAIN_ID,
-    MAX_BUILDINGS,
+    HOUSES,
+    MAX_HOUSES,
     SECONDS,
     SEED,
     add_scenario_options,
@@ -27,11 +27,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_scenario_options(parser, hours=False, seed=False, extend=False)
     parser.add_argument("--steps", metavar="N", type=COUNT, default=None,
                         help="cut the run to its first N steps, integer >= 1 (short runs)")
-    parser.add_argument("--buildings", metavar="N", type=BUILDINGS, default=1,
-                        help="independent buildings under /building_<i>/, scenario seed + i, integer 1 .. "
-                             f"{MAX_BUILDINGS} (default 1)")
+    parser.add_argument("--houses", metavar="N", type=HOUSES, default=1,
+                        help="independent houses under /house_<i>/, scenario seed + i, integer 1 .. "
+                             f"{MAX_HOUSES} (default 1)")
     parser.add_argument("--seed", metavar="N", type=SEED, default=None,
-                        help="scenario seed of building 0 (default scenario; 0 .. 2^32-1)")
+                        help="scenario seed of house 0 (default scenario; 0 .. 2^32-1)")
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
@@ -50,14 +50,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--timeout", metavar="S", type=SECONDS, default=None,
                         help="give up after this wall time [s], > 0")
     parser.add_argument("--plant", choices=("sim", "mqtt"), default="sim",
-                        help="sim: plant_sim on ROS; mqtt: the simulated building behind MQTT via mqtt_bridge")
+                        help="sim: plant_sim on ROS; mqtt: the simulated house behind MQTT via mqtt_bridge")
     parser.add_argument("--clock", metavar="sim|wall|wall:F", type=_clock, default="sim",
                         help="sim (lock-step), wall (a step per hour), wall:<factor> (faster); wall needs --plant mqtt")
     parser.add_argument("--broker", metavar="URL", type=_broker_url, default=None,
                         help="MQTT broker, mqtt://host:port or mqtts://host:port (default: an embedded amqtt broker)")
     parser.add_argument("--topic-map", metavar="FILE", default=None, help="MQTT topic map (default config/mqtt.yaml)")
     parser.add_argument("--inputs", choices=("scenario", "live"), default="scenario",
-                        help="feed inputs: the scenario (default) or live aWATTar prices and weather (real buildings; "
+                        help="feed inputs: the scenario (default) or live aWATTar prices and weather (real houses; "
                              "refused with exit code 2 when no live price for the current hour can be had)")
     parser.add_argument("--live-config", metavar="FILE", default=None,
                         help="live-input settings for --inputs live (default config/live_inputs.yaml)")
@@ -72,16 +72,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--netem", default=None, metavar="ARGS", type=_netem,
                         help="with --network netns: 'tc netem' arguments of the link, e.g. 'delay 5ms loss 1%%' "
                              "(skipped with a note where the kernel lacks netem)")
-    parser.add_argument("--layout", choices=("node", "building", "role"), default=None,
-                        help="processes: node = one per node (default for 1 building), building = container "
-                             "processes each running every node of some buildings (default for more), role = one "
-                             "per role for all buildings")
+    parser.add_argument("--layout", choices=("node", "house", "role"), default=None,
+                        help="processes: node = one per node (default for 1 house), house = container "
+                             "processes each running every node of some houses (default for more), role = one "
+                             "per role for all houses")
     parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
-                        help="container processes of --layout building (implies it), building i in container "
+                        help="container processes of --layout house (implies it), house i in container "
                              "i mod N (default: one per core)")
     parser.add_argument("--namespace", metavar="NS", type=_namespace, default="/",
-                        help="ROS namespace of the building (one building) or of the buildings' namespaces "
-                             "building_<i> (default /)")
+                        help="ROS namespace of the house (one house) or of the houses' namespaces "
+                             "house_<i> (default /)")
     parser.add_argument("--print-plan", action="store_true",
                         help="print the run plan (processes, nodes, parameters) and exit without starting anything")
 
@@ -140,19 +140,19 @@ def check_plant_options(args: argparse.Namespace) -> None:
         check_input_file(args.topic_map, "--topic-map")
     if args.plant != "mqtt" and (args.clock != "sim" or args.broker or args.topic_map):
         raise UsageError("--clock wall, --broker and --topic-map need --plant mqtt")
-    if args.plant == "mqtt" and args.buildings != 1:
-        raise UsageError("--plant mqtt runs one building (--buildings 1)")
+    if args.plant == "mqtt" and args.houses != 1:
+        raise UsageError("--plant mqtt runs one house (--houses 1)")
     if args.netem is not None and args.network != "netns":
         raise UsageError("--netem needs --network netns")
     layout = getattr(args, "layout", None)
     if layout in ("node", "role") and getattr(args, "containers", None) is not None:
-        raise UsageError(f"--containers needs --layout building, not --layout {layout}")
-    if (layout == "building" or getattr(args, "containers", None) is not None) and (
+        raise UsageError(f"--containers needs --layout house, not --layout {layout}")
+    if (layout == "house" or getattr(args, "containers", None) is not None) and (
             args.plant != "sim" or args.network != "local"):
-        raise UsageError("--layout building and --containers need --plant sim and --network local")
+        raise UsageError("--layout house and --containers need --plant sim and --network local")
     if args.broker and args.network != "local":
         raise UsageError("--broker needs --network local (the netns namespaces reach no other host)")
-    if args.plant == "mqtt":  # the whole topic map, as bridge and building will read it, before they start
+    if args.plant == "mqtt":  # the whole topic map, as bridge and house will read it, before they start
         from comems4build_ros.mqtt.topicmap import load_topic_map
 
         load_topic_map(args.topic_map, args.broker)
@@ -190,7 +190,7 @@ def launch_options(args: argparse.Namespace) -> Any:
         weeks=args.weeks,
         steps=args.steps,
         start=args.start,
-        buildings=args.buildings,
+        houses=args.houses,
         seed=args.seed,
         config_files=list(args.config),
         overrides=overrides,
@@ -246,15 +246,15 @@ def run(args: argparse.Namespace) -> int:
         print(f"comems4build launch: {exc}", file=sys.stderr)
         for ns, s in exc.summaries.items():
             inc = s.get("bag_incomplete", {})
-            print(json.dumps({"building": ns, "run_cut": True, "steps_recorded": inc.get("steps_recorded"),
+            print(json.dumps({"house": ns, "run_cut": True, "steps_recorded": inc.get("steps_recorded"),
                               "steps_expected": inc.get("steps_expected"), **{k: s.get(k) for k in keys}}))
         if exc.summaries:
             print(f"comems4build launch: the run was cut short: the figures above cover only the steps recorded; "
                   f"{bag} is kept and marked incomplete (run_cut.json), summaries in {args.out}", file=sys.stderr)
         return 1
     for ns, s in result.summaries.items():
-        print(json.dumps({"building": ns, **{k: s.get(k) for k in keys}}))
-    print(f"ROS domain {result.domain_id}: {len(result.summaries)} building(s), wall {result.wall_s:.1f} s "
+        print(json.dumps({"house": ns, **{k: s.get(k) for k in keys}}))
+    print(f"ROS domain {result.domain_id}: {len(result.summaries)} house(s), wall {result.wall_s:.1f} s "
           f"(run {result.run_s:.1f} s after the first record)")
     print(f"wrote {result.bag}, {result.out / 'weekly.csv'}, {result.out / 'summary.json'}")
     for s in result.summaries.values():
@@ -301,7 +301,7 @@ def check_live_inputs(args: argparse.Namespace, params: Any) -> None:
 
 
 def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
-    """Build building 0's scenario exactly as its ``feed`` node will, before any node starts.
+    """Build house 0's scenario exactly as its ``feed`` node will, before any node starts.
 
     The feed's own loader and checks run here (a bad file, a window outside the data, a
     run longer than the scenario, missing values the feed refuses), so that a bad

@@ -77,7 +77,7 @@ def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int
 WEEKS = real(0, lo_open=True)
 #: Run length in hours: an integer >= 1.
 HOURS = integer(1)
-#: A count of runs, buildings, steps or repeats: an integer >= 1.
+#: A count of runs, houses, steps or repeats: an integer >= 1.
 COUNT = integer(1)
 #: A duration in seconds: finite and > 0.
 SECONDS = real(0, lo_open=True)
@@ -87,11 +87,11 @@ SEED = integer(0, SEED_MAX)
 DOMAIN_ID = integer(0, ROS_DOMAIN_ID_MAX)
 #: A fraction: finite, in [0, 1].
 FRACTION = real(0, 1)
-#: Most buildings of one ROS launch: a plan of 1000 buildings is built in about 2 s (100000 did not
+#: Most houses of one ROS launch: a plan of 1000 houses is built in about 2 s (100000 did not
 #: finish in 5 min); the runs measured go up to 16 (``bench ros``).
-MAX_BUILDINGS = 1000
-#: A number of buildings of a launch: 1 .. MAX_BUILDINGS.
-BUILDINGS = integer(1, MAX_BUILDINGS)
+MAX_HOUSES = 1000
+#: A number of houses of a launch: 1 .. MAX_HOUSES.
+HOUSES = integer(1, MAX_HOUSES)
 
 
 def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,

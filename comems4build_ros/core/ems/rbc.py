@@ -48,7 +48,7 @@ from comems4build_ros.core.models.electrolyser import ElectrolyserTable
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
 
-class RBCOptions(Section):
+class RBCParams(Section):
     """Options of the RBC (``config/rbc.yaml``, section ``rbc``); see the file for sources.
 
     Each hysteresis switches on at or below its ``*_on_chi`` and off at or above its
@@ -69,7 +69,7 @@ class RBCOptions(Section):
     p_el_ref_cool_t_amb_c: float
 
     @model_validator(mode="after")
-    def _check(self) -> RBCOptions:
+    def _check(self) -> RBCParams:
         for low, high in (("sh_on_chi", "sh_off_chi"), ("dhw_on_chi", "dhw_off_chi"),
                           ("edf_lower_quartile", "edf_upper_quartile")):
             if not getattr(self, low) < getattr(self, high):
@@ -77,7 +77,7 @@ class RBCOptions(Section):
         return self
 
 
-def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCOptions:
+def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCParams:
     """Defaults from ``config/rbc.yaml`` with ``options`` (dotted keys allowed) merged over them."""
     path = config_dir() / "rbc.yaml"
     data = dict(read_ros_params(path).get("rbc", {}))
@@ -85,7 +85,7 @@ def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCOptions:
     for key, value in (options or {}).items():
         set_dotted(extra, str(key), value)
     deep_merge(data, extra)
-    return validate(RBCOptions, data, f"{path} + options" if extra else str(path))
+    return validate(RBCParams, data, f"{path} + options" if extra else str(path))
 
 
 def loh_floor(params: PlantParams, options: Mapping[str, Any] | None = None) -> float:

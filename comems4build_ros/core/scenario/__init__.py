@@ -32,8 +32,8 @@ from comems4build_ros.core.scenario.csvio import (
     write_scenario_csv,
 )
 from comems4build_ros.core.scenario.settings import (
-    MeasuredSettings,
-    ScenarioSettings,
+    MeasuredParams,
+    ScenarioParams,
     load_measured_settings,
     load_scenario_settings,
     split_overrides,
@@ -44,11 +44,11 @@ __all__ = [
     "OPTIONAL_CSV_COLUMNS",
     "SERIES",
     "HOURS_PER_WEEK",
-    "MeasuredSettings",
+    "MeasuredParams",
     "Scenario",
     "ScenarioError",
     "ScenarioWarning",
-    "ScenarioSettings",
+    "ScenarioParams",
     "comfort_bounds",
     "default_scenario",
     "run_steps",
@@ -144,7 +144,7 @@ def scenario_from_frame(
     )
 
 
-def _generated_frame(params: PlantParams, settings: ScenarioSettings, n_steps: int, seed: int) -> pd.DataFrame:
+def _generated_frame(params: PlantParams, settings: ScenarioParams, n_steps: int, seed: int) -> pd.DataFrame:
     """Generated series as a frame, cached in memory on everything they depend on."""
     from comems4build_ros.core.scenario.generator import generate
 
@@ -168,7 +168,7 @@ def _generated_frame(params: PlantParams, settings: ScenarioSettings, n_steps: i
 
 
 def synthetic_scenario(
-    params: PlantParams, weeks: float = 12, seed: int | None = None, settings: ScenarioSettings | None = None
+    params: PlantParams, weeks: float = 12, seed: int | None = None, settings: ScenarioParams | None = None
 ) -> Scenario:
     """The synthetic winter scenario (generated, deterministic, no network; ``--scenario synthetic``).
 
@@ -204,7 +204,7 @@ def synthetic_scenario(
 
 
 def _measured_frame(
-    params: PlantParams, measured: MeasuredSettings, settings: ScenarioSettings, seed: int, fill: str | None
+    params: PlantParams, measured: MeasuredParams, settings: ScenarioParams, seed: int, fill: str | None
 ) -> tuple[pd.DataFrame, dict]:
     """The measured frame (all covered hours), cached in memory on everything it depends on."""
     from comems4build_ros.core.scenario.measured import measured_frame
@@ -230,8 +230,8 @@ def default_scenario(
     params: PlantParams,
     weeks: float | None = None,
     seed: int | None = None,
-    settings: ScenarioSettings | None = None,
-    measured: MeasuredSettings | None = None,
+    settings: ScenarioParams | None = None,
+    measured: MeasuredParams | None = None,
     fill: str | None = None,
 ) -> Scenario:
     """The embedded default scenario: the paper's winter from measured data (no network).
@@ -318,7 +318,7 @@ def check_time_step(params: PlantParams, name: str) -> None:
 
 
 def _synthetic_extension(
-    params: PlantParams, after: pd.Timestamp, rows: int, seed: int | None, settings: ScenarioSettings | None = None
+    params: PlantParams, after: pd.Timestamp, rows: int, seed: int | None, settings: ScenarioParams | None = None
 ) -> tuple[pd.DataFrame, int]:
     """``rows`` generated hours starting one hour after ``after`` (UTC index, the CSV columns) and the seed used."""
     from comems4build_ros.core.scenario.generator import generate
@@ -335,7 +335,7 @@ def _synthetic_extension(
 def _window(
     name: str, frame: pd.DataFrame, params: PlantParams, start: str | None, n_steps: int | None, lookahead_h: int,
     meta: dict, extend: str | None = None, seed: int | None = None, length_text: str = "",
-    keep_lookahead: bool = False, generator: ScenarioSettings | None = None,
+    keep_lookahead: bool = False, generator: ScenarioParams | None = None,
 ) -> Scenario:
     """Cut ``frame`` to start at ``start`` and run ``n_steps`` steps (plus the available look-ahead).
 

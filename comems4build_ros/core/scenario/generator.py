@@ -47,7 +47,7 @@ import pandas as pd
 
 from comems4build_ros.core.config import ConfigError, SiteParams
 from comems4build_ros.core.scenario.comfort import holiday_dates
-from comems4build_ros.core.scenario.settings import HOURS_PER_DAY, ScenarioSettings
+from comems4build_ros.core.scenario.settings import HOURS_PER_DAY, ScenarioParams
 
 #: Energy conversion [Wh per kWh].
 WH_PER_KWH = 1000.0
@@ -93,7 +93,7 @@ def _ar1(rng: np.random.Generator, n: int, phi: float, sigma: float, stationary:
     return x
 
 
-def _episode_profile(days: pd.DatetimeIndex, settings: ScenarioSettings) -> tuple[np.ndarray, np.ndarray]:
+def _episode_profile(days: pd.DatetimeIndex, settings: ScenarioParams) -> tuple[np.ndarray, np.ndarray]:
     """Daily temperature anomaly [K] and wind offset of the configured episodes (ramped)."""
     t = settings.temperature
     anomaly = np.zeros(len(days))
@@ -114,7 +114,7 @@ def _episode_profile(days: pd.DatetimeIndex, settings: ScenarioSettings) -> tupl
     return anomaly, wind
 
 
-def _daily_kc(rng: np.random.Generator, n_days: int, wind: np.ndarray, settings: ScenarioSettings) -> np.ndarray:
+def _daily_kc(rng: np.random.Generator, n_days: int, wind: np.ndarray, settings: ScenarioParams) -> np.ndarray:
     """Daily clear-sky index from a two-state Markov chain with Beta draws [-]."""
     s = settings.solar
     p_fair = s.p_overcast_to_fair / (s.p_overcast_to_fair + s.p_fair_to_overcast)
@@ -138,7 +138,7 @@ def _diurnal_shape(hour: np.ndarray, t_min_hour: float, t_max_hour: float) -> np
 
 def _solar(
     rng: np.random.Generator, time: pd.DatetimeIndex, day: np.ndarray, kc_day: np.ndarray,
-    settings: ScenarioSettings, site: SiteParams,
+    settings: ScenarioParams, site: SiteParams,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Hourly mean GHI and DHI [W/m2] (clear-sky at the middle of the hour times kc).
 
@@ -176,7 +176,7 @@ def _solar_pvlib(
 
 def _temperature(
     rng: np.random.Generator, time: pd.DatetimeIndex, day: np.ndarray, kc_day: np.ndarray,
-    wind_day: np.ndarray, anomaly_day: np.ndarray, settings: ScenarioSettings,
+    wind_day: np.ndarray, anomaly_day: np.ndarray, settings: ScenarioParams,
 ) -> tuple[np.ndarray, np.ndarray]:
     """Hourly ambient temperature [degC] and the daily means behind it."""
     t = settings.temperature
@@ -192,7 +192,7 @@ def _temperature(
 
 def _prices(
     rng: np.random.Generator, time: pd.DatetimeIndex, days: pd.DatetimeIndex, day: np.ndarray,
-    wind_day: np.ndarray, t_daily: np.ndarray, off_day_daily: np.ndarray, settings: ScenarioSettings,
+    wind_day: np.ndarray, t_daily: np.ndarray, off_day_daily: np.ndarray, settings: ScenarioParams,
 ) -> np.ndarray:
     """Hourly day-ahead spot price [EUR/MWh]."""
     p = settings.price
@@ -230,7 +230,7 @@ def dynamisation_factor(day_of_year: np.ndarray, coef: list[float]) -> np.ndarra
     return sum(c * d**i for i, c in enumerate(coef))
 
 
-def expected_load_w(time: pd.DatetimeIndex, off_day: np.ndarray, settings: ScenarioSettings) -> np.ndarray:
+def expected_load_w(time: pd.DatetimeIndex, off_day: np.ndarray, settings: ScenarioParams) -> np.ndarray:
     """Expected appliance load [W] per hour: annual energy * dynamisation * day-type shape."""
     ld = settings.load
     year_mean = dynamisation_factor(np.arange(1, DAYS_PER_YEAR + 1), ld.dynamisation_coef).mean()
@@ -244,7 +244,7 @@ def expected_load_w(time: pd.DatetimeIndex, off_day: np.ndarray, settings: Scena
 
 def _load(
     rng: np.random.Generator, time: pd.DatetimeIndex, day: np.ndarray, off_day: np.ndarray,
-    settings: ScenarioSettings,
+    settings: ScenarioParams,
 ) -> np.ndarray:
     """Hourly appliance load [W] (base + log-normal activity + appliance cycles)."""
     ld = settings.load
@@ -292,7 +292,7 @@ def opendhw_offday_mass_ratio(step_s: int) -> float:
     return float(np.sum(off) / np.sum(work))
 
 
-def _dhw(seed_int: int, time: pd.DatetimeIndex, settings: ScenarioSettings, country: str, subdiv: str) -> np.ndarray:
+def _dhw(seed_int: int, time: pd.DatetimeIndex, settings: ScenarioParams, country: str, subdiv: str) -> np.ndarray:
     """Hourly hot-water draws [l/h] from OpenDHW, one profile per calendar year.
 
     OpenDHW draws with the global ``random`` module; its state is saved and restored.
@@ -334,7 +334,7 @@ def _dhw(seed_int: int, time: pd.DatetimeIndex, settings: ScenarioSettings, coun
 
 
 def generate(
-    settings: ScenarioSettings, site: SiteParams, country: str, subdivision: str, hours: int, seed: int,
+    settings: ScenarioParams, site: SiteParams, country: str, subdivision: str, hours: int, seed: int,
     start: pd.Timestamp | None = None,
 ) -> GeneratedSeries:
     """Generate ``hours`` hourly values of every series from ``start`` (default: settings.start).

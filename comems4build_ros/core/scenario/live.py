@@ -1,4 +1,4 @@
-"""Live inputs for a real building: aWATTar day-ahead prices and an HTTP JSON weather forecast.
+"""Live inputs for a real house: aWATTar day-ahead prices and an HTTP JSON weather forecast.
 
 Used by the feed only when asked (``inputs:=live``); the scenario stays the default
 source. Settings: ``config/live_inputs.yaml``.
@@ -64,14 +64,14 @@ class _Model(Section):
     """A live-input section: the parameter rule of :class:`~comems4build_ros.core.config.Section`."""
 
 
-class _FetchSettings(_Model):
+class _FetchParams(_Model):
     timeout_s: float = Field(gt=0)  # per attempt [s]
     retries: int = Field(ge=1)  # attempts per fetch
     retry_delay_s: float = Field(ge=0)  # wait between attempts [s]
     cache_file: str = ""
 
 
-class PriceSettings(_FetchSettings):
+class LivePriceParams(_FetchParams):
     """``live_inputs.prices`` of ``config/live_inputs.yaml``."""
 
     url: str = Field(pattern=r"^https?://")
@@ -80,7 +80,7 @@ class PriceSettings(_FetchSettings):
     retry_later_s: float = Field(gt=0)
 
 
-class WeatherSettings(_FetchSettings):
+class LiveWeatherParams(_FetchParams):
     """``live_inputs.weather`` of ``config/live_inputs.yaml``."""
 
     url: str = ""
@@ -91,20 +91,20 @@ class WeatherSettings(_FetchSettings):
     refresh_s: float = Field(gt=0)
 
 
-class LiveSettings(_Model):
+class LiveInputParams(_Model):
     """The ``live_inputs`` section."""
 
-    prices: PriceSettings
-    weather: WeatherSettings
+    prices: LivePriceParams
+    weather: LiveWeatherParams
 
 
-def load_live_settings(path: str | Path | None = None) -> LiveSettings:
+def load_live_settings(path: str | Path | None = None) -> LiveInputParams:
     """Read ``config/live_inputs.yaml`` (or ``path``); errors name the file and parameter."""
     path = Path(path) if path else config_dir() / "live_inputs.yaml"
     data = read_ros_params(path).get("live_inputs")
     if not isinstance(data, dict):
         raise ConfigError(f"{path}: no 'live_inputs' section")
-    return validate(LiveSettings, data, str(path))
+    return validate(LiveInputParams, data, str(path))
 
 
 def http_get(url: str, timeout_s: float, retries: int, retry_delay_s: float,
@@ -189,7 +189,7 @@ class PriceSource(_CachedSource):
     sleep : wait between attempts (tests pass their own)
     """
 
-    def __init__(self, settings: PriceSettings, timezone: str, cache_path: Path, warn: Callable[[str], None],
+    def __init__(self, settings: LivePriceParams, timezone: str, cache_path: Path, warn: Callable[[str], None],
                  now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
         super().__init__(settings, timezone, cache_path, warn, now, sleep)
         self.prices = pd.Series(dtype=float, name="spot_eur_per_mwh")
@@ -315,7 +315,7 @@ def _dig(doc: Any, dotted: str, source: str) -> Any:
     return cur
 
 
-def parse_weather(text: str, settings: WeatherSettings, timezone: str, source: str) -> pd.DataFrame:
+def parse_weather(text: str, settings: LiveWeatherParams, timezone: str, source: str) -> pd.DataFrame:
     """Hourly ``t_amb_c`` [degC] and ``ghi_w_m2`` [W/m2] of a forecast answer, UTC index.
 
     Raises
@@ -355,7 +355,7 @@ def parse_weather(text: str, settings: WeatherSettings, timezone: str, source: s
 class WeatherSource(_CachedSource):
     """HTTP JSON weather forecast with retries, periodic refresh and a cache (module docstring)."""
 
-    def __init__(self, settings: WeatherSettings, timezone: str, cache_path: Path, warn: Callable[[str], None],
+    def __init__(self, settings: LiveWeatherParams, timezone: str, cache_path: Path, warn: Callable[[str], None],
                  now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
         super().__init__(settings, timezone, cache_path, warn, now, sleep)
         self.frame = pd.DataFrame(columns=["t_amb_c", "ghi_w_m2"], dtype=float)

@@ -34,7 +34,7 @@ import pandas as pd
 from comems4build_ros.core.config import PlantParams
 from comems4build_ros.core.scenario.base import CSV_COLUMNS
 from comems4build_ros.core.scenario.csvio import ScenarioError
-from comems4build_ros.core.scenario.settings import HOURS_PER_DAY, MeasuredSettings, ScenarioSettings
+from comems4build_ros.core.scenario.settings import HOURS_PER_DAY, MeasuredParams, ScenarioParams
 from comems4build_ros.files.paths import PACKAGE_DIR
 
 #: Days of a week.
@@ -179,7 +179,7 @@ def rank_matched(values: np.ndarray, key: np.ndarray) -> np.ndarray:
 
 
 def measured_frame(
-    params: PlantParams, measured: MeasuredSettings, generator: ScenarioSettings, seed: int | None = None,
+    params: PlantParams, measured: MeasuredParams, generator: ScenarioParams, seed: int | None = None,
     fill: str | None = None,
 ) -> tuple[pd.DataFrame, dict]:
     """All hours the package data covers, from ``measured.start``, as a scenario frame.

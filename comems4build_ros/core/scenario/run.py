@@ -1,7 +1,7 @@
 """The scenario of a run as a distributed run uses it: loaded, cut to its window, checked.
 
 The feed node builds its run's scenario here, and so do the commands that must check a
-scenario before they start any node (``comems4build launch``), the simulated building
+scenario before they start any node (``comems4build launch``), the simulated house
 behind MQTT (``mqtt_plant``) and the ROS benchmark, so that all of them get exactly the
 scenario the feed publishes. On top of :func:`comems4build_ros.core.scenario.resolve_scenario`
 (the core loaders with their file checks): a cut to the first ``steps`` steps, and a

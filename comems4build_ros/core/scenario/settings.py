@@ -40,7 +40,7 @@ class Episode(_Section):
         return self
 
 
-class TemperatureSettings(_Section):
+class TemperatureParams(_Section):
     """Ambient temperature model [degC, K]."""
 
     mean_c: float
@@ -57,19 +57,19 @@ class TemperatureSettings(_Section):
     episode_ramp_days: int = Field(ge=0)
 
     @model_validator(mode="after")
-    def _check(self) -> TemperatureSettings:
+    def _check(self) -> TemperatureParams:
         if self.t_max_hour <= self.t_min_hour:
             raise ValueError("t_max_hour must be later than t_min_hour")
         return self
 
 
-class WindSettings(_Section):
+class WindParams(_Section):
     """Latent daily wind index (dimensionless)."""
 
     ar_phi: float = Field(ge=0, lt=1)
 
 
-class SolarSettings(_Section):
+class SolarParams(_Section):
     """Clear-sky model and stochastic cloudiness."""
 
     clearsky_model: str
@@ -84,13 +84,13 @@ class SolarSettings(_Section):
     kc_max: float = Field(gt=0)
 
     @model_validator(mode="after")
-    def _check(self) -> SolarSettings:
+    def _check(self) -> SolarParams:
         if self.clearsky_model not in ("ineichen", "haurwitz", "simplified_solis"):
             raise ValueError(f"clearsky_model '{self.clearsky_model}' is not a pvlib clear-sky model")
         return self
 
 
-class PriceSettings(_Section):
+class PriceParams(_Section):
     """Day-ahead spot price model [EUR/MWh]."""
 
     level_dates: list[date]
@@ -110,7 +110,7 @@ class PriceSettings(_Section):
     negative_compression: float = Field(ge=0, le=1)
 
     @model_validator(mode="after")
-    def _check(self) -> PriceSettings:
+    def _check(self) -> PriceParams:
         if len(self.level_dates) != len(self.level_eur_per_mwh) or not self.level_dates:
             raise ValueError("level_dates and level_eur_per_mwh need the same non-zero length")
         if any(b <= a for a, b in zip(self.level_dates, self.level_dates[1:])):
@@ -122,7 +122,7 @@ class PriceSettings(_Section):
         return self
 
 
-class LoadSettings(_Section):
+class LoadParams(_Section):
     """Appliance load model [W]."""
 
     annual_kwh: float = Field(gt=0)
@@ -137,7 +137,7 @@ class LoadSettings(_Section):
     cycle_hours: int = Field(ge=1, le=12)
 
     @model_validator(mode="after")
-    def _check(self) -> LoadSettings:
+    def _check(self) -> LoadParams:
         for name in ("shape_workday", "shape_offday"):
             shape = getattr(self, name)
             if len(shape) != HOURS_PER_DAY or min(shape) < 0 or sum(shape) <= 0:
@@ -145,7 +145,7 @@ class LoadSettings(_Section):
         return self
 
 
-class DHWSettings(_Section):
+class DHWDrawParams(_Section):
     """Hot-water draw profile via OpenDHW [l/h]."""
 
     litres_per_day: float = Field(gt=0)
@@ -154,7 +154,7 @@ class DHWSettings(_Section):
     step_s: int
 
     @model_validator(mode="after")
-    def _check(self) -> DHWSettings:
+    def _check(self) -> DHWDrawParams:
         if self.categories not in (1, 4):
             raise ValueError("categories must be 1 or 4 (DHWcalc)")
         if self.step_s not in (60, 300, 600, 900, 1800, 3600):
@@ -162,28 +162,28 @@ class DHWSettings(_Section):
         return self
 
 
-class ScenarioSettings(_Section):
+class ScenarioParams(_Section):
     """The ``scenario`` section of ``config/scenario.yaml``."""
 
     seed: int = Field(ge=0)
     start: datetime
     weeks: int = Field(ge=1)
     lookahead_h: int = Field(ge=0)
-    temperature: TemperatureSettings
-    wind: WindSettings
-    solar: SolarSettings
-    price: PriceSettings
-    load: LoadSettings
-    dhw: DHWSettings
+    temperature: TemperatureParams
+    wind: WindParams
+    solar: SolarParams
+    price: PriceParams
+    load: LoadParams
+    dhw: DHWDrawParams
 
     @model_validator(mode="after")
-    def _check(self) -> ScenarioSettings:
+    def _check(self) -> ScenarioParams:
         if self.start.tzinfo is not None:
             raise ValueError("start is a local time of the site: give it without UTC offset")
         return self
 
 
-class MeasuredTemperatureSettings(_Section):
+class MeasuredTemperatureParams(_Section):
     """How the measured temperature record is extended past its last hour."""
 
     file: str
@@ -192,13 +192,13 @@ class MeasuredTemperatureSettings(_Section):
     fill_seam_h: int = Field(ge=0, le=240)
 
     @model_validator(mode="after")
-    def _check(self) -> MeasuredTemperatureSettings:
+    def _check(self) -> MeasuredTemperatureParams:
         if self.fill not in FILL_METHODS:
             raise ValueError(f"fill '{self.fill}' is not one of {', '.join(FILL_METHODS)}")
         return self
 
 
-class MeasuredSettings(_Section):
+class MeasuredParams(_Section):
     """The ``measured`` section of ``config/scenario.yaml``: the embedded default scenario.
 
     Measured prices, temperature and hot-water draws of the paper's winter (package data,
@@ -212,13 +212,13 @@ class MeasuredSettings(_Section):
     seed: int = Field(ge=0)
     prices_file: str
     prices_column: str
-    temperature: MeasuredTemperatureSettings
+    temperature: MeasuredTemperatureParams
     dhw_file: str
     dhw_day1_weekday: int = Field(ge=0, le=6)
     kc_from_temperature_amplitude: bool
 
     @model_validator(mode="after")
-    def _check(self) -> MeasuredSettings:
+    def _check(self) -> MeasuredParams:
         if self.start.tzinfo is not None:
             raise ValueError("start is a local time of the site: give it without UTC offset")
         return self
@@ -243,7 +243,7 @@ def _section(path: str | Path | None, name: str, overrides: Mapping[str, Any] | 
 
 def load_measured_settings(
     path: str | Path | None = None, overrides: Mapping[str, Any] | None = None, section: str = "measured"
-) -> MeasuredSettings:
+) -> MeasuredParams:
     """Read and validate a measured-data section of a parameter file (default ``config/scenario.yaml``).
 
     ``section``: ``measured`` (the paper's winter, ``--scenario default``) or
@@ -257,7 +257,7 @@ def load_measured_settings(
         Naming the file and the parameter if the section is missing or invalid.
     """
     data, label = _section(path, section, overrides)
-    return validate(MeasuredSettings, data, label)
+    return validate(MeasuredParams, data, label)
 
 
 def default_scenario_file() -> Path:
@@ -267,7 +267,7 @@ def default_scenario_file() -> Path:
 
 def load_scenario_settings(
     path: str | Path | None = None, overrides: Mapping[str, Any] | None = None
-) -> ScenarioSettings:
+) -> ScenarioParams:
     """Read and validate the ``scenario`` section (the synthetic generator) of a parameter file.
 
     ``overrides`` are dotted keys inside the section (``{"load.annual_kwh": 4000}``).
@@ -278,7 +278,7 @@ def load_scenario_settings(
         Naming the file and the parameter if the section is missing or invalid.
     """
     section, label = _section(path, "scenario", overrides)
-    return validate(ScenarioSettings, section, label)
+    return validate(ScenarioParams, section, label)
 
 
 def split_overrides(overrides: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:

@@ -206,7 +206,7 @@ class Feed(EndsWithRun, ContractNode):
     def __init__(self, scenario: Scenario | None = None, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``;
         ``scenario``: the scenario of the node's parameters prepared beforehand
-        (:func:`prepare_scenario`, used by the feed host to build many in parallel)."""
+        (:func:`prepare_scenario`, used by a container process of feeds to build many in parallel)."""
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         from comems4build_ros.core.loop import load_forecast_settings
 
@@ -223,7 +223,7 @@ class Feed(EndsWithRun, ContractNode):
         sizes_ = layout_sizes(params)
         self._truth = ArrayPublisher(self, "feed/truth", sizes_)
         forecast_topics = tuple(t.name for t in self.contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
-        # With a building behind MQTT its own meters give the PV output and load: the
+        # With a house behind MQTT its own meters give the PV output and load: the
         # mqtt_bridge publishes feed/measured and the feed leaves it out.
         self.publish_measured = bool(param(self, "publish_measured", True))
         # Serving one EMS, the feed publishes only what that EMS reads (its information

@@ -1,8 +1,8 @@
-"""``mqtt_bridge``: the topic contract on one side, a building behind MQTT on the other.
+"""``mqtt_bridge``: the topic contract on one side, a house behind MQTT on the other.
 
 The bridge stands in for ``plant_sim``: it publishes the plant's topics (``state/*``,
 ``plant/step``, ``plant/record``, ``clock``, ``plant/done``, ``plant/events``) from the
-building's MQTT measurements and forwards each ``ems/command`` as MQTT set-points
+house's MQTT measurements and forwards each ``ems/command`` as MQTT set-points
 (heat-pump mode and modulation, fuel-cell power, battery power) with the topics, units
 and scaling of the topic map (``config/mqtt.yaml``). With the map's PV and load meters it
 also publishes ``feed/measured`` (the feed then runs with ``publish_measured:=false``).
@@ -13,14 +13,14 @@ than ``record_window_steps`` beyond ``recorder/progress`` (with ``wait_for_recor
 and the end of the run through :func:`~comems4build_ros.ros.nodes.plant_sim.finish_run`
 (transient-local ``plant/done``, then the bridge stays until the recorder has left). With
 ``stall_steps`` > 0 (the launcher sets it) the run ends with exit code 4 naming the silent
-party: the EMS (no command for ``stall_steps`` steps), the recorder, or the building and
-the broker (nothing from the building for ``stall_steps`` step time-outs, or periods of a
+party: the EMS (no command for ``stall_steps`` steps), the recorder, or the house and
+the broker (nothing from the house for ``stall_steps`` step time-outs, or periods of a
 wall clock: a broker that is down and does not come back is named with its URL).
 
 Clock (parameter ``clock``; :mod:`comems4build_ros.mqtt.clock`):
 
 * ``sim``: lock-step over MQTT. The bridge announces step ``k`` once every measurement
-  tagged ``k`` (and the building's record of ``k - 1``) has arrived, forwards the EMS's
+  tagged ``k`` (and the house's record of ``k - 1``) has arrived, forwards the EMS's
   command tagged ``k``, and repeats whatever the other side may have lost every
   ``republish_period_s``, so a broker restart loses no step.
 * ``wall`` / ``wall:<factor>``: step ``k`` starts at ``t0 + k * period`` (``t0`` a
@@ -65,7 +65,7 @@ from comems4build_ros.core.types import ACTION_FIELDS, Action
 from comems4build_ros.mqtt.client import MqttLink
 from comems4build_ros.mqtt.clock import parse_clock
 from comems4build_ros.mqtt.discovery import AVAILABLE, NOT_AVAILABLE, PAYLOAD_OFF, PAYLOAD_ON, discovery_messages
-from comems4build_ros.mqtt.plant import BRIDGE_RECORD_FIELDS
+from comems4build_ros.mqtt.plant_sim import BRIDGE_RECORD_FIELDS
 from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
 from comems4build_ros.mqtt.topicmap import PayloadError, load_topic_map
 from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
@@ -76,8 +76,8 @@ from comems4build_ros.wire.contract import WITHHELD_EVENT
 from comems4build_ros.wire.ems_command import CommandError, check_token
 
 NODE_NAME = "mqtt_bridge"
-#: Lock-step: alarm when the building has sent nothing for this long [s].
-BUILDING_TIMEOUT_S = 10.0
+#: Lock-step: alarm when the house has sent nothing for this long [s].
+HOUSE_TIMEOUT_S = 10.0
 #: Wall modes: announce a step this share of the period after its start (at most
 #: MEASURE_DELAY_MAX_S), so that measurements taken at the start of the step are in.
 MEASURE_DELAY_SHARE = 0.2
@@ -85,10 +85,10 @@ MEASURE_DELAY_MAX_S = 5.0
 #: Wall modes: the EMS's command must arrive before this share of the period has passed.
 COMMAND_DEADLINE_SHARE = 0.9
 ACK_TIMEOUT_S = 5.0
-#: Wall modes with step-tagged measurements (the simulated building): wait for the
+#: Wall modes with step-tagged measurements (the simulated house): wait for the
 #: measurements of step k up to this share of the period before announcing k with the
 #: latest ones. At wall:3600 a 0.1 s scheduling delay of a loaded machine is 6 simulated
-#: minutes; a real building sends no tags and is read at the announcement time.
+#: minutes; a real house sends no tags and is read at the announcement time.
 WALL_TAG_WAIT_SHARE = 0.5
 HP_MODE_WORDS = {0: "off", 1: "heating", 2: "dhw"}
 
@@ -98,7 +98,7 @@ class MqttBridge(LockStepMaster):
 
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
-        super().__init__(NODE_NAME, {"building_timeout_s": BUILDING_TIMEOUT_S}, **node_kwargs)
+        super().__init__(NODE_NAME, {"house_timeout_s": HOUSE_TIMEOUT_S}, **node_kwargs)
         self.map = load_topic_map(str(param(self, "topic_map", "")) or None, str(param(self, "broker_url", "")) or None)
         self.clock = parse_clock(str(param(self, "clock", "sim")), self.params.simulation.time_step_h)
         delay = float(param(self, "measure_delay_s", -1.0))
@@ -146,12 +146,12 @@ class MqttBridge(LockStepMaster):
         self._sent: list[tuple[str, bytes]] = []
         self._held: tuple[int, Action, bool] | None = None
         self._alarm_step = -1
-        self._building_alarmed = -1
+        self._house_alarmed = -1
         self._t_created = time.monotonic()
         self._t_phase = self._t_created
         self._t_announce = 0.0
         self._t_sent = 0.0
-        self._t_building = self._t_created
+        self._t_house = self._t_created
         self.kpis = {"cost_eur": 0.0, "discomfort_kh": 0.0, "grid_import_kwh": 0.0, "grid_export_kwh": 0.0}
 
         self._wake = self.create_guard_condition(self._on_mqtt)
@@ -194,14 +194,14 @@ class MqttBridge(LockStepMaster):
                 except PayloadError as exc:
                     self.bad_measurements += 1
                     self.event("rejected", f"measurement '{name}': {exc}")
-                    # lock-step: the building sends only the step the bridge waits for, so
+                    # lock-step: the house sends only the step the bridge waits for, so
                     # the unreadable value stands for it (and gets the fallback)
                     value, step = math.nan, (self.k if self.phase == "measure" and not self.clock.wall else None)
                 self.watchdog.update(name, value, step, msg.t_recv)
-                self._t_building = msg.t_recv
+                self._t_house = msg.t_recv
             elif msg.topic == self.map.sim_record_topic:
                 self._on_record(msg.payload)
-                self._t_building = msg.t_recv
+                self._t_house = msg.t_recv
             elif msg.topic in self._switch_topics:
                 self._on_switch(self._switch_topics[msg.topic], msg.payload)
         self._advance()
@@ -455,7 +455,7 @@ class MqttBridge(LockStepMaster):
             return
         if self._tagged and not self.watchdog.complete_for(nk) \
                 and unix < t0 + (nk + WALL_TAG_WAIT_SHARE) * period:
-            return  # the building tags its measurements: give a late one a moment (machine jitter)
+            return  # the house tags its measurements: give a late one a moment (machine jitter)
         if self._tagged and not self.watchdog.complete_for(nk):
             self.untagged_announcements += 1
         self.k = nk
@@ -475,7 +475,7 @@ class MqttBridge(LockStepMaster):
         return self.stall_steps * max(self.step_timeout_s, period)
 
     def waiting_for(self) -> tuple[str, str | None] | None:
-        """The recorder (back-pressure), the building over MQTT (its measurements or its
+        """The recorder (back-pressure), the house over MQTT (its measurements or its
         record of the step), or None (the EMS's command; a wall clock steps anyway)."""
         if self.clock.wall or self.phase == "command":
             return None
@@ -483,14 +483,14 @@ class MqttBridge(LockStepMaster):
                 self.k + 1 - self._recorded > self.record_window_steps:
             return f"the recorder '{self.recorder_node}' (written: {self._recorded})", "recorder/progress"
         what = "measurements" if self.phase == "measure" else "record"
-        return f"the building's {what} of step {self.k} over MQTT ({self.link.describe()})", None
+        return f"the house's {what} of step {self.k} over MQTT ({self.link.describe()})", None
 
     def _watchdog(self) -> None:
         now = time.monotonic()
         if self.done or self.check_stall(now):
             return
-        if self.stall_steps and self.started and now - self._t_building > self.stall_window_s():
-            self.stall(f"nothing from the building for {now - self._t_building:.1f} s at step {self.k} "
+        if self.stall_steps and self.started and now - self._t_house > self.stall_window_s():
+            self.stall(f"nothing from the house for {now - self._t_house:.1f} s at step {self.k} "
                        f"({self.link.describe()})")
             return
         if not self.started:
@@ -512,14 +512,14 @@ class MqttBridge(LockStepMaster):
         if self.phase == "command" and now - self._t_announce > self.republish_period_s and self._t_announce:
             self._announce(self.k)
         elif self.phase == "sent" and not self.clock.wall and now - self._t_sent > self.republish_period_s:
-            for topic, payload in self._sent:  # the building may have lost them (broker restart)
+            for topic, payload in self._sent:  # the house may have lost them (broker restart)
                 self.link.publish(topic, payload)
             self._t_sent = now
-        # before the building's first message the start-up timeout applies (scenario, imports)
-        silent_limit = self.building_timeout_s if self.watchdog.latest else self.startup_timeout_s
-        if not self.clock.wall and now - self._t_building > silent_limit and self._building_alarmed != self.k:
-            self._building_alarmed = self.k
-            self._alarm(self.k, "building_silent", f"nothing from the building for {now - self._t_building:.1f} s "
+        # before the house's first message the start-up timeout applies (scenario, imports)
+        silent_limit = self.house_timeout_s if self.watchdog.latest else self.startup_timeout_s
+        if not self.clock.wall and now - self._t_house > silent_limit and self._house_alarmed != self.k:
+            self._house_alarmed = self.k
+            self._alarm(self.k, "house_silent", f"nothing from the house for {now - self._t_house:.1f} s "
                                                    f"(broker {self.map.broker.url}, connected: "
                                                    f"{self.link.connected.is_set()})", None)
         self._advance()
@@ -539,11 +539,11 @@ class MqttBridge(LockStepMaster):
         }
 
     def _finish(self) -> None:
-        def tell_building() -> None:
-            self._publish_step(self.n_steps or self.k)  # the building's acknowledgement
+        def tell_house() -> None:
+            self._publish_step(self.n_steps or self.k)  # the house's acknowledgement
             self.link.publish(self.map.run_topic, "", retain=True)
 
-        self.finish_run(tell_building)
+        self.finish_run(tell_house)
 
     def destroy_node(self) -> None:  # noqa: D102
         self.link.stop(final=(self.map.availability_topic, NOT_AVAILABLE))

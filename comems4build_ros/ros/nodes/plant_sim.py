@@ -1,4 +1,4 @@
-"""``plant_sim``: the building plant as a ROS 2 node, master of the lock-step loop.
+"""``plant_sim``: the plant simulator of a house as a ROS 2 node, master of the lock-step loop.
 
 The node owns a :class:`comems4build_ros.core.plant.Plant` and advances it one step at a
 time, only when both the inputs of the step (``feed/truth``) and a valid command for the
@@ -48,7 +48,7 @@ NODE_NAME = "plant_sim"
 #: Interval of the "waiting for feed/truth" warning [s].
 FEED_WARN_PERIOD_S = 10.0
 
-class PlantSim(LockStepMaster):
+class PlantSimNode(LockStepMaster):
     """Plant simulator node (see the module docstring)."""
 
     def __init__(self, **node_kwargs: Any) -> None:
@@ -282,7 +282,7 @@ class PlantSim(LockStepMaster):
 
 def main(args: list[str] | None = None) -> int:
     """Entry point of ``plant_sim`` (``ros2 run comems4build_ros plant_sim``)."""
-    return run_node(PlantSim, args, NODE_NAME)
+    return run_node(PlantSimNode, args, NODE_NAME)
 
 
 if __name__ == "__main__":

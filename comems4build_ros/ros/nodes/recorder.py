@@ -363,7 +363,7 @@ class Recorder(Node):
 
         A reliable writer can hold back samples for seconds (a full shared-memory port or
         a retransmission waits for the next heartbeat) while plant/record is complete:
-        measured, 4 buildings in one recorder process closed their bags up to 820 steps
+        measured, 4 houses in one recorder process closed their bags up to 820 steps
         short on some topics when the end of the run was "every record in and 0.3 s
         without a message".
         """

@@ -67,7 +67,7 @@ SKIP_TOPICS = frozenset({"recorder/ready", "recorder/progress"})
 
 
 def _split(topic: str, names: set[str]) -> tuple[str, str] | None:
-    """``/building_1/feed/truth`` -> (``/building_1``, ``feed/truth``) for a known contract name."""
+    """``/house_1/feed/truth`` -> (``/house_1``, ``feed/truth``) for a known contract name."""
     for name in names:
         if topic == f"/{name}":
             return "/", name
@@ -227,7 +227,7 @@ def parse_cli(argv: list[str]) -> argparse.Namespace:
     parser.add_argument("bag", nargs="?", default=None, help="rosbag2 directory or .mcap file")
     parser.add_argument("--rate", type=float, default=None, help="1 = real time, 10 = 10x, 0 = as fast as possible")
     parser.add_argument("--inputs-only", action="store_true", help="replay only the feed topics, paced by the plant")
-    parser.add_argument("--source-namespace", default=None, help="namespace of the bag to replay (multi-building)")
+    parser.add_argument("--source-namespace", default=None, help="namespace of the bag to replay (multi-house)")
     return parser.parse_args(argv)
 
 

@@ -24,7 +24,7 @@ from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon, season_schedules
 from comems4build_ros.core.ems.mpc.milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
-from comems4build_ros.core.ems.mpc.settings import MILPOptions, load_options
+from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
 from comems4build_ros.core.ems.mpc.solvers import make_backend
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
@@ -97,7 +97,7 @@ class MPCController:
     Parameters
     ----------
     params : plant parameters (the MPC's forecasting models)
-    options : overrides of ``config/mpc.yaml`` section ``mpc`` (see :class:`.settings.MILPOptions`)
+    options : overrides of ``config/mpc.yaml`` section ``mpc`` (see :class:`.settings.MILPParams`)
     """
 
     name = "mpc"
@@ -105,7 +105,7 @@ class MPCController:
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
         self.params = params
-        self.options: MILPOptions = load_options(MILPOptions, "mpc", options)  # type: ignore[assignment]
+        self.options: MILPParams = load_options(MILPParams, "mpc", options)  # type: ignore[assignment]
         o = self.options
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
         self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,

@@ -30,7 +30,7 @@ class PlantConstants:
     Attributes
     ----------
     n : horizon steps [-]; dt_h : step [h]
-    ad, bd : building ZOH matrices, x = [T_air, T_w_in, T_w_out], u = [Q_h_SH W, T_amb degC, q_s W/m2]
+    ad, bd : building model ZOH matrices, x = [T_air, T_w_in, T_w_out], u = [Q_h_SH W, T_amb degC, q_s W/m2]
         (eq:state_update_bldgs)
     l_per_wh : DHW volume change per Wh of heat at T_DHW [l/Wh] (eq:DHW_model)
     q_dhw_loss_w : standing loss [W]; v_min_l, v_max_l : usable volume bounds [l]
@@ -133,7 +133,7 @@ class HorizonData:
 
     Attributes
     ----------
-    x0 : building state at the end of step k-1 [degC] (T_air, T_w_in, T_w_out)
+    x0 : building model state at the end of step k-1 [degC] (T_air, T_w_in, T_w_out)
     soc0, loh0 : battery and H2 levels [-]; v0_l : usable DHW volume [l]
     fc_on_prev : FC on in step k-1 (eq:on_off_logic)
     t_amb_c, ghi_w_m2, p_pv_w, p_load_w : weather, PV and appliance forecasts

@@ -52,7 +52,7 @@ A year-round plant (``docs/seasonal.md``; ``PlantConstants.year_round``) adds, a
   ``sigma_el_on_eur``; the store's upper bound ``loh_hi`` (hard);
 - cooling: ``mod_min P_cool,max s_cool <= P_HP,cool <= P_cool,max s_cool`` with
   ``P_cool,max = Q_cool,max / EER(T_amb[t])``, ``s_SH + s_DHW + s_cool <= 1``, the heat
-  ``- EER P_HP,cool`` into the building equations, the intake in ``balance``;
+  ``- EER P_HP,cool`` into the building model's equations, the intake in ``balance``;
 - the seasonal target of the store: ``loh_season_{t}``: ``LOH + sl_loh_season >= target[t]``
   (soft, ``penalty_loh_season_eur_per_h``), the FC off while the store is at or below the
   target (``P_FC`` bounded by 0; inside the heating season the target is 0), and the H2 left
@@ -179,7 +179,7 @@ class MILPModel:
         self.form = MatrixForm(self.prob, self.mutable)
         self._cols = {name: np.array([self.form.col_index[v.name] for v in vars_]) for name, vars_ in self.v.items()}
 
-    # ----------------------------------------------------------------- building
+    # ----------------------------------------------------------------- building model
     def _var(self, name: str, low: float | None = 0.0, up: float | None = None, binary: bool = False) -> None:
         if binary:  # binary for t < integer_steps, relaxed to [0, 1] after
             self.v[name] = [

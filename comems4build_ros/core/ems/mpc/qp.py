@@ -39,7 +39,7 @@ from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc.controller import STATUS_FEASIBLE, STATUS_NONE, STATUS_OPTIMAL
 from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon
-from comems4build_ros.core.ems.mpc.settings import QPOptions, load_options
+from comems4build_ros.core.ems.mpc.settings import QPParams, load_options
 from comems4build_ros.core.numerics import rowdot
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH, Action
 
@@ -58,7 +58,7 @@ INF = np.inf
 class QPModel:
     """The relaxed horizon problem in OSQP form ``min 1/2 z'Pz + q'z, l <= Az <= u``."""
 
-    def __init__(self, const: PlantConstants, opts: QPOptions) -> None:
+    def __init__(self, const: PlantConstants, opts: QPParams) -> None:
         self.k, self.o = const, opts
         self.n = const.n
         self.nv = len(QP_VARS)
@@ -292,7 +292,7 @@ class QPController:
     Parameters
     ----------
     params : plant parameters
-    options : overrides of ``config/mpc.yaml`` section ``mpc_qp`` (see :class:`.settings.QPOptions`)
+    options : overrides of ``config/mpc.yaml`` section ``mpc_qp`` (see :class:`.settings.QPParams`)
     """
 
     name = "mpc-qp"
@@ -300,7 +300,7 @@ class QPController:
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
         self.params = params
-        self.options: QPOptions = load_options(QPOptions, "mpc_qp", options)  # type: ignore[assignment]
+        self.options: QPParams = load_options(QPParams, "mpc_qp", options)  # type: ignore[assignment]
         self.const = PlantConstants.from_params(params, self.options.fc_lifecycle_eta)
         self.step_info: dict[str, float] = {}
         self.reset()

@@ -26,7 +26,7 @@ from comems4build_ros.core.config import (
 )
 
 
-class _Options(Section):
+class _MPCParams(Section):
     loh_min_mode: Literal["day", "step"] = "day"
     fc_lifecycle_eta: Literal["eta_el_mpc", "eta_sys", "one"] = "one"
     fc_heat_dump: bool = False
@@ -37,7 +37,7 @@ class _Options(Section):
     slack_report_tol: float = Field(default=1e-4, gt=0)
 
 
-class MILPOptions(_Options):
+class MILPParams(_MPCParams):
     """Options of the MILP controller (``mpc`` section)."""
 
     solver: Literal["highs", "highs_pulp", "cbc", "gurobi"] = "highs"
@@ -59,7 +59,7 @@ class MILPOptions(_Options):
     sigma_el_on_eur: float = Field(default=0.04, ge=0)
 
 
-class QPOptions(_Options):
+class QPParams(_MPCParams):
     """Options of the OSQP controller (``mpc_qp`` section)."""
 
     w_fc_smooth_eur_per_kw2: float = Field(default=0.05, ge=0)
@@ -79,8 +79,8 @@ def default_mpc_file() -> Path:
 
 
 def load_options(
-    model: type[_Options], section: str, options: Mapping[str, Any] | None, path: str | Path | None = None
-) -> _Options:
+    model: type[_MPCParams], section: str, options: Mapping[str, Any] | None, path: str | Path | None = None
+) -> _MPCParams:
     """Read ``section`` of ``config/mpc.yaml`` (or ``path``), apply ``options``, validate.
 
     ``options`` may hold a ``config`` key naming another parameter file to read instead.

@@ -1,15 +1,15 @@
-"""``mqtt_plant``: the simulated building with its I/O over MQTT instead of ROS.
+"""``mqtt_plant``: the simulated house with its I/O over MQTT instead of ROS.
 
 The same :class:`comems4build_ros.core.plant.Plant`, scenario and initial state as
-``plant_sim`` and the in-process loop, but it talks to the world like a real building
+``plant_sim`` and the in-process loop, but it talks to the world like a real house
 behind Home Assistant: it publishes its measurements on the topics of the topic map
 (``config/mqtt.yaml``, same units and scaling as a real install) and applies the
 set-points it reads there. The ``mqtt_bridge`` node connects it to the EMS, so the loop
-EMS -> bridge -> MQTT -> building -> MQTT -> bridge -> EMS closes over a real broker.
+EMS -> bridge -> MQTT -> house -> MQTT -> bridge -> EMS closes over a real broker.
 
 Clock (:mod:`comems4build_ros.mqtt.clock`):
 
-* ``sim``: lock-step. The building publishes the measurements of step ``k`` (the state
+* ``sim``: lock-step. The house publishes the measurements of step ``k`` (the state
   at the start of ``k``, the PV output and load of ``k``), each tagged with ``k`` (the
   map's ``step_key``), waits for a complete set of set-points tagged ``k``, steps the
   plant and publishes the step's timeseries row on ``sim_record_topic``. While it waits
@@ -53,7 +53,7 @@ POLL_S = 0.002
 #: Wall clock: wait for the step's set-points up to this share of the period past the end
 #: of the step before applying the latest ones (tagged set-points only).
 WALL_SETPOINT_WAIT_SHARE = 0.3
-#: Record fields the bridge fills in (not known to the building).
+#: Record fields the bridge fills in (not known to the house).
 BRIDGE_RECORD_FIELDS = ("fallback", "fallback_steps", "rejected_commands", "wrong_step_commands",
                         "foreign_commands")
 
@@ -70,12 +70,12 @@ def record_fields(k: int, n_steps: int, t0_unix_s: float, flows: Flows, state: P
     return out
 
 
-class SimBuilding:
+class MqttPlantSim:
     """The plant and its scenario, with MQTT payloads in and out (see the module docstring).
 
     Parameters
     ----------
-    topic_map : the topic map (the building publishes measurements, reads set-points)
+    topic_map : the topic map (the house publishes measurements, reads set-points)
     params : plant parameters
     scenario : the run's scenario (the same window as the feed's)
     """
@@ -152,10 +152,10 @@ def _publish_all(link: MqttLink, messages: list[tuple[str, bytes]]) -> None:
         link.publish(topic, payload)
 
 
-def run(building: SimBuilding, link: MqttLink, clock: Clock, republish_s: float = REPUBLISH_S,
+def run(house: MqttPlantSim, link: MqttLink, clock: Clock, republish_s: float = REPUBLISH_S,
         idle_timeout_s: float = IDLE_TIMEOUT_S, done_timeout_s: float = DONE_TIMEOUT_S) -> int:
-    """Run the building until its last step is acknowledged; returns the exit code."""
-    m = building.map
+    """Run the house until its last step is acknowledged; returns the exit code."""
+    m = house.map
     bridge_step = -1
     run_msg: dict[str, Any] | None = None
 
@@ -173,50 +173,50 @@ def run(building: SimBuilding, link: MqttLink, clock: Clock, republish_s: float 
                 except (ValueError, UnicodeDecodeError):
                     run_msg = None
             else:
-                building.on_setpoint(msg.topic, msg.payload)
+                house.on_setpoint(msg.topic, msg.payload)
 
     last_record: tuple[str, bytes] | None = None
     if clock.wall:
         t_sent = -1.0
-        while run_msg is None:  # the bridge starts once it has heard from the building
+        while run_msg is None:  # the bridge starts once it has heard from the house
             if time.monotonic() - t_sent > republish_s:
-                _publish_all(link, building.measurement_payloads(0))
+                _publish_all(link, house.measurement_payloads(0))
                 t_sent = time.monotonic()
             handle()
             time.sleep(0.01)
         t0, period = float(run_msg["t0_unix_s"]), float(run_msg["period_s"])
         print(f"[mqtt_plant] wall clock: step 0 at {t0:.3f}, period {period:g} s", file=sys.stderr, flush=True)
-        while building.k < building.n_steps:
-            k = building.k
+        while house.k < house.n_steps:
+            k = house.k
             _sleep_until(t0 + k * period, handle)
-            _publish_all(link, building.measurement_payloads(k))
+            _publish_all(link, house.measurement_payloads(k))
             _sleep_until(t0 + (k + 1) * period, handle)
             handle()
             # the set-points of step k may be a moment late on a loaded machine (machine
             # jitter is multiplied by the clock's factor): wait up to WALL_SETPOINT_WAIT_SHARE
             limit = t0 + (k + 1 + WALL_SETPOINT_WAIT_SHARE) * period
-            while not building.complete(k) and time.time() < limit:
+            while not house.complete(k) and time.time() < limit:
                 time.sleep(POLL_S)
                 handle()
-            if building.complete(k):
-                action = building.action_for(building.pending[k])
+            if house.complete(k):
+                action = house.action_for(house.pending[k])
             else:
-                building.late_steps += 1
-                action = building.action_for(building.latest)
-            record = building.step(action)
+                house.late_steps += 1
+                action = house.action_for(house.latest)
+            record = house.step(action)
             last_record = (m.sim_record_topic, record)
             if m.sim_record_topic:
                 link.publish(*last_record)
     else:
         t_last_setpoint = time.monotonic()
-        while building.k < building.n_steps:
-            k = building.k
-            out = building.measurement_payloads(k)
+        while house.k < house.n_steps:
+            k = house.k
+            out = house.measurement_payloads(k)
             if last_record is not None and m.sim_record_topic:
                 out.insert(0, last_record)
             _publish_all(link, out)
             t_sent = time.monotonic()
-            while not building.complete(k):
+            while not house.complete(k):
                 time.sleep(POLL_S)
                 handle()
                 now = time.monotonic()
@@ -228,21 +228,21 @@ def run(building: SimBuilding, link: MqttLink, clock: Clock, republish_s: float 
                           file=sys.stderr, flush=True)
                     return 1
             t_last_setpoint = time.monotonic()
-            record = building.step(building.action_for(building.pending[k]))
+            record = house.step(house.action_for(house.pending[k]))
             last_record = (m.sim_record_topic, record)
     # the last record: repeat until the bridge announced the end
     t_end = time.monotonic()
     t_sent = -1.0
-    while bridge_step < building.n_steps and time.monotonic() - t_end < done_timeout_s:
+    while bridge_step < house.n_steps and time.monotonic() - t_end < done_timeout_s:
         if last_record is not None and m.sim_record_topic and time.monotonic() - t_sent > republish_s:
             link.publish(*last_record)
             t_sent = time.monotonic()
         time.sleep(0.01)
         handle()
-    ok = bridge_step >= building.n_steps
-    print(f"[mqtt_plant] run done: {building.k} steps, bridge acknowledged: {ok}, "
-          f"unreadable set-points: {building.bad_payloads}, steps without their own set-points: "
-          f"{building.late_steps}", file=sys.stderr, flush=True)
+    ok = bridge_step >= house.n_steps
+    print(f"[mqtt_plant] run done: {house.k} steps, bridge acknowledged: {ok}, "
+          f"unreadable set-points: {house.bad_payloads}, steps without their own set-points: "
+          f"{house.late_steps}", file=sys.stderr, flush=True)
     return 0
 
 
@@ -259,7 +259,7 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``mqtt_plant``; exit code 2 for bad options or files."""
     from comems4build_ros.core.scenario.run import check_scenario, load_scenario
 
-    ap = argparse.ArgumentParser(prog="mqtt_plant", description="simulated building with its I/O over MQTT")
+    ap = argparse.ArgumentParser(prog="mqtt_plant", description="simulated house with its I/O over MQTT")
     ap.add_argument("--topic-map", default=None, help="topic map (default config/mqtt.yaml)")
     ap.add_argument("--broker", default=None, help="broker URL (default: the topic map's)")
     ap.add_argument("--clock", default="sim", help="sim, wall or wall:<factor>")
@@ -271,7 +271,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--config", action="append", default=[])
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--republish-s", type=float, default=REPUBLISH_S)
-    ap.add_argument("--client-id", default="comems4build_sim_building")
+    ap.add_argument("--client-id", default="comems4build_plant_sim")
     args = ap.parse_args(argv)
     try:
         import yaml
@@ -287,7 +287,7 @@ def main(argv: list[str] | None = None) -> int:
         clock = parse_clock(args.clock, params.simulation.time_step_h)
         scenario = load_scenario(args.scenario, params, args.start, args.weeks, args.seed, args.steps)
         check_scenario(scenario, params.simulation.time_step_h)
-        building = SimBuilding(topic_map, params, scenario)
+        house = MqttPlantSim(topic_map, params, scenario)
         subs = [s.topic for s in topic_map.setpoints.values()] + [topic_map.step_topic, topic_map.run_topic]
         link = MqttLink(topic_map.broker, args.client_id, subs,
                         will=(topic_map.topic("building", "availability"), "offline"))
@@ -300,7 +300,7 @@ def main(argv: list[str] | None = None) -> int:
         link.stop()
         return 1
     link.publish(topic_map.topic("building", "availability"), "online", retain=True)
-    print(f"[mqtt_plant] scenario '{scenario.name}': {building.n_steps} steps, clock {clock.spec()}, broker "
+    print(f"[mqtt_plant] scenario '{scenario.name}': {house.n_steps} steps, clock {clock.spec()}, broker "
           f"{topic_map.broker.url}", file=sys.stderr, flush=True)
     import signal
 
@@ -311,7 +311,7 @@ def main(argv: list[str] | None = None) -> int:
 
     signal.signal(signal.SIGTERM, on_sigterm)  # as Ctrl-C: say goodbye on MQTT, exit with the code below
     try:
-        code = run(building, link, clock, args.republish_s)
+        code = run(house, link, clock, args.republish_s)
     except KeyboardInterrupt:  # before the last step was acknowledged: the run was cut
         print(f"[mqtt_plant] {CAUSE_TAG} stopped by a signal before the end of its run", file=sys.stderr, flush=True)
         code = EXIT_INTERRUPTED
