@@ -118,6 +118,116 @@ def _split(topic: str, name: str) -> str | None:
     return None
 
 
+@dataclass
+class _Scan:
+    """What one pass over a bag's messages collected, per namespace (see :func:`read_runs`)."""
+
+    records: dict[str, dict[int, tuple[int, Any]]] = field(default_factory=dict)  # ns -> step -> (t_ns, data)
+    infos: dict[str, dict[int, dict[str, float]]] = field(default_factory=dict)  # ns -> step -> ems/info
+    ems_names: dict[str, str] = field(default_factory=dict)
+    scenarios: dict[str, dict[str, Any]] = field(default_factory=dict)
+    n_steps: dict[str, int] = field(default_factory=dict)
+    seen: dict[str, set[int]] = field(default_factory=dict)  # topic -> steps with a message (gap check)
+    withheld: dict[str, set[int]] = field(default_factory=dict)  # ns -> steps without state by design
+    stand_in: dict[str, list[tuple[int, str]]] = field(default_factory=dict)  # ns -> the feed's stand_in lines
+    first_ns: int | None = None
+
+
+def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan:
+    """One pass over every message of a bag, sorted into a :class:`_Scan` (see :func:`read_runs`)."""
+    import json
+
+    from comems4build_ros.core.scenario.live import STAND_IN_EVENT
+
+    scan = _Scan()
+    for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
+        scan.first_ns = t_ns if scan.first_ns is None else min(scan.first_ns, t_ns)
+        if (ns := _split(topic, RECORD_TOPIC)) is not None:
+            data = decode(msgtype, raw).data
+            if len(data) != layout.length:
+                raise ValueError(
+                    f"bag {path}: topic '{topic}': {len(data)} elements, the contract layout has {layout.length}"
+                )
+            scan.records.setdefault(ns, {}).setdefault(int(data[0]), (t_ns, data))
+        elif msgtype.endswith("Float64MultiArray"):
+            data = decode(msgtype, raw).data
+            if len(data):
+                scan.seen.setdefault(topic, set()).add(int(data[0]))
+            ns = _split(topic, TRUTH_TOPIC)
+            if ns is not None and ns not in scan.n_steps:
+                scan.n_steps[ns] = int(data[n_idx])
+        elif (ns := _split(topic, INFO_TOPIC)) is not None:
+            try:
+                msg = json.loads(decode(msgtype, raw).data)
+                step = int(msg["step"])
+                scan.infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
+            except (ValueError, KeyError, TypeError) as exc:
+                raise ValueError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
+            scan.seen.setdefault(topic, set()).add(step)
+            if isinstance(msg.get("ems"), str):
+                scan.ems_names.setdefault(ns, msg["ems"])
+        elif _split(topic, STEP_TOPIC) is not None:
+            scan.seen.setdefault(topic, set()).add(int(decode(msgtype, raw).data))
+        elif (ns := _split(topic, EVENTS_TOPIC)) is not None:
+            step_kind = event_step_kind(decode(msgtype, raw).data)
+            if step_kind is not None and step_kind[1] == WITHHELD_EVENT:
+                scan.withheld.setdefault(ns, set()).add(step_kind[0])
+        elif (ns := _split(topic, FEED_EVENTS_TOPIC)) is not None:
+            line = decode(msgtype, raw).data
+            step_kind = event_step_kind(line)
+            if step_kind is not None and step_kind[1] == STAND_IN_EVENT:
+                scan.stand_in.setdefault(ns, []).append((step_kind[0], line.split(None, 2)[2].split(":", 1)[0]))
+        elif (ns := _split(topic, FEED_INFO_TOPIC)) is not None:
+            try:
+                scan.scenarios.setdefault(ns, dict(json.loads(decode(msgtype, raw).data)))
+            except (ValueError, TypeError) as exc:
+                raise ValueError(f"bag {path}: topic '{topic}': invalid JSON: {exc}") from None
+    return scan
+
+
+def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any, layout: Any,
+            recorded: set[str]) -> BagRun:
+    """The :class:`BagRun` of namespace ``ns`` from a scan of its bag."""
+    import pandas as pd
+
+    from comems4build_ros.core.loop import TIMESERIES_COLUMNS
+
+    by_step = scan.records[ns]
+    steps = sorted(by_step)
+    if steps != list(range(len(steps))):
+        missing = sorted(set(range(steps[-1] + 1)) - set(steps))
+        raise ValueError(
+            f"bag {path}: topic '{resolve_ns(ns, RECORD_TOPIC)}': steps missing in the middle of the run: "
+            f"{_ranges(missing)} (recorder overloaded or messages lost)"
+        )
+    rows = [layout.unpack(by_step[k][1]) for k in steps]
+    columns = [c for c in TIMESERIES_COLUMNS if c != "time"]
+    ts = pd.DataFrame({c: [r[c] for r in rows] for c in columns})
+    times = pd.to_datetime([r["time_unix_s"] for r in rows], unit="s", utc=True).tz_convert(timezone)
+    ts.insert(0, "time", [t.isoformat() for t in times])
+    ts = ts[list(TIMESERIES_COLUMNS)]
+    step_infos = scan.infos.get(ns, {})
+    if step_infos and all(k in step_infos for k in steps):
+        ts = pd.concat([ts, pd.DataFrame([step_infos[k] for k in steps]).add_prefix("ems_")], axis=1)
+    n_steps = scan.n_steps.get(ns)
+    complete = n_steps is not None and len(steps) == n_steps
+    fallback = {k for k, r in zip(steps, rows) if r["fallback"]}
+    counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands", "foreign_commands")
+    return BagRun(
+        namespace=ns,
+        timeseries=ts,
+        n_steps=n_steps,
+        first_ns=int(scan.first_ns or 0),
+        last_ns=max(t for t, _ in by_step.values()),
+        counters={c: int(rows[-1][c]) for c in counter_names},
+        gaps=find_gaps(contract, ns, len(steps), fallback, scan.seen, complete, recorded,
+                       scan.withheld.get(ns, set()), _unread_inputs(contract, scan.ems_names.get(ns))),
+        ems=scan.ems_names.get(ns),
+        scenario=scan.scenarios.get(ns),
+        stand_in=sorted(set(scan.stand_in.get(ns, []))),
+    )
+
+
 def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
     """Rebuild the per-step timeseries of every namespace of a bag.
 
@@ -133,125 +243,19 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
         If the bag has no ``plant/record`` topic, a record does not match the contract
         layout, or steps are missing in the middle of a run (naming topic and steps).
     """
-    import json
-
-    import pandas as pd
-
-    from comems4build_ros.core.loop import TIMESERIES_COLUMNS
-    from comems4build_ros.core.scenario.live import STAND_IN_EVENT
     from comems4build_ros.wire.contract import load_contract
 
     contract = load_contract()
     layout = contract.topic(RECORD_TOPIC).layout({})
-    truth_layout = contract.topic(TRUTH_TOPIC).layout({})
-    n_idx = truth_layout.index["n_steps"]
+    n_idx = contract.topic(TRUTH_TOPIC).layout({}).index["n_steps"]
     info = info if info is not None else BagInfo(Path(path), [], False)
-    records: dict[str, dict[int, tuple[int, Any]]] = {}
-    infos: dict[str, dict[int, dict[str, float]]] = {}
-    ems_names: dict[str, str] = {}
-    scenarios: dict[str, dict[str, Any]] = {}
-    n_steps: dict[str, int] = {}
-    seen: dict[str, set[int]] = {}  # topic -> steps with a message (gap check)
-    withheld: dict[str, set[int]] = {}  # namespace -> steps without state by design (WITHHELD_EVENT)
-    stand_in: dict[str, list[tuple[int, str]]] = {}  # namespace -> the feed's stand_in lines (live inputs)
-    first_ns: int | None = None
-    for topic, msgtype, t_ns, raw in iter_messages(path, info=info):
-        first_ns = t_ns if first_ns is None else min(first_ns, t_ns)
-        ns = _split(topic, RECORD_TOPIC)
-        if ns is not None:
-            data = decode(msgtype, raw).data
-            if len(data) != layout.length:
-                raise ValueError(
-                    f"bag {path}: topic '{topic}': {len(data)} elements, the contract layout has {layout.length}"
-                )
-            step = int(data[0])
-            records.setdefault(ns, {}).setdefault(step, (t_ns, data))
-            continue
-        if msgtype.endswith("Float64MultiArray"):
-            data = decode(msgtype, raw).data
-            if len(data):
-                seen.setdefault(topic, set()).add(int(data[0]))
-            ns = _split(topic, TRUTH_TOPIC)
-            if ns is not None and ns not in n_steps:
-                n_steps[ns] = int(data[n_idx])
-            continue
-        ns = _split(topic, INFO_TOPIC)
-        if ns is not None:
-            try:
-                msg = json.loads(decode(msgtype, raw).data)
-                step = int(msg["step"])
-                infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
-            except (ValueError, KeyError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
-            seen.setdefault(topic, set()).add(step)
-            if isinstance(msg.get("ems"), str):
-                ems_names.setdefault(ns, msg["ems"])
-            continue
-        ns = _split(topic, STEP_TOPIC)
-        if ns is not None:
-            seen.setdefault(topic, set()).add(int(decode(msgtype, raw).data))
-            continue
-        ns = _split(topic, EVENTS_TOPIC)
-        if ns is not None:
-            step_kind = event_step_kind(decode(msgtype, raw).data)
-            if step_kind is not None and step_kind[1] == WITHHELD_EVENT:
-                withheld.setdefault(ns, set()).add(step_kind[0])
-            continue
-        ns = _split(topic, FEED_EVENTS_TOPIC)
-        if ns is not None:
-            line = decode(msgtype, raw).data
-            step_kind = event_step_kind(line)
-            if step_kind is not None and step_kind[1] == STAND_IN_EVENT:
-                stand_in.setdefault(ns, []).append((step_kind[0], line.split(None, 2)[2].split(":", 1)[0]))
-            continue
-        ns = _split(topic, FEED_INFO_TOPIC)
-        if ns is not None:
-            try:
-                scenarios.setdefault(ns, dict(json.loads(decode(msgtype, raw).data)))
-            except (ValueError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid JSON: {exc}") from None
-    if not records:
+    scan = _scan_bag(path, info, layout, n_idx)
+    if not scan.records:
         topics = ", ".join(sorted(info.topics)) or "none"
         damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
         raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
-    columns = [c for c in TIMESERIES_COLUMNS if c != "time"]
-    counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands", "foreign_commands")
-    runs: dict[str, BagRun] = {}
-    for ns in sorted(records, key=ns_key):
-        by_step = records[ns]
-        steps = sorted(by_step)
-        expected = list(range(len(steps)))
-        if steps != expected:
-            missing = sorted(set(range(steps[-1] + 1)) - set(steps))
-            raise ValueError(
-                f"bag {path}: topic '{resolve_ns(ns, RECORD_TOPIC)}': steps missing in the middle of the run: "
-                f"{_ranges(missing)} (recorder overloaded or messages lost)"
-            )
-        rows = [layout.unpack(by_step[k][1]) for k in steps]
-        ts = pd.DataFrame({c: [r[c] for r in rows] for c in columns})
-        times = pd.to_datetime([r["time_unix_s"] for r in rows], unit="s", utc=True).tz_convert(timezone)
-        ts.insert(0, "time", [t.isoformat() for t in times])
-        ts = ts[list(TIMESERIES_COLUMNS)]
-        step_infos = infos.get(ns, {})
-        if step_infos and all(k in step_infos for k in steps):
-            ts = pd.concat([ts, pd.DataFrame([step_infos[k] for k in steps]).add_prefix("ems_")], axis=1)
-        last = rows[-1]
-        complete = n_steps.get(ns) is not None and len(steps) == n_steps[ns]
-        fallback = {k for k, r in zip(steps, rows) if r["fallback"]}
-        runs[ns] = BagRun(
-            namespace=ns,
-            timeseries=ts,
-            n_steps=n_steps.get(ns),
-            first_ns=int(first_ns or 0),
-            last_ns=max(t for t, _ in by_step.values()),
-            counters={c: int(last[c]) for c in counter_names},
-            gaps=find_gaps(contract, ns, len(steps), fallback, seen, complete, set(info.topics),
-                           withheld.get(ns, set()), _unread_inputs(contract, ems_names.get(ns))),
-            ems=ems_names.get(ns),
-            scenario=scenarios.get(ns),
-            stand_in=sorted(set(stand_in.get(ns, []))),
-        )
-    return runs
+    return {ns: _run_of(ns, scan, path, timezone, contract, layout, set(info.topics))
+            for ns in sorted(scan.records, key=ns_key)}
 
 
 def _unread_inputs(contract: Any, ems: str | None) -> set[str]:
@@ -395,24 +399,7 @@ def evaluate_bag(
         evaluated on its own: the bag does not know it)
     accept_gaps : evaluate a bag with messages missing on some topic (default: refuse)
 
-    Summary entries besides the KPIs (as in-process): ``ems``, ``scenario``, ``forecast``
-    from ``run_info.json`` or, without it, as the EMS (``ems/info``) and the feed
-    (``feed/info``) announced them in the bag; ``wall_s``; ``ems_s`` = None (the
-    controller's own compute time is not in the bag); ``bag_duration_s`` (receive time of
-    the last record minus that of the first message); ``lost_messages`` (topic -> steps
-    without a message, ``{}`` for a complete recording). An incomplete run or bag adds
-    ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
-    read, whether an ``.mcap`` file ended early, and the damage found in this house's
-    own bag, see :class:`BagInfo`; for a run the launcher cut short also ``run_cut``, its
-    :data:`RUN_CUT_FILE`, whose cause is repeated as the summary's ``run_cut``, with
-    ``nodes_here``: the nodes of this house among those of the process that left, so
-    that a house whose own nodes all ran on is told apart from the one that lost them); a
-    partial last week is left out of the weekly medians like any
-    partial week. Fault counters of the plant other than fallback steps are added as
-    ``ros_faults`` when non-zero. A run on live inputs adds ``live_inputs``: the recorded
-    steps whose price (``stand_in_price_steps``) and whose weather
-    (``stand_in_weather_steps``) stand-in values replaced, as the feed stated them on
-    ``feed/events``. Every file is written all-or-nothing.
+    Summary entries besides the KPIs: :func:`summary_extra`. Every file is written all-or-nothing.
 
     Raises
     ------
@@ -448,33 +435,7 @@ def evaluate_bag(
     weekly_parts = []
     for ns, run in runs.items():
         info, cut = bag_of[ns]  # the bag of this house: its own damage and cut, no other's
-        scen = run.scenario or {}
-        extra: dict[str, Any] = {
-            "ems": run_info.get("ems") or run.ems,
-            "scenario": run_info.get("scenario") or scenario_label(scen.get("scenario")),
-            "wall_s": wall_s,
-            "ems_s": None,
-            "forecast": run_info.get("forecast") if run_info else _forecast_of(run.ems, scen.get("forecast")),
-            "bag_duration_s": (run.last_ns - run.first_ns) / NS_PER_S,
-            "lost_messages": {t: len(steps) for t, steps in sorted(run.gaps.items())},
-        }
-        if not run.complete or not info.complete or info.damage or cut:
-            extra["bag_incomplete"] = {
-                "steps_recorded": len(run.timeseries),
-                "steps_expected": run.n_steps,
-                "metadata_yaml": info.complete,
-                "truncated_mcap": info.truncated,
-                "damage": list(info.damage),
-            }
-            if cut:
-                extra["bag_incomplete"]["run_cut"] = dict(cut, nodes_here=nodes_of(cut.get("nodes") or [], ns))
-                extra["run_cut"] = cut.get("cause")
-        if run.stand_in:  # a run on live inputs: how many steps ran on stand-in values
-            extra["live_inputs"] = run.stand_in_steps()
-        faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
-        if faults:
-            extra["ros_faults"] = faults
-        result = evaluate_timeseries(run.timeseries, params, extra)
+        result = evaluate_timeseries(run.timeseries, params, summary_extra(run, info, cut, run_info, wall_s))
         write_run(result, house_dir(out, ns, len(runs)), timeseries=timeseries)
         summaries[ns] = result.summary
         weekly_parts.append(result.weekly.assign(house=ns.strip("/") or "root"))
@@ -489,6 +450,58 @@ def evaluate_bag(
 
 
 BagOf = dict[str, tuple[BagInfo, dict[str, Any]]]
+
+
+def summary_extra(run: BagRun, info: BagInfo, cut: dict[str, Any], run_info: dict[str, Any],
+                   wall_s: float | None) -> dict[str, Any]:
+    """The summary entries of one house's run besides its KPIs (:func:`evaluate_bag`).
+
+    Besides the KPIs (as in-process): ``ems``, ``scenario``, ``forecast``
+    from ``run_info.json`` or, without it, as the EMS (``ems/info``) and the feed
+    (``feed/info``) announced them in the bag; ``wall_s``; ``ems_s`` = None (the
+    controller's own compute time is not in the bag); ``bag_duration_s`` (receive time of
+    the last record minus that of the first message); ``lost_messages`` (topic -> steps
+    without a message, ``{}`` for a complete recording). An incomplete run or bag adds
+    ``bag_incomplete`` (steps recorded and expected, whether ``metadata.yaml`` was
+    read, whether an ``.mcap`` file ended early, and the damage found in this house's
+    own bag, see :class:`BagInfo`; for a run the launcher cut short also ``run_cut``, its
+    :data:`RUN_CUT_FILE`, whose cause is repeated as the summary's ``run_cut``, with
+    ``nodes_here``: the nodes of this house among those of the process that left, so
+    that a house whose own nodes all ran on is told apart from the one that lost them); a
+    partial last week is left out of the weekly medians like any
+    partial week. Fault counters of the plant other than fallback steps are added as
+    ``ros_faults`` when non-zero. A run on live inputs adds ``live_inputs``: the recorded
+    steps whose price (``stand_in_price_steps``) and whose weather
+    (``stand_in_weather_steps``) stand-in values replaced, as the feed stated them on
+    ``feed/events``. Every file is written all-or-nothing.
+    """
+    scen = run.scenario or {}
+    extra: dict[str, Any] = {
+        "ems": run_info.get("ems") or run.ems,
+        "scenario": run_info.get("scenario") or scenario_label(scen.get("scenario")),
+        "wall_s": wall_s,
+        "ems_s": None,
+        "forecast": run_info.get("forecast") if run_info else _forecast_of(run.ems, scen.get("forecast")),
+        "bag_duration_s": (run.last_ns - run.first_ns) / NS_PER_S,
+        "lost_messages": {t: len(steps) for t, steps in sorted(run.gaps.items())},
+    }
+    if not run.complete or not info.complete or info.damage or cut:
+        extra["bag_incomplete"] = {
+            "steps_recorded": len(run.timeseries),
+            "steps_expected": run.n_steps,
+            "metadata_yaml": info.complete,
+            "truncated_mcap": info.truncated,
+            "damage": list(info.damage),
+        }
+        if cut:
+            extra["bag_incomplete"]["run_cut"] = dict(cut, nodes_here=nodes_of(cut.get("nodes") or [], run.namespace))
+            extra["run_cut"] = cut.get("cause")
+    if run.stand_in:  # a run on live inputs: how many steps ran on stand-in values
+        extra["live_inputs"] = run.stand_in_steps()
+    faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
+    if faults:
+        extra["ros_faults"] = faults
+    return extra
 
 
 def nodes_of(nodes: list[str], namespace: str) -> list[str]:

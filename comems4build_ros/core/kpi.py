@@ -299,6 +299,8 @@ def h2_left_value_eur(loh_end: float, loh_min: float, e_h2_max_kwh: float, price
     return max(loh_end - loh_min, 0.0) * e_h2_max_kwh * price_eur_per_kwh
 
 
+# Long on purpose: one line per KPI of the run summary (sec:evaluation_metrics and the
+# project's additions), in the order of summary.json, so that each key has one visible home.
 def summarize(
     ts: pd.DataFrame,
     weekly: pd.DataFrame,

@@ -164,8 +164,6 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     out = Path(out_dir) if out_dir is not None else root
     cmp = read_report_inputs(root)
     manifest, runs, variants, params = cmp.manifest, cmp.runs, cmp.variants, cmp.params
-    levels = cmp.figures.levels
-    tz = params.site.timezone
     out.mkdir(parents=True, exist_ok=True)
     figs = figures.all_figures(cmp.figures, out / "figures")
     ctx = Context(runs=runs, variants=variants, params=params, base_eta=manifest.base_eta)
@@ -174,10 +172,27 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     figs_paper = evaluate_statements(Evidence(runs=runs, params=params, base_eta=manifest.base_eta,
                                               variants=variants), statements)
     paper_rows = statement_rows(figs_paper, statements)
+    doc = _document(cmp, figs, verdicts, paper_rows, statements.source)
+    md_path = out / "report.md"
+    md_path.write_text(doc.markdown(), encoding="utf-8")
+    html_path = out / "report.html"
+    html_path.write_text(doc.html(), encoding="utf-8")
+    found = [{"key": f.key, "claim": f.claim, "source": f.source, "verdict": v.status, "evidence": v.evidence}
+             for f, v in verdicts]
+    (out / "findings.json").write_text(json.dumps(found, indent=2) + "\n", encoding="utf-8")
+    pd.DataFrame([dict(zip(["quantity", "unit", "source", "ems", "paper", "measured", "error"], row))
+                  for row in paper_rows]).to_csv(out / "paper_comparison.csv", index=False)
+    return Report(md_path, html_path, figs, found, time.perf_counter() - t0)
+
+
+def _document(cmp: Comparison, figs: dict[str, Path], verdicts: list, paper_rows: list[list[str]],
+              paper_source: str) -> Document:
+    """The report's content: findings, the paper's figures beside ours, summaries, weekly KPIs, figures."""
+    manifest, runs, variants = cmp.manifest, cmp.runs, cmp.variants
+    tz = cmp.params.site.timezone
     spans = figures.window_spans(runs, tz)
     first = next(iter(runs.values()))
     t = first.timeseries["time"].dt.tz_convert(tz)
-
     doc = Document("ComEMS4Build comparison report")
     doc.p(f"Scenario: {manifest.scenario}; {t.iloc[0].isoformat()} to "
           f"{(t.iloc[-1] + pd.Timedelta(hours=1)).isoformat()} ({int(first.summary['weeks'])} weeks, "
@@ -196,7 +211,7 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
               [[str(i), f.claim, f.source, v.status, v.evidence] for i, (f, v) in enumerate(verdicts, start=1)])
 
     doc.h(2, "The paper's stated figures and the measured ones")
-    doc.p(f"Paper: {statements.source}. Every quantitative statement, with our value for the EMS that were run and "
+    doc.p(f"Paper: {paper_source}. Every quantitative statement, with our value for the EMS that were run and "
           "the relative error |ours - paper| / |paper| (for a bound or a set of weeks: whether it holds). The "
           "statements and where the paper makes them are in comems4build_ros/report/paper_results.yaml; "
           "`comems4build reproduce` evaluates them over several seeds of the modelled inputs.")
@@ -223,19 +238,9 @@ def build_report(compare_dir: str | Path, out_dir: str | Path | None = None) -> 
     doc.h(2, "Inputs each EMS may use")
     doc.p("The information level of each EMS after the paper's table of the level of information (sec:information), "
           "generated from the observation fields each level may read (comems4build_ros/core/ems/base.py).")
-    ih, ir = figures.level_of_information_rows(levels)
+    ih, ir = figures.level_of_information_rows(cmp.figures.levels)
     doc.table(ih, ir)
-
-    md_path = out / "report.md"
-    md_path.write_text(doc.markdown(), encoding="utf-8")
-    html_path = out / "report.html"
-    html_path.write_text(doc.html(), encoding="utf-8")
-    found = [{"key": f.key, "claim": f.claim, "source": f.source, "verdict": v.status, "evidence": v.evidence}
-             for f, v in verdicts]
-    (out / "findings.json").write_text(json.dumps(found, indent=2) + "\n", encoding="utf-8")
-    pd.DataFrame([dict(zip(["quantity", "unit", "source", "ems", "paper", "measured", "error"], row))
-                  for row in paper_rows]).to_csv(out / "paper_comparison.csv", index=False)
-    return Report(md_path, html_path, figs, found, time.perf_counter() - t0)
+    return doc
 
 
 def statement_rows(figs: list, statements: Any) -> list[list[str]]:

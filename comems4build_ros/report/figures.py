@@ -281,6 +281,8 @@ def _step(ax: plt.Axes, t: np.ndarray, y: pd.Series | np.ndarray, **kwargs: obje
 
 
 @styled
+# Long on purpose: one block per row of the paper's fig:performance_comparison, each setting up
+# its axes and legend; the rows share the figure's grid, scales and colours.
 def performance_comparison_figure(
     runs: Mapping[str, RunData], window: tuple[int, int], tz: str, v_max_l: float
 ) -> Figure:

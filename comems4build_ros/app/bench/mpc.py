@@ -300,12 +300,11 @@ def _print_table(table: pd.DataFrame, digits: int = 2) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
-    """Run the benchmark and print the tables."""
+    """Run the benchmark's stages and print their tables: closed loops side by side, a full run, the
+    solver configurations on fixed problems, the KPIs of the default settings against the exact MILP."""
     from comems4build_ros.core.config import load_plant_params
-    from comems4build_ros.core.ems.mpc import MPCController
     from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
     from comems4build_ros.core.ems.mpc.solvers import available_solvers
-    from comems4build_ros.core.loop import simulate
     from comems4build_ros.core.scenario import default_scenario
     from comems4build_ros.files.outputs import check_out_dir
 
@@ -321,106 +320,125 @@ def run(args: argparse.Namespace) -> int:
     out = Path(args.out) if args.out else None
     if out:
         out.mkdir(parents=True, exist_ok=True)
-
     if args.loop_weeks > 0:
-        loop_scenario = default_scenario(params, weeks=int(math.ceil(args.loop_weeks)))
-        n = min(int(round(args.loop_weeks * 168)), loop_scenario.n_steps)
-        t = time.perf_counter()
-        with ProgressBar("closed loops side by side", unit="step") as bar:
-            loops = side_by_side(params, loop_scenario, LOOP_CONFIGS, n, solvers, bar)
-        print(f"\nclosed loops side by side: {n} steps of the default scenario of {math.ceil(args.loop_weeks)} "
-              f"week(s), stepped in turn ({time.perf_counter() - t:.0f} s; {load_text()}):")
-        _print_table(loops[["configuration", "median_ms", "p95_ms", "mean_ms", "max_ms", "cpu_median_ms", "fallback",
-                            "slack_steps"]
-                           + (["note"] if "note" in loops else [])], 1)
-        print("\nKPIs of these closed loops (totals over the run):")
-        _print_table(loops[["configuration", *KPI_KEYS, "objective_sum_eur"]], 3)
-        if out:
-            loops.to_csv(out / "bench_mpc_loops.csv", index=False)
-
-    weeks = int(math.ceil(args.weeks))
-    scenario = default_scenario(params, weeks=weeks)
-    wall = math.nan
-    if args.skip_full_run and not configs:
-        ts = None
-    else:
-        t0 = time.perf_counter()
-        with ProgressBar("full run", unit="step") as bar:
-            result = simulate("mpc", scenario, params, progress=bar)
-        wall = time.perf_counter() - t0
-        ts = result.timeseries
-    if not args.skip_full_run:
-        print(f"\nfull run: {scenario.n_steps} steps ({scenario.n_steps / 168:.1f} weeks) with {defaults.solver}: "
-              f"wall {wall:.1f} s (EMS {result.summary.get('ems_s', math.nan):.1f} s), solve median "
-              f"{ts['ems_solve_s'].median() * 1e3:.1f} ms, p95 {ts['ems_solve_s'].quantile(0.95) * 1e3:.1f} ms, "
-              f"fallbacks {int(ts['ems_fallback'].sum())}, steps with slack {int(ts['ems_slack_used'].sum())} "
-              f"({load_text()})", flush=True)
-
+        _side_by_side_stage(args, params, solvers, out)
+    scenario = default_scenario(params, weeks=int(math.ceil(args.weeks)))
+    ts, wall = _full_run_stage(args, params, scenario, defaults.solver, bool(configs))
     if configs:
-        starts = select_days(scenario, scenario.n_steps, args.days_per_kind)
-        problems = problems_from_run(ts, scenario, params, starts)
-        print(f"\nproblem set: {len(problems)} horizon problems, days starting at steps "
-              + ", ".join(f"{kind} {v}" for kind, v in starts.items()))
-        results: dict[str, list[dict[str, Any]]] = {}
-        ref_label = "reference: tight, gap 0"
-        with ProgressBar(ref_label, unit="solve") as bar:
-            results[ref_label] = solve_set(params, {**REFERENCE, "time_limit_s": max(args.time_limit, 60.0)},
-                                           problems, bar)
-        missing = []
-        for label, (opts, _) in configs.items():
-            if opts.get("solver", "highs") not in solvers:
-                missing.append(label)
-                continue
-            t = time.perf_counter()
-            with ProgressBar(label, unit="solve") as bar:
-                results[label] = solve_set(params, {"time_limit_s": args.time_limit, **opts}, problems, bar)
-            print(f"  solved with '{label}' in {time.perf_counter() - t:.1f} s", flush=True)
-        exact_labels = [ref_label] + [lb for lb, (_, ex) in configs.items() if ex and lb in results]
-        best = np.nanmin(np.array([[r["objective"] for r in results[lb]] for lb in exact_labels]), axis=0)
-        rows = []
-        for label, res in results.items():
-            if label in exact_labels:
-                obj = np.array([r["objective"] for r in res])
-            else:
-                obj = np.array(exact_with_first_fixed(params, problems, [r["first"] for r in res], args.time_limit))
-            gap = (obj - best) / np.maximum(np.abs(best), 1e-9)
-            st = np.array([r["solve_s"] for r in res])
-            rows.append({"configuration": label, "median_ms": np.median(st) * 1e3,
-                         "p95_ms": np.quantile(st, 0.95) * 1e3, "mean_gap_pct": np.nanmean(gap) * 100,
-                         "max_gap_pct": np.nanmax(gap) * 100, "no_solution": int(np.sum(~np.isfinite(obj)))})
-        rows += [{"configuration": label, "note": "not installed"} for label in missing]
-        table = pd.DataFrame(rows)
-        print("\nsolve time and objective gap to the best known solution "
-              f"({len(problems)} problems; gap of relaxed-tail rows = exact problem with first step fixed; "
-              f"{load_text()}):")
-        _print_table(table)
-        if out:
-            table.to_csv(out / "bench_mpc.csv", index=False)
-            per = [{"configuration": label, **{k: v for k, v in r.items() if k != "first"}}
-                   for label, res in results.items() for r in res]
-            pd.DataFrame(per).to_csv(out / "bench_mpc_problems.csv", index=False)
-
+        _fixed_problems_stage(args, params, scenario, ts, configs, solvers, out)
     if args.kpi_weeks > 0:
-        n = int(round(args.kpi_weeks * 168))
-        with ProgressBar("default settings", unit="step") as bar:
-            chosen = _closed_loop(MPCController(params, {}), scenario, params, n, bar)
-        with ProgressBar("exact, gap 0", unit="step") as bar:
-            exact = _closed_loop(MPCController(params, {**REFERENCE, "time_limit_s": 300.0}), scenario, params, n,
-                                 bar)
-        kpi_rows = []
-        for key in KPI_KEYS:
-            a, b = float(chosen.summary[key]), float(exact.summary[key])
-            kpi_rows.append({"kpi": key, "default": a, "gap0_exact": b,
-                             "diff_pct": (a - b) / abs(b) * 100 if abs(b) > 1e-9 else math.nan})
-        kpi_table = pd.DataFrame(kpi_rows)
-        print(f"\nKPIs over the first {args.kpi_weeks:g} weeks: default settings vs exact MILP at gap 0 "
-              f"(solve median {chosen.timeseries['ems_solve_s'].median() * 1e3:.0f} ms vs "
-              f"{exact.timeseries['ems_solve_s'].median() * 1e3:.0f} ms):")
-        _print_table(kpi_table, 3)
-        if out:
-            kpi_table.to_csv(out / "bench_mpc_kpi.csv", index=False)
-
+        _kpi_stage(args, params, scenario, out)
     if out:
         (out / "bench_mpc_run.json").write_text(json.dumps({"wall_s": wall, "steps": int(scenario.n_steps)}) + "\n")
     print(f"\nend: {load_text()}")
     return 0
+
+
+def _side_by_side_stage(args: argparse.Namespace, params: Any, solvers: Sequence[str], out: Path | None) -> None:
+    """Closed loops of :data:`LOOP_CONFIGS` stepped in turn over ``--loop-weeks``: solve times and KPIs."""
+    from comems4build_ros.core.scenario import default_scenario
+
+    loop_scenario = default_scenario(params, weeks=int(math.ceil(args.loop_weeks)))
+    n = min(int(round(args.loop_weeks * 168)), loop_scenario.n_steps)
+    t = time.perf_counter()
+    with ProgressBar("closed loops side by side", unit="step") as bar:
+        loops = side_by_side(params, loop_scenario, LOOP_CONFIGS, n, solvers, bar)
+    print(f"\nclosed loops side by side: {n} steps of the default scenario of {math.ceil(args.loop_weeks)} "
+          f"week(s), stepped in turn ({time.perf_counter() - t:.0f} s; {load_text()}):")
+    _print_table(loops[["configuration", "median_ms", "p95_ms", "mean_ms", "max_ms", "cpu_median_ms", "fallback",
+                        "slack_steps"]
+                       + (["note"] if "note" in loops else [])], 1)
+    print("\nKPIs of these closed loops (totals over the run):")
+    _print_table(loops[["configuration", *KPI_KEYS, "objective_sum_eur"]], 3)
+    if out:
+        loops.to_csv(out / "bench_mpc_loops.csv", index=False)
+
+
+def _full_run_stage(args: argparse.Namespace, params: Any, scenario: Any, solver: str,
+                    need_timeseries: bool) -> tuple[pd.DataFrame | None, float]:
+    """The MPC over ``--weeks``, default settings (its timeseries give the fixed problems): timeseries, wall [s]."""
+    from comems4build_ros.core.loop import simulate
+
+    if args.skip_full_run and not need_timeseries:
+        return None, math.nan
+    t0 = time.perf_counter()
+    with ProgressBar("full run", unit="step") as bar:
+        result = simulate("mpc", scenario, params, progress=bar)
+    wall = time.perf_counter() - t0
+    ts = result.timeseries
+    if not args.skip_full_run:
+        print(f"\nfull run: {scenario.n_steps} steps ({scenario.n_steps / 168:.1f} weeks) with {solver}: "
+              f"wall {wall:.1f} s (EMS {result.summary.get('ems_s', math.nan):.1f} s), solve median "
+              f"{ts['ems_solve_s'].median() * 1e3:.1f} ms, p95 {ts['ems_solve_s'].quantile(0.95) * 1e3:.1f} ms, "
+              f"fallbacks {int(ts['ems_fallback'].sum())}, steps with slack {int(ts['ems_slack_used'].sum())} "
+              f"({load_text()})", flush=True)
+    return ts, wall
+
+
+def _fixed_problems_stage(args: argparse.Namespace, params: Any, scenario: Any, ts: pd.DataFrame,
+                          configs: dict[str, Any], solvers: Sequence[str], out: Path | None) -> None:
+    """Every configuration on the same horizon problems: solve time and gap to the best known objective."""
+    starts = select_days(scenario, scenario.n_steps, args.days_per_kind)
+    problems = problems_from_run(ts, scenario, params, starts)
+    print(f"\nproblem set: {len(problems)} horizon problems, days starting at steps "
+          + ", ".join(f"{kind} {v}" for kind, v in starts.items()))
+    results: dict[str, list[dict[str, Any]]] = {}
+    ref_label = "reference: tight, gap 0"
+    with ProgressBar(ref_label, unit="solve") as bar:
+        results[ref_label] = solve_set(params, {**REFERENCE, "time_limit_s": max(args.time_limit, 60.0)}, problems, bar)
+    missing = []
+    for label, (opts, _) in configs.items():
+        if opts.get("solver", "highs") not in solvers:
+            missing.append(label)
+            continue
+        t = time.perf_counter()
+        with ProgressBar(label, unit="solve") as bar:
+            results[label] = solve_set(params, {"time_limit_s": args.time_limit, **opts}, problems, bar)
+        print(f"  solved with '{label}' in {time.perf_counter() - t:.1f} s", flush=True)
+    exact_labels = [ref_label] + [lb for lb, (_, ex) in configs.items() if ex and lb in results]
+    best = np.nanmin(np.array([[r["objective"] for r in results[lb]] for lb in exact_labels]), axis=0)
+    rows = []
+    for label, res in results.items():
+        if label in exact_labels:
+            obj = np.array([r["objective"] for r in res])
+        else:
+            obj = np.array(exact_with_first_fixed(params, problems, [r["first"] for r in res], args.time_limit))
+        gap = (obj - best) / np.maximum(np.abs(best), 1e-9)
+        st = np.array([r["solve_s"] for r in res])
+        rows.append({"configuration": label, "median_ms": np.median(st) * 1e3,
+                     "p95_ms": np.quantile(st, 0.95) * 1e3, "mean_gap_pct": np.nanmean(gap) * 100,
+                     "max_gap_pct": np.nanmax(gap) * 100, "no_solution": int(np.sum(~np.isfinite(obj)))})
+    rows += [{"configuration": label, "note": "not installed"} for label in missing]
+    table = pd.DataFrame(rows)
+    print("\nsolve time and objective gap to the best known solution "
+          f"({len(problems)} problems; gap of relaxed-tail rows = exact problem with first step fixed; "
+          f"{load_text()}):")
+    _print_table(table)
+    if out:
+        table.to_csv(out / "bench_mpc.csv", index=False)
+        per = [{"configuration": label, **{k: v for k, v in r.items() if k != "first"}}
+               for label, res in results.items() for r in res]
+        pd.DataFrame(per).to_csv(out / "bench_mpc_problems.csv", index=False)
+
+
+def _kpi_stage(args: argparse.Namespace, params: Any, scenario: Any, out: Path | None) -> None:
+    """KPIs over ``--kpi-weeks``: the default settings against the exact MILP at gap 0."""
+    from comems4build_ros.core.ems.mpc import MPCController
+
+    n = int(round(args.kpi_weeks * 168))
+    with ProgressBar("default settings", unit="step") as bar:
+        chosen = _closed_loop(MPCController(params, {}), scenario, params, n, bar)
+    with ProgressBar("exact, gap 0", unit="step") as bar:
+        exact = _closed_loop(MPCController(params, {**REFERENCE, "time_limit_s": 300.0}), scenario, params, n, bar)
+    kpi_rows = []
+    for key in KPI_KEYS:
+        a, b = float(chosen.summary[key]), float(exact.summary[key])
+        kpi_rows.append({"kpi": key, "default": a, "gap0_exact": b,
+                         "diff_pct": (a - b) / abs(b) * 100 if abs(b) > 1e-9 else math.nan})
+    kpi_table = pd.DataFrame(kpi_rows)
+    print(f"\nKPIs over the first {args.kpi_weeks:g} weeks: default settings vs exact MILP at gap 0 "
+          f"(solve median {chosen.timeseries['ems_solve_s'].median() * 1e3:.0f} ms vs "
+          f"{exact.timeseries['ems_solve_s'].median() * 1e3:.0f} ms):")
+    _print_table(kpi_table, 3)
+    if out:
+        kpi_table.to_csv(out / "bench_mpc_kpi.csv", index=False)

@@ -109,13 +109,8 @@ def _layout_label(opts: Any) -> str:
 def run(args: argparse.Namespace) -> int:
     """Run the benchmark and print the figures."""
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.bags.evaluation import lost_messages
     from comems4build_ros.core.config import load_plant_params
-    from comems4build_ros.core.loop import simulate
-    from comems4build_ros.core.scenario.run import load_scenario
     from comems4build_ros.files.outputs import check_out_dir
-    from comems4build_ros.run.launcher import launch
-    from comems4build_ros.run.supervisor import LaunchError
 
     try:  # each count by the rule of launch --houses
         counts = [HOUSES(x.strip()) for x in str(args.houses).split(",") if x.strip()]
@@ -129,10 +124,23 @@ def run(args: argparse.Namespace) -> int:
     root.mkdir(parents=True, exist_ok=True)
     params = load_plant_params()
     weeks = args.weeks
-    whole = math.ceil(weeks - 1e-9)
     steps = int(round(weeks * 168))
-    many_layout = getattr(args, "layout", None) or "house"
 
+    one = _one_house_stage(args, params, root, weeks, steps)
+    _round_trip_stage(args, one)
+    _throughput_stage(args, counts, one, root, weeks, steps)
+    print(f"\nruns kept in {root}")
+    return 0
+
+
+def _one_house_stage(args: argparse.Namespace, params: Any, root: Path, weeks: float, steps: int) -> dict[str, Any]:
+    """Stage 1: one house in-process and over ROS in the layouts ``node`` and ``house``; the launch results."""
+    from comems4build_ros.bags.evaluation import lost_messages
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario.run import load_scenario
+    from comems4build_ros.run.launcher import launch
+
+    whole = math.ceil(weeks - 1e-9)
     print(f"== 1. {args.ems}, {weeks:g} weeks ({steps} steps): ROS node set vs in-process   [{_load()}]")
     t0 = time.perf_counter()
     with warnings.catch_warnings():
@@ -154,7 +162,11 @@ def run(args: argparse.Namespace) -> int:
               f"< {TARGET_FUZZY_12W_S:g} s")
         print(f"   summaries equal (timing aside): {'yes' if not diff else 'NO, differ in ' + ', '.join(diff)}; "
               f"messages lost by the recorder: {sum(lost.values())}   ({_load()})")
+    return one
 
+
+def _round_trip_stage(args: argparse.Namespace, one: dict[str, Any]) -> None:
+    """Stage 2: the step round trip plant -> EMS -> plant that plant_sim measured, per layout."""
     print(f"\n== 2. step round trip plant -> {args.ems}_ems -> plant over DDS (measured by plant_sim)")
     for layout, res in one.items():
         stats = plant_stats(res.bag).get("/", {})
@@ -163,6 +175,14 @@ def run(args: argparse.Namespace) -> int:
               f"{_mark(med < TARGET_RTT_MEDIAN_MS)} < {TARGET_RTT_MEDIAN_MS:g} ms; "
               f"p99 {p99:.3f} ms -> {_mark(p99 < TARGET_RTT_P99_MS)} < {TARGET_RTT_P99_MS:g} ms")
 
+
+def _throughput_stage(args: argparse.Namespace, counts: list[int], one: dict[str, Any], root: Path, weeks: float,
+                      steps: int) -> None:
+    """Stage 3: runs of N houses (one house: the runs of stage 1) and the 16-house target."""
+    from comems4build_ros.run.launcher import launch
+    from comems4build_ros.run.supervisor import LaunchError
+
+    many_layout = getattr(args, "layout", None) or "house"
     print(f"\n== 3. throughput, {args.ems}, {weeks:g} weeks per house; 1 house as above, more in layout "
           f"'{many_layout}'")
     print(f"{'houses':>9} {'layout':>8} {'procs':>5} {'wall_s':>8} {'run_s':>8} {'house-steps/s':>17} "
@@ -188,8 +208,6 @@ def run(args: argparse.Namespace) -> int:
     if w16:
         print(f"16 houses x {weeks:g} weeks: {w16[0]:.1f} s -> {_mark(w16[0] < TARGET_16_HOUSES_S)} "
               f"< {TARGET_16_HOUSES_S:g} s")
-    print(f"\nruns kept in {root}")
-    return 0
 
 
 def _print_row(n: int, layout: str, r: Any, steps: int) -> None:

@@ -79,17 +79,9 @@ def run(args: argparse.Namespace) -> int:
         study_executor,
     )
     from comems4build_ros.app.commands.simulate import parse_assignments
-    from comems4build_ros.core.config import ConfigError, load_plant_params
+    from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.economics import load_costs
     from comems4build_ros.files.outputs import atomic_dir, check_out_dir
-    from comems4build_ros.study.sizing import (
-        AXES,
-        grid_points,
-        plant_sizes,
-        point_name,
-        sampled_points,
-        size_overrides,
-    )
 
     args.scenario = "year"
     add_scenario_config(args)
@@ -99,6 +91,46 @@ def run(args: argparse.Namespace) -> int:
     costs = load_costs(args.costs)
     overrides = parse_assignments(args.set, "--set")
     base = load_plant_params(args.config, overrides)
+    sized, values, design = _size_points(args, base, overrides)
+    try:
+        scenario_of(args, base)  # the window inside the year, checked once before any run
+    except UsageError:
+        raise
+    except ValueError as exc:
+        raise UsageError(f"--start/--weeks: {exc}") from None
+    check_out_dir(args.out)
+    meta: dict[str, Any] = {"ems": emss, "design": design, "points": len(sized), "start": args.start,
+                            "weeks": args.weeks or 52, "values": values, "set": overrides,
+                            "costs": [str(Path(c).resolve()) for c in args.costs],
+                            "executor": args.scheduler or f"local processes (--jobs {args.jobs or 'CPU count'})"}
+    print(f"size: {len(sized) * len(emss)} runs ({len(emss)} EMS x {len(sized)} size points, {design})",
+          file=sys.stderr)
+    with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+        with atomic_dir(args.out) as stage:  # runs/, tables, figures and report replace an older study's when done
+            df = _size(args, emss, sized, costs, meta, stage)
+        executor.complete()
+    out = Path(args.out)
+    for ems, sub in df.groupby("ems", sort=False):
+        ok = sub[sub["closes"] == True]  # noqa: E712
+        names = ", ".join(Path(r).name for r in ok["run"]) or "none"
+        print(f"{ems}: {len(ok)} of {len(sub)} size points close the seasonal cycle: {names}")
+    print(f"{len(df)} runs in {meta['wall_s']:.1f} s; wrote {out / 'size.csv'}, {out / 'size.md'}, "
+          f"{out / 'figures' / 'pareto.png'}, {out / 'report.md'} and {out / 'report.html'}")
+    return 0
+
+
+
+def _size_points(args: argparse.Namespace, base: Any, overrides: dict[str, Any]
+                 ) -> tuple[list[tuple[dict[str, float], dict[str, Any], Any]], dict[str, list[float]], str]:
+    """Every size point of the design, each plant built and checked before any run.
+
+    Returns the points as (realised sizes, plant overrides, plant parameters), the values
+    of each axis and the design's description.
+    """
+    from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.core.config import ConfigError, load_plant_params
+    from comems4build_ros.study.sizing import AXES, grid_points, plant_sizes, point_name, sampled_points, size_overrides
+
     default = plant_sizes(base)
     values: dict[str, list[float]] = {}
     for axis in AXES:
@@ -132,32 +164,7 @@ def run(args: argparse.Namespace) -> int:
         except ConfigError as exc:
             raise UsageError(f"size point {point_name('', realised).lstrip('_')}: {exc}") from None
         sized.append((realised, {**overrides, **ov}, plant))
-    try:
-        scenario_of(args, base)  # the window inside the year, checked once before any run
-    except UsageError:
-        raise
-    except ValueError as exc:
-        raise UsageError(f"--start/--weeks: {exc}") from None
-    check_out_dir(args.out)
-    meta: dict[str, Any] = {"ems": emss, "design": design, "points": len(sized), "start": args.start,
-                            "weeks": args.weeks or 52, "values": values, "set": overrides,
-                            "costs": [str(Path(c).resolve()) for c in args.costs],
-                            "executor": args.scheduler or f"local processes (--jobs {args.jobs or 'CPU count'})"}
-    print(f"size: {len(sized) * len(emss)} runs ({len(emss)} EMS x {len(sized)} size points, {design})",
-          file=sys.stderr)
-    with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
-        with atomic_dir(args.out) as stage:  # runs/, tables, figures and report replace an older study's when done
-            df = _size(args, emss, sized, costs, meta, stage)
-        executor.complete()
-    out = Path(args.out)
-    for ems, sub in df.groupby("ems", sort=False):
-        ok = sub[sub["closes"] == True]  # noqa: E712
-        names = ", ".join(Path(r).name for r in ok["run"]) or "none"
-        print(f"{ems}: {len(ok)} of {len(sub)} size points close the seasonal cycle: {names}")
-    print(f"{len(df)} runs in {meta['wall_s']:.1f} s; wrote {out / 'size.csv'}, {out / 'size.md'}, "
-          f"{out / 'figures' / 'pareto.png'}, {out / 'report.md'} and {out / 'report.html'}")
-    return 0
-
+    return sized, values, design
 
 def _size(args: argparse.Namespace, emss: list[str], sized: list, costs: Any, meta: dict[str, Any],
           out: Path) -> Any:

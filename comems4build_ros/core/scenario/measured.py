@@ -196,9 +196,6 @@ def measured_frame(
     -------
     frame with a UTC index and the scenario CSV columns, and the provenance ``meta``
     """
-    from comems4build_ros.core.scenario.generator import _daily_kc, _load, _solar, _streams, generate
-    from comems4build_ros.core.scenario.loaders import read_dwd_temperature
-
     tz = params.site.timezone
     seed = measured.seed if seed is None else int(seed)
     fill = fill or measured.temperature.fill
@@ -211,37 +208,8 @@ def measured_frame(
     index = spot.index
     time = index.tz_convert(tz)
     temp_path = _data_path(measured.temperature.file)
-    t_meas = read_dwd_temperature(temp_path).reindex(index)
-    valid = np.isfinite(t_meas.to_numpy())
-    n_measured = int(np.argmin(valid)) if not valid.all() else len(valid)
-    if n_measured == 0 or valid[n_measured:].any():
-        raise ScenarioError(
-            f"{temp_path}: the temperature must cover the scenario from its start without gaps "
-            f"({int(valid.sum())} of {len(valid)} hours present)"
-        )
-    synthetic = None
-    if fill == "synthetic":
-        g = generate(generator, params.site, params.comfort.holidays_country, params.comfort.holidays_subdivision,
-                     len(time), seed, start=time[0])
-        synthetic = g.t_amb_c
-    t_ref = measured.temperature
-    t_amb = fill_temperature(t_meas.to_numpy(), n_measured, fill, t_ref.fill_reference_days, t_ref.fill_seam_h,
-                             synthetic)
-    # Radiation and load: the generator's models on the measured calendar.
-    local_dates = time.normalize().tz_localize(None)
-    day = ((local_dates - local_dates[0]).days).to_numpy()
-    n_days = int(day.max()) + 1
-    rng = _streams(seed)
-    kc = _daily_kc(rng["solar"], n_days, np.zeros(n_days), generator)
-    if measured.kc_from_temperature_amplitude:
-        daily = pd.Series(t_amb).groupby(day)
-        amplitude = (daily.max() - daily.min()).to_numpy()
-        kc = rank_matched(kc, amplitude)
-    ghi, dhi = _solar(rng["solar"], time, day, kc, generator, params.site)
-    from comems4build_ros.core.scenario.comfort import is_off_day
-
-    off = is_off_day(time, params.comfort)
-    load = _load(rng["load"], time, day, off, generator)
+    t_amb, n_measured = _temperature(temp_path, index, time, params, measured, generator, seed, fill)
+    ghi, dhi, load = _modelled_radiation_and_load(time, t_amb, params, measured, generator, seed)
     dhw_path = _data_path(measured.dhw_file)
     dhw = dhwcalc_draws(dhw_path, time, measured.dhw_day1_weekday)
     frame = pd.DataFrame(
@@ -267,6 +235,52 @@ def measured_frame(
         "t_amb_filled": {"method": fill, "from": filled_from, "hours": int(len(time) - n_measured)},
     }
     return frame, meta
+
+
+def _temperature(path: Path, index: pd.DatetimeIndex, time: pd.DatetimeIndex, params: PlantParams,
+                 measured: MeasuredParams, generator: ScenarioParams, seed: int, fill: str) -> tuple[np.ndarray, int]:
+    """The measured ambient temperature on ``index``, its missing end filled [degC]; and the measured hours."""
+    from comems4build_ros.core.scenario.generator import generate
+    from comems4build_ros.core.scenario.loaders import read_dwd_temperature
+
+    t_meas = read_dwd_temperature(path).reindex(index)
+    valid = np.isfinite(t_meas.to_numpy())
+    n_measured = int(np.argmin(valid)) if not valid.all() else len(valid)
+    if n_measured == 0 or valid[n_measured:].any():
+        raise ScenarioError(
+            f"{path}: the temperature must cover the scenario from its start without gaps "
+            f"({int(valid.sum())} of {len(valid)} hours present)"
+        )
+    synthetic = None
+    if fill == "synthetic":
+        g = generate(generator, params.site, params.comfort.holidays_country, params.comfort.holidays_subdivision,
+                     len(time), seed, start=time[0])
+        synthetic = g.t_amb_c
+    t_ref = measured.temperature
+    t_amb = fill_temperature(t_meas.to_numpy(), n_measured, fill, t_ref.fill_reference_days, t_ref.fill_seam_h,
+                             synthetic)
+    return t_amb, n_measured
+
+
+def _modelled_radiation_and_load(time: pd.DatetimeIndex, t_amb: np.ndarray, params: PlantParams,
+                                 measured: MeasuredParams, generator: ScenarioParams, seed: int
+                                 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """GHI and DHI [W/m2] and the appliance load [W]: the generator's models on the measured calendar."""
+    from comems4build_ros.core.scenario.comfort import is_off_day
+    from comems4build_ros.core.scenario.generator import _daily_kc, _load, _solar, _streams
+
+    local_dates = time.normalize().tz_localize(None)
+    day = ((local_dates - local_dates[0]).days).to_numpy()
+    n_days = int(day.max()) + 1
+    rng = _streams(seed)
+    kc = _daily_kc(rng["solar"], n_days, np.zeros(n_days), generator)
+    if measured.kc_from_temperature_amplitude:
+        daily = pd.Series(t_amb).groupby(day)
+        amplitude = (daily.max() - daily.min()).to_numpy()
+        kc = rank_matched(kc, amplitude)
+    ghi, dhi = _solar(rng["solar"], time, day, kc, generator, params.site)
+    load = _load(rng["load"], time, day, is_off_day(time, params.comfort), generator)
+    return ghi, dhi, load
 
 
 def filled_mask(time: pd.DatetimeIndex, meta: dict) -> np.ndarray:

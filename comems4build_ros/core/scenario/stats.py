@@ -104,14 +104,20 @@ def scenario_stats(scenario: Scenario, off_day: np.ndarray | None = None,
     """
     n = scenario.n_steps
     time = scenario.time[:n]
-    date = pd.Index(time.date)
-    spot = pd.Series(scenario.spot_eur_per_mwh[:n], index=time)
     off = np.zeros(n, dtype=bool) if off_day is None else np.asarray(off_day[:n], dtype=bool)
-    daily = spot.groupby(date)
+    out = {**_price_stats(scenario, time, off), **_temperature_stats(scenario, time),
+           **_radiation_stats(scenario, time), **_demand_stats(scenario, time, off, dynamisation_coef)}
+    return {k: float(v) for k, v in out.items()}
+
+
+def _price_stats(scenario: Scenario, time: pd.DatetimeIndex, off: np.ndarray) -> dict[str, float]:
+    """The spot and buy price statistics of :data:`STATS` [EUR/MWh, EUR/kWh, h]."""
+    spot = pd.Series(scenario.spot_eur_per_mwh[:len(time)], index=time)
+    daily = spot.groupby(pd.Index(time.date))
     spread = daily.max() - daily.min()
     month = spot.groupby(time.month).mean()
     hour = spot.groupby(time.hour).mean().reindex(range(24)).to_numpy()
-    out: dict[str, float] = {
+    return {
         "spot_mean": spot.mean(),
         "spot_std": spot.std(),
         "spot_min": spot.min(),
@@ -128,40 +134,52 @@ def scenario_stats(scenario: Scenario, off_day: np.ndarray | None = None,
         "spot_daily_min": daily.mean().min(),
         "spot_daily_max": daily.mean().max(),
         "spot_hour_corr": float(np.corrcoef(hour, REFERENCE_HOUR_PROFILE)[0, 1]),
-        "buy_mean": float(np.mean(scenario.price_buy_eur_per_kwh[:n])),
+        "buy_mean": float(np.mean(scenario.price_buy_eur_per_kwh[:len(time)])),
     }
+
+
+def _temperature_stats(scenario: Scenario, time: pd.DatetimeIndex) -> dict[str, float]:
+    """The ambient temperature statistics of :data:`STATS`, up to :data:`TEMPERATURE_END` [degC, K]."""
     t_end = pd.Timestamp(TEMPERATURE_END).tz_localize(time.tz)
     sel = time < t_end
-    temp = pd.Series(scenario.t_amb_c[:n][sel], index=time[sel])
+    temp = pd.Series(scenario.t_amb_c[:len(time)][sel], index=time[sel])
     tdaily = temp.groupby(pd.Index(temp.index.date))
     tmean = tdaily.mean()
     tmean.index = pd.DatetimeIndex(tmean.index)
-    out.update(
-        {
-            "t_mean": temp.mean(),
-            "t_min": temp.min(),
-            "t_max": temp.max(),
-            "t_amp_med": (tdaily.max() - tdaily.min()).median(),
-            "t_daily_min": tmean.min(),
-            "t_daily_max": tmean.max(),
-            "t_daily_std": tmean.std(),
-            "t_cold_spell_max": tmean["2022-12-10":"2022-12-19"].max(),
-            "t_new_year_max": tmean["2022-12-28":"2023-01-07"].max(),
-        }
-    )
+    return {
+        "t_mean": temp.mean(),
+        "t_min": temp.min(),
+        "t_max": temp.max(),
+        "t_amp_med": (tdaily.max() - tdaily.min()).median(),
+        "t_daily_min": tmean.min(),
+        "t_daily_max": tmean.max(),
+        "t_daily_std": tmean.std(),
+        "t_cold_spell_max": tmean["2022-12-10":"2022-12-19"].max(),
+        "t_new_year_max": tmean["2022-12-28":"2023-01-07"].max(),
+    }
+
+
+def _radiation_stats(scenario: Scenario, time: pd.DatetimeIndex) -> dict[str, float]:
+    """Monthly GHI [kWh/m2/d] and the diffuse share [-] of :data:`STATS`."""
+    n = len(time)
     ghi = pd.Series(scenario.ghi_w_m2[:n], index=time)
     ghi_month = ghi.groupby(time.month).mean() * 24 * KWH_PER_WH
-    out.update(
-        {
-            "ghi_dec": ghi_month.get(12, np.nan),
-            "ghi_jan": ghi_month.get(1, np.nan),
-            "ghi_feb": ghi_month.get(2, np.nan),
-            "diffuse_share": float(np.sum(scenario.dhi_w_m2[:n]) / max(np.sum(scenario.ghi_w_m2[:n]), 1e-9)),
-        }
-    )
+    return {
+        "ghi_dec": ghi_month.get(12, np.nan),
+        "ghi_jan": ghi_month.get(1, np.nan),
+        "ghi_feb": ghi_month.get(2, np.nan),
+        "diffuse_share": float(np.sum(scenario.dhi_w_m2[:n]) / max(np.sum(scenario.ghi_w_m2[:n]), 1e-9)),
+    }
+
+
+def _demand_stats(scenario: Scenario, time: pd.DatetimeIndex, off: np.ndarray,
+                  dynamisation_coef: list[float] | None) -> dict[str, float]:
+    """Appliance load [kWh, kWh/a, h] and hot-water draw [l/d, -] statistics of :data:`STATS`."""
+    n = len(time)
+    date = pd.Index(time.date)
     load = pd.Series(scenario.p_load_w[:n], index=time)
     prof = load.groupby(time.hour).mean()
-    out["load_kwh"] = load.sum() * KWH_PER_WH
+    out = {"load_kwh": load.sum() * KWH_PER_WH}
     if dynamisation_coef is not None:
         year_mean = dynamisation_factor(np.arange(1, 366), dynamisation_coef).mean()
         window_mean = dynamisation_factor(np.minimum(time.day_of_year.to_numpy(), 365), dynamisation_coef).mean()
@@ -174,7 +192,7 @@ def scenario_stats(scenario: Scenario, off_day: np.ndarray | None = None,
     off_daily = pd.Series(off, index=time).groupby(date).first()
     out["dhw_l_per_day"] = dhw.mean()
     out["dhw_offday_ratio"] = dhw[off_daily.to_numpy()].mean() / dhw[~off_daily.to_numpy()].mean()
-    return {k: float(v) for k, v in out.items()}
+    return out
 
 
 def misfit(stats: dict[str, float]) -> float:

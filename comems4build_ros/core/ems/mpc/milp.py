@@ -193,6 +193,8 @@ class MILPModel:
         self.c.setdefault(name, []).append(con)
         self.prob.addConstraint(con, f"{name}_{t}")
 
+    # Long on purpose: the whole horizon problem in the order of sec:MPC, one block per equation,
+    # so that it reads beside the paper; splitting it would scatter the formulation.
     def _build(self) -> None:
         k, n, paper = self.const, self.n, self.formulation == "paper"
         for name in ("p_buy", "p_sell", "q_dump", "t_wall_in", "t_wall_out", "v_dhw", "soc", "loh"):
