@@ -131,7 +131,7 @@ class StepsSeen:
     def __init__(self, topic: str, from_ems: bool, step_of: Callable[[bytes], int], withheld: bool = False) -> None:
         self.topic = topic
         self.from_ems = from_ems  # no message is expected at a fallback step
-        self.withheld = withheld  # ... nor at a step whose state was withheld (bag_eval.WITHHELD_EVENT)
+        self.withheld = withheld  # ... nor at a step whose state was withheld (wire.contract.WITHHELD_EVENT)
         self.step_of = step_of
         self.steps: set[int] = set()
         self.first = 0  # first step seen: a topic that starts late does not hold the progress back
