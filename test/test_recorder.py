@@ -136,6 +136,7 @@ PUBLISHER_SCRIPT = textwrap.dedent(
     import rclpy
     from rclpy.duration import Duration
     from std_msgs.msg import Float64MultiArray
+    from comems4build_ros.ros.interfaces import qos_profile
     from comems4build_ros.wire.contract import load_contract
     n, pause = int(sys.argv[1]), float(sys.argv[2])
     rclpy.init()

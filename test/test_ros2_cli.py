@@ -39,8 +39,8 @@ CLI_DEPENDENCIES = {"argcomplete": "argcomplete", "importlib_metadata": "importl
                     "lark": "lark", "psutil": "psutil", "packaging": "packaging", "yaml": "pyyaml",
                     "dateutil": "python-dateutil", "pyparsing": "pyparsing"}
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
-EXECUTABLES = ("feed", "fuzzy_ems", "mpc_ems", "mqtt_bridge", "mqtt_plant", "plant_sim", "rbc_ems", "recorder",
-               "replay")
+EXECUTABLES = ("feed", "fuzzy_ems", "mpc_ems", "mpc_qp_ems", "mqtt_bridge", "mqtt_plant", "plant_sim", "rbc_ems",
+               "recorder", "replay", "thermostat_ems")
 CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
 
 
