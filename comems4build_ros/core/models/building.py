@@ -14,10 +14,14 @@ The default parameters (``config/plant.yaml``, section ``building``) are calibra
 ``docs/models.md``.
 
 The plant sees its building model through :class:`BuildingModel`: per step the heat of the
-emission system into the floor (negative when cooling) and the weather go in, the node
-temperatures come out. :class:`RCBuilding` is the paper's 4R3C model; another model (a
-detailed one, in co-simulation) implements the same two methods and leaves the devices as
-they are.
+emission system into the floor (negative when cooling) and the step's weather and appliance
+load (its internal gains, ``exo.p_load_w``) go in, the node temperatures come out; ``close``
+ends a model that runs a simulator of its own. :class:`RCBuilding` is the paper's 4R3C model
+(it has no internal-gain term, as in the paper); the detailed models in co-simulation
+(:mod:`~comems4build_ros.core.models.building_energyplus`,
+:mod:`~comems4build_ros.core.models.building_fmu`, chosen with
+:mod:`~comems4build_ros.core.models.buildings`) implement the same methods and leave the
+devices as they are.
 """
 
 from __future__ import annotations
@@ -159,8 +163,13 @@ class BuildingModel(Protocol):
         ----------
         temps : node temperatures at its start [degC]
         q_floor_w : heat into the floor from the emission system [W] (negative: cooling)
-        exo : the step's weather and loads (``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], ...)
+        exo : the step's weather and loads (``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], the appliance
+            load ``p_load_w`` [W] whose heat a detailed model releases in the rooms, ...)
         """
+        ...
+
+    def close(self) -> None:
+        """End the model's own simulator, if any (idempotent)."""
         ...
 
 
@@ -199,3 +208,6 @@ class RCBuilding:
         return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s,
                 a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s,
                 a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s)
+
+    def close(self) -> None:
+        """Nothing to end: the 4R3C is plain arithmetic."""
