@@ -32,6 +32,10 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sweep": ("sweep", "sensitivity grid on local processes or a Dask cluster; one table and one plot per KPI "
                        "(PDF, SVG, PNG)"),
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
+    "export-fmu": ("export_fmu", "the paper's 4R3C building model as an FMI 2.0 co-simulation FMU (pythonfmu) with its "
+                                 "variable map, for --building fmu:FILE.fmu"),
+    "house": ("house", "the EnergyPlus house against its typology: heat loss coefficient (typology method and "
+                       "EnergyPlus steady states), design heat load, heating demand with the thermostat"),
     "size": ("size", "sizing study over the year: a grid or sampled design of PV, battery, electrolyser, FC and "
                      "H2 store sizes per EMS; annual cost (energy, annuities, O&M, wear), self-sufficiency, whether "
                      "the seasonal cycle closes, the Pareto front; table, figure and report"),

@@ -79,6 +79,7 @@ class IDFInterface:
     exterior_walls: list[str]
     timesteps_per_hour: int
     floor_areas_m2: list[float]
+    people: list[str] = field(default_factory=list)
 
 
 def polygon_area_m2(coords: list[float]) -> float:
@@ -160,7 +161,8 @@ def check_idf(path: str | Path) -> IDFInterface:
     if 60 / n > MAX_ZONE_STEP_MIN:
         raise IDFError(f"{path}: object Timestep: field Number of Timesteps per Hour = {n} gives "
                        f"{60 / n:g} min, at most {MAX_ZONE_STEP_MIN} min allowed (at least 4 per hour)")
-    return IDFInterface(zones, floors, appliances, walls, n, areas)
+    people = [o[1] for o in kinds.get("people", []) if len(o) > 1]
+    return IDFInterface(zones, floors, appliances, walls, n, areas, people)
 
 
 _DROP = ("runperiod", "site:location", "sizingperiod:designday", "sizingperiod:weatherfileday",
@@ -211,12 +213,15 @@ class EnergyPlusBuilding:
     t_air_init_c : the air temperature the warm-up holds [degC]
     workdir : where EnergyPlus writes its files (default: a temporary folder removed by :meth:`close`)
     epw : an EPW file to use instead of writing one from ``weather`` (checked to cover the run)
+    occupants : False switches the IDF's ``People`` off (steady-state tests without gains)
     """
 
     name = "energyplus"
 
     def __init__(self, idf: str | Path | None, weather: Weather, site: SiteParams, n_steps: int,
-                 t_air_init_c: float, workdir: str | Path | None = None, epw: str | Path | None = None) -> None:
+                 t_air_init_c: float, workdir: str | Path | None = None, epw: str | Path | None = None,
+                 occupants: bool = True) -> None:
+        self.occupants = bool(occupants)
         self.idf = Path(idf) if idf else house.shipped_idf()
         self.spec = check_idf(self.idf)
         self.weather, self.site, self.n_steps = weather, site, int(n_steps)
@@ -359,6 +364,8 @@ class EnergyPlusBuilding:
             "flux": ex.get_actuator_handle(state, "Schedule:Constant", "Schedule Value", house.HEAT_SCHEDULE),
             "gains": [ex.get_actuator_handle(state, "ElectricEquipment", "Electricity Rate", a)
                       for a in self.spec.appliances],
+            "people": [ex.get_actuator_handle(state, "People", "Number of People", p) for p in self.spec.people]
+            if not self.occupants else [],
             "t_zone": [ex.get_variable_handle(state, "Zone Mean Air Temperature", z) for z in self.spec.zones],
             "src": [ex.get_variable_handle(state, SOURCE_VARIABLE, f) for f in self.spec.floors],
             "t_floor": [ex.get_variable_handle(state, "Surface Inside Face Temperature", f) for f in self.spec.floors],
@@ -389,6 +396,8 @@ class EnergyPlusBuilding:
         per = gains_w / len(self._h["gains"])
         for hg in self._h["gains"]:
             ex.set_actuator_value(state, hg, per)
+        for hp in self._h["people"]:
+            ex.set_actuator_value(state, hp, 0.0)
 
     def _on_begin(self, state: Any) -> None:
         self._guard(self._begin, state)
