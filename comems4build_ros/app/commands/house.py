@@ -43,8 +43,8 @@ def run(args: argparse.Namespace) -> int:
         f"heat loss coefficient, EnergyPlus steady states at -10 and +10 degC: H = {f['h_energyplus_w_per_k']:.1f} W/K "
         f"to the outdoor air; default 4R3C: {f['h_rc_w_per_k']:.1f} W/K; ratio {f['h_ratio_to_rc']:.3f} "
         f"({'within' if ok else 'OUTSIDE'} +-{H_TOLERANCE:.0%})",
-        f"design heat load at {f['design_t_amb_c']:g} degC, 20 degC inside: EnergyPlus {f['design_load_energyplus_w']:.0f}"
-        f" W; typology H x dT = {f['design_load_typology_w']:.0f} W",
+        f"design heat load at {f['design_t_amb_c']:g} degC, 20 degC inside: EnergyPlus "
+        f"{f['design_load_energyplus_w']:.0f} W; typology H x dT = {f['design_load_typology_w']:.0f} W",
         f"space heating over {f['heating_weeks']:g} weeks with the thermostat: {f['heating_kwh_thermostat']:.0f} kWh; "
         f"typology quasi-steady range {lo:.0f} .. {hi:.0f} kWh "
         f"({'within' if lo <= f['heating_kwh_thermostat'] <= hi else 'OUTSIDE'}); discomfort median "

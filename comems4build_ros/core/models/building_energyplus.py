@@ -129,7 +129,8 @@ def check_idf(path: str | Path) -> IDFInterface:
     zones = [o[1] for o in kinds.get("zone", []) if len(o) > 1]
     if not zones:
         raise IDFError(f"{path}: object Zone: the IDF has no zone")
-    sched = [o for o in kinds.get("schedule:constant", []) if len(o) > 1 and o[1].lower() == house.HEAT_SCHEDULE.lower()]
+    heat = house.HEAT_SCHEDULE.lower()
+    sched = [o for o in kinds.get("schedule:constant", []) if len(o) > 1 and o[1].lower() == heat]
     if not sched:
         raise IDFError(f"{path}: object Schedule:Constant: field Name: no schedule named '{house.HEAT_SCHEDULE}' "
                        "(the floor heat flux the co-simulation sets, W/m2)")

@@ -57,7 +57,7 @@ class BuildingChoice:
 
 def parse_building(text: str | None, map_path: str | Path | None = None,
                    epw: str | Path | None = None) -> BuildingChoice:
-    """``rc``, ``energyplus[:IDF]`` or ``fmu:PATH`` as a :class:`BuildingChoice` (raises :class:`BuildingChoiceError`)."""
+    """``rc``, ``energyplus[:IDF]`` or ``fmu:PATH`` as a :class:`BuildingChoice` (or :class:`BuildingChoiceError`)."""
     text = (text or "rc").strip()
     kind, _, path = text.partition(":")
     if kind not in KINDS:

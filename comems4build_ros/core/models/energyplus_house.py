@@ -85,7 +85,7 @@ class HouseSpec:
     u_wall_target: float = 0.20     # advanced refurbishment (choice)
     u_roof_target: float = 0.14
     u_floor_target: float = 0.25
-    dU_thermal_bridge: float = 0.05  # W/(m2 K) over the envelope, put on the wall (choice)
+    du_thermal_bridge: float = 0.05  # W/(m2 K) over the envelope, put on the wall (choice)
     infiltration_ach: float = 0.1    # n50 = 1.5 1/h divided by 15 (choice)
     ventilation_ach: float = 0.4     # balanced ventilation (choice)
     heat_recovery: float = 0.8       # of the ventilation's heat (choice)
@@ -148,7 +148,7 @@ def constructions(spec: HouseSpec) -> dict[str, list[Layer]]:
     """Layers of each construction, outside to inside, sized to the U-value targets."""
     area_env = spec.wall_gross_m2 + 2 * spec.floor_m2
     wall_net = spec.wall_gross_m2 - spec.window_m2
-    u_wall = spec.u_wall_target + spec.dU_thermal_bridge * area_env / wall_net
+    u_wall = spec.u_wall_target + spec.du_thermal_bridge * area_env / wall_net
     wall_rest = [PLASTER_EXT, SANDLIME, PLASTER_INT]
     r_wall = 1.0 / u_wall - R_SE - R_SI_WALL - sum(x.r_m2k_w for x in wall_rest)
     roof_rest = [TIMBER, GYPSUM]
