@@ -36,6 +36,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
                                  "variable map, for --building fmu:FILE.fmu"),
     "house": ("house", "the EnergyPlus house against its typology: heat loss coefficient (typology method and "
                        "EnergyPlus steady states), design heat load, heating demand with the thermostat"),
+    "identify": ("identify", "the MPC's 4R3C fitted to a detailed building's response under a documented excitation "
+                             "(outside the evaluation weeks); its 24-h open-loop T_air error on held-out weeks; "
+                             "writes the parameter file the MPC reads"),
     "size": ("size", "sizing study over the year: a grid or sampled design of PV, battery, electrolyser, FC and "
                      "H2 store sizes per EMS; annual cost (energy, annuities, O&M, wear), self-sufficiency, whether "
                      "the seasonal cycle closes, the Pareto front; table, figure and report"),

@@ -13,7 +13,8 @@ in-process model compute the same numbers.
 
 Variables (FMI causality): inputs ``Q_floor`` [W] (heat into the floor, negative when
 cooling), ``T_amb`` [degC], ``q_sol`` [W/m2] (global horizontal irradiance) and ``P_gains``
-[W] (appliance load: the 4R3C has no internal-gain term, it is accepted and not used);
+[W] (appliance load: the paper's 4R3C has no internal-gain term; an identified model's
+``f_gains_air`` > 0 heats the air node with that share of it);
 outputs ``T_air``, ``T_w_in``, ``T_w_out`` [degC]; parameters ``T_air_start`` and
 ``T_amb_start`` [degC] (the walls start on the steady profile between the two, without sun)
 and the model's ten parameters under their plant-file names.
@@ -29,7 +30,7 @@ from pythonfmu.fmi2slave import Fmi2Causality, Fmi2Slave, Fmi2Variability, Real
 
 #: Parameter names (plant file, section ``building``), in the order of the JSON file.
 PARAMETERS = ("c_air_j_per_k", "c_wall_j_per_k", "r_w_air_k_per_w", "r_air_amb_k_per_w", "r_w_k_per_w",
-              "r_w_amb_k_per_w", "g_s_m2", "f_conv", "a_sol_k_m2_per_w")
+              "r_w_amb_k_per_w", "g_s_m2", "f_conv", "a_sol_k_m2_per_w", "f_gains_air")
 #: Significant digits of A_d and B_d (as the in-process model).
 EXPM_DIGITS = 12
 
@@ -49,7 +50,7 @@ class RCBuildingFMU(Fmi2Slave):
             with open(path, encoding="utf-8") as f:
                 values = json.load(f)
         for name in PARAMETERS:
-            setattr(self, name, float(values.get(name, 1.0)))
+            setattr(self, name, float(values.get(name, 0.0 if name == "f_gains_air" else 1.0)))
             self.register_variable(Real(name, causality=Fmi2Causality.parameter, variability=Fmi2Variability.tunable))
         self.T_air_start = float(values.get("t_air_init_c", 21.0))
         self.T_amb_start = float(values.get("t_amb_init_c", 4.2))
@@ -69,6 +70,7 @@ class RCBuildingFMU(Fmi2Slave):
         self._h = None
         self._ad = None
         self._bd = None
+        self._bg = None
 
     def exit_initialization_mode(self) -> None:
         """The walls on the steady profile between T_air_start and T_amb_start (as the in-process model)."""
@@ -85,18 +87,23 @@ class RCBuildingFMU(Fmi2Slave):
         ca, cw = self.c_air_j_per_k, self.c_wall_j_per_k
         g_wa, g_aa = 1.0 / self.r_w_air_k_per_w, 1.0 / self.r_air_amb_k_per_w
         g_w, g_wamb = 1.0 / self.r_w_k_per_w, 1.0 / self.r_w_amb_k_per_w
-        aug = np.zeros((6, 6))
+        m = 4 if self.f_gains_air else 3
+        aug = np.zeros((3 + m, 3 + m))
         aug[:3, :3] = [[-(g_wa + g_aa) / ca, g_wa / ca, 0.0],
                        [g_wa / cw, -(g_wa + g_w) / cw, g_w / cw],
                        [0.0, g_w / cw, -(g_w + g_wamb) / cw]]
-        aug[:3, 3:] = [[self.f_conv / ca, g_aa / ca, self.g_s_m2 / ca],
-                       [(1.0 - self.f_conv) / cw, 0.0, 0.0],
-                       [0.0, g_wamb / cw, g_wamb * self.a_sol_k_m2_per_w / cw]]
+        bm = [[self.f_conv / ca, g_aa / ca, self.g_s_m2 / ca],
+              [(1.0 - self.f_conv) / cw, 0.0, 0.0],
+              [0.0, g_wamb / cw, g_wamb * self.a_sol_k_m2_per_w / cw]]
+        if m == 4:
+            bm = [bm[0] + [self.f_gains_air / ca], bm[1] + [0.0], bm[2] + [0.0]]
+        aug[:3, 3:] = bm
         aug *= h
         phi = expm(aug)
         phi = [[float(f"{v:.{EXPM_DIGITS - 1}e}") for v in row] for row in phi]
         self._ad = [row[:3] for row in phi[:3]]
-        self._bd = [row[3:] for row in phi[:3]]
+        self._bd = [row[3:6] for row in phi[:3]]
+        self._bg = [row[6] for row in phi[:3]] if m == 4 else None
         self._h = h
 
     def do_step(self, current_time: float, step_size: float) -> bool:
@@ -110,4 +117,9 @@ class RCBuildingFMU(Fmi2Slave):
         self.T_air = a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q + b0[1] * t_amb + b0[2] * q_s
         self.T_w_in = a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q + b1[1] * t_amb + b1[2] * q_s
         self.T_w_out = a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q + b2[1] * t_amb + b2[2] * q_s
+        if self._bg is not None:
+            g = self.P_gains
+            self.T_air += self._bg[0] * g
+            self.T_w_in += self._bg[1] * g
+            self.T_w_out += self._bg[2] * g
         return True
