@@ -39,6 +39,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "identify": ("identify", "the MPC's 4R3C fitted to a detailed building's response under a documented excitation "
                              "(outside the evaluation weeks); its 24-h open-loop T_air error on held-out weeks; "
                              "writes the parameter file the MPC reads"),
+    "cosim-study": ("cosim_study", "RBC, ComEMS4Build, MPC and the thermostat on the 4R3C and on the EnergyPlus "
+                                   "house (MPC on an identified model): the paper's table and findings on both, "
+                                   "reports and figures as compare, and docs/cosimulation.md"),
     "size": ("size", "sizing study over the year: a grid or sampled design of PV, battery, electrolyser, FC and "
                      "H2 store sizes per EMS; annual cost (energy, annuities, O&M, wear), self-sufficiency, whether "
                      "the seasonal cycle closes, the Pareto front; table, figure and report"),

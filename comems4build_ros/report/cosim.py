@@ -1,0 +1,201 @@
+"""The co-simulation study's table, findings and document (``docs/cosimulation.md``).
+
+Reads the two comparison folders of :mod:`comems4build_ros.study.cosim` (``rc/`` and
+``energyplus/``), measures the paper's statements (:mod:`~comems4build_ros.report.paper`) and
+checks its findings (:mod:`~comems4build_ros.report.findings`) on each, and writes the
+document: the paper's headline table on the detailed house beside the 4R3C's and the
+paper's, the findings marked as holding or not on each building, the MPC's model error
+beside them, and for every finding that does not hold on the detailed house the figures that
+explain it. Every number in the document is computed here from the runs, the identification
+report and the house figures; the prose around them is fixed.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from comems4build_ros.report.findings import Context, evaluate_findings
+from comems4build_ros.report.paper import Evidence, evaluate_statements, load_paper_results
+
+#: The paper's headline figures shown in the table, in order (keys of ``paper_results.yaml``).
+TABLE_KEYS = ("cost", "reimbursement", "discomfort_median", "weeks_without_discomfort", "buy", "sell",
+              "bess_charged", "h2_week_min", "h2_week_max", "loh_end", "fc_hours_vs_mpc", "fc_toggles_vs_mpc")
+#: The findings the co-simulation asks about first (keys of ``findings.py``), with a short name.
+HEADLINE = (
+    ("fuzzy_discomfort_free", "comfort: ComEMS4Build without discomfort in 10 of 12 weeks"),
+    ("mpc_cheapest", "cost order: the MPC cheapest"),
+    ("fuzzy_cheaper_than_rbc", "cost order: ComEMS4Build cheaper than the RBC"),
+    ("fuzzy_fc_more_than_mpc", "FC hours and toggles: ComEMS4Build above the MPC"),
+    ("rbc_fc_less_than_mpc", "FC hours and toggles: the RBC below the MPC"),
+    ("fuzzy_h2_even", "near-linear H2 use of ComEMS4Build"),
+)
+EMS_ORDER = ("mpc", "fuzzy", "rbc")
+LABELS = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC", "thermostat": "thermostat"}
+BUILDING_LABELS = {"rc": "4R3C", "energyplus": "EnergyPlus house"}
+
+
+@dataclass
+class BuildingResult:
+    """What one building's runs give: figures by (statement, EMS), verdicts by finding, summaries."""
+
+    figures: dict[tuple[str, str], Any]
+    verdicts: dict[str, tuple[str, str]]
+    summaries: dict[str, dict[str, Any]]
+    claims: dict[str, str]
+    timeseries: dict[str, Any]
+
+
+def building_result(folder: str | Path) -> BuildingResult:
+    """Statements and findings measured on one comparison folder."""
+    from comems4build_ros.report.build import read_report_inputs
+
+    cmp = read_report_inputs(folder)
+    statements = load_paper_results()
+    figs = evaluate_statements(Evidence(runs=cmp.runs, params=cmp.params, base_eta=cmp.manifest.base_eta,
+                                        variants=cmp.variants), statements)
+    ctx = Context(runs=cmp.runs, variants=cmp.variants, params=cmp.params, base_eta=cmp.manifest.base_eta)
+    verdicts = {f.key: (v.status, v.evidence) for f, v in evaluate_findings(ctx)}
+    claims = {f.key: f.claim for f, _ in evaluate_findings(ctx)}
+    return BuildingResult({(f.key, f.ems): f.ours for f in figs}, verdicts,
+                          {e: r.summary for e, r in cmp.runs.items()}, claims,
+                          {e: r.timeseries for e, r in cmp.runs.items()})
+
+
+def _num(value: Any, digits: int = 2) -> str:
+    if value is None:
+        return "-"
+    if isinstance(value, list):
+        return ", ".join(str(v) for v in value) or "none"
+    if isinstance(value, dict) and "below" in value:
+        return f"< {value['below']}"
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        return str(value)
+    return "-" if not math.isfinite(x) else f"{x:.{digits}f}"
+
+
+def table_markdown(results: dict[str, BuildingResult]) -> str:
+    """The paper's headline figures: paper | 4R3C | EnergyPlus house, per EMS."""
+    statements = {s.key: s for s in load_paper_results().statements}
+    head = "| figure | unit | EMS | paper | 4R3C | EnergyPlus house |\n|---|---|---|---|---|---|\n"
+    rows = []
+    for key in TABLE_KEYS:
+        s = statements[key]
+        for ems in EMS_ORDER:
+            if ems not in s.paper:
+                continue
+            ours = [_num(results[b].figures.get((key, ems))) for b in ("rc", "energyplus")]
+            rows.append(f"| {s.label} | {s.unit} | {LABELS[ems]} | {_num(s.paper[ems])} | {ours[0]} | {ours[1]} |")
+    return head + "\n".join(rows) + "\n"
+
+
+def ratios(res: BuildingResult) -> dict[str, float]:
+    """Cost ratios to ComEMS4Build and FC hours/toggles relative to the MPC [%] of one building."""
+    s = res.summaries
+    out = {f"cost {LABELS[e]} / ComEMS4Build": s[e]["cost_eur_week_median"] / s["fuzzy"]["cost_eur_week_median"]
+           for e in ("mpc", "rbc")}
+    for e in ("fuzzy", "rbc"):
+        for key, name in (("fc_working_hours", "FC hours"), ("fc_toggles", "FC toggles")):
+            ref = float(s["mpc"][key])
+            out[f"{name} {LABELS[e]} vs MPC [%]"] = math.nan if ref == 0 else 100.0 * (float(s[e][key]) / ref - 1)
+    return out
+
+
+def h2_linearity(ts: Any, loh_init: float = 1.0) -> float:
+    """R^2 of the LOH over time against a straight line (1 = perfectly linear H2 use) [-]."""
+    y = ts["loh"].to_numpy(float)
+    x = np.arange(len(y), dtype=float)
+    if np.ptp(y) == 0:
+        return math.nan
+    coef = np.polyfit(x, y, 1)
+    resid = y - np.polyval(coef, x)
+    return float(1.0 - resid.var() / y.var())
+
+
+def explain(key: str, res: BuildingResult, rc: BuildingResult, ident: dict[str, Any]) -> str:
+    """Figures that explain why a finding does not hold on the detailed house (computed from the runs)."""
+    s, s0 = res.summaries, rc.summaries
+    v = ident.get("evaluation_weeks_thermostat", {})
+    lines = []
+
+    def per_ems(key_: str, unit: str, digits: int = 2) -> str:
+        return "; ".join(f"{LABELS[e]} {_num(s[e].get(key_), digits)} {unit} (4R3C {_num(s0[e].get(key_), digits)})"
+                         for e in EMS_ORDER if e in s)
+
+    if key.startswith("mpc") or "mpc" in key:
+        lines.append(f"The MPC plans with the identified 4R3C, whose 24-h open-loop T_air error on the held-out "
+                     f"evaluation weeks is {_num(v.get('rmse_k'), 3)} K RMSE (largest "
+                     f"{_num(v.get('max_abs_k'), 2)} K); "
+                     "on the 4R3C plant it has no model error.")
+    if "discomfort" in key or "comfort" in key:
+        lines.append("Discomfort [Kh/week, median]: " + per_ems("discomfort_kh_week_median", "Kh/week") + ".")
+        lines.append("Weeks with discomfort: " + per_ems("discomfort_weeks_nonzero", "", 0) + ".")
+    if "cost" in key or "cheap" in key:
+        lines.append("Weekly cost [EUR, median]: " + per_ems("cost_eur_week_median", "EUR") + ".")
+    if "fc" in key:
+        lines.append("FC working hours: " + per_ems("fc_working_hours", "h", 0) + "; FC toggles: "
+                     + per_ems("fc_toggles", "", 0) + ".")
+    if "h2" in key:
+        lines.append("LOH left: " + per_ems("loh_end", "", 3) + "; R^2 of the LOH against a straight line: "
+                     + "; ".join(f"{LABELS[e]} {h2_linearity(res.timeseries[e]):.3f} (4R3C "
+                                 f"{h2_linearity(rc.timeseries[e]):.3f})" for e in EMS_ORDER) + ".")
+    if "sell" in key or "buy" in key or "bess" in key:
+        lines.append("Sold [kWh/week, median]: " + per_ems("sell_kwh_week_median", "kWh") + "; bought: "
+                     + per_ems("buy_kwh_week_median", "kWh") + ".")
+    heat = {e: float(res.timeseries[e]["q_hp_sh_w"].sum()) / 1000.0 for e in res.timeseries}
+    heat0 = {e: float(rc.timeseries[e]["q_hp_sh_w"].sum()) / 1000.0 for e in rc.timeseries}
+    lines.append("Space heat over the run [kWh]: " + "; ".join(
+        f"{LABELS.get(e, e)} {heat[e]:.0f} (4R3C {heat0.get(e, math.nan):.0f})" for e in heat) + ".")
+    return " ".join(lines)
+
+
+def findings_markdown(results: dict[str, BuildingResult], ident: dict[str, Any]) -> tuple[str, list[str]]:
+    """The findings table (headline first) and the explanations of those that do not hold on the house."""
+    rc, ep = results["rc"], results["energyplus"]
+    head = "| finding | claim | 4R3C | EnergyPlus house | evidence on the EnergyPlus house |\n|---|---|---|---|---|\n"
+    keys = [k for k, _ in HEADLINE] + [k for k in ep.verdicts if k not in dict(HEADLINE)]
+    rows, notes = [], []
+    for k in keys:
+        name = dict(HEADLINE).get(k, k)
+        st0, st1 = rc.verdicts[k][0], ep.verdicts[k][0]
+        evidence = ep.verdicts[k][1].replace("|", "/")
+        rows.append(f"| {'**' + name + '**' if k in dict(HEADLINE) else name} | {ep.claims[k]} | {st0} | {st1} | "
+                    f"{evidence} |")
+        if st1 == "not held":
+            notes.append(f"- **{name}** ({'holds' if st0 == 'held' else 'does not hold either'} on the 4R3C). "
+                         + explain(k, ep, rc, ident))
+    return head + "\n".join(rows) + "\n", notes
+
+
+def cosim_markdown(results: dict[str, BuildingResult], ident: dict[str, Any], house: dict[str, Any],
+                   commands: dict[str, str]) -> str:
+    """The whole ``docs/cosimulation.md``."""
+    from comems4build_ros.report.cosim_text import document
+
+    fin, notes = findings_markdown(results, ident)
+    held = {b: sum(v[0] == "held" for v in r.verdicts.values()) for b, r in results.items()}
+    evaluated = {b: sum(v[0] != "n/a" for v in r.verdicts.values()) for b, r in results.items()}
+    rat = {b: ratios(r) for b, r in results.items()}
+    ratio_rows = "| figure | paper | 4R3C | EnergyPlus house |\n|---|---|---|---|\n"
+    st = load_paper_results()
+    cost = st.get("cost").paper
+    hours, toggles = st.get("fc_hours_vs_mpc").paper, st.get("fc_toggles_vs_mpc").paper
+    paper_rat = {"cost MPC / ComEMS4Build": cost["mpc"] / cost["fuzzy"], "cost RBC / ComEMS4Build":
+                 cost["rbc"] / cost["fuzzy"], "FC hours ComEMS4Build vs MPC [%]": hours["fuzzy"],
+                 "FC toggles ComEMS4Build vs MPC [%]": toggles["fuzzy"], "FC hours RBC vs MPC [%]": hours["rbc"],
+                 "FC toggles RBC vs MPC [%]": toggles["rbc"]}
+    for k in rat["rc"]:
+        ratio_rows += f"| {k} | {_num(paper_rat.get(k))} | {_num(rat['rc'][k])} | {_num(rat['energyplus'][k])} |\n"
+    thermo = {b: r.summaries.get("thermostat", {}) for b, r in results.items()}
+    lin = "| EMS | 4R3C | EnergyPlus house |\n|---|---|---|\n" + "".join(
+        f"| {LABELS[e]} | {h2_linearity(results['rc'].timeseries[e]):.3f} | "
+        f"{h2_linearity(results['energyplus'].timeseries[e]):.3f} |\n" for e in EMS_ORDER)
+    return document(table=table_markdown(results), findings=fin, notes="\n".join(notes) or "- none",
+                    held=held, evaluated=evaluated, ratios=ratio_rows, linearity=lin, ident=ident, house=house,
+                    thermostat=thermo, commands=commands)
