@@ -265,6 +265,7 @@ def write_parameter_file(path: str | Path, b: BuildingParams, report: dict[str, 
     import yaml
 
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     section = {name: float(getattr(b, name)) for name in type(b).model_fields}
     v = report["validation"]
     head = (
@@ -283,6 +284,7 @@ def write_parameter_file(path: str | Path, b: BuildingParams, report: dict[str, 
 def write_report(path: str | Path, report: dict[str, Any]) -> Path:
     """The report as JSON (without the parameter object)."""
     path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
     path.write_text(json.dumps({k: v for k, v in report.items() if not k.startswith("_")}, indent=1) + "\n",
                     encoding="utf-8")
     return path
