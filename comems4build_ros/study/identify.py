@@ -197,14 +197,16 @@ def fit(data: Data, base: BuildingParams) -> tuple[BuildingParams, dict[str, flo
 
 def predictions_24h(b: BuildingParams, data: Data, horizon: int = HORIZON_H) -> np.ndarray:
     """Open-loop prediction errors (n_starts, horizon) [K]: Kalman state from measured T_air, then predict."""
-    from comems4build_ros.core.ems.mpc.observer import kalman_gain
+    from comems4build_ros.core.ems.mpc.observer import kalman_gain, wall_split
 
     ad, bd = zoh(b)
     gain = kalman_gain(ad)
     u = data.u
     bu = u @ bd.T
     n = len(u)
-    x = np.array([data.t_air0_c] * 3)
+    s_in, s_out = wall_split(b)
+    d = data.t_air0_c - data.t_amb_c[0]
+    x = np.array([data.t_air0_c, data.t_air0_c - d * s_in, data.t_air0_c - d * s_out])
     errors = []
     for k in range(n):
         if k + horizon <= n and k >= horizon:  # a day of filtering before the first prediction

@@ -117,9 +117,9 @@ class MPCController:
         self.step_info: dict[str, float] = {}
         self.observer = None
         if o.observer == "kalman":
-            from comems4build_ros.core.ems.mpc.observer import KalmanObserver
+            from comems4build_ros.core.ems.mpc.observer import KalmanObserver, wall_split
 
-            self.observer = KalmanObserver(self.const.ad, self.const.bd)
+            self.observer = KalmanObserver(self.const.ad, self.const.bd, wall_split(params.building))
         self.reset()
 
     def reset(self) -> None:
@@ -155,7 +155,7 @@ class MPCController:
     def act(self, obs: Observation) -> Action:
         """Solve the horizon problem and return its first step (or the safe fallback)."""
         if self.observer is not None:  # the model's wall nodes estimated from the measured T_air
-            x = self.observer.update(obs.t_air_c)
+            x = self.observer.update(obs.t_air_c, obs.t_amb_c)
             data = obs.as_dict()
             data.update(t_wall_in_c=float(x[1]), t_wall_out_c=float(x[2]))
             obs = Observation(obs.level, data)

@@ -32,17 +32,27 @@ def kalman_gain(ad: np.ndarray, q: tuple[float, ...] = Q_PROCESS_K2, r: float = 
     return (p @ c.T / (c @ p @ c.T + r)).ravel()
 
 
+def wall_split(b) -> tuple[float, float]:
+    """The steady profile's shares of :class:`~comems4build_ros.core.config.BuildingParams` ``b`` [-]."""
+    r = b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w
+    return b.r_w_air_k_per_w / r, (b.r_w_air_k_per_w + b.r_w_k_per_w) / r
+
+
 class KalmanObserver:
     """Estimates the model's node temperatures from measured T_air (see the module docstring).
 
     Parameters
     ----------
     ad, bd : the MPC model's ZOH matrices (3, 3) and (3, 3 or 4)
+    wall_split : (r_w,air / R, (r_w,air + r_w) / R) with R = r_w,air + r_w + r_w,amb: where the
+        walls start between the measured air and the ambient temperature (the steady profile
+        without sun, as the plant's initial state); None: at the air temperature
     """
 
-    def __init__(self, ad: np.ndarray, bd: np.ndarray) -> None:
+    def __init__(self, ad: np.ndarray, bd: np.ndarray, wall_split: tuple[float, float] | None = None) -> None:
         self.ad = np.asarray(ad, dtype=float)
         self.bd = np.asarray(bd, dtype=float)
+        self.wall_split = wall_split
         self.gain = kalman_gain(self.ad)
         self.reset()
 
@@ -51,10 +61,18 @@ class KalmanObserver:
         self.x: np.ndarray | None = None
         self._u: np.ndarray | None = None
 
-    def update(self, t_air_c: float) -> np.ndarray:
-        """The estimate after the measurement ``t_air_c`` [degC] of the step that just ended."""
+    def update(self, t_air_c: float, t_amb_c: float | None = None) -> np.ndarray:
+        """The estimate after the measurement ``t_air_c`` [degC] of the step that just ended.
+
+        ``t_amb_c`` [degC] places the walls of the first estimate (:attr:`wall_split`).
+        """
         if self.x is None or self._u is None:
-            self.x = np.full(3, float(t_air_c))
+            t = float(t_air_c)
+            if self.wall_split is None or t_amb_c is None:
+                self.x = np.full(3, t)
+            else:
+                d = t - float(t_amb_c)
+                self.x = np.array([t, t - d * self.wall_split[0], t - d * self.wall_split[1]])
         else:
             pred = self.ad @ self.x + self.bd @ self._u
             self.x = pred + self.gain * (float(t_air_c) - pred[0])
