@@ -15,7 +15,7 @@ def _f(x: Any, digits: int = 1) -> str:
 
 def document(*, table: str, findings: str, notes: str, held: dict[str, int], evaluated: dict[str, int],
              ratios: str, linearity: str, ident: dict[str, Any], house: dict[str, Any],
-             thermostat: dict[str, dict[str, Any]], commands: dict[str, str]) -> str:
+             thermostat: dict[str, dict[str, Any]], commands: dict[str, str], changes: str) -> str:
     """The document's markdown."""
     v = ident["validation"]
     e = ident.get("evaluation_weeks_thermostat", {})
@@ -145,15 +145,7 @@ study runs the paper's main efficiency only). The co-simulation's headline findi
 
 ## What changes on the detailed house, and why
 
-- The house gains heat the 4R3C does not have: the appliance load (all of it released in the
-  rooms) and four occupants. With about the same heat loss coefficient, the heat pump's space
-  heat falls, and so do the electricity bought and the H2 the fuel cell needs to cover it.
-- The heat enters a screed floor whose surface exchanges with the room by radiation and
-  convection; the air responds faster to the floor heat than in the 4R3C with f_conv = 0.4,
-  and the thermostat and the RBC's hysteresis see different overshoots.
-- The MPC plans with an identified model (error in the table above) and estimates its state;
-  on the 4R3C it had the plant's own model and states. Its cost and comfort on the house are
-  what a model-based controller gets on a real building after a system identification.
+{changes}
 
 ## Reproducing
 
