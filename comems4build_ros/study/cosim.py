@@ -63,12 +63,12 @@ def run_study(out: Path, identified: Path, forecast: str | None = None, weeks: f
 
     plan = study_tasks(out, identified, forecast, weeks)
     walls: dict[str, dict[str, float]] = {b: {} for b in plan}
-    all_tasks = [t for _, tasks in plan.values() for t in tasks]
 
     def done(task: Any, summary: dict) -> None:
         walls[task.building][task.ems] = float(summary["task_wall_s"])
 
-    run_tasks(all_tasks, jobs=jobs, on_done=done, progress=progress)
+    for _, tasks in plan.values():  # one batch per building (run names are unique within a study's batch)
+        run_tasks(tasks, jobs=jobs, on_done=done, progress=progress)
     for building, (specs, _tasks) in plan.items():
         t0 = time.perf_counter()
         manifest = Manifest(scenario="default", weeks=weeks, via="inprocess", base_eta=BASE_ETA, runs=specs,
