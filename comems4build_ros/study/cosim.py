@@ -26,39 +26,35 @@ STUDY_EMS = ("rbc", "fuzzy", "mpc", "thermostat")
 BUILDINGS = ("rc", "energyplus")
 #: FC system efficiency of the runs (the paper's main one).
 BASE_ETA = 0.75
+#: Folder of the runs inside a building's comparison folder (as ``compare`` writes it).
+RUNS_DIR = "runs"
 
 
 def study_tasks(out: Path, identified: Path, forecast: str | None = None, weeks: float | None = None) -> dict[str, Any]:
-    """The run specifications and tasks per building: ``{building: (specs, tasks)}``."""
+    """The runs per building: ``{building: [RunTask, ...]}`` into ``out/<building>/runs/<ems>``."""
     from comems4build_ros.core.ems import ems_entry
-    from comems4build_ros.report.runs import RUNS_DIR, RunSpec
     from comems4build_ros.study.runner import RunTask
 
     plan: dict[str, Any] = {}
     for building in BUILDINGS:
-        specs, tasks = [], []
+        tasks = []
         for ems in STUDY_EMS:
             level = str(ems_entry(ems).info_level)
-            ov = {"fuel_cell.eta_sys": BASE_ETA}
             config: list[str] = []
             options: dict[str, Any] = {}
             if building != "rc" and level == "mpc":
                 config = [str(Path(identified).resolve())]
                 options = {"observer": "kalman"}
-            specs.append(RunSpec(name=ems, ems=ems, eta_sys=BASE_ETA, info_level=level, overrides=ov))
-            tasks.append(RunTask(ems=ems, out_dir=str(out / building / RUNS_DIR / ems), weeks=weeks, overrides=ov,
-                                 config=config, ems_options=options, building=building, forecast=forecast))
-        plan[building] = (specs, tasks)
+            tasks.append(RunTask(ems=ems, out_dir=str(out / building / RUNS_DIR / ems), weeks=weeks,
+                                 overrides={"fuel_cell.eta_sys": BASE_ETA}, config=config, ems_options=options,
+                                 building=building, forecast=forecast))
+        plan[building] = tasks
     return plan
 
 
 def run_study(out: Path, identified: Path, forecast: str | None = None, weeks: float | None = None,
-              jobs: int | None = None, progress: bool | None = None) -> dict[str, dict[str, float]]:
-    """Run every task, write each building's manifest and report; returns the wall times [s]."""
-    import time
-
-    from comems4build_ros.report.build import build_report
-    from comems4build_ros.report.runs import Manifest, write_manifest
+              jobs: int | None = None, progress: bool | None = None) -> tuple[dict[str, Any], dict[str, dict]]:
+    """Run every task, one batch per building; returns the tasks and the wall times [s] per building and EMS."""
     from comems4build_ros.study.runner import run_tasks
 
     plan = study_tasks(out, identified, forecast, weeks)
@@ -67,13 +63,6 @@ def run_study(out: Path, identified: Path, forecast: str | None = None, weeks: f
     def done(task: Any, summary: dict) -> None:
         walls[task.building][task.ems] = float(summary["task_wall_s"])
 
-    for _, tasks in plan.values():  # one batch per building (run names are unique within a study's batch)
+    for tasks in plan.values():  # one batch per building (run names are unique within a batch)
         run_tasks(tasks, jobs=jobs, on_done=done, progress=progress)
-    for building, (specs, _tasks) in plan.items():
-        t0 = time.perf_counter()
-        manifest = Manifest(scenario="default", weeks=weeks, via="inprocess", base_eta=BASE_ETA, runs=specs,
-                            overrides={}, config=[], wall_s=dict(walls[building]))
-        write_manifest(manifest, out / building)
-        build_report(out / building)
-        walls[building]["report"] = time.perf_counter() - t0
-    return walls
+    return plan, walls

@@ -26,6 +26,22 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
 
 
+def write_reports(out, plan: dict, walls: dict, weeks: float | None) -> None:
+    """Each building's ``compare.json`` and the report and figures ``compare`` writes."""
+    from comems4build_ros.core.ems import ems_entry
+    from comems4build_ros.report.build import build_report
+    from comems4build_ros.report.runs import Manifest, RunSpec, write_manifest
+    from comems4build_ros.study.cosim import BASE_ETA
+
+    for building, tasks in plan.items():
+        specs = [RunSpec(name=t.ems, ems=t.ems, eta_sys=BASE_ETA, info_level=str(ems_entry(t.ems).info_level),
+                         overrides=dict(t.overrides)) for t in tasks]
+        manifest = Manifest(scenario="default", weeks=weeks, via="inprocess", base_eta=BASE_ETA, runs=specs,
+                            overrides={}, config=[], wall_s=dict(walls[building]))
+        write_manifest(manifest, out / building)
+        build_report(out / building)
+
+
 def run(args: argparse.Namespace) -> int:
     """Identify (unless given), run the eight runs, build the reports, write the document."""
     import json
@@ -71,8 +87,9 @@ def run(args: argparse.Namespace) -> int:
     house = house_figures(params)
     (out / "house.json").write_text(json.dumps(house, indent=1) + "\n", encoding="utf-8")
     say("running RBC, ComEMS4Build, MPC and the thermostat on the 4R3C and on the EnergyPlus house")
-    walls = run_study(out, ident_yaml, args.forecast, args.weeks, args.jobs,
-                      progress=False if args.no_progress else None)
+    plan, walls = run_study(out, ident_yaml, args.forecast, args.weeks, args.jobs,
+                            progress=False if args.no_progress else None)
+    write_reports(out, plan, walls, args.weeks)
     results = {b: building_result(out / b) for b in ("rc", "energyplus")}
     weeks = f" --weeks {args.weeks:g}" if args.weeks else ""
     fc = f" --forecast {args.forecast}" if args.forecast else ""
