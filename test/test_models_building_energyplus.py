@@ -126,3 +126,16 @@ def test_cli_refuses_broken_idf_and_short_epw_with_exit_2(params, tmp_path, caps
                  "--out", str(out)]) == 2
     assert "short.epw: field date: the weather file does not cover the run" in capsys.readouterr().err
     assert not out.exists()
+
+
+@pytest.mark.parametrize("command", [
+    ["simulate", "--ems", "fuzzy"], ["compare"], ["sweep", "--ems", "rbc", "--param", "battery.e_max_kwh=5"],
+    ["size", "--ems", "rbc"], ["reproduce", "--only", "x"], ["launch", "--ems", "fuzzy", "--steps", "2"], ["identify"],
+])
+def test_every_command_that_runs_a_plant_takes_building_and_refuses_a_broken_idf(command, tmp_path, capsys):
+    bad = tmp_path / "broken.idf"
+    bad.write_text("Version, 9.6;\n")
+    out = tmp_path / "out.yaml" if command[0] == "identify" else tmp_path / "out"
+    assert main([*command, "--building", f"energyplus:{bad}", "--out", str(out)]) == 2
+    assert f"{bad}: object Version: field Version Identifier" in capsys.readouterr().err
+    assert not out.exists()
