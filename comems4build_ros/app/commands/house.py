@@ -1,4 +1,4 @@
-"""``comems4build house``: the EnergyPlus house's heat loss coefficient, design heat load and heating demand."""
+"""``comems4build house``: the shipped EnergyPlus house's heat loss coefficient, design heat load and heating demand."""
 
 from __future__ import annotations
 
@@ -10,8 +10,6 @@ from comems4build_ros.app.commands.options import WEEKS
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``house``."""
-    parser.add_argument("--idf", metavar="FILE", default=None,
-                        help="the house's IDF (default: the shipped German single-family house)")
     parser.add_argument("--weeks", type=WEEKS, default=12.0, metavar="N",
                         help="weeks of the thermostat run from 2022-12-01, > 0 (default: the paper's 12)")
     parser.add_argument("--json", metavar="FILE", default=None, help="also write the figures as JSON")
@@ -19,20 +17,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the figures beside the typology's and the 4R3C's."""
-    from comems4build_ros.app.commands.options import UsageError, load_params
-    from comems4build_ros.core.models.building_energyplus import IDFError, check_idf
+    from comems4build_ros.app.commands.options import load_params
     from comems4build_ros.files.outputs import check_out_file
     from comems4build_ros.study.house import H_TOLERANCE, house_figures
 
-    if args.idf:
-        try:
-            check_idf(args.idf)
-        except IDFError as exc:
-            raise UsageError(str(exc)) from None
     if args.json:
         check_out_file(args.json, "--json")
     params = load_params([])
-    f = house_figures(params, args.idf, args.weeks)
+    f = house_figures(params, None, args.weeks)
     ok = abs(f["h_ratio_to_rc"] - 1.0) <= H_TOLERANCE
     lo, hi = f["heating_kwh_typology_range"]
     lines = [

@@ -303,8 +303,8 @@ class EnergyPlusBuilding:
             self._stop = True
             self._cmd.put(None)
             self._thread.join(timeout=60)
-        if self._api is not None and self._state is not None:
-            self._api.state_manager.delete_state(self._state)
+        if self._api is not None and self._state is not None and not (self._thread and self._thread.is_alive()):
+            self._api.state_manager.delete_state(self._state)  # never under a thread still running EnergyPlus
             self._state = None
         if self._own_dir:
             shutil.rmtree(self.workdir, ignore_errors=True)
