@@ -84,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
         write_parameter_file(ident_yaml, report.pop("_params"), report)
         write_report(ident_yaml.with_suffix(".json"), report)
     say("the house's figures (steady states and the thermostat's 12 weeks)")
-    house = house_figures(params)
+    house = house_figures(params, weeks=args.weeks or 12.0)
     (out / "house.json").write_text(json.dumps(house, indent=1) + "\n", encoding="utf-8")
     say("running RBC, ComEMS4Build, MPC and the thermostat on the 4R3C and on the EnergyPlus house")
     plan, walls = run_study(out, ident_yaml, args.forecast, args.weeks, args.jobs,
