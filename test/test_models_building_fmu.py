@@ -56,8 +56,9 @@ def test_fmu_steps_equal_the_in_process_4r3c_bit_for_bit(params, rc_fmu):
 
 
 def test_fmu_round_trip_gives_the_rc_runs(params, rc_fmu):
-    """``--building fmu:`` the exported 4R3C = ``--building rc``: T_air within 1e-6 K, every KPI equal (4 weeks)."""
-    scenario = resolve_scenario("default", params, weeks=4)
+    """``--building fmu:`` the exported 4R3C = ``--building rc``: T_air within 1e-6 K, every KPI equal (12 weeks)."""
+    scenario = resolve_scenario("default", params)
+    assert scenario.n_steps == 12 * 168
     a = simulate("fuzzy", scenario, params)
     b = simulate("fuzzy", scenario, params, building=f"fmu:{rc_fmu[0]}")
     assert np.max(np.abs(a.timeseries["t_air_c"] - b.timeseries["t_air_c"])) <= 1e-6
