@@ -23,6 +23,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="parallel runs in local processes, integer >= 1 (default: CPU count)")
     parser.add_argument("--doc", metavar="FILE.md", default=None,
                         help="also write the document here (e.g. docs/cosimulation.md)")
+    parser.add_argument("--from-runs", action="store_true",
+                        help="no runs: write the document again from the study already in --out (its runs, "
+                             "identified.json and house.json)")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars")
 
 
@@ -54,7 +57,6 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.core.models.buildings import BuildingChoice
     from comems4build_ros.core.scenario import resolve_scenario
     from comems4build_ros.files.outputs import check_out_dir, check_out_file
-    from comems4build_ros.report.cosim import building_result, cosim_markdown
     from comems4build_ros.study.cosim import run_study
     from comems4build_ros.study.house import house_figures
     from comems4build_ros.study.identify import identify, write_parameter_file, write_report
@@ -63,6 +65,13 @@ def run(args: argparse.Namespace) -> int:
     if args.doc:
         check_out_file(args.doc, "--doc")
     out = Path(args.out)
+    if args.from_runs:
+        missing = [p for p in (out / "identified.json", out / "house.json", out / "rc" / "compare.json",
+                               out / "energyplus" / "compare.json") if not p.is_file()]
+        if missing:
+            raise UsageError(f"--from-runs: {missing[0]} not found (the --out of an earlier cosim-study)")
+        return _document(args, out, json.loads((out / "identified.json").read_text(encoding="utf-8")),
+                         json.loads((out / "house.json").read_text(encoding="utf-8")))
     out.mkdir(parents=True, exist_ok=True)
     params = load_params([])
     say = lambda text: print(f"cosim-study: {text}", file=sys.stderr)  # noqa: E731
@@ -90,17 +99,26 @@ def run(args: argparse.Namespace) -> int:
     plan, walls = run_study(out, ident_yaml, args.forecast, args.weeks, args.jobs,
                             progress=False if args.no_progress else None)
     write_reports(out, plan, walls, args.weeks)
+    (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n", encoding="utf-8")
+    return _document(args, out, report, house)
+
+
+def _document(args: argparse.Namespace, out, report: dict, house: dict) -> int:
+    """Measure both buildings' folders and write ``cosimulation.md`` (and ``--doc``)."""
+    from pathlib import Path
+
+    from comems4build_ros.report.cosim import building_result, cosim_markdown
+
     results = {b: building_result(out / b) for b in ("rc", "energyplus")}
     weeks = f" --weeks {args.weeks:g}" if args.weeks else ""
     fc = f" --forecast {args.forecast}" if args.forecast else ""
-    commands = {"study": f"comems4build cosim-study --out {args.out}{weeks}{fc}" + (f" --doc {args.doc}" if args.doc
-                                                                                    else ""),
+    commands = {"study": f"comems4build cosim-study --out DIR{weeks}{fc}" + (f" --doc {args.doc}" if args.doc
+                                                                             else ""),
                 "house": "comems4build house", "identify": "comems4build identify --out identified.yaml"}
     text = cosim_markdown(results, report, house, commands)
     (out / "cosimulation.md").write_text(text, encoding="utf-8")
     if args.doc:
         Path(args.doc).write_text(text, encoding="utf-8")
-    (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n", encoding="utf-8")
     for b, r in results.items():
         held_n = sum(v[0] == "held" for v in r.verdicts.values())
         print(f"{b}: {held_n} of {sum(v[0] != 'n/a' for v in r.verdicts.values())} evaluated findings held")
