@@ -29,7 +29,7 @@ house's figures also from `{commands['house']}`, the identification also from
 `{commands['identify']}`).*
 
 The paper presents ComEMS4Build as "a model- and forecast-free alternative to MPC" suitable
-for real-world deployment, and its last item of future work asks for the test of that claim:
+for real-world deployment (abstract), and its last item of future work asks for the test of that claim:
 "more detailed models could be utilized for evaluation in a co-simulation environment, where
 MPC does not have a perfect forecast" (`sec:conclusion`). In every other run of this project
 the plant's building is the 4R3C of `eq:state_update_bldgs`, the very model the MPC plans
