@@ -118,6 +118,14 @@ def h2_linearity(ts: Any, loh_init: float = 1.0) -> float:
     return float(1.0 - resid.var() / y.var())
 
 
+def band_violation_kh(ts: Any, dt_h: float = 1.0) -> tuple[float, float]:
+    """Kelvin-hours of the end-of-step air temperature above T_max and below T_min over a run [Kh]."""
+    t = ts["t_air_c"].to_numpy(float)
+    above = np.clip(t - ts["t_max_c"].to_numpy(float), 0.0, None).sum() * dt_h
+    below = np.clip(ts["t_min_c"].to_numpy(float) - t, 0.0, None).sum() * dt_h
+    return float(above), float(below)
+
+
 def explain(key: str, res: BuildingResult, rc: BuildingResult, ident: dict[str, Any]) -> str:
     """Figures that explain why a finding does not hold on the detailed house (computed from the runs)."""
     s, s0 = res.summaries, rc.summaries
@@ -136,9 +144,21 @@ def explain(key: str, res: BuildingResult, rc: BuildingResult, ident: dict[str, 
     if "discomfort" in key or "comfort" in key:
         lines.append("Discomfort [Kh/week, median]: " + per_ems("discomfort_kh_week_median", "Kh/week") + ".")
         lines.append("Weeks with discomfort: " + per_ems("discomfort_weeks_nonzero", "", 0) + ".")
+        split = {b: {e: band_violation_kh(r.timeseries[e]) for e in EMS_ORDER} for b, r in (("rc", rc), ("ep", res))}
+        text = "; ".join(f"{LABELS[e]} {split['ep'][e][0]:.1f} / {split['ep'][e][1]:.1f} (4R3C "
+                         f"{split['rc'][e][0]:.1f} / {split['rc'][e][1]:.1f})" for e in EMS_ORDER)
+        lines.append(f"Over the run, air temperature above T_max / below T_min at the end of each hour [Kh]: {text}.")
+        for e in EMS_ORDER:
+            up, down = split["ep"][e]
+            if up + down > 0:
+                lines.append(f"On the house {100.0 * up / (up + down):.0f} % of {LABELS[e]}'s band violation lies "
+                             "above T_max.")
     if "cost" in key or "cheap" in key:
         lines.append("Weekly cost [EUR, median]: " + per_ems("cost_eur_week_median", "EUR") + ".")
     if "fc" in key:
+        lines.append("Change of the FC working hours from the 4R3C to the house: " + "; ".join(
+            f"{LABELS[e]} {100.0 * (float(s[e]['fc_working_hours']) / float(s0[e]['fc_working_hours']) - 1.0):+.1f} %"
+            for e in EMS_ORDER if float(s0[e]["fc_working_hours"]) > 0) + ".")
         lines.append("FC working hours: " + per_ems("fc_working_hours", "h", 0) + "; FC toggles: "
                      + per_ems("fc_toggles", "", 0) + ".")
     if "h2" in key:
