@@ -48,6 +48,7 @@ class BuildingResult:
     summaries: dict[str, dict[str, Any]]
     claims: dict[str, str]
     timeseries: dict[str, Any]
+    weekly: dict[str, Any]
 
 
 def building_result(folder: str | Path) -> BuildingResult:
@@ -63,7 +64,7 @@ def building_result(folder: str | Path) -> BuildingResult:
     claims = {f.key: f.claim for f, _ in evaluate_findings(ctx)}
     return BuildingResult({(f.key, f.ems): f.ours for f in figs}, verdicts,
                           {e: r.summary for e, r in cmp.runs.items()}, claims,
-                          {e: r.timeseries for e, r in cmp.runs.items()})
+                          {e: r.timeseries for e, r in cmp.runs.items()}, {e: r.weekly for e, r in cmp.runs.items()})
 
 
 def _num(value: Any, digits: int = 2) -> str:
@@ -252,3 +253,60 @@ def changes_markdown(results: dict[str, BuildingResult], ident: dict[str, Any]) 
         "temperature; on the 4R3C it has the plant's own model and states.",
     ]
     return "\n".join(lines)
+
+
+def comfort_figure(results: dict[str, BuildingResult], path_stem: str | Path) -> Path:
+    """Weekly discomfort per EMS on both buildings, and T_air in the week of ComEMS4Build's largest on the house.
+
+    Top: weekly thermal discomfort (``eq:discomfort``, the weekly table) of each EMS, the 4R3C
+    hatched beside the EnergyPlus house. Middle and bottom: T_air of each EMS over that week
+    on the 4R3C and on the house, with the comfort band [T_min, T_max].
+    """
+    import matplotlib.pyplot as plt
+    import pandas as pd
+
+    from comems4build_ros.report.style import axis_label, ems_colour, ems_label, figsize, paper_style, save_figure
+
+    ep = results["energyplus"]
+    with paper_style():
+        fig, axes = plt.subplots(3, 1, figsize=figsize("double", 170.0), layout="constrained")
+        ax = axes[0]
+        weeks = None
+        width = 0.13
+        for i, e in enumerate(EMS_ORDER):
+            for j, (b, hatch) in enumerate((("rc", "//"), ("energyplus", ""))):
+                w = _weekly_discomfort(results[b], e)
+                weeks = w.index if weeks is None else weeks
+                x = np.arange(len(w)) + (2 * i + j - 2.5) * width
+                ax.bar(x, w.to_numpy(), width, color=ems_colour(e), hatch=hatch, edgecolor="black", linewidth=0.3,
+                       label=f"{ems_label(e)}, {BUILDING_LABELS[b]}")
+        ax.set_xticks(np.arange(len(weeks)), [str(int(k)) for k in weeks])
+        ax.set_xlabel("week")
+        ax.set_ylabel(axis_label("discomfort", "Kh"))
+        ax.legend(ncols=3, fontsize="small")
+        fuzzy_weeks = _weekly_discomfort(ep, "fuzzy")
+        worst = int(fuzzy_weeks.idxmax()) if len(fuzzy_weeks) else 1
+        for ax, b in zip(axes[1:], ("rc", "energyplus")):
+            ts = results[b].timeseries
+            sel = slice((worst - 1) * 168, worst * 168)
+            first = ts["fuzzy"].iloc[sel]
+            t = pd.to_datetime(first["time"], utc=True)
+            ax.fill_between(t, first["t_min_c"], first["t_max_c"], color="0.9", step="post", label="comfort band")
+            for e in EMS_ORDER:
+                ax.plot(t, ts[e]["t_air_c"].iloc[sel], color=ems_colour(e), label=ems_label(e), linewidth=0.8)
+            ax.set_ylabel(axis_label("T_air", "degC"))
+            ax.set_title(f"{BUILDING_LABELS[b]}, week {worst}", fontsize="small")
+        axes[1].legend(ncols=4, fontsize="small")
+        return save_figure(fig, path_stem)
+
+
+def _weekly_discomfort(res: BuildingResult, ems: str) -> Any:
+    """Weekly discomfort [Kh] of one EMS over its complete weeks, indexed by the week number (1 = the first)."""
+    import pandas as pd
+
+    from comems4build_ros.core.kpi import HOURS_PER_WEEK
+
+    w = res.weekly[ems]
+    if "hours" in w:
+        w = w[w["hours"] >= HOURS_PER_WEEK - 1e-9]
+    return pd.Series(w["discomfort_kh"].to_numpy(float), index=np.arange(1, len(w) + 1))

@@ -143,6 +143,15 @@ study runs the paper's main efficiency only). The co-simulation's headline findi
 
 {notes}
 
+![Comfort on both buildings](figures/cosim/cosim_comfort.png)
+
+*Figure.* Top: weekly thermal discomfort (`eq:discomfort`) of each EMS, the 4R3C hatched
+beside the EnergyPlus house. Middle and bottom: T_air of each EMS in the week of
+ComEMS4Build's largest discomfort on the house, with the comfort band (`eq:T_min`), on the
+4R3C and on the house. Written by the study's command (PNG, PDF and SVG in
+`DIR/figures/`, copied to `docs/figures/cosim/`). The reports of each building, with the
+figures `compare` draws, are in `DIR/rc/` and `DIR/energyplus/`.
+
 ## What changes on the detailed house, and why
 
 {changes}

@@ -105,11 +105,18 @@ def run(args: argparse.Namespace) -> int:
 
 def _document(args: argparse.Namespace, out, report: dict, house: dict) -> int:
     """Measure both buildings' folders and write ``cosimulation.md`` (and ``--doc``)."""
+    import shutil
     from pathlib import Path
 
-    from comems4build_ros.report.cosim import building_result, cosim_markdown
+    from comems4build_ros.report.cosim import building_result, comfort_figure, cosim_markdown
 
     results = {b: building_result(out / b) for b in ("rc", "energyplus")}
+    png = comfort_figure(results, out / "figures" / "cosim_comfort")
+    if args.doc:  # the figure beside the document, under docs/figures/
+        dest = Path(args.doc).parent / "figures" / "cosim"
+        dest.mkdir(parents=True, exist_ok=True)
+        for f in png.parent.glob("cosim_comfort.*"):
+            shutil.copy2(f, dest / f.name)
     weeks = f" --weeks {args.weeks:g}" if args.weeks else ""
     fc = f" --forecast {args.forecast}" if args.forecast else ""
     commands = {"study": f"comems4build cosim-study --out DIR{weeks}{fc}" + (f" --doc {args.doc}" if args.doc
