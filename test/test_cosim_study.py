@@ -27,7 +27,7 @@ def study(params, tmp_path_factory) -> Path:
     ident.write_parameter_file(root / "identified.yaml", b, report)
     ident.write_report(root / "identified.json", report)
     out = root / "study"
-    assert main(["cosim-study", "--out", str(out), "--identified", str(root / "identified.yaml"), "--weeks", "0.15",
+    assert main(["cosim-study", "--out", str(out), "--identified", str(root / "identified.yaml"), "--weeks", "0.25",
                  "--jobs", "2", "--no-progress", "--doc", str(root / "cosimulation.md")]) == 0
     return out
 

@@ -115,7 +115,7 @@ def gains_w(ts: pd.DataFrame, params: PlantParams, dhi: np.ndarray,
         poa = pvlib.irradiance.get_total_irradiance(90.0, azimuth, pos["apparent_zenith"], pos["azimuth"], dni, ghi,
                                                     dhi, albedo=0.2, model="isotropic")["poa_global"]
         solar += spec.window_m2 * share * spec.g_window * np.nan_to_num(poa.to_numpy(float))
-    hour, wd = time.hour.to_numpy(), time.weekday.to_numpy()
+    hour, wd = time.hour.to_numpy(), time.day_of_week.to_numpy()
     home = (wd >= 5) | (hour < 8) | (hour >= 17)
     occupants = spec.occupants * OCCUPANT_SENSIBLE_W * home
     return {"appliances": ts["p_load_w"].to_numpy(float), "occupants": occupants, "solar": solar}

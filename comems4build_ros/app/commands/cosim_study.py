@@ -72,8 +72,9 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--from-runs: {missing[0]} not found (the --out of an earlier cosim-study)")
         return _document(args, out, json.loads((out / "identified.json").read_text(encoding="utf-8")),
                          json.loads((out / "house.json").read_text(encoding="utf-8")))
-    out.mkdir(parents=True, exist_ok=True)
     params = load_params([])
+    resolve_scenario("default", params, weeks=args.weeks)  # the run length, checked before anything runs
+    out.mkdir(parents=True, exist_ok=True)
     say = lambda text: print(f"cosim-study: {text}", file=sys.stderr)  # noqa: E731
     ident_yaml = out / "identified.yaml"
     if args.identified:
