@@ -13,11 +13,29 @@ def _f(x: Any, digits: int = 1) -> str:
         return "-"
 
 
+def at_bounds(identified: dict[str, float]) -> str:
+    """The identified parameters that ended on a bound of the fit (text), or ``none``."""
+    from comems4build_ros.study.identify import FIT_PARAMETERS
+
+    hits = []
+    for name, lo, hi, _ in FIT_PARAMETERS:
+        value = identified.get(name)
+        if value is None:
+            continue
+        for bound in (lo, hi):
+            if abs(value - bound) <= 1e-6 * max(abs(bound), 1e-9):
+                hits.append(f"{name} = {value:.3g} (the bound {bound:g})")
+    if not hits:
+        return "none"
+    return "; ".join(hits) + ": the data do not pin it down, the model's other node carries the heat storage"
+
+
 def document(*, table: str, findings: str, notes: str, held: dict[str, int], evaluated: dict[str, int],
              ratios: str, linearity: str, ident: dict[str, Any], house: dict[str, Any],
              thermostat: dict[str, dict[str, Any]], commands: dict[str, str], changes: str) -> str:
     """The document's markdown."""
     v = ident["validation"]
+    bounds = at_bounds(ident["identified"])
     e = ident.get("evaluation_weeks_thermostat", {})
     idp = ident["identified"]
     lo, hi = house["heating_kwh_typology_range"]
@@ -113,6 +131,7 @@ stationary Kalman filter (`--ems-option observer=kalman`).
 | identified heat loss coefficient | {_f(ident['heat_loss_coefficient_w_per_k'])} W/K |
 | identified C_air, C_w | {idp['c_air_j_per_k']:.3g} J/K, {idp['c_wall_j_per_k']:.3g} J/K |
 | identified g_s, f_conv, a_sol, f_gains_air | {_f(idp['g_s_m2'], 2)} m2, {_f(idp['f_conv'], 2)}, {_f(idp['a_sol_k_m2_per_w'], 3)} K m2/W, {_f(idp['f_gains_air'], 2)} |
+| parameters at a bound of the fit | {bounds} |
 
 ## The paper's table on the detailed house
 
