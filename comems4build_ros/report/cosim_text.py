@@ -175,6 +175,14 @@ figures `compare` draws, are in `DIR/rc/` and `DIR/energyplus/`.
 
 {changes}
 
+## Speed
+
+`comems4build bench cosim --identified DIR/identified.yaml` prints, with the load average,
+the wall time of ComEMS4Build's twelve weeks on the EnergyPlus house (target under 60 s on
+2 cores), of the MPC's twelve weeks on it (target under 15 min) and the FMU path's overhead
+over the in-process 4R3C (target at most 3x); the figures depend on the machine's load and
+are not repeated here.
+
 ## Reproducing
 
 ```
