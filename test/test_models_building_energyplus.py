@@ -54,6 +54,8 @@ def test_polygon_area():
         (lambda t: t.replace(house.HEAT_SCHEDULE, "Other Schedule"), "object Schedule:Constant: field Name"),
         (lambda t: t.replace("Timestep,\n  4;", "Timestep,\n  2;"), "object Timestep: field Number of Timesteps"),
         (lambda t: t.replace("ElectricEquipment,", "OtherEquipment,"), "object ElectricEquipment"),
+        (lambda t: t.replace("HalfFlowPower", "ZeroFlowPower", 1),
+         "object ZoneHVAC:LowTemperatureRadiant:Electric 'GF Floor Heating': field Temperature Control Type"),
     ],
 )
 def test_check_idf_names_the_file_and_the_object(tmp_path, edit, message):
@@ -99,6 +101,27 @@ def test_every_steps_heat_equals_what_energyplus_received(week_run):
     assert rel.max() <= 1e-6
     assert week_run.summary["building_heat_balance_max_rel"] <= 1e-6
     assert np.allclose(ts["building_gains_w"], ts["p_load_w"])
+
+
+def test_heat_goes_into_the_screed_and_cooling_through_the_floor_face(params):
+    """Heat through the radiant systems (internal source in the screed), cooling through the source terms."""
+    from comems4build_ros.core.loop import exogenous_series
+    from comems4build_ros.core.models.building_energyplus import EnergyPlusBuilding, weather_of
+
+    scenario = resolve_scenario("default", params, hours=12)
+    exo = exogenous_series(scenario, params)
+    spec = check_idf(house.shipped_idf())
+    assert [r.name for r in spec.radiant] == list(house.RADIANT)
+    b = EnergyPlusBuilding(None, weather_of(scenario.time, scenario.t_amb_c, scenario.ghi_w_m2, scenario.dhi_w_m2),
+                           params.site, scenario.n_steps, 21.0)
+    try:
+        x = b.initial_temperatures(21.0, 4.0)
+        for k, q in enumerate([4500.0, 4500.0, 0.0, 700.0, -1500.0, -1500.0, 0.0, 3000.0, 3000.0, 3000.0, 0.0, 0.0]):
+            x = b.step(x, q, exo[k])
+            assert b.last.q_floor_received_w == pytest.approx(q, rel=1e-6, abs=1e-6)
+        assert x[0] > 15.0
+    finally:
+        b.close()
 
 
 def test_energyplus_house_is_a_house(week_run):

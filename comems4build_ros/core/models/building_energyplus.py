@@ -11,14 +11,20 @@ one step (one hour) at a time:
    heated by a proportional-integral thermostat that holds the air at T_air,init, as the
    4R3C's walls start as if the house had been held there.
 2. Each :meth:`EnergyPlusBuilding.step` hands the step's floor heat and appliance load to
-   the EnergyPlus thread and waits: at the start of each of the hour's zone time steps
-   (callback ``begin_zone_timestep_after_init_heat_balance``) the heat flux schedule of the
-   heated floors (W/m2) and the appliances' electricity rate (W, released as heat in the
-   zones) are set through actuators; at the end of each zone time step (callback
-   ``end_zone_timestep_after_zone_reporting``) the zones' air temperatures and the heat
-   source EnergyPlus reports on the floors (output variable ``Surface Inside Face Heat
-   Source Gain Rate per Area``) are read. After the hour's last zone time step the thread
-   hands the results back and waits for the next step.
+   the EnergyPlus thread and waits. At the start of the hour's first zone time step (callback
+   ``begin_zone_timestep_after_init_heat_balance``) the thread takes the step's values; at the
+   start of every system time step (``begin_system_timestep_before_predictor``) it sets the
+   actuators: the appliances' electricity rate (W, released as heat in the zones) and, for
+   heat (>= 0), the set point of each zone's electric low-temperature radiant system, computed
+   from the zone's current air temperature so that the system's ``HalfFlowPower`` control
+   gives exactly its share of the plant's heat (split by the heated floors' areas), which
+   EnergyPlus puts into the screed at the pipes' level; for cooling (< 0) the heat flux
+   schedule of the floors' top-face source terms (W/m2). At the end of each zone time step
+   (``end_zone_timestep_after_zone_reporting``) the zones' air temperatures and the heat
+   EnergyPlus reports it received (``Zone Radiant HVAC Heating Rate`` and ``Surface Inside
+   Face Heat Source Gain Rate per Area``) are read. After the hour's last zone time step the
+   thread hands the results back and waits for the next step. An IDF without radiant systems
+   takes the heat through the source terms as well.
 3. :meth:`EnergyPlusBuilding.close` stops EnergyPlus (also mid-run) and joins the thread.
 
 What the plant reads: T_air = the floor-area-weighted mean of the zones' mean air temperature
@@ -29,8 +35,10 @@ record :attr:`EnergyPlusBuilding.last` keeps what EnergyPlus received and report
 
 The IDF must define what the co-simulation actuates (:func:`check_idf`): the schedule
 :data:`~comems4build_ros.core.models.energyplus_house.HEAT_SCHEDULE`, a heat balance source
-term on each heated floor, and ``ElectricEquipment`` in each zone; the shipped house
-(:mod:`~comems4build_ros.core.models.energyplus_house`) does.
+term on each heated floor, ``ElectricEquipment`` in each zone, and, for heat into the floor's
+mass, ``ZoneHVAC:LowTemperatureRadiant:Electric`` systems controlled on the mean air
+temperature with ``HalfFlowPower`` and a ``Schedule:Constant`` set point; the shipped house
+(:mod:`~comems4build_ros.core.models.energyplus_house`) has them all.
 """
 
 from __future__ import annotations
@@ -63,6 +71,12 @@ WARMUP_Q_MAX_W = 20000.0
 STEP_TIMEOUT_S = 600.0
 #: Output variable of the heat EnergyPlus puts into a surface's inside face [W/m2].
 SOURCE_VARIABLE = "Surface Inside Face Heat Source Gain Rate per Area"
+#: Output variable of the heat an electric radiant system puts into its construction [W].
+RADIANT_VARIABLE = "Zone Radiant HVAC Heating Rate"
+#: The air temperature a radiant system's control reads, as of the current system time step [degC].
+CONTROL_VARIABLE = "Zone Air Temperature"
+#: Set point that keeps an electric radiant system off [degC].
+RADIANT_OFF_C = -100.0
 
 
 class IDFError(ValueError):
@@ -80,6 +94,29 @@ class IDFInterface:
     timesteps_per_hour: int
     floor_areas_m2: list[float]
     people: list[str] = field(default_factory=list)
+    radiant: list[Radiant] = field(default_factory=list)
+
+
+@dataclass
+class Radiant:
+    """An electric low-temperature radiant system the co-simulation drives through its set point.
+
+    Attributes
+    ----------
+    name : the ``ZoneHVAC:LowTemperatureRadiant:Electric`` object
+    zone : its zone; surface : the heated surface
+    setpoint : its set-point schedule (``Schedule:Constant``)
+    capacity_w : heating design capacity [W]; throttling_k : heating throttling range [K]
+    area_m2 : area of the heated surface [m2] (the plant's heat is split by it)
+    """
+
+    name: str
+    zone: str
+    surface: str
+    setpoint: str
+    capacity_w: float
+    throttling_k: float
+    area_m2: float
 
 
 def polygon_area_m2(coords: list[float]) -> float:
@@ -163,7 +200,38 @@ def check_idf(path: str | Path) -> IDFInterface:
         raise IDFError(f"{path}: object Timestep: field Number of Timesteps per Hour = {n} gives "
                        f"{60 / n:g} min, at most {MAX_ZONE_STEP_MIN} min allowed (at least 4 per hour)")
     people = [o[1] for o in kinds.get("people", []) if len(o) > 1]
-    return IDFInterface(zones, floors, appliances, walls, n, areas, people)
+    constants = {o[1].lower() for o in kinds.get("schedule:constant", []) if len(o) > 1}
+    radiant = [_radiant(path, o, surfaces, constants) for o in kinds.get("zonehvac:lowtemperatureradiant:electric", [])]
+    return IDFInterface(zones, floors, appliances, walls, n, areas, people, radiant)
+
+
+def _radiant(path: Path, o: list[str], surfaces: dict[str, list[str]], constants: set[str]) -> Radiant:
+    """A ``ZoneHVAC:LowTemperatureRadiant:Electric`` the co-simulation can drive exactly, or :class:`IDFError`."""
+    where = f"{path}: object ZoneHVAC:LowTemperatureRadiant:Electric '{o[1] if len(o) > 1 else ''}'"
+    f = o + [""] * (13 - len(o))
+    if f[5].lower() != "heatingdesigncapacity":
+        raise IDFError(f"{where}: field Heating Design Capacity Method must be HeatingDesignCapacity")
+    try:
+        capacity, throttling = float(f[6]), float(f[11])
+    except ValueError:
+        raise IDFError(f"{where}: field Heating Design Capacity or Heating Throttling Range is not a number "
+                       "(autosize is not driven)") from None
+    if not (capacity > 0 and throttling > 0):
+        raise IDFError(f"{where}: field Heating Design Capacity and Heating Throttling Range must be > 0")
+    if f[9].lower() != "meanairtemperature" or f[10].lower() != "halfflowpower":
+        raise IDFError(f"{where}: field Temperature Control Type must be MeanAirTemperature and Setpoint Control "
+                       "Type HalfFlowPower (the set point that gives the plant's heat is computed for those)")
+    if f[12].lower() not in constants:
+        raise IDFError(f"{where}: field Heating Setpoint Temperature Schedule Name: '{f[12]}' is no "
+                       "Schedule:Constant (the co-simulation sets it)")
+    surf = surfaces.get(f[4].lower())
+    if surf is None:
+        raise IDFError(f"{where}: field Surface Name: '{f[4]}' is no BuildingSurface:Detailed of the file")
+    try:
+        area = polygon_area_m2([float(v) for v in surf[12:12 + 3 * int(float(surf[11]))]])
+    except (ValueError, IndexError):
+        raise IDFError(f"{where}: the vertices of surface '{f[4]}' are not numbers") from None
+    return Radiant(f[1], f[3], f[4], f[12], capacity, throttling, area)
 
 
 _DROP = ("runperiod", "site:location", "sizingperiod:designday", "sizingperiod:weatherfileday",
@@ -264,6 +332,7 @@ class EnergyPlusBuilding:
         self._src_sum = 0.0
         self._ts_hour = 1
         self._q_flux = 0.0
+        self._radiant_w: list[float] = [0.0] * len(self.spec.radiant)
         self._gains_zone = 0.0
 
     # ----------------------------------------------------------------- protocol
@@ -330,6 +399,8 @@ class EnergyPlusBuilding:
         state = self._state = api.state_manager.new_state()
         api.runtime.set_console_output_status(state, False)
         api.runtime.callback_begin_zone_timestep_after_init_heat_balance(state, self._on_begin)
+        api.runtime.callback_begin_system_timestep_before_predictor(state, self._on_system)
+        api.runtime.callback_inside_system_iteration_loop(state, self._on_system)
         api.runtime.callback_end_zone_timestep_after_zone_reporting(state, self._on_end)
         for surf in self.spec.floors:
             api.exchange.request_variable(state, SOURCE_VARIABLE, surf)
@@ -337,6 +408,9 @@ class EnergyPlusBuilding:
             api.exchange.request_variable(state, "Zone Mean Air Temperature", zone)
         for surf in [*self.spec.floors, *self.spec.exterior_walls]:
             api.exchange.request_variable(state, "Surface Inside Face Temperature", surf)
+        for r in self.spec.radiant:
+            api.exchange.request_variable(state, RADIANT_VARIABLE, r.name)
+            api.exchange.request_variable(state, CONTROL_VARIABLE, r.zone)
         args = ["-w", str(self.epw), "-d", str(self.workdir / "out"), str(self._run_idf)]
         self._thread = threading.Thread(target=self._run, args=(args,), name="energyplus", daemon=True)
         self._thread.start()
@@ -365,6 +439,11 @@ class EnergyPlusBuilding:
             "flux": ex.get_actuator_handle(state, "Schedule:Constant", "Schedule Value", house.HEAT_SCHEDULE),
             "gains": [ex.get_actuator_handle(state, "ElectricEquipment", "Electricity Rate", a)
                       for a in self.spec.appliances],
+            "radiant_sp": [ex.get_actuator_handle(state, "Schedule:Constant", "Schedule Value", r.setpoint)
+                           for r in self.spec.radiant],
+            "radiant_q": [ex.get_variable_handle(state, RADIANT_VARIABLE, r.name) for r in self.spec.radiant],
+            "radiant_mat": [ex.get_variable_handle(state, CONTROL_VARIABLE, r.zone)
+                            for r in self.spec.radiant],
             "people": [ex.get_actuator_handle(state, "People", "Number of People", p) for p in self.spec.people]
             if not self.occupants else [],
             "t_zone": [ex.get_variable_handle(state, "Zone Mean Air Temperature", z) for z in self.spec.zones],
@@ -391,8 +470,20 @@ class EnergyPlusBuilding:
         return sum(t * a for t, a in zip(temps, w)) / sum(w), temps
 
     def _set(self, state: Any, q_floor_w: float, gains_w: float) -> None:
+        """Heat through the radiant systems (>= 0, split by their surfaces' areas) or the source term (cooling)."""
         ex = self._api.exchange
-        self._q_flux = q_floor_w / sum(self._area["floor"])
+        rad = self.spec.radiant
+        if rad and q_floor_w >= 0.0:
+            total = sum(r.area_m2 for r in rad)
+            self._radiant_w = [q_floor_w * r.area_m2 / total for r in rad]
+            for r, p in zip(rad, self._radiant_w):
+                if p > r.capacity_w:
+                    raise EnergyPlusError(f"{self.idf}: heat {p:.0f} W above the capacity {r.capacity_w:.0f} W of "
+                                          f"'{r.name}'")
+            self._q_flux = 0.0
+        else:
+            self._radiant_w = [0.0] * len(rad)
+            self._q_flux = q_floor_w / sum(self._area["floor"])
         ex.set_actuator_value(state, self._h["flux"], self._q_flux)
         per = gains_w / len(self._h["gains"])
         for hg in self._h["gains"]:
@@ -405,6 +496,22 @@ class EnergyPlusBuilding:
 
     def _on_end(self, state: Any) -> None:
         self._guard(self._end, state)
+
+    def _on_system(self, state: Any) -> None:
+        self._guard(self._system, state)
+
+    def _system(self, state: Any) -> None:
+        """Each system time step: the radiant set points from the zones' current air temperature."""
+        if self._stop or not self._h or not self.spec.radiant:
+            return
+        ex = self._api.exchange
+        for (r, hs, hm), p in zip(zip(self.spec.radiant, self._h["radiant_sp"], self._h["radiant_mat"]),
+                                  self._radiant_w):
+            if p > 0.0:
+                sp = ex.get_variable_value(state, hm) + (p / r.capacity_w - 0.5) * r.throttling_k
+            else:
+                sp = RADIANT_OFF_C
+            ex.set_actuator_value(state, hs, sp)
 
     def _guard(self, fn: Any, state: Any) -> None:
         """Run a callback; an exception stops EnergyPlus and reaches the waiting plant (ctypes would drop it)."""
@@ -460,6 +567,7 @@ class EnergyPlusBuilding:
             return
         ex = self._api.exchange
         src = sum(ex.get_variable_value(state, hs) * a for hs, a in zip(self._h["src"], self._area["floor"]))
+        src += sum(ex.get_variable_value(state, hq) for hq in self._h["radiant_q"])
         self._src_sum += src
         self._nacc += 1
         if self._nacc == self._ts_hour:

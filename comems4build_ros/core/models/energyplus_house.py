@@ -17,14 +17,20 @@ refurbishment (wall 0.20 W/m2K, roof 0.14, floor slab 0.25, triple glazing 0.95 
 g = 0.5) with thermal bridges of 0.05 W/m2K over the envelope put on the wall; infiltration
 0.1 1/h (n50 = 1.5 1/h) and balanced ventilation of 0.4 1/h with 80 % heat recovery, entered
 as the equivalent 0.08 1/h of outdoor air; floors of 6.5 cm screed on 3 cm insulation
-(German underfloor heating, the pipes' heat enters the screed at its top face, see below);
+(German underfloor heating, the pipes 3 cm below the screed's top, see below);
 ground under the slab at the temperatures of :data:`GROUND_C`.
 
-Heating: per zone a ``SurfaceProperty:HeatBalanceSourceTerm`` on the floor's inside face,
-whose schedule (W/m2) the co-simulation sets each zone time step through the EnergyPlus API
-(actuator ``Schedule:Constant`` / ``Schedule Value``). The heat enters the floor's surface
-heat balance, not the zone air: it warms the screed, whose mass stores it, and leaves the
-surface by convection and long-wave radiation like the heat of a floor heating.
+Heating: per zone an electric low-temperature radiant system (``ZoneHVAC:LowTemperatureRadiant:
+Electric``) on the floor, whose heat enters the floor construction at the pipes' level, between
+the lower 3.5 cm and the upper 3 cm of the screed (``ConstructionProperty:InternalHeatSource``):
+the screed's mass stores it and the floor's surface gives it to the room by convection and
+long-wave radiation. Its power follows its set point in the ``HalfFlowPower`` mode (power =
+capacity x (set point + range/2 - T_air) / range, clipped to [0, capacity]); the
+co-simulation sets the set point each system time step (actuator ``Schedule:Constant`` /
+``Schedule Value``) from the zone's current air temperature so that the power is exactly the
+plant's heat, and reads back the heat EnergyPlus reports (``Zone Radiant HVAC Heating
+Rate``). Cooling (negative heat, the year-round plant) goes through a
+``SurfaceProperty:HeatBalanceSourceTerm`` on the floor's top face (schedule in W/m2).
 Internal gains: ``ElectricEquipment`` at the appliance load of the scenario (schedule set
 each step, all of it released in the zone, 30 % radiant) and ``People`` (four occupants at
 home on weekday evenings and nights and all weekend).
@@ -47,6 +53,19 @@ ZONES = ("Ground Floor", "Upper Floor")
 FLOORS = ("GF Floor", "UF Floor")
 HEAT_SCHEDULE = "C4B Floor Heat Flux"  # Schedule:Constant, W/m2 on each heated floor
 GAINS_SCHEDULE = "C4B Appliance Gains"  # Schedule:Constant, W of appliance load per zone
+#: Underfloor heating of each zone: ``ZoneHVAC:LowTemperatureRadiant:Electric`` on the zone's floor,
+#: whose heat enters the screed at the pipes' level (``ConstructionProperty:InternalHeatSource``).
+RADIANT = ("GF Floor Heating", "UF Floor Heating")
+#: Its set-point schedules (Schedule:Constant), which the co-simulation sets so that the heating
+#: delivers exactly the plant's heat (:data:`RADIANT_THROTTLING_K`, :data:`RADIANT_CAPACITY_W`).
+RADIANT_SETPOINTS = ("C4B GF Floor Heating Setpoint", "C4B UF Floor Heating Setpoint")
+#: Heating capacity of each floor's system [W] (above the heat pump's largest heat) and its
+#: throttling range [K] (``HalfFlowPower``: power = capacity x (set point + range/2 - T_air) / range).
+RADIANT_CAPACITY_W = 20000.0
+RADIANT_THROTTLING_K = 2.0
+#: Layer after which the heat source sits in the floor constructions (counted from the outside):
+#: between the lower and the upper screed layer, 3 cm below the screed's top.
+SOURCE_AFTER_LAYER = 4
 
 #: Monthly ground temperature under the slab [degC], January .. December (choice: the DWD
 #: Rheinstetten annual mean of 11 degC damped and delayed under a heated house, ISO 13370-like).
@@ -129,7 +148,8 @@ SANDLIME = Layer("Sand-lime masonry", 0.175, 0.99, 1800.0, 1000.0)
 PLASTER_INT = Layer("Gypsum plaster", 0.015, 0.70, 1400.0, 1000.0)
 CONCRETE = Layer("Concrete slab", 0.16, 2.1, 2400.0, 1000.0)
 IMPACT_INS = Layer("Impact sound insulation", 0.03, 0.04, 30.0, 1400.0)
-SCREED = Layer("Cement screed", 0.065, 1.4, 2000.0, 1000.0)
+SCREED_LOW = Layer("Cement screed below the pipes", 0.035, 1.4, 2000.0, 1000.0)
+SCREED_TOP = Layer("Cement screed above the pipes", 0.030, 1.4, 2000.0, 1000.0)
 TILES = Layer("Floor tiles", 0.01, 1.3, 2300.0, 840.0)
 TIMBER = Layer("Timber boarding", 0.024, 0.13, 500.0, 1600.0)
 GYPSUM = Layer("Gypsum board", 0.0125, 0.25, 900.0, 1000.0)
@@ -153,14 +173,15 @@ def constructions(spec: HouseSpec) -> dict[str, list[Layer]]:
     r_wall = 1.0 / u_wall - R_SE - R_SI_WALL - sum(x.r_m2k_w for x in wall_rest)
     roof_rest = [TIMBER, GYPSUM]
     r_roof = 1.0 / spec.u_roof_target - R_SE - R_SI_UP - sum(x.r_m2k_w for x in roof_rest)
-    slab_rest = [CONCRETE, IMPACT_INS, SCREED, TILES]
+    slab_rest = [CONCRETE, IMPACT_INS, SCREED_LOW, SCREED_TOP, TILES]
     r_floor = 1.0 / spec.u_floor_target - R_SI_DOWN - sum(x.r_m2k_w for x in slab_rest)
     return {
         "Exterior Wall": [PLASTER_EXT, _insulation("Wall insulation", r_wall), SANDLIME, PLASTER_INT],
         "Roof": [TIMBER, _insulation("Roof insulation", r_roof), GYPSUM],
-        "Ground Slab": [_insulation("Perimeter insulation", r_floor), CONCRETE, IMPACT_INS, SCREED, TILES],
-        "Storey Floor": [PLASTER_INT, CONCRETE, IMPACT_INS, SCREED, TILES],
-        "Storey Ceiling": [TILES, SCREED, IMPACT_INS, CONCRETE, PLASTER_INT],
+        "Ground Slab": [_insulation("Perimeter insulation", r_floor), CONCRETE, IMPACT_INS, SCREED_LOW, SCREED_TOP,
+                        TILES],
+        "Storey Floor": [PLASTER_INT, CONCRETE, IMPACT_INS, SCREED_LOW, SCREED_TOP, TILES],
+        "Storey Ceiling": [TILES, SCREED_TOP, SCREED_LOW, IMPACT_INS, CONCRETE, PLASTER_INT],
         "Partitions": [PLASTER_INT, PARTITION],
     }
 
@@ -246,7 +267,7 @@ def _window_points(side: str, spec: HouseSpec, z0: float, area: float) -> list[t
 
 HEADER = """! ComEMS4Build co-simulation house: German single-family house, TABULA DE.N.SFH.09.Gen
 ! (built 1995-2001), advanced refurbishment (DE.N.SFH.09.Gen.ReEx.001.003), two heated storeys,
-! underfloor heating as a heat source on the floors' top face. Written by
+! underfloor heating into the screed (electric radiant system, internal heat source). Written by
 ! comems4build_ros.core.models.energyplus_house (sources and choices in its docstring and in
 ! docs/cosimulation.md). The co-simulation adds RunPeriod, Site:Location and the weather file.
 ! Heat loss coefficient (typology method): H_tr = {h_tr:.1f} W/K, H_ve = {h_ve:.1f} W/K, H = {h:.1f} W/K.
@@ -288,6 +309,9 @@ def idf_text(spec: HouseSpec | None = None) -> str:
     out.append(_obj("WindowMaterial:SimpleGlazingSystem", "Triple Glazing", spec.u_window, spec.g_window, 0.6))
     for name, layers in constructions(spec).items():
         out.append(_obj("Construction", name, *[x.name for x in layers]))
+    for name in ("Ground Slab", "Storey Floor"):
+        out.append(_obj("ConstructionProperty:InternalHeatSource", f"{name} Pipes", name, SOURCE_AFTER_LAYER,
+                        SOURCE_AFTER_LAYER, 1, 0.15, 0.0, comment="the floor heating's pipes in the screed"))
     out.append(_obj("Construction", "Window", "Triple Glazing"))
     w, d, hs = spec.width_m, spec.depth_m, spec.storey_m
     sides = ("South", "East", "North", "West")
@@ -317,7 +341,17 @@ def idf_text(spec: HouseSpec | None = None) -> str:
         out.append(_obj("InternalMass", f"{tag} Partitions", "Partitions", zone, "", 1.5 * spec.floor_m2,
                         comment="partition walls and furniture, both faces (choice)"))
         out.append(_obj("SurfaceProperty:HeatBalanceSourceTerm", FLOORS[i], HEAT_SCHEDULE, "",
-                        comment="underfloor heating: heat into the floor's top face"))
+                        comment="cooling through the floor (negative heat) at its top face"))
+        out.append(_obj("Schedule:Constant", RADIANT_SETPOINTS[i], "Any Number", -100.0,
+                        comment="set point of the floor heating, set each system time step by the co-simulation"))
+        out.append(_obj("ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], "Always On", zone, FLOORS[i],
+                        "HeatingDesignCapacity", RADIANT_CAPACITY_W, "", "", "MeanAirTemperature", "HalfFlowPower",
+                        RADIANT_THROTTLING_K, RADIANT_SETPOINTS[i],
+                        comment="underfloor heating: the heat pump's heat into the screed at the pipes"))
+        out.append(_obj("ZoneHVAC:EquipmentConnections", zone, f"{tag} Equipment", "", "", f"{tag} Air Node",
+                        f"{tag} Return Node"))
+        out.append(_obj("ZoneHVAC:EquipmentList", f"{tag} Equipment", "SequentialLoad",
+                        "ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], 1, 1, "", ""))
         out.append(_obj("ElectricEquipment", f"{tag} Appliances", zone, GAINS_SCHEDULE, "EquipmentLevel", 1.0,
                         "", "", 0.0, 0.3, 0.0))
         out.append(_obj("People", f"{tag} Occupants", zone, "Occupancy", "People", spec.occupants / 2, "", "",
