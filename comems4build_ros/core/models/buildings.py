@@ -132,8 +132,7 @@ def make_building(choice: BuildingChoice | str | None, params: PlantParams, weat
     dt_h = float(params.simulation.time_step_h)
     if choice.kind == "rc":
         return RCBuilding(params.building, dt_h)
-    check_building(choice)
-    if choice.kind == "fmu":
+    if choice.kind == "fmu":  # FMUBuilding checks the FMU against its map (the command checked them before too)
         from comems4build_ros.core.models.building_fmu import FMUBuilding, load_map
 
         return FMUBuilding(choice.path, load_map(choice.map_path), dt_h)
