@@ -80,13 +80,19 @@ within a few per cent. The ground under the slab follows a monthly temperature o
 zones (30 % radiant), and four occupants at home on weekday evenings and nights and all
 weekend. Zone time step 15 min.
 
-Underfloor heating: the heat pump's space heat enters each storey's floor as a heat source at
-the floor's top face (`SurfaceProperty:HeatBalanceSourceTerm`, set every zone time step
-through the EnergyPlus API): it enters the surface heat balance of the 6.5 cm screed, not the
-zone air, warms the screed, and leaves it by convection and radiation. Every step the study
-checks that the heat the plant gave equals the heat EnergyPlus reports it received (output
-variable `Surface Inside Face Heat Source Gain Rate per Area`): the largest relative
-difference over the thermostat's twelve weeks was {house['heat_balance_max_rel']:.1e}.
+Underfloor heating: each storey has an electric low-temperature radiant system
+(`ZoneHVAC:LowTemperatureRadiant:Electric`) whose heat enters the floor construction at the
+pipes' level, between the lower 3.5 cm and the upper 3 cm of the screed
+(`ConstructionProperty:InternalHeatSource`): the screed's mass takes it, and the floor's
+surface passes it on to the room by convection and radiation; none of it enters the air
+directly. The co-simulation drives the systems through their set points (`HalfFlowPower`:
+power = capacity x (set point + range/2 - T_air) / range), computed at every system time step
+and HVAC iteration from the zone's current air temperature, so that their power is exactly
+the heat pump's space heat (split by the floors' areas). Cooling (the year-round plant) enters
+as a negative source term at the floors' face. Every step the study checks that the heat the
+plant gave equals the heat EnergyPlus reports it received (`Zone Radiant HVAC Heating Rate`,
+`Surface Inside Face Heat Source Gain Rate per Area`): the largest relative difference over
+the thermostat's twelve weeks was {house['heat_balance_max_rel']:.1e}.
 
 Weather (`comems4build_ros/core/models/epw.py`): the scenario's own series written as an EPW
 in local standard time: the DWD temperature of Rheinstetten, the modelled global and diffuse
