@@ -18,7 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "one EMS in-process over a scenario; writes DIR/timeseries.csv (every state, command "
                              "and flow per step), DIR/weekly.csv (one row per week, a partial week marked) and "
                              "DIR/summary.json"),
-    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros, study"),
+    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros, study, year, cosim"),
     "data": ("data", "build scenario CSVs from real sources (aWATTar, DWD, DHWCalc, load CSV)"),
     "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D) as "
                                        "PDF, SVG and PNG"),
@@ -32,6 +32,16 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sweep": ("sweep", "sensitivity grid on local processes or a Dask cluster; one table and one plot per KPI "
                        "(PDF, SVG, PNG)"),
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
+    "export-fmu": ("export_fmu", "the paper's 4R3C building model as an FMI 2.0 co-simulation FMU (pythonfmu) with its "
+                                 "variable map, for --building fmu:FILE.fmu"),
+    "house": ("house", "the EnergyPlus house against its typology: heat loss coefficient (typology method and "
+                       "EnergyPlus steady states), design heat load, heating demand with the thermostat"),
+    "identify": ("identify", "the MPC's 4R3C fitted to a detailed building's response under a documented excitation "
+                             "(outside the evaluation weeks); its 24-h open-loop T_air error on held-out weeks; "
+                             "writes the parameter file the MPC reads"),
+    "cosim-study": ("cosim_study", "RBC, ComEMS4Build, MPC and the thermostat on the 4R3C and on the EnergyPlus "
+                                   "house (MPC on an identified model): the paper's table and findings on both, "
+                                   "reports and figures as compare, and docs/cosimulation.md"),
     "size": ("size", "sizing study over the year: a grid or sampled design of PV, battery, electrolyser, FC and "
                      "H2 store sizes per EMS; annual cost (energy, annuities, O&M, wear), self-sufficiency, whether "
                      "the seasonal cycle closes, the Pareto front; table, figure and report"),

@@ -65,6 +65,8 @@ ARGUMENTS: dict[str, tuple[str, str, str]] = {
     "set": ("", "plant parameter overrides KEY=VALUE, ';'-separated", "--set"),
     "ems_options": ("", "EMS options KEY=VALUE, ';'-separated", "--ems-option"),
     "forecast": ("", "forecasts of the MPC: perfect or imperfect (empty = config/forecast.yaml)", "--forecast"),
+    "building": ("rc", "building model of plant_sim: rc, energyplus, energyplus:FILE.idf or fmu:FILE.fmu",
+                 "--building"),
     "all_inputs": ("false", "publish and record every EMS input, also what this EMS does not read", "--all-inputs"),
     "step_timeout": ("", "plant_sim's wait for a command before its safe fallback [s]", "--step-timeout"),
     "timeout": ("", "end the launch with an error after this wall time [s] (empty = the plan's limit)",

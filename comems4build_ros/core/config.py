@@ -552,6 +552,10 @@ class BuildingParams(Section):
     f_conv: float = Frac
     a_sol_k_m2_per_w: float = NonNeg
     t_amb_init_c: float
+    #: Share of the appliance load that heats the air node [-]: 0 is the paper's model, which has
+    #: no internal-gain input (eq:dT_i); a model identified on a house with gains sets it
+    #: (``comems4build identify``), and the 4R3C and the MPC then take P_el,load as a fourth input.
+    f_gains_air: float = Field(default=0.0, ge=0.0, le=2.0)
 
 
 class GridParams(Section):

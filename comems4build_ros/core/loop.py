@@ -312,6 +312,8 @@ def simulate(
     ems_options: Mapping[str, Any] | None = None,
     progress: Callable[[int, int], None] | None = None,
     forecast: ForecastParams | None = None,
+    building: Any = None,
+    building_dir: str | Path | None = None,
 ) -> RunResult:
     """Run one EMS in closed loop with the plant over ``scenario.n_steps`` steps.
 
@@ -324,11 +326,45 @@ def simulate(
     progress : called as ``progress(steps done, total steps)`` after every step (for a bar,
         see :mod:`comems4build_ros.run.progress`); None = silent
     forecast : forecast settings for an MPC (default ``config/forecast.yaml``: perfect)
+    building : the building model: None or ``"rc"`` (the paper's 4R3C), a
+        :class:`~comems4build_ros.core.models.buildings.BuildingChoice` or its text
+        (``energyplus[:IDF]``, ``fmu:PATH``); closed at the end of the run. A detailed model's
+        per-step record (the heat EnergyPlus reports it received) adds ``building_*`` columns
+    building_dir : EnergyPlus's output folder (default: a temporary folder, removed)
     """
     t_start = _time.perf_counter()
     ctrl = make_controller(ems, params, ems_options) if isinstance(ems, str) else ems
     ctrl.reset()
-    plant = Plant(params)
+    model = building_model(building, params, scenario, building_dir)
+    try:
+        return _simulate(ctrl, scenario, params, progress, forecast, model, t_start)
+    finally:
+        model.close()
+
+
+def building_model(building: Any, params: PlantParams, scenario: Scenario, workdir: str | Path | None = None) -> Any:
+    """The run's building model (:func:`~comems4build_ros.core.models.buildings.make_building` on the scenario)."""
+    from comems4build_ros.core.models.building import RCBuilding
+    from comems4build_ros.core.models.buildings import make_building
+    from comems4build_ros.core.models.epw import Weather
+
+    if building is None or building == "rc":
+        return RCBuilding(params.building, float(params.simulation.time_step_h))
+    if hasattr(building, "step") and hasattr(building, "initial_temperatures"):
+        return building
+    weather = Weather(scenario.time, scenario.t_amb_c, scenario.ghi_w_m2, scenario.dhi_w_m2)
+    return make_building(building, params, weather, scenario.n_steps, workdir)
+
+
+#: Columns a detailed building model's step record adds to the timeseries.
+BUILDING_COLUMNS = ("building_q_floor_set_w", "building_q_floor_received_w", "building_gains_w")
+
+
+def _simulate(ctrl: Controller, scenario: Scenario, params: PlantParams, progress: Any,
+              forecast: ForecastParams | None, model: Any, t_start: float) -> RunResult:
+    plant = Plant(params, model)
+    record = hasattr(model, "last") and model.name != "rc"
+    brows: list[tuple[float, float, float]] = []
     exo = exogenous_series(scenario, params)
     forecast = forecast or load_forecast_settings()
     builder = ObservationBuilder(scenario, params, ctrl.info_level, exo, forecast)
@@ -349,6 +385,9 @@ def simulate(
         if info:
             infos.append(dict(info))
         state, flows = plant.step(state, action, exo[k])
+        if record:
+            rec = model.last
+            brows.append((rec.q_floor_set_w, rec.q_floor_received_w, rec.gains_w))
         rows.append(record_row(times[k], k, flows, state, action, exo[k], (ghi[k], spot[k]), False))
         if progress is not None:
             progress(k + 1, n_steps)
@@ -356,6 +395,8 @@ def simulate(
     if infos and len(infos) == len(ts):
         info_df = pd.DataFrame(infos).add_prefix("ems_")
         ts = pd.concat([ts, info_df], axis=1)
+    if record:
+        ts = pd.concat([ts, pd.DataFrame(brows, columns=list(BUILDING_COLUMNS))], axis=1)
     wall = _time.perf_counter() - t_start
     extra = {
         "ems": ctrl.name,
@@ -364,9 +405,25 @@ def simulate(
         "ems_s": ems_s,
         "forecast": forecast.mode if ctrl.info_level == "mpc" else None,
     }
+    if model.name != "rc":
+        extra["building"] = model.name
+        if record and brows:
+            extra["building_heat_balance_max_rel"] = heat_balance_error(ts)
     if scenario.meta.get("extended"):
         extra["scenario_extended"] = dict(scenario.meta["extended"])
     return evaluate_timeseries(ts, params, extra)
+
+
+def heat_balance_error(ts: pd.DataFrame) -> float:
+    """Largest relative difference between the heat the plant gave the building and what it received.
+
+    Per step |Q_plant - Q_received| / max(|Q_plant|, 1 W), with Q_plant = q_hp_sh_w - q_cool_w
+    (what the plant's heat pump put into the floor) and Q_received the heat the detailed model
+    reports it received (EnergyPlus's source-term output, hourly mean).
+    """
+    q_plant = ts["q_hp_sh_w"].to_numpy(float) - ts["q_cool_w"].to_numpy(float)
+    q_in = ts["building_q_floor_received_w"].to_numpy(float)
+    return float(np.max(np.abs(q_plant - q_in) / np.maximum(np.abs(q_plant), 1.0)))
 
 
 def _json_default(value: Any) -> Any:

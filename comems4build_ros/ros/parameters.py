@@ -82,6 +82,9 @@ PARAMETERS: dict[str, ParamSpec] = {
                              "time-outs, or no step was possible for as long (0 = never)", "steps", 0, 1_000_000),
     "record_window_steps": ParamSpec("with wait_for_recorder: steps the plant may run ahead of the gap-free "
                                      "recording (recorder/progress)", "steps", 1, None),
+    # plant_sim: the building's thermal model (with the feed's scenario parameters when not rc)
+    "building": ParamSpec("building model of plant_sim: rc (the paper's 4R3C), energyplus[:IDF] or fmu:PATH",
+                          allowed="rc, energyplus, energyplus:FILE.idf or fmu:FILE.fmu"),
     # feed
     "scenario": ParamSpec("scenario of the run", allowed="'default' or a scenario CSV path"),
     "start": ParamSpec("ISO 8601 start time of the run's window (empty = the scenario's start)",
@@ -233,7 +236,10 @@ def param(node: Any, name: str, default: Any) -> Any:
     from rclpy.parameter import Parameter
 
     if node.has_parameter(name):
-        value = node.get_parameter(name).value
+        try:
+            value = node.get_parameter(name).value
+        except ParameterUninitializedException:  # an empty string array declared before (read a second time)
+            return []
         try:
             node.set_descriptor(name, descriptor(name, value))
         except InvalidParameterValueException:

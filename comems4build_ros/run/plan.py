@@ -183,6 +183,8 @@ class LaunchOptions:
     netem : ``tc netem`` arguments for both ends of the veth link in the ``netns`` network,
         e.g. ``delay 5ms loss 1%`` (None = none; skipped with a message where the kernel
         lacks netem)
+    building : the building model of ``plant_sim`` (``rc``, ``energyplus[:IDF]``, ``fmu:PATH``);
+        a detailed model runs inside ``plant_sim``, which then loads the feed's scenario
     """
 
     ems: str
@@ -217,6 +219,7 @@ class LaunchOptions:
     namespace: str = "/"
     bag: Path | None = None
     all_inputs: bool = False
+    building: str = "rc"
 
     def __post_init__(self) -> None:
         """An embedded scenario's plant file (``--scenario year``: ``config/year.yaml``) goes first."""
@@ -651,6 +654,9 @@ def house_params(
             feed_params["live_config"] = str(Path(opts.live_config).resolve())
     plant = dict(common, wait_for_recorder=True, stall_steps=STALL_STEPS,
                  **({"ems_token_file": token_file} if token_file else {}), **opts.plant_node_params)
+    if opts.building != "rc":  # a detailed building model: plant_sim loads the feed's scenario for its weather
+        plant["building"] = opts.building
+        plant.update({k: v for k, v in feed_params.items() if k in ("scenario", "weeks", "steps", "seed", "start")})
     return {"ems": ems_params, "feed": feed_params, "plant": plant}
 
 

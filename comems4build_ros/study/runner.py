@@ -51,6 +51,9 @@ class RunTask:
         (``{"scenario.load.annual_kwh": 4000}``; in-process runs)
     inputs : contents of the files named by ``config`` and a scenario CSV, by the name given
         there (filled by :meth:`portable`; the run reads these instead of the paths)
+    building : the building model (``--building``: ``rc``, ``energyplus[:IDF]``, ``fmu:PATH``;
+        in-process runs)
+    forecast : the MPC's forecasts (``perfect``/``imperfect``; None = ``config/forecast.yaml``)
     """
 
     ems: str
@@ -67,6 +70,8 @@ class RunTask:
     ems_options: dict[str, Any] = field(default_factory=dict)
     scenario_overrides: dict[str, Any] = field(default_factory=dict)
     inputs: dict[str, bytes] = field(default_factory=dict, repr=False)
+    building: str = "rc"
+    forecast: str | None = None
 
     @property
     def weight(self) -> float:
@@ -98,7 +103,11 @@ class RunTask:
             return {"name": Path(path).name, "sha256": file_digest(self._read(path))}
 
         spec: dict[str, Any] = {f.name: getattr(self, f.name) for f in dataclasses.fields(self)
-                                if f.name not in ("out_dir", "inputs", "config", "scenario")}
+                                if f.name not in ("out_dir", "inputs", "config", "scenario", "building", "forecast")}
+        if self.building != "rc":  # the 4R3C's runs keep the specification (and store hash) they had
+            spec["building"] = self.building
+        if self.forecast is not None:
+            spec["forecast"] = self.forecast
         spec["config"] = [file(p) for p in self.config]
         spec["scenario"] = str(self.scenario) if str(self.scenario) in EMBEDDED else file(str(self.scenario))
         spec["environment"] = environment()
@@ -154,7 +163,11 @@ def _run_inprocess(task: RunTask, progress: ProgressCallback | None = None) -> d
     params = load_plant_params(scenario_config_files(task.scenario, task.config), task.overrides)
     scenario = resolve_scenario(task.scenario, params, start=task.start, weeks=task.weeks, seed=task.seed,
                                 extend=task.extend, settings_overrides=task.scenario_overrides or None)
-    result = simulate(task.ems, scenario, params, ems_options=task.ems_options, progress=progress)
+    from comems4build_ros.core.loop import load_forecast_settings
+
+    forecast = load_forecast_settings(mode=task.forecast) if task.forecast else None
+    result = simulate(task.ems, scenario, params, ems_options=task.ems_options, progress=progress,
+                      forecast=forecast, building=None if task.building == "rc" else task.building)
     result.summary["eta_sys"] = params.fuel_cell.eta_sys
     write_run(result, task.out_dir, timeseries=task.timeseries)
     return result.summary

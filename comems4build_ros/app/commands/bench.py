@@ -13,6 +13,7 @@ TARGETS = {
     "ros": "ros",
     "study": "study",
     "year": "year",
+    "cosim": "cosim",
 }
 
 

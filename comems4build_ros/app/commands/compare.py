@@ -11,7 +11,12 @@ import time
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from comems4build_ros.app.commands.options import add_executor_options, add_scenario_options, ems_help
+from comems4build_ros.app.commands.options import (
+    add_building_options,
+    add_executor_options,
+    add_scenario_options,
+    ems_help,
+)
 
 if TYPE_CHECKING:
     from comems4build_ros.report.build import Report
@@ -39,6 +44,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run, e.g. --set battery.e_max_kwh=10")
     add_executor_options(parser, jobs_default="CPU count in-process, 1 with --via ros")
+    add_building_options(parser)
+    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
+                        help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
     parser.add_argument("--from-runs", default=None, metavar="DIR",
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
     parser.add_argument("--out", metavar="DIR", default=None,
@@ -123,6 +131,11 @@ def run(args: argparse.Namespace) -> int:
     if not args.out:
         raise UsageError("--out is required (unless --from-runs)")
     emss = ems_names(args.ems)
+    from comems4build_ros.app.commands.options import building_choice
+
+    args.building_choice = building_choice(args)
+    if args.building_choice.kind != "rc" and args.via == "ros":
+        raise UsageError("--building with --via ros: use comems4build launch --building (compare runs it in-process)")
     levels = {ems: str(ems_entry(ems).info_level) for ems in emss}
     check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
@@ -160,7 +173,8 @@ def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], level
             specs.append(RunSpec(name=name, ems=ems, eta_sys=eta, info_level=levels[ems], overrides=ov))
             tasks.append(RunTask(ems=ems, out_dir=str(out / RUNS_DIR / name), scenario=args.scenario,
                                  start=args.start, weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=ov,
-                                 config=[str(Path(c).resolve()) for c in args.config], via=args.via))
+                                 config=[str(Path(c).resolve()) for c in args.config], via=args.via,
+                                 **building_task_options(ems, args)))
     walls: dict[str, float] = {}
 
     def done(task: RunTask, summary: dict) -> None:
@@ -176,6 +190,24 @@ def _compare(args: argparse.Namespace, emss: list[str], etas: list[float], level
     write_manifest(manifest, out)
     print(f"runs: {wall:.1f} s wall for {len(tasks)} runs", file=sys.stderr)
     return _report_builder(out)(out)
+
+
+def building_task_options(ems: str, args: argparse.Namespace) -> dict[str, Any]:
+    """A task's ``building`` and ``forecast``; an MPC on a detailed building estimates its walls (``observer=kalman``).
+
+    The MPC plans with the plant file's ``building`` section (an identified model given with
+    ``--config``); on EnergyPlus or an FMU the plant's wall temperatures are not its model's
+    nodes, so it estimates them from the measured T_air (:mod:`comems4build_ros.core.ems.mpc.observer`).
+    """
+    from comems4build_ros.core.ems import ems_entry
+
+    choice = getattr(args, "building_choice", None)
+    out: dict[str, Any] = {"forecast": getattr(args, "forecast", None)}
+    if choice is not None and choice.kind != "rc":
+        out["building"] = choice.text
+        if ems == "mpc" and str(ems_entry(ems).info_level) == "mpc":
+            out["ems_options"] = {"observer": "kalman"}
+    return out
 
 
 def _report_builder(compare_dir: str | Path) -> Any:

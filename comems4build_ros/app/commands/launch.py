@@ -15,6 +15,7 @@ from comems4build_ros.app.commands.options import (
     MAX_HOUSES,
     SECONDS,
     SEED,
+    add_building_options,
     add_scenario_options,
     ems_help,
 )
@@ -40,6 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="option passed to the EMS (repeatable)")
     parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
                         help="forecasts given to the MPC (default: config/forecast.yaml)")
+    add_building_options(parser)
     parser.add_argument("--all-inputs", action="store_true",
                         help="the feed publishes every EMS input (tab:level_of_information), also what this EMS does "
                              "not read, so that the bag can drive any EMS with 'replay --inputs-only'")
@@ -158,6 +160,22 @@ def check_plant_options(args: argparse.Namespace) -> None:
         load_topic_map(args.topic_map, args.broker)
 
 
+def _building(args: argparse.Namespace) -> str:
+    """``--building``: checked before anything starts; a detailed model needs plant_sim (``--plant sim``)."""
+    from comems4build_ros.app.commands.options import UsageError, building_choice
+
+    choice = building_choice(args)
+    if choice.kind == "rc":
+        return "rc"
+    if getattr(args, "plant", "sim") != "sim":
+        raise UsageError(f"--building {choice.text} needs --plant sim (the building model runs inside plant_sim)")
+    if choice.map_path is not None and getattr(args, "building_map", None):
+        raise UsageError("--building-map: over ROS put the map beside the FMU as FILE.map.yaml")
+    if choice.epw is not None:
+        raise UsageError("--epw: over ROS plant_sim writes the weather file from the feed's scenario")
+    return choice.text
+
+
 def launch_options(args: argparse.Namespace) -> Any:
     """Check every input of ``launch`` (before anything starts) and return its
     :class:`~comems4build_ros.run.plan.LaunchOptions`; the ROS 2 launch file builds its
@@ -183,6 +201,7 @@ def launch_options(args: argparse.Namespace) -> Any:
     ems_controller(args.ems, params, args.ems_option)  # the EMS node's own checks, before any node starts
     check_feed_scenario(args, params)
     check_live_inputs(args, params)
+    args.building_text = _building(args)
     return LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
@@ -213,6 +232,7 @@ def launch_options(args: argparse.Namespace) -> Any:
         namespace=args.namespace,
         bag=Path(args.bag) if args.bag else None,
         all_inputs=bool(args.all_inputs),
+        building=getattr(args, "building_text", "rc"),
     )
 
 

@@ -259,3 +259,45 @@ def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = 
                          "the runs, as many at once as they have threads)")
     backend = DaskBackend(args.scheduler) if args.scheduler else LocalBackend(jobs if jobs is not None else args.jobs)
     return StudyExecutor(backend, RunStore.of(out), resume=args.resume)
+
+
+def add_building_options(parser: argparse.ArgumentParser) -> None:
+    """``--building MODEL``, ``--building-map FILE`` and ``--epw FILE``: the building model of a run."""
+    parser.add_argument("--building", metavar="MODEL", default="rc",
+                        help="the building's thermal model: 'rc' (the paper's 4R3C, default), 'energyplus' (the "
+                             "shipped German single-family house in EnergyPlus) or 'energyplus:FILE.idf', or "
+                             "'fmu:FILE.fmu' (an FMI 2.0 co-simulation FMU); docs/cosimulation.md")
+    parser.add_argument("--building-map", metavar="FILE", default=None,
+                        help="variable map of --building fmu:FILE.fmu (default: FILE.map.yaml beside the FMU)")
+    parser.add_argument("--epw", metavar="FILE", default=None,
+                        help="weather file for --building energyplus instead of the one written from the scenario "
+                             "(must cover the run)")
+
+
+def building_choice(args: argparse.Namespace) -> Any:
+    """The checked :class:`~comems4build_ros.core.models.buildings.BuildingChoice` of the options.
+
+    A bad value, a broken IDF, an FMU that does not load or a map naming a variable the FMU
+    lacks is a usage error (exit 2) naming the file and the field, before anything runs.
+    """
+    from comems4build_ros.core.models.buildings import BuildingChoiceError, check_building, parse_building
+
+    try:
+        choice = parse_building(getattr(args, "building", "rc"), getattr(args, "building_map", None),
+                                getattr(args, "epw", None))
+        check_building(choice)
+    except BuildingChoiceError as exc:
+        raise UsageError(str(exc)) from None
+    return choice
+
+
+def check_building_covers(choice: Any, scenario: Any, params: Any) -> None:
+    """An ``--epw`` that does not cover the scenario's run is a usage error naming the file and field."""
+    from comems4build_ros.core.models.buildings import BuildingChoiceError, check_covers
+    from comems4build_ros.core.models.epw import Weather
+
+    weather = Weather(scenario.time, scenario.t_amb_c, scenario.ghi_w_m2, scenario.dhi_w_m2)
+    try:
+        check_covers(choice, weather, params.site, scenario.n_steps)
+    except BuildingChoiceError as exc:
+        raise UsageError(str(exc)) from None

@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from comems4build_ros.app.commands.options import add_executor_options, real
+from comems4build_ros.app.commands.options import add_building_options, add_executor_options, real
 
 if TYPE_CHECKING:
     from comems4build_ros.report.reproduce import ReproduceResult
@@ -23,6 +23,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--only", default=None, metavar="KEY[,KEY...]",
                         help="study only these ambiguities of config/reproduce.yaml")
     add_executor_options(parser)
+    add_building_options(parser)
     parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
                         help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
                              "checks that do not compare with the paper's table)")
@@ -79,6 +80,9 @@ def run(args: argparse.Namespace) -> int:
 
         if not (Path(args.from_runs) / "runs").is_dir():
             raise UsageError(f"--from-runs {args.from_runs}: no runs/ directory (the --out of an earlier reproduce)")
+    from comems4build_ros.app.commands.options import building_choice
+
+    building = building_choice(args).text
     check_out_dir(args.out)
     only = [k for k in args.only.split(",") if k] if args.only else None
     seeds = None
@@ -93,7 +97,7 @@ def run(args: argparse.Namespace) -> int:
     with study_executor(args, args.out) as executor:  # the runs' executor; finished runs kept in OUT/.runstore
         res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
                         seeds=seeds, show_progress=False if args.no_progress else None,
-                        from_runs=args.from_runs, figures=not args.no_figures)
+                        from_runs=args.from_runs, figures=not args.no_figures, building=building)
         executor.complete()
 
     def pct(x: float | None) -> str:
@@ -128,6 +132,7 @@ def reproduce(
     show_progress: bool | None = None,
     from_runs: str | Path | None = None,
     figures: bool = True,
+    building: str = "rc",
 ) -> ReproduceResult:
     """Make the study's runs, then evaluate them beside the paper.
 
@@ -148,6 +153,8 @@ def reproduce(
         configuration). Wall time and run count are those of the earlier command, read
         from its ``reproduce.json``.
     figures : draw the paper's figures from the default seed's runs
+    building : the building model of every run (``--building``; an MPC on a detailed building
+        plans with the plant file's 4R3C and estimates its walls, ``observer=kalman``)
     """
     import json
     import time
@@ -158,6 +165,11 @@ def reproduce(
 
     t0 = time.perf_counter()
     prepared = prepare(with_study, study_path, weeks, only, seeds)
+    if building != "rc":
+        for task in prepared.tasks.values():
+            task.building = building
+            if task.ems == "mpc":
+                task.ems_options = {**task.ems_options, "observer": "kalman"}
     out = Path(out_dir)
     if from_runs is not None:
         runs_dir = Path(from_runs) / "runs"

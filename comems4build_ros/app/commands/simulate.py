@@ -6,7 +6,7 @@ import argparse
 import json
 import sys
 
-from comems4build_ros.app.commands.options import add_scenario_options, ems_help
+from comems4build_ros.app.commands.options import add_building_options, add_scenario_options, ems_help
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -25,6 +25,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="option passed to the EMS, e.g. --ems-option solver=CBC (repeatable)")
     parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
                         help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
+    add_building_options(parser)
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")
 
@@ -49,7 +50,14 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import add_scenario_config
 
     add_scenario_config(args)
-    from comems4build_ros.app.commands.options import UsageError, ems_controller, load_params, scenario_of
+    from comems4build_ros.app.commands.options import (
+        UsageError,
+        building_choice,
+        check_building_covers,
+        ems_controller,
+        load_params,
+        scenario_of,
+    )
     from comems4build_ros.core.ems import UnknownEMSError, controller_class
     from comems4build_ros.core.loop import load_forecast_settings, simulate, write_run
     from comems4build_ros.files.outputs import check_out_dir
@@ -61,13 +69,16 @@ def run(args: argparse.Namespace) -> int:
         raise UsageError(str(exc)) from None
     params = load_params(args.config, parse_assignments(args.set, "--set"))
     controller = ems_controller(args.ems, params, args.ems_option)
+    building = building_choice(args)
     check_out_dir(args.out)
     scenario = scenario_of(args, params)
+    check_building_covers(building, scenario, params)
     with ProgressBar(f"simulate {args.ems}", unit="h", enable=False if args.no_progress else None) as bar:
         result = simulate(
             controller, scenario, params,
             progress=bar,
             forecast=load_forecast_settings(**({"mode": args.forecast} if args.forecast else {})),
+            building=building,
         )
     out = write_run(result, args.out)
     s = result.summary
@@ -75,7 +86,9 @@ def run(args: argparse.Namespace) -> int:
         "weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
         "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "max_balance_residual_w", "wall_s",
     )
-    print(json.dumps({k: s[k] for k in keys}, indent=1))
+    if "building" in s:
+        keys = (*keys, "building", "building_heat_balance_max_rel")
+    print(json.dumps({k: s[k] for k in keys if k in s}, indent=1))
     print(f"wrote {out / 'timeseries.csv'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
     warn_run(s, "simulate")
     return 0

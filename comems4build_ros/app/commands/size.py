@@ -10,7 +10,14 @@ import time
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.app.commands.options import COUNT, SEED, WEEKS, add_executor_options, ems_help
+from comems4build_ros.app.commands.options import (
+    COUNT,
+    SEED,
+    WEEKS,
+    add_building_options,
+    add_executor_options,
+    ems_help,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -39,6 +46,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run (not one of the sized ones)")
     add_executor_options(parser)
+    add_building_options(parser)
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
@@ -86,6 +94,9 @@ def run(args: argparse.Namespace) -> int:
     args.scenario = "year"
     add_scenario_config(args)
     emss = ems_names(args.ems)
+    from comems4build_ros.app.commands.options import building_choice
+
+    args.building_choice = building_choice(args)
     check_config_files(args.config)
     check_config_files(args.costs, "--costs")
     costs = load_costs(args.costs)
@@ -169,6 +180,7 @@ def _size_points(args: argparse.Namespace, base: Any, overrides: dict[str, Any]
 def _size(args: argparse.Namespace, emss: list[str], sized: list, costs: Any, meta: dict[str, Any],
           out: Path) -> Any:
     """Run every EMS at every size point into ``out/runs/``; write the outputs; the table."""
+    from comems4build_ros.app.commands.compare import building_task_options
     from comems4build_ros.report.sizing import row, table, write_outputs
     from comems4build_ros.study.runner import RunTask, run_tasks
     from comems4build_ros.study.sizing import point_name
@@ -181,7 +193,7 @@ def _size(args: argparse.Namespace, emss: list[str], sized: list, costs: Any, me
             cases.append((ems, name, realised, usable))
             tasks.append(RunTask(ems=ems, out_dir=str(out / "runs" / name), scenario="year", start=args.start,
                                  weeks=args.weeks, overrides=ov, config=[str(Path(c).resolve()) for c in args.config],
-                                 timeseries=False))
+                                 timeseries=False, **building_task_options(ems, args)))
     t0 = time.perf_counter()
     summaries = run_tasks(tasks, progress=False if args.no_progress else None)
     meta["wall_s"] = time.perf_counter() - t0

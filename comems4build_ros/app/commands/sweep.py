@@ -8,7 +8,12 @@ import sys
 import time
 from pathlib import Path
 
-from comems4build_ros.app.commands.options import add_executor_options, add_scenario_options, ems_help
+from comems4build_ros.app.commands.options import (
+    add_building_options,
+    add_executor_options,
+    add_scenario_options,
+    ems_help,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -21,6 +26,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help="parameter file merged over config/plant.yaml (repeatable)")
     add_executor_options(parser)
+    add_building_options(parser)
     parser.add_argument("--timeseries", action="store_true", help="also write each run's timeseries.csv")
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
@@ -48,6 +54,9 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--param {path} given twice")
         params[path] = values
     emss = ems_names(args.ems)
+    from comems4build_ros.app.commands.options import building_choice
+
+    args.building_choice = building_choice(args)
     check_config_files(args.config)
     cases = grid(params, emss)
     for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
@@ -66,13 +75,14 @@ def run(args: argparse.Namespace) -> int:
 
 def _sweep(args: argparse.Namespace, params: dict[str, list], emss: list[str], cases: list, out: Path) -> float:
     """Run every case of the grid into ``out/runs/``, write the tables and plots into ``out``; the wall time [s]."""
+    from comems4build_ros.app.commands.compare import building_task_options
     from comems4build_ros.report.sweep import markdown_table, plot_kpi, sweep_kpis, table
     from comems4build_ros.study.runner import RunTask, run_tasks
 
     tasks = [RunTask(ems=c.ems, out_dir=str(out / "runs" / c.name), scenario=args.scenario, start=args.start,
                      weeks=args.weeks, seed=args.seed, extend=args.extend, overrides=dict(c.values),
                      config=[str(Path(p).resolve()) for p in args.config],
-                     timeseries=args.timeseries) for c in cases]
+                     timeseries=args.timeseries, **building_task_options(c.ems, args)) for c in cases]
     print(f"sweep: {len(cases)} runs ({len(emss)} EMS x {len(cases) // len(emss)} parameter sets)", file=sys.stderr)
     t0 = time.perf_counter()
     summaries = run_tasks(tasks, progress=False if args.no_progress else None)

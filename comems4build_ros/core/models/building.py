@@ -14,10 +14,14 @@ The default parameters (``config/plant.yaml``, section ``building``) are calibra
 ``docs/models.md``.
 
 The plant sees its building model through :class:`BuildingModel`: per step the heat of the
-emission system into the floor (negative when cooling) and the weather go in, the node
-temperatures come out. :class:`RCBuilding` is the paper's 4R3C model; another model (a
-detailed one, in co-simulation) implements the same two methods and leaves the devices as
-they are.
+emission system into the floor (negative when cooling) and the step's weather and appliance
+load (its internal gains, ``exo.p_load_w``) go in, the node temperatures come out; ``close``
+ends a model that runs a simulator of its own. :class:`RCBuilding` is the paper's 4R3C model
+(it has no internal-gain term, as in the paper); the detailed models in co-simulation
+(:mod:`~comems4build_ros.core.models.building_energyplus`,
+:mod:`~comems4build_ros.core.models.building_fmu`, chosen with
+:mod:`~comems4build_ros.core.models.buildings`) implement the same methods and leave the
+devices as they are.
 """
 
 from __future__ import annotations
@@ -39,7 +43,8 @@ def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
 
     Returns
     -------
-    (A, B) : numpy.ndarray of shape (3, 3) and (3, 3)
+    (A, B) : numpy.ndarray of shape (3, 3) and (3, 3), or (3, 4) with ``f_gains_air`` > 0 (the
+        appliance load P_el,load [W] as a fourth input into the air node)
     """
     ca, cw = b.c_air_j_per_k, b.c_wall_j_per_k
     g_wa = 1.0 / b.r_w_air_k_per_w
@@ -60,6 +65,8 @@ def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
             [0.0, g_wamb / cw, g_wamb * b.a_sol_k_m2_per_w / cw],
         ]
     )
+    if b.f_gains_air:  # an identified model's internal gains: a fourth input P_el,load [W]
+        bm = np.hstack([bm, np.array([[b.f_gains_air / ca], [0.0], [0.0]])])
     return a, bm
 
 
@@ -109,9 +116,10 @@ def _expm(m: np.ndarray) -> np.ndarray:
 
 
 def steady_state_c(q_sh_w: float, t_amb_c: float, q_s_w_m2: float, b: BuildingParams) -> np.ndarray:
-    """Equilibrium node temperatures [degC] for constant inputs (solves A x + B u = 0)."""
+    """Equilibrium node temperatures [degC] for constant inputs (solves A x + B u = 0; no internal gains)."""
     a, bm = continuous(b)
-    return np.linalg.solve(a, -bm @ np.array([q_sh_w, t_amb_c, q_s_w_m2], dtype=float))
+    u = [q_sh_w, t_amb_c, q_s_w_m2] + [0.0] * (bm.shape[1] - 3)
+    return np.linalg.solve(a, -bm @ np.array(u, dtype=float))
 
 
 def simulate(x0, u, Ad: np.ndarray, Bd: np.ndarray) -> np.ndarray:
@@ -159,8 +167,13 @@ class BuildingModel(Protocol):
         ----------
         temps : node temperatures at its start [degC]
         q_floor_w : heat into the floor from the emission system [W] (negative: cooling)
-        exo : the step's weather and loads (``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], ...)
+        exo : the step's weather and loads (``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], the appliance
+            load ``p_load_w`` [W] whose heat a detailed model releases in the rooms, ...)
         """
+        ...
+
+    def close(self) -> None:
+        """End the model's own simulator, if any (idempotent)."""
         ...
 
 
@@ -174,13 +187,14 @@ class RCBuilding:
     """
 
     name = "rc"
-    __slots__ = ("params", "Ad", "Bd", "_ad", "_bd")
+    __slots__ = ("params", "Ad", "Bd", "_ad", "_bd", "_bg")
 
     def __init__(self, b: BuildingParams, dt_h: float) -> None:
         self.params = b
         self.Ad, self.Bd = discretize(b, dt_h)
         self._ad = [[float(v) for v in row] for row in self.Ad]
-        self._bd = [[float(v) for v in row] for row in self.Bd]
+        self._bd = [[float(v) for v in row[:3]] for row in self.Bd]
+        self._bg = [float(v) for v in self.Bd[:, 3]] if self.Bd.shape[1] > 3 else None
 
     def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
         """The walls on the steady-state profile between the air at ``t_air_c`` and ``t_amb_c`` without sun [degC]."""
@@ -191,11 +205,25 @@ class RCBuilding:
                 t_air_c - dt * (b.r_w_air_k_per_w + b.r_w_k_per_w) / r_chain)
 
     def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
-        """x[k+1] = A_d x[k] + B_d u[k] with u = [Q_h,SH, T_amb, q_s] (plain float arithmetic)."""
+        """x[k+1] = A_d x[k] + B_d u[k] with u = [Q_h,SH, T_amb, q_s] (plain float arithmetic).
+
+        With ``f_gains_air`` > 0 the appliance load ``exo.p_load_w`` is a fourth input.
+        """
         x0, x1, x2 = temps
         t_amb, q_s = exo.t_amb_c, exo.ghi_w_m2
         a0, a1, a2 = self._ad
         b0, b1, b2 = self._bd
+        if self._bg is not None:
+            g = exo.p_load_w
+            return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s
+                    + self._bg[0] * g,
+                    a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s
+                    + self._bg[1] * g,
+                    a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s
+                    + self._bg[2] * g)
         return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s,
                 a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s,
                 a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s)
+
+    def close(self) -> None:
+        """Nothing to end: the 4R3C is plain arithmetic."""

@@ -54,7 +54,7 @@ class PlantSimNode(LockStepMaster):
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
         super().__init__(NODE_NAME, **node_kwargs)
-        self.plant = Plant(self.params)
+        self.plant = Plant(self.params, self._building_model())
         self.state: PlantState = self.plant.initial_state()
         sizes = self.sizes
         self._bounds = command_bounds(self.params)
@@ -87,6 +87,34 @@ class PlantSimNode(LockStepMaster):
             f"plant ready: step timeout {self.step_timeout_s} s, start-up timeout {self.startup_timeout_s} s, "
             f"wait for recorder: {self.wait_for_recorder}"
         )
+
+    def _building_model(self) -> Any:
+        """The building model of parameter ``building`` (None: the 4R3C of the plant parameters).
+
+        A detailed model (EnergyPlus, an FMU) runs in this process as part of the plant's step;
+        EnergyPlus writes its weather from the scenario, which plant_sim loads with the feed's
+        scenario parameters (the launcher gives it the same ones).
+        """
+        from comems4build_ros.ros.parameters import param
+
+        building = str(param(self, "building", "rc"))
+        if building == "rc":
+            return None
+        from comems4build_ros.core.loop import building_model
+        from comems4build_ros.ros.nodes.feed import SCENARIO_PARAMS, prepare_scenario
+        from comems4build_ros.ros.parameters import string_list
+
+        values = {name: param(self, name, default) for name, default in SCENARIO_PARAMS.items()}
+        values.update(config_files=string_list(self, "config_files"), overrides=string_list(self, "overrides"))
+        scenario, _ = prepare_scenario(values)
+        model = building_model(building, self.params, scenario)
+        self.get_logger().info(f"building model: {model.name} ({building})")
+        return model
+
+    def destroy_node(self) -> None:
+        """End the building model's own simulator (EnergyPlus's thread, an FMU instance), then the node."""
+        self.plant.building.close()
+        super().destroy_node()
 
     # ------------------------------------------------------------------ events
     def on_recorder_progress(self) -> None:

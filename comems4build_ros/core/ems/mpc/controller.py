@@ -115,10 +115,17 @@ class MPCController:
         self.backend = make_backend(o.solver, self.model.form, o.mip_rel_gap, o.time_limit_s, o.threads,
                                     o.warm_start, highs_options=o.highs_options, gurobi_options=o.gurobi_options)
         self.step_info: dict[str, float] = {}
+        self.observer = None
+        if o.observer == "kalman":
+            from comems4build_ros.core.ems.mpc.observer import KalmanObserver, wall_split
+
+            self.observer = KalmanObserver(self.const.ad, self.const.bd, wall_split(params.building))
         self.reset()
 
     def reset(self) -> None:
-        """Forget the previous plan and the counters."""
+        """Forget the previous plan, the counters and the observer's estimate."""
+        if self.observer is not None:
+            self.observer.reset()
         self._prev_plan: dict[str, np.ndarray] | None = None
         self.n_fallback = 0
         self.n_slack = 0
@@ -147,6 +154,11 @@ class MPCController:
 
     def act(self, obs: Observation) -> Action:
         """Solve the horizon problem and return its first step (or the safe fallback)."""
+        if self.observer is not None:  # the model's wall nodes estimated from the measured T_air
+            x = self.observer.update(obs.t_air_c, obs.t_amb_c)
+            data = obs.as_dict()
+            data.update(t_wall_in_c=float(x[1]), t_wall_out_c=float(x[2]))
+            obs = Observation(obs.level, data)
         res = self.plan(obs)
         h = self.last_horizon
         self.last_result = res
@@ -175,4 +187,9 @@ class MPCController:
             fallback=0.0 if res.has_solution else 1.0,
         )
         self.step_info = {key: float(info[key]) for key in STEP_INFO_KEYS}
+        if self.observer is not None:
+            q = float(res.plan["p_hp_sh"][0] * h.cop_sh[0]) if res.has_solution else 0.0
+            if res.has_solution and "p_hp_cool" in res.plan and h.eer is not None:
+                q -= float(res.plan["p_hp_cool"][0] * h.eer[0])
+            self.observer.applied(q, float(obs.t_amb_c), float(obs.ghi_w_m2), float(obs.p_load_w))
         return action

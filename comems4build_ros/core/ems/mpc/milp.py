@@ -378,6 +378,8 @@ class MILPModel:
             C["dhw"][t].changeRHS(float(-cv * (h.q_dhw_dem_w[t] + k.q_dhw_loss_w) + (h.v0_l if t == 0 else 0.0)))
             C["dhw"][t].expr[V["p_hp_dhw"][t]] = -cv * float(h.cop_dhw[t])
             exo = k.bd[:, 1] * h.t_amb_c[t] + k.bd[:, 2] * h.ghi_w_m2[t]
+            if k.bd.shape[1] > 3:  # an identified model's internal gains (building.f_gains_air)
+                exo = exo + k.bd[:, 3] * h.p_load_w[t]
             if t == 0:
                 exo = exo + rowdot(k.ad, x0)
             for i, cname in enumerate(("air", "wall_in", "wall_out")):

@@ -191,6 +191,8 @@ class QPModel:
         eq("dhw", dhw)
         up[L["fc_heat_dump"]] = 0.0
         exo = np.outer(h.t_amb_c, k.bd[:, 1]) + np.outer(h.ghi_w_m2, k.bd[:, 2])
+        if k.bd.shape[1] > 3:  # an identified model's internal gains (building.f_gains_air)
+            exo = exo + np.outer(h.p_load_w, k.bd[:, 3])
         exo[0] += rowdot(k.ad, h.x0)
         for i, label in enumerate(("air", "wall_in", "wall_out")):
             eq(label, exo[:, i])

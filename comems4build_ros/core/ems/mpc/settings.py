@@ -57,6 +57,8 @@ class MILPParams(_MPCParams):
     penalty_loh_season_eur_per_h: float = Field(default=5.0, ge=0)
     h2_value_eur_per_kwh: float = Field(default=0.15, ge=0)
     sigma_el_on_eur: float = Field(default=0.04, ge=0)
+    # the building's wall nodes: read from the plant (the paper) or estimated from T_air (a detailed building)
+    observer: Literal["measured", "kalman"] = "measured"
 
 
 class QPParams(_MPCParams):

@@ -1,0 +1,84 @@
+"""State observer of the MPC's building model, for a house the model did not shape.
+
+On the 4R3C plant the MPC reads its model's three node temperatures from the plant (the
+paper's full information, ``tab:level_of_information``). On a detailed building (EnergyPlus,
+an FMU) only the air temperature is a measurement of what the MPC's model calls T_air; its
+wall nodes exist only in the model. :class:`KalmanObserver` estimates them as a real MPC
+would: a steady-state Kalman filter of the MPC's own discretised model (``eq:state_update_bldgs``,
+an identified model when the MPC plans with one), driven by the heat the MPC commanded in the
+previous step and the measured weather and appliance load, corrected by the measured T_air.
+
+Noise covariances (choice, stated): process noise :data:`Q_PROCESS_K2` on each node per step,
+measurement noise :data:`R_MEASURE_K2` on T_air; the gain is that of the stationary filter
+(discrete algebraic Riccati equation, SciPy).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+#: Process noise variance per node and step [K^2] (choice: model error of a few tenths of a kelvin per hour).
+Q_PROCESS_K2 = (0.04, 0.01, 0.01)
+#: Measurement noise variance of T_air [K^2] (choice: a room sensor's 0.1 K).
+R_MEASURE_K2 = 0.01
+
+
+def kalman_gain(ad: np.ndarray, q: tuple[float, ...] = Q_PROCESS_K2, r: float = R_MEASURE_K2) -> np.ndarray:
+    """Stationary Kalman gain L (3,) of x[k+1] = A_d x[k] + ..., y = T_air = x[0] (filter form)."""
+    from scipy.linalg import solve_discrete_are
+
+    c = np.array([[1.0, 0.0, 0.0]])
+    p = solve_discrete_are(ad.T, c.T, np.diag(q), np.array([[r]]))
+    return (p @ c.T / (c @ p @ c.T + r)).ravel()
+
+
+def wall_split(b) -> tuple[float, float]:
+    """The steady profile's shares of :class:`~comems4build_ros.core.config.BuildingParams` ``b`` [-]."""
+    r = b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w
+    return b.r_w_air_k_per_w / r, (b.r_w_air_k_per_w + b.r_w_k_per_w) / r
+
+
+class KalmanObserver:
+    """Estimates the model's node temperatures from measured T_air (see the module docstring).
+
+    Parameters
+    ----------
+    ad, bd : the MPC model's ZOH matrices (3, 3) and (3, 3 or 4)
+    wall_split : (r_w,air / R, (r_w,air + r_w) / R) with R = r_w,air + r_w + r_w,amb: where the
+        walls start between the measured air and the ambient temperature (the steady profile
+        without sun, as the plant's initial state); None: at the air temperature
+    """
+
+    def __init__(self, ad: np.ndarray, bd: np.ndarray, wall_split: tuple[float, float] | None = None) -> None:
+        self.ad = np.asarray(ad, dtype=float)
+        self.bd = np.asarray(bd, dtype=float)
+        self.wall_split = wall_split
+        self.gain = kalman_gain(self.ad)
+        self.reset()
+
+    def reset(self) -> None:
+        """Forget the estimate (the next :meth:`update` starts from the measurement)."""
+        self.x: np.ndarray | None = None
+        self._u: np.ndarray | None = None
+
+    def update(self, t_air_c: float, t_amb_c: float | None = None) -> np.ndarray:
+        """The estimate after the measurement ``t_air_c`` [degC] of the step that just ended.
+
+        ``t_amb_c`` [degC] places the walls of the first estimate (:attr:`wall_split`).
+        """
+        if self.x is None or self._u is None:
+            t = float(t_air_c)
+            if self.wall_split is None or t_amb_c is None:
+                self.x = np.full(3, t)
+            else:
+                d = t - float(t_amb_c)
+                self.x = np.array([t, t - d * self.wall_split[0], t - d * self.wall_split[1]])
+        else:
+            pred = self.ad @ self.x + self.bd @ self._u
+            self.x = pred + self.gain * (float(t_air_c) - pred[0])
+        return self.x.copy()
+
+    def applied(self, q_floor_w: float, t_amb_c: float, ghi_w_m2: float, p_load_w: float) -> None:
+        """The inputs of the step now decided: commanded floor heat [W], weather, appliance load [W]."""
+        u = [q_floor_w, t_amb_c, ghi_w_m2, p_load_w][: self.bd.shape[1]]
+        self._u = np.asarray(u, dtype=float)

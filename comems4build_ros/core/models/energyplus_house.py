@@ -1,0 +1,390 @@
+"""The German single-family house of the co-simulation, written as an EnergyPlus input file (IDF).
+
+The house is the TABULA/EPISCOPE type DE.N.SFH.09.Gen (single-family house built
+1995-2001, IWU's German residential typology) in its *advanced refurbishment* variant
+(DE.N.SFH.09.Gen.ReEx.001.003). From the typology it takes:
+
+- the reference floor area A_C,ref = 121.9 m2 (here two heated storeys of 60.95 m2 each),
+- the window area as TABULA's ratio window / reference area for the age band (0.266, as
+  tabulated in the TEASER archetype of the TABULA DE single-family house), 32.4 m2,
+- the transmission heat transfer coefficient of the variant, H_tr = 87 W/K, which the U-values
+  below reproduce to a few per cent (:func:`heat_loss_coefficient` prints the sum),
+- airtightness of a refurbished house with mechanical ventilation and heat recovery.
+
+Choices (documented in ``docs/cosimulation.md``): a compact box of 7.81 m x 7.81 m with two
+storeys of 2.7 m (floor to floor) and a flat insulated roof; U-values typical of an advanced
+refurbishment (wall 0.20 W/m2K, roof 0.14, floor slab 0.25, triple glazing 0.95 with
+g = 0.5) with thermal bridges of 0.05 W/m2K over the envelope put on the wall; infiltration
+0.1 1/h (n50 = 1.5 1/h) and balanced ventilation of 0.4 1/h with 80 % heat recovery, entered
+as the equivalent 0.08 1/h of outdoor air; floors of 6.5 cm screed on 3 cm insulation
+(German underfloor heating, the pipes 3 cm below the screed's top, see below);
+ground under the slab at the temperatures of :data:`GROUND_C`.
+
+Heating: per zone an electric low-temperature radiant system (``ZoneHVAC:LowTemperatureRadiant:
+Electric``) on the floor, whose heat enters the floor construction at the pipes' level, between
+the lower 3.5 cm and the upper 3 cm of the screed (``ConstructionProperty:InternalHeatSource``):
+the screed's mass stores it and the floor's surface gives it to the room by convection and
+long-wave radiation. Its power follows its set point in the ``HalfFlowPower`` mode (power =
+capacity x (set point + range/2 - T_air) / range, clipped to [0, capacity]); the
+co-simulation sets the set point each system time step (actuator ``Schedule:Constant`` /
+``Schedule Value``) from the zone's current air temperature so that the power is exactly the
+plant's heat, and reads back the heat EnergyPlus reports (``Zone Radiant HVAC Heating
+Rate``). Cooling (negative heat, the year-round plant) goes through a
+``SurfaceProperty:HeatBalanceSourceTerm`` on the floor's top face (schedule in W/m2).
+Internal gains: ``ElectricEquipment`` at the appliance load of the scenario (schedule set
+each step, all of it released in the zone, 30 % radiant) and ``People`` (four occupants at
+home on weekday evenings and nights and all weekend).
+
+:func:`write_idf` writes the file; the package ships its output as
+``comems4build_ros/data/energyplus_house_sfh.idf`` (``python -m
+comems4build_ros.core.models.energyplus_house --write`` regenerates it; a test checks the two
+agree).
+"""
+
+from __future__ import annotations
+
+import argparse
+from dataclasses import dataclass
+from pathlib import Path
+
+#: Names the co-simulation actuates and reads; every IDF given to ``--building energyplus:IDF``
+#: must define them (:func:`comems4build_ros.core.models.building_energyplus.check_idf`).
+ZONES = ("Ground Floor", "Upper Floor")
+FLOORS = ("GF Floor", "UF Floor")
+HEAT_SCHEDULE = "C4B Floor Heat Flux"  # Schedule:Constant, W/m2 on each heated floor
+GAINS_SCHEDULE = "C4B Appliance Gains"  # Schedule:Constant, W of appliance load per zone
+#: Underfloor heating of each zone: ``ZoneHVAC:LowTemperatureRadiant:Electric`` on the zone's floor,
+#: whose heat enters the screed at the pipes' level (``ConstructionProperty:InternalHeatSource``).
+RADIANT = ("GF Floor Heating", "UF Floor Heating")
+#: Its set-point schedules (Schedule:Constant), which the co-simulation sets so that the heating
+#: delivers exactly the plant's heat (:data:`RADIANT_THROTTLING_K`, :data:`RADIANT_CAPACITY_W`).
+RADIANT_SETPOINTS = ("C4B GF Floor Heating Setpoint", "C4B UF Floor Heating Setpoint")
+#: Heating capacity of each floor's system [W] (above the heat pump's largest heat) and its
+#: throttling range [K] (``HalfFlowPower``: power = capacity x (set point + range/2 - T_air) / range).
+RADIANT_CAPACITY_W = 20000.0
+RADIANT_THROTTLING_K = 2.0
+#: Layer after which the heat source sits in the floor constructions (counted from the outside):
+#: between the lower and the upper screed layer, 3 cm below the screed's top.
+SOURCE_AFTER_LAYER = 4
+
+#: Monthly ground temperature under the slab [degC], January .. December (choice: the DWD
+#: Rheinstetten annual mean of 11 degC damped and delayed under a heated house, ISO 13370-like).
+GROUND_C = (10.0, 9.5, 9.5, 10.0, 11.0, 12.0, 13.0, 13.5, 13.5, 13.0, 12.0, 11.0)
+
+
+@dataclass(frozen=True)
+class Layer:
+    """One material layer: thickness [m], conductivity [W/(m K)], density [kg/m3], heat capacity [J/(kg K)]."""
+
+    name: str
+    thickness_m: float
+    k_w_mk: float
+    rho_kg_m3: float
+    c_j_kgk: float
+
+    @property
+    def r_m2k_w(self) -> float:
+        """Thermal resistance [m2 K/W]."""
+        return self.thickness_m / self.k_w_mk
+
+
+@dataclass(frozen=True)
+class HouseSpec:
+    """Geometry and envelope of the house (all figures in SI units)."""
+
+    width_m: float = 7.81           # east-west
+    depth_m: float = 7.81           # north-south: 2 x 7.81^2 = 121.99 m2 = TABULA A_C,ref 121.9 m2
+    storey_m: float = 2.7           # floor to floor
+    window_ratio: float = 0.266     # TABULA window area / reference floor area, 1995-2001 (TEASER archetype)
+    window_share: tuple[float, float, float, float] = (0.4, 0.2, 0.2, 0.2)  # S, E, N, W (choice)
+    window_height_m: float = 1.4
+    sill_m: float = 0.9
+    u_window: float = 0.95          # triple glazing, W/(m2 K) (choice, advanced refurbishment)
+    g_window: float = 0.5           # solar heat gain coefficient (choice)
+    u_wall_target: float = 0.20     # advanced refurbishment (choice)
+    u_roof_target: float = 0.14
+    u_floor_target: float = 0.25
+    du_thermal_bridge: float = 0.05  # W/(m2 K) over the envelope, put on the wall (choice)
+    infiltration_ach: float = 0.1    # n50 = 1.5 1/h divided by 15 (choice)
+    ventilation_ach: float = 0.4     # balanced ventilation (choice)
+    heat_recovery: float = 0.8       # of the ventilation's heat (choice)
+    b_ground: float = 0.5            # TABULA's adjustment factor of a floor on the ground
+    occupants: int = 4
+    timesteps_per_hour: int = 4      # zone time step 15 min
+
+    @property
+    def floor_m2(self) -> float:
+        """Floor area of one storey [m2]."""
+        return self.width_m * self.depth_m
+
+    @property
+    def heated_floor_m2(self) -> float:
+        """Heated floor area, both storeys [m2]."""
+        return 2 * self.floor_m2
+
+    @property
+    def volume_m3(self) -> float:
+        """Air volume [m3] as EnergyPlus computes it from the zones' geometry (floor to floor)."""
+        return self.heated_floor_m2 * self.storey_m
+
+    @property
+    def window_m2(self) -> float:
+        """Window area of the house [m2]."""
+        return self.window_ratio * self.heated_floor_m2
+
+    @property
+    def wall_gross_m2(self) -> float:
+        """Exterior wall area including windows [m2]."""
+        return 2 * (self.width_m + self.depth_m) * 2 * self.storey_m
+
+    @property
+    def air_ach(self) -> float:
+        """Outdoor air change equivalent to infiltration plus ventilation after heat recovery [1/h]."""
+        return self.infiltration_ach + self.ventilation_ach * (1.0 - self.heat_recovery)
+
+
+PLASTER_EXT = Layer("Exterior plaster", 0.02, 0.87, 1800.0, 1000.0)
+SANDLIME = Layer("Sand-lime masonry", 0.175, 0.99, 1800.0, 1000.0)
+PLASTER_INT = Layer("Gypsum plaster", 0.015, 0.70, 1400.0, 1000.0)
+CONCRETE = Layer("Concrete slab", 0.16, 2.1, 2400.0, 1000.0)
+IMPACT_INS = Layer("Impact sound insulation", 0.03, 0.04, 30.0, 1400.0)
+SCREED_LOW = Layer("Cement screed below the pipes", 0.035, 1.4, 2000.0, 1000.0)
+SCREED_TOP = Layer("Cement screed above the pipes", 0.030, 1.4, 2000.0, 1000.0)
+TILES = Layer("Floor tiles", 0.01, 1.3, 2300.0, 840.0)
+TIMBER = Layer("Timber boarding", 0.024, 0.13, 500.0, 1600.0)
+GYPSUM = Layer("Gypsum board", 0.0125, 0.25, 900.0, 1000.0)
+PARTITION = Layer("Partition masonry half", 0.0575, 0.99, 1800.0, 1000.0)
+
+#: Surface film resistances [m2 K/W] (EN ISO 6946): outside, inside horizontal flow, upward, downward.
+R_SE, R_SI_WALL, R_SI_UP, R_SI_DOWN = 0.04, 0.13, 0.10, 0.17
+
+
+def _insulation(name: str, r_needed: float) -> Layer:
+    """Insulation (k = 0.035 W/(m K)) of the thickness that gives ``r_needed`` [m2 K/W]."""
+    return Layer(name, round(r_needed * 0.035, 4), 0.035, 30.0, 1400.0)
+
+
+def constructions(spec: HouseSpec) -> dict[str, list[Layer]]:
+    """Layers of each construction, outside to inside, sized to the U-value targets."""
+    area_env = spec.wall_gross_m2 + 2 * spec.floor_m2
+    wall_net = spec.wall_gross_m2 - spec.window_m2
+    u_wall = spec.u_wall_target + spec.du_thermal_bridge * area_env / wall_net
+    wall_rest = [PLASTER_EXT, SANDLIME, PLASTER_INT]
+    r_wall = 1.0 / u_wall - R_SE - R_SI_WALL - sum(x.r_m2k_w for x in wall_rest)
+    roof_rest = [TIMBER, GYPSUM]
+    r_roof = 1.0 / spec.u_roof_target - R_SE - R_SI_UP - sum(x.r_m2k_w for x in roof_rest)
+    slab_rest = [CONCRETE, IMPACT_INS, SCREED_LOW, SCREED_TOP, TILES]
+    r_floor = 1.0 / spec.u_floor_target - R_SI_DOWN - sum(x.r_m2k_w for x in slab_rest)
+    return {
+        "Exterior Wall": [PLASTER_EXT, _insulation("Wall insulation", r_wall), SANDLIME, PLASTER_INT],
+        "Roof": [TIMBER, _insulation("Roof insulation", r_roof), GYPSUM],
+        "Ground Slab": [_insulation("Perimeter insulation", r_floor), CONCRETE, IMPACT_INS, SCREED_LOW, SCREED_TOP,
+                        TILES],
+        "Storey Floor": [PLASTER_INT, CONCRETE, IMPACT_INS, SCREED_LOW, SCREED_TOP, TILES],
+        "Storey Ceiling": [TILES, SCREED_TOP, SCREED_LOW, IMPACT_INS, CONCRETE, PLASTER_INT],
+        "Partitions": [PLASTER_INT, PARTITION],
+    }
+
+
+def u_value(layers: list[Layer], r_films: float) -> float:
+    """U-value [W/(m2 K)] of a construction with the given sum of film resistances."""
+    return 1.0 / (r_films + sum(x.r_m2k_w for x in layers))
+
+
+def heat_loss_coefficient(spec: HouseSpec | None = None) -> dict[str, float]:
+    """The house's steady-state heat loss coefficient by the typology's method [W/K].
+
+    H = sum(U A b) + H_ve with b = 1 towards the outdoor air and ``b_ground`` towards the
+    ground (TABULA), H_ve = rho c_p n V = 0.34 Wh/(m3 K) * n * V.
+
+    Returns
+    -------
+    dict with ``h_tr_w_per_k``, ``h_ve_w_per_k``, ``h_w_per_k`` and the parts
+    ``wall``, ``window``, ``roof``, ``floor`` [W/K].
+    """
+    spec = spec or HouseSpec()
+    c = constructions(spec)
+    wall_net = spec.wall_gross_m2 - spec.window_m2
+    parts = {
+        "wall": u_value(c["Exterior Wall"], R_SE + R_SI_WALL) * wall_net,
+        "window": spec.u_window * spec.window_m2,
+        "roof": u_value(c["Roof"], R_SE + R_SI_UP) * spec.floor_m2,
+        "floor": u_value(c["Ground Slab"], R_SI_DOWN) * spec.floor_m2 * spec.b_ground,
+    }
+    h_tr = sum(parts.values())
+    h_ve = 0.34 * spec.air_ach * spec.volume_m3
+    return {"h_tr_w_per_k": h_tr, "h_ve_w_per_k": h_ve, "h_w_per_k": h_tr + h_ve, **parts}
+
+
+def _obj(kind: str, *fields: object, comment: str = "") -> str:
+    """One IDF object: ``Kind,`` then one field per line, the last ending in ``;``."""
+    head = f"! {comment}\n" if comment else ""
+    vals = [_fmt(f) for f in fields]
+    lines = [f"{kind},"] + [f"  {v}{';' if i == len(vals) - 1 else ','}" for i, v in enumerate(vals)]
+    return head + "\n".join(lines) + "\n"
+
+
+def _fmt(value: object) -> str:
+    if isinstance(value, float):
+        return f"{value:.6g}"
+    return str(value)
+
+
+def _surface(name: str, kind: str, construction: str, zone: str, boundary: str, boundary_obj: str,
+             sun: bool, pts: list[tuple[float, float, float]]) -> str:
+    coords: list[object] = []
+    for p in pts:
+        coords.extend(round(v, 4) for v in p)
+    return _obj("BuildingSurface:Detailed", name, kind, construction, zone, "", boundary, boundary_obj,
+                "SunExposed" if sun else "NoSun", "WindExposed" if sun else "NoWind", "autocalculate",
+                len(pts), *coords)
+
+
+def _wall_points(side: str, w: float, d: float, z0: float, z1: float) -> list[tuple[float, float, float]]:
+    """Wall corners counter-clockwise seen from outside, upper left first."""
+    corners = {
+        "South": ((0, 0), (w, 0)),
+        "East": ((w, 0), (w, d)),
+        "North": ((w, d), (0, d)),
+        "West": ((0, d), (0, 0)),
+    }
+    (xa, ya), (xb, yb) = corners[side]
+    return [(xa, ya, z1), (xa, ya, z0), (xb, yb, z0), (xb, yb, z1)]
+
+
+def _window_points(side: str, spec: HouseSpec, z0: float, area: float) -> list[tuple[float, float, float]]:
+    """A window centred in the wall ``side`` of the storey starting at ``z0``."""
+    length = spec.width_m if side in ("South", "North") else spec.depth_m
+    width = area / spec.window_height_m
+    a = (length - width) / 2.0
+    zb, zt = z0 + spec.sill_m, z0 + spec.sill_m + spec.window_height_m
+    (xa, ya, _), _, (xb, yb, _), _ = _wall_points(side, spec.width_m, spec.depth_m, z0, z0)
+    ux, uy = (xb - xa) / length, (yb - ya) / length
+    p0 = (xa + ux * a, ya + uy * a)
+    p1 = (xa + ux * (a + width), ya + uy * (a + width))
+    return [(p0[0], p0[1], zt), (p0[0], p0[1], zb), (p1[0], p1[1], zb), (p1[0], p1[1], zt)]
+
+
+HEADER = """! ComEMS4Build co-simulation house: German single-family house, TABULA DE.N.SFH.09.Gen
+! (built 1995-2001), advanced refurbishment (DE.N.SFH.09.Gen.ReEx.001.003), two heated storeys,
+! underfloor heating into the screed (electric radiant system, internal heat source). Written by
+! comems4build_ros.core.models.energyplus_house (sources and choices in its docstring and in
+! docs/cosimulation.md). The co-simulation adds RunPeriod, Site:Location and the weather file.
+! Heat loss coefficient (typology method): H_tr = {h_tr:.1f} W/K, H_ve = {h_ve:.1f} W/K, H = {h:.1f} W/K.
+"""
+
+
+def idf_text(spec: HouseSpec | None = None) -> str:
+    """The house as IDF text for EnergyPlus 25.2 (without RunPeriod and Site:Location)."""
+    spec = spec or HouseSpec()
+    h = heat_loss_coefficient(spec)
+    out = [HEADER.format(h_tr=h["h_tr_w_per_k"], h_ve=h["h_ve_w_per_k"], h=h["h_w_per_k"])]
+    out.append(_obj("Version", "25.2"))
+    out.append(_obj("SimulationControl", "No", "No", "No", "No", "Yes", "No", 1))
+    out.append(_obj("Building", "TABULA DE.N.SFH.09.Gen advanced", 0.0, "Suburbs", 0.04, 0.4,
+                    "FullInteriorAndExterior", 25, 6))
+    out.append(_obj("Timestep", spec.timesteps_per_hour))
+    out.append(_obj("GlobalGeometryRules", "UpperLeftCorner", "Counterclockwise", "Relative"))
+    out.append(_obj("Site:GroundTemperature:BuildingSurface", *[float(t) for t in GROUND_C],
+                    comment="ground under the slab (choice, docstring)"))
+    out.append(_obj("ScheduleTypeLimits", "Any Number"))
+    out.append(_obj("ScheduleTypeLimits", "Fraction", 0.0, 1.0, "Continuous"))
+    out.append(_obj("Schedule:Constant", HEAT_SCHEDULE, "Any Number", 0.0,
+                    comment="floor heat flux [W/m2], set each zone time step by the co-simulation"))
+    out.append(_obj("Schedule:Constant", GAINS_SCHEDULE, "Any Number", 0.0,
+                    comment="appliance load per zone [W], set each zone time step by the co-simulation"))
+    out.append(_obj("Schedule:Constant", "Always On", "Fraction", 1.0))
+    out.append(_obj("Schedule:Compact", "Occupancy", "Fraction",
+                    "Through: 12/31", "For: Weekdays", "Until: 08:00", 1.0, "Until: 17:00", 0.0,
+                    "Until: 24:00", 1.0, "For: AllOtherDays", "Until: 24:00", 1.0,
+                    comment="at home on weekday evenings and nights and all weekend (eq:T_min's presence)"))
+    out.append(_obj("Schedule:Constant", "Activity", "Any Number", 100.0))
+    mats = {}
+    for layers in constructions(spec).values():
+        for x in layers:
+            mats[x.name] = x
+    for x in mats.values():
+        out.append(_obj("Material", x.name, "MediumRough", x.thickness_m, x.k_w_mk, x.rho_kg_m3, x.c_j_kgk,
+                        0.9, 0.6, 0.6))
+    out.append(_obj("WindowMaterial:SimpleGlazingSystem", "Triple Glazing", spec.u_window, spec.g_window, 0.6))
+    for name, layers in constructions(spec).items():
+        out.append(_obj("Construction", name, *[x.name for x in layers]))
+    for name in ("Ground Slab", "Storey Floor"):
+        out.append(_obj("ConstructionProperty:InternalHeatSource", f"{name} Pipes", name, SOURCE_AFTER_LAYER,
+                        SOURCE_AFTER_LAYER, 1, 0.15, 0.0, comment="the floor heating's pipes in the screed"))
+    out.append(_obj("Construction", "Window", "Triple Glazing"))
+    w, d, hs = spec.width_m, spec.depth_m, spec.storey_m
+    sides = ("South", "East", "North", "West")
+    for i, zone in enumerate(ZONES):
+        z0, z1 = i * hs, (i + 1) * hs
+        tag = "GF" if i == 0 else "UF"
+        out.append(_obj("Zone", zone, 0, 0, 0, 0, 1, 1, "autocalculate", "autocalculate"))
+        for side, share in zip(sides, spec.window_share):
+            wall = f"{tag} {side} Wall"
+            out.append(_surface(wall, "Wall", "Exterior Wall", zone, "Outdoors", "", True,
+                                _wall_points(side, w, d, z0, z1)))
+            pts = _window_points(side, spec, z0, spec.window_m2 * share / 2.0)
+            coords: list[object] = []
+            for p in pts:
+                coords.extend(round(v, 4) for v in p)
+            out.append(_obj("FenestrationSurface:Detailed", f"{tag} {side} Window", "Window", "Window", wall, "",
+                            "autocalculate", "", 1.0, 4, *coords))
+        floor_pts = [(w, 0, z0), (0, 0, z0), (0, d, z0), (w, d, z0)]
+        top_pts = [(0, 0, z1), (w, 0, z1), (w, d, z1), (0, d, z1)]
+        if i == 0:
+            out.append(_surface(FLOORS[0], "Floor", "Ground Slab", zone, "Ground", "", False, floor_pts))
+            out.append(_surface("GF Ceiling", "Ceiling", "Storey Ceiling", zone, "Surface", FLOORS[1], False,
+                                top_pts))
+        else:
+            out.append(_surface(FLOORS[1], "Floor", "Storey Floor", zone, "Surface", "GF Ceiling", False, floor_pts))
+            out.append(_surface("UF Roof", "Roof", "Roof", zone, "Outdoors", "", True, top_pts))
+        out.append(_obj("InternalMass", f"{tag} Partitions", "Partitions", zone, "", 1.5 * spec.floor_m2,
+                        comment="partition walls and furniture, both faces (choice)"))
+        out.append(_obj("SurfaceProperty:HeatBalanceSourceTerm", FLOORS[i], HEAT_SCHEDULE, "",
+                        comment="cooling through the floor (negative heat) at its top face"))
+        out.append(_obj("Schedule:Constant", RADIANT_SETPOINTS[i], "Any Number", -100.0,
+                        comment="set point of the floor heating, set each system time step by the co-simulation"))
+        out.append(_obj("ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], "Always On", zone, FLOORS[i],
+                        "HeatingDesignCapacity", RADIANT_CAPACITY_W, "", "", "MeanAirTemperature", "HalfFlowPower",
+                        RADIANT_THROTTLING_K, RADIANT_SETPOINTS[i],
+                        comment="underfloor heating: the heat pump's heat into the screed at the pipes"))
+        out.append(_obj("ZoneHVAC:EquipmentConnections", zone, f"{tag} Equipment", "", "", f"{tag} Air Node",
+                        f"{tag} Return Node"))
+        out.append(_obj("ZoneHVAC:EquipmentList", f"{tag} Equipment", "SequentialLoad",
+                        "ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], 1, 1, "", ""))
+        out.append(_obj("ElectricEquipment", f"{tag} Appliances", zone, GAINS_SCHEDULE, "EquipmentLevel", 1.0,
+                        "", "", 0.0, 0.3, 0.0))
+        out.append(_obj("People", f"{tag} Occupants", zone, "Occupancy", "People", spec.occupants / 2, "", "",
+                        0.3, "autocalculate", "Activity"))
+        out.append(_obj("ZoneInfiltration:DesignFlowRate", f"{tag} Air Change", zone, "Always On", "AirChanges/Hour",
+                        "", "", "", spec.air_ach, 1.0, 0.0, 0.0, 0.0,
+                        comment="infiltration + ventilation after heat recovery (choice)"))
+    return "".join(o if o.endswith("\n") else o + "\n" for o in out)
+
+
+def shipped_idf() -> Path:
+    """The IDF the package ships (``comems4build_ros/data/energyplus_house_sfh.idf``)."""
+    return Path(__file__).resolve().parents[2] / "data" / "energyplus_house_sfh.idf"
+
+
+def write_idf(path: str | Path, spec: HouseSpec | None = None) -> Path:
+    """Write the house's IDF to ``path``."""
+    path = Path(path)
+    path.write_text(idf_text(spec), encoding="utf-8")
+    return path
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``python -m comems4build_ros.core.models.energyplus_house [--write] [--print-h]``."""
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument("--write", action="store_true", help="regenerate the shipped IDF")
+    args = parser.parse_args(argv)
+    if args.write:
+        print(f"wrote {write_idf(shipped_idf())}")
+    for key, value in heat_loss_coefficient().items():
+        print(f"{key}: {value:.2f}")
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
