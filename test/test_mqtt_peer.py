@@ -196,7 +196,7 @@ def test_discovery_for_the_simulated_house_and_for_a_real_building(tmp_path: Pat
     assert all(sim[f"{prefix}{s.key}/config"] is not None for s in SENSORS)
     cost = sim[f"{prefix}grid_cost_eur/config"]
     assert cost["state_class"] == "total" and cost["device_class"] == "monetary" and \
-        cost["last_reset_value_template"] == "{{ value_json.run_start }}" and "availability_topic" not in cost
+        cost["last_reset_value_template"] == "{{ value_json.run_start or '' }}" and "availability_topic" not in cost
     assert cost["suggested_display_precision"] == 2 and cost["object_id"] == "comems4build_grid_cost_eur"
     mode = sim[f"{prefix}hp_mode/config"]
     assert mode["device_class"] == "enum" and mode["options"] == ["off", "heating", "dhw"]

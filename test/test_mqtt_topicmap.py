@@ -145,7 +145,7 @@ def test_every_discovery_payload_validates_against_the_documented_schema(tmap):
     for topic, p in msgs:
         assert topic.startswith(f"homeassistant/{topic.split('/')[1]}/{tmap.node_id}/")
         # live values go unavailable with the bridge; run totals and counters keep the last run's
-        lasting = p.get("state_class") == "total"
+        lasting = p.get("state_class") == "total" or topic.endswith("/step/config")
         assert p.get("availability_topic") == (None if lasting else tmap.availability_topic)
         assert p["device"]["identifiers"] == [tmap.node_id]
         if p.get("device_class") in ("power", "energy", "monetary"):

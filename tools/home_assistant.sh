@@ -9,20 +9,19 @@
 #
 #   bash tools/home_assistant.sh install     install what is missing (prints what it did)
 #   bash tools/home_assistant.sh path        print the venv's python (exit 1 if not installed)
-#   bash tools/home_assistant.sh frontend    also the frontend package (for a dashboard screenshot)
 #
-# Home Assistant 2025.4.4 is the newest release that installs on Python 3.13.0; the MQTT
-# integration's requirement (paho-mqtt 2.1.0, its manifest.json) and those of the
-# integrations the test's configuration loads are installed here, so Home Assistant runs
-# with --skip-pip and fetches nothing at run time.
+# Home Assistant 2025.4.4 is the newest release that installs on Python 3.13.0. The
+# requirements of the integrations it sets up (the MQTT integration's paho-mqtt 2.1.0, and
+# of those bootstrap always sets up: the frontend, which is critical, and isal; each
+# integration's manifest.json, at the versions of Home Assistant's package_constraints.txt)
+# are installed here, so Home Assistant runs with --skip-pip and fetches nothing at run time.
 set -euo pipefail
 HA_VERSION=2025.4.4
-FRONTEND_VERSION=20250411.0   # the frontend that Home Assistant 2025.4.4 pins (its package_constraints)
 CACHE="${COMEMS4BUILD_CACHE:-${XDG_CACHE_HOME:-$HOME/.cache}/comems4build_ros}"
 VENV="$CACHE/home-assistant-$HA_VERSION"
-# Requirements of the integrations the test's configuration loads (manifest.json of each
-# in Home Assistant 2025.4.4): mqtt, and the ones bootstrap always sets up.
-EXTRA=(paho-mqtt==2.1.0)
+# Requirements of the integrations Home Assistant 2025.4.4 sets up here that its own
+# package does not bring (manifest.json of mqtt, frontend and isal).
+EXTRA=(paho-mqtt==2.1.0 home-assistant-frontend==20250411.0 isal==1.7.1)
 
 find_python313() {
   if command -v python3.13 >/dev/null 2>&1 && python3.13 -c 'import sys; assert sys.version_info[:2] == (3, 13)' \
@@ -64,9 +63,11 @@ install_ha() {
   fi
   echo "home_assistant.sh: Home Assistant $HA_VERSION into $VENV (Python $("$py" -V 2>&1 | cut -d' ' -f2))"
   mkdir -p "$CACHE"
-  rm -rf "$VENV"
-  "$py" -m venv "$VENV"
-  "$VENV/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip
+  if ! "$VENV/bin/python" -c "import homeassistant" 2>/dev/null; then  # else only the extras changed
+    rm -rf "$VENV"
+    "$py" -m venv "$VENV"
+    "$VENV/bin/python" -m pip install -q --disable-pip-version-check --upgrade pip
+  fi
   "$VENV/bin/python" -m pip install -q --disable-pip-version-check "homeassistant==$HA_VERSION" "${EXTRA[@]}"
   echo "$HA_VERSION ${EXTRA[*]}" > "$VENV/.installed"
 }
@@ -76,18 +77,11 @@ case "${1:-install}" in
     install_mosquitto
     install_ha
     ;;
-  frontend)
-    install_mosquitto
-    install_ha
-    [ -x "$VENV/bin/python" ] || { echo "home_assistant.sh: no Home Assistant venv" >&2; exit 1; }
-    "$VENV/bin/python" -c "import hass_frontend" 2>/dev/null || \
-      "$VENV/bin/python" -m pip install -q --disable-pip-version-check "home-assistant-frontend==$FRONTEND_VERSION"
-    ;;
   path)
     if [ -x "$VENV/bin/python" ] && [ -f "$VENV/.installed" ]; then echo "$VENV/bin/python"; else exit 1; fi
     ;;
   *)
-    echo "usage: bash tools/home_assistant.sh [install|frontend|path]" >&2
+    echo "usage: bash tools/home_assistant.sh [install|path]" >&2
     exit 2
     ;;
 esac

@@ -132,7 +132,7 @@ SENSORS: tuple[SensorDef, ...] = (
     SensorDef("grid_export_kwh", "Grid export", "kWh", "energy", "total", 2, source=FROM_RECORDS, lasting=True),
     SensorDef("discomfort_kh", "Thermal discomfort", "K·h", None, "total", 2, source=FROM_RECORDS, lasting=True),
     # diagnostics
-    SensorDef("step", "EMS step", None, None, None, diagnostic=True),
+    SensorDef("step", "EMS step", None, None, None, diagnostic=True, lasting=True),
     SensorDef("fallback_steps", "Fallback steps", None, None, "total", diagnostic=True, lasting=True),
     SensorDef("clamped_commands", "Clamped commands", None, None, "total", diagnostic=True, lasting=True),
     SensorDef("foreign_messages", "Foreign messages", None, None, "total", diagnostic=True, lasting=True),
@@ -204,7 +204,7 @@ def sensor_config(topic_map: TopicMap, s: SensorDef, common: dict[str, Any]) -> 
     if s.state_class:
         p["state_class"] = s.state_class
     if s.state_class == "total":  # a run total restarts with every run: a new meter cycle
-        p["last_reset_value_template"] = "{{ value_json.run_start }}"
+        p["last_reset_value_template"] = "{{ value_json.run_start or '' }}"  # '': no run yet (ignored)
     if s.precision is not None:
         p["suggested_display_precision"] = s.precision
     if s.options:
