@@ -337,6 +337,30 @@ def wait_for(cond: Any, timeout_s: float, period_s: float = 0.5) -> bool:
     return bool(cond())
 
 
+def dashboard_table(states: dict[str, dict[str, Any]]) -> str:
+    """The EMS's entities as Home Assistant shows them (name, state with unit and its suggested
+    precision, entity id, category), as a Markdown table."""
+    from comems4build_ros.mqtt.discovery import discovery_messages
+    from comems4build_ros.mqtt.topicmap import load_topic_map
+
+    precision = {f"{t.split('/')[1]}.{p['object_id']}": p.get("suggested_display_precision")
+                 for t, p in discovery_messages(load_topic_map()) if p is not None}
+    rows = ["| entity | state | entity id | |", "|---|---|---|---|"]
+    for entity in sorted(states, key=lambda e: (e.split(".")[0] != "sensor", e)):
+        st = states[entity]
+        attrs = st["attributes"]
+        value = st["state"]
+        digits = precision.get(entity)
+        if digits is not None:
+            with contextlib.suppress(ValueError):
+                value = f"{float(value):.{digits}f}"
+        unit = attrs.get("unit_of_measurement") or ""
+        cat = "diagnostic" if entity.endswith(("_step", "_fallback_steps", "_clamped_commands", "_foreign_messages",
+                                               "_fallback_reason")) else ""
+        rows.append(f"| {attrs.get('friendly_name', entity)} | {value} {unit}".rstrip() + f" | `{entity}` | {cat} |")
+    return "\n".join(rows)
+
+
 def main(argv: list[str] | None = None) -> int:
     """The command of the module docstring; exit 0 when every check passed."""
     ap = argparse.ArgumentParser(prog="home_assistant_check", description=__doc__.split("\n\n")[0])
@@ -345,6 +369,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--broker-restart", action="store_true",
                     help="one more run with --clock wall:3600 whose broker is killed for 1.4 s mid-run")
     ap.add_argument("--ha-restart", action="store_true", help="restart Home Assistant during the last run")
+    ap.add_argument("--show", action="store_true", help="print the entities as Home Assistant shows them")
     ap.add_argument("--out", type=Path, default=Path("runs/home_assistant"))
     args = ap.parse_args(argv)
     python = ha_python()
@@ -392,6 +417,8 @@ def main(argv: list[str] | None = None) -> int:
                   f"{'equal to summary.json' if ok else 'DIFFERENT: ' + '; '.join(problems)}", flush=True)
             for line in warnings:
                 print(f"  {line}", flush=True)
+            if args.show:
+                print(dashboard_table(ha.states()), flush=True)
             failures += 0 if ok else 1
         log_problems = ha.problems_in_log()
         print(f"Home Assistant log: {len(log_problems)} MQTT warning(s) or error(s)", flush=True)
