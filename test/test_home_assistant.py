@@ -53,18 +53,6 @@ def _finish(proc: subprocess.Popen[str], timeout_s: float = 600) -> str:
     return text
 
 
-def _step(ha: object) -> int:
-    """The step of the run going on now (-1 while the EMS's live entities are unavailable: no
-    bridge; the step sensor itself keeps the last run's count after its end)."""
-    try:
-        states = ha.states()  # type: ignore[attr-defined]
-        if states["sensor.comems4build_in_charge"]["state"] in ("unavailable", "unknown"):
-            return -1
-        return int(states["sensor.comems4build_step"]["state"])
-    except (KeyError, TypeError, ValueError, OSError):
-        return -1
-
-
 @pytest.fixture(scope="module")
 def house(tmp_path_factory: pytest.TempPathFactory):
     python = hac.ha_python()
@@ -121,7 +109,7 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
     # 3. the user's switch, during a run, across a restart of the bridge, and while no bridge runs
     out = work / "switch_on"
     proc = _launch(out, broker, topic_map, 48)
-    assert hac.wait_for(lambda: _step(ha) >= 3, 120.0, 0.1), "the run did not get going"
+    assert hac.wait_for(lambda: hac.live_step(ha) >= 3, 120.0, 0.1), "the run did not get going"
     ha.switch("comems4build_forced_fallback", True)
     text = _finish(proc)
     summary = json.loads((out / "summary.json").read_text())
@@ -140,12 +128,12 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
     assert json.loads((out / "summary.json").read_text())["fallback_steps"] == 0
     # 4. a wall-clock run cut, then one whose broker is killed for 1.4 s mid-run
     cut = _launch(work / "wall_cut", broker, topic_map, 48, "wall:3600")
-    assert hac.wait_for(lambda: _step(ha) >= 3, 120.0, 0.1), "the wall-clock run did not get going"
+    assert hac.wait_for(lambda: hac.live_step(ha) >= 3, 120.0, 0.1), "the wall-clock run did not get going"
     cut.send_signal(signal.SIGINT)
     cut.communicate(timeout=120)
     out = work / "wall_restart"
     proc = _launch(out, broker, topic_map, 36, "wall:3600")
-    assert hac.wait_for(lambda: _step(ha) >= 8, 120.0, 0.1), "the wall-clock run did not get going"
+    assert hac.wait_for(lambda: hac.live_step(ha) >= 8, 120.0, 0.1), "the wall-clock run did not get going"
     broker.kill()
     time.sleep(1.4)
     broker.start()

@@ -10,7 +10,7 @@ import string
 from pathlib import Path
 
 import pytest
-from hypothesis import given, settings
+from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 from comems4build_ros.mqtt.discovery import (
@@ -38,6 +38,8 @@ from comems4build_ros.wire.tokens import write_token_file
 MAP = load_topic_map()
 
 KEY = b"mqtt:123456789"
+#: The machines are shared and loaded: no per-example deadline, no complaint about slow draws.
+LOADED = {"deadline": None, "suppress_health_check": [HealthCheck.too_slow]}
 run_ids = st.text(alphabet=string.ascii_letters + string.digits + "_.-", min_size=1, max_size=64)
 topics = st.text(alphabet=string.ascii_lowercase + "/_", min_size=1, max_size=40)
 values = st.one_of(st.floats(allow_nan=False, allow_infinity=False), st.integers(-10**6, 10**6), st.text(max_size=20),
@@ -46,6 +48,7 @@ objects = st.dictionaries(st.text(alphabet=string.ascii_lowercase, min_size=1, m
                           max_size=5).filter(lambda d: "mac" not in d and "run" not in d)
 
 
+@settings(**LOADED)
 @given(topic=topics, obj=objects, run=run_ids)
 def test_a_sealed_payload_opens_to_itself_with_the_run_id(topic: str, obj: dict, run: str) -> None:
     peer = Peer(run, KEY)
@@ -54,7 +57,7 @@ def test_a_sealed_payload_opens_to_itself_with_the_run_id(topic: str, obj: dict,
     assert peer.unwrap(topic, peer.wrap(topic, json.dumps(obj).encode())) == body and peer.foreign == {}
 
 
-@settings(max_examples=300)
+@settings(max_examples=300, **LOADED)
 @given(topic=topics, obj=objects, data=st.data())
 def test_any_changed_byte_makes_a_sealed_payload_foreign(topic: str, obj: dict, data: st.DataObject) -> None:
     sealed = bytearray(seal(KEY, topic, json.dumps(obj).encode()))
@@ -65,6 +68,7 @@ def test_any_changed_byte_makes_a_sealed_payload_foreign(topic: str, obj: dict, 
         open_sealed(KEY, topic, bytes(sealed))
 
 
+@settings(**LOADED)
 @given(topic=topics, obj=objects)
 def test_the_code_binds_topic_and_key(topic: str, obj: dict) -> None:
     sealed = seal(KEY, topic, json.dumps(obj).encode())
@@ -74,7 +78,7 @@ def test_the_code_binds_topic_and_key(topic: str, obj: dict) -> None:
         open_sealed(b"mqtt:987654321", topic, sealed)  # a code made with another key
 
 
-@settings(max_examples=300)
+@settings(max_examples=300, **LOADED)
 @given(payload=st.binary(max_size=200), topic=topics)
 def test_malformed_payloads_are_foreign_with_a_key_never_another_error(payload: bytes, topic: str) -> None:
     peer = Peer("run1", KEY)
@@ -83,6 +87,7 @@ def test_malformed_payloads_are_foreign_with_a_key_never_another_error(payload: 
     assert topic in str(info.value) and peer.foreign_total == 1
 
 
+@settings(**LOADED)
 @given(mine=run_ids, other=run_ids, step=st.integers(0, 10**6))
 def test_a_message_of_another_run_is_foreign_even_with_a_valid_code(mine: str, other: str, step: int) -> None:
     """A message recorded in an earlier run of the same secret (a replay) names that run."""
@@ -95,6 +100,7 @@ def test_a_message_of_another_run_is_foreign_even_with_a_valid_code(mine: str, o
     assert peer.foreign == {"another run": 1}
 
 
+@settings(**LOADED)
 @given(value=st.floats(allow_nan=False, allow_infinity=False), other=run_ids)
 def test_without_a_key_plain_values_pass_and_other_runs_do_not(value: float, other: str) -> None:
     peer = Peer("this-run", None)
@@ -134,7 +140,7 @@ class _House:
         self.acked = max(self.acked, records)
 
 
-@settings(deadline=None)  # the house prints a note per ignored message (stderr under load)
+@settings(**LOADED)
 @given(other=run_ids, step=st.integers(0, 10**5), records=st.integers(0, 10**5), retained=st.booleans(),
        key=st.sampled_from([None, KEY]))
 def test_the_house_takes_no_step_or_run_message_of_another_run(other: str, step: int, records: int, retained: bool,

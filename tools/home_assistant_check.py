@@ -11,6 +11,7 @@ that the entities exist with the classes of the discovery configs and that their
 states equal the run's ``summary.json``.
 
     .venv/bin/python tools/home_assistant_check.py --runs 10 --steps 24 --broker-restart --out /tmp/ha
+    .venv/bin/python tools/home_assistant_check.py --runs 1 --show --screenshot docs/figures/ha_device.png
 
 ``test/test_home_assistant.py`` drives the same classes. Sources: Home Assistant's MQTT
 integration documentation ("MQTT Discovery", "Sensor", "Switch"), its REST API
@@ -354,11 +355,89 @@ def dashboard_table(states: dict[str, dict[str, Any]]) -> str:
         if digits is not None:
             with contextlib.suppress(ValueError):
                 value = f"{float(value):.{digits}f}"
-        unit = attrs.get("unit_of_measurement") or ""
+        unit = (attrs.get("unit_of_measurement") or "") if value not in ("unavailable", "unknown") else ""
         cat = "diagnostic" if entity.endswith(("_step", "_fallback_steps", "_clamped_commands", "_foreign_messages",
                                                "_fallback_reason")) else ""
         rows.append(f"| {attrs.get('friendly_name', entity)} | {value} {unit}".rstrip() + f" | `{entity}` | {cat} |")
     return "\n".join(rows)
+
+
+def screenshot(ha: HomeAssistant, path: Path, work: Path, wait_s: float = 12.0) -> Path:
+    """The EMS's device page in Home Assistant's frontend, taken by Debian's headless Chromium
+    (``apt-get install chromium``) through its DevTools protocol: the page is opened on Home
+    Assistant's origin, the long-lived token put where the frontend keeps its tokens
+    (``hassTokens`` in local storage), then the device page is loaded and captured."""
+    from websockets.sync.client import connect
+
+    chromium = shutil.which("chromium")
+    if chromium is None:
+        raise RuntimeError("chromium is not installed (apt-get install chromium)")
+    req = urllib.request.Request(ha.url + "/api/template", method="POST",
+                                 data=json.dumps({"template": "{{ device_id('sensor.comems4build_step') }}"}).encode(),
+                                 headers={"Authorization": f"Bearer {ha.token}", "Content-Type": "application/json"})
+    with urllib.request.urlopen(req, timeout=10) as r:
+        device = r.read().decode().strip()
+    port = free_port()
+    proc = subprocess.Popen([chromium, "--headless", "--no-sandbox", "--disable-gpu", "--disable-quic",
+                             "--no-first-run", "--disable-background-networking", "--disable-component-update",
+                             "--disable-sync",
+                             f"--user-data-dir={work / 'chromium'}", f"--remote-debugging-port={port}",
+                             "--window-size=1280,1500", "about:blank"],
+                            stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL, start_new_session=True)
+    try:
+        targets: list[dict[str, Any]] = []
+
+        def page_target() -> bool:
+            nonlocal targets
+            with contextlib.suppress(OSError, ValueError):
+                with urllib.request.urlopen(f"http://127.0.0.1:{port}/json", timeout=2) as r:
+                    targets = [t for t in json.loads(r.read()) if t.get("type") == "page"]
+            return bool(targets)
+
+        if not wait_for(page_target, 30.0):
+            raise RuntimeError("chromium's DevTools endpoint did not come up")
+        with connect(targets[0]["webSocketDebuggerUrl"], max_size=2**26, open_timeout=20) as ws:
+            ids = iter(range(1, 10**6))
+
+            def call(method: str, **params: Any) -> dict[str, Any]:
+                i = next(ids)
+                ws.send(json.dumps({"id": i, "method": method, "params": params}))
+                while True:
+                    msg = json.loads(ws.recv(timeout=60))
+                    if msg.get("id") == i:
+                        return msg.get("result", {})
+
+            call("Page.enable")
+            call("Page.navigate", url=ha.url + "/")
+            time.sleep(3.0)
+            tokens = {"hassUrl": ha.url, "clientId": ha.url + "/", "expires": int(time.time() * 1000) + 10**10,
+                      "refresh_token": "", "access_token": ha.token, "expires_in": 10**8, "token_type": "Bearer"}
+            call("Runtime.evaluate", expression=f"localStorage.setItem('hassTokens', {json.dumps(json.dumps(tokens))})")
+            call("Page.navigate", url=f"{ha.url}/config/devices/device/{device}")
+            time.sleep(wait_s)
+            shot = call("Page.captureScreenshot", format="png")
+        path.parent.mkdir(parents=True, exist_ok=True)
+        path.write_bytes(base64.b64decode(shot["data"]))
+        return path
+    finally:
+        proc.terminate()
+        with contextlib.suppress(subprocess.TimeoutExpired):
+            proc.wait(10)
+
+
+#: The run during which --show and --screenshot read Home Assistant: its length and the step from which [steps].
+SHOWCASE_STEPS, SHOWCASE_AT_STEP = 60, 12
+
+
+def live_step(ha: HomeAssistant) -> int:
+    """The step of the run going on now, -1 while the EMS's live entities are unavailable."""
+    try:
+        states = ha.states()
+        if states["sensor.comems4build_in_charge"]["state"] in ("unavailable", "unknown"):
+            return -1
+        return int(states["sensor.comems4build_step"]["state"])
+    except (KeyError, TypeError, ValueError, OSError):
+        return -1
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -369,7 +448,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--broker-restart", action="store_true",
                     help="one more run with --clock wall:3600 whose broker is killed for 1.4 s mid-run")
     ap.add_argument("--ha-restart", action="store_true", help="restart Home Assistant during the last run")
-    ap.add_argument("--show", action="store_true", help="print the entities as Home Assistant shows them")
+    ap.add_argument("--show", action="store_true",
+                    help="print the entities as Home Assistant shows them during one more (wall-clock) run")
+    ap.add_argument("--screenshot", type=Path, default=None,
+                    help="PNG of the EMS's device page during one more (wall-clock) run (headless chromium)")
     ap.add_argument("--out", type=Path, default=Path("runs/home_assistant"))
     args = ap.parse_args(argv)
     python = ha_python()
@@ -417,9 +499,21 @@ def main(argv: list[str] | None = None) -> int:
                   f"{'equal to summary.json' if ok else 'DIFFERENT: ' + '; '.join(problems)}", flush=True)
             for line in warnings:
                 print(f"  {line}", flush=True)
-            if args.show:
-                print(dashboard_table(ha.states()), flush=True)
             failures += 0 if ok else 1
+        if args.show or args.screenshot is not None:  # during a wall-clock run, what a user sees live
+            proc = subprocess.Popen(launch_cmd(work / "showcase", broker.url, topic_map, SHOWCASE_STEPS, "wall:3600"),
+                                    cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+            if not wait_for(lambda: live_step(ha) >= SHOWCASE_AT_STEP, 180.0, 0.2):
+                print("showcase run: no live step in 180 s", flush=True)
+                failures += 1
+            else:
+                if args.show:
+                    print(dashboard_table(ha.states()), flush=True)
+                if args.screenshot is not None:
+                    print(f"screenshot: {screenshot(ha, args.screenshot.resolve(), work)}", flush=True)
+            text, _ = proc.communicate()
+            print(f"showcase run ({SHOWCASE_STEPS} steps, wall:3600): exit {proc.returncode}", flush=True)
+            failures += 1 if proc.returncode else 0
         log_problems = ha.problems_in_log()
         print(f"Home Assistant log: {len(log_problems)} MQTT warning(s) or error(s)", flush=True)
         for line in log_problems[:20]:
