@@ -210,7 +210,8 @@ class MqttBridge(LockStepMaster):
         self._t_announce = 0.0
         self._t_sent = 0.0
         self._t_house = self._t_created
-        self._rows: list[dict[str, float]] = []  # the forwarded records (for the run totals)
+        self._columns: dict[str, list[float]] = {c: [] for c in kpi.REQUIRED_COLUMNS if c != "time"}  # run totals
+        self._last_row: dict[str, float] | None = None  # the last forwarded record
         self.totals: dict[str, float] = {}  # state key -> run total so far (TOTAL_KEYS)
         self.run_start: str | None = None  # ISO time of the run's start (last_reset of the totals)
         self.in_charge: str | None = None
@@ -397,7 +398,7 @@ class MqttBridge(LockStepMaster):
                                  "alarm": PAYLOAD_ON if k is not None and self._alarm_step == k else PAYLOAD_OFF}
         started = k is not None
         a = self._last_action
-        last = self._rows[-1] if self._rows else None
+        last = self._last_row
         for s in SENSORS:
             if s.key in state or not announced(self.map, s):
                 continue
@@ -575,7 +576,9 @@ class MqttBridge(LockStepMaster):
                 row = None
             if row is not None:
                 self._record.publish(row)
-                self._rows.append(dict(zip(self._record_labels, row)))
+                self._last_row = dict(zip(self._record_labels, row))
+                for c, values in self._columns.items():
+                    values.append(self._last_row[c])
                 self.publish_clock(float(rec["time_unix_s"]))
                 self._check_record(k, rec)
             self.next_record = k + 1
@@ -603,9 +606,10 @@ class MqttBridge(LockStepMaster):
     def _update_totals(self) -> None:
         """The run totals over every record so far (:func:`comems4build_ros.core.kpi.run_totals`:
         the arithmetic of summary.json, which reads the same records from the bag)."""
+        import numpy as np
         import pandas as pd
 
-        ts = pd.DataFrame(self._rows)
+        ts = pd.DataFrame({c: np.asarray(v, dtype=float) for c, v in self._columns.items()})  # columns: fast
         c = self.params.comfort
         t_comfort = kpi.comfort_sample_c(ts, c.discomfort_sample, self.params.simulation.t_air_init_c)
         totals = kpi.run_totals(ts, self.dt_h, t_comfort)
@@ -755,7 +759,7 @@ class MqttBridge(LockStepMaster):
         def tell_house() -> None:
             self._publish_step(self.n_steps or self.k)  # the house's acknowledgement
             self.link.publish(self.map.run_topic, "", retain=True)
-            last = self._rows[-1] if self._rows else None
+            last = self._last_row
             final = {name: float(last[name]) for name in ("soc", "loh", "t_air_c", "v_dhw_l") if name in last} \
                 if last is not None else None
             self._publish_ha_state(self.n_steps or self.k, final)  # with the last step's record
