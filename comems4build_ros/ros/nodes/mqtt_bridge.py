@@ -128,9 +128,10 @@ ACK_TIMEOUT_S = 5.0
 #: minutes; a real house sends no tags and is read at the announcement time.
 WALL_TAG_WAIT_SHARE = 0.5
 HP_MODE_WORDS = {0: "off", 1: "heating", 2: "dhw"}
-#: After a (re)connect, wait this long for the retained switch commands and states (the
-#: user's choice) before publishing the switch states and starting a run [s].
-SWITCH_SETTLE_S = 0.5
+#: After every subscription of a (re)connect was acknowledged, wait this long for the
+#: retained switch commands and states (the user's choice: the broker sends them right
+#: after each acknowledgement) before publishing the switch states and starting a run [s].
+SWITCH_SETTLE_S = 0.3
 #: Fallback kinds (``plant/events`` ``fallback <kind>:``) -> the ``in_charge`` value.
 IN_CHARGE_OF_KIND = {"missing": "fallback_watchdog", "stale": "fallback_watchdog",
                      "out_of_range": "fallback_watchdog", "forced": "fallback_switch",
@@ -183,7 +184,6 @@ class MqttBridge(LockStepMaster):
         self._switch_states = {self.map.switch_topics(n)[1]: n for n in ("ems", "fallback")}
         self.switches = {"ems": True, "fallback": False}
         self._switch_by_command: set[str] = set()  # switches set by a command (retained or live) since the start
-        self._t_connected: float | None = None  # (paho thread) last connect [s, monotonic]
         self._switches_published = -1  # the connect count whose switch states were published
 
         # run state
@@ -247,7 +247,7 @@ class MqttBridge(LockStepMaster):
 
         The state goes first: a client that sees ``online`` sees this run's state, never
         the previous run's retained one. The switch states follow from the ROS thread once
-        the retained commands had :data:`SWITCH_SETTLE_S` to arrive (:meth:`_settle_switches`).
+        the retained commands have arrived (:meth:`_settle_switches`).
         """
         link = self.link
         link.publish(self.map.state_topic, self._ha_state_text, retain=True)
@@ -257,18 +257,20 @@ class MqttBridge(LockStepMaster):
         link.publish(self.map.availability_topic, AVAILABLE, retain=True)
         if self.t0_unix_s is not None:
             link.publish(self.map.run_topic, self._run_payload(), retain=True)
-        self._t_connected = time.monotonic()
 
     def _run_payload(self) -> bytes:
         body = json.dumps({"clock": self.clock.spec(), "t0_unix_s": self.t0_unix_s, "period_s": self.clock.period_s})
         return self.peer.wrap(self.map.run_topic, body.encode())
 
     def _settle_switches(self, now: float) -> bool:
-        """Whether the switches are settled after the last connect; publishes their states once per connect."""
-        t = self._t_connected
+        """Whether the switches are settled after the last connect (every subscription
+        acknowledged :data:`SWITCH_SETTLE_S` ago, and the retained messages that came with
+        them taken in); publishes their states once per connect."""
+        t = self.link.t_subscribed
         if t is None or now - t < SWITCH_SETTLE_S:
             return False
         if self._switches_published != self.link.connects:
+            self._on_mqtt()  # the retained commands queued by now: applied before any step
             self._switches_published = self.link.connects
             for name, on in self.switches.items():
                 self.link.publish(self.map.switch_topics(name)[1], PAYLOAD_ON if on else PAYLOAD_OFF, retain=True)
