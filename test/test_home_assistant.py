@@ -86,13 +86,18 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
     _publish(broker, pw, "comems4build/step", "57")
     _publish(broker, pw, "comems4build/run", json.dumps({"clock": "wall:3600", "t0_unix_s": time.time() - 900,
                                                          "period_s": 1.0}))
-    # 2. two lock-step runs back to back
+    # 2. two lock-step runs back to back; in the second the user sets a battery power limit
     for i in range(2):
         out = work / f"sim_{i}"
         t_start = time.time()
-        text = _finish(_launch(out, broker, topic_map, 24))
+        proc = _launch(out, broker, topic_map, 24 if i == 0 else 48)
+        if i == 1:
+            assert hac.wait_for(lambda: hac.live_step(ha) >= 3, 120.0, 0.1), "the run did not get going"
+            ha.post("/api/services/number/set_value", {"entity_id": "number.comems4build_battery_power_limit",
+                                                       "value": 300})
+        text = _finish(proc)
         summary = json.loads((out / "summary.json").read_text())
-        assert summary["steps"] == 24 and summary["fallback_steps"] == 0, text[-2000:]
+        assert summary["steps"] == (24 if i == 0 else 48) and summary["fallback_steps"] == 0, text[-2000:]
         assert summary["mqtt"]["retained_cleared"] >= (2 if i == 0 else 1)  # the last run's step at least
         run_start = time.strftime("%Y-%m-%dT%H:%M", time.gmtime(t_start))
         assert hac.wait_for(lambda s=summary: not hac.check_entities(ha.states(), s), 30.0), \
@@ -117,10 +122,15 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
     assert 1 <= user == summary["fallback_steps"] < 48 and summary["fallback_causes"]["late_command"] == 0
     assert "because the user switched the EMS off or the fallback on" in text
     assert "no valid command of the EMS came in time" not in text
+    bridge_log = (work / "sim_1" / "log" / "mqtt_bridge.log").read_text()
+    assert "setting battery_power_limit 300 (p_bess_w within [-300, 300])" in bridge_log
     out = work / "switch_kept"
     text = _finish(_launch(out, broker, topic_map, 12))
     summary = json.loads((out / "summary.json").read_text())
     assert summary["fallback_causes"]["user_switch"] == summary["fallback_steps"] == 12, text[-2000:]
+    # the user's setting, too, is applied by a new bridge (Home Assistant's retained command)
+    assert "setting battery_power_limit 300 (p_bess_w within [-300, 300])" in \
+        (out / "log" / "mqtt_bridge.log").read_text()
     ha.post("/api/services/mqtt/publish", {"topic": "comems4build/switch/fallback/set", "payload": "OFF",
                                            "retain": True})  # an automation, while no bridge runs
     out = work / "switch_off"

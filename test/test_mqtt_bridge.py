@@ -310,6 +310,10 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
             if len(rig.setpoints.get(k, {})) == len(SETPOINTS):
                 k += 1
                 t_pub = 0.0
+                if k == 3:  # Home Assistant's setting: at most 150 W of battery power, either way
+                    rig.link.publish(rig.map.setting_topics("battery_power_limit")[0], "150")
+                    for _ in range(30):
+                        rig.pump(0.01)
                 if k == 4:  # Home Assistant's switch: EMS off
                     rig.link.publish(rig.map.switch_topics("ems")[0], "OFF")
                     for _ in range(30):
@@ -338,11 +342,14 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
         # the first state of the run is this run's, every value unknown (not the last run's)
         assert rig.ha_states[0]["step"] is None and rig.ha_states[0]["soc_pct"] is None
         assert len({s["run"] for s in rig.ha_states}) == 1
-        # step 3: back to the EMS; the other token's command of step 3 is ignored and counted
-        assert 3 in rig.announced and rig.setpoints[3]["hp_mod"] == 0.6
+        # step 3: back to the EMS; the other token's command of step 3 is ignored and counted;
+        # the user's battery power limit (150 W) clamps the EMS's 200 W
+        assert 3 in rig.announced and rig.setpoints[3]["hp_mod"] == 0.6 and rig.setpoints[3]["p_bess_w"] == 150.0
+        assert any("p_bess_w 200 clamped to 150 (the user's limits [-150, 150])" in e for e in rig.events)
+        assert any("setting battery_power_limit 150" in e for e in rig.events)
         assert any("foreign" in e and "token 8 ignored" in e for e in rig.events)
         last = [s for s in rig.ha_states if s["step"] == 3][-1]
-        assert last["clamped_commands"] == 1 and last["fallback_steps"] == 1 and last["alarm"] == "OFF"
+        assert last["clamped_commands"] == 2 and last["fallback_steps"] == 1 and last["alarm"] == "OFF"
         assert last["in_charge"] == "ems" and last["soc_pct"] == 50.0 and last["t_air_c"] == GOOD["t_air_c"]
         # step 4: EMS switched off in Home Assistant -> the safe action (here: rooms within
         # 0.5 K of an unknown bound -> heat), a 'forced' alarm, no state to the EMS
@@ -352,7 +359,8 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
         # Home Assistant discovery: retained configs on the broker, valid against the schema;
         # a real building (no record topic) has no run totals: those are not announced
         comps = {validate_discovery(t, p) for t, p in rig.discovery.items()}
-        wanted = {t for t, p in discovery_messages(rig.map) if p is not None}
+        limits = rig.map.device_limits(load_plant_params())
+        wanted = {t for t, p in discovery_messages(rig.map, limits) if p is not None}
         assert comps == set(DISCOVERY_SCHEMA) and set(rig.discovery) == wanted
         assert not any("grid_cost_eur" in t for t in rig.discovery)
         # availability: online while running; the last will says offline when the bridge dies

@@ -231,3 +231,34 @@ def test_discovery_validation_names_the_field(change, message: str) -> None:
     change(payload)
     with pytest.raises(DiscoveryError, match=message):
         validate_discovery(topic, payload)
+
+
+@settings(max_examples=300, **LOADED)
+@given(payload=st.one_of(st.binary(max_size=40), st.floats().map(lambda v: repr(v).encode()),
+                         st.integers(-5000, 5000).map(lambda v: str(v).encode())))
+def test_a_setting_is_a_number_within_its_range_or_refused_naming_the_topic(payload: bytes) -> None:
+    from comems4build_ros.mqtt.safety import SettingError, parse_setting
+
+    topic = "comems4build/setting/battery_power_limit/set"
+    try:
+        value = parse_setting(topic, payload, 0.0, 1000.0)
+    except SettingError as exc:
+        assert topic in str(exc)
+    else:
+        assert 0.0 <= value <= 1000.0 and value == float(payload.decode())
+
+
+def test_the_battery_power_limit_narrows_the_device_limits() -> None:
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.types import Action
+    from comems4build_ros.mqtt.safety import CommandLimiter
+
+    limiter = CommandLimiter.from_map(MAP, load_plant_params())
+    assert limiter.set_power_limit("p_bess_w", 300.0) == (-300.0, 300.0)
+    out, notes = limiter.limit(Action(hp_mod=0.5, hp_mode=1, p_fc_w=0.0, p_bess_w=-800.0))
+    assert out.p_bess_w == -300.0 and "the user's limits [-300, 300]" in notes[0]
+    assert limiter.set_power_limit("p_bess_w", 5000.0) == limiter.device_limits["p_bess_w"]  # never beyond the device
+    sim = dict(discovery_messages(MAP, MAP.device_limits(load_plant_params())))
+    number = sim["homeassistant/number/comems4build/battery_power_limit/config"]
+    assert validate_discovery("homeassistant/number/comems4build/battery_power_limit/config", number) == "number"
+    assert number["max"] == 1000.0 and number["retain"] is True and number["device_class"] == "power"

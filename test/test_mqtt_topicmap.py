@@ -137,7 +137,8 @@ def test_limiter_clamps_counts_ramps_and_rate_limits():
 
 # ---------------------------------------------------------------------- Home Assistant discovery
 def test_every_discovery_payload_validates_against_the_documented_schema(tmap):
-    msgs = [(t, p) for t, p in discovery_messages(tmap) if p is not None]  # None: deleted (not this map's)
+    limits = tmap.device_limits(load_plant_params())
+    msgs = [(t, p) for t, p in discovery_messages(tmap, limits) if p is not None]  # None: deleted (not this map's)
     components = {validate_discovery(t, json.dumps(p)) for t, p in msgs}
     assert components == set(DISCOVERY_SCHEMA)
     ids = [p["unique_id"] for _, p in msgs]

@@ -280,11 +280,13 @@ def launch_cmd(out: Path, broker_url: str, topic_map: Path, steps: int, clock: s
 
 def expected_entities() -> dict[str, dict[str, Any]]:
     """Entity id -> the discovery config's classes, for the simulated house and the default map."""
+    from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.mqtt.discovery import discovery_messages
     from comems4build_ros.mqtt.topicmap import load_topic_map
 
     out = {}
-    for topic, p in discovery_messages(load_topic_map()):
+    tmap = load_topic_map()
+    for topic, p in discovery_messages(tmap, tmap.device_limits(load_plant_params())):
         if p is not None:
             out[f"{topic.split('/')[1]}.{p['object_id']}"] = p
     return out
@@ -302,7 +304,7 @@ def check_entities(states: dict[str, dict[str, Any]], summary: dict[str, Any],
             problems.append(f"{entity}: missing")
             continue
         attrs = st["attributes"]
-        for key in ("device_class", "state_class", "unit_of_measurement", "options"):
+        for key in ("device_class", "state_class", "unit_of_measurement", "options", "min", "max", "step"):
             if key in cfg and attrs.get(key) != cfg[key]:
                 problems.append(f"{entity}: {key} {attrs.get(key)!r}, the config says {cfg[key]!r}")
     for key, summary_key in TOTAL_KEYS.items():

@@ -26,7 +26,10 @@ topic (``<base>/state``, read with a ``value_template``) and at the availability
 * switches ``ems`` (off: the bridge sends the safe fallback action instead of the EMS's
   commands) and ``fallback`` (on: the same, forced). Both with ``retain: true``: Home
   Assistant's commands stay on the broker, so a command sent while the bridge is offline
-  is applied when it returns, and a restarted bridge keeps the user's choice.
+  is applied when it returns, and a restarted bridge keeps the user's choice;
+* the setting ``battery_power_limit`` (a ``number``, W, retained as the switches): the
+  largest battery power either way that the bridge lets through, within the device
+  limits (commands beyond it are clamped and counted as ``clamped_commands``).
 
 Every config has ``object_id`` (entity ids such as ``switch.comems4build_ems_control``),
 ``origin`` and a ``device`` block with ``sw_version`` (and ``configuration_url`` when the
@@ -51,6 +54,8 @@ DISCOVERY_SCHEMA: dict[str, tuple[str, ...]] = {
                       "availability_topic", "payload_on", "payload_off"),
     "switch": ("name", "unique_id", "object_id", "state_topic", "command_topic", "device", "origin",
                "availability_topic", "payload_on", "payload_off"),
+    "number": ("name", "unique_id", "object_id", "state_topic", "command_topic", "device", "origin",
+               "availability_topic", "min", "max", "step"),
 }
 #: Units Home Assistant accepts for the device classes used here (empty: any ISO 4217 currency code).
 DEVICE_CLASS_UNITS: dict[str, tuple[str, ...]] = {
@@ -151,6 +156,10 @@ SWITCHES: dict[str, tuple[str, str]] = {
     "ems": ("EMS control", "ems_control"),
     "fallback": ("Forced fallback", "forced_fallback"),
 }
+#: Settings (``number`` entities): name -> (entity name, object id suffix, set-point it limits, step [W]).
+SETTINGS: dict[str, tuple[str, str, str, float]] = {
+    "battery_power_limit": ("Battery power limit", "battery_power_limit", "p_bess_w", 50.0),
+}
 #: Object ids of entities of earlier releases, deleted on connect (empty retained config).
 RETIRED: tuple[tuple[str, str], ...] = (("sensor", "cost_eur"),)
 
@@ -214,10 +223,18 @@ def sensor_config(topic_map: TopicMap, s: SensorDef, common: dict[str, Any]) -> 
     return p
 
 
-def discovery_messages(topic_map: TopicMap) -> list[tuple[str, dict[str, Any] | None]]:
+def setting_max(limits: dict[str, tuple[float, float]], name: str) -> float:
+    """The largest value of setting ``name``: the larger magnitude of its set-point's device limits."""
+    lo, hi = limits[SETTINGS[name][2]]
+    return max(abs(lo), abs(hi))
+
+
+def discovery_messages(topic_map: TopicMap, limits: dict[str, tuple[float, float]] | None = None
+                       ) -> list[tuple[str, dict[str, Any] | None]]:
     """Every ``(config topic, payload)`` of the EMS's entities (published retained); payload
     None for an entity this topic map does not have (published empty: Home Assistant
-    deletes a retained config of an earlier run)."""
+    deletes a retained config of an earlier run). ``limits``: the device limits
+    (``TopicMap.device_limits``), the range of the settings (none without)."""
     blocks = {"device": device_block(topic_map), "origin": origin_block()}
     common = {
         "availability_topic": topic_map.availability_topic,
@@ -251,6 +268,25 @@ def discovery_messages(topic_map: TopicMap) -> list[tuple[str, dict[str, Any] | 
             "payload_on": PAYLOAD_ON,
             "payload_off": PAYLOAD_OFF,
             "retain": True,  # the user's command stays on the broker: applied when the bridge (re)connects
+            **common,
+        }))
+    for name, (title, object_id, _setpoint, step) in SETTINGS.items():
+        if limits is None:
+            continue
+        cmd, state = topic_map.setting_topics(name)
+        out.append((config_topic(topic_map, "number", name), {
+            "name": title,
+            "unique_id": f"{topic_map.node_id}_{name}",
+            "object_id": f"{topic_map.node_id}_{object_id}",
+            "command_topic": cmd,
+            "state_topic": state,
+            "min": 0.0,
+            "max": setting_max(limits, name),
+            "step": step,
+            "mode": "box",
+            "unit_of_measurement": "W",
+            "device_class": "power",
+            "retain": True,  # as the switches: kept on the broker, applied when the bridge (re)connects
             **common,
         }))
     out.extend((config_topic(topic_map, comp, obj), None) for comp, obj in RETIRED)
@@ -304,7 +340,10 @@ def validate_discovery(
         raise DiscoveryError(f"topic '{topic}': field 'unique_id' {payload['unique_id']!r} does not name object "
                              f"'{parts[3]}'")
     dc = payload.get("device_class")
-    if component == "sensor" and dc in DEVICE_CLASS_UNITS:
+    if component == "number" and not (isinstance(payload["min"], (int, float)) and
+                                      isinstance(payload["max"], (int, float)) and payload["min"] < payload["max"]):
+        raise DiscoveryError(f"topic '{topic}': fields 'min' and 'max' must be numbers with min < max")
+    if component in ("sensor", "number") and dc in DEVICE_CLASS_UNITS:
         units = DEVICE_CLASS_UNITS[dc]
         unit = payload.get("unit_of_measurement")
         currency = dc == "monetary" and isinstance(unit, str) and len(unit) == 3 and unit.isalpha() and unit.isupper()

@@ -366,6 +366,10 @@ class TopicMap(_Model):
         """``(command_topic, state_topic)`` of the switch ``name`` (``ems``, ``fallback``)."""
         return self.topic("switch", name, "set"), self.topic("switch", name, "state")
 
+    def setting_topics(self, name: str) -> tuple[str, str]:
+        """``(command_topic, state_topic)`` of the setting ``name`` (``battery_power_limit``)."""
+        return self.topic("setting", name, "set"), self.topic("setting", name, "state")
+
     @property
     def run_topic(self) -> str:
         """Retained JSON of the running clock (start time, period), for a wall-clock building."""

@@ -90,9 +90,11 @@ from comems4build_ros.mqtt.discovery import (
     PAYLOAD_OFF,
     PAYLOAD_ON,
     SENSORS,
+    SETTINGS,
     TOTAL_KEYS,
     announced,
     discovery_messages,
+    setting_max,
 )
 from comems4build_ros.mqtt.peer import (
     ForeignMessageError,
@@ -103,7 +105,7 @@ from comems4build_ros.mqtt.peer import (
     read_peer_key,
 )
 from comems4build_ros.mqtt.plant_sim import BRIDGE_RECORD_FIELDS
-from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
+from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem, SettingError, parse_setting
 from comems4build_ros.mqtt.topicmap import PayloadError, load_topic_map
 from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
 from comems4build_ros.ros.node import ArrayPublisher
@@ -183,7 +185,10 @@ class MqttBridge(LockStepMaster):
         self._switch_topics = {self.map.switch_topics(n)[0]: n for n in ("ems", "fallback")}
         self._switch_states = {self.map.switch_topics(n)[1]: n for n in ("ems", "fallback")}
         self.switches = {"ems": True, "fallback": False}
-        self._switch_by_command: set[str] = set()  # switches set by a command (retained or live) since the start
+        self._setting_topics = {self.map.setting_topics(n)[0]: n for n in SETTINGS}
+        self._setting_states = {self.map.setting_topics(n)[1]: n for n in SETTINGS}
+        self.settings = {n: setting_max(self.limiter.device_limits, n) for n in SETTINGS}  # the user's, default: none
+        self._switch_by_command: set[str] = set()  # switches and settings set by a command since the start
         self._switches_published = -1  # the connect count whose switch states were published
 
         # run state
@@ -225,8 +230,8 @@ class MqttBridge(LockStepMaster):
         self._ha_state_text = json.dumps(self._ha_state(None))
 
         self._wake = self.create_guard_condition(self._on_mqtt)
-        subs = [*self._topic_measurement, *self._switch_topics, *self._switch_states, self.map.step_topic,
-                self.map.run_topic]
+        subs = [*self._topic_measurement, *self._switch_topics, *self._switch_states, *self._setting_topics,
+                *self._setting_states, self.map.step_topic, self.map.run_topic]
         if self.map.sim_record_topic:
             subs.append(self.map.sim_record_topic)
         self.link = MqttLink(self.map.broker, client_id, subs,
@@ -252,7 +257,7 @@ class MqttBridge(LockStepMaster):
         link = self.link
         link.publish(self.map.state_topic, self._ha_state_text, retain=True)
         if self.map.discovery:
-            for topic, payload in discovery_messages(self.map):
+            for topic, payload in discovery_messages(self.map, self.limiter.device_limits):
                 link.publish(topic, json.dumps(payload) if payload is not None else "", retain=True)
         link.publish(self.map.availability_topic, AVAILABLE, retain=True)
         if self.t0_unix_s is not None:
@@ -274,6 +279,8 @@ class MqttBridge(LockStepMaster):
             self._switches_published = self.link.connects
             for name, on in self.switches.items():
                 self.link.publish(self.map.switch_topics(name)[1], PAYLOAD_ON if on else PAYLOAD_OFF, retain=True)
+            for name, value in self.settings.items():
+                self.link.publish(self.map.setting_topics(name)[1], f"{value:g}", retain=True)
         return True
 
     def _on_mqtt(self) -> None:
@@ -293,6 +300,11 @@ class MqttBridge(LockStepMaster):
             elif msg.topic in self._switch_states:
                 if msg.retain:  # the state this bridge (or an earlier one) confirmed: the user's last choice
                     self._on_switch(self._switch_states[msg.topic], msg.payload, command=False)
+            elif msg.topic in self._setting_topics:
+                self._on_setting(self._setting_topics[msg.topic], msg.topic, msg.payload, command=True)
+            elif msg.topic in self._setting_states:
+                if msg.retain:
+                    self._on_setting(self._setting_states[msg.topic], msg.topic, msg.payload, command=False)
             elif msg.topic in (m.step_topic, m.run_topic):
                 self._on_own_retained(msg.topic, msg.payload)
         self._advance()
@@ -371,6 +383,29 @@ class MqttBridge(LockStepMaster):
             self.link.publish(self.map.switch_topics(name)[1], text, retain=True)
         if changed or command:
             self.event("switch", f"{name} {text}{'' if command else ' (kept from before the restart)'}")
+
+    def _on_setting(self, name: str, topic: str, payload: bytes, command: bool) -> None:
+        """A user's setting (Home Assistant ``number``): applied from the next command on."""
+        if not payload:
+            return  # a cleared retained message
+        key = f"setting:{name}"
+        if not command and key in self._switch_by_command:
+            return
+        try:
+            value = parse_setting(topic, payload, 0.0, setting_max(self.limiter.device_limits, name))
+        except SettingError as exc:
+            self.event("rejected", f"setting '{name}': {exc}")
+            return
+        if command:
+            self._switch_by_command.add(key)
+        changed = value != self.settings[name]
+        self.settings[name] = value
+        lo, hi = self.limiter.set_power_limit(SETTINGS[name][2], value)
+        if command:
+            self.link.publish(self.map.setting_topics(name)[1], f"{value:g}", retain=True)
+        if changed or command:
+            self.event("setting", f"{name} {value:g} ({SETTINGS[name][2]} within [{lo:g}, {hi:g}])"
+                                  f"{'' if command else ' (kept from before the restart)'}")
 
     def _send_setpoints(self, k: int, action: Action, fallback: bool) -> None:
         """Set-points of ``action`` tagged ``k`` (held back while the rate limit is in force)."""
