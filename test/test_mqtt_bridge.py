@@ -40,7 +40,7 @@ from comems4build_ros.core.config import load_plant_params  # noqa: E402
 from comems4build_ros.core.loop import simulate  # noqa: E402
 from comems4build_ros.mqtt.broker import free_port  # noqa: E402
 from comems4build_ros.mqtt.client import MqttLink  # noqa: E402
-from comems4build_ros.mqtt.discovery import DISCOVERY_SCHEMA, validate_discovery  # noqa: E402
+from comems4build_ros.mqtt.discovery import DISCOVERY_SCHEMA, discovery_messages, validate_discovery  # noqa: E402
 from comems4build_ros.mqtt.topicmap import SETPOINTS, load_topic_map  # noqa: E402
 from comems4build_ros.ros.interfaces import qos_profile  # noqa: E402
 from comems4build_ros.run.launcher import launch  # noqa: E402
@@ -48,7 +48,8 @@ from comems4build_ros.run.plan import LaunchOptions, ros_args  # noqa: E402
 from comems4build_ros.wire.contract import load_contract  # noqa: E402
 
 pytestmark = pytest.mark.ros
-TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # only in summaries from a bag
+#: Only in summaries from a bag (timings), or from a house behind MQTT (its MQTT counts).
+TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages", "mqtt")
 #: KPIs compared for the wall-clock run (summary keys).
 KPI_KEYS = ("cost_eur_week_median", "discomfort_kh_week_median", "buy_kwh_week_median", "sell_kwh_week_median",
             "loh_end")
@@ -159,7 +160,7 @@ def test_broker_restart_mid_run_loses_no_step(tmp_path: Path, broker: Broker) ->
     try:
         deadline = time.monotonic() + 300
         while time.monotonic() < deadline and not (steps_seen and steps_seen[-1] >= 30):
-            steps_seen.extend(int(m.payload) for m in watch.drain() if m.payload)
+            steps_seen.extend(json.loads(m.payload)["step"] for m in watch.drain() if m.payload)
             time.sleep(0.02)
         assert steps_seen and steps_seen[-1] >= 30, "run did not get going"
         broker.kill()  # mid-run, no goodbye
@@ -268,7 +269,7 @@ class Rig:
                 self.run_msg = json.loads(m.payload) if m.payload else None
             elif m.topic == self.map.availability_topic:
                 self.availability.append(m.payload)
-            elif m.topic.startswith("homeassistant/"):
+            elif m.topic.startswith("homeassistant/") and m.payload:  # empty: a deleted config
                 self.discovery[m.topic] = m.payload
 
     def measure(self, values: dict[str, float], step: int | None, skip: tuple[str, ...] = ()) -> None:
@@ -309,6 +310,10 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
             if len(rig.setpoints.get(k, {})) == len(SETPOINTS):
                 k += 1
                 t_pub = 0.0
+                if k == 3:  # Home Assistant's setting: at most 150 W of battery power, either way
+                    rig.link.publish(rig.map.setting_topics("battery_power_limit")[0], "150")
+                    for _ in range(30):
+                        rig.pump(0.01)
                 if k == 4:  # Home Assistant's switch: EMS off
                     rig.link.publish(rig.map.switch_topics("ems")[0], "OFF")
                     for _ in range(30):
@@ -332,19 +337,32 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
         assert [(a["step"], a["kind"]) for a in rig.mqtt_alarms][:1] == [(2, "out_of_range")]
         assert [(a["step"], a["kind"]) for a in rig.ros_alarms][:1] == [(2, "out_of_range")]
         assert "t_air_c" in rig.mqtt_alarms[0]["detail"] and rig.mqtt_alarms[0]["action"]["hp_mode"] == 1
-        assert any(s["step"] == 2 and s["alarm"] == "ON" for s in rig.ha_states)
-        # step 3: back to the EMS; the other token's command of step 3 is ignored and counted
-        assert 3 in rig.announced and rig.setpoints[3]["hp_mod"] == 0.6
+        assert any(s["step"] == 2 and s["alarm"] == "ON" and s["in_charge"] == "fallback_watchdog"
+                   for s in rig.ha_states)
+        # the first state of the run is this run's, every value unknown (not the last run's)
+        assert rig.ha_states[0]["step"] is None and rig.ha_states[0]["soc_pct"] is None
+        assert len({s["run"] for s in rig.ha_states}) == 1
+        # step 3: back to the EMS; the other token's command of step 3 is ignored and counted;
+        # the user's battery power limit (150 W) clamps the EMS's 200 W
+        assert 3 in rig.announced and rig.setpoints[3]["hp_mod"] == 0.6 and rig.setpoints[3]["p_bess_w"] == 150.0
+        assert any("p_bess_w 200 clamped to 150 (the user's limits [-150, 150])" in e for e in rig.events)
+        assert any("setting battery_power_limit 150" in e for e in rig.events)
         assert any("foreign" in e and "token 8 ignored" in e for e in rig.events)
         last = [s for s in rig.ha_states if s["step"] == 3][-1]
-        assert last["clamped_commands"] == 1 and last["fallback_steps"] == 1 and last["alarm"] == "OFF"
+        assert last["clamped_commands"] == 2 and last["fallback_steps"] == 1 and last["alarm"] == "OFF"
+        assert last["in_charge"] == "ems" and last["soc_pct"] == 50.0 and last["t_air_c"] == GOOD["t_air_c"]
         # step 4: EMS switched off in Home Assistant -> the safe action (here: rooms within
         # 0.5 K of an unknown bound -> heat), a 'forced' alarm, no state to the EMS
         assert 4 not in rig.announced and rig.setpoints[4]["hp_mode"] == 1.0 and rig.setpoints[4]["hp_mod"] == 1.0
         assert (4, "forced") in [(a["step"], a["kind"]) for a in rig.mqtt_alarms]
-        # Home Assistant discovery: retained configs on the broker, valid against the schema
+        assert [s["in_charge"] for s in rig.ha_states if s["step"] == 4][-1] == "fallback_switch"
+        # Home Assistant discovery: retained configs on the broker, valid against the schema;
+        # a real building (no record topic) has no run totals: those are not announced
         comps = {validate_discovery(t, p) for t, p in rig.discovery.items()}
-        assert comps == set(DISCOVERY_SCHEMA) and len(rig.discovery) == 14
+        limits = rig.map.device_limits(load_plant_params())
+        wanted = {t for t, p in discovery_messages(rig.map, limits) if p is not None}
+        assert comps == set(DISCOVERY_SCHEMA) and set(rig.discovery) == wanted
+        assert not any("grid_cost_eur" in t for t in rig.discovery)
         # availability: online while running; the last will says offline when the bridge dies
         assert rig.availability[-1] == b"online"
         rig.proc.kill()
@@ -503,7 +521,8 @@ def test_plan_options_plant_mqtt_and_clock(tmp_path: Path) -> None:
     assert plan.process("broker").stop_stage > plan.process("recorder").stop_stage
     url = bridge.nodes[0].params["broker_url"]
     assert bridge.nodes[0].params["clock"] == "wall:3600" and url in plan.process("mqtt_plant").argv
-    assert url.endswith(plan.process("broker").argv[-1])
+    argv = plan.process("broker").argv
+    assert url.endswith(":" + argv[argv.index("--port") + 1])
     own = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, weeks=1, plant="mqtt", broker_url="mqtts://h:8883"), 7)
     assert "broker" not in [p.name for p in own.processes]
     live = plan_run(LaunchOptions(ems="rbc", out=tmp_path, weeks=1, inputs="live"), 7)
@@ -514,3 +533,97 @@ def test_plan_options_plant_mqtt_and_clock(tmp_path: Path) -> None:
                                                                            "wall:<factor>")):
         with pytest.raises(ValueError, match=message):
             plan_run(LaunchOptions(ems="fuzzy", out=tmp_path, weeks=1, **bad), 7)
+
+
+# ---------------------------------------------------------------------- no one else at the controls
+def test_the_embedded_broker_lets_in_only_the_runs_two_users(tmp_path: Path) -> None:
+    """A foreign local client with no or wrong credentials is refused by the launcher's
+    broker; the run's users get in with the per-run secret, which is on no command line."""
+    from comems4build_ros.mqtt.topicmap import BrokerParams
+    from comems4build_ros.run.plan import MQTT_BRIDGE_USER, MQTT_HOUSE_USER, plan_run
+    from comems4build_ros.wire.tokens import new_token, write_token_file
+
+    secret = new_token()
+    login = write_token_file(tmp_path / ".secrets" / "mqtt.token", secret)
+    port = free_port()
+    log = open(tmp_path / "broker.log", "w")  # noqa: SIM115
+    proc = subprocess.Popen([sys.executable, "-m", "comems4build_ros.mqtt.broker", "--port", str(port), "--login-file",
+                             str(login), "--user", MQTT_HOUSE_USER, "--user", MQTT_BRIDGE_USER],
+                            stdout=subprocess.PIPE, stderr=log, text=True, start_new_session=True)
+    log.close()
+    try:
+        assert proc.stdout is not None and proc.stdout.readline().startswith("broker ready")
+        url = f"mqtt://127.0.0.1:{port}"
+        wrong = tmp_path / "wrong"
+        wrong.write_text(f"{secret + 1}\n")
+        for user, pw_file in ((None, None), (MQTT_HOUSE_USER, str(wrong)), ("intruder", str(login))):
+            settings = BrokerParams(url=url, username=user or "", password_file=pw_file or "")
+            link = MqttLink(settings, f"foreign_{user}")
+            assert not link.start(wait_s=3), f"{user} got in"
+            link.stop()
+        for user in (MQTT_HOUSE_USER, MQTT_BRIDGE_USER):
+            link = MqttLink(BrokerParams(url=url, username=user, password_file=str(login)), f"peer_{user}")
+            assert link.start(wait_s=15), link.last_error
+            link.stop()
+    finally:
+        proc.send_signal(signal.SIGINT)
+        proc.wait(15)
+    plan = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path / "run", weeks=1, plant="mqtt"), 7)
+    secret_file, token = next((f, t) for f, t in plan.secrets if f.endswith("mqtt.token"))
+    argv = " ".join(" ".join(p.argv) for p in plan.processes)
+    assert str(token) not in argv and "--login-file" in argv and secret_file in argv
+    assert plan.process("mqtt_bridge").nodes[0].params["mqtt_secret_file"] == secret_file
+
+
+def _cli_launch(out: Path, broker_url: str, steps: int) -> subprocess.Popen[str]:
+    cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
+    return subprocess.Popen([*cli, "launch", "--ems", "fuzzy", "--plant", "mqtt", "--weeks", "1", "--steps",
+                             str(steps), "--broker", broker_url, "--out", str(out), "--no-progress"],
+                            stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
+
+
+def test_foreign_publishers_on_a_shared_broker_are_counted_and_not_applied(tmp_path: Path, broker: Broker) -> None:
+    """On a broker others can reach (anonymous here, as a shared Mosquitto): set-points and
+    measurements on the right topics without the run's code, and a sealed set-point of an
+    earlier run replayed, are counted, reported and not applied: the run equals in-process."""
+    tmap = load_topic_map(broker_url=broker.url)
+    bess = tmap.setpoints["p_bess_w"].topic
+    spy = MqttLink(tmap.broker, "test_spy", [bess, tmap.step_topic])
+    assert spy.start(wait_s=10)
+    _, text = _cli_launch(tmp_path / "first", broker.url, 12).communicate(timeout=600)
+    recorded = [m.payload for m in spy.drain() if m.topic == bess and b'"mac"' in m.payload]
+    assert recorded, text[-2000:]
+    proc = _cli_launch(tmp_path / "second", broker.url, 48)
+    sent = 0
+    try:
+        deadline = time.monotonic() + 300
+        steps: list[int] = []
+        while time.monotonic() < deadline and not (steps and steps[-1] >= 40):
+            for m in spy.drain():
+                if m.topic == tmap.step_topic and m.payload and not m.retain:
+                    steps.append(json.loads(m.payload)["step"])
+            if steps and steps[-1] >= 2 and sent < 60:
+                k = steps[-1]
+                for topic, payload in (
+                        (bess, json.dumps({"value": -1000.0, "step": k + 1}).encode()),  # no code
+                        (bess, recorded[-1]),  # a sealed message of the first run, replayed
+                        (tmap.measurements["t_air_c"].topic, json.dumps({"value": 80.0, "step": k + 1}).encode())):
+                    spy.publish(topic, payload)
+                    sent += 1
+            time.sleep(0.05)
+        out, _ = proc.communicate(timeout=600)
+    finally:
+        if proc.poll() is None:
+            proc.kill()
+        spy.stop()
+    assert proc.returncode == 0 and sent >= 30, out[-3000:]
+    summary = json.loads((tmp_path / "second" / "summary.json").read_text())
+    _same(summary, _reference(1, 48))  # nothing foreign was applied
+    assert summary["fallback_steps"] == 0 and summary["mqtt"]["foreign_messages"] >= sent // 2
+    assert "MQTT message(s) from someone else than the run's house or bridge were not applied" in out
+    events = (tmp_path / "second" / "log" / "mqtt_bridge.log").read_text()
+    assert "foreign_mqtt topic 'building/zone/air_temperature': no authentication code" in events
+    assert "the house did not apply" in events
+    house = (tmp_path / "second" / "log" / "mqtt_plant.log").read_text()
+    # the replay carries the first run's code: each launch has its own secret, so it is wrong here
+    assert "'no authentication code': " in house and "'wrong authentication code': " in house

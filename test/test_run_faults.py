@@ -247,7 +247,7 @@ def test_mqtt_fallback_steps_without_state_are_no_lost_messages(tmp_path: Path, 
         # fallback steps; the switch stays on until one has been taken (a fixed time was not
         # enough under load: the run can wait that long for the EMS's first command)
         reported.extend(json.loads(m.payload)["fallback_steps"] for m in link.drain())
-        return any(n >= 1 for n in reported) or run.proc.poll() is not None
+        return any((n or 0) >= 1 for n in reported) or run.proc.poll() is not None
 
     try:
         _wait_for(lambda: run.started("mqtt_bridge") or run.proc.poll() is not None, what="the start of the run")

@@ -39,6 +39,16 @@ RUN_CUT_FILE = "run_cut.json"
 BRIDGE_ROLE = "bridge"
 
 
+#: Fallback kinds of ``mqtt_bridge`` (``fallback_<kind>`` in its statistics) -> cause in
+#: ``summary.json``'s ``fallback_causes``: the watchdog (a measurement missing, stale, out of
+#: range), the user's switch in Home Assistant, or no valid command of the EMS in time.
+FALLBACK_CAUSES = {"missing": "watchdog", "stale": "watchdog", "out_of_range": "watchdog",
+                   "forced": "user_switch", "ems_silent": "late_command"}
+#: ``summary.json``'s ``mqtt`` entries -> statistics of ``mqtt_bridge`` (plus the house's, ``house_<name>``).
+MQTT_STATS = {"foreign_messages": "foreign_mqtt", "retained_cleared": "retained_cleared",
+              "setpoints_held": "setpoints_held", "reconnects": "mqtt_reconnects"}
+
+
 @dataclass
 class BagRun:
     """One house's run rebuilt from a bag.
@@ -57,6 +67,9 @@ class BagRun:
     stand_in : for a run on live inputs, ``(step, state)`` of the feed's ``stand_in`` lines on
         ``feed/events`` (:data:`~comems4build_ros.core.scenario.live.STAND_IN_EVENT`: which inputs
         stand-in values replace from that step on); empty otherwise
+    plant_stats : the lock-step master's final statistics (its ``stats`` line on
+        ``plant/events``: name -> value); empty if the run was cut before it
+    event_steps : kind -> the steps of the ``plant/events`` lines of :data:`STEP_LIST_EVENTS`
     """
 
     namespace: str
@@ -69,6 +82,31 @@ class BagRun:
     ems: str | None = None
     scenario: dict[str, Any] | None = None
     stand_in: list[tuple[int, str]] = field(default_factory=list)
+    plant_stats: dict[str, float] = field(default_factory=dict)
+    event_steps: dict[str, list[int]] = field(default_factory=dict)
+
+    def fallback_causes(self) -> dict[str, int]:
+        """Fallback steps of the plant side by cause (:data:`FALLBACK_CAUSES`): from the
+        ``fallback_<kind>`` statistics of ``mqtt_bridge``; a step no kind covers (plant_sim
+        names none: its only cause is a late command) counts as ``late_command``."""
+        out = dict.fromkeys(dict.fromkeys(FALLBACK_CAUSES.values()), 0)
+        for kind, cause in FALLBACK_CAUSES.items():
+            out[cause] += int(self.plant_stats.get(f"fallback_{kind}", 0))
+        plant_steps = int(self.timeseries["fallback"].astype(float).gt(0.5).sum()) if "fallback" in self.timeseries \
+            else 0
+        out["late_command"] += max(plant_steps - sum(out.values()), 0)
+        return out
+
+    def mqtt_faults(self) -> dict[str, Any] | None:
+        """What ``mqtt_bridge`` counted on the MQTT side (:data:`MQTT_STATS`); None for another plant."""
+        if "mqtt_connects" not in self.plant_stats:
+            return None
+        out: dict[str, Any] = {key: int(self.plant_stats.get(stat, 0)) + int(self.plant_stats.get(f"house_{stat}", 0))
+                               for key, stat in MQTT_STATS.items()}
+        for kind in STEP_LIST_EVENTS:
+            if self.event_steps.get(kind):
+                out[f"{kind}_at"] = list(self.event_steps[kind])
+        return out
 
     def stand_in_steps(self) -> dict[str, int]:
         """Recorded steps whose price, and whose weather, stand-in values replaced
@@ -130,6 +168,8 @@ class _Scan:
     seen: dict[str, set[int]] = field(default_factory=dict)  # topic -> steps with a message (gap check)
     withheld: dict[str, set[int]] = field(default_factory=dict)  # ns -> steps without state by design
     stand_in: dict[str, list[tuple[int, str]]] = field(default_factory=dict)  # ns -> the feed's stand_in lines
+    plant_stats: dict[str, dict[str, float]] = field(default_factory=dict)  # ns -> the master's final statistics
+    step_events: dict[str, dict[str, set[int]]] = field(default_factory=dict)  # ns -> kind -> steps
     first_ns: int | None = None
 
 
@@ -169,9 +209,15 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
         elif _split(topic, STEP_TOPIC) is not None:
             scan.seen.setdefault(topic, set()).add(int(decode(msgtype, raw).data))
         elif (ns := _split(topic, EVENTS_TOPIC)) is not None:
-            step_kind = event_step_kind(decode(msgtype, raw).data)
+            line = decode(msgtype, raw).data
+            step_kind = event_step_kind(line)
             if step_kind is not None and step_kind[1] == WITHHELD_EVENT:
                 scan.withheld.setdefault(ns, set()).add(step_kind[0])
+            elif step_kind is not None and step_kind[1] in STEP_LIST_EVENTS:
+                scan.step_events.setdefault(ns, {}).setdefault(step_kind[1], set()).add(step_kind[0])
+            elif step_kind is not None and step_kind[1] == STATS_EVENT:
+                parts = line.split(None, 2)
+                scan.plant_stats[ns] = parse_stats(parts[2] if len(parts) > 2 else "")
         elif (ns := _split(topic, FEED_EVENTS_TOPIC)) is not None:
             line = decode(msgtype, raw).data
             step_kind = event_step_kind(line)
@@ -225,6 +271,8 @@ def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any
         ems=scan.ems_names.get(ns),
         scenario=scan.scenarios.get(ns),
         stand_in=sorted(set(scan.stand_in.get(ns, []))),
+        plant_stats=scan.plant_stats.get(ns, {}),
+        event_steps={kind: sorted(steps) for kind, steps in scan.step_events.get(ns, {}).items()},
     )
 
 
@@ -256,6 +304,26 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
         raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
     return {ns: _run_of(ns, scan, path, timezone, contract, layout, set(info.topics))
             for ns in sorted(scan.records, key=ns_key)}
+
+
+#: Kind of the lock-step master's final line on ``plant/events`` (``<step> stats name=value ...``).
+STATS_EVENT = "stats"
+#: ``plant/events`` kinds whose steps ``summary.json`` lists (``mqtt``: ``<kind>_at``): the
+#: steps that ran on the safe fallback, and those that ran on set-points the house held.
+STEP_LIST_EVENTS = ("fallback", "setpoints_held")
+
+
+def parse_stats(text: str) -> dict[str, float]:
+    """``name=value`` pairs of a ``stats`` line (pairs that do not read as numbers are left out)."""
+    out: dict[str, float] = {}
+    for pair in text.split():
+        name, sep, value = pair.partition("=")
+        if sep:
+            try:
+                out[name] = float(value)
+            except ValueError:
+                pass
+    return out
 
 
 def _unread_inputs(contract: Any, ems: str | None) -> set[str]:
@@ -473,7 +541,8 @@ def summary_extra(run: BagRun, info: BagInfo, cut: dict[str, Any], run_info: dic
     ``ros_faults`` when non-zero. A run on live inputs adds ``live_inputs``: the recorded
     steps whose price (``stand_in_price_steps``) and whose weather
     (``stand_in_weather_steps``) stand-in values replaced, as the feed stated them on
-    ``feed/events``. Every file is written all-or-nothing.
+    ``feed/events``. A house behind MQTT adds ``fallback_causes`` (:meth:`BagRun.fallback_causes`,
+    when any fallback step has a cause) and ``mqtt`` (:meth:`BagRun.mqtt_faults`).
     """
     scen = run.scenario or {}
     extra: dict[str, Any] = {
@@ -498,6 +567,12 @@ def summary_extra(run: BagRun, info: BagInfo, cut: dict[str, Any], run_info: dic
             extra["run_cut"] = cut.get("cause")
     if run.stand_in:  # a run on live inputs: how many steps ran on stand-in values
         extra["live_inputs"] = run.stand_in_steps()
+    causes = run.fallback_causes()
+    if any(causes.values()):
+        extra["fallback_causes"] = causes
+    mqtt = run.mqtt_faults()
+    if mqtt is not None:
+        extra["mqtt"] = mqtt
     faults = {k: v for k, v in run.counters.items() if k != "fallback_steps" and v}
     if faults:
         extra["ros_faults"] = faults

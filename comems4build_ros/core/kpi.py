@@ -177,6 +177,29 @@ def _week_kpis(ts: pd.DataFrame, dt_h: float, t_comfort: np.ndarray | None = Non
     }
 
 
+#: Run totals of :func:`run_totals` (``summary.json`` keys) -> key of :func:`_week_kpis`.
+RUN_TOTALS = {
+    "cost_eur_total": "cost_eur",
+    "reimbursement_eur_total": "reimbursement_eur",
+    "discomfort_kh_total": "discomfort_kh",
+    "buy_kwh_total": "buy_kwh",
+    "sell_kwh_total": "sell_kwh",
+}
+
+
+def run_totals(ts: pd.DataFrame, dt_h: float, t_comfort: np.ndarray | None = None) -> dict[str, float]:
+    """The run totals of the rows so far, as :func:`summarize` gives them at the end (the same
+    arithmetic, each at its :data:`KPI_RESOLUTION`): the grid purchase cost ``cost_eur_total``
+    (gross, ``eq:costs``' purchase term) and the feed-in reimbursement
+    ``reimbursement_eur_total`` [EUR], the discomfort ``discomfort_kh_total`` [K*h]
+    (``eq:discomfort``), grid import ``buy_kwh_total`` and export ``sell_kwh_total`` [kWh].
+
+    ``t_comfort``: as for :func:`summarize` (:func:`comfort_sample_c`).
+    """
+    total = _week_kpis(ts, dt_h, t_comfort)
+    return {key: at_resolution(key, total[name]) for key, name in RUN_TOTALS.items()}
+
+
 def kpi_unit(key: str) -> str | None:
     """Unit (a key of :data:`KPI_RESOLUTION`) of a KPI key by its name, None for counts and text."""
     tokens = key.split("_")

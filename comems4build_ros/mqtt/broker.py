@@ -4,6 +4,11 @@
 runs an amqtt broker until SIGINT/SIGTERM and prints ``broker ready <host>:<port>`` on
 stdout once it listens. ``--users`` is a password file of ``user:<argon2 hash>`` lines
 (write one with :func:`write_password_file`); without it anonymous clients are allowed.
+``--login-file FILE --user NAME ...`` gives the users NAME the password in the first line
+of FILE (a per-run secret of mode 0600: :func:`comems4build_ros.wire.tokens.read_token_file`);
+the broker hashes it into a users file of its own, in a private temporary directory, so no
+password stands on a command line or in a file others can read. With neither option
+anonymous clients are allowed.
 ``--cert``/``--key`` make the listener TLS (``mqtts://``). The launcher starts it when a
 run has a plant behind MQTT and no broker URL is given; in real use any broker
 (Mosquitto, Home Assistant's add-on) is given by URL instead.
@@ -15,9 +20,11 @@ import argparse
 import asyncio
 import contextlib
 import logging
+import os
 import signal
 import socket
 import sys
+import tempfile
 from pathlib import Path
 from typing import Any
 
@@ -77,6 +84,8 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--host", default="127.0.0.1")
     ap.add_argument("--port", type=int, required=True)
     ap.add_argument("--users", default=None, help="password file (user:<argon2 hash> lines)")
+    ap.add_argument("--login-file", default=None, help="per-run secret (mode 0600): the password of every --user")
+    ap.add_argument("--user", action="append", default=[], help="user whose password is in --login-file")
     ap.add_argument("--cert", default=None, help="TLS certificate (PEM)")
     ap.add_argument("--key", default=None, help="TLS private key (PEM)")
     args = ap.parse_args(argv)
@@ -88,13 +97,28 @@ def main(argv: list[str] | None = None) -> int:
     if bool(args.cert) != bool(args.key):
         print("broker: error: --cert and --key go together", file=sys.stderr)
         return 2
+    if bool(args.login_file) != bool(args.user) or (args.login_file and args.users):
+        print("broker: error: --login-file and --user go together, and not with --users", file=sys.stderr)
+        return 2
     logging.basicConfig(level=logging.WARNING, format="[broker] %(levelname)s %(name)s: %(message)s")
     logging.getLogger("transitions").setLevel(logging.ERROR)
-    config = broker_config(args.host, args.port, args.users, args.cert, args.key)
-    try:
-        asyncio.run(serve(config, f"broker ready {args.host}:{args.port}"))
-    except KeyboardInterrupt:
-        pass
+    with tempfile.TemporaryDirectory(prefix="comems4build_broker_") as tmp:  # mode 0700
+        users = args.users
+        if args.login_file:
+            from comems4build_ros.wire.tokens import read_token_file
+
+            try:
+                password = str(read_token_file(args.login_file))
+            except ValueError as exc:
+                print(f"broker: error: --login-file: {exc}", file=sys.stderr)
+                return 2
+            users = str(write_password_file(Path(tmp) / "users", {u: password for u in args.user}))
+            os.chmod(users, 0o600)
+        config = broker_config(args.host, args.port, users, args.cert, args.key)
+        try:
+            asyncio.run(serve(config, f"broker ready {args.host}:{args.port}"))
+        except KeyboardInterrupt:
+            pass
     return 0
 
 

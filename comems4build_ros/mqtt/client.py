@@ -116,6 +116,8 @@ class MqttLink:
         self.t_disconnected: float | None = None  # when the link was lost (time.monotonic; None = connected)
         self.disconnects = 0
         self.last_error = ""  # reason of the last refused connect or disconnect (never a password)
+        self._pending_subs: set[int] = set()  # message ids of this connection's subscriptions not yet acknowledged
+        self.t_subscribed: float | None = None  # when every subscription of this connection was acknowledged
         self._on_connect_cb = on_connect
         self._wake = wake
         self.client = paho.Client(paho.CallbackAPIVersion.VERSION2, client_id=client_id, clean_session=True)
@@ -133,6 +135,7 @@ class MqttLink:
         self.client.on_connect = self._on_connect
         self.client.on_disconnect = self._on_disconnect
         self.client.on_message = self._on_message
+        self.client.on_subscribe = self._on_subscribe
 
     # ------------------------------------------------------------------ paho callbacks
     def _on_connect(self, client: paho.Client, userdata: object, flags: object, reason: object, props: object) -> None:
@@ -141,8 +144,14 @@ class MqttLink:
             return
         self.connects += 1
         self.t_disconnected = None
+        self.t_subscribed = None
+        self._pending_subs = set()
         for topic in self.subscriptions:
-            client.subscribe(topic, qos=self.settings.qos)
+            result, mid = client.subscribe(topic, qos=self.settings.qos)
+            if mid is not None:
+                self._pending_subs.add(mid)
+        if not self._pending_subs:
+            self.t_subscribed = time.monotonic()
         self.connected.set()
         if self._on_connect_cb is not None:
             self._on_connect_cb()
@@ -150,10 +159,16 @@ class MqttLink:
     def _on_disconnect(self, client: paho.Client, userdata: object, flags: object, reason: object,
                        props: object) -> None:
         self.connected.clear()
+        self.t_subscribed = None
         if self.t_disconnected is None:
             self.t_disconnected = time.monotonic()
         self.disconnects += 1
         self.last_error = str(reason)
+
+    def _on_subscribe(self, client: paho.Client, userdata: object, mid: int, reasons: object, props: object) -> None:
+        self._pending_subs.discard(mid)
+        if not self._pending_subs and self.t_subscribed is None:
+            self.t_subscribed = time.monotonic()  # the retained messages of every subscription follow its ack
 
     def _on_message(self, client: paho.Client, userdata: object, msg: paho.MQTTMessage) -> None:
         self.inbox.put(Message(msg.topic, bytes(msg.payload), bool(msg.retain), time.monotonic()))

@@ -20,10 +20,22 @@ Clock (:mod:`comems4build_ros.mqtt.clock`):
   ``t0 + (k + 1) * period``, steps the plant with the latest set-points it holds (the
   EMS acts on the latest measurements; no handshake).
 
-After the last step it repeats the last record until the bridge has announced the end
-on ``<base>/step`` (or ``done_timeout_s`` passed), then exits 0. SIGINT or SIGTERM
+Records are kept until the bridge acknowledges them (``records`` of its ``<base>/step``
+message: the records it has forwarded) and repeated every ``republish_s`` until then, in
+step order: a broker outage loses no record in either clock mode. After the last step
+the house repeats the records not yet acknowledged until the bridge has announced the
+end on ``<base>/step`` (or ``done_timeout_s`` passed), then exits 0. SIGINT or SIGTERM
 before that end the process with exit code 3 (the run was cut; see
 :mod:`comems4build_ros.wire.exits`).
+
+Run and peer (:mod:`comems4build_ros.mqtt.peer`): with ``--run-id`` the house reads only
+the step and run messages of that run (a retained message of an earlier run, cut or not,
+is ignored and named once on stderr); without it, it takes the id of the first live run
+message (a retained one may be a cut run's). With ``--mqtt-secret-file`` (the launcher's
+per-run secret) every message it sends carries the run id and an authentication code,
+and it applies only set-points whose code is valid: others are counted as foreign
+(``foreign_messages`` in every record, which the bridge reports) and not applied. The
+same file holds the password of ``--username`` on the launcher's embedded broker.
 """
 
 from __future__ import annotations
@@ -40,6 +52,7 @@ from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, Flows, PlantState
 from comems4build_ros.mqtt.client import BrokerConfigError, MqttLink
 from comems4build_ros.mqtt.clock import Clock, ClockError, parse_clock
+from comems4build_ros.mqtt.peer import ForeignMessageError, Peer, check_run_id, parse_run_json, read_peer_key
 from comems4build_ros.mqtt.topicmap import SETPOINTS, PayloadError, TopicMap, load_topic_map
 
 #: Default repeat period of the last messages while waiting [s].
@@ -78,10 +91,12 @@ class MqttPlantSim:
     topic_map : the topic map (the house publishes measurements, reads set-points)
     params : plant parameters
     scenario : the run's scenario (the same window as the feed's)
+    peer : run id and peer key (default: no run id, no key)
     """
 
-    def __init__(self, topic_map: TopicMap, params: PlantParams, scenario: Any) -> None:
+    def __init__(self, topic_map: TopicMap, params: PlantParams, scenario: Any, peer: Peer | None = None) -> None:
         self.map = topic_map
+        self.peer = peer if peer is not None else Peer(None, None)
         self.params = params
         self.plant = Plant(params)
         self.state = self.plant.initial_state()
@@ -96,6 +111,8 @@ class MqttPlantSim:
         self.latest_step: dict[str, int | None] = {}
         self.bad_payloads = 0
         self.late_steps = 0  # wall clock: steps stepped without their own set-points
+        self.unacked: dict[int, bytes] = {}  # step -> record payload not yet acknowledged by the bridge
+        self.acked = 0  # records the bridge has acknowledged (it forwarded steps 0 .. acked - 1)
 
     def measurement_value(self, name: str, k: int) -> float:
         """Value of measurement ``name`` at the start of step ``k`` (state) or during ``k`` (PV, load, T_amb)."""
@@ -107,19 +124,30 @@ class MqttPlantSim:
 
     def measurement_payloads(self, k: int) -> list[tuple[str, bytes]]:
         """``(topic, payload)`` of every mapped measurement for step ``k``."""
-        return [(spec.topic, spec.encode(self.measurement_value(name, k), k))
+        return [(spec.topic, self.peer.wrap(spec.topic, spec.encode(self.measurement_value(name, k), k)))
                 for name, spec in self.map.measurements.items()]
 
     def on_setpoint(self, topic: str, payload: bytes) -> None:
-        """Store a set-point (by its step tag for lock-step, as latest for the wall clock)."""
+        """Store a set-point (by its step tag for lock-step, as latest for the wall clock).
+
+        A foreign set-point (no valid code, another run) is counted and not applied; one
+        tagged with a step already made is not applied either (a repeat of the bridge's,
+        or a replay: it may not steer a later step)."""
         name = self._setpoint_topics.get(topic)
         if name is None:
             return
         try:
-            value, step = self.map.setpoints[name].decode(payload)
+            value, step = self.map.setpoints[name].decode(self.peer.unwrap(topic, payload))
+        except ForeignMessageError as exc:
+            if self.peer.foreign_total <= 3 or self.peer.foreign_total % 100 == 0:
+                print(f"[mqtt_plant] warning: foreign message not applied ({self.peer.foreign_total} so far): {exc}",
+                      file=sys.stderr, flush=True)
+            return
         except PayloadError as exc:
             self.bad_payloads += 1
             print(f"[mqtt_plant] warning: {exc}", file=sys.stderr, flush=True)
+            return
+        if step is not None and step < self.k:
             return
         self.latest[name] = value
         self.latest_step[name] = step
@@ -135,16 +163,35 @@ class MqttPlantSim:
         return Action(hp_mod=values.get("hp_mod", 0.0), hp_mode=int(values.get("hp_mode", 0)),
                       p_fc_w=values.get("p_fc_w", 0.0), p_bess_w=values.get("p_bess_w", 0.0))
 
-    def step(self, action: Action) -> bytes:
-        """Step the plant over step ``k`` with ``action``; returns the record payload (JSON)."""
+    def step(self, action: Action, setpoints_of: int | None = None) -> bytes:
+        """Step the plant over step ``k`` with ``action`` (the set-points tagged ``setpoints_of``,
+        default ``k``); returns the record payload (JSON, tagged and sealed), kept in
+        :attr:`unacked` until the bridge acknowledges it."""
         k = self.k
         exo = self.exo[k]
         self.state, flows = self.plant.step(self.state, action, exo)
-        rec = record_fields(k, self.n_steps, self.time_s[k], flows, self.state, action, exo, self.spot[k])
+        rec: dict[str, Any] = dict(record_fields(k, self.n_steps, self.time_s[k], flows, self.state, action, exo,
+                                                 self.spot[k]))
+        rec["setpoints_of_step"] = k if setpoints_of is None else setpoints_of
+        rec["foreign_messages"] = self.peer.foreign_total
         self.k = k + 1
         for s in [s for s in self.pending if s <= k]:
             del self.pending[s]
-        return json.dumps(rec).encode()
+        payload = self.peer.wrap(self.map.sim_record_topic or "record", json.dumps(rec).encode())
+        if self.map.sim_record_topic:
+            self.unacked[k] = payload
+        return payload
+
+    def acknowledge(self, records: int) -> None:
+        """The bridge has forwarded the records of steps ``0 .. records - 1``: forget them."""
+        if records > self.acked:
+            self.acked = records
+            for s in [s for s in self.unacked if s < records]:
+                del self.unacked[s]
+
+    def repeat_records(self, limit: int = 32) -> list[tuple[str, bytes]]:
+        """The oldest records not yet acknowledged (at most ``limit``), in step order."""
+        return [(self.map.sim_record_topic, self.unacked[s]) for s in sorted(self.unacked)[:limit]]
 
 
 def _publish_all(link: MqttLink, messages: list[tuple[str, bytes]]) -> None:
@@ -152,40 +199,82 @@ def _publish_all(link: MqttLink, messages: list[tuple[str, bytes]]) -> None:
         link.publish(topic, payload)
 
 
+class BridgeView:
+    """What the house knows of the bridge: its step and run messages of this run only."""
+
+    def __init__(self, house: MqttPlantSim) -> None:
+        self.house = house
+        self.step = -1  # the step the bridge announced last
+        self.run_msg: dict[str, Any] | None = None
+        self.ignored: set[tuple[str, str]] = set()  # (topic, run) of other runs' messages, named once
+
+    def on_message(self, topic: str, payload: bytes, retained: bool) -> None:
+        """A message on the bridge's step or run topic."""
+        m, peer = self.house.map, self.house.peer
+        if not payload:  # a cleared retained message (the end of a run)
+            if topic == m.run_topic:
+                self.run_msg = None
+            return
+        try:
+            msg = parse_run_json(topic, payload)
+        except ValueError:
+            msg = None
+        if msg is not None and peer.run_id is None and topic == m.run_topic and not retained and msg.run:
+            peer.adopt(msg.run)  # the first live run message names the run (a retained one may be a cut run's)
+        if msg is None or msg.run is None or (peer.run_id is not None and msg.run != peer.run_id) \
+                or peer.run_id is None:
+            key = (topic, str(msg.run if msg is not None else None))
+            if key not in self.ignored and peer.run_id is not None:
+                self.ignored.add(key)
+                print(f"[mqtt_plant] note: ignored {'retained ' if retained else ''}'{topic}' of "
+                      f"{'run ' + repr(msg.run) if msg is not None and msg.run else 'no run'} "
+                      f"(this run: '{peer.run_id}')", file=sys.stderr, flush=True)
+            return
+        try:
+            body = parse_run_json(topic, peer.unwrap(topic, payload)).body
+        except (ForeignMessageError, ValueError) as exc:
+            print(f"[mqtt_plant] warning: foreign message not applied: {exc}", file=sys.stderr, flush=True)
+            return
+        if topic == m.step_topic:
+            try:
+                self.step = int(body["step"])  # type: ignore[call-overload]
+                self.house.acknowledge(int(body.get("records", 0)))  # type: ignore[call-overload]
+            except (KeyError, TypeError, ValueError):
+                pass
+        else:
+            self.run_msg = body
+
+
 def run(house: MqttPlantSim, link: MqttLink, clock: Clock, republish_s: float = REPUBLISH_S,
         idle_timeout_s: float = IDLE_TIMEOUT_S, done_timeout_s: float = DONE_TIMEOUT_S) -> int:
     """Run the house until its last step is acknowledged; returns the exit code."""
     m = house.map
-    bridge_step = -1
-    run_msg: dict[str, Any] | None = None
+    bridge = BridgeView(house)
+    t_records = -1.0
 
     def handle() -> None:
-        nonlocal bridge_step, run_msg
+        nonlocal t_records
         for msg in link.drain():
-            if msg.topic == m.step_topic:
-                try:
-                    bridge_step = int(msg.payload.decode())
-                except ValueError:
-                    pass
-            elif msg.topic == m.run_topic:
-                try:
-                    run_msg = json.loads(msg.payload.decode()) if msg.payload else None
-                except (ValueError, UnicodeDecodeError):
-                    run_msg = None
+            if msg.topic in (m.step_topic, m.run_topic):
+                bridge.on_message(msg.topic, msg.payload, msg.retain)
             else:
                 house.on_setpoint(msg.topic, msg.payload)
+        now = time.monotonic()
+        if house.unacked and now - t_records > republish_s:  # records the bridge may have lost (broker outage)
+            t_records = now
+            _publish_all(link, house.repeat_records())
 
-    last_record: tuple[str, bytes] | None = None
     if clock.wall:
         t_sent = -1.0
-        while run_msg is None:  # the bridge starts once it has heard from the house
+        while bridge.run_msg is None:  # the bridge starts once it has heard from the house
             if time.monotonic() - t_sent > republish_s:
                 _publish_all(link, house.measurement_payloads(0))
                 t_sent = time.monotonic()
             handle()
             time.sleep(0.01)
-        t0, period = float(run_msg["t0_unix_s"]), float(run_msg["period_s"])
-        print(f"[mqtt_plant] wall clock: step 0 at {t0:.3f}, period {period:g} s", file=sys.stderr, flush=True)
+        t0, period = float(bridge.run_msg["t0_unix_s"]), float(bridge.run_msg["period_s"])
+        print(f"[mqtt_plant] wall clock: step 0 at {t0:.3f}, period {period:g} s (run '{house.peer.run_id}')",
+              file=sys.stderr, flush=True)
         while house.k < house.n_steps:
             k = house.k
             _sleep_until(t0 + k * period, handle)
@@ -199,28 +288,27 @@ def run(house: MqttPlantSim, link: MqttLink, clock: Clock, republish_s: float = 
                 time.sleep(POLL_S)
                 handle()
             if house.complete(k):
-                action = house.action_for(house.pending[k])
-            else:
+                action, of = house.action_for(house.pending[k]), k
+            else:  # the device holds its last set-points (lost in a broker outage, or late)
                 house.late_steps += 1
-                action = house.action_for(house.latest)
-            record = house.step(action)
-            last_record = (m.sim_record_topic, record)
+                held = [s for s in house.latest_step.values() if s is not None]
+                action, of = house.action_for(house.latest), (min(held) if held else -1)
+            record = house.step(action, of)
             if m.sim_record_topic:
-                link.publish(*last_record)
+                link.publish(m.sim_record_topic, record)
+                t_records = time.monotonic()
     else:
         t_last_setpoint = time.monotonic()
         while house.k < house.n_steps:
             k = house.k
             out = house.measurement_payloads(k)
-            if last_record is not None and m.sim_record_topic:
-                out.insert(0, last_record)
             _publish_all(link, out)
             t_sent = time.monotonic()
             while not house.complete(k):
                 time.sleep(POLL_S)
                 handle()
                 now = time.monotonic()
-                if now - t_sent > republish_s and bridge_step < k:
+                if now - t_sent > republish_s and bridge.step < k:
                     _publish_all(link, out)  # the bridge has not announced k yet, or a message was lost
                     t_sent = now
                 if now - t_last_setpoint > idle_timeout_s:
@@ -229,20 +317,19 @@ def run(house: MqttPlantSim, link: MqttLink, clock: Clock, republish_s: float = 
                     return 1
             t_last_setpoint = time.monotonic()
             record = house.step(house.action_for(house.pending[k]))
-            last_record = (m.sim_record_topic, record)
-    # the last record: repeat until the bridge announced the end
+            if m.sim_record_topic:
+                link.publish(m.sim_record_topic, record)
+                t_records = time.monotonic()
+    # the records not yet acknowledged: repeat until the bridge announced the end
     t_end = time.monotonic()
-    t_sent = -1.0
-    while bridge_step < house.n_steps and time.monotonic() - t_end < done_timeout_s:
-        if last_record is not None and m.sim_record_topic and time.monotonic() - t_sent > republish_s:
-            link.publish(*last_record)
-            t_sent = time.monotonic()
+    while bridge.step < house.n_steps and time.monotonic() - t_end < done_timeout_s:
         time.sleep(0.01)
         handle()
-    ok = bridge_step >= house.n_steps
+    ok = bridge.step >= house.n_steps
     print(f"[mqtt_plant] run done: {house.k} steps, bridge acknowledged: {ok}, "
           f"unreadable set-points: {house.bad_payloads}, steps without their own set-points: "
-          f"{house.late_steps}", file=sys.stderr, flush=True)
+          f"{house.late_steps}, foreign messages not applied: {house.peer.foreign_total} {house.peer.foreign}",
+          file=sys.stderr, flush=True)
     return 0
 
 
@@ -272,6 +359,11 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--set", action="append", default=[], metavar="KEY=VALUE")
     ap.add_argument("--republish-s", type=float, default=REPUBLISH_S)
     ap.add_argument("--client-id", default="comems4build_plant_sim")
+    ap.add_argument("--run-id", default=None, help="the run's id (default: the first live run message's)")
+    ap.add_argument("--mqtt-secret-file", default=None,
+                    help="per-run secret (mode 0600): peer key of the authentication codes, and the password of "
+                         "--username on the launcher's embedded broker")
+    ap.add_argument("--username", default=None, help="broker user (password from --mqtt-secret-file)")
     args = ap.parse_args(argv)
     try:
         import yaml
@@ -283,11 +375,18 @@ def main(argv: list[str] | None = None) -> int:
                 raise ConfigError(f"--set {item}: not KEY=VALUE")
             overrides[key.strip()] = yaml.safe_load(value)
         params = load_plant_params(args.config, overrides)
-        topic_map = load_topic_map(args.topic_map, args.broker)
+        if args.username and not args.mqtt_secret_file:
+            raise ValueError("--username needs --mqtt-secret-file (the password's file)")
+        if args.mqtt_secret_file and not args.run_id:
+            raise ValueError("--mqtt-secret-file needs --run-id (the codes bind each message to its run)")
+        topic_map = load_topic_map(args.topic_map, args.broker, args.username,
+                                   args.mqtt_secret_file if args.username else None)
         clock = parse_clock(args.clock, params.simulation.time_step_h)
+        peer = Peer(check_run_id(args.run_id) if args.run_id else None,
+                    read_peer_key(args.mqtt_secret_file) if args.mqtt_secret_file else None)
         scenario = load_scenario(args.scenario, params, args.start, args.weeks, args.seed, args.steps)
         check_scenario(scenario, params.simulation.time_step_h)
-        house = MqttPlantSim(topic_map, params, scenario)
+        house = MqttPlantSim(topic_map, params, scenario, peer)
         subs = [s.topic for s in topic_map.setpoints.values()] + [topic_map.step_topic, topic_map.run_topic]
         link = MqttLink(topic_map.broker, args.client_id, subs,
                         will=(topic_map.topic("building", "availability"), "offline"))

@@ -115,7 +115,8 @@ class CommandLimiter:
     """
 
     def __init__(self, limits: dict[str, tuple[float, float]], ramps: dict[str, float], min_interval_s: float) -> None:
-        self.limits = limits
+        self.device_limits = dict(limits)  # the devices' own (topic map or plant parameters)
+        self.limits = dict(limits)  # in force: the device limits, narrowed by the user's settings
         self.ramps = ramps
         self.min_interval_s = min_interval_s
         self.counters = LimiterCounters()
@@ -127,6 +128,13 @@ class CommandLimiter:
         """Limiter with the map's device limits (plant parameters where the map has none)."""
         ramps = {n: topic_map.setpoints[n].max_change_per_step for n in ("hp_mod", "p_fc_w", "p_bess_w")}
         return cls(topic_map.device_limits(params), ramps, topic_map.min_interval_s)  # type: ignore[arg-type]
+
+    def set_power_limit(self, name: str, limit: float) -> tuple[float, float]:
+        """The user's limit of set-point ``name`` (a magnitude, e.g. the battery power both ways
+        [W]): the limits in force become the device limits within ``[-limit, limit]``; returns them."""
+        lo, hi = self.device_limits[name]
+        self.limits[name] = (max(lo, -limit), min(hi, limit))
+        return self.limits[name]
 
     def limit(self, action: Action) -> tuple[Action, list[str]]:
         """The action within device and ramp limits, and one note per changed field.
@@ -149,7 +157,8 @@ class CommandLimiter:
                 v = 0.0
             if not lo <= v <= hi:
                 c = min(max(v, lo), hi)
-                notes.append(f"{name} {v:g} clamped to {c:g} (device limits [{lo:g}, {hi:g}])")
+                what = "device limits" if (lo, hi) == self.device_limits[name] else "the user's limits"
+                notes.append(f"{name} {v:g} clamped to {c:g} ({what} [{lo:g}, {hi:g}])")
                 self.counters.clamped[name] = self.counters.clamped.get(name, 0) + 1
                 v = c
             ramp = self.ramps.get(name, 0.0)
@@ -177,3 +186,26 @@ class CommandLimiter:
     def sent(self, now: float) -> None:
         """Note that set-points went out at ``now`` [s]."""
         self._t_last_sent = now
+
+
+class SettingError(ValueError):
+    """A setting's payload that cannot be applied; the message names the topic and the range."""
+
+
+def parse_setting(topic: str, payload: bytes, low: float, high: float) -> float:
+    """The number of a Home Assistant ``number`` command (plain text, e.g. ``"500"`` or
+    ``"500.0"``) within ``[low, high]``.
+
+    Raises
+    ------
+    SettingError
+        For a payload that is not UTF-8, not a finite number or outside the range.
+    """
+    try:
+        text = payload.decode("utf-8").strip()
+        value = float(text)
+    except (UnicodeDecodeError, ValueError):
+        raise SettingError(f"topic '{topic}': {payload[:40]!r} is not a number") from None
+    if not math.isfinite(value) or not low <= value <= high:
+        raise SettingError(f"topic '{topic}': {value:g} outside [{low:g}, {high:g}]")
+    return value

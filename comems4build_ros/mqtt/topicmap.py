@@ -277,6 +277,14 @@ class DeviceInfo(_Model):
     name: str
     manufacturer: str = ""
     model: str = ""
+    configuration_url: str = ""  # Home Assistant's "Visit" link of the device: http(s)://... ("" = none)
+
+    @field_validator("configuration_url")
+    @classmethod
+    def _http(cls, v: str) -> str:
+        if v and not v.startswith(("http://", "https://")):
+            raise ValueError(f"'{v}' is not an http:// or https:// URL (Home Assistant accepts no other)")
+        return v
 
 
 class TopicMap(_Model):
@@ -358,6 +366,10 @@ class TopicMap(_Model):
         """``(command_topic, state_topic)`` of the switch ``name`` (``ems``, ``fallback``)."""
         return self.topic("switch", name, "set"), self.topic("switch", name, "state")
 
+    def setting_topics(self, name: str) -> tuple[str, str]:
+        """``(command_topic, state_topic)`` of the setting ``name`` (``battery_power_limit``)."""
+        return self.topic("setting", name, "set"), self.topic("setting", name, "state")
+
     @property
     def run_topic(self) -> str:
         """Retained JSON of the running clock (start time, period), for a wall-clock building."""
@@ -374,10 +386,12 @@ def default_map_file() -> Path:
     return config_dir() / "mqtt.yaml"
 
 
-def load_topic_map(path: str | Path | None = None, broker_url: str | None = None) -> TopicMap:
+def load_topic_map(path: str | Path | None = None, broker_url: str | None = None, username: str | None = None,
+                   password_file: str | None = None) -> TopicMap:
     """Read and validate the ``mqtt`` section of ``config/mqtt.yaml`` (or ``path``).
 
-    ``broker_url`` replaces ``broker.url`` (the launcher's embedded broker).
+    ``broker_url`` replaces ``broker.url``; ``username`` and ``password_file`` replace the
+    broker login (the launcher's embedded broker and its per-run login).
 
     Raises
     ------
@@ -391,6 +405,9 @@ def load_topic_map(path: str | Path | None = None, broker_url: str | None = None
     data = dict(data)
     if broker_url:
         data["broker"] = dict(data.get("broker", {}), url=broker_url)
+    if username:
+        data["broker"] = dict(data.get("broker", {}), username=username, password_file=password_file or "",
+                              password_env="")
     return validate(TopicMap, data, str(path))
 
 

@@ -289,9 +289,10 @@ class LockStepMaster(ContractNode):
         self.finished.set_result(EXIT_STALLED)
 
     # ------------------------------------------------------------------ output
-    def event(self, kind: str, detail: str) -> None:
-        """Log a fault event and publish it on plant/events (``<step> <kind> <detail>``)."""
-        line = f"{self.k} {kind} {detail}"
+    def event(self, kind: str, detail: str, step: int | None = None) -> None:
+        """Log a fault event and publish it on plant/events (``<step> <kind> <detail>``; the
+        step the event concerns, default the current one)."""
+        line = f"{self.k if step is None else step} {kind} {detail}"
         self.get_logger().warning(line)
         self._events_pub.publish(String(data=line))
 

@@ -149,6 +149,13 @@ PARAMETERS: dict[str, ParamSpec] = {
     "measure_delay_s": ParamSpec("wall clocks: announce a step this long after it starts "
                                  "(-1 = 0.2 of the period, at most 5 s)", "s", -1.0, None),
     "client_id": ParamSpec("MQTT client id", allowed="a string"),
+    "run_id": ParamSpec("the run's id on its retained MQTT messages (empty = a new random one)",
+                        allowed="1 to 64 of A-Z a-z 0-9 _ . - or empty"),
+    "mqtt_secret_file": ParamSpec("per-run secret (mode 0600): key of the authentication codes of the messages "
+                                  "between bridge and house, and broker_username's password (empty = none)",
+                                  allowed="a file path or empty"),
+    "broker_username": ParamSpec("broker user replacing the topic map's, password from mqtt_secret_file "
+                                 "(empty = the map's login)", allowed="a user name or empty"),
 }
 
 

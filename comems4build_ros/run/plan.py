@@ -754,21 +754,40 @@ def check_plant_options(opts: LaunchOptions) -> None:
         raise ValueError("a broker URL needs network 'local' (the 'netns' namespaces reach no other host)")
 
 
-def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]]) -> list[ProcessPlan]:
+#: Broker users of the run's two MQTT peers on the embedded broker (password: the run's MQTT secret).
+MQTT_HOUSE_USER, MQTT_BRIDGE_USER = "comems4build_house", "comems4build_bridge"
+#: The run's MQTT secret under :data:`SECRETS_DIR` (``plant="mqtt"``).
+MQTT_SECRET_FILE = "mqtt.token"
+
+
+def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]], secret_file: str,
+                         run_id: str) -> list[ProcessPlan]:
     """``plant="mqtt"``: the embedded broker (unless ``broker_url``; a free port now), the
     simulated house with the feed's scenario window, and ``mqtt_bridge`` in plant_sim's
-    place. Bridge and house finish (exit 0 at the end); the broker stops last."""
+    place. Bridge and house finish (exit 0 at the end); the broker stops last.
+
+    Bridge and house share the run id ``run_id`` and the per-run secret in ``secret_file``
+    (written by the supervisor, mode 0600): the key of their messages' authentication codes
+    (:mod:`comems4build_ros.mqtt.peer`) and, on the embedded broker, the password of their
+    two users (no anonymous access). Only paths and user names stand on the command lines."""
     from comems4build_ros.mqtt.broker import free_port
 
     out: list[ProcessPlan] = []
     url = opts.broker_url
+    login: dict[str, str] = {}
+    house_login: list[str] = []
     if url is None:
         port = free_port()
         url = f"mqtt://127.0.0.1:{port}"
-        out.append(ProcessPlan("broker", "broker", (*python_module(BROKER_MODULE), "--port", str(port)),
+        out.append(ProcessPlan("broker", "broker", (*python_module(BROKER_MODULE), "--port", str(port),
+                                                    "--login-file", secret_file, "--user", MQTT_HOUSE_USER,
+                                                    "--user", MQTT_BRIDGE_USER),
                                stop_stage=STAGE_SERVICES))
+        login = {"broker_username": MQTT_BRIDGE_USER}
+        house_login = ["--username", MQTT_HOUSE_USER]
     feed = params["feed"]
-    argv = [*node_command("mqtt_plant"), "--broker", url, "--clock", opts.clock, "--scenario", str(feed["scenario"])]
+    argv = [*node_command("mqtt_plant"), "--broker", url, "--clock", opts.clock, "--scenario", str(feed["scenario"]),
+            "--run-id", run_id, "--mqtt-secret-file", secret_file, *house_login]
     for key in ("weeks", "steps", "seed", "start"):
         if feed.get(key):
             argv += [f"--{key}", str(feed[key])]
@@ -776,7 +795,8 @@ def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]])
         argv += ["--config", f]
     for item in feed.get("overrides", []):
         argv += ["--set", item]
-    bridge = dict(params["plant"], broker_url=url, clock=opts.clock)
+    bridge = dict(params["plant"], broker_url=url, clock=opts.clock, run_id=run_id, mqtt_secret_file=secret_file,
+                  **login)
     if opts.topic_map:
         topic_map = str(Path(opts.topic_map).resolve())
         argv += ["--topic-map", topic_map]
@@ -828,10 +848,17 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
                                    str(secret_dir / f"{ns.strip('/').replace('/', '__') or 'root'}.token"))
                       for ns, seed in zip(ns_list, seeds))
 
+    secrets = [(b.token_file, b.token) for b in houses]
+    mqtt_secret: tuple[str, str] | None = None
+    if opts.plant == "mqtt":  # the run's MQTT secret and id (mqtt_plant_processes)
+        from comems4build_ros.mqtt.peer import new_run_id
+
+        mqtt_secret = (str(secret_dir / MQTT_SECRET_FILE), new_run_id())
+        secrets.append((mqtt_secret[0], new_token()))
     if layout in ("role", "house"):
         processes = _container_processes(opts, houses, common, bag, info, out / "containers")
     else:
-        processes = _node_processes(opts, houses, common, bag, info)
+        processes = _node_processes(opts, houses, common, bag, info, mqtt_secret)
     use_server = opts.discovery_server
     if use_server is None:
         use_server = opts.houses > 1 and layout == "node" and opts.network == "local"
@@ -877,14 +904,16 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         timeout_s=None if opts.timeout_s == math.inf else (
             opts.timeout_s if opts.timeout_s is not None else default_time_limit(opts)),
         stall_s=backstop_stall_s(opts, layout),
-        secrets=tuple((b.token_file, b.token) for b in houses),
+        secrets=tuple(secrets),
     )
 
 
 def _node_processes(
-    opts: LaunchOptions, houses: Sequence[HousePlan], common: dict[str, Any], bag: Path, info: dict[str, Any]
+    opts: LaunchOptions, houses: Sequence[HousePlan], common: dict[str, Any], bag: Path, info: dict[str, Any],
+    mqtt_secret: tuple[str, str] | None = None,
 ) -> list[ProcessPlan]:
-    """Layout ``node``: one recorder per building, then EMS, feed and plant of each building."""
+    """Layout ``node``: one recorder per building, then EMS, feed and plant of each building
+    (``mqtt_secret``: the secret file and run id of a house behind MQTT)."""
     out: list[ProcessPlan] = []
     for b in houses:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
@@ -907,7 +936,8 @@ def _node_processes(
         out.append(ProcessPlan(f"{prefix}feed", "feed", (*node_command("feed"), *ros_args(ns, params["feed"])),
                                nodes=(NodePlan("feed", "feed", ns, params["feed"]),), finishes=True))
         if opts.plant == "mqtt":
-            out.extend(mqtt_plant_processes(opts, params))
+            assert mqtt_secret is not None
+            out.extend(mqtt_plant_processes(opts, params, *mqtt_secret))
             continue
         out.append(ProcessPlan(f"{prefix}plant_sim", "plant",
                                (*node_command("plant_sim"), *ros_args(ns, params["plant"])),

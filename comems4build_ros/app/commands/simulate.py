@@ -94,6 +94,14 @@ def run(args: argparse.Namespace) -> int:
     return 0
 
 
+#: Words of the fallback causes of ``summary.json``'s ``fallback_causes`` in the warning.
+FALLBACK_CAUSE_WORDS = {
+    "late_command": "because no valid command of the EMS came in time",
+    "watchdog": "because the watchdog found a measurement missing, stale or out of range",
+    "user_switch": "because the user switched the EMS off or the fallback on",
+}
+
+
 def warn_run(summary: dict, command: str) -> None:
     """Warnings at the end of a run: fallback steps, unmet hot-water demand, a synthetic extension."""
     n, steps = summary.get("fallback_steps") or 0, summary.get("steps") or 0
@@ -105,9 +113,20 @@ def warn_run(summary: dict, command: str) -> None:
               file=sys.stderr)
     if n:
         ems_n = summary.get("ems_fallback_steps") or 0
+        causes = summary.get("fallback_causes") or {"late_command": n - ems_n}
+        words = [f"{ems_n} because the EMS found no solution or failed"] if ems_n else []
+        words += [f"{c} {FALLBACK_CAUSE_WORDS.get(cause, cause)}" for cause, c in causes.items() if c]
         print(f"comems4build {command}: warning: {n} of {steps} steps ran on the safe fallback action "
-              f"({ems_n} because the EMS found no solution or failed, {n - ems_n} because no valid command "
-              "came in time); see fallback_steps in summary.json", file=sys.stderr)
+              f"({', '.join(words)}); see fallback_steps and fallback_causes in summary.json", file=sys.stderr)
+    mqtt = summary.get("mqtt") or {}
+    if mqtt.get("foreign_messages"):
+        print(f"comems4build {command}: warning: {mqtt['foreign_messages']} MQTT message(s) from someone else than "
+              "the run's house or bridge were not applied (no valid authentication code, or of another run); "
+              "see 'foreign_mqtt' on plant/events", file=sys.stderr)
+    if mqtt.get("setpoints_held"):
+        print(f"comems4build {command}: warning: {mqtt['setpoints_held']} step(s) ran on set-points the house "
+              "held from an earlier step (their own did not reach it in time: a broker outage); see "
+              "'setpoints_held' on plant/events", file=sys.stderr)
     ext = summary.get("scenario_extended")
     if ext:
         print(f"comems4build {command}: note: the scenario was extended with {ext['rows']} generated hours from "

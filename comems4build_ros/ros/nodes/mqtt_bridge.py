@@ -43,8 +43,27 @@ past ``step_timeout_s`` also gets the fallback, as with ``plant_sim``.
 
 Home Assistant: retained discovery configs (:mod:`comems4build_ros.mqtt.discovery`) and
 availability ``online`` on every (re)connect, ``offline`` as the last will; a retained
-JSON state per step (KPIs so far, mode, set-points, alarm); switches ``ems`` and
-``fallback``.
+JSON state per step (what the EMS sees, its set-points, who is in charge, the run totals
+with the arithmetic of ``summary.json``, counters, alarm) and once more at the end with the
+last step's record; switches ``ems`` and ``fallback``, whose retained commands (the
+user's choice) are applied when the bridge (re)connects.
+
+Run and peer (:mod:`comems4build_ros.mqtt.peer`): the bridge's retained messages name its
+run (``run_id``, a new random one if not given); a retained ``<base>/step`` or
+``<base>/run`` of another run is cleared and named on ``plant/events`` (``retained_cleared``).
+With ``mqtt_secret_file`` (the launcher's per-run secret) it applies only measurements
+and records of the house whose authentication code is valid and whose run is its own,
+and seals its set-points, step and run messages the same way; every other message is
+counted and named (``foreign_mqtt``), as are the messages the house refused (the
+``foreign_messages`` of its records). ``broker_username`` logs in with the password of
+that file (the launcher's embedded broker).
+
+Records: the house repeats each record until the bridge acknowledges it (``records`` in
+``<base>/step``), and the bridge forwards them in step order, so a broker outage loses no
+record in either clock mode. A step whose own set-points did not reach the house before
+it stepped (a wall clock during an outage) ran on the last set-points the house held: the
+bridge names it (``setpoints_held`` on ``plant/events``, ``setpoints_held`` in its final
+line).
 """
 
 from __future__ import annotations
@@ -53,20 +72,40 @@ import json
 import math
 import time
 from array import array
+from datetime import UTC, datetime
 from typing import Any
 
-import numpy as np
 from std_msgs.msg import Float64MultiArray, String
 
 from comems4build_ros.core import kpi
-from comems4build_ros.core.config import W_PER_KW
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.types import ACTION_FIELDS, Action
 from comems4build_ros.mqtt.client import MqttLink
 from comems4build_ros.mqtt.clock import parse_clock
-from comems4build_ros.mqtt.discovery import AVAILABLE, NOT_AVAILABLE, PAYLOAD_OFF, PAYLOAD_ON, discovery_messages
+from comems4build_ros.mqtt.discovery import (
+    AVAILABLE,
+    FROM_BRIDGE,
+    FROM_RECORDS,
+    NOT_AVAILABLE,
+    PAYLOAD_OFF,
+    PAYLOAD_ON,
+    SENSORS,
+    SETTINGS,
+    TOTAL_KEYS,
+    announced,
+    discovery_messages,
+    setting_max,
+)
+from comems4build_ros.mqtt.peer import (
+    ForeignMessageError,
+    Peer,
+    check_run_id,
+    new_run_id,
+    parse_run_json,
+    read_peer_key,
+)
 from comems4build_ros.mqtt.plant_sim import BRIDGE_RECORD_FIELDS
-from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem
+from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem, SettingError, parse_setting
 from comems4build_ros.mqtt.topicmap import PayloadError, load_topic_map
 from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
 from comems4build_ros.ros.node import ArrayPublisher
@@ -91,6 +130,16 @@ ACK_TIMEOUT_S = 5.0
 #: minutes; a real house sends no tags and is read at the announcement time.
 WALL_TAG_WAIT_SHARE = 0.5
 HP_MODE_WORDS = {0: "off", 1: "heating", 2: "dhw"}
+#: After every subscription of a (re)connect was acknowledged, wait this long for the
+#: retained switch commands and states (the user's choice: the broker sends them right
+#: after each acknowledgement) before publishing the switch states and starting a run [s].
+SWITCH_SETTLE_S = 0.3
+#: Fallback kinds (``plant/events`` ``fallback <kind>:``) -> the ``in_charge`` value.
+IN_CHARGE_OF_KIND = {"missing": "fallback_watchdog", "stale": "fallback_watchdog",
+                     "out_of_range": "fallback_watchdog", "forced": "fallback_switch",
+                     "ems_silent": "fallback_late_command"}
+#: Measurements shown in percent in Home Assistant's state (state key -> measurement).
+PERCENT_KEYS = {"soc_pct": "soc", "loh_pct": "loh"}
 
 
 class MqttBridge(LockStepMaster):
@@ -99,7 +148,14 @@ class MqttBridge(LockStepMaster):
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
         super().__init__(NODE_NAME, {"house_timeout_s": HOUSE_TIMEOUT_S}, **node_kwargs)
-        self.map = load_topic_map(str(param(self, "topic_map", "")) or None, str(param(self, "broker_url", "")) or None)
+        secret_file = str(param(self, "mqtt_secret_file", ""))
+        username = str(param(self, "broker_username", ""))
+        if username and not secret_file:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'broker_username' needs 'mqtt_secret_file' (its password)")
+        self.map = load_topic_map(str(param(self, "topic_map", "")) or None, str(param(self, "broker_url", "")) or None,
+                                  username or None, secret_file if username else None)
+        self.peer = Peer(check_run_id(str(param(self, "run_id", "")) or new_run_id()),
+                         read_peer_key(secret_file) if secret_file else None)
         self.clock = parse_clock(str(param(self, "clock", "sim")), self.params.simulation.time_step_h)
         delay = float(param(self, "measure_delay_s", -1.0))
         self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
@@ -127,7 +183,13 @@ class MqttBridge(LockStepMaster):
         self.limiter = CommandLimiter.from_map(self.map, self.params)
         self._topic_measurement = {spec.topic: name for name, spec in m.items()}
         self._switch_topics = {self.map.switch_topics(n)[0]: n for n in ("ems", "fallback")}
+        self._switch_states = {self.map.switch_topics(n)[1]: n for n in ("ems", "fallback")}
         self.switches = {"ems": True, "fallback": False}
+        self._setting_topics = {self.map.setting_topics(n)[0]: n for n in SETTINGS}
+        self._setting_states = {self.map.setting_topics(n)[1]: n for n in SETTINGS}
+        self.settings = {n: setting_max(self.limiter.device_limits, n) for n in SETTINGS}  # the user's, default: none
+        self._switch_by_command: set[str] = set()  # switches and settings set by a command since the start
+        self._switches_published = -1  # the connect count whose switch states were published
 
         # run state
         self.phase = "measure"  # measure -> command -> sent (lock-step); command/sent per wall step
@@ -145,6 +207,7 @@ class MqttBridge(LockStepMaster):
         self._last_action = Action()
         self._sent: list[tuple[str, bytes]] = []
         self._held: tuple[int, Action, bool] | None = None
+        self._announced = -1  # the step announced last (<base>/step)
         self._alarm_step = -1
         self._house_alarmed = -1
         self._t_created = time.monotonic()
@@ -152,10 +215,23 @@ class MqttBridge(LockStepMaster):
         self._t_announce = 0.0
         self._t_sent = 0.0
         self._t_house = self._t_created
-        self.kpis = {"cost_eur": 0.0, "discomfort_kh": 0.0, "grid_import_kwh": 0.0, "grid_export_kwh": 0.0}
+        self._columns: dict[str, list[float]] = {c: [] for c in kpi.REQUIRED_COLUMNS if c != "time"}  # run totals
+        self._last_row: dict[str, float] | None = None  # the last forwarded record
+        self.totals: dict[str, float] = {}  # state key -> run total so far (TOTAL_KEYS)
+        self.run_start: str | None = None  # ISO time of the run's start (last_reset of the totals)
+        self.in_charge: str | None = None
+        self.fallback_reason = ""
+        self.fallback_kinds: dict[str, int] = {}  # fallback kind -> steps
+        self.setpoints_held = 0  # steps the house ran on an earlier step's set-points
+        self.retained_cleared = 0
+        self.replayed_measurements = 0
+        self._house_foreign = 0  # foreign messages the house reported (its records)
+        self._foreign_reported = 0
+        self._ha_state_text = json.dumps(self._ha_state(None))
 
         self._wake = self.create_guard_condition(self._on_mqtt)
-        subs = [*self._topic_measurement, *self._switch_topics]
+        subs = [*self._topic_measurement, *self._switch_topics, *self._switch_states, *self._setting_topics,
+                *self._setting_states, self.map.step_topic, self.map.run_topic]
         if self.map.sim_record_topic:
             subs.append(self.map.sim_record_topic)
         self.link = MqttLink(self.map.broker, client_id, subs,
@@ -165,46 +241,120 @@ class MqttBridge(LockStepMaster):
         self.create_timer(self.watchdog_period_s, self._watchdog)
         self.get_logger().info(
             f"bridge to {self.map.broker.url} (user: {self.map.broker.username or 'anonymous'}, "
-            f"TLS: {self.map.broker.tls}), clock {self.clock.spec()}, {len(m)} measurements, "
+            f"TLS: {self.map.broker.tls}), run '{self.peer.run_id}' (authentication codes: "
+            f"{'on' if self.peer.key else 'off'}), clock {self.clock.spec()}, {len(m)} measurements, "
             f"device limits {self.limiter.limits}"
         )
 
     # ------------------------------------------------------------------ MQTT side
     def _on_connect(self) -> None:
-        """(paho thread) Availability, discovery, switch states and the run message again."""
+        """(paho thread) The state, discovery, availability and the run message again.
+
+        The state goes first: a client that sees ``online`` sees this run's state, never
+        the previous run's retained one. The switch states follow from the ROS thread once
+        the retained commands have arrived (:meth:`_settle_switches`).
+        """
         link = self.link
-        link.publish(self.map.availability_topic, AVAILABLE, retain=True)
+        link.publish(self.map.state_topic, self._ha_state_text, retain=True)
         if self.map.discovery:
-            for topic, payload in discovery_messages(self.map):
-                link.publish(topic, json.dumps(payload), retain=True)
-        for name, on in self.switches.items():
-            link.publish(self.map.switch_topics(name)[1], PAYLOAD_ON if on else PAYLOAD_OFF, retain=True)
+            for topic, payload in discovery_messages(self.map, self.limiter.device_limits):
+                link.publish(topic, json.dumps(payload) if payload is not None else "", retain=True)
+        link.publish(self.map.availability_topic, AVAILABLE, retain=True)
         if self.t0_unix_s is not None:
             link.publish(self.map.run_topic, self._run_payload(), retain=True)
 
-    def _run_payload(self) -> str:
-        return json.dumps({"clock": self.clock.spec(), "t0_unix_s": self.t0_unix_s, "period_s": self.clock.period_s})
+    def _run_payload(self) -> bytes:
+        body = json.dumps({"clock": self.clock.spec(), "t0_unix_s": self.t0_unix_s, "period_s": self.clock.period_s})
+        return self.peer.wrap(self.map.run_topic, body.encode())
+
+    def _settle_switches(self, now: float) -> bool:
+        """Whether the switches are settled after the last connect (every subscription
+        acknowledged :data:`SWITCH_SETTLE_S` ago, and the retained messages that came with
+        them taken in); publishes their states once per connect."""
+        t = self.link.t_subscribed
+        if t is None or now - t < SWITCH_SETTLE_S:
+            return False
+        if self._switches_published != self.link.connects:
+            self._on_mqtt()  # the retained commands queued by now: applied before any step
+            self._switches_published = self.link.connects
+            for name, on in self.switches.items():
+                self.link.publish(self.map.switch_topics(name)[1], PAYLOAD_ON if on else PAYLOAD_OFF, retain=True)
+            for name, value in self.settings.items():
+                self.link.publish(self.map.setting_topics(name)[1], f"{value:g}", retain=True)
+        return True
 
     def _on_mqtt(self) -> None:
+        m = self.map
         for msg in self.link.drain():
             name = self._topic_measurement.get(msg.topic)
             if name is not None:
+                self._on_measurement(name, msg.payload, msg.t_recv)
+            elif msg.topic == m.sim_record_topic:
                 try:
-                    value, step = self.map.measurements[name].decode(msg.payload)
-                except PayloadError as exc:
-                    self.bad_measurements += 1
-                    self.event("rejected", f"measurement '{name}': {exc}")
-                    # lock-step: the house sends only the step the bridge waits for, so
-                    # the unreadable value stands for it (and gets the fallback)
-                    value, step = math.nan, (self.k if self.phase == "measure" and not self.clock.wall else None)
-                self.watchdog.update(name, value, step, msg.t_recv)
-                self._t_house = msg.t_recv
-            elif msg.topic == self.map.sim_record_topic:
-                self._on_record(msg.payload)
-                self._t_house = msg.t_recv
+                    self._on_record(self.peer.unwrap(msg.topic, msg.payload))
+                    self._t_house = msg.t_recv
+                except ForeignMessageError as exc:
+                    self._foreign(exc)
             elif msg.topic in self._switch_topics:
-                self._on_switch(self._switch_topics[msg.topic], msg.payload)
+                self._on_switch(self._switch_topics[msg.topic], msg.payload, command=True)
+            elif msg.topic in self._switch_states:
+                if msg.retain:  # the state this bridge (or an earlier one) confirmed: the user's last choice
+                    self._on_switch(self._switch_states[msg.topic], msg.payload, command=False)
+            elif msg.topic in self._setting_topics:
+                self._on_setting(self._setting_topics[msg.topic], msg.topic, msg.payload, command=True)
+            elif msg.topic in self._setting_states:
+                if msg.retain:
+                    self._on_setting(self._setting_states[msg.topic], msg.topic, msg.payload, command=False)
+            elif msg.topic in (m.step_topic, m.run_topic):
+                self._on_own_retained(msg.topic, msg.payload)
         self._advance()
+
+    def _on_measurement(self, name: str, payload: bytes, t_recv: float) -> None:
+        try:
+            value, step = self.map.measurements[name].decode(self.peer.unwrap(self.map.measurements[name].topic,
+                                                                              payload))
+        except ForeignMessageError as exc:
+            self._foreign(exc)
+            return
+        except PayloadError as exc:
+            self.bad_measurements += 1
+            self.event("rejected", f"measurement '{name}': {exc}")
+            # lock-step: the house sends only the step the bridge waits for, so
+            # the unreadable value stands for it (and gets the fallback)
+            value, step = math.nan, (self.k if self.phase == "measure" and not self.clock.wall else None)
+        last = self.watchdog.latest.get(name)
+        if step is not None and last is not None and last.step is not None and step < last.step:
+            self.replayed_measurements += 1  # a repeat or replay of an earlier step: not for a later one
+            return
+        self.watchdog.update(name, value, step, t_recv)
+        self._t_house = t_recv
+
+    def _foreign(self, exc: ForeignMessageError) -> None:
+        """A message not from the run's peer: counted (:attr:`peer`), named on plant/events (the
+        first ones, then every hundredth), not applied."""
+        n = self.peer.foreign_total
+        if n <= 3 or n % 100 == 0:
+            self.event("foreign_mqtt", f"{exc} (not applied; {n} foreign message(s) so far)")
+
+    def _on_own_retained(self, topic: str, payload: bytes) -> None:
+        """A message on this bridge's step or run topic: its own (ignored), or a retained one
+        of another run, which is cleared (an empty retained message) and named."""
+        if not payload:
+            return
+        try:
+            run = parse_run_json(topic, payload).run
+        except ValueError:
+            run = None
+        if run == self.peer.run_id:
+            return
+        self.retained_cleared += 1
+        self.link.publish(topic, b"", retain=True)
+        self.event("retained_cleared", f"retained '{topic}' of {('run ' + repr(run)) if run else 'no run'} "
+                                       f"({payload[:60]!r}) cleared: not this run's ('{self.peer.run_id}')")
+        if self.started and topic == self.map.run_topic and self.t0_unix_s is not None and not self.done:
+            self.link.publish(topic, self._run_payload(), retain=True)  # in case the clear overtook ours
+        elif self.started and topic == self.map.step_topic:
+            self._publish_step_msg()
 
     def _on_record(self, payload: bytes) -> None:
         try:
@@ -216,14 +366,46 @@ class MqttBridge(LockStepMaster):
         if step >= self.next_record:
             self._records[step] = rec
 
-    def _on_switch(self, name: str, payload: bytes) -> None:
+    def _on_switch(self, name: str, payload: bytes, command: bool) -> None:
         text = payload.decode("utf-8", errors="replace").strip().upper()
+        if not text:
+            return  # a cleared retained command
         if text not in (PAYLOAD_ON, PAYLOAD_OFF):
             self.event("rejected", f"switch '{name}': payload {text[:20]!r} is not ON/OFF")
             return
+        if not command and name in self._switch_by_command:
+            return  # a command (the newer word) already set it
+        if command:
+            self._switch_by_command.add(name)
+        changed = self.switches[name] != (text == PAYLOAD_ON)
         self.switches[name] = text == PAYLOAD_ON
-        self.link.publish(self.map.switch_topics(name)[1], text, retain=True)
-        self.event("switch", f"{name} {text}")
+        if command:
+            self.link.publish(self.map.switch_topics(name)[1], text, retain=True)
+        if changed or command:
+            self.event("switch", f"{name} {text}{'' if command else ' (kept from before the restart)'}")
+
+    def _on_setting(self, name: str, topic: str, payload: bytes, command: bool) -> None:
+        """A user's setting (Home Assistant ``number``): applied from the next command on."""
+        if not payload:
+            return  # a cleared retained message
+        key = f"setting:{name}"
+        if not command and key in self._switch_by_command:
+            return
+        try:
+            value = parse_setting(topic, payload, 0.0, setting_max(self.limiter.device_limits, name))
+        except SettingError as exc:
+            self.event("rejected", f"setting '{name}': {exc}")
+            return
+        if command:
+            self._switch_by_command.add(key)
+        changed = value != self.settings[name]
+        self.settings[name] = value
+        lo, hi = self.limiter.set_power_limit(SETTINGS[name][2], value)
+        if command:
+            self.link.publish(self.map.setting_topics(name)[1], f"{value:g}", retain=True)
+        if changed or command:
+            self.event("setting", f"{name} {value:g} ({SETTINGS[name][2]} within [{lo:g}, {hi:g}])"
+                                  f"{'' if command else ' (kept from before the restart)'}")
 
     def _send_setpoints(self, k: int, action: Action, fallback: bool) -> None:
         """Set-points of ``action`` tagged ``k`` (held back while the rate limit is in force)."""
@@ -232,31 +414,60 @@ class MqttBridge(LockStepMaster):
             self._held = (k, action, fallback)
             return
         self._held = None
-        self._sent = [(spec.topic, spec.encode(float(getattr(action, name)), k))
+        self._sent = [(spec.topic, self.peer.wrap(spec.topic, spec.encode(float(getattr(action, name)), k)))
                       for name, spec in self.map.setpoints.items()]
         for topic, payload in self._sent:
             self.link.publish(topic, payload)
         self.limiter.sent(now)
         self._t_sent = now
         self.fallback_for[k] = fallback
+        if not fallback:
+            self.in_charge = "ems"
         self._last_action = action
         self.phase = "sent"
         self._publish_ha_state(k)
 
-    def _publish_ha_state(self, k: int) -> None:
+    def _ha_state(self, k: int | None, final: dict[str, float] | None = None) -> dict[str, Any]:
+        """Home Assistant's state JSON (:data:`~comems4build_ros.mqtt.discovery.SENSORS`);
+        ``k`` None: the run has not started (every value unknown). ``final``: the last
+        record, whose end-of-step state stands for the measurements after the last step."""
+        state: dict[str, Any] = {"run": self.peer.run_id, "run_start": self.run_start, "step": k,
+                                 "alarm": PAYLOAD_ON if k is not None and self._alarm_step == k else PAYLOAD_OFF}
+        started = k is not None
         a = self._last_action
-        state = {
-            "step": k,
-            "hp_mode": HP_MODE_WORDS.get(a.hp_mode, str(a.hp_mode)),
-            "hp_mod_pct": round(100.0 * a.hp_mod, 3),
-            "p_fc_w": round(a.p_fc_w, 3),
-            "p_bess_w": round(a.p_bess_w, 3),
-            **{key: round(v, 6) for key, v in self.kpis.items()},
-            "fallback_steps": self.fallback_steps,
-            "clamped_commands": self.limiter.counters.clamped_commands,
-            "alarm": PAYLOAD_ON if self._alarm_step == k else PAYLOAD_OFF,
-        }
-        self.link.publish(self.map.state_topic, json.dumps(state), retain=True)
+        last = self._last_row
+        for s in SENSORS:
+            if s.key in state or not announced(self.map, s):
+                continue
+            value: Any = None
+            if not started:
+                pass
+            elif s.key in TOTAL_KEYS:
+                value = self.totals.get(s.key, 0.0)
+            elif s.source == FROM_RECORDS:
+                value = _record_power(s.key, last) if last is not None else None
+            elif s.source != FROM_BRIDGE:  # a measurement: what the EMS sees
+                name = s.source
+                v = final[name] if final is not None and name in final else self.watchdog.value(name)
+                value = None if not math.isfinite(v) else round(100.0 * v if s.key in PERCENT_KEYS else v, 4)
+            else:
+                value = {
+                    "in_charge": self.in_charge,
+                    "fallback_reason": self.fallback_reason or None,
+                    "hp_mode": HP_MODE_WORDS.get(a.hp_mode, str(a.hp_mode)),
+                    "hp_mod_pct": round(100.0 * a.hp_mod, 3),
+                    "p_fc_set_w": round(a.p_fc_w, 3),
+                    "p_bess_set_w": round(a.p_bess_w, 3),
+                    "fallback_steps": self.fallback_steps,
+                    "clamped_commands": self.limiter.counters.clamped_commands,
+                    "foreign_messages": self.peer.foreign_total + self._house_foreign,
+                }.get(s.key)
+            state[s.key] = value
+        return state
+
+    def _publish_ha_state(self, k: int | None, final: dict[str, float] | None = None) -> None:
+        self._ha_state_text = json.dumps(self._ha_state(k, final))
+        self.link.publish(self.map.state_topic, self._ha_state_text, retain=True)
 
     # ------------------------------------------------------------------ ROS side
     def _alarm(self, k: int, kind: str, detail: str, action: Action | None) -> None:
@@ -342,7 +553,14 @@ class MqttBridge(LockStepMaster):
 
     def _publish_step(self, k: int) -> None:
         self.publish_step(k)
-        self.link.publish(self.map.step_topic, str(k), retain=True)
+        self._announced = k
+        self._publish_step_msg()
+
+    def _publish_step_msg(self) -> None:
+        """``<base>/step`` (retained, sealed): the step announced last and the records forwarded
+        (the house's acknowledgement of both)."""
+        body = json.dumps({"step": self._announced, "records": self.next_record})
+        self.link.publish(self.map.step_topic, self.peer.wrap(self.map.step_topic, body.encode()), retain=True)
 
     def _fallback(self, k: int, kind: str, detail: str) -> None:
         w = self.watchdog
@@ -354,6 +572,9 @@ class MqttBridge(LockStepMaster):
             t_min = self._truth[max(self._truth)][1]
         action = safe_action(t_air, v_dhw, t_min, self.params)
         self.fallback_steps += 1
+        self.fallback_kinds[kind] = self.fallback_kinds.get(kind, 0) + 1
+        self.in_charge = IN_CHARGE_OF_KIND.get(kind, "fallback_watchdog")
+        self.fallback_reason = f"step {k}: {kind}: {detail}"
         self.note_fallback(ems_silent=kind == "ems_silent")
         self.event("fallback", f"{kind}: {detail}: safe action hp_mode={action.hp_mode} hp_mod={action.hp_mod} "
                                 f"(fallback steps: {self.fallback_steps})")
@@ -377,6 +598,7 @@ class MqttBridge(LockStepMaster):
 
     # ------------------------------------------------------------------ stepping
     def _forward_records(self) -> None:
+        forwarded = False
         while self.next_record in self._records:
             k = self.next_record
             rec = self._records.pop(k)
@@ -391,21 +613,44 @@ class MqttBridge(LockStepMaster):
                 row = None
             if row is not None:
                 self._record.publish(row)
-                self._update_kpis(rec)
+                self._last_row = dict(zip(self._record_labels, row))
+                for c, values in self._columns.items():
+                    values.append(self._last_row[c])
                 self.publish_clock(float(rec["time_unix_s"]))
+                self._check_record(k, rec)
             self.next_record = k + 1
             if self.n_steps is None and "n_steps" in rec:
                 self.n_steps = int(rec["n_steps"])
+            forwarded = True
+        if forwarded:
+            self._update_totals()
+            self._publish_step_msg()  # the house may forget these records
 
-    def _update_kpis(self, rec: dict[str, float]) -> None:
-        one = np.ones(1)
-        self.kpis["cost_eur"] += (kpi.cost_eur(rec["price_buy_eur_per_kwh"] * one, rec["p_buy_w"] * one, self.dt_h)
-                                  - kpi.cost_eur(rec["price_sell_eur_per_kwh"] * one, rec["p_sell_w"] * one,
-                                                 self.dt_h))
-        self.kpis["discomfort_kh"] += kpi.discomfort_kh(rec["t_air_c"] * one, rec["t_min_c"] * one,
-                                                        rec["t_max_c"] * one, self.dt_h)
-        self.kpis["grid_import_kwh"] += rec["p_buy_w"] * self.dt_h / W_PER_KW
-        self.kpis["grid_export_kwh"] += rec["p_sell_w"] * self.dt_h / W_PER_KW
+    def _check_record(self, k: int, rec: dict[str, Any]) -> None:
+        """Name what the house's record of step ``k`` says went wrong on its side."""
+        of = rec.get("setpoints_of_step", k)
+        if isinstance(of, (int, float)) and int(of) != k:
+            self.setpoints_held += 1
+            held = f"those of step {int(of)}" if of >= 0 else "none (the devices idle)"
+            self.event("setpoints_held", f"ran on the set-points the house held, {held}: the step's own did not "
+                                         "reach it before the step's end (a broker outage, or late)", step=k)
+        foreign = rec.get("foreign_messages", 0)
+        if isinstance(foreign, (int, float)) and foreign > self._house_foreign:
+            self.event("foreign_mqtt", f"the house did not apply {int(foreign - self._house_foreign)} foreign "
+                                       f"message(s) ({int(foreign)} so far)")
+            self._house_foreign = int(foreign)
+
+    def _update_totals(self) -> None:
+        """The run totals over every record so far (:func:`comems4build_ros.core.kpi.run_totals`:
+        the arithmetic of summary.json, which reads the same records from the bag)."""
+        import numpy as np
+        import pandas as pd
+
+        ts = pd.DataFrame({c: np.asarray(v, dtype=float) for c, v in self._columns.items()})  # columns: fast
+        c = self.params.comfort
+        t_comfort = kpi.comfort_sample_c(ts, c.discomfort_sample, self.params.simulation.t_air_init_c)
+        totals = kpi.run_totals(ts, self.dt_h, t_comfort)
+        self.totals = {key: totals[name] for key, name in TOTAL_KEYS.items()}
 
     def _advance(self) -> None:
         if not self.started or self.done:
@@ -437,6 +682,7 @@ class MqttBridge(LockStepMaster):
             self.t0_unix_s = self.clock.first_boundary(time.time(), lead_s=min(1.0, self.clock.period_s))
         else:
             self.t0_unix_s = time.time()
+        self.run_start = datetime.fromtimestamp(time.time(), UTC).isoformat(timespec="seconds")
         self.link.publish(self.map.run_topic, self._run_payload(), retain=True)
         self._t_phase = time.monotonic()
         self.get_logger().info(f"starting the run (clock {self.clock.spec()}, t0 {self.t0_unix_s:.3f})")
@@ -496,11 +742,12 @@ class MqttBridge(LockStepMaster):
         if not self.started:
             late = now - self._t_created > self.startup_timeout_s
             heard = all(m in self.watchdog.latest for m in self.map.measurements if self.map.measurements[m].required)
-            ready = self.link.connected.is_set() and self.recorder_ready() and (
+            ready = self.link.connected.is_set() and self._settle_switches(now) and self.recorder_ready() and (
                 self._cmd_sub.get_publisher_count() > 0 or late) and (heard or late)
             if ready:
                 self._start()
             return
+        self._settle_switches(now)
         if self._held is not None and self.limiter.may_send(now):
             self._send_setpoints(*self._held)
         if self.clock.wall:
@@ -536,18 +783,39 @@ class MqttBridge(LockStepMaster):
             "untagged_announcements": float(self.untagged_announcements),
             "alarms": float(self.alarms),
             "mqtt_connects": float(self.link.connects),
+            "mqtt_reconnects": float(max(self.link.connects - 1, 0)),
+            "setpoints_held": float(self.setpoints_held),
+            "foreign_mqtt": float(self.peer.foreign_total),
+            "house_foreign_mqtt": float(self._house_foreign),
+            "retained_cleared": float(self.retained_cleared),
+            "replayed_measurements": float(self.replayed_measurements),
+            **{f"fallback_{kind}": float(n) for kind, n in sorted(self.fallback_kinds.items())},
         }
 
     def _finish(self) -> None:
         def tell_house() -> None:
             self._publish_step(self.n_steps or self.k)  # the house's acknowledgement
             self.link.publish(self.map.run_topic, "", retain=True)
+            last = self._last_row
+            final = {name: float(last[name]) for name in ("soc", "loh", "t_air_c", "v_dhw_l") if name in last} \
+                if last is not None else None
+            self._publish_ha_state(self.n_steps or self.k, final)  # with the last step's record
 
         self.finish_run(tell_house)
 
     def destroy_node(self) -> None:  # noqa: D102
         self.link.stop(final=(self.map.availability_topic, NOT_AVAILABLE))
         super().destroy_node()
+
+
+def _record_power(key: str, rec: dict[str, float]) -> float | None:
+    """A power of the house's last record for Home Assistant [W]: battery charging minus
+    discharging (``p_bess_w``), grid purchase minus feed-in (``p_grid_w``), else the record's."""
+    if key == "p_bess_w":
+        return round(rec["p_ch_w"] - rec["p_dis_w"], 3)
+    if key == "p_grid_w":
+        return round(rec["p_buy_w"] - rec["p_sell_w"], 3)
+    return round(rec[key], 3) if key in rec else None
 
 
 def main(args: list[str] | None = None) -> int:
