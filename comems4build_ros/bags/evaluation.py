@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from comems4build_ros.bags.bag import NS_PER_S, BagInfo, bag_set, decode, iter_messages, ns_key
+from comems4build_ros.files.inputs import load_json_text
 from comems4build_ros.wire.contract import EVENTS_TOPIC, WITHHELD_EVENT, event_step_kind
 
 #: Topic (relative contract name) with one timeseries row per step.
@@ -94,16 +95,13 @@ class BagRun:
 
 def read_run_info(path: str | Path) -> dict[str, Any]:
     """The ``run_info.json`` beside the MCAP file (``{}`` if absent)."""
-    import json
+    from comems4build_ros.files.inputs import load_json_file
 
     p = bag_set(path)[0]
     f = (p if p.is_dir() else p.parent) / RUN_INFO_FILE
-    if not f.is_file():
+    if not f.exists():
         return {}
-    try:
-        out = json.loads(f.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{f}: invalid JSON: {exc}") from None
+    out = load_json_file(f, "the bag's run information")
     if not isinstance(out, dict):
         raise ValueError(f"{f}: expected a JSON object")
     return out
@@ -133,7 +131,6 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
         If the bag has no ``plant/record`` topic, a record does not match the contract
         layout, or steps are missing in the middle of a run (naming topic and steps).
     """
-    import json
 
     import pandas as pd
 
@@ -178,7 +175,7 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
         ns = _split(topic, INFO_TOPIC)
         if ns is not None:
             try:
-                msg = json.loads(decode(msgtype, raw).data)
+                msg = load_json_text(decode(msgtype, raw).data, f"bag {path}: topic '{topic}'")
                 step = int(msg["step"])
                 infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
             except (ValueError, KeyError, TypeError) as exc:
@@ -207,9 +204,9 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
         ns = _split(topic, FEED_INFO_TOPIC)
         if ns is not None:
             try:
-                scenarios.setdefault(ns, dict(json.loads(decode(msgtype, raw).data)))
+                scenarios.setdefault(ns, dict(load_json_text(decode(msgtype, raw).data, f"bag {path}: '{topic}'")))
             except (ValueError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid JSON: {exc}") from None
+                raise ValueError(f"bag {path}: topic '{topic}': invalid scenario information: {exc}") from None
     if not records:
         topics = ", ".join(sorted(info.topics)) or "none"
         damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
@@ -529,13 +526,13 @@ def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], Ba
 
 def read_run_cut(path: str | Path) -> dict[str, Any]:
     """The :data:`RUN_CUT_FILE` of one bag (``{}`` if the run was not cut or the file is unreadable)."""
-    import json
+    from comems4build_ros.files.inputs import load_json_file
 
     p = Path(path)
     f = (p if p.is_dir() else p.parent) / RUN_CUT_FILE
     try:
-        doc = json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        doc = load_json_file(f, "the mark of a cut run")
+    except ValueError:
         return {}
     return doc if isinstance(doc, dict) else {}
 

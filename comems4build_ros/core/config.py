@@ -23,10 +23,12 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
+from comems4build_ros.files.inputs import InputFileError, load_yaml_file, load_yaml_text, path_kind
 from comems4build_ros.files.paths import PACKAGE, SOURCE_ROOT, shared_path
+
+__all__ = ["path_kind"]  # re-exported: the check of an input path
 
 #: Hours per second, seconds per hour and similar named conversion factors.
 SECONDS_PER_HOUR = 3600.0
@@ -74,50 +76,18 @@ def default_plant_file() -> Path:
     return config_dir() / "plant.yaml"
 
 
-#: libyaml's safe loader where PyYAML has it (same documents, about 10x faster: every node
-#: process parses the contract and the plant parameters at start-up), else the Python one.
-SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-
 def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError) -> Any:
-    """Parse a YAML file; ``error`` names the file (and ``what`` it is) when that fails.
+    """Parse a YAML file through the project's one YAML loader (:func:`comems4build_ros.files.inputs.load_yaml_file`).
 
-    A directory, a device, a file that is not UTF-8 text (e.g. binary) and invalid YAML are
-    each reported as such.
+    ``error`` names the file (and ``what`` it is) when that fails: a directory, a device, a
+    file that is not UTF-8 text (e.g. binary), invalid YAML, a document over the loader's
+    limits (size, depth, aliases), a key that is not a string or is given twice, each with
+    the line and column.
     """
-    path = Path(path)
-    kind = path_kind(path)
-    if kind:
-        raise error(f"{path}: cannot read {what}: {kind}")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise error(f"{path}: cannot read {what}: {exc.strerror}") from exc
-    except UnicodeDecodeError as exc:
-        raise error(
-            f"{path}: cannot read {what}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
-            f"{exc.start}); a binary file?"
-        ) from None
-    try:
-        return yaml.load(text, Loader=SAFE_LOADER)  # noqa: S506 (a safe loader)
-    except yaml.YAMLError as exc:
-        raise error(f"{path}: invalid YAML: {exc}") from exc
-
-
-def path_kind(path: str | Path) -> str:
-    """Why ``path`` cannot be read as a data file (``""`` if it is an existing regular file).
-
-    ``"no such file"``, ``"is a directory"`` or ``"is not a regular file (a device, FIFO or
-    socket)"``, e.g. for ``/dev/null``.
-    """
-    p = Path(path)
-    if p.is_dir():
-        return "is a directory"
-    if not p.exists():
-        return "no such file"
-    if not p.is_file():
-        return "is not a regular file (a device, FIFO or socket)"
-    return ""
+        return load_yaml_file(path, what)
+    except InputFileError as exc:
+        raise error(str(exc)) from None
 
 
 def check_input_file(path: str | Path, what: str) -> Path:
@@ -204,10 +174,9 @@ def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
         if not sep or not key.strip():
             raise ConfigError(f"{what} '{item}' is not KEY=VALUE")
         try:
-            out[key.strip()] = yaml.load(value, Loader=SAFE_LOADER)  # noqa: S506 (a safe loader)
-        except yaml.YAMLError as exc:
-            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise ConfigError(f"{what} '{item}': the value is not valid YAML ({problem})") from None
+            out[key.strip()] = load_yaml_text(value, f"{what} '{item}'")
+        except InputFileError as exc:
+            raise ConfigError(f"{exc} (the value must be valid YAML)") from None
     return out
 
 

@@ -274,14 +274,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--client-id", default="comems4build_plant_sim")
     args = ap.parse_args(argv)
     try:
-        import yaml
+        from comems4build_ros.core.config import parse_assignments
 
-        overrides = {}
-        for item in args.set:
-            key, sep, value = item.partition("=")
-            if not sep:
-                raise ConfigError(f"--set {item}: not KEY=VALUE")
-            overrides[key.strip()] = yaml.safe_load(value)
+        overrides = parse_assignments(args.set, "--set")
         params = load_plant_params(args.config, overrides)
         topic_map = load_topic_map(args.topic_map, args.broker)
         clock = parse_clock(args.clock, params.simulation.time_step_h)
