@@ -348,7 +348,8 @@ def test_evaluate_without_timeseries_leaves_no_older_timeseries(recorded_bag: Pa
     (out / "notes.txt").write_text("mine\n")
     code, _, err = run_cli(["evaluate", recorded_bag, "--no-timeseries", "--out", out], capsys)
     assert code == 0, err
-    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "summary.json", "weekly.csv"]
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["notes.txt", "summary.json",
+                                                                                   "weekly.csv"]
 
 
 def _interrupt_at(monkeypatch: pytest.MonkeyPatch, n: int) -> None:

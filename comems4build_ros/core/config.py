@@ -176,7 +176,7 @@ def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
         try:
             out[key.strip()] = load_yaml_text(value, f"{what} '{item}'")
         except InputFileError as exc:
-            raise ConfigError(f"{exc} (the value must be valid YAML)") from None
+            raise ConfigError(f"{what} '{item}': the value is not valid YAML ({exc.problem})") from None
     return out
 
 

@@ -56,7 +56,28 @@ _MERGE = "tag:yaml.org,2002:merge"
 
 
 class InputFileError(ValueError):
-    """A file that cannot be read as the input it should be; the message names the file and where."""
+    """A file that cannot be read as the input it should be; the message names the file and where.
+
+    ``problem``: the reason alone, without the source (for messages that name it their own way).
+    """
+
+    def __init__(self, message: str, problem: str = "") -> None:
+        super().__init__(message)
+        self.problem = problem or message
+
+
+def _located(source: str, mark: Any, problem: str) -> InputFileError:
+    """An :class:`InputFileError` at ``source:line:column`` of ``mark``."""
+    return InputFileError(f"{_where(source, mark)}: {problem}", problem)
+
+
+def _yaml_error(source: str, exc: yaml.YAMLError) -> InputFileError:
+    """An :class:`InputFileError` of a PyYAML error: source, line, column and the problem in one line."""
+    mark = getattr(exc, "problem_mark", None) or getattr(exc, "context_mark", None)
+    problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
+    context = getattr(exc, "context", None)
+    text = f"{problem} ({context})" if context else str(problem)
+    return InputFileError(f"{_where(source, mark)}: invalid YAML: {text}", text)
 
 
 def _where(source: str, mark: Any) -> str:
@@ -134,13 +155,13 @@ def _check_events(text: str, source: str) -> None:
             if isinstance(event, yaml.DocumentStartEvent):
                 documents += 1
                 if documents > 1:
-                    raise InputFileError(f"{_where(source, event.start_mark)}: more than one YAML document "
+                    raise _located(source, event.start_mark, "more than one YAML document "
                                          "(a '---' line inside the file?)")
                 continue
             if isinstance(event, yaml.CollectionStartEvent):
                 stack.append([event.anchor, 1])
                 if len(stack) > MAX_DEPTH:
-                    raise InputFileError(f"{_where(source, event.start_mark)}: nested more than {MAX_DEPTH} levels "
+                    raise _located(source, event.start_mark, f"nested more than {MAX_DEPTH} levels "
                                          "deep")
                 continue
             if isinstance(event, yaml.CollectionEndEvent):
@@ -153,10 +174,10 @@ def _check_events(text: str, source: str) -> None:
             elif isinstance(event, yaml.AliasEvent):
                 aliases += 1
                 if aliases > MAX_ALIASES:
-                    raise InputFileError(f"{_where(source, event.start_mark)}: more than {MAX_ALIASES} YAML "
+                    raise _located(source, event.start_mark, f"more than {MAX_ALIASES} YAML "
                                          "aliases")
                 if any(entry[0] == event.anchor for entry in stack):
-                    raise InputFileError(f"{_where(source, event.start_mark)}: the alias *{event.anchor} refers "
+                    raise _located(source, event.start_mark, f"the alias *{event.anchor} refers "
                                          "to a node that contains it (a recursive alias)")
                 if event.anchor not in sizes:  # a scalar's anchor, or undefined (the composer names it)
                     size = 1
@@ -173,10 +194,10 @@ def _check_events(text: str, source: str) -> None:
             else:
                 continue
             if (stack and stack[-1][1] > MAX_NODES) or total > MAX_NODES:
-                raise InputFileError(f"{_where(source, event.start_mark)}: more than {MAX_NODES} nodes with "
+                raise _located(source, event.start_mark, f"more than {MAX_NODES} nodes with "
                                      "its aliases expanded (an alias chain that multiplies the document?)")
     except yaml.YAMLError as exc:
-        raise InputFileError(f"{source}: invalid YAML: {exc}") from None
+        raise _yaml_error(source, exc) from None
 
 
 def _check_keys(node: yaml.Node, source: str) -> None:
@@ -196,11 +217,11 @@ def _check_keys(node: yaml.Node, source: str) -> None:
                     continue
                 if not isinstance(key, yaml.ScalarNode) or key.tag != _STR:
                     shown = key.value if isinstance(key, yaml.ScalarNode) else f"a {key.id}"
-                    raise InputFileError(f"{_where(source, key.start_mark)}: key {shown!r} is not a string "
+                    raise _located(source, key.start_mark, f"key {shown!r} is not a string "
                                          "(write it in quotes if it is meant as a name)")
                 if key.value in keys:
                     first = keys[key.value]
-                    raise InputFileError(f"{_where(source, key.start_mark)}: key '{key.value}' given twice in one "
+                    raise _located(source, key.start_mark, f"key '{key.value}' given twice in one "
                                          f"mapping (first at line {first.line + 1}, column {first.column + 1})")
                 keys[key.value] = key.start_mark
                 todo.append(value)
@@ -237,7 +258,7 @@ def load_yaml_text(text: str, source: str) -> Any:
         _check_keys(node, source)
         return loader.construct_document(node)
     except yaml.YAMLError as exc:
-        raise InputFileError(f"{source}: invalid YAML: {exc}") from None
+        raise _yaml_error(source, exc) from None
     except RecursionError:  # not reached within MAX_DEPTH; a last guard
         raise InputFileError(f"{source}: nested too deeply") from None
     finally:

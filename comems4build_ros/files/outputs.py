@@ -306,6 +306,7 @@ class OutputDir:
         self.stage = Path()
         self._lock_fd: int | None = None
         self._created = False
+        self._committed = False
         self.lock_name = LOCK_FILE
 
     # -- checks
@@ -393,6 +394,13 @@ class OutputDir:
         if exc_type is not None:
             self._abandon()
             return
+        self.commit()
+        self._unlock()
+
+    def commit(self) -> None:
+        """Put the stage's entries in place now (once; the lock is kept until the block ends)."""
+        if self._committed:
+            return
         try:
             self._commit()
         except BaseException as err:
@@ -400,11 +408,11 @@ class OutputDir:
             if isinstance(err, OSError) and not isinstance(err, OutputPathError):
                 raise _named(err, self.path) from err
             raise
-        self._unlock()
+        self._committed = True
 
     def _abandon(self) -> None:
         """Remove the stage (and the directory if this command created it and it is empty); unlock."""
-        if self.stage != Path():
+        if self.stage != Path() and not self._committed:
             shutil.rmtree(self.stage, ignore_errors=True)
         self._unlock()
         if self._created:

@@ -273,6 +273,8 @@ def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
     (:func:`comems4build_ros.files.outputs.check_not_input`); a ``--scenario`` that names an
     embedded scenario (``default``, ``year``, ``synthetic``) is no path. ``evaluate``'s
     positional bag is ``BAG``; ``launch``'s ``--bag`` is an output, not an input.
+    ``--from-runs DIR`` reads ``DIR/runs/`` and the study's record in ``DIR``
+    (``compare.json``, ``reproduce.json``), so that a report can be rebuilt beside its runs.
     """
     from pathlib import Path
 
@@ -283,7 +285,9 @@ def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
             continue
         values = [str(v) for v in (value if isinstance(value, list | tuple) else [value]) if str(v)]
         if name == "scenario":
-            values = [v for v in values if Path(v).exists()]
+            values = [v for v in values if Path(v).is_file()]
+        if name == "from_runs":
+            values = [str(Path(v) / sub) for v in values for sub in ("runs", "compare.json", "reproduce.json")]
         if values:
             out["BAG" if name == "bag" else f"--{name.replace('_', '-')}"] = values
     return out

@@ -12,6 +12,9 @@ from typing import Any
 
 from comems4build_ros.app.commands.options import COUNT, SEED, WEEKS, add_executor_options, ems_help
 
+#: What ``size`` writes into its output directory.
+SIZE_FILES = ("runs", "figures", "size.csv", "size.md", "size.json", "report.md", "report.html")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``size``."""
@@ -75,13 +78,13 @@ def run(args: argparse.Namespace) -> int:
         add_scenario_config,
         check_config_files,
         ems_names,
+        output_dir,
         scenario_of,
         study_executor,
     )
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.config import ConfigError, load_plant_params
     from comems4build_ros.core.economics import load_costs
-    from comems4build_ros.files.outputs import atomic_dir, check_out_dir
     from comems4build_ros.study.sizing import (
         AXES,
         grid_points,
@@ -138,16 +141,17 @@ def run(args: argparse.Namespace) -> int:
         raise
     except ValueError as exc:
         raise UsageError(f"--start/--weeks: {exc}") from None
-    check_out_dir(args.out)
+    output = output_dir(args, "size", writes=SIZE_FILES, replaces=SIZE_FILES)
+    output.check()
     meta: dict[str, Any] = {"ems": emss, "design": design, "points": len(sized), "start": args.start,
                             "weeks": args.weeks or 52, "values": values, "set": overrides,
                             "costs": [str(Path(c).resolve()) for c in args.costs],
                             "executor": args.scheduler or f"local processes (--jobs {args.jobs or 'CPU count'})"}
     print(f"size: {len(sized) * len(emss)} runs ({len(emss)} EMS x {len(sized)} size points, {design})",
           file=sys.stderr)
-    with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
-        with atomic_dir(args.out) as stage:  # runs/, tables, figures and report replace an older study's when done
-            df = _size(args, emss, sized, costs, meta, stage)
+    with output, study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+        df = _size(args, emss, sized, costs, meta, output.stage)
+        output.commit()  # runs/, tables, figures and report replace an older study's when all are written
         executor.complete()
     out = Path(args.out)
     for ems, sub in df.groupby("ems", sort=False):
