@@ -314,7 +314,8 @@ def load_json_text(text: str | bytes, source: str) -> Any:
     try:
         return json.loads(text)
     except json.JSONDecodeError as exc:
-        raise InputFileError(f"{source}: invalid JSON: {exc}") from None
+        raise InputFileError(f"{source}: line {exc.lineno}: invalid JSON: {exc.msg} (column {exc.colno})",
+                             f"line {exc.lineno} column {exc.colno}: {exc.msg}") from None
     except RecursionError:  # not reached within MAX_DEPTH; a last guard
         raise InputFileError(f"{source}: nested too deeply") from None
 

@@ -18,7 +18,7 @@ from typing import Any
 import pandas as pd
 
 from comems4build_ros.core.kpi import REQUIRED_COLUMNS
-from comems4build_ros.files.inputs import load_json_file
+from comems4build_ros.files.inputs import InputFileError, load_json_file
 
 #: Name of the manifest file in a comparison directory.
 MANIFEST = "compare.json"
@@ -206,8 +206,8 @@ def read_run(path: str | Path, spec: RunSpec | None = None, timeseries: bool = T
         raise RunDirError(f"{summary_path}: missing")
     try:
         summary = load_json_file(summary_path, "a run's summary")
-    except ValueError as exc:
-        raise RunDirError(str(exc)) from None
+    except InputFileError as exc:
+        raise RunDirError(f"{summary_path}: not valid JSON ({exc.problem})") from None
     if not isinstance(summary, dict):
         raise RunDirError(f"{summary_path}: not a JSON object")
     missing = [k for k in SUMMARY_KEYS if k not in summary]

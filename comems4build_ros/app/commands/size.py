@@ -77,6 +77,7 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import (
         add_scenario_config,
         check_config_files,
+        ems_controller,
         ems_names,
         output_dir,
         scenario_of,
@@ -132,7 +133,9 @@ def run(args: argparse.Namespace) -> int:
         sized_keys.add(key)
         try:
             plant = load_plant_params(args.config, {**overrides, **ov})  # every point's plant checked before any run
-        except ConfigError as exc:
+            for ems in emss:  # and every EMS built on it, as its run will build it
+                ems_controller(ems, plant, [])
+        except (ConfigError, UsageError) as exc:
             raise UsageError(f"size point {point_name('', realised).lstrip('_')}: {exc}") from None
         sized.append((realised, {**overrides, **ov}, plant))
     try:
