@@ -15,6 +15,7 @@ import contextlib
 import os
 import shutil
 import tempfile
+import time
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
@@ -151,6 +152,15 @@ def _replace_entries(new: Path, path: Path, replaces: tuple[str, ...]) -> None:
         shutil.rmtree(trash, ignore_errors=True)
 
 
+def _remove(path: Path) -> None:
+    """Remove the file, link or directory tree ``path``."""
+    if path.is_dir() and not path.is_symlink():
+        shutil.rmtree(path, ignore_errors=True)
+    else:
+        with contextlib.suppress(FileNotFoundError):
+            path.unlink()
+
+
 def _named(exc: OSError, path: Path) -> OSError:
     """``exc`` naming the destination ``path`` instead of no file or a temporary one."""
     name = str(exc.filename or "")
@@ -168,6 +178,8 @@ OWNER_FILE = ".comems4build-output.json"
 LOCK_FILE = ".comems4build.lock"
 #: Prefix of the temporary directories a command writes its results into before they are renamed into place.
 STAGE_PREFIX = ".partial."
+#: Prefix of the directory that keeps an earlier result while an in-place command writes its own.
+PREVIOUS_PREFIX = ".previous."
 
 
 class OutputInUseError(OutputPathError):
@@ -292,12 +304,21 @@ class OutputDir:
     writes : ``fnmatch`` patterns of the top-level entries the command writes (``*``: any)
     replaces : patterns of owned entries removed when this command did not write them
         (``timeseries.csv`` after ``--no-timeseries``, ``house_*`` of a run with more houses)
+    in_place : the command writes into ``path`` itself (:attr:`stage` is ``path``), so that its
+        files can be watched where they end up while it runs (``launch``: the nodes' logs and the
+        bag). The earlier result (the owned entries matching ``writes``) is moved aside into a
+        hidden :data:`PREVIOUS_PREFIX` directory first; on an error or an interruption what this
+        command wrote is removed and the earlier result moved back, on success the earlier
+        result goes. A command killed meanwhile (SIGKILL) leaves the earlier result aside; the
+        next command on the directory puts it back before it starts.
     """
 
     def __init__(self, path: str | os.PathLike[str], command: str, option: str = "--out",
                  inputs: Mapping[str, Iterable[str | os.PathLike[str]]] | None = None,
-                 writes: Iterable[str] = ("*",), replaces: Iterable[str] = ()) -> None:
+                 writes: Iterable[str] = ("*",), replaces: Iterable[str] = (), in_place: bool = False) -> None:
         self.path = check_out_text(path, option)
+        self.in_place = in_place
+        self._previous: Path | None = None
         self.command = command
         self.option = option
         self.inputs = {k: [p for p in v if p is not None] for k, v in (inputs or {}).items()}
@@ -314,7 +335,25 @@ class OutputDir:
         """The checks of entry without creating or locking anything (:class:`OutputPathError`)."""
         check_out_dir(self.path, self.option)
         check_not_input(self.path, self.inputs, self.option, self.writes)
+        self._probe_lock()
         self._check_owned(self._existing(self.writes))
+
+    def _probe_lock(self) -> None:
+        """:class:`OutputInUseError` if another command holds the lock now (nothing is created)."""
+        import fcntl
+
+        try:
+            fd = os.open(self.path / self.lock_name, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
+        except OSError:
+            return  # no lock file: nobody writes here
+        try:
+            fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
+        except BlockingIOError:
+            holder = os.read(fd, 512).decode("utf-8", "replace").strip() or "another command"
+            raise OutputInUseError(f"{self.option} {self.path}: in use by {holder}; wait until it ends or choose "
+                                   f"another {self.option}") from None
+        finally:
+            os.close(fd)
 
     def _existing(self, patterns: tuple[str, ...]) -> list[str]:
         import fnmatch
@@ -322,7 +361,8 @@ class OutputDir:
         if not self.path.is_dir():
             return []
         return sorted(p.name for p in self.path.iterdir() if p.name not in (OWNER_FILE, LOCK_FILE)
-                      and not p.name.startswith(STAGE_PREFIX) and not p.name.endswith(".comems4build.lock")
+                      and not p.name.startswith((STAGE_PREFIX, PREVIOUS_PREFIX, ".replaced."))
+                      and not p.name.endswith(".comems4build.lock")
                       and any(fnmatch.fnmatchcase(p.name, pat) for pat in patterns))
 
     def _check_owned(self, names: Iterable[str]) -> None:
@@ -343,7 +383,14 @@ class OutputDir:
         for _ in range(100):
             fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
             try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                for attempt in range(5):  # another command's check (_probe_lock) holds it for microseconds
+                    try:
+                        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+                        break
+                    except BlockingIOError:
+                        if attempt == 4:
+                            raise
+                        time.sleep(0.01)
             except BlockingIOError:
                 try:
                     holder = os.read(fd, 512).decode("utf-8", "replace").strip() or "another command"
@@ -381,8 +428,17 @@ class OutputDir:
             self._lock()
             for stale in [*self.path.glob(f"{STAGE_PREFIX}*"), *self.path.glob(".replaced.*")]:  # of a killed command
                 shutil.rmtree(stale, ignore_errors=True)
+            self._restore_killed()
             self._check_owned(self._existing(self.writes))
-            self.stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=self.path))
+            if self.in_place:
+                self._previous = Path(tempfile.mkdtemp(prefix=PREVIOUS_PREFIX, dir=self.path))
+                aside = self._existing(self.writes)
+                for name in aside:  # owned (checked): the earlier result, kept aside
+                    os.replace(self.path / name, self._previous / name)
+                self._write_owner(set(read_owner(self.path).get("entries", [])) - set(aside))
+                self.stage = self.path
+            else:
+                self.stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=self.path))
         except BaseException as exc:
             self._abandon()
             if isinstance(exc, OSError) and not isinstance(exc, OutputPathError):
@@ -410,9 +466,52 @@ class OutputDir:
             raise
         self._committed = True
 
+    def previous_entries(self, pattern: str = "*") -> list[Path]:
+        """The entries of the earlier result an in-place command keeps aside (matching ``pattern``)."""
+        if self._previous is None:
+            return []
+        return sorted(self._previous.glob(pattern))
+
+    def _restore_killed(self) -> None:
+        """Put back an earlier result that an in-place command killed meanwhile had moved aside.
+
+        What that command wrote is not in the ownership record (it never finished): it goes.
+        """
+        owned = set(read_owner(self.path).get("entries", []))
+        previous_dirs = sorted(self.path.glob(f"{PREVIOUS_PREFIX}*"))
+        for previous in previous_dirs:
+            for entry in previous.iterdir():
+                dest = self.path / entry.name
+                if (dest.exists() or dest.is_symlink()) and entry.name not in owned:
+                    _remove(dest)
+                if not (dest.exists() or dest.is_symlink()):
+                    os.replace(entry, dest)
+                    owned.add(entry.name)
+            shutil.rmtree(previous, ignore_errors=True)
+        if previous_dirs:
+            self._write_owner(owned)
+
+    def _write_owner(self, entries: Iterable[str]) -> None:
+        """Write the ownership record: ``entries`` (as far as they exist)."""
+        import json
+
+        present = set(self._existing(("*",)))
+        record = {"written_by": f"comems4build {self.command}", "entries": sorted(set(entries) & present),
+                  "note": "entries comems4build wrote here and may replace; nothing else is touched"}
+        write_text_atomic(self.path / OWNER_FILE, json.dumps(record, indent=1) + "\n")
+
     def _abandon(self) -> None:
         """Remove the stage (and the directory if this command created it and it is empty); unlock."""
-        if self.stage != Path() and not self._committed:
+        if self.in_place and self._previous is not None and not self._committed:
+            for name in self._existing(self.writes):  # written by this command (the earlier result is aside)
+                _remove(self.path / name)
+            back = [entry.name for entry in self._previous.iterdir()]
+            for name in back:
+                os.replace(self._previous / name, self.path / name)
+            shutil.rmtree(self._previous, ignore_errors=True)
+            self._previous = None
+            self._write_owner(set(read_owner(self.path).get("entries", [])) | set(back))
+        elif self.stage != Path() and not self._committed and not self.in_place:
             shutil.rmtree(self.stage, ignore_errors=True)
         self._unlock()
         if self._created:
@@ -420,8 +519,13 @@ class OutputDir:
                 self.path.rmdir()  # only if empty
 
     def _commit(self) -> None:
-        import fnmatch
-        import json
+
+        if self.in_place:
+            if self._previous is not None:  # the new result stands: the earlier one goes
+                shutil.rmtree(self._previous, ignore_errors=True)
+                self._previous = None
+            self._write_owner(set(self._existing(self.writes)) | set(read_owner(self.path).get("entries", [])))
+            return
 
         names = sorted(p.name for p in self.stage.iterdir())
         self._check_owned([n for n in names if (self.path / n).exists() or (self.path / n).is_symlink()])
@@ -440,11 +544,7 @@ class OutputDir:
         finally:
             shutil.rmtree(trash, ignore_errors=True)
         shutil.rmtree(self.stage, ignore_errors=True)
-        still = sorted(n for n in (owned | set(names)) - set(stale)
-                       if (self.path / n).exists() and not fnmatch.fnmatchcase(n, f"{STAGE_PREFIX}*"))
-        record = {"written_by": f"comems4build {self.command}", "entries": still,
-                  "note": "entries comems4build wrote here and may replace; nothing else is touched"}
-        write_text_atomic(self.path / OWNER_FILE, json.dumps(record, indent=1) + "\n")
+        self._write_owner((owned | set(names)) - set(stale))
 
 
 class OutputFile(OutputDir):

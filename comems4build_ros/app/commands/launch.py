@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import argparse
-import dataclasses
 import json
 import shutil
 import sys
@@ -234,25 +233,22 @@ def run(args: argparse.Namespace) -> int:
 
         print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
         return 0
-    output = output_dir(args, "launch")
+    output = output_dir(args, "launch", in_place=True)
     output.check()
     own_bag = check_bag_dir(args, output.path)
     keys = ("weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
             "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "fallback_steps")
-    with output:  # the run writes into a stage of --out, renamed into place when it ends (a cut run too)
-        stage, out = output.stage, output.path
-        for cache in out.glob("live_*.json"):  # the live inputs' caches of earlier runs (config/live_inputs.yaml)
-            shutil.copy2(cache, stage / cache.name)
-        staged = dataclasses.replace(opts, out=stage)
-
-        def shown(text: object) -> str:  # paths as they are once the run is in place
-            return str(text).replace(str(stage.resolve()), str(out)).replace(str(stage), str(out))
-
+    # the run writes into --out itself (its logs and bag can be watched there), an earlier run's results kept
+    # aside until it ends: an interrupted run leaves them as they were, a finished or cut run replaces them
+    with output:
+        out = output.path
+        for cache in output.previous_entries("live_*.json"):  # the live inputs' caches (config/live_inputs.yaml)
+            shutil.copy2(cache, out / cache.name)
         try:
-            result = launch(staged)
+            result = launch(opts)
         except LaunchError as exc:
             # first: that the run was cut and why (the message names the node, its exit code and log)
-            print(f"comems4build launch: {shown(exc)}", file=sys.stderr)
+            print(f"comems4build launch: {exc}", file=sys.stderr)
             for ns, s in exc.summaries.items():
                 inc = s.get("bag_incomplete", {})
                 print(json.dumps({"house": ns, "run_cut": True, "steps_recorded": inc.get("steps_recorded"),

@@ -294,7 +294,7 @@ def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
 
 
 def output_dir(args: argparse.Namespace, command: str, writes: Sequence[str] = ("*",), replaces: Sequence[str] = (),
-               path: Any = None, option: str = "--out") -> Any:
+               path: Any = None, option: str = "--out", in_place: bool = False) -> Any:
     """The :class:`~comems4build_ros.files.outputs.OutputDir` of a command's ``--out``, checked against its inputs.
 
     Enter it before any run: it refuses an empty or ambiguous path, an output that is, lies
@@ -304,7 +304,7 @@ def output_dir(args: argparse.Namespace, command: str, writes: Sequence[str] = (
     from comems4build_ros.files.outputs import OutputDir
 
     return OutputDir(args.out if path is None else path, command, option=option, inputs=command_inputs(args),
-                     writes=writes, replaces=replaces)
+                     writes=writes, replaces=replaces, in_place=in_place)
 
 
 def output_file(args: argparse.Namespace, command: str, path: Any = None, option: str = "--out") -> Any:
