@@ -66,6 +66,12 @@ def _check_ancestor(start: Path, target: Path, option: str) -> None:
         raise OutputPathError(f"{option} {target}: {node} is a file, not a directory")
     if not os.access(node, os.W_OK | os.X_OK):
         raise OutputPathError(f"{option} {target}: directory {node} is not writable")
+    try:  # a read-only file system, or a directory its mode bars to others than root: tried, not asked
+        fd, probe = tempfile.mkstemp(prefix=".comems4build-probe.", dir=node)
+        os.close(fd)
+        os.unlink(probe)
+    except OSError as exc:
+        raise OutputPathError(f"{option} {target}: directory {node} is not writable ({exc.strerror})") from None
 
 
 @contextlib.contextmanager
@@ -167,6 +173,33 @@ def _named(exc: OSError, path: Path) -> OSError:
     if name and ".partial." not in name and not Path(name).name.endswith(".tmp"):
         return exc
     return OSError(exc.errno, exc.strerror or str(exc), str(path))
+
+
+#: Bytes a bag takes per step and house, an upper estimate: twice the 8 kB per step of a fuzzy run
+#: recording every EMS input (``launch --ems fuzzy --all-inputs --steps 48``: 395 kB of MCAP).
+BAG_BYTES_PER_STEP = 16 * 1024
+#: Room kept free beyond a bag's estimate (metadata, logs, the evaluation's tables) [bytes].
+SPARE_BYTES = 8 * 1024 * 1024
+
+
+def check_free_space(path: str | Path, needed: int, option: str, what: str) -> None:
+    """Refuse an output whose file system lacks the room for ``needed`` bytes (and :data:`SPARE_BYTES`).
+
+    Checked before a run starts (``launch``: its bag), where the size can be estimated;
+    a disk that fills during the run is named by the node that cannot write.
+
+    Raises
+    ------
+    OutputPathError
+        Naming ``option``, the path, the free and the needed space.
+    """
+    node = Path(path)
+    while not node.exists() and node != node.parent:
+        node = node.parent
+    free = shutil.disk_usage(node).free
+    if free < needed + SPARE_BYTES:
+        raise OutputPathError(f"{option} {path}: {free / 2**20:.1f} MiB free on its file system; {what} needs about "
+                              f"{(needed + SPARE_BYTES) / 2**20:.1f} MiB (a full disk would cut the run)")
 
 
 # ------------------------------------------------------------------------------ one output layer

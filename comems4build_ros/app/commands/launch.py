@@ -224,6 +224,7 @@ def run(args: argparse.Namespace) -> int:
     add_scenario_config(args)
     from comems4build_ros.app.commands.options import output_dir
     from comems4build_ros.app.commands.simulate import warn_run
+    from comems4build_ros.files.outputs import BAG_BYTES_PER_STEP, check_free_space
     from comems4build_ros.run.launcher import launch
     from comems4build_ros.run.supervisor import LaunchError
 
@@ -236,6 +237,9 @@ def run(args: argparse.Namespace) -> int:
     output = output_dir(args, "launch", in_place=True)
     output.check()
     own_bag = check_bag_dir(args, output.path)
+    check_free_space(own_bag or output.path / "bag", getattr(args, "run_steps", 0) * args.houses * BAG_BYTES_PER_STEP,
+                     "--bag" if own_bag else "--out", f"the bag of {args.houses} house(s) x "
+                     f"{getattr(args, 'run_steps', 0)} steps")
     keys = ("weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
             "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "fallback_steps")
     # the run writes into --out itself (its logs and bag can be watched there), an earlier run's results kept
@@ -351,3 +355,4 @@ def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
     weeks, steps = feed_window(args.weeks, args.steps)
     scenario = load_scenario(args.scenario, params, args.start, weeks or None, args.seed, steps or None)
     check_scenario(scenario, params.simulation.time_step_h)
+    args.run_steps = int(scenario.n_steps)  # the bag's size is checked against the free space with it
