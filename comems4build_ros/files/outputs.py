@@ -158,6 +158,27 @@ def _replace_entries(new: Path, path: Path, replaces: tuple[str, ...]) -> None:
         shutil.rmtree(trash, ignore_errors=True)
 
 
+@contextlib.contextmanager
+def _signals_held() -> Iterator[None]:
+    """SIGINT and SIGTERM held back while the block runs (in the main thread; elsewhere nothing).
+
+    The renames that put a result in place take milliseconds; a Ctrl-C among them is
+    delivered right after, so the result is in place whole or not at all.
+    """
+    import signal
+    import threading
+
+    if threading.current_thread() is not threading.main_thread() or not hasattr(signal, "pthread_sigmask"):
+        yield
+        return
+    held = {signal.SIGINT, signal.SIGTERM}
+    old = signal.pthread_sigmask(signal.SIG_BLOCK, held)
+    try:
+        yield
+    finally:
+        signal.pthread_sigmask(signal.SIG_SETMASK, old)
+
+
 def _remove(path: Path) -> None:
     """Remove the file, link or directory tree ``path``."""
     if path.is_dir() and not path.is_symlink():
@@ -464,11 +485,19 @@ class OutputDir:
             self._restore_killed()
             self._check_owned(self._existing(self.writes))
             if self.in_place:
-                self._previous = Path(tempfile.mkdtemp(prefix=PREVIOUS_PREFIX, dir=self.path))
+                previous = Path(tempfile.mkdtemp(prefix=PREVIOUS_PREFIX, dir=self.path))
                 aside = self._existing(self.writes)
-                for name in aside:  # owned (checked): the earlier result, kept aside
-                    os.replace(self.path / name, self._previous / name)
-                self._write_owner(set(read_owner(self.path).get("entries", [])) - set(aside))
+                try:
+                    with _signals_held():
+                        for name in aside:  # owned (checked): the earlier result, kept aside
+                            os.replace(self.path / name, previous / name)
+                        self._write_owner(set(read_owner(self.path).get("entries", [])) - set(aside))
+                except BaseException:
+                    for entry in list(previous.iterdir()):
+                        os.replace(entry, self.path / entry.name)
+                    shutil.rmtree(previous, ignore_errors=True)
+                    raise
+                self._previous = previous
                 self.stage = self.path
             else:
                 self.stage = Path(tempfile.mkdtemp(prefix=STAGE_PREFIX, dir=self.path))
@@ -554,10 +583,10 @@ class OutputDir:
     def _commit(self) -> None:
 
         if self.in_place:
+            self._write_owner(set(self._existing(self.writes)) | set(read_owner(self.path).get("entries", [])))
             if self._previous is not None:  # the new result stands: the earlier one goes
                 shutil.rmtree(self._previous, ignore_errors=True)
                 self._previous = None
-            self._write_owner(set(self._existing(self.writes)) | set(read_owner(self.path).get("entries", [])))
             return
 
         names = sorted(p.name for p in self.stage.iterdir())
@@ -566,18 +595,34 @@ class OutputDir:
         owned = set(read_owner(self.path).get("entries", []))
         stale = [n for n in self._existing(self.replaces) if n not in names and n in owned]
         trash = Path(tempfile.mkdtemp(prefix=".replaced.", dir=self.path))
+        placed: list[tuple[str, bool]] = []  # (name, an older entry went to the trash)
+        removed: list[str] = []
         try:
-            for name in names:
-                src, dest = self.stage / name, self.path / name
-                if dest.exists() or dest.is_symlink():
-                    os.replace(dest, trash / name)  # a directory is replaced whole
-                os.replace(src, dest)
-            for name in stale:
-                os.replace(self.path / name, trash / name)
+            with _signals_held():  # Ctrl-C waits for the few renames; any other failure undoes them
+                for name in names:
+                    src, dest = self.stage / name, self.path / name
+                    had = dest.exists() or dest.is_symlink()
+                    if had:
+                        os.replace(dest, trash / name)  # a directory is replaced whole
+                    placed.append((name, had))
+                    os.replace(src, dest)
+                for name in stale:
+                    os.replace(self.path / name, trash / name)
+                    removed.append(name)
+                self._write_owner((owned | set(names)) - set(stale))
+        except BaseException:
+            for name in removed:
+                os.replace(trash / name, self.path / name)
+            for name, had in reversed(placed):
+                dest = self.path / name
+                if not (self.stage / name).exists() and (dest.exists() or dest.is_symlink()):
+                    os.replace(dest, self.stage / name)  # the new entry out again
+                if had:
+                    os.replace(trash / name, dest)
+            raise
         finally:
             shutil.rmtree(trash, ignore_errors=True)
         shutil.rmtree(self.stage, ignore_errors=True)
-        self._write_owner((owned | set(names)) - set(stale))
 
 
 class OutputFile(OutputDir):

@@ -130,7 +130,7 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
         _print_report(rep, stage, output.path)
         return 0
-    if not args.out:
+    if args.out is None:
         raise UsageError("--out is required (unless --from-runs)")
     emss = ems_names(args.ems)
     levels = {ems: str(ems_entry(ems).info_level) for ems in emss}
