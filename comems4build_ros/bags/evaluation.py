@@ -104,7 +104,35 @@ def read_run_info(path: str | Path) -> dict[str, Any]:
     out = load_json_file(f, "the bag's run information")
     if not isinstance(out, dict):
         raise ValueError(f"{f}: expected a JSON object")
-    return out
+    return check_run_info(out, str(f))
+
+
+#: Entries of ``run_info.json`` that the evaluation reads and their JSON types.
+RUN_INFO_TYPES: dict[str, tuple[type, ...]] = {
+    "config_files": (list,), "overrides": (dict,), "ems": (str,), "scenario": (str,), "forecast": (str,),
+}
+
+
+def check_run_info(info: dict[str, Any], source: str) -> dict[str, Any]:
+    """``info`` if the entries the evaluation reads have their types (``null`` allowed for each).
+
+    ``config_files`` must be a list of file names (each is read as a parameter file, through
+    the one YAML loader), ``overrides`` a mapping of dotted parameter names.
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` and the entry.
+    """
+    for key, types in RUN_INFO_TYPES.items():
+        value = info.get(key)
+        if value is not None and not isinstance(value, types):
+            raise ValueError(f"{source}: '{key}' must be a {types[0].__name__}, got {type(value).__name__}")
+    if not all(isinstance(f, str) and f for f in info.get("config_files") or []):
+        raise ValueError(f"{source}: 'config_files' must list file names")
+    if not all(isinstance(k, str) and k for k in info.get("overrides") or {}):
+        raise ValueError(f"{source}: 'overrides' must map parameter names (section.key) to values")
+    return info
 
 
 def _split(topic: str, name: str) -> str | None:
@@ -117,6 +145,16 @@ def _split(topic: str, name: str) -> str | None:
 
 
 def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
+    """:func:`_read_runs`; every refusal names the bag (a damaged record's too)."""
+    try:
+        return _read_runs(path, timezone, info)
+    except ValueError as exc:
+        if str(path) in str(exc):
+            raise
+        raise ValueError(f"bag {path}: {exc}") from None
+
+
+def _read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
     """Rebuild the per-step timeseries of every namespace of a bag.
 
     Parameters

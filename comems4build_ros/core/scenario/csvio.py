@@ -341,10 +341,15 @@ def read_text_file(path: str | Path, encoding: str = "utf-8-sig") -> str:
     kind = path_kind(path)
     if kind:
         raise ScenarioError(f"{path}: {kind} (a text file is needed)")
+    from comems4build_ros.files.inputs import MAX_FILE_BYTES
+
     try:
-        raw = path.read_bytes()
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(f"{path}: larger than {MAX_FILE_BYTES} bytes")
     if b"\0" in raw:
         raise ScenarioError(f"{path}: binary content (NUL bytes), not a text file")
     try:

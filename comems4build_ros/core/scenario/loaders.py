@@ -378,10 +378,13 @@ def read_load_csv(path: str | Path, column: str | None = None, unit: str | None 
     Sub-hourly rows (regular steps dividing one hour, value = mean power over the step
     starting at its time) are averaged to 1 h.
     """
+    import io
+
     path = Path(path)
+    text = read_text_file(path)
     try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        df = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise ScenarioError(f"{path}: cannot read CSV: {exc}") from None
     df.columns = [str(c).strip() for c in df.columns]
     if "time" not in df.columns:
