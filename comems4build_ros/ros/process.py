@@ -159,7 +159,12 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
         watchdog = cleanup_deadline(name, code)
         executor.shutdown()
         if node is not None:
-            node.destroy_node()
+            label = node.get_name()
+            try:
+                node.destroy_node()
+            except OSError as exc:  # a file closed at the end (the recorder's bag) on a full disk
+                report_cause(label, f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
+                code = EXIT_WRITE_FAILED
         rclpy.try_shutdown()
         watchdog.cancel()
         print_cpu(name)

@@ -472,14 +472,14 @@ class Recorder(Node):
     def destroy_node(self) -> None:
         """Close the bag (last chunk, summary, metadata.yaml), then destroy the node.
 
-        A bag that cannot be closed (the disk full, the file system read-only) is named on
-        stderr, not raised: what was written stays readable (``evaluate`` salvages it).
+        A bag that cannot be closed (the disk full, the file system read-only) raises the
+        ``OSError`` naming the bag after the node is destroyed (the process then ends with
+        exit code 5 naming it); what was written stays readable (``evaluate`` salvages it).
         """
         try:
             self.writer.close()
         except OSError as exc:
-            print(f"[{self.get_name()}] error: the bag could not be closed: {exc.filename or self.bag_path}: "
-                  f"{exc.strerror or exc}", file=sys.stderr, flush=True)
+            raise OSError(exc.errno, exc.strerror or str(exc), exc.filename or self.bag_path) from None
         finally:
             super().destroy_node()
 
