@@ -312,3 +312,14 @@ def output_file(args: argparse.Namespace, command: str, path: Any = None, option
     from comems4build_ros.files.outputs import OutputFile
 
     return OutputFile(args.out if path is None else path, command, option=option, inputs=command_inputs(args))
+
+
+def bench_output(args: argparse.Namespace, command: str) -> Any:
+    """The output layer for a benchmark's optional ``--out`` (in place: its runs can be watched), or no-op."""
+    import contextlib
+
+    if getattr(args, "out", None) is None:
+        return contextlib.nullcontext()
+    output = output_dir(args, command, in_place=True)
+    output.check()
+    return output
