@@ -268,6 +268,13 @@ def test_evaluate_out_at_or_in_its_bag_is_refused_and_the_bag_kept(tmp_path: Pat
         code, _, err = run_cli(["evaluate", bag, "--out", out], capsys)
         assert code == 2 and text in err, err
         assert snapshot(bag) == before
+    two = tmp_path / "X" / "bag"  # the bags of a two-house run: bag/house_0/, bag/house_1/
+    for house in ("house_0", "house_1"):
+        shutil.copytree(recorded_bag, two / house)
+    before = snapshot(two)
+    code, _, err = run_cli(["evaluate", two, "--out", two], capsys)  # once replaced the bags by the results
+    assert code == 2 and "is the input BAG" in err, err
+    assert snapshot(two) == before and len(list(two.rglob("*.mcap"))) == 2
     code, _, err = run_cli(["evaluate", recorded_bag, "--out", recorded_bag.parent], capsys)  # beside it: fine
     assert code == 0, err
 
