@@ -87,12 +87,12 @@ def test_a_disk_that_fills_during_the_run_is_named(tiny_fs: Path, tmp_path: Path
     run = Run(out, "--ems", "fuzzy", "--weeks", "4", "--step-timeout", STEP_TIMEOUT, "--bag", str(tiny_fs / "bag"))
     _wait_for(lambda: (tiny_fs / "bag").is_dir() or run.proc.poll() is not None, what="the bag")
     filler = tiny_fs / "filler"
-    with open(filler, "wb") as fh:  # the rest of the file system, while the recorder writes
-        try:
+    try:  # the rest of the file system, while the recorder writes
+        with open(filler, "wb") as fh:
             while True:
                 fh.write(b"\0" * 65536)
-        except OSError:
-            pass
+    except OSError:
+        pass  # full
     code, err = run.finish()
     assert code == 1, err
     assert "exited with code 5 (could not write a file)" in err and "No space left on device" in err, err
