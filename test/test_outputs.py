@@ -338,8 +338,9 @@ def test_launch_interrupted_keeps_the_earlier_run(tmp_path: Path) -> None:
     before = snapshot(out)
     run = _launch(out, "--ems", "fuzzy", "--weeks", "12")
     deadline = time.monotonic() + 120
-    while not (out / "bag" / "bag.mcap").exists() and run.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.1)  # the new run writes in place: its bag is there while it runs
+    while not (any(out.glob(".previous.*")) and (out / "bag" / "bag.mcap").exists()) and run.poll() is None \
+            and time.monotonic() < deadline:
+        time.sleep(0.1)  # the new run writes in place (its bag is there while it runs), the earlier one aside
     assert run.poll() is None, run.communicate()[1]
     run.send_signal(signal.SIGINT)
     err = run.communicate(timeout=120)[1]

@@ -559,7 +559,12 @@ class OutputDir:
         import json
 
         present = set(self._existing(("*",)))
-        record = {"written_by": f"comems4build {self.command}", "entries": sorted(set(entries) & present),
+        owned = sorted(set(entries) & present)
+        if not owned and self._created:  # a directory this command made and leaves empty: no record either
+            with contextlib.suppress(FileNotFoundError):
+                os.unlink(self.path / OWNER_FILE)
+            return
+        record = {"written_by": f"comems4build {self.command}", "entries": owned,
                   "note": "entries comems4build wrote here and may replace; nothing else is touched"}
         write_text_atomic(self.path / OWNER_FILE, json.dumps(record, indent=1) + "\n")
 
