@@ -150,7 +150,7 @@ PLANT = [
     ("thermostat", "comfort.holidays_country=de", "did you mean DE"),
     ("thermostat", "comfort.holidays_subdivision=ZZ", "holidays_subdivision 'ZZ' is not a subdivision of DE"),
     ("mpc", "simulation.horizon_h=12", "simulation.horizon_h = 12"),
-    ("rbc", "grid.buy_spot_factor=1e308", "grid.buy_spot_factor = 1e+308"),
+    ("rbc", "grid.buy_spot_factor=1e308", "parameter 'grid.buy_spot_factor': Input should be less than or equal to 10"),
     ("rbc", "battery.e_max_kwh=[1", "--set 'battery.e_max_kwh=[1': the value is not valid YAML"),
 ]
 
