@@ -150,7 +150,7 @@ PLANT = [
     ("thermostat", "comfort.holidays_country=de", "did you mean DE"),
     ("thermostat", "comfort.holidays_subdivision=ZZ", "holidays_subdivision 'ZZ' is not a subdivision of DE"),
     ("mpc", "simulation.horizon_h=12", "simulation.horizon_h = 12"),
-    ("rbc", "grid.buy_spot_factor=1e308", "grid.buy_spot_factor = 1e+308"),
+    ("rbc", "grid.buy_spot_factor=1e308", "parameter 'grid.buy_spot_factor': Input should be less than or equal to 10"),
     ("rbc", "battery.e_max_kwh=[1", "--set 'battery.e_max_kwh=[1': the value is not valid YAML"),
 ]
 
@@ -348,7 +348,8 @@ def test_evaluate_without_timeseries_leaves_no_older_timeseries(recorded_bag: Pa
     (out / "notes.txt").write_text("mine\n")
     code, _, err = run_cli(["evaluate", recorded_bag, "--no-timeseries", "--out", out], capsys)
     assert code == 0, err
-    assert sorted(p.name for p in out.iterdir()) == ["notes.txt", "summary.json", "weekly.csv"]
+    assert sorted(p.name for p in out.iterdir() if not p.name.startswith(".")) == ["notes.txt", "summary.json",
+                                                                                   "weekly.csv"]
 
 
 def _interrupt_at(monkeypatch: pytest.MonkeyPatch, n: int) -> None:

@@ -14,6 +14,8 @@ import json
 import os
 import re
 import signal
+import socket
+import ssl
 import subprocess
 import sys
 import time
@@ -47,8 +49,16 @@ def cluster() -> Iterator[LocalDaskCluster]:
     assert not left, f"dask processes left running: {left}"
 
 
-def _run(argv: list[str | Path], timeout: float = COMMAND_TIMEOUT_S) -> subprocess.CompletedProcess:
-    return subprocess.run([*CLI, *map(str, argv)], cwd=REPO, capture_output=True, text=True, timeout=timeout)
+def _run(argv: list[str | Path], timeout: float = COMMAND_TIMEOUT_S,
+         cluster: LocalDaskCluster | None = None) -> subprocess.CompletedProcess:
+    """``comems4build argv``; with ``cluster``, with the Dask settings of its TLS certificates."""
+    return subprocess.run([*CLI, *map(str, argv)], cwd=REPO, capture_output=True, text=True, timeout=timeout,
+                          env=_env(cluster))
+
+
+def _env(cluster: LocalDaskCluster | None) -> dict[str, str]:
+    """The environment of a client process of ``cluster`` (its certificate files; this one's without)."""
+    return {**os.environ, **(cluster.client_env() if cluster is not None else {})}
 
 
 def _without_timing(path: Path) -> str:
@@ -77,7 +87,7 @@ def test_sweep_on_a_dask_cluster_gives_the_local_results_byte_for_byte(
             "--no-progress"]
     local = _run([*argv, "--jobs", "2", "--out", tmp_path / "local"])
     assert local.returncode == 0, local.stderr
-    dask = _run([*argv, "--scheduler", cluster.address, "--out", tmp_path / "dask"])
+    dask = _run([*argv, "--scheduler", cluster.address, "--out", tmp_path / "dask"], cluster=cluster)
     assert dask.returncode == 0, dask.stderr
     assert f"Dask scheduler {cluster.address}: 2 workers, 2 threads; dashboard {cluster.dashboard}" in dask.stderr
     assert cluster.dashboard and cluster.dashboard.startswith("http://127.0.0.1:")
@@ -108,6 +118,7 @@ def test_a_worker_killed_mid_run_costs_only_its_run(tmp_path: Path, where: str,
     out = tmp_path / "sweep"
     argv = ["sweep", "--param", "battery.e_max_kwh=4,7,10", "--ems", "mpc", "--weeks", "0.25", "--no-progress",
             "--out", out]
+    c = None
     if where == "dask":
         c = request.getfixturevalue("cluster")
         argv += ["--scheduler", c.address]
@@ -115,7 +126,7 @@ def test_a_worker_killed_mid_run_costs_only_its_run(tmp_path: Path, where: str,
     else:
         argv += ["--jobs", "2"]
     proc = subprocess.Popen([*CLI, *map(str, argv)], cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE,
-                            text=True)
+                            text=True, env=_env(c))
     killed: tuple[str, int] | None = None
     err = []
     try:
@@ -167,11 +178,11 @@ def test_an_interrupted_study_resumes_without_running_its_finished_runs_again(
                 "--weeks", weeks, "--no-progress", "--out", out]
 
     argv = sweep()
-    first = [*argv, "--scheduler", request.getfixturevalue("cluster").address] if where == "dask" \
-        else [*argv, "--jobs", "2"]
+    c = request.getfixturevalue("cluster") if where == "dask" else None
+    first = [*argv, "--scheduler", c.address] if c is not None else [*argv, "--jobs", "2"]
     # SIGINT and SIGTERM as by default in the child: an ignored signal of this process is inherited
     proc = subprocess.Popen([*CLI, *map(str, first)], cwd=REPO, stderr=subprocess.PIPE, stdout=subprocess.PIPE,
-                            text=True, preexec_fn=lambda: [signal.signal(s, signal.SIG_DFL)
+                            text=True, env=_env(c), preexec_fn=lambda: [signal.signal(s, signal.SIG_DFL)
                                                            for s in (signal.SIGINT, signal.SIGTERM)])
     err = []
     try:
@@ -282,3 +293,37 @@ def test_bench_study_prints_the_three_ways_and_leaves_no_dask_process() -> None:
     while (left := {pid for pid in _dask_processes() - before if _alive(pid)}) and time.monotonic() < deadline:
         time.sleep(0.2)
     assert not left, [psutil.Process(pid).cmdline() for pid in left]
+
+
+# --------------------------------------------------------------------------- no one else at the controls
+
+def test_a_local_cluster_takes_only_clients_with_its_certificate(cluster: LocalDaskCluster) -> None:
+    """TLS with per-cluster certificates, loopback only: a client without the certificate (any other local
+    user, who cannot read the cluster's key) is refused, plain TCP is refused, the key is private."""
+    from distributed import Client, Security
+
+    assert cluster.address.startswith("tls://127.0.0.1:")
+    for conn in psutil.Process(cluster.procs[0].pid).net_connections(kind="inet"):
+        if conn.status == psutil.CONN_LISTEN:
+            assert conn.laddr.ip in ("127.0.0.1", "::1"), conn
+    certs = Path(cluster.client_env()["DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY"])
+    assert certs.stat().st_mode & 0o077 == 0 and certs.parent.stat().st_mode & 0o077 == 0
+    host, port = cluster.address.removeprefix("tls://").rsplit(":", 1)
+    ctx = ssl.create_default_context()
+    ctx.check_hostname, ctx.verify_mode = False, ssl.CERT_NONE  # trusts any server, has no certificate of its own
+    with socket.create_connection((host, int(port)), timeout=10) as raw:
+        with pytest.raises((ssl.SSLError, ConnectionError)):  # no client certificate: the scheduler ends the handshake
+            with ctx.wrap_socket(raw) as tls:
+                if not tls.recv(1):  # TLS 1.3: the refusal arrives with the first read
+                    raise ConnectionResetError("closed by the scheduler")
+    with pytest.raises((OSError, TimeoutError)):  # a certificate of another cluster: refused
+        Client(cluster.address, timeout=5, set_as_default=False, security=Security.temporary()).close()
+    with pytest.raises((OSError, TimeoutError)):  # plain TCP on the TLS port
+        Client(cluster.address.replace("tls://", "tcp://"), timeout=5, set_as_default=False).close()
+    with cluster.client() as client:  # the cluster's own certificate
+        assert len(client.scheduler_info()["workers"]) == 2
+
+
+def test_a_local_cluster_refuses_a_host_other_than_loopback() -> None:
+    with pytest.raises(ValueError, match="loopback"):
+        LocalDaskCluster(host="0.0.0.0")

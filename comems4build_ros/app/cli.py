@@ -73,7 +73,11 @@ def main(argv: list[str] | None = None) -> int:
     """Entry point of ``comems4build``; returns the exit code."""
     from comems4build_ros.core.config import ConfigError
 
-    parser = build_parser()
+    try:
+        parser = build_parser()
+    except KeyboardInterrupt:  # Ctrl-C while the commands are imported: nothing was started
+        print("comems4build: interrupted", file=sys.stderr)
+        return 130
     args = parser.parse_args(argv)
     try:
         return int(args._run(args) or 0)

@@ -402,8 +402,22 @@ def bag_info(path: str | Path) -> BagInfo:
 
 
 def decode(msgtype: str, raw: bytes | memoryview) -> Any:
-    """Deserialize CDR bytes of ``msgtype`` with the Jazzy typestore."""
-    return typestore().deserialize_cdr(raw, ros_type_to_bag_type(msgtype))
+    """Deserialize CDR bytes of ``msgtype`` with the Jazzy typestore.
+
+    Raises
+    ------
+    ValueError
+        For bytes that are no CDR message of ``msgtype`` (a damaged record).
+    """
+    import struct
+
+    from rosbags.serde import SerdeError
+
+    try:
+        return typestore().deserialize_cdr(raw, ros_type_to_bag_type(msgtype))
+    except (SerdeError, IndexError, struct.error, UnicodeDecodeError) as exc:
+        raise ValueError(f"a message of type {msgtype} cannot be decoded ({type(exc).__name__}: {exc}); "
+                         "a damaged record") from None
 
 
 def ns_key(ns: str) -> tuple[int, str]:

@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from comems4build_ros.bags.bag import NS_PER_S, BagInfo, bag_set, decode, iter_messages, ns_key
+from comems4build_ros.files.inputs import load_json_text
 from comems4build_ros.wire.contract import EVENTS_TOPIC, WITHHELD_EVENT, event_step_kind
 
 #: Topic (relative contract name) with one timeseries row per step.
@@ -132,19 +133,44 @@ class BagRun:
 
 def read_run_info(path: str | Path) -> dict[str, Any]:
     """The ``run_info.json`` beside the MCAP file (``{}`` if absent)."""
-    import json
+    from comems4build_ros.files.inputs import load_json_file
 
     p = bag_set(path)[0]
     f = (p if p.is_dir() else p.parent) / RUN_INFO_FILE
-    if not f.is_file():
+    if not f.exists():
         return {}
-    try:
-        out = json.loads(f.read_text(encoding="utf-8"))
-    except json.JSONDecodeError as exc:
-        raise ValueError(f"{f}: invalid JSON: {exc}") from None
+    out = load_json_file(f, "the bag's run information")
     if not isinstance(out, dict):
         raise ValueError(f"{f}: expected a JSON object")
-    return out
+    return check_run_info(out, str(f))
+
+
+#: Entries of ``run_info.json`` that the evaluation reads and their JSON types.
+RUN_INFO_TYPES: dict[str, tuple[type, ...]] = {
+    "config_files": (list,), "overrides": (dict,), "ems": (str,), "scenario": (str,), "forecast": (str,),
+}
+
+
+def check_run_info(info: dict[str, Any], source: str) -> dict[str, Any]:
+    """``info`` if the entries the evaluation reads have their types (``null`` allowed for each).
+
+    ``config_files`` must be a list of file names (each is read as a parameter file, through
+    the one YAML loader), ``overrides`` a mapping of dotted parameter names.
+
+    Raises
+    ------
+    ValueError
+        Naming ``source`` and the entry.
+    """
+    for key, types in RUN_INFO_TYPES.items():
+        value = info.get(key)
+        if value is not None and not isinstance(value, types):
+            raise ValueError(f"{source}: '{key}' must be a {types[0].__name__}, got {type(value).__name__}")
+    if not all(isinstance(f, str) and f for f in info.get("config_files") or []):
+        raise ValueError(f"{source}: 'config_files' must list file names")
+    if not all(isinstance(k, str) and k for k in info.get("overrides") or {}):
+        raise ValueError(f"{source}: 'overrides' must map parameter names (section.key) to values")
+    return info
 
 
 def _split(topic: str, name: str) -> str | None:
@@ -175,7 +201,6 @@ class _Scan:
 
 def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan:
     """One pass over every message of a bag, sorted into a :class:`_Scan` (see :func:`read_runs`)."""
-    import json
 
     from comems4build_ros.core.scenario.live import STAND_IN_EVENT
 
@@ -198,7 +223,7 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
                 scan.n_steps[ns] = int(data[n_idx])
         elif (ns := _split(topic, INFO_TOPIC)) is not None:
             try:
-                msg = json.loads(decode(msgtype, raw).data)
+                msg = load_json_text(decode(msgtype, raw).data, f"bag {path}: topic '{topic}'")
                 step = int(msg["step"])
                 scan.infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
             except (ValueError, KeyError, TypeError) as exc:
@@ -225,9 +250,10 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
                 scan.stand_in.setdefault(ns, []).append((step_kind[0], line.split(None, 2)[2].split(":", 1)[0]))
         elif (ns := _split(topic, FEED_INFO_TOPIC)) is not None:
             try:
-                scan.scenarios.setdefault(ns, dict(json.loads(decode(msgtype, raw).data)))
+                doc = load_json_text(decode(msgtype, raw).data, f"bag {path}: '{topic}'")
+                scan.scenarios.setdefault(ns, dict(doc))
             except (ValueError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid JSON: {exc}") from None
+                raise ValueError(f"bag {path}: topic '{topic}': invalid scenario information: {exc}") from None
     return scan
 
 
@@ -277,6 +303,16 @@ def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any
 
 
 def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
+    """:func:`_read_runs`; every refusal names the bag (a damaged record's too)."""
+    try:
+        return _read_runs(path, timezone, info)
+    except ValueError as exc:
+        if str(path) in str(exc):
+            raise
+        raise ValueError(f"bag {path}: {exc}") from None
+
+
+def _read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
     """Rebuild the per-step timeseries of every namespace of a bag.
 
     Parameters
@@ -617,13 +653,13 @@ def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], Ba
 
 def read_run_cut(path: str | Path) -> dict[str, Any]:
     """The :data:`RUN_CUT_FILE` of one bag (``{}`` if the run was not cut or the file is unreadable)."""
-    import json
+    from comems4build_ros.files.inputs import load_json_file
 
     p = Path(path)
     f = (p if p.is_dir() else p.parent) / RUN_CUT_FILE
     try:
-        doc = json.loads(f.read_text(encoding="utf-8"))
-    except (OSError, ValueError):
+        doc = load_json_file(f, "the mark of a cut run")
+    except ValueError:
         return {}
     return doc if isinstance(doc, dict) else {}
 

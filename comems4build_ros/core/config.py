@@ -23,10 +23,12 @@ from collections.abc import Iterable, Mapping
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
-import yaml
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
+from comems4build_ros.files.inputs import InputFileError, load_yaml_file, load_yaml_text, path_kind
 from comems4build_ros.files.paths import PACKAGE, SOURCE_ROOT, shared_path
+
+__all__ = ["path_kind"]  # re-exported: the check of an input path
 
 #: Hours per second, seconds per hour and similar named conversion factors.
 SECONDS_PER_HOUR = 3600.0
@@ -74,50 +76,18 @@ def default_plant_file() -> Path:
     return config_dir() / "plant.yaml"
 
 
-#: libyaml's safe loader where PyYAML has it (same documents, about 10x faster: every node
-#: process parses the contract and the plant parameters at start-up), else the Python one.
-SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
-
-
 def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError) -> Any:
-    """Parse a YAML file; ``error`` names the file (and ``what`` it is) when that fails.
+    """Parse a YAML file through the project's one YAML loader (:func:`comems4build_ros.files.inputs.load_yaml_file`).
 
-    A directory, a device, a file that is not UTF-8 text (e.g. binary) and invalid YAML are
-    each reported as such.
+    ``error`` names the file (and ``what`` it is) when that fails: a directory, a device, a
+    file that is not UTF-8 text (e.g. binary), invalid YAML, a document over the loader's
+    limits (size, depth, aliases), a key that is not a string or is given twice, each with
+    the line and column.
     """
-    path = Path(path)
-    kind = path_kind(path)
-    if kind:
-        raise error(f"{path}: cannot read {what}: {kind}")
     try:
-        text = path.read_text(encoding="utf-8")
-    except OSError as exc:
-        raise error(f"{path}: cannot read {what}: {exc.strerror}") from exc
-    except UnicodeDecodeError as exc:
-        raise error(
-            f"{path}: cannot read {what}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
-            f"{exc.start}); a binary file?"
-        ) from None
-    try:
-        return yaml.load(text, Loader=SAFE_LOADER)  # noqa: S506 (a safe loader)
-    except yaml.YAMLError as exc:
-        raise error(f"{path}: invalid YAML: {exc}") from exc
-
-
-def path_kind(path: str | Path) -> str:
-    """Why ``path`` cannot be read as a data file (``""`` if it is an existing regular file).
-
-    ``"no such file"``, ``"is a directory"`` or ``"is not a regular file (a device, FIFO or
-    socket)"``, e.g. for ``/dev/null``.
-    """
-    p = Path(path)
-    if p.is_dir():
-        return "is a directory"
-    if not p.exists():
-        return "no such file"
-    if not p.is_file():
-        return "is not a regular file (a device, FIFO or socket)"
-    return ""
+        return load_yaml_file(path, what)
+    except InputFileError as exc:
+        raise error(str(exc)) from None
 
 
 def check_input_file(path: str | Path, what: str) -> Path:
@@ -204,10 +174,9 @@ def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
         if not sep or not key.strip():
             raise ConfigError(f"{what} '{item}' is not KEY=VALUE")
         try:
-            out[key.strip()] = yaml.load(value, Loader=SAFE_LOADER)  # noqa: S506 (a safe loader)
-        except yaml.YAMLError as exc:
-            problem = getattr(exc, "problem", None) or str(exc).splitlines()[0]
-            raise ConfigError(f"{what} '{item}': the value is not valid YAML ({problem})") from None
+            out[key.strip()] = load_yaml_text(value, f"{what} '{item}'")
+        except InputFileError as exc:
+            raise ConfigError(f"{what} '{item}': the value is not valid YAML ({exc.problem})") from None
     return out
 
 
@@ -283,16 +252,34 @@ NonNeg = Field(ge=0)
 Frac = Field(ge=0, le=1)
 
 
+def Phys(lo: float, hi: float, lo_open: bool = False) -> Any:  # noqa: N802 (reads as a field type, like Field)
+    """A physical range ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``) of a parameter.
+
+    The ranges bound what a residential building and its devices can have, generously (a
+    decade or more beyond the largest shipped or studied value), so that a value no
+    building has (a room air capacity of 1e-300 J/K, a sell price of 1e300 EUR/kWh) is
+    refused naming the parameter instead of surfacing later as a non-finite state or a
+    solver that finds nothing.
+    """
+    return Field(gt=lo, le=hi) if lo_open else Field(ge=lo, le=hi)
+
+
+#: Largest electrical power of one device of the house [W] (1 MW: far beyond any residential device).
+P_MAX_W = 1.0e6
+#: Largest price or cost per kWh [EUR/kWh] (day-ahead prices reached 0.87 EUR/kWh in 2022).
+PRICE_MAX_EUR_PER_KWH = 10.0
+
+
 class SimulationParams(Section):
     """Run settings: step [h], horizon [h], H2 season [weeks] and initial states."""
 
     time_step_h: float = Pos
-    horizon_h: int = Field(gt=0)
-    season_weeks: float = Pos
+    horizon_h: int = Field(gt=0, le=168)
+    season_weeks: float = Phys(0, 53, lo_open=True)
     soc_init: float = Frac
     loh_init: float = Frac
-    t_air_init_c: float
-    v_dhw_init_l: float = NonNeg
+    t_air_init_c: float = Phys(-30, 50)
+    v_dhw_init_l: float = Phys(0, 1.0e5)
     #: Heating season of a year-round run, local ``MM-DD`` dates (end exclusive): the FC's
     #: daily H2 budget (``eq:deltaLOH``) is spread over it, the electrolyser fills the store
     #: before it (only used when an electrolyser is installed).
@@ -317,7 +304,7 @@ class SiteParams(Section):
 
     latitude_deg: float = Field(ge=-90, le=90)
     longitude_deg: float = Field(ge=-180, le=180)
-    altitude_m: float
+    altitude_m: float = Phys(-500, 9000)
     timezone: str
 
     @field_validator("timezone")
@@ -336,13 +323,13 @@ class SiteParams(Section):
 class PVParams(Section):
     """PV array, ``eq:power_pv``."""
 
-    n_modules: int = Field(ge=0)
-    a_module_m2: float = Pos
-    eta_stc: float = Frac
+    n_modules: int = Field(ge=0, le=10_000)
+    a_module_m2: float = Phys(0, 10, lo_open=True)
+    eta_stc: float = Phys(0, 0.5)
     eta_lt: float = Frac
-    eta_t_per_k: float = NonNeg
-    noct_c: float
-    t_stc_c: float
+    eta_t_per_k: float = Phys(0, 0.02)
+    noct_c: float = Phys(20, 80)
+    t_stc_c: float = Phys(15, 35)
     tilt_deg: float = Field(ge=0, le=90)
     azimuth_deg: float = Field(ge=0, le=360)
     albedo: float = Frac
@@ -352,13 +339,13 @@ class PVParams(Section):
 class BatteryParams(Section):
     """Battery energy storage, ``eq:batt_soc`` .. ``eq:s_summ``."""
 
-    e_max_kwh: float = Pos
-    p_ch_max_w: float = NonNeg
-    p_d_max_w: float = NonNeg
-    p_ch_min_w: float = NonNeg
-    p_d_min_w: float = NonNeg
-    eta_ch: float = Field(gt=0, le=1)
-    eta_d: float = Field(gt=0, le=1)
+    e_max_kwh: float = Phys(0, 1.0e4, lo_open=True)
+    p_ch_max_w: float = Phys(0, P_MAX_W)
+    p_d_max_w: float = Phys(0, P_MAX_W)
+    p_ch_min_w: float = Phys(0, P_MAX_W)
+    p_d_min_w: float = Phys(0, P_MAX_W)
+    eta_ch: float = Phys(0.5, 1)
+    eta_d: float = Phys(0.5, 1)
     soc_min: float = Frac
     soc_max: float = Frac
 
@@ -376,16 +363,16 @@ class BatteryParams(Section):
 class FuelCellParams(Section):
     """PEM fuel cell, ``eq:molar_flows`` .. ``eq:FC_sys_efficiency``."""
 
-    p_max_w: float = Pos
-    p_nom_w: float = Pos
-    p_min_w: float = NonNeg
+    p_max_w: float = Phys(0, P_MAX_W, lo_open=True)
+    p_nom_w: float = Phys(0, P_MAX_W, lo_open=True)
+    p_min_w: float = Phys(0, P_MAX_W)
     zeta: float = Field(gt=0, le=1)
     eta_sys: float = Field(gt=0, le=1)
-    n_cells: int = Field(gt=0)
-    e_ocv_v: float = Pos
-    a_tafel_v: float = NonNeg
-    i_tafel_a: float = Pos
-    r_ohm_ohm: float = NonNeg
+    n_cells: int = Field(gt=0, le=1000)
+    e_ocv_v: float = Phys(0.5, 1.25)  # [V per cell]: below the reversible 1.229 V at 25 degC
+    a_tafel_v: float = Phys(0, 0.5)
+    i_tafel_a: float = Phys(0, 1000, lo_open=True)
+    r_ohm_ohm: float = Phys(0, 1)
     eta_el_mpc: float = Field(gt=0, lt=1)
 
     @model_validator(mode="after")
@@ -400,7 +387,7 @@ class FuelCellParams(Section):
 class HydrogenParams(Section):
     """Hydrogen store, ``eq:LOH`` (energy content at LHV)."""
 
-    e_max_kwh: float = Pos
+    e_max_kwh: float = Phys(0, 1.0e6, lo_open=True)
     loh_min: float = Frac
     loh_max: float = Frac
 
@@ -422,15 +409,15 @@ class ElectrolyserParams(Section):
     tank. ``n_modules = 0``: no electrolyser (the paper's plant).
     """
 
-    n_modules: int = Field(ge=0)
-    h2_rated_nl_per_h: float = Pos
+    n_modules: int = Field(ge=0, le=100)
+    h2_rated_nl_per_h: float = Phys(0, 1.0e6, lo_open=True)
     load_points: list[float]
     p_el_points_w: list[float]
-    p_standby_w: float = NonNeg
+    p_standby_w: float = Phys(0, 1.0e4)
     start_lost_h: float = NonNeg
-    p_out_bar: float = Pos
-    p_store_bar: float = Pos
-    t_compression_c: float
+    p_out_bar: float = Phys(0, 1000, lo_open=True)
+    p_store_bar: float = Phys(0, 1000, lo_open=True)
+    t_compression_c: float = Phys(-40, 100)
     eta_compressor: float = Field(gt=0, le=1)
     heat_recovery: float = Frac
 
@@ -445,8 +432,8 @@ class ElectrolyserParams(Section):
             values = getattr(self, name)
             if any(b <= a for a, b in zip(values, values[1:])):
                 raise ValueError(f"{name} must increase strictly")
-        if min(self.p_el_points_w) <= 0:
-            raise ValueError("p_el_points_w must be positive")
+        if min(self.p_el_points_w) <= 0 or max(self.p_el_points_w) > P_MAX_W:
+            raise ValueError(f"p_el_points_w must be positive and at most {P_MAX_W:g} W")
         if self.start_lost_h > 1.0:
             raise ValueError("start_lost_h must not exceed one hour")
         return self
@@ -462,9 +449,9 @@ class CoolingParams(Section):
     """
 
     enabled: bool
-    q_cool_max_w: float = Pos
-    t_supply_c: float
-    design_room_c: float
+    q_cool_max_w: float = Phys(0, P_MAX_W, lo_open=True)
+    t_supply_c: float = Phys(5, 30)
+    design_room_c: float = Phys(15, 40)
     design_rh: float = Field(gt=0, le=1)
     dew_point_margin_k: float = NonNeg
     eer_t_amb_c: list[float]
@@ -479,8 +466,10 @@ class CoolingParams(Section):
             raise ValueError("eer_t_amb_c and eer need the same length (>= 2)")
         if any(b <= a for a, b in zip(self.eer_t_amb_c, self.eer_t_amb_c[1:])):
             raise ValueError("eer_t_amb_c must increase strictly")
-        if min(self.eer) <= 0:
-            raise ValueError("EER values must be positive")
+        if min(self.eer) <= 0 or max(self.eer) > 30:
+            raise ValueError("EER values must be positive and at most 30")
+        if min(self.eer_t_amb_c) < -60 or max(self.eer_t_amb_c) > 60:
+            raise ValueError("eer_t_amb_c must lie within -60..60 degC")
         limit = dew_point_c(self.design_room_c, self.design_rh) + self.dew_point_margin_k
         if self.t_supply_c < limit:
             raise ValueError(f"t_supply_c ({self.t_supply_c}) below the dew point of the room air plus margin "
@@ -491,8 +480,8 @@ class CoolingParams(Section):
 class HeatPumpParams(Section):
     """Air-source heat pump, ``sec:hp``."""
 
-    t_supply_sh_c: float
-    t_supply_dhw_c: float
+    t_supply_sh_c: float = Phys(20, 80)
+    t_supply_dhw_c: float = Phys(30, 80)
     mod_min: float = Field(gt=0, le=1)
     cop_t_amb_c: list[float]
     cop_45c: list[float]
@@ -507,28 +496,30 @@ class HeatPumpParams(Section):
             raise ValueError("cop_t_amb_c, cop_45c and cop_55c need the same length (>= 2)")
         if any(b <= a for a, b in zip(self.cop_t_amb_c, self.cop_t_amb_c[1:])):
             raise ValueError("cop_t_amb_c must increase strictly")
-        if min(self.cop_45c + self.cop_55c) <= 1.0:
-            raise ValueError("COP values must exceed 1")
+        if min(self.cop_45c + self.cop_55c) <= 1.0 or max(self.cop_45c + self.cop_55c) > 15:
+            raise ValueError("COP values must exceed 1 and be at most 15")
+        if min(self.cop_t_amb_c + self.p_el_max_t_amb_c) < -60 or max(self.cop_t_amb_c + self.p_el_max_t_amb_c) > 60:
+            raise ValueError("cop_t_amb_c and p_el_max_t_amb_c must lie within -60..60 degC")
         m = len(self.p_el_max_t_amb_c)
         if m < 2 or len(self.p_el_max_w) != m:
             raise ValueError("p_el_max_t_amb_c and p_el_max_w need the same length (>= 2)")
         if any(b <= a for a, b in zip(self.p_el_max_t_amb_c, self.p_el_max_t_amb_c[1:])):
             raise ValueError("p_el_max_t_amb_c must increase strictly")
-        if min(self.p_el_max_w) <= 0:
-            raise ValueError("p_el_max_w must be positive")
+        if min(self.p_el_max_w) <= 0 or max(self.p_el_max_w) > P_MAX_W:
+            raise ValueError(f"p_el_max_w must be positive and at most {P_MAX_W:g} W")
         return self
 
 
 class DHWParams(Section):
     """Hot-water tank, ``eq:DHW_model``."""
 
-    v_max_l: float = Pos
-    v_min_l: float = NonNeg
-    t_dhw_c: float
-    t_cold_c: float
-    q_loss_w: float = NonNeg
-    rho_kg_per_l: float = Pos
-    c_j_per_kg_k: float = Pos
+    v_max_l: float = Phys(0, 1.0e5, lo_open=True)
+    v_min_l: float = Phys(0, 1.0e5)
+    t_dhw_c: float = Phys(30, 95)
+    t_cold_c: float = Phys(0, 30)
+    q_loss_w: float = Phys(0, 1.0e4)
+    rho_kg_per_l: float = Phys(0.9, 1.1)  # water
+    c_j_per_kg_k: float = Phys(3000, 5000)  # water: 4186 J/(kg K)
 
     @model_validator(mode="after")
     def _check(self) -> DHWParams:
@@ -542,16 +533,16 @@ class DHWParams(Section):
 class BuildingParams(Section):
     """4R3C building, ``eq:dT_i`` .. ``eq:dT_wout`` (SI units)."""
 
-    c_air_j_per_k: float = Pos
-    c_wall_j_per_k: float = Pos
-    r_w_air_k_per_w: float = Pos
-    r_air_amb_k_per_w: float = Pos
-    r_w_k_per_w: float = Pos
-    r_w_amb_k_per_w: float = Pos
-    g_s_m2: float = NonNeg
+    c_air_j_per_k: float = Phys(1.0e4, 1.0e10)  # a room of 10 m3 of air (1.2e4 J/K) .. a large building's mass
+    c_wall_j_per_k: float = Phys(1.0e5, 1.0e11)
+    r_w_air_k_per_w: float = Phys(1.0e-6, 10)
+    r_air_amb_k_per_w: float = Phys(1.0e-6, 10)
+    r_w_k_per_w: float = Phys(1.0e-6, 10)
+    r_w_amb_k_per_w: float = Phys(1.0e-6, 10)
+    g_s_m2: float = Phys(0, 1000)
     f_conv: float = Frac
-    a_sol_k_m2_per_w: float = NonNeg
-    t_amb_init_c: float
+    a_sol_k_m2_per_w: float = Phys(0, 1)
+    t_amb_init_c: float = Phys(-60, 60)
     #: Share of the appliance load that heats the air node [-]: 0 is the paper's model, which has
     #: no internal-gain input (eq:dT_i); a model identified on a house with gains sets it
     #: (``comems4build identify``), and the 4R3C and the MPC then take P_el,load as a fourth input.
@@ -561,24 +552,24 @@ class BuildingParams(Section):
 class GridParams(Section):
     """Tariff: ``p_buy = a + b * spot`` [EUR/kWh] (spot in EUR/kWh); constant sell price ``eq:costs``."""
 
-    buy_offset_eur_per_kwh: float
-    buy_spot_factor: float = Pos
-    price_sell_eur_per_kwh: float = NonNeg
+    buy_offset_eur_per_kwh: float = Phys(-PRICE_MAX_EUR_PER_KWH, PRICE_MAX_EUR_PER_KWH)
+    buy_spot_factor: float = Phys(0, 10, lo_open=True)
+    price_sell_eur_per_kwh: float = Phys(0, PRICE_MAX_EUR_PER_KWH)
 
 
 class ComfortParams(Section):
     """Comfort bounds, ``eq:T_min``."""
 
-    t_min_home_c: float
-    t_min_away_c: float
-    t_max_c: float
+    t_min_home_c: float = Phys(5, 30)
+    t_min_away_c: float = Phys(5, 30)
+    t_max_c: float = Phys(15, 40)
     home_hours_weekday: list[int]
     home_hours_weekend: list[int]
     holidays_country: str
     holidays_subdivision: str
     discomfort_sample: Literal["end", "start", "mean"] = "end"
     #: Upper bound in the cooling season [degC] and the season's first and last month (inclusive).
-    t_max_cooling_c: float = 26.0
+    t_max_cooling_c: float = Field(default=26.0, ge=15, le=40)
     cooling_season_months: list[int] = [5, 9]
 
     @model_validator(mode="after")
@@ -637,14 +628,14 @@ def _check_holiday_calendar(country: str, subdivision: str) -> None:
 class DegradationParams(Section):
     """Lifecycle and toggling costs, ``tab:degradation_HESS``."""
 
-    sigma_in_fc_eur: float = NonNeg
-    l_fc_h: float = Pos
-    sigma_om_fc_eur_per_h: float = NonNeg
-    sigma_fc_on_eur: float = NonNeg
-    sigma_fc_off_eur: float = NonNeg
-    sigma_in_b_eur: float = NonNeg
-    sigma_om_b_eur_per_h: float = NonNeg
-    n_b_cycles: float = Pos
+    sigma_in_fc_eur: float = Phys(0, 1.0e7)
+    l_fc_h: float = Phys(0, 1.0e6, lo_open=True)
+    sigma_om_fc_eur_per_h: float = Phys(0, 1.0e3)
+    sigma_fc_on_eur: float = Phys(0, 1.0e3)
+    sigma_fc_off_eur: float = Phys(0, 1.0e3)
+    sigma_in_b_eur: float = Phys(0, 1.0e7)
+    sigma_om_b_eur_per_h: float = Phys(0, 1.0e3)
+    n_b_cycles: float = Phys(0, 1.0e6, lo_open=True)
 
 
 class PlantParams(Section):

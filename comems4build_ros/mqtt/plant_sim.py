@@ -366,14 +366,9 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--username", default=None, help="broker user (password from --mqtt-secret-file)")
     args = ap.parse_args(argv)
     try:
-        import yaml
+        from comems4build_ros.core.config import parse_assignments
 
-        overrides = {}
-        for item in args.set:
-            key, sep, value = item.partition("=")
-            if not sep:
-                raise ConfigError(f"--set {item}: not KEY=VALUE")
-            overrides[key.strip()] = yaml.safe_load(value)
+        overrides = parse_assignments(args.set, "--set")
         params = load_plant_params(args.config, overrides)
         if args.username and not args.mqtt_secret_file:
             raise ValueError("--username needs --mqtt-secret-file (the password's file)")

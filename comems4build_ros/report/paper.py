@@ -23,10 +23,10 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-import yaml
 
 from comems4build_ros.core.config import PlantParams
 from comems4build_ros.core.kpi import DISCOMFORT_TOL_KH, HOURS_PER_WEEK
+from comems4build_ros.files.inputs import load_yaml_file
 from comems4build_ros.report.runs import RunData
 
 #: Data file with the paper's statements (source label inside).
@@ -150,7 +150,7 @@ def load_paper_results(path: str | Path = PAPER_RESULTS_FILE) -> Statements:
         Naming the file and the entry that is missing or invalid.
     """
     p = Path(path)
-    data = yaml.safe_load(p.read_text(encoding="utf-8"))
+    data = load_yaml_file(p, "the paper's results")
     if not isinstance(data, dict) or not {"source", "ems", "statements", "windows"} <= set(data):
         raise ValueError(f"{p}: needs keys source, ems, windows, statements")
     try:

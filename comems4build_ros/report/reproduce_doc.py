@@ -222,6 +222,62 @@ def _sections(doc: Document, report: Mapping[str, Any], figures: tuple[Path, str
     _study(doc, report)
 
 
+class ReportFileError(ValueError):
+    """A ``reproduce.json`` that is not one this version writes; the message names the file and the key."""
+
+
+#: Top-level keys of ``reproduce.json`` and the JSON types each must have (the documents read them all).
+REPORT_KEYS: dict[str, tuple[type, ...]] = {
+    "weeks": (int, float, type(None)), "seeds": (list,), "eta_sys": (int, float), "heat_eta": (int, float),
+    "heat_mode": (str,), "targets": (dict,), "statements": (dict, list), "source": (str,),
+    "paper_ratios": (dict,), "base": (dict,), "h2": (list,), "windows": (dict,), "figures": (dict,),
+    "study": (list,), "ambiguities": (list,), "runs_made": (int,), "wall_s": (int, float),
+    "runs_from": (str, type(None)),
+}
+
+
+def check_report(report: Any, source: str) -> dict[str, Any]:
+    """``report`` (the content of a ``reproduce.json``) if its keys have the types the documents read.
+
+    Each figure must be a PNG path inside ``figures/`` (no ``..``, not absolute), so that a
+    crafted file cannot make ``--from-json`` or ``--update-doc`` read or copy other files.
+
+    Raises
+    ------
+    ReportFileError
+        Naming ``source`` and the first key that is missing or of the wrong type.
+    """
+    import math
+
+    if not isinstance(report, dict):
+        raise ReportFileError(f"{source}: expected a JSON object (the content of reproduce.json), got "
+                              f"{type(report).__name__}")
+    for key, types in REPORT_KEYS.items():
+        if key not in report:
+            raise ReportFileError(f"{source}: key '{key}' missing (not a reproduce.json of this version)")
+        value = report[key]
+        if isinstance(value, bool) or not isinstance(value, types):
+            names = " or ".join("null" if t is type(None) else t.__name__ for t in types)
+            raise ReportFileError(f"{source}: '{key}' must be {names}, got {type(value).__name__}")
+        if isinstance(value, float) and not math.isfinite(value):
+            raise ReportFileError(f"{source}: '{key}' must be finite, got {value}")
+    if report["runs_made"] < 0 or report["wall_s"] < 0:
+        raise ReportFileError(f"{source}: 'runs_made' and 'wall_s' must not be negative")
+    if not all(isinstance(x, int) and not isinstance(x, bool) and 0 <= x < 2**32 for x in report["seeds"]) \
+            or not report["seeds"]:
+        raise ReportFileError(f"{source}: 'seeds' must be a non-empty list of integers in 0..2^32-1")
+    for name, rel in report["figures"].items():
+        parts = Path(str(rel)).parts
+        if not isinstance(rel, str) or Path(rel).is_absolute() or ".." in parts or parts[:1] != ("figures",) \
+                or not rel.endswith(".png"):
+            raise ReportFileError(f"{source}: figures.{name}: {rel!r} is not a PNG file inside figures/")
+    for key in ("study", "ambiguities", "h2"):
+        for i, item in enumerate(report[key]):
+            if not isinstance(item, dict):
+                raise ReportFileError(f"{source}: {key}[{i}] must be an object, got {type(item).__name__}")
+    return report
+
+
 def build_document(report: Mapping[str, Any], out: Path) -> Document:
     """The blocks of the reproduction report written into ``out`` (figures in ``out/figures``)."""
     doc = Document(TITLE)
@@ -278,8 +334,9 @@ def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path |
         for rel in report["figures"].values():
             _downscaled(Path(figures_from) / rel, target / Path(rel).name)
         figures = (target, DOC_FIGURES)
-    path.write_text(f"{head}{DOC_BEGIN}\n{doc_section(report, figures)}\n{DOC_END}{tail}", encoding="utf-8")
-    return path
+    from comems4build_ros.files.outputs import write_text_atomic
+
+    return write_text_atomic(path, f"{head}{DOC_BEGIN}\n{doc_section(report, figures)}\n{DOC_END}{tail}")
 
 
 def _downscaled(src: Path, dst: Path) -> None:

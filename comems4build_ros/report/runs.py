@@ -18,6 +18,7 @@ from typing import Any
 import pandas as pd
 
 from comems4build_ros.core.kpi import REQUIRED_COLUMNS
+from comems4build_ros.files.inputs import InputFileError, load_json_file
 
 #: Name of the manifest file in a comparison directory.
 MANIFEST = "compare.json"
@@ -148,7 +149,7 @@ def read_manifest(compare_dir: str | Path) -> Manifest:
     if not path.is_file():
         raise RunDirError(f"{path}: manifest missing (not a directory written by 'comems4build compare')")
     try:
-        data = json.loads(path.read_text(encoding="utf-8"))
+        data = load_json_file(path, "a comparison's manifest")
         runs = [RunSpec(**r) for r in data["runs"]]
         return Manifest(
             scenario=str(data["scenario"]),
@@ -204,9 +205,9 @@ def read_run(path: str | Path, spec: RunSpec | None = None, timeseries: bool = T
     if not summary_path.is_file():
         raise RunDirError(f"{summary_path}: missing")
     try:
-        summary = json.loads(summary_path.read_text(encoding="utf-8"))
-    except (json.JSONDecodeError, UnicodeDecodeError) as exc:
-        raise RunDirError(f"{summary_path}: not valid JSON ({exc})") from None
+        summary = load_json_file(summary_path, "a run's summary")
+    except InputFileError as exc:
+        raise RunDirError(f"{summary_path}: not valid JSON ({exc.problem})") from None
     if not isinstance(summary, dict):
         raise RunDirError(f"{summary_path}: not a JSON object")
     missing = [k for k in SUMMARY_KEYS if k not in summary]

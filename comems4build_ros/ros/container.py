@@ -46,11 +46,11 @@ entities in the shared executor); ``ros2 param`` does not reach them.
 from __future__ import annotations
 
 import argparse
-import json
 import sys
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.inputs import load_json_file
 from comems4build_ros.wire.exits import EXIT_BAD_INPUT
 
 #: Roles of the nodes a container runs.
@@ -78,8 +78,8 @@ def load_spec(path: str | Path) -> dict[str, Any]:
     """
     p = Path(path)
     try:
-        spec = json.loads(p.read_text(encoding="utf-8"))
-    except (OSError, json.JSONDecodeError) as exc:
+        spec = load_json_file(p, "a container spec")
+    except ValueError as exc:
         raise ContainerSpecError(f"container spec '{p}': {exc}") from None
     nodes = spec.get("nodes") if isinstance(spec, dict) else None
     if not isinstance(nodes, list) or not nodes:

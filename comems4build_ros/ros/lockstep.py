@@ -56,6 +56,10 @@ STARTUP_TIMEOUT_S = 120.0
 REPUBLISH_PERIOD_S = 0.5
 #: Default period of the watchdog timer (timeouts, repeats; parameter ``watchdog_period_s``) [s].
 WATCHDOG_PERIOD_S = 0.02
+#: A gap between two watchdog ticks longer than this (and than 50 periods) means this node itself
+#: did not run (paused with SIGSTOP, or starved of CPU): its time-outs restart instead of blaming
+#: the EMS or the feed for the time it could not see [s].
+OWN_PAUSE_S = 2.0
 #: Timing parameters of the loop [s] and their defaults.
 LOOP_PARAMS = {
     "step_timeout_s": STEP_TIMEOUT_S,
@@ -133,6 +137,8 @@ class LockStepMaster(ContractNode):
         self.finished = Future()
         self.silent_fallbacks = 0  # fallback steps in a row without any command of the run's EMS
         self._t_moved = time.monotonic()  # last step, recorder progress, or wait for the EMS (check_stall)
+        self._t_tick = time.monotonic()  # last watchdog tick (own_pause)
+        self.paused_s = 0.0  # time this node itself did not run in the run [s]
         for name in FAULT_COUNTERS:
             setattr(self, name, 0)
         self.held_s = 0.0  # time announcements waited for the recorder (back-pressure) [s]
@@ -251,6 +257,26 @@ class LockStepMaster(ContractNode):
         infos = self.get_publishers_info_by_topic(self.resolve_topic_name(topic))
         names = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos})
         return f"publisher: {', '.join(names)}" if names else "no publisher left"
+
+    def own_pause(self, now: float) -> float:
+        """The time [s] this node did not run before this watchdog tick (0 for a normal tick).
+
+        A master that was paused (SIGSTOP) or starved of CPU for longer than
+        :data:`OWN_PAUSE_S` finds, when it runs again, its step time-out long passed while the
+        EMS's command may already wait in its queue: the pause is its own, so the stall clock
+        restarts (the subclass restarts its step wait) and an event names it, instead of a
+        fallback counted as a late command of the EMS. ``now``: ``time.monotonic()`` [s].
+        """
+        gap = now - self._t_tick
+        self._t_tick = now
+        if gap <= max(OWN_PAUSE_S, 50 * self.watchdog_period_s):
+            return 0.0
+        self.paused_s += gap
+        self._t_moved += gap
+        self.event("paused", f"node '{self.get_name()}' itself did not run for {gap:.1f} s (paused, e.g. by SIGSTOP, "
+                             "or starved of CPU): the wait for the step's command restarts; no fallback is counted "
+                             "against the EMS for that time")
+        return gap
 
     def check_stall(self, now: float) -> bool:
         """End the run as stalled (:meth:`stall`) if, with ``stall_steps`` > 0, the EMS has

@@ -28,7 +28,7 @@ from rclpy.task import Future
 
 from comems4build_ros.core.config import ConfigError
 from comems4build_ros.wire.contract import ContractError
-from comems4build_ros.wire.exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED
+from comems4build_ros.wire.exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_WRITE_FAILED
 
 #: Environment variable choosing the executor of the node processes: ``lean`` (default,
 #: :class:`comems4build_ros.ros.executor.LeanExecutor`) or ``single`` (rclpy's
@@ -150,12 +150,21 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
         label = node.get_name() if node is not None else name
         print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
         code = EXIT_BAD_INPUT
+    except OSError as exc:  # a file the node writes during its run (a full disk, a read-only file system)
+        label = node.get_name() if node is not None else name
+        report_cause(label, f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
+        code = EXIT_WRITE_FAILED
     finally:
         ignore_stop_signals()  # a second Ctrl-C or the supervisor's signals must not cut the clean-up short
         watchdog = cleanup_deadline(name, code)
         executor.shutdown()
         if node is not None:
-            node.destroy_node()
+            label = node.get_name()
+            try:
+                node.destroy_node()
+            except OSError as exc:  # a file closed at the end (the recorder's bag) on a full disk
+                report_cause(label, f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
+                code = EXIT_WRITE_FAILED
         rclpy.try_shutdown()
         watchdog.cancel()
         print_cpu(name)

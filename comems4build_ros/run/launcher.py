@@ -108,8 +108,13 @@ def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
     ``exc.summaries``); a bag that cannot be read is noted on stderr."""
     from comems4build_ros.bags.evaluation import RUN_CUT_FILE, evaluate_bag, mark_run_cut
 
-    marked = mark_run_cut(bag, {"cause": exc.cause, "process": exc.process, "exit_code": exc.code,
-                                "log": None if exc.log is None else str(exc.log), "nodes": list(exc.nodes)})
+    try:
+        marked = mark_run_cut(bag, {"cause": exc.cause, "process": exc.process, "exit_code": exc.code,
+                                    "log": None if exc.log is None else str(exc.log), "nodes": list(exc.nodes)})
+    except OSError as err:  # the bag's file system is full or read-only (often the cause of the cut)
+        print(f"launcher: the cut run's bag {bag} could not be marked ({RUN_CUT_FILE}): {err.filename or bag}: "
+              f"{err.strerror or err}", file=sys.stderr)
+        marked = [bag]
     if not marked:
         return
     try:

@@ -81,6 +81,8 @@ RECORDER_GRACE_S = 20.0
 RECORDER_DRAIN_S = 60.0
 #: Poll period of the supervision loop [s].
 POLL_S = 0.05
+#: How often the supervisor looks for paused (SIGSTOP) processes to name them [s].
+PAUSE_CHECK_S = 1.0
 #: prctl option number of PR_SET_PDEATHSIG (linux/prctl.h).
 PR_SET_PDEATHSIG = 1
 
@@ -177,6 +179,7 @@ class Child:
     finishes: bool = False
     nodes: tuple[str, ...] = ()  # full names of the ROS nodes the process runs ("/house_0/plant_sim")
     hang_reported: bool = False  # exit_code() has warned of a clean-up hang after a complete run
+    paused_reported: bool = False  # the supervisor has said that the process is paused (SIGSTOP)
 
     def log_text(self) -> str:
         """The node's log so far ("" if it cannot be read)."""
@@ -476,6 +479,7 @@ def supervise(
     t_first_record: float | None = None
     t_plants_done: float | None = None
     last_r, t_last_r = 0, time.monotonic()
+    t_pause_check = time.monotonic()
     while True:
         time.sleep(POLL_S)
         r, n = progress.get()
@@ -486,12 +490,16 @@ def supervise(
             last_r, t_last_r = r, now
         if report is not None:
             report(r, n)
+        if now - t_pause_check > PAUSE_CHECK_S:  # a paused process is named as such, as soon as it is seen
+            t_pause_check = now
+            _report_paused(group)
         for c in group.children:
             code = exit_code(c)
             # exit 0 of a node: its part of the run is complete (exits.py); anything else cuts the run
             if code is None or (c.finishes and code == 0):
                 continue
-            raise left_error(c, code)
+            raise left_error(c, code, paused=[p.name for p in group.children
+                                              if p is not c and p.proc.poll() is None and p.paused()])
         if recorders and all(exit_code(c) == 0 for c in recorders):
             return t_first_record
         plants_done = all(exit_code(p) == 0 for p in plants)
@@ -538,9 +546,20 @@ def exit_code(c: Child) -> int | None:
     return code
 
 
-def left_error(c: Child, code: int) -> LaunchError:
+def _report_paused(group: ProcessGroup) -> None:
+    """Say once on stderr for each process of ``group`` that is paused (SIGSTOP) that it is, and what follows."""
+    for c in group.children:
+        if c.paused_reported or c.proc.poll() is not None or not c.paused():
+            continue
+        c.paused_reported = True
+        print(f"launcher: warning: process '{c.name}' is paused (SIGSTOP, state T): it neither sends nor receives; "
+              "the run waits for it (SIGCONT resumes it) until its time-outs end the run", file=sys.stderr, flush=True)
+
+
+def left_error(c: Child, code: int, paused: Sequence[str] = ()) -> LaunchError:
     """The :class:`LaunchError` of process ``c`` that left the run with exit code ``code``:
-    first line names it, the exit code and its meaning, and the cause the node gave."""
+    first line names it, the exit code and its meaning, and the cause the node gave; ``paused``:
+    the other processes paused (SIGSTOP) at that time, named as the likely cause of a stall."""
     meaning = exit_meaning(code)
     cause = c.cause()  # "[<node>] cause: <text>"
     text = cause.split(f"] {CAUSE_TAG} ", 1)[1] if cause else ""
@@ -548,9 +567,10 @@ def left_error(c: Child, code: int) -> LaunchError:
         text = text[len(meaning) + 2:]
     said = f": {cause.split(f' {CAUSE_TAG} ', 1)[0]} {text}" if text and text != meaning else ""
     ran = f" (it ran {describe_nodes(c.nodes)})" if len(c.nodes) > 1 else ""
+    stopped = ("; paused (SIGSTOP) at that time: " + ", ".join(f"'{n}'" for n in paused)) if paused else ""
     return LaunchError(
-        f"run cut short: node '{c.name}' exited with code {code} ({meaning}) while the run was in progress{ran}{said} "
-        f"(log: {c.log_path})\n{c.tail()}",
+        f"run cut short: node '{c.name}' exited with code {code} ({meaning}) while the run was in progress{ran}{said}"
+        f"{stopped} (log: {c.log_path})\n{c.tail()}",
         process=c.name, code=code, log=c.log_path, nodes=c.nodes,
     )
 

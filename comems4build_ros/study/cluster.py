@@ -6,6 +6,15 @@ its own process group, on the loopback address and free ports; it is what ``benc
 measures and what the tests run studies against. A cluster of several hosts is started the
 same way by hand (docs/cluster.md). :meth:`LocalDaskCluster.stop` ends every process it
 started (SIGTERM, then SIGKILL to the process group), so no scheduler or worker outlives it.
+
+The cluster speaks TLS with certificates made for this cluster alone
+(``distributed.Security.temporary()``: a self-signed key and certificate that serve as CA,
+scheduler, worker and client certificate; Dask requires the peer's certificate on every
+connection), written into a directory only the cluster's user can read; scheduler, nanny
+and workers listen on the loopback address only. So another local user can neither connect
+to the scheduler (to submit code that would run as the study's user) nor read or alter its
+traffic. :meth:`LocalDaskCluster.client_env` gives the Dask settings a client process needs
+(``comems4build ... --scheduler tls://...``).
 """
 
 from __future__ import annotations
@@ -30,6 +39,8 @@ SCHEDULER_ENV = {"DASK_DISTRIBUTED__SCHEDULER__WORKER_SATURATION": "1.0"}
 WORKER_ENV = {"DASK_DISTRIBUTED__WORKER__PROFILE__ENABLED": "False"}
 #: Time for the scheduler to listen and for the workers to connect [s].
 START_TIMEOUT_S = 60.0
+#: Host names a local cluster may listen on: the loopback interface only.
+LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 
 class ClusterError(RuntimeError):
@@ -80,8 +91,15 @@ class LocalDaskCluster:
     """
 
     def __init__(self, n_workers: int = 2, threads: int = 1, host: str = "127.0.0.1", dashboard: bool = True,
-                 nanny: bool = True, log_dir: str | Path | None = None) -> None:
+                 nanny: bool = True, log_dir: str | Path | None = None, tls: bool = True) -> None:
+        if host not in LOOPBACK_HOSTS:
+            raise ValueError("a local Dask cluster listens on the loopback address only "
+                             f"({', '.join(LOOPBACK_HOSTS)}), "
+                             f"not {host!r}")
         self.n_workers = n_workers
+        self.tls = tls
+        self.security: Any = None
+        self._certs: Path | None = None
         self.threads = threads
         self.host = host
         self.with_dashboard = dashboard
@@ -124,6 +142,7 @@ class LocalDaskCluster:
             argv += ["--dashboard-address", f"{self.host}:{dash}"]
         else:
             argv += ["--no-dashboard"]
+        argv += self._tls_args()
         scheduler = self._spawn("scheduler", argv, SCHEDULER_ENV)
         deadline = time.monotonic() + START_TIMEOUT_S
         while not _listening(self.host, port):
@@ -134,21 +153,55 @@ class LocalDaskCluster:
                 raise ClusterError(f"dask scheduler not listening after {START_TIMEOUT_S:.0f} s "
                                    f"(log {self.logs / 'scheduler.log'})")
             time.sleep(0.1)
-        self.address = f"tcp://{self.host}:{port}"
+        self.address = f"{'tls' if self.tls else 'tcp'}://{self.host}:{port}"
         for i in range(self.n_workers):
             local = self.logs / f"worker{i}"
             local.mkdir(exist_ok=True)
             self._spawn(f"worker{i}", [dask, "worker", self.address, "--host", self.host, "--name", f"worker{i}",
                                        "--nworkers", "1", "--nthreads", str(self.threads), "--no-dashboard",
                                        "--local-directory", str(local), "--death-timeout", "60",
-                                       "--nanny" if self.nanny else "--no-nanny"], WORKER_ENV)
+                                       "--nanny" if self.nanny else "--no-nanny", *self._tls_args()], WORKER_ENV)
         self._wait_for_workers(deadline)
         self.start_s = time.perf_counter() - t0
 
-    def _wait_for_workers(self, deadline: float) -> None:
+    def _tls_args(self) -> list[str]:
+        """The ``--tls-*`` options of ``dask scheduler`` and ``dask worker``: this cluster's certificate files."""
+        if not self.tls:
+            return []
+        if self._certs is None:
+            from distributed import Security
+
+            self.security = Security.temporary()
+            self._certs = Path(tempfile.mkdtemp(prefix="comems4build-dask-tls-"))  # mode 0700
+            for name, text in (("ca.pem", self.security.tls_ca_file), ("cert.pem", self.security.tls_scheduler_cert),
+                               ("key.pem", self.security.tls_scheduler_key)):
+                fd = os.open(self._certs / name, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
+                with os.fdopen(fd, "w", encoding="ascii") as fh:
+                    fh.write(text)
+        return ["--tls-ca-file", str(self._certs / "ca.pem"), "--tls-cert", str(self._certs / "cert.pem"),
+                "--tls-key", str(self._certs / "key.pem")]
+
+    def client(self, timeout: float = START_TIMEOUT_S) -> Any:
+        """A ``distributed.Client`` of this cluster (with its TLS certificate)."""
         from distributed import Client
 
-        with Client(self.address, timeout=START_TIMEOUT_S, set_as_default=False) as client:
+        return Client(self.address, timeout=timeout, set_as_default=False, security=self.security)
+
+    def client_env(self) -> dict[str, str]:
+        """Dask's settings for a client process of this cluster (``--scheduler``): its certificate files.
+
+        Empty for a cluster without TLS. The files stay readable by the cluster's user only.
+        """
+        if not self.tls or self._certs is None:
+            return {}
+        ca, cert, key = (str(self._certs / n) for n in ("ca.pem", "cert.pem", "key.pem"))
+        return {"DASK_DISTRIBUTED__COMM__REQUIRE_ENCRYPTION": "True",
+                "DASK_DISTRIBUTED__COMM__TLS__CA_FILE": ca,
+                "DASK_DISTRIBUTED__COMM__TLS__CLIENT__CERT": cert,
+                "DASK_DISTRIBUTED__COMM__TLS__CLIENT__KEY": key}
+
+    def _wait_for_workers(self, deadline: float) -> None:
+        with self.client() as client:
             while len(client.scheduler_info()["workers"]) < self.n_workers:
                 dead = [p for p in self.procs if p.poll() is not None]
                 if dead:
@@ -162,9 +215,7 @@ class LocalDaskCluster:
 
     def worker_pids(self) -> dict[str, int]:
         """Worker address -> process id of the worker process (the one that runs tasks)."""
-        from distributed import Client
-
-        with Client(self.address, timeout=START_TIMEOUT_S, set_as_default=False) as client:
+        with self.client() as client:
             return dict(client.run(os.getpid))
 
     def pids(self) -> list[int]:
@@ -205,8 +256,11 @@ class LocalDaskCluster:
         self._files = []
         if self._own_logs:
             shutil.rmtree(self.logs, ignore_errors=True)
+        if self._certs is not None:  # the certificates serve this cluster only
+            shutil.rmtree(self._certs, ignore_errors=True)
+            self._certs = None
 
     def info(self) -> dict[str, Any]:
         """Address, dashboard, workers and start-up time."""
         return {"address": self.address, "dashboard": self.dashboard, "workers": self.n_workers,
-                "threads": self.threads, "start_s": self.start_s}
+                "threads": self.threads, "start_s": self.start_s, "tls": self.tls}

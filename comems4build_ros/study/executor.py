@@ -435,8 +435,9 @@ class DaskBackend:
     """The workers of a Dask cluster (``dask scheduler`` and ``dask worker`` processes, any hosts)."""
 
     def __init__(self, address: str, connect_timeout_s: float = CONNECT_TIMEOUT_S,
-                 worker_timeout_s: float = WORKER_TIMEOUT_S) -> None:
+                 worker_timeout_s: float = WORKER_TIMEOUT_S, security: Any = None) -> None:
         self.address = address
+        self.security = security  # distributed.Security of a TLS cluster (None: Dask's configuration)
         self.connect_timeout_s = connect_timeout_s
         self.worker_timeout_s = worker_timeout_s
         self.client: Any = None
@@ -449,7 +450,8 @@ class DaskBackend:
         except ImportError as exc:  # pragma: no cover - a dependency of requirements.txt
             raise ExecutorError(f"--scheduler {self.address}: dask.distributed is not installed ({exc})") from None
         try:
-            self.client = Client(self.address, timeout=self.connect_timeout_s, set_as_default=False)
+            self.client = Client(self.address, timeout=self.connect_timeout_s, set_as_default=False,
+                                 security=self.security)
         except (OSError, TimeoutError) as exc:
             raise ExecutorError(f"--scheduler {self.address}: no scheduler answered within "
                                 f"{self.connect_timeout_s:.0f} s ({exc})") from None

@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from comems4build_ros.files.inputs import load_json_file
 from comems4build_ros.run.progress import ProgressCallback
 from comems4build_ros.study.executor import RunFailedError
 
@@ -134,7 +135,7 @@ class RunTask:
                                        config=[paths.get(c, c) for c in self.config],
                                        scenario=paths.get(str(self.scenario), self.scenario))
             summary = run_task(task, progress)
-        written = json.loads((Path(out_dir) / "summary.json").read_text(encoding="utf-8"))
+        written = load_json_file(Path(out_dir) / "summary.json", "a run's summary")
         return {**written, "task_wall_s": summary["task_wall_s"]}
 
 
@@ -210,7 +211,7 @@ def _run_ros(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     summary["eta_sys"] = load_plant_params(scenario_config_files(task.scenario, task.config),
                                            task.overrides).fuel_cell.eta_sys
     path = out / "summary.json"
-    data = json.loads(path.read_text(encoding="utf-8"))
+    data = load_json_file(path, "a run's summary")
     data["eta_sys"] = summary["eta_sys"]
     path.write_text(json.dumps(data, indent=2) + "\n", encoding="utf-8")
     return summary

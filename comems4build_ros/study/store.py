@@ -27,6 +27,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.inputs import load_json_file
+
 #: Name of the store directory inside a study's output directory.
 STORE_DIR = ".runstore"
 #: The run's record, in the store and in the run's output directory.
@@ -94,7 +96,7 @@ class RunStore:
             if path.name.startswith(".") or not path.is_dir():
                 continue
             try:
-                record = json.loads((path / RECORD).read_text(encoding="utf-8"))
+                record = load_json_file(path / RECORD, "a run record")
                 if not isinstance(record, dict) or record.get("name") != path.name or "spec_hash" not in record:
                     raise ValueError("not a run record of this directory")
             except (OSError, ValueError) as exc:

@@ -29,13 +29,16 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
     ValueError
         If the text is not ``PATH=V1[,V2...]`` with a dotted path.
     """
-    import yaml
+    from comems4build_ros.files.inputs import InputFileError, load_yaml_text
 
     path, sep, vals = text.partition("=")
     path = path.strip()
     if not sep or "." not in path or not vals.strip():
         raise ValueError(f"--param '{text}': expected SECTION.KEY=V1,V2,... (e.g. battery.e_max_kwh=5,10)")
-    values = [yaml.safe_load(v) for v in vals.split(",")]
+    try:
+        values = [load_yaml_text(v, f"--param '{text}'") for v in vals.split(",")]
+    except InputFileError as exc:
+        raise ValueError(str(exc)) from None
     if any(v is None for v in values):
         raise ValueError(f"--param '{text}': empty value")
     if len({repr(v) for v in values}) != len(values):

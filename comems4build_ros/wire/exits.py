@@ -17,12 +17,16 @@ EXIT_INTERRUPTED = 3
 #: Exit code of a lock-step master that ended the run because another party fell silent
 #: (:meth:`comems4build_ros.ros.lockstep.LockStepMaster.stall`).
 EXIT_STALLED = 4
+#: Exit code of a node that could not write a file during its run (a full disk, a file system
+#: turned read-only): the recorder's bag, a cache.
+EXIT_WRITE_FAILED = 5
 #: What each non-zero exit code of a node process means (the supervisor's messages).
 EXIT_CODES = {
     1: "error",
     EXIT_BAD_INPUT: "bad input",
     EXIT_INTERRUPTED: "stopped by a signal before the end of its run",
     EXIT_STALLED: "run stalled",
+    EXIT_WRITE_FAILED: "could not write a file",
 }
 #: Prefix of the one line on stderr that names why a node ended a run early (read by the
 #: supervisor from the node's log: :func:`comems4build_ros.ros.process.report_cause`).

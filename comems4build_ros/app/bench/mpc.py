@@ -300,6 +300,14 @@ def _print_table(table: pd.DataFrame, digits: int = 2) -> None:
 
 
 def run(args: argparse.Namespace) -> int:
+    """The benchmark, its ``--out`` (if given) through the output layer: checked, locked, all or nothing."""
+    from comems4build_ros.app.commands.options import bench_output
+
+    with bench_output(args, "bench mpc"):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     """Run the benchmark's stages and print their tables: closed loops side by side, a full run, the
     solver configurations on fixed problems, the KPIs of the default settings against the exact MILP."""
     from comems4build_ros.core.config import load_plant_params

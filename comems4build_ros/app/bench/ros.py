@@ -107,6 +107,14 @@ def _layout_label(opts: Any) -> str:
 
 
 def run(args: argparse.Namespace) -> int:
+    """The benchmark, its ``--out`` (if given) through the output layer: checked, locked, all or nothing."""
+    from comems4build_ros.app.commands.options import bench_output
+
+    with bench_output(args, "bench ros"):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     """Run the benchmark and print the figures."""
     from comems4build_ros.app.cli import UsageError
     from comems4build_ros.core.config import load_plant_params

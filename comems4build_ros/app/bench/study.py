@@ -125,7 +125,7 @@ def run(args: argparse.Namespace) -> int:
             with LocalDaskCluster(n_workers=2, threads=1) as cluster:
                 print(f"  Dask cluster up in {cluster.start_s:.1f} s: scheduler {cluster.address}, 2 workers of 1 "
                       f"thread, dashboard {cluster.dashboard}", flush=True)
-                backend = DaskBackend(cluster.address)
+                backend = DaskBackend(cluster.address, security=cluster.security)
                 results["Dask, 2 workers"] = _measure("Dask, 2 workers", tasks_of, backend, args.repeats, work)
     t1 = statistics.median(results["1 local worker"][0])
     print(f"\n{'way':<18}{'median wall [s]':>16}{'range [s]':>18}{'efficiency t1/(2 t2)':>22}"

@@ -94,6 +94,14 @@ def run_inprocess(ems: str, weeks: float | None, out: Path | None) -> dict[str, 
 
 
 def run(args: argparse.Namespace) -> int:
+    """The benchmark, its ``--out`` (if given) through the output layer: checked, locked, all or nothing."""
+    from comems4build_ros.app.commands.options import bench_output
+
+    with bench_output(args, "bench year"):
+        return _run(args)
+
+
+def _run(args: argparse.Namespace) -> int:
     """Run the benchmark and print its figures."""
     from comems4build_ros.app.cli import UsageError
     from comems4build_ros.core import ems as ems_registry

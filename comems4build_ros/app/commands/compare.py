@@ -25,6 +25,10 @@ if TYPE_CHECKING:
 DEFAULT_EMS = "rbc,fuzzy,mpc"
 #: FC system efficiencies by default (paper sec:heat_recovery); the first is the base.
 DEFAULT_ETAS = "0.75,0.90"
+#: What the report of a comparison writes into its output directory (``--from-runs`` writes only these).
+REPORT_FILES = ("figures", "report.md", "report.html", "findings.json", "paper_comparison.csv")
+#: What ``compare`` writes: its runs, its manifest and the report.
+COMPARE_FILES = ("runs", "compare.json", *REPORT_FILES)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -107,11 +111,16 @@ def run(args: argparse.Namespace) -> int:
 
     add_scenario_config(args)
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import check_config_files, ems_names, scenario_of, study_executor
+    from comems4build_ros.app.commands.options import (
+        check_config_files,
+        ems_names,
+        output_dir,
+        scenario_of,
+        study_executor,
+    )
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.ems import ems_entry
-    from comems4build_ros.files.outputs import atomic_dir, check_out_dir
     from comems4build_ros.report.runs import RunDirError
 
     if args.from_runs and (args.scheduler or args.resume):
@@ -119,16 +128,17 @@ def run(args: argparse.Namespace) -> int:
     if args.via == "ros" and args.scheduler:
         raise UsageError("--via ros runs the ROS 2 node set on this machine; --scheduler applies to in-process runs")
     if args.from_runs:
-        out = Path(args.out or args.from_runs)
-        check_out_dir(out)
+        output = output_dir(args, "compare", writes=REPORT_FILES, replaces=REPORT_FILES,
+                            path=args.out if args.out is not None else args.from_runs)
         try:
-            with atomic_dir(out) as stage:  # the report files replace the older ones only when all are written
-                rep = _report_builder(args.from_runs)(args.from_runs, stage)
+            with output:  # the report files replace the older ones only when all are written
+                rep = _report_builder(args.from_runs)(args.from_runs, output.stage)
+                stage = output.stage
         except RunDirError as exc:
             raise UsageError(str(exc)) from None
-        _print_report(rep, stage, out)
+        _print_report(rep, stage, output.path)
         return 0
-    if not args.out:
+    if args.out is None:
         raise UsageError("--out is required (unless --from-runs)")
     emss = ems_names(args.ems)
     from comems4build_ros.app.commands.options import building_choice
@@ -147,12 +157,14 @@ def run(args: argparse.Namespace) -> int:
     if args.extend and args.via == "ros":
         raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")
     scenario_of(args, params)  # the scenario and the run length, checked once before any run
-    check_out_dir(args.out)
-    out = Path(args.out)
+    output = output_dir(args, "compare", writes=COMPARE_FILES, replaces=COMPARE_FILES)
+    output.check()
+    out = output.path
     jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
-    with study_executor(args, out, jobs) as executor:  # finished runs kept in OUT/.runstore until the end
-        with atomic_dir(out) as stage:  # runs/, manifest, report, figures replace an older comparison's when done
-            rep = _compare(args, emss, etas, levels, overrides, stage)
+    with output, study_executor(args, out, jobs) as executor:  # finished runs kept in OUT/.runstore until the end
+        stage = output.stage
+        rep = _compare(args, emss, etas, levels, overrides, stage)
+        output.commit()  # runs/, manifest, report, figures replace an older comparison's when all are written
         executor.complete()
     _print_report(rep, stage, out)
     return 0

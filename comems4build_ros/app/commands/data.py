@@ -50,14 +50,18 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Run ``fetch-prices`` or ``build``."""
-    from comems4build_ros.app.commands.options import UsageError, load_params
+    from comems4build_ros.app.commands.options import UsageError, load_params, output_file
     from comems4build_ros.core.config import check_input_file
     from comems4build_ros.core.scenario import loaders
-    from comems4build_ros.files.outputs import check_out_file, write_text_atomic
 
     params = load_params(args.config)
     tz = params.site.timezone
-    check_out_file(args.out)
+    for option in ("prices", "temperature", "solar", "dhw", "load"):  # the inputs first, then the output
+        path = getattr(args, option, None)
+        if path is not None:
+            check_input_file(path, f"--{option}")
+    output = output_file(args, f"data {args.data_command}")
+    output.check()
 
     # --start / --end: ISO 8601, naive = site time (no DST gap, no ambiguous hour), checked before any file is read
     start, end = (loaders.local_time(text, tz, option) if text else None
@@ -73,15 +77,12 @@ def run(args: argparse.Namespace) -> int:
         except (urllib.error.URLError, TimeoutError, OSError) as exc:
             print(f"comems4build data fetch-prices: download failed: {exc}")
             return 1
-        out = write_text_atomic(args.out, text)
-        series = loaders.read_awattar_json(out)
-        print(f"wrote {out}: {len(series)} hourly prices {series.index[0]} .. {series.index[-1]}")
+        with output:  # checked as any prices file before it is put in place
+            output.file.write_text(text, encoding="utf-8")
+            series = loaders.read_awattar_json(output.file)
+        print(f"wrote {output.target}: {len(series)} hourly prices {series.index[0]} .. {series.index[-1]}")
         return 0
 
-    for option in ("prices", "temperature", "solar", "dhw", "load"):
-        path = getattr(args, option)
-        if path is not None:
-            check_input_file(path, f"--{option}")
     prices = (args.prices, loaders.read_awattar_json(args.prices))
     temperature = (args.temperature, loaders.read_dwd_temperature(args.temperature))
     solar = (args.solar, loaders.read_dwd_solar(args.solar))
@@ -93,7 +94,9 @@ def run(args: argparse.Namespace) -> int:
     frame, provenance = loaders.build_scenario_frame(
         params, prices, temperature, solar, dhw=dhw, load=load, start=args.start, end=args.end, seed=args.seed
     )
-    out = loaders.write_frame_csv(frame, args.out, tz)
+    with output:
+        loaders.write_frame_csv(frame, output.file, tz)
+    out = output.target
     first, last = frame.index[0].tz_convert(tz), frame.index[-1].tz_convert(tz)
     print(f"wrote {out}: {len(frame)} hours {first.isoformat()} .. {last.isoformat()}")
     for col, source in provenance.items():

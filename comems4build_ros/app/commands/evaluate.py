@@ -24,17 +24,17 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def run(args: argparse.Namespace) -> int:
     """Read the bag, compute the KPIs, write the files."""
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import check_config_files
+    from comems4build_ros.app.commands.options import check_config_files, output_dir
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.bags.evaluation import evaluate_bag, house_dir, read_run_info
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.loop import RUN_FILES
-    from comems4build_ros.files.outputs import atomic_dir, check_out_dir
 
     bag = Path(args.bag)
     if not bag.exists():
         raise UsageError(f"bag {bag}: no such file or directory")
-    check_out_dir(args.out)
+    output = output_dir(args, "evaluate", writes=(*RUN_FILES, "house_*"), replaces=(*RUN_FILES, "house_*"))
+    output.check()
     params = None
     if args.config is not None or args.set:
         check_config_files(args.config or [])
@@ -45,8 +45,8 @@ def run(args: argparse.Namespace) -> int:
         params = load_plant_params(files, overrides)
     # all or nothing: the results go to a temporary directory, then replace those of an earlier evaluate
     # (no older timeseries.csv or house_<i>/ stays beside them)
-    with atomic_dir(args.out, replaces=(*RUN_FILES, "house_*")) as stage:
-        summaries = evaluate_bag(bag, stage, params=params, timeseries=not args.no_timeseries,
+    with output:
+        summaries = evaluate_bag(bag, output.stage, params=params, timeseries=not args.no_timeseries,
                                  accept_gaps=args.accept_gaps)
     damaged = {ns: s["bag_incomplete"] for ns, s in summaries.items() if "bag_incomplete" in s}
     for ns, d in damaged.items():  # each house with its own bag's damage

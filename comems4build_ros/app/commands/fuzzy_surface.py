@@ -24,6 +24,8 @@ from typing import Any
 
 from comems4build_ros.app.commands.options import FRACTION, integer
 
+#: What ``fuzzy-surface`` writes into its output directory (PDF, SVG and PNG of each map).
+SURFACE_FILES = ("flc_flex.*", "flc_fc.*", "flc_b.*", "flc_3d.*")
 #: Grid points per axis of each map.
 N_GRID = 41
 #: Watts per kilowatt for the load axes.
@@ -131,22 +133,22 @@ def surfaces_figure(maps: dict[str, dict[str, Any]]) -> Any:
 
 def run(args: argparse.Namespace) -> int:
     """Write the figures; print the paths of their PNG versions."""
-    from comems4build_ros.app.commands.options import load_params
+    from comems4build_ros.app.commands.options import load_params, output_dir
     from comems4build_ros.core.ems.fuzzy import load_flcs
-    from comems4build_ros.files.outputs import check_out_dir
     from comems4build_ros.report.style import save_figure
 
-    check_out_dir(args.out)
+    output = output_dir(args, "fuzzy-surface", writes=SURFACE_FILES, replaces=SURFACE_FILES)
+    output.check()
     params = load_params(args.config)
     systems = {}
     for key, (system, section) in load_flcs(params).items():
         system.load_scale_w = float(section.get("load_scale_w", 10_000.0))
         systems[key] = system
     maps = surfaces(systems, args.chi)
-    out = Path(args.out)
-    out.mkdir(parents=True, exist_ok=True)
-    written = [save_figure(surface_figure(s), out / name, dpi=args.dpi) for name, s in maps.items()]
-    written.append(save_figure(surfaces_figure(maps), out / "flc_3d", dpi=args.dpi))
+    with output:  # the figures replace an earlier drawing's only when all are drawn
+        stage = output.stage
+        written = [save_figure(surface_figure(s), stage / name, dpi=args.dpi) for name, s in maps.items()]
+        written.append(save_figure(surfaces_figure(maps), stage / "flc_3d", dpi=args.dpi))
     for p in written:
-        print(p)
+        print(output.path / Path(p).name)
     return 0

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import shutil
 import sys
 from pathlib import Path
 from typing import Any
@@ -241,9 +242,9 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import add_scenario_config
 
     add_scenario_config(args)
-    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.app.commands.options import output_dir
     from comems4build_ros.app.commands.simulate import warn_run
-    from comems4build_ros.files.outputs import check_out_dir
+    from comems4build_ros.files.outputs import BAG_BYTES_PER_STEP, check_free_space
     from comems4build_ros.run.launcher import launch
     from comems4build_ros.run.supervisor import LaunchError
 
@@ -253,33 +254,72 @@ def run(args: argparse.Namespace) -> int:
 
         print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
         return 0
-    check_out_dir(args.out)
-    bag = Path(args.bag) if args.bag else Path(args.out) / "bag"
-    if bag.exists():
-        raise UsageError(f"--out {args.out}: {bag} exists (choose another --out or --bag, or remove it)")
+    output = output_dir(args, "launch", in_place=True)
+    output.check()
+    own_bag = check_bag_dir(args, output.path)
+    check_free_space(own_bag or output.path / "bag", getattr(args, "run_steps", 0) * args.houses * BAG_BYTES_PER_STEP,
+                     "--bag" if own_bag else "--out", f"the bag of {args.houses} house(s) x "
+                     f"{getattr(args, 'run_steps', 0)} steps")
     keys = ("weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",
             "buy_kwh_week_median", "sell_kwh_week_median", "loh_end", "fallback_steps")
-    try:
-        result = launch(opts)
-    except LaunchError as exc:
-        # first: that the run was cut and why (the message names the node, its exit code and log)
-        print(f"comems4build launch: {exc}", file=sys.stderr)
-        for ns, s in exc.summaries.items():
-            inc = s.get("bag_incomplete", {})
-            print(json.dumps({"house": ns, "run_cut": True, "steps_recorded": inc.get("steps_recorded"),
-                              "steps_expected": inc.get("steps_expected"), **{k: s.get(k) for k in keys}}))
-        if exc.summaries:
-            print(f"comems4build launch: the run was cut short: the figures above cover only the steps recorded; "
-                  f"{bag} is kept and marked incomplete (run_cut.json), summaries in {args.out}", file=sys.stderr)
-        return 1
+    # the run writes into --out itself (its logs and bag can be watched there), an earlier run's results kept
+    # aside until it ends: an interrupted run leaves them as they were, a finished or cut run replaces them
+    with output:
+        out = output.path
+        for cache in output.previous_entries("live_*.json"):  # the live inputs' caches (config/live_inputs.yaml)
+            shutil.copy2(cache, out / cache.name)
+        try:
+            result = launch(opts)
+        except LaunchError as exc:
+            # first: that the run was cut and why (the message names the node, its exit code and log)
+            print(f"comems4build launch: {exc}", file=sys.stderr)
+            for ns, s in exc.summaries.items():
+                inc = s.get("bag_incomplete", {})
+                print(json.dumps({"house": ns, "run_cut": True, "steps_recorded": inc.get("steps_recorded"),
+                                  "steps_expected": inc.get("steps_expected"), **{k: s.get(k) for k in keys}}))
+            bag = own_bag or out / "bag"
+            if exc.summaries:
+                print(f"comems4build launch: the run was cut short: the figures above cover only the steps recorded; "
+                      f"{bag} is kept and marked incomplete (run_cut.json), summaries in {out}", file=sys.stderr)
+            output.commit()
+            return 1
+        except BaseException:
+            if own_bag is not None:  # all or nothing: the bag this run started goes with it
+                shutil.rmtree(own_bag, ignore_errors=True)
+            raise
     for ns, s in result.summaries.items():
         print(json.dumps({"house": ns, **{k: s.get(k) for k in keys}}))
     print(f"ROS domain {result.domain_id}: {len(result.summaries)} house(s), wall {result.wall_s:.1f} s "
           f"(run {result.run_s:.1f} s after the first record)")
-    print(f"wrote {result.bag}, {result.out / 'weekly.csv'}, {result.out / 'summary.json'}")
+    print(f"wrote {own_bag or out / 'bag'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
     for s in result.summaries.values():
         warn_run(s, "launch")
     return 0
+
+
+def check_bag_dir(args: argparse.Namespace, out: Path) -> Path | None:
+    """``--bag DIR`` (None without): not yet there, not an input, in a directory the recorder can write.
+
+    Checked before any node starts: a recorder that cannot create its bag would fail only
+    after every node started. Without ``--bag`` the bag goes to ``bag/`` of the run's stage
+    in ``--out`` (checked with it).
+
+    Raises
+    ------
+    OutputPathError
+        Naming ``--bag`` and the reason.
+    """
+    from comems4build_ros.app.commands.options import command_inputs
+    from comems4build_ros.files.outputs import OutputPathError, check_not_input, check_out_dir, check_out_text
+
+    if not args.bag:
+        return None
+    bag = check_out_text(args.bag, "--bag")
+    if bag.exists() or bag.is_symlink():
+        raise OutputPathError(f"--bag {bag}: exists (a bag is never written over: choose another --bag or remove it)")
+    check_out_dir(bag, "--bag")
+    check_not_input(bag, command_inputs(args), "--bag")
+    return bag
 
 
 def check_live_inputs(args: argparse.Namespace, params: Any) -> None:
@@ -308,7 +348,7 @@ def check_live_inputs(args: argparse.Namespace, params: Any) -> None:
     cache = Path(settings.cache_file) if settings.cache_file else Path(args.out) / "live_prices.json"
     with tempfile.TemporaryDirectory(prefix="comems4build_live_") as tmp:
         probe = cache
-        if not cache.parent.is_dir():  # nothing is written before the run: fetch into a scratch cache
+        if not settings.cache_file or not cache.parent.is_dir():  # nothing goes into --out before the run
             probe = Path(tmp) / cache.name
             if cache.is_file():
                 shutil.copy(cache, probe)
@@ -335,3 +375,4 @@ def check_feed_scenario(args: argparse.Namespace, params: Any) -> None:
     weeks, steps = feed_window(args.weeks, args.steps)
     scenario = load_scenario(args.scenario, params, args.start, weeks or None, args.seed, steps or None)
     check_scenario(scenario, params.simulation.time_step_h)
+    args.run_steps = int(scenario.n_steps)  # the bag's size is checked against the free space with it

@@ -301,3 +301,67 @@ def check_building_covers(choice: Any, scenario: Any, params: Any) -> None:
         check_covers(choice, weather, params.site, scenario.n_steps)
     except BuildingChoiceError as exc:
         raise UsageError(str(exc)) from None
+#: Options of the commands that name input files or directories (what an output must not overwrite).
+INPUT_OPTIONS = ("config", "costs", "scenario", "topic_map", "live_config", "bag", "prices", "temperature", "solar",
+                 "dhw", "load", "from_json", "from_runs", "building", "building_map", "epw")
+
+
+def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
+    """Every input path a command's options name (``--config``, ``--scenario FILE.csv``, a bag, ...): option -> paths.
+
+    The one list the output layer checks an output against
+    (:func:`comems4build_ros.files.outputs.check_not_input`); a ``--scenario`` that names an
+    embedded scenario (``default``, ``year``, ``synthetic``) is no path. ``evaluate``'s
+    positional bag is ``BAG``; ``launch``'s ``--bag`` is an output, not an input.
+    ``--from-runs DIR`` reads ``DIR/runs/`` and the study's record in ``DIR``
+    (``compare.json``, ``reproduce.json``), so that a report can be rebuilt beside its runs.
+    """
+    from pathlib import Path
+
+    out: dict[str, list[str]] = {}
+    for name in INPUT_OPTIONS:
+        value = getattr(args, name, None)
+        if value is None or (name == "bag" and getattr(args, "command", "") == "launch"):
+            continue
+        values = [str(v) for v in (value if isinstance(value, list | tuple) else [value]) if str(v)]
+        if name == "scenario":
+            values = [v for v in values if Path(v).is_file()]
+        if name == "building":  # energyplus:FILE.idf, fmu:FILE.fmu name a file; rc and energyplus none
+            values = [v.partition(":")[2] for v in values if v.partition(":")[2]]
+        if name == "from_runs":
+            values = [str(Path(v) / sub) for v in values for sub in ("runs", "compare.json", "reproduce.json")]
+        if values:
+            out["BAG" if name == "bag" else f"--{name.replace('_', '-')}"] = values
+    return out
+
+
+def output_dir(args: argparse.Namespace, command: str, writes: Sequence[str] = ("*",), replaces: Sequence[str] = (),
+               path: Any = None, option: str = "--out", in_place: bool = False) -> Any:
+    """The :class:`~comems4build_ros.files.outputs.OutputDir` of a command's ``--out``, checked against its inputs.
+
+    Enter it before any run: it refuses an empty or ambiguous path, an output that is, lies
+    inside or would replace an input, a second command on the same directory and entries in
+    the way that comems4build did not write (each as a usage error, exit code 2).
+    """
+    from comems4build_ros.files.outputs import OutputDir
+
+    return OutputDir(args.out if path is None else path, command, option=option, inputs=command_inputs(args),
+                     writes=writes, replaces=replaces, in_place=in_place)
+
+
+def output_file(args: argparse.Namespace, command: str, path: Any = None, option: str = "--out") -> Any:
+    """The :class:`~comems4build_ros.files.outputs.OutputFile` of a command's one output file (``data build``)."""
+    from comems4build_ros.files.outputs import OutputFile
+
+    return OutputFile(args.out if path is None else path, command, option=option, inputs=command_inputs(args))
+
+
+def bench_output(args: argparse.Namespace, command: str) -> Any:
+    """The output layer for a benchmark's optional ``--out`` (in place: its runs can be watched), or no-op."""
+    import contextlib
+
+    if getattr(args, "out", None) is None:
+        return contextlib.nullcontext()
+    output = output_dir(args, command, in_place=True)
+    output.check()
+    return output

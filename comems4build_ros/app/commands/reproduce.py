@@ -42,39 +42,27 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "code and config/")
 
 
+#: What ``reproduce`` writes into its output directory.
+REPRODUCE_FILES = ("runs", "figures", "reproduce.md", "reproduce.html", "reproduce.json")
+#: What ``reproduce --from-json`` writes (the documents, and the figures beside another directory's JSON).
+DOCUMENT_FILES = ("figures", "reproduce.md", "reproduce.html")
+
+
 def run(args: argparse.Namespace) -> int:
     """Run the reproduction and print where the report is."""
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import study_executor
-    from comems4build_ros.files.outputs import check_out_dir
+    from comems4build_ros.app.commands.options import output_dir, study_executor
 
     if args.from_json and args.from_runs:
         raise UsageError("--from-json and --from-runs exclude each other")
     if (args.from_json or args.from_runs) and (args.scheduler or args.resume):
         raise UsageError("--scheduler and --resume apply to runs; --from-json and --from-runs make none")
+    if args.update_doc:
+        from comems4build_ros.files.outputs import check_out_file, check_out_text
+
+        check_out_file(check_out_text(args.update_doc, "--update-doc"), "--update-doc")
     if args.from_json:
-        import json
-        from pathlib import Path
-
-        from comems4build_ros.report.reproduce_doc import update_doc, write_documents
-
-        try:
-            report = json.loads(Path(args.from_json).read_text(encoding="utf-8"))
-        except (OSError, json.JSONDecodeError) as exc:
-            raise UsageError(f"--from-json {args.from_json}: {exc}") from None
-        out = Path(args.out)
-        out.mkdir(parents=True, exist_ok=True)
-        src = Path(args.from_json).parent
-        report = {**report, "figures": {k: v for k, v in report.get("figures", {}).items() if (src / v).is_file()}}
-        if report["figures"] and src.resolve() != out.resolve():
-            import shutil
-
-            shutil.copytree(src / "figures", out / "figures", dirs_exist_ok=True)
-        md, html = write_documents(report, out)
-        print(f"wrote {md}, {html}")
-        if args.update_doc:
-            print(f"updated {update_doc(args.update_doc, report, out)}")
-        return 0
+        return _from_json(args)
     if args.from_runs:
         from pathlib import Path
 
@@ -83,7 +71,6 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import building_choice
 
     building = building_choice(args).text
-    check_out_dir(args.out)
     only = [k for k in args.only.split(",") if k] if args.only else None
     seeds = None
     if args.seeds is not None:
@@ -93,12 +80,16 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(f"--seeds {args.seeds}: a comma-separated list of integers") from None
         if not seeds or len(set(seeds)) != len(seeds) or not all(0 <= s < 2**32 for s in seeds):
             raise UsageError(f"--seeds {args.seeds}: distinct integers in 0..2^32-1")
-
-    with study_executor(args, args.out) as executor:  # the runs' executor; finished runs kept in OUT/.runstore
-        res = reproduce(args.out, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
+    writes = DOCUMENT_FILES + ("reproduce.json",) if args.from_runs else REPRODUCE_FILES
+    output = output_dir(args, "reproduce", writes=writes, replaces=writes)
+    output.check()
+    with output, study_executor(args, args.out) as executor:  # the runs' executor; finished runs kept in OUT/.runstore
+        res = reproduce(output.stage, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
                         seeds=seeds, show_progress=False if args.no_progress else None,
                         from_runs=args.from_runs, figures=not args.no_figures, building=building)
+        output.commit()  # runs/, figures, documents and reproduce.json replace an earlier reproduction's whole
         executor.complete()
+    out = output.path
 
     def pct(x: float | None) -> str:
         return "-" if x is None else f"{100 * x:.1f} %"
@@ -110,13 +101,44 @@ def run(args: argparse.Namespace) -> int:
           + f"; findings held {res.findings_held} of {res.findings_total}")
     made = (f"runs of {args.from_runs} evaluated again" if args.from_runs
             else f"{res.runs_made} runs in {res.wall_s:.0f} s")
-    print(f"{made}; wrote {res.markdown}, {res.html}, {res.json}")
+    print(f"{made}; wrote {out / res.markdown.name}, {out / res.html.name}, {out / res.json.name}")
     if args.update_doc:
-        import json
-
+        from comems4build_ros.files.inputs import load_json_file
         from comems4build_ros.report.reproduce_doc import update_doc
 
-        print(f"updated {update_doc(args.update_doc, json.loads(res.json.read_text(encoding='utf-8')), res.out)}")
+        print(f"updated {update_doc(args.update_doc, load_json_file(out / res.json.name, 'reproduce.json'), out)}")
+    return 0
+
+
+def _from_json(args: argparse.Namespace) -> int:
+    """``--from-json FILE``: the documents (and ``--update-doc``) from an earlier ``reproduce.json``, no runs."""
+    import shutil
+    from pathlib import Path
+
+    from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.app.commands.options import output_dir
+    from comems4build_ros.files.inputs import InputFileError, load_json_file
+    from comems4build_ros.report.reproduce_doc import ReportFileError, check_report, update_doc, write_documents
+
+    try:
+        report = check_report(load_json_file(args.from_json, "a reproduce.json"), str(args.from_json))
+    except (InputFileError, ReportFileError) as exc:
+        raise UsageError(f"--from-json {exc}") from None
+    src = Path(args.from_json).parent
+    output = output_dir(args, "reproduce", writes=DOCUMENT_FILES, replaces=("reproduce.md", "reproduce.html"))
+    with output:
+        out = output.stage
+        report = {**report, "figures": {k: v for k, v in report.get("figures", {}).items() if (src / v).is_file()}}
+        if report["figures"] and src.resolve() != output.path.resolve():
+            shutil.copytree(src / "figures", out / "figures")
+        try:
+            md, html = write_documents(report, out)
+        except (KeyError, TypeError, ValueError, AttributeError, IndexError) as exc:
+            raise UsageError(f"--from-json {args.from_json}: not a reproduce.json this version can read "
+                             f"({type(exc).__name__}: {exc})") from None
+    print(f"wrote {output.path / md.name}, {output.path / html.name}")
+    if args.update_doc:
+        print(f"updated {update_doc(args.update_doc, report, output.path)}")
     return 0
 
 
@@ -156,7 +178,6 @@ def reproduce(
     building : the building model of every run (``--building``; an MPC on a detailed building
         plans with the plant file's 4R3C and estimates its walls, ``observer=kalman``)
     """
-    import json
     import time
 
     from comems4build_ros.core.config import ConfigError
@@ -180,10 +201,13 @@ def reproduce(
         earlier: dict[str, Any] = {}
         earlier_json = Path(from_runs) / "reproduce.json"
         if earlier_json.is_file():
+            from comems4build_ros.files.inputs import InputFileError, load_json_file
+            from comems4build_ros.report.reproduce_doc import ReportFileError, check_report
+
             try:
-                earlier = json.loads(earlier_json.read_text(encoding="utf-8"))
-            except json.JSONDecodeError as exc:
-                raise ConfigError(f"{earlier_json}: {exc}") from None
+                earlier = check_report(load_json_file(earlier_json, "a reproduce.json"), str(earlier_json))
+            except (InputFileError, ReportFileError) as exc:
+                raise ConfigError(str(exc)) from None
         out.mkdir(parents=True, exist_ok=True)
         return evaluate(prepared, runs_dir, out, int(earlier.get("runs_made", 0)), float(earlier.get("wall_s", 0.0)),
                         runs_from=str(from_runs), figures=figures)

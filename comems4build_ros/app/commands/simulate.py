@@ -56,11 +56,11 @@ def run(args: argparse.Namespace) -> int:
         check_building_covers,
         ems_controller,
         load_params,
+        output_dir,
         scenario_of,
     )
     from comems4build_ros.core.ems import UnknownEMSError, controller_class
-    from comems4build_ros.core.loop import load_forecast_settings, simulate, write_run
-    from comems4build_ros.files.outputs import check_out_dir
+    from comems4build_ros.core.loop import RUN_FILES, load_forecast_settings, simulate, write_run
     from comems4build_ros.run.progress import ProgressBar
 
     try:
@@ -70,17 +70,19 @@ def run(args: argparse.Namespace) -> int:
     params = load_params(args.config, parse_assignments(args.set, "--set"))
     controller = ems_controller(args.ems, params, args.ems_option)
     building = building_choice(args)
-    check_out_dir(args.out)
+    output = output_dir(args, "simulate", writes=RUN_FILES, replaces=RUN_FILES)
+    output.check()
     scenario = scenario_of(args, params)
     check_building_covers(building, scenario, params)
-    with ProgressBar(f"simulate {args.ems}", unit="h", enable=False if args.no_progress else None) as bar:
+    with output, ProgressBar(f"simulate {args.ems}", unit="h", enable=False if args.no_progress else None) as bar:
         result = simulate(
             controller, scenario, params,
             progress=bar,
             forecast=load_forecast_settings(**({"mode": args.forecast} if args.forecast else {})),
             building=building,
         )
-    out = write_run(result, args.out)
+        write_run(result, output.stage)
+    out = output.path
     s = result.summary
     keys = (
         "weeks", "cost_eur_week_median", "discomfort_kh_week_median", "discomfort_weeks_nonzero",

@@ -19,6 +19,9 @@ from comems4build_ros.app.commands.options import (
     ems_help,
 )
 
+#: What ``size`` writes into its output directory.
+SIZE_FILES = ("runs", "figures", "size.csv", "size.md", "size.json", "report.md", "report.html")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``size``."""
@@ -83,13 +86,13 @@ def run(args: argparse.Namespace) -> int:
         add_scenario_config,
         check_config_files,
         ems_names,
+        output_dir,
         scenario_of,
         study_executor,
     )
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.economics import load_costs
-    from comems4build_ros.files.outputs import atomic_dir, check_out_dir
 
     args.scenario = "year"
     add_scenario_config(args)
@@ -102,23 +105,24 @@ def run(args: argparse.Namespace) -> int:
     costs = load_costs(args.costs)
     overrides = parse_assignments(args.set, "--set")
     base = load_plant_params(args.config, overrides)
-    sized, values, design = _size_points(args, base, overrides)
+    sized, values, design = _size_points(args, base, overrides, emss)
     try:
         scenario_of(args, base)  # the window inside the year, checked once before any run
     except UsageError:
         raise
     except ValueError as exc:
         raise UsageError(f"--start/--weeks: {exc}") from None
-    check_out_dir(args.out)
+    output = output_dir(args, "size", writes=SIZE_FILES, replaces=SIZE_FILES)
+    output.check()
     meta: dict[str, Any] = {"ems": emss, "design": design, "points": len(sized), "start": args.start,
                             "weeks": args.weeks or 52, "values": values, "set": overrides,
                             "costs": [str(Path(c).resolve()) for c in args.costs],
                             "executor": args.scheduler or f"local processes (--jobs {args.jobs or 'CPU count'})"}
     print(f"size: {len(sized) * len(emss)} runs ({len(emss)} EMS x {len(sized)} size points, {design})",
           file=sys.stderr)
-    with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
-        with atomic_dir(args.out) as stage:  # runs/, tables, figures and report replace an older study's when done
-            df = _size(args, emss, sized, costs, meta, stage)
+    with output, study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+        df = _size(args, emss, sized, costs, meta, output.stage)
+        output.commit()  # runs/, tables, figures and report replace an older study's when all are written
         executor.complete()
     out = Path(args.out)
     for ems, sub in df.groupby("ems", sort=False):
@@ -131,14 +135,15 @@ def run(args: argparse.Namespace) -> int:
 
 
 
-def _size_points(args: argparse.Namespace, base: Any, overrides: dict[str, Any]
+def _size_points(args: argparse.Namespace, base: Any, overrides: dict[str, Any], emss: list[str]
                  ) -> tuple[list[tuple[dict[str, float], dict[str, Any], Any]], dict[str, list[float]], str]:
-    """Every size point of the design, each plant built and checked before any run.
+    """Every size point of the design, each plant and each EMS on it built and checked before any run.
 
     Returns the points as (realised sizes, plant overrides, plant parameters), the values
     of each axis and the design's description.
     """
     from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.app.commands.options import ems_controller
     from comems4build_ros.core.config import ConfigError, load_plant_params
     from comems4build_ros.study.sizing import AXES, grid_points, plant_sizes, point_name, sampled_points, size_overrides
 
@@ -172,10 +177,13 @@ def _size_points(args: argparse.Namespace, base: Any, overrides: dict[str, Any]
         sized_keys.add(key)
         try:
             plant = load_plant_params(args.config, {**overrides, **ov})  # every point's plant checked before any run
-        except ConfigError as exc:
+            for ems in emss:  # and every EMS built on it, as its run will build it
+                ems_controller(ems, plant, [])
+        except (ConfigError, UsageError) as exc:
             raise UsageError(f"size point {point_name('', realised).lstrip('_')}: {exc}") from None
         sized.append((realised, {**overrides, **ov}, plant))
     return sized, values, design
+
 
 def _size(args: argparse.Namespace, emss: list[str], sized: list, costs: Any, meta: dict[str, Any],
           out: Path) -> Any:

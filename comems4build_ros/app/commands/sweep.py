@@ -15,6 +15,9 @@ from comems4build_ros.app.commands.options import (
     ems_help,
 )
 
+#: What ``sweep`` writes into its output directory.
+SWEEP_FILES = ("runs", "figures", "sweep.csv", "sweep.md", "sweep.json")
+
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``sweep``."""
@@ -38,9 +41,14 @@ def run(args: argparse.Namespace) -> int:
 
     add_scenario_config(args)
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import check_config_files, ems_names, scenario_of, study_executor
+    from comems4build_ros.app.commands.options import (
+        check_config_files,
+        ems_names,
+        output_dir,
+        scenario_of,
+        study_executor,
+    )
     from comems4build_ros.core.config import load_plant_params
-    from comems4build_ros.files.outputs import atomic_dir, check_out_dir
     from comems4build_ros.report.sweep import sweep_kpis
     from comems4build_ros.study.sweep import grid, parse_param
 
@@ -62,10 +70,11 @@ def run(args: argparse.Namespace) -> int:
     for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
         plant = load_plant_params(args.config, case.values)
     scenario_of(args, plant)  # the scenario and the run length, checked once before any run
-    check_out_dir(args.out)
-    with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
-        with atomic_dir(args.out) as stage:  # runs/, tables and figures replace an older sweep's when all are done
-            wall = _sweep(args, params, emss, cases, stage)
+    output = output_dir(args, "sweep", writes=SWEEP_FILES, replaces=SWEEP_FILES)
+    output.check()
+    with output, study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+        wall = _sweep(args, params, emss, cases, output.stage)
+        output.commit()  # runs/, tables and figures replace an older sweep's when all are written
         executor.complete()
     out = Path(args.out)
     print(f"{len(cases)} runs in {wall:.1f} s; wrote {out / 'sweep.csv'}, {out / 'sweep.md'} and "

@@ -127,14 +127,19 @@ def local_time(text: str, timezone: str, what: str) -> pd.Timestamp:
                             f"UTC offset: {both}") from None
 
 
-def parse_times(path: str | Path, raw: pd.Series, column: str = "time", line_of=None) -> pd.DatetimeIndex:
+def parse_times(path: str | Path, raw: pd.Series, column: str = "time", line_of=None,
+                whole_hours: bool = False) -> pd.DatetimeIndex:
     """UTC index of a column of ISO 8601 times, each with its UTC offset (:func:`iso_time`).
+
+    ``whole_hours``: every time must be the start of an hour in the offset it is written
+    with (``10:00+01:00``; ``10:30+05:30`` is a whole hour of India's time), as the hourly
+    steps of a scenario are (the comfort bounds of ``eq:T_min`` change on the hour).
 
     Raises
     ------
     ScenarioError
-        Naming the file, the line and the column of the first time that is not ISO 8601 or
-        has no offset.
+        Naming the file, the line and the column of the first time that is not ISO 8601,
+        has no offset or (``whole_hours``) is not on a whole hour.
     """
     line_of = line_of or _line
     times = []
@@ -144,6 +149,9 @@ def parse_times(path: str | Path, raw: pd.Series, column: str = "time", line_of=
         if t.tzinfo is None:
             raise ScenarioError(f"{where}: '{text.strip()}' has no UTC offset (ISO 8601 with offset required, "
                                 f"e.g. {ISO_EXAMPLE})")
+        if whole_hours and (t.minute or t.second or t.microsecond):
+            raise ScenarioError(f"{where}: '{text.strip()}' is not on a whole hour (each row is one hour from "
+                                f"hh:00, e.g. {ISO_EXAMPLE})")
         times.append(t)
     return pd.DatetimeIndex(pd.to_datetime(times, utc=True))
 
@@ -333,10 +341,15 @@ def read_text_file(path: str | Path, encoding: str = "utf-8-sig") -> str:
     kind = path_kind(path)
     if kind:
         raise ScenarioError(f"{path}: {kind} (a text file is needed)")
+    from comems4build_ros.files.inputs import MAX_FILE_BYTES
+
     try:
-        raw = path.read_bytes()
+        with open(path, "rb") as fh:
+            raw = fh.read(MAX_FILE_BYTES + 1)
     except OSError as exc:
         raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ScenarioError(f"{path}: larger than {MAX_FILE_BYTES} bytes")
     if b"\0" in raw:
         raise ScenarioError(f"{path}: binary content (NUL bytes), not a text file")
     try:
@@ -398,7 +411,7 @@ def read_scenario_frame(path: str | Path) -> pd.DataFrame:
     df.columns = header
     if len(df) == 0:
         raise ScenarioError(f"{path}: no data rows")
-    time = parse_times(path, df["time"])
+    time = parse_times(path, df["time"], whole_hours=True)
     check_hourly(path, time)
     out = pd.DataFrame(index=time)
     for col in CSV_COLUMNS[1:] + tuple(c for c in OPTIONAL_CSV_COLUMNS if c in df.columns):

@@ -47,6 +47,7 @@ from comems4build_ros.core.scenario import scenario_from_frame
 from comems4build_ros.core.scenario.base import CSV_COLUMNS, Scenario
 from comems4build_ros.core.scenario.csvio import ScenarioError
 from comems4build_ros.core.scenario.loaders import MS_PER_HOUR, parse_awattar
+from comems4build_ros.files.inputs import InputFileError, load_json_file, load_json_text
 
 SECONDS_PER_DAY = 86400.0
 USER_AGENT = "comems4build_ros"
@@ -196,7 +197,7 @@ class PriceSource(_CachedSource):
         self.last_success: float | None = None
         if self.cache_path.is_file():
             try:
-                doc = json.loads(self.cache_path.read_text(encoding="utf-8"))
+                doc = load_json_file(self.cache_path, "the price cache")
                 self.prices = _series_from_doc(doc["prices"], "spot_eur_per_mwh")
             except (OSError, ValueError, KeyError, TypeError) as exc:
                 self._warn(f"cache {self.cache_path} unreadable ({exc}); starting without cached prices")
@@ -325,9 +326,9 @@ def parse_weather(text: str, settings: LiveWeatherParams, timezone: str, source:
         lengths, a time that cannot be read or a value that is not a finite number.
     """
     try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ScenarioError(f"{source}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
+        doc = load_json_text(text, str(source))
+    except InputFileError as exc:
+        raise ScenarioError(str(exc)) from None
     times = _dig(doc, settings.time_key, source)
     cols = {"t_amb_c": _dig(doc, settings.t_amb_key, source), "ghi_w_m2": _dig(doc, settings.ghi_key, source)}
     if not isinstance(times, list) or not times:
@@ -361,7 +362,7 @@ class WeatherSource(_CachedSource):
         self.frame = pd.DataFrame(columns=["t_amb_c", "ghi_w_m2"], dtype=float)
         if self.cache_path.is_file():
             try:
-                doc = json.loads(self.cache_path.read_text(encoding="utf-8"))
+                doc = load_json_file(self.cache_path, "the weather cache")
                 self.frame = pd.DataFrame({k: _series_from_doc(doc[k], k) for k in ("t_amb_c", "ghi_w_m2")})
             except (OSError, ValueError, KeyError, TypeError) as exc:
                 self._warn(f"weather cache {self.cache_path} unreadable ({exc}); starting without it")

@@ -47,6 +47,7 @@ from comems4build_ros.core.scenario.csvio import (
     parse_times,
     read_text_file,
 )
+from comems4build_ros.files.inputs import InputFileError, load_json_text
 
 #: aWATTar market data endpoint (aWATTar API documentation, api.awattar.de).
 AWATTAR_URL = "https://api.awattar.de/v1/marketdata"
@@ -94,9 +95,9 @@ def parse_awattar(text: str, source: str) -> pd.Series:
     """
     path = source
     try:
-        doc = json.loads(text)
-    except json.JSONDecodeError as exc:
-        raise ScenarioError(f"{path}: line {exc.lineno}: invalid JSON: {exc.msg}") from None
+        doc = load_json_text(text, str(path))
+    except InputFileError as exc:
+        raise ScenarioError(str(exc)) from None
     if not isinstance(doc, dict) or not isinstance(doc.get("data"), list):
         raise ScenarioError(f"{path}: expected an object with a 'data' list (aWATTar marketdata format)")
     if not doc["data"]:
@@ -377,10 +378,13 @@ def read_load_csv(path: str | Path, column: str | None = None, unit: str | None 
     Sub-hourly rows (regular steps dividing one hour, value = mean power over the step
     starting at its time) are averaged to 1 h.
     """
+    import io
+
     path = Path(path)
+    text = read_text_file(path)
     try:
-        df = pd.read_csv(path, dtype=str, keep_default_na=False)
-    except (OSError, pd.errors.ParserError, pd.errors.EmptyDataError) as exc:
+        df = pd.read_csv(io.StringIO(text), dtype=str, keep_default_na=False)
+    except (pd.errors.ParserError, pd.errors.EmptyDataError, ValueError) as exc:
         raise ScenarioError(f"{path}: cannot read CSV: {exc}") from None
     df.columns = [str(c).strip() for c in df.columns]
     if "time" not in df.columns:

@@ -283,6 +283,10 @@ class PlantSimNode(LockStepMaster):
 
     def _watchdog(self) -> None:
         now = time.monotonic()
+        if self.own_pause(now):
+            self._t_wait = now  # the EMS's command may wait in the queue: take it before any time-out
+            self._t_announce = now
+            return
         if self.done or self.check_stall(now) or self._held:
             return
         if not self.started:

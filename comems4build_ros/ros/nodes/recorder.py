@@ -169,7 +169,7 @@ class Recorder(Node):
         super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
         self.contract = load_contract()
         self.contract.node(NODE_NAME)
-        bag_path = str(param(self, "bag_path", ""))
+        bag_path = self.bag_path = str(param(self, "bag_path", ""))
         if not bag_path:
             raise ValueError(f"node '{NODE_NAME}': parameter 'bag_path' (bag directory to create) is required")
         namespaces = string_list(self, "namespaces") or [self.get_namespace()]
@@ -470,9 +470,16 @@ class Recorder(Node):
         return not self.stop_when_done or self.finished.done() or len(self.done_at) == len(self.namespaces)
 
     def destroy_node(self) -> None:
-        """Close the bag (last chunk, summary, metadata.yaml), then destroy the node."""
+        """Close the bag (last chunk, summary, metadata.yaml), then destroy the node.
+
+        A bag that cannot be closed (the disk full, the file system read-only) raises the
+        ``OSError`` naming the bag after the node is destroyed (the process then ends with
+        exit code 5 naming it); what was written stays readable (``evaluate`` salvages it).
+        """
         try:
             self.writer.close()
+        except OSError as exc:
+            raise OSError(exc.errno, exc.strerror or str(exc), exc.filename or self.bag_path) from None
         finally:
             super().destroy_node()
 

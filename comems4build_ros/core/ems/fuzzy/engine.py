@@ -564,8 +564,8 @@ def load_system(path: str | Path, name: str, params: PlantParams, overrides: Map
         values = {p: _param_value(params, p) for p in exc.plant_params}
         zero = [p for p, v in values.items() if v == 0.0]
         blamed = zero or list(values)
-        text = ", ".join(f"{p} = {values[p]:g}" for p in blamed)
-        others = ", ".join(f"{p} = {v:g}" for p, v in values.items() if p not in blamed)
+        text = ", ".join(f"{p} = {_shown(values[p])}" for p in blamed)
+        others = ", ".join(f"{p} = {_shown(v)}" for p, v in values.items() if p not in blamed)
         raise ConfigError(
             f"plant parameter{'s' if len(blamed) > 1 else ''} {text}: the fuzzy EMS cannot work with "
             f"{'this value' if len(blamed) == 1 else 'these values'}: it makes a membership function degenerate "
@@ -574,6 +574,15 @@ def load_system(path: str | Path, name: str, params: PlantParams, overrides: Map
     return system, section
 
 
-def _param_value(params: PlantParams, dotted: str) -> float:
+def _param_value(params: PlantParams, dotted: str) -> float | list[float]:
+    """The plant parameter ``section.key``: a number, or a table (the electrolyser's power points)."""
     section, key = dotted.split(".")
-    return float(getattr(getattr(params, section), key))
+    value = getattr(getattr(params, section), key)
+    return [float(v) for v in value] if isinstance(value, list | tuple) else float(value)
+
+
+def _shown(value: float | list[float]) -> str:
+    """A parameter's value in a message: ``2.5`` or ``[1, 2]``."""
+    if isinstance(value, list):
+        return "[" + ", ".join(f"{v:g}" for v in value) + "]"
+    return f"{value:g}"
