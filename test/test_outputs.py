@@ -72,7 +72,7 @@ def test_any_out_text_is_a_path_or_refused_naming_the_option(text: str) -> None:
 
 
 @pytest.mark.parametrize("command", ["simulate", "sweep", "size", "compare", "reproduce", "evaluate", "launch",
-                                     "fuzzy-surface"])
+                                     "fuzzy-surface", "cosim-study", "identify", "export-fmu"])
 def test_an_unset_shell_variable_as_out_writes_nothing(command: str, tmp_path: Path, recorded_bag: Path,  # noqa: F811
                                                        capsys: pytest.CaptureFixture[str],
                                                        monkeypatch: pytest.MonkeyPatch) -> None:
@@ -89,7 +89,10 @@ def test_an_unset_shell_variable_as_out_writes_nothing(command: str, tmp_path: P
             "reproduce": ["reproduce", "--no-study", "--weeks", "1"],
             "evaluate": ["evaluate", recorded_bag],
             "launch": ["launch", "--ems", "rbc", "--steps", "2"],
-            "fuzzy-surface": ["fuzzy-surface"]}[command]
+            "fuzzy-surface": ["fuzzy-surface"],
+            "cosim-study": ["cosim-study", "--weeks", "1"],
+            "identify": ["identify", "--building", "energyplus"],
+            "export-fmu": ["export-fmu"]}[command]
     code, _, err = run_cli([*argv, "--out", ""], capsys)
     assert code == 2 and "--out '': empty" in err, err
     assert snapshot(tmp_path) == before and sorted(p.name for p in tmp_path.iterdir()) == ["figures", "runs"]
@@ -278,6 +281,22 @@ def test_evaluate_out_at_or_in_its_bag_is_refused_and_the_bag_kept(tmp_path: Pat
     assert snapshot(two) == before and len(list(two.rglob("*.mcap"))) == 2
     code, _, err = run_cli(["evaluate", recorded_bag, "--out", recorded_bag.parent], capsys)  # beside it: fine
     assert code == 0, err
+
+
+def test_the_cosimulation_commands_write_through_the_output_layer(tmp_path: Path,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    """identify, export-fmu and house refuse an output that is another command's file or a foreign one."""
+    foreign = tmp_path / "mine.fmu"
+    foreign.write_bytes(b"not written by comems4build")
+    code, _, err = run_cli(["export-fmu", "--out", str(foreign)], capsys)
+    assert code == 2 and "mine.fmu" in err and foreign.read_bytes() == b"not written by comems4build", err
+    code, _, err = run_cli(["export-fmu", "--out", str(tmp_path / "rc.fmu")], capsys)
+    assert code == 0 and (tmp_path / "rc.fmu").is_file() and (tmp_path / "rc.map.yaml").is_file(), err
+    code, _, err = run_cli(["export-fmu", "--out", str(tmp_path / "rc.fmu")], capsys)  # its own: replaced
+    assert code == 0, err
+    (tmp_path / "house.json").write_text("{}", encoding="utf-8")
+    code, _, err = run_cli(["house", "--json", str(tmp_path / "house.json")], capsys)
+    assert code == 2 and "house.json" in err and (tmp_path / "house.json").read_text() == "{}", err
 
 
 def test_data_build_onto_one_of_its_inputs_is_refused(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -45,46 +45,76 @@ def write_reports(out, plan: dict, walls: dict, weeks: float | None) -> None:
         build_report(out / building)
 
 
+#: What cosim-study writes into its --out (and replaces whole when it runs again).
+STUDY_FILES = ("rc", "energyplus", "identified.yaml", "identified.json", "house.json", "walls.json", "figures",
+               "cosimulation.md")
+#: What ``--from-runs`` writes again (the document and its figure).
+DOCUMENT_FILES = ("figures", "cosimulation.md")
+
+
 def run(args: argparse.Namespace) -> int:
-    """Identify (unless given), run the eight runs, build the reports, write the document."""
+    """Identify (unless given), run the eight runs, build the reports, write the document.
+
+    Everything goes through the output layer: ``--out`` is checked, locked and written all or
+    nothing (``--from-runs`` rewrites only the document and its figure), ``--doc`` likewise.
+    """
     import json
-    import shutil
     import sys
     from pathlib import Path
 
-    from comems4build_ros.app.commands.options import UsageError, load_params
-    from comems4build_ros.core.loop import simulate
-    from comems4build_ros.core.models.buildings import BuildingChoice
+    from comems4build_ros.app.commands.options import UsageError, load_params, output_dir
     from comems4build_ros.core.scenario import resolve_scenario
-    from comems4build_ros.files.outputs import check_out_dir, check_out_file
-    from comems4build_ros.study.cosim import run_study
-    from comems4build_ros.study.house import house_figures
-    from comems4build_ros.study.identify import identify, write_parameter_file, write_report
 
-    check_out_dir(args.out)
-    if args.doc:
-        check_out_file(args.doc, "--doc")
     out = Path(args.out)
+    writes = DOCUMENT_FILES if args.from_runs else STUDY_FILES
+    output = output_dir(args, "cosim-study", writes=writes, replaces=writes)
+    output.check()
+    if args.doc:  # a document of the repository, updated in place as reproduce --update-doc does
+        from comems4build_ros.files.outputs import check_out_file, check_out_text
+
+        check_out_file(check_out_text(args.doc, "--doc"), "--doc")
     if args.from_runs:
         missing = [p for p in (out / "identified.json", out / "house.json", out / "rc" / "compare.json",
                                out / "energyplus" / "compare.json") if not p.is_file()]
         if missing:
             raise UsageError(f"--from-runs: {missing[0]} not found (the --out of an earlier cosim-study)")
-        return _document(args, out, json.loads((out / "identified.json").read_text(encoding="utf-8")),
-                         json.loads((out / "house.json").read_text(encoding="utf-8")))
+        with output:
+            code = _document(args, out, output.stage, json.loads((out / "identified.json").read_text(encoding="utf-8")),
+                             json.loads((out / "house.json").read_text(encoding="utf-8")))
+            output.commit()
+        return code
     params = load_params([])
     resolve_scenario("default", params, weeks=args.weeks)  # the run length, checked before anything runs
-    out.mkdir(parents=True, exist_ok=True)
     say = lambda text: print(f"cosim-study: {text}", file=sys.stderr)  # noqa: E731
-    ident_yaml = out / "identified.yaml"
+    with output:
+        report, house = _study(args, output.stage, params, say)
+        code = _document(args, output.stage, output.stage, report, house)
+        output.commit()  # runs, reports, identified model, figures and document replace an earlier study's whole
+    return code
+
+
+def _study(args: argparse.Namespace, stage, params, say) -> tuple[dict, dict]:
+    """Identify (or take ``--identified``), measure the house, run the study into ``stage``; the reports."""
+    import json
+    import shutil
+    from pathlib import Path
+
+    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.models.buildings import BuildingChoice
+    from comems4build_ros.core.scenario import resolve_scenario
+    from comems4build_ros.study.cosim import run_study
+    from comems4build_ros.study.house import house_figures
+    from comems4build_ros.study.identify import identify, write_parameter_file, write_report
+
+    ident_yaml = stage / "identified.yaml"
     if args.identified:
         src = Path(args.identified)
         if not src.is_file() or not src.with_suffix(".json").is_file():
             raise UsageError(f"--identified {src}: needs the file and its report {src.with_suffix('.json')} "
                              "(both written by comems4build identify)")
-        if src.resolve() != ident_yaml.resolve():
-            shutil.copy2(src, ident_yaml)
-            shutil.copy2(src.with_suffix(".json"), ident_yaml.with_suffix(".json"))
+        shutil.copy2(src, ident_yaml)
+        shutil.copy2(src.with_suffix(".json"), ident_yaml.with_suffix(".json"))
         report = json.loads(ident_yaml.with_suffix(".json").read_text(encoding="utf-8"))
     else:
         say("identifying the house's 4R3C (training outside the 12 weeks)")
@@ -95,41 +125,48 @@ def run(args: argparse.Namespace) -> int:
         write_report(ident_yaml.with_suffix(".json"), report)
     say("the house's figures (steady states and the thermostat's 12 weeks)")
     house = house_figures(params, weeks=args.weeks or 12.0)
-    (out / "house.json").write_text(json.dumps(house, indent=1) + "\n", encoding="utf-8")
+    (stage / "house.json").write_text(json.dumps(house, indent=1) + "\n", encoding="utf-8")
     say("running RBC, ComEMS4Build, MPC and the thermostat on the 4R3C and on the EnergyPlus house")
-    plan, walls = run_study(out, ident_yaml, args.forecast, args.weeks, args.jobs,
+    plan, walls = run_study(stage, ident_yaml, args.forecast, args.weeks, args.jobs,
                             progress=False if args.no_progress else None)
-    write_reports(out, plan, walls, args.weeks)
-    (out / "walls.json").write_text(json.dumps(walls, indent=1) + "\n", encoding="utf-8")
-    return _document(args, out, report, house)
+    write_reports(stage, plan, walls, args.weeks)
+    (stage / "walls.json").write_text(json.dumps(walls, indent=1) + "\n", encoding="utf-8")
+    return report, house
 
 
-def _document(args: argparse.Namespace, out, report: dict, house: dict) -> int:
-    """Measure both buildings' folders and write ``cosimulation.md`` (and ``--doc``)."""
-    import shutil
-    from pathlib import Path
-
+def _document(args: argparse.Namespace, runs, stage, report: dict, house: dict) -> int:
+    """Measure both buildings' folders in ``runs`` and write ``cosimulation.md`` and its figure into ``stage``
+    (and ``--doc`` with the figure in ``figures/cosim/`` beside it)."""
     from comems4build_ros.report.cosim import building_result, comfort_figure, cosim_markdown
 
-    results = {b: building_result(out / b) for b in ("rc", "energyplus")}
-    png = comfort_figure(results, out / "figures" / "cosim_comfort")
-    if args.doc:  # the figure beside the document, under docs/figures/
-        dest = Path(args.doc).parent / "figures" / "cosim"
-        dest.mkdir(parents=True, exist_ok=True)
-        for f in png.parent.glob("cosim_comfort.*"):
-            shutil.copy2(f, dest / f.name)
+    results = {b: building_result(runs / b) for b in ("rc", "energyplus")}
+    png = comfort_figure(results, stage / "figures" / "cosim_comfort")
     weeks = f" --weeks {args.weeks:g}" if args.weeks else ""
     fc = f" --forecast {args.forecast}" if args.forecast else ""
     commands = {"study": f"comems4build cosim-study --out DIR{weeks}{fc}" + (f" --doc {args.doc}" if args.doc
                                                                              else ""),
                 "house": "comems4build house", "identify": "comems4build identify --out identified.yaml"}
     text = cosim_markdown(results, report, house, commands)
-    (out / "cosimulation.md").write_text(text, encoding="utf-8")
+    (stage / "cosimulation.md").write_text(text, encoding="utf-8")
     if args.doc:
-        Path(args.doc).write_text(text, encoding="utf-8")
+        _write_doc(args, text, png)
     for b, r in results.items():
         held_n = sum(v[0] == "held" for v in r.verdicts.values())
         print(f"{b}: {held_n} of {sum(v[0] != 'n/a' for v in r.verdicts.values())} evaluated findings held")
-    print(f"wrote {out / 'cosimulation.md'}" + (f" and {args.doc}" if args.doc else "")
-          + f"; reports and figures in {out / 'rc'} and {out / 'energyplus'}")
+    print(f"wrote {args.out}/cosimulation.md" + (f" and {args.doc}" if args.doc else "")
+          + f"; reports and figures in {args.out}/rc and {args.out}/energyplus")
     return 0
+
+
+def _write_doc(args: argparse.Namespace, text: str, png) -> None:
+    """``--doc`` and its figure under ``figures/cosim/`` beside it, each file written atomically."""
+    from pathlib import Path
+
+    from comems4build_ros.files.outputs import atomic_write, write_text_atomic
+
+    write_text_atomic(Path(args.doc), text)
+    figures = Path(args.doc).parent / "figures" / "cosim"
+    figures.mkdir(parents=True, exist_ok=True)
+    for f in png.parent.glob("cosim_comfort.*"):
+        with atomic_write(figures / f.name, "wb", encoding=None) as dst:
+            dst.write(f.read_bytes())

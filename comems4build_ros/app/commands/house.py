@@ -17,12 +17,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 
 def run(args: argparse.Namespace) -> int:
     """Print the figures beside the typology's and the 4R3C's."""
-    from comems4build_ros.app.commands.options import load_params
-    from comems4build_ros.files.outputs import check_out_file
+    from comems4build_ros.app.commands.options import load_params, output_file
     from comems4build_ros.study.house import H_TOLERANCE, house_figures
 
-    if args.json:
-        check_out_file(args.json, "--json")
+    json_file = output_file(args, "house", path=args.json, option="--json") if args.json else None
+    if json_file is not None:
+        json_file.check()
     params = load_params([])
     f = house_figures(params, None, args.weeks)
     ok = abs(f["h_ratio_to_rc"] - 1.0) <= H_TOLERANCE
@@ -43,7 +43,8 @@ def run(args: argparse.Namespace) -> int:
         f"{f['discomfort_kh_week_median']:.2f} Kh/week; heat balance max rel. error {f['heat_balance_max_rel']:.1e}",
     ]
     print("\n".join(lines))
-    if args.json:
-        with open(args.json, "w", encoding="utf-8") as fh:
-            json.dump(f, fh, indent=1)
+    if json_file is not None:
+        with json_file:
+            json_file.file.write_text(json.dumps(f, indent=1) + "\n", encoding="utf-8")
+            json_file.commit()
     return 0

@@ -27,27 +27,31 @@ def run(args: argparse.Namespace) -> int:
     import sys
     from pathlib import Path
 
-    from comems4build_ros.app.commands.options import UsageError, building_choice, load_params
+    from comems4build_ros.app.commands.options import UsageError, building_choice, load_params, output_file
     from comems4build_ros.core.loop import simulate
     from comems4build_ros.core.scenario import resolve_scenario
-    from comems4build_ros.files.outputs import check_out_file
     from comems4build_ros.study.identify import identify, write_parameter_file, write_report
 
     choice = building_choice(args)
     if choice.kind == "rc" and args.building != "rc":
         raise UsageError("--building: give the building to identify")
+    out_file = output_file(args, "identify")  # refuses an empty or ambiguous --out first
     out = Path(args.out)
     report_path = Path(args.report) if args.report else out.with_suffix(".json")
-    check_out_file(out)
-    check_out_file(report_path, "--report")
+    report_file = output_file(args, "identify", path=report_path, option="--report")
+    out_file.check()
+    report_file.check()
     params = load_params([])
     say = lambda text: print(f"identify: {text}", file=sys.stderr)  # noqa: E731
     say("the twelve evaluation weeks under the thermostat (held out)")
     held = simulate("thermostat", resolve_scenario("default", params), params, building=choice).timeseries
     report = identify(params, choice, seed=args.seed, held_out_run=held, progress=say)
     b = report.pop("_params")
-    write_parameter_file(out, b, report)
-    write_report(report_path, report)
+    with out_file, report_file:  # both files, each all or nothing
+        write_parameter_file(out_file.file, b, report)
+        write_report(report_file.file, report)
+        out_file.commit()
+        report_file.commit()
     v, e = report["validation"], report["evaluation_weeks_thermostat"]
     print(f"building {choice.text}: fit RMSE {report['fit']['fit_rmse_k']:.3f} K over the training window "
           f"({report['train']['weeks']:g} weeks from {report['train']['start']})")
