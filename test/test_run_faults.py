@@ -465,7 +465,11 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
         _wait_for(joined, 90, "the plant's announcements, the EMS's commands and the readers of ems/command matched")
         ems = pid_of(out, "fuzzy_ems")
         os.kill(ems, signal.SIGSTOP)  # the plant now waits for a command: the spoof has the field to itself
-        spin(0.7)  # > the plant's republish period: steps[-1] is the step it waits for
+        # the step it waits for is the one it announces again (its republish period): a command the EMS
+        # sent just before the stop can still move it on, so wait for a step announced twice after the stop
+        after = len(steps)
+        _wait_for(lambda: (len(steps) - after >= 2 and steps[-1] == steps[-2]) or spin(0.05), 60,
+                  "the plant announcing the step it waits for again")
         k = steps[-1]
         assert token not in sniffed  # the secret itself is never on the wire ...
         candidates |= {int(t) for t in sniffed}  # ... its codes are, and are tried as well
