@@ -508,9 +508,9 @@ def test_feed_refuses_a_scenario_with_nan_or_gap(graph: Graph, scenario_csv: Pat
     assert graph.procs["feed_nan"].wait(120) == 2
     assert graph.procs["feed_gap"].wait(120) == 2
     nan_log, gap_log = graph.log("feed_nan"), graph.log("feed_gap")
-    assert "[feed] error:" in nan_log and "with_nan.csv" in nan_log and "line 12" in nan_log
+    assert "[feed]: refused to start:" in nan_log and "with_nan.csv" in nan_log and "line 12" in nan_log
     assert "column 't_amb_c'" in nan_log and "refuses a scenario with missing values" in nan_log
-    assert "[feed] error:" in gap_log and "with_gap.csv" in gap_log and "gap" in gap_log
+    assert "[feed]: refused to start:" in gap_log and "with_gap.csv" in gap_log and "gap" in gap_log
     assert "Traceback" not in nan_log + gap_log
 
 

@@ -44,7 +44,6 @@ from rclpy.task import Future
 
 from comems4build_ros.bags.bag import BagInfo, decode, iter_messages
 from comems4build_ros.ros.node import ContractNode
-from comems4build_ros.ros.parameters import param
 from comems4build_ros.ros.process import run_node
 
 NODE_NAME = "replay"
@@ -67,7 +66,10 @@ SKIP_TOPICS = frozenset({"recorder/ready", "recorder/progress"})
 
 
 def _split(topic: str, names: set[str]) -> tuple[str, str] | None:
-    """``/house_1/feed/truth`` -> (``/house_1``, ``feed/truth``) for a known contract name."""
+    """``/house_1/feed/truth`` -> (``/house_1``, ``feed/truth``) for a known contract name;
+    an absolute contract name (``/clock``) -> (``""``, ``/clock``): it belongs to every namespace."""
+    if topic in names and topic.startswith("/"):
+        return "", topic
     for name in names:
         if topic == f"/{name}":
             return "/", name
@@ -80,17 +82,22 @@ class Replay(ContractNode):
     """Bag replay node (see the module docstring)."""
 
     def __init__(self, cli: argparse.Namespace) -> None:
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
-        bag = cli.bag or str(param(self, "bag_path", ""))
+        super().__init__(NODE_NAME)
+        bag_path = self.param("bag_path", "")
+        bag = cli.bag or bag_path
         if not bag:
             raise ValueError(f"node '{NODE_NAME}': give the bag (argument BAG or parameter 'bag_path')")
-        self.rate = float(cli.rate if cli.rate is not None else param(self, "rate", 1.0))
-        self.inputs_only = bool(cli.inputs_only or param(self, "inputs_only", False))
-        self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
-        wanted_ns = cli.source_namespace or str(param(self, "source_namespace", ""))
-        self.wait_s = float(param(self, "wait_for_subscribers_s", WAIT_FOR_SUBSCRIBERS_S))
-        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
-        self.settle_s = float(param(self, "settle_s", SETTLE_S))
+        rate = self.param("rate", 1.0)
+        self.rate = float(cli.rate if cli.rate is not None else rate)
+        inputs_only = self.param("inputs_only", False)
+        self.inputs_only = cli.inputs_only or inputs_only
+        self.lookahead = self.param("lookahead_steps", LOOKAHEAD_STEPS)
+        source_ns = self.param("source_namespace", "")
+        wanted_ns = cli.source_namespace or source_ns
+        self.wait_s = self.param("wait_for_subscribers_s", WAIT_FOR_SUBSCRIBERS_S)
+        self.wait_for_recorder = self.param("wait_for_recorder", False)
+        self.recorder_node = self.param("recorder_node", self.recorder_node)
+        self.settle_s = self.param("settle_s", SETTLE_S)
         self._t_created = time.monotonic()
         self._matched_at: float | None = None
 
@@ -104,6 +111,7 @@ class Replay(ContractNode):
             hit = _split(topic, names)
             if hit is not None:
                 by_ns.setdefault(hit[0], []).append((hit[1], t_ns, bytes(raw)))
+        everywhere = by_ns.pop("", [])  # /clock: replayed with whichever namespace is
         if not by_ns:
             raise ValueError(f"bag {bag}: no message on the topics to replay ({', '.join(sorted(names))})")
         if wanted_ns:
@@ -117,7 +125,7 @@ class Replay(ContractNode):
                 f"bag {bag}: no recorded namespace '{ns}' (recorded: {', '.join(sorted(by_ns))}); "
                 "set 'source_namespace'"
             )
-        messages = sorted(by_ns[ns], key=lambda m: m[1])
+        messages = sorted(by_ns[ns] + everywhere, key=lambda m: m[1])
         # every topic of the replayed set gets its publisher, also one without messages
         # (feed/events of a run without input events) or not recorded at all (the inputs the
         # run's EMS did not read): a recorder waits for the publishers of its topics
