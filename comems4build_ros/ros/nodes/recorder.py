@@ -62,8 +62,10 @@ whatever a remapping makes of the topic the subscription reads (``-r
 scheme; the node's first log line lists the remapped topics.
 
 Time: each message is stamped with its receive time, or with ``use_sim_time`` true with the
-simulated time of ``/clock`` (as ``ros2 bag record --use-sim-time``; messages before the
-first ``/clock`` get its time, the start of the run's first step).
+node's ROS time, the simulated time of ``/clock`` (as ``ros2 bag record --use-sim-time``);
+messages before the node has a time get the first one it has: the start of the run's
+first step, or its end when ROS 2's time source (a best-effort reader of depth 1) kept only
+the later of two early ticks.
 """
 
 from __future__ import annotations
@@ -372,9 +374,9 @@ class Recorder(PackageNode):
         return on_msg
 
     def _write_sim(self, full: str, received_ns: int, raw: bytes) -> None:
-        """With ``use_sim_time``: write the message stamped with the simulated time (as
-        ``ros2 bag record --use-sim-time``); one that comes before the first ``/clock`` waits
-        for it and gets its time (the start of the run's first step)."""
+        """With ``use_sim_time``: write the message stamped with the node's simulated time (as
+        ``ros2 bag record --use-sim-time``); one that comes before the node has a time waits for
+        the first and gets it (see the module docstring)."""
         t_ns = self.get_clock().now().nanoseconds
         if t_ns <= 0:
             self._pending_sim.append((full, received_ns, raw))
