@@ -166,12 +166,6 @@ class LockStepMaster(ContractNode):
         """The watchdog timer (period ``watchdog_period_s``, changeable during the run)."""
         self._watchdog_timer = self.create_timer(self.watchdog_period_s, callback)
 
-    def debug_on(self) -> bool:
-        """Whether the node logs at debug level (``--log-level debug``): the lock-step lines."""
-        from rclpy.logging import LoggingSeverity
-
-        return bool(self.get_logger().is_enabled_for(LoggingSeverity.DEBUG))
-
     # ------------------------------------------------------------------ recorder
     def _on_recorder_ready(self, msg: Bool) -> None:
         self._recorder_ready = bool(msg.data)

@@ -28,6 +28,7 @@ from __future__ import annotations
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
+from rclpy.logging import LoggingSeverity
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 
@@ -62,6 +63,8 @@ class PackageNode(Node):
         super().__init__(node_name, **kwargs)
         self._steady = Clock(clock_type=ClockType.STEADY_TIME)
         self._logger_with_time = SimTimeLogger(super().get_logger().name, self.get_clock())
+        #: the node logs at debug level (``--log-level debug``, read once at start): its per-step lines
+        self.debug = bool(self._logger_with_time.is_enabled_for(LoggingSeverity.DEBUG))
         #: values given to the node (command line, parameter files, overrides), by name
         self._given: dict[str, Any] = {
             name: self.get_parameter(name).value for name in self.list_parameters([], 0).names
@@ -73,6 +76,8 @@ class PackageNode(Node):
         sim = self.get_parameter("use_sim_time").value
         if not isinstance(sim, bool):
             raise ParameterError(f"{self._where('use_sim_time')} = {sim!r}: expected true or false")
+        #: ``use_sim_time`` now (kept current when it is set): the node's clock follows ``/clock``
+        self.sim_time = sim
         self.add_pre_set_parameters_callback(self._numbers_as_floats)
         self.add_on_set_parameters_callback(self._check_set)
         self.add_post_set_parameters_callback(self._after_set)
@@ -212,5 +217,6 @@ class PackageNode(Node):
                 action(p.value)
                 self.get_logger().info(f"parameter '{p.name}' = {p.value!r} from now on")
             elif p.name == "use_sim_time" and self._declared:
+                self.sim_time = bool(p.value)
                 self.get_logger().info(f"use_sim_time = {p.value}: this node's clock "
                                        f"{'follows /clock' if p.value else 'is the system clock'} from now on")

@@ -46,7 +46,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rclpy.logging import LoggingSeverity
 from rclpy.task import Future
 
 from comems4build_ros.core.config import parse_assignments
@@ -192,7 +191,7 @@ class EMSNode(EndsWithRun, ContractNode):
         self._answered = step
         self._last_cmd = payload
         self.steps += 1
-        if self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
+        if self.debug:
             self.get_logger().debug(f"step {step}: decided and sent: " + ", ".join(
                 f"{f}={getattr(action, f):g}" for f in ACTION_FIELDS))
 

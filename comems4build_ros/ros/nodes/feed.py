@@ -45,7 +45,6 @@ import json
 from array import array
 from typing import Any
 
-from rclpy.logging import LoggingSeverity
 from rclpy.task import Future
 from std_msgs.msg import String, UInt32
 
@@ -399,7 +398,7 @@ class Feed(EndsWithRun, ContractNode):
             if self._live is not None and j >= self._next:
                 self._live.published(j)
             self._publish_step(j)
-        if first <= last and self.get_logger().is_enabled_for(LoggingSeverity.DEBUG):
+        if first <= last and self.debug:
             self.get_logger().debug(f"plant/step {k}: inputs of steps {first}..{last} published")
         self._next = max(self._next, last + 1)
         self._last_request = k

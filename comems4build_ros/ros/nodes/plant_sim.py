@@ -136,7 +136,7 @@ class PlantSimNode(LockStepMaster):
         self._cmd = action
         self._cmd_data = list(msg.data)
         now = time.monotonic()
-        if self.debug_on():
+        if self.debug:
             waited_ms = 1e3 * (now - self._t_step_announced)
             self.get_logger().debug(f"step {step}: command accepted {waited_ms:.2f} ms after the announcement")
         if self._ever_commanded:  # the first round trip includes the EMS start-up
@@ -158,9 +158,9 @@ class PlantSimNode(LockStepMaster):
         if self._announced != self.k:
             self._announced = self.k
             self._t_step_announced = self._t_announce
-            if self.debug_on():
+            if self.debug:
                 self.get_logger().debug(f"step {self.k}: announced (state/*, plant/step)")
-        elif self.debug_on():
+        elif self.debug:
             self.get_logger().debug(f"step {self.k}: announced again (waiting {self._t_announce - self._t_wait:.2f} s)")
 
     def _start(self) -> None:
@@ -214,7 +214,7 @@ class PlantSimNode(LockStepMaster):
                 self._announce()  # first, so the EMS works on k + 1 while the record goes out
         self._record.publish(row)
         self.publish_clock(t0)
-        if self.debug_on():
+        if self.debug:
             self.get_logger().debug(f"step {k}: stepped ({'fallback' if fallback else 'command'}), plant/record and "
                                     "/clock published")
         if last:

@@ -350,12 +350,11 @@ class Recorder(PackageNode):
         """
         write = self.writer.write
         special = name in (RECORD_TOPIC, TRUTH_TOPIC, DONE_TOPIC, EVENTS_TOPIC)
-        clock = self.get_clock()
 
         def on_msg(raw: bytes, info: Any) -> None:
             while True:
                 t_ns = info.get("received_timestamp") or time.time_ns()
-                if clock.ros_time_is_active:
+                if self.sim_time:
                     self._write_sim(full, t_ns, raw)
                 else:
                     write(full, t_ns, raw)

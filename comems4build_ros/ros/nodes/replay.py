@@ -105,6 +105,36 @@ class Replay(ContractNode):
         names = set(contract.topics) - SKIP_TOPICS
         if self.inputs_only:
             names = {t.name for t in contract.published_by(INPUT_ROLE)}
+        ns, messages = self._read_bag(bag, names, wanted_ns)
+        # every topic of the replayed set gets its publisher, also one without messages
+        # (feed/events of a run without input events) or not recorded at all (the inputs the
+        # run's EMS did not read): a recorder waits for the publishers of its topics
+        self._pubs = {name: self.contract_publisher(name) for name in sorted(names)}
+        self.published = 0
+        self._finishing = False
+        self.finished = Future()
+        if self.inputs_only:
+            self._steps = self._steps_of(messages)
+            self.last_step = max(self._steps)
+            self._next = 0
+            self._last_request = -1
+            self.contract_subscription("plant/step", self._on_plant_step)
+            self.get_logger().info(
+                f"inputs-only replay of {bag} ({ns}): steps 0..{self.last_step}, paced by plant/step, "
+                f"{self.lookahead} steps ahead"
+            )
+        else:
+            self._messages = messages
+            self._i = 0
+            self._t_first = messages[0][1]
+            self._t0: float | None = None
+            self.create_timer(TICK_S, self._tick)
+            pace = "as fast as possible" if self.rate <= 0 else f"at {self.rate:g}x the recorded pace"
+            self.get_logger().info(f"replaying {len(messages)} messages of {bag} ({ns}) {pace}")
+
+    def _read_bag(self, bag: str, names: set[str], wanted_ns: str) -> tuple[str, list[tuple[str, int, bytes]]]:
+        """The namespace to replay and its messages ``(contract name, receive time [ns], raw)`` in
+        time order (``/clock`` belongs to every namespace)."""
         by_ns: dict[str, list[tuple[str, int, bytes]]] = {}
         info = BagInfo(Path(bag), [], False)
         for topic, _msgtype, t_ns, raw in iter_messages(bag, info=info):
@@ -125,43 +155,24 @@ class Replay(ContractNode):
                 f"bag {bag}: no recorded namespace '{ns}' (recorded: {', '.join(sorted(by_ns))}); "
                 "set 'source_namespace'"
             )
-        messages = sorted(by_ns[ns] + everywhere, key=lambda m: m[1])
-        # every topic of the replayed set gets its publisher, also one without messages
-        # (feed/events of a run without input events) or not recorded at all (the inputs the
-        # run's EMS did not read): a recorder waits for the publishers of its topics
-        self._pubs = {name: self.contract_publisher(name) for name in sorted(names)}
-        self.published = 0
-        self._finishing = False
-        self.finished = Future()
-        if self.inputs_only:
-            self._steps: dict[int, list[tuple[str, bytes]]] = {}
-            seen: set[tuple[str, int]] = set()
-            for name, _t, raw in messages:
-                if not contract.topic(name).is_array:  # feed/info: once, now (transient local)
-                    if (name, -1) not in seen:
-                        seen.add((name, -1))
-                        self._pubs[name].publish(raw)
-                    continue
-                step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
-                if (name, step) not in seen:
-                    seen.add((name, step))
-                    self._steps.setdefault(step, []).append((name, raw))
-            self.last_step = max(self._steps)
-            self._next = 0
-            self._last_request = -1
-            self.contract_subscription("plant/step", self._on_plant_step)
-            self.get_logger().info(
-                f"inputs-only replay of {bag} ({ns}): steps 0..{self.last_step}, paced by plant/step, "
-                f"{self.lookahead} steps ahead"
-            )
-        else:
-            self._messages = messages
-            self._i = 0
-            self._t_first = messages[0][1]
-            self._t0: float | None = None
-            self.create_timer(TICK_S, self._tick)
-            pace = "as fast as possible" if self.rate <= 0 else f"at {self.rate:g}x the recorded pace"
-            self.get_logger().info(f"replaying {len(messages)} messages of {bag} ({ns}) {pace}")
+        return ns, sorted(by_ns[ns] + everywhere, key=lambda m: m[1])
+
+    def _steps_of(self, messages: list[tuple[str, int, bytes]]) -> dict[int, list[tuple[str, bytes]]]:
+        """--inputs-only: the first message of each topic and step, by step (``feed/info``, not
+        one a step, is published once now: transient local)."""
+        steps: dict[int, list[tuple[str, bytes]]] = {}
+        seen: set[tuple[str, int]] = set()
+        for name, _t, raw in messages:
+            if not self.contract.topic(name).is_array:
+                if (name, -1) not in seen:
+                    seen.add((name, -1))
+                    self._pubs[name].publish(raw)
+                continue
+            step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
+            if (name, step) not in seen:
+                seen.add((name, step))
+                steps.setdefault(step, []).append((name, raw))
+        return steps
 
     # ------------------------------------------------------------------ full replay
     def _tick(self) -> None:
