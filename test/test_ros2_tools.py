@@ -301,3 +301,17 @@ def test_the_discovery_server_graph_is_reachable_as_printed(ros2, domain_id, tmp
         assert not want & plain, plain
     finally:
         stop([launch])
+
+
+def test_bench_cut_kills_a_node_under_both_launchers_and_leaves_nothing(ros2, tmp_path) -> None:
+    """``comems4build bench cut`` (one run per launcher): plant_sim SIGKILLed mid-run, each launch
+    ends with an error, no process of the run is left and no run token either (the time it
+    took is the benchmark's figure, not asserted here)."""
+    cmd = " ".join(ros2["argv"])
+    res = subprocess.run([*CLI, "bench", "cut", "--runs", "1", "--ros2", cmd, "--out", str(tmp_path / "cut")],
+                         capture_output=True, text=True, timeout=900, env=ros2["env"])
+    assert res.returncode == 0, res.stdout + res.stderr
+    for via in ("launch", "ros2"):
+        line = next(ln for ln in res.stdout.splitlines() if ln.startswith(f"{via} run 0:"))
+        assert "exit code 1, 0 process(es) left, .secrets gone" in line, res.stdout
+        assert re.search(rf"^{via}: 1 run\(s\), median \d+\.\d\d s", res.stdout, re.M), res.stdout

@@ -102,6 +102,11 @@ def load_spec(path: str | Path) -> dict[str, Any]:
     return spec
 
 
+def process_label(role: str) -> str:
+    """The logger name of a container process of ``role`` (``container``, ``container_plant``, ...)."""
+    return CONTAINER if role == CONTAINER else f"container_{role}"
+
+
 def entry_role(entry: dict[str, Any], role: str) -> str:
     """Node role of one spec entry in a process of ``role`` (a container's entries name their own)."""
     if role != CONTAINER:
@@ -170,7 +175,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
     )
     from comems4build_ros.wire.contract import ContractError
 
-    label = f"container_{role}"
+    label = process_label(role)
     roles = [entry_role(e, role) for e in spec["nodes"]]
     makers = {r: node_factory(r, spec) for r in dict.fromkeys(roles)}
     prepared = prepare_feed_scenarios(spec, role)
@@ -293,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
         for entry in spec["nodes"]:
             entry_role(entry, ns.role)
     except ContainerSpecError as exc:
-        process_logger(f"container_{ns.role}").error(f"refused to start: {exc}")
+        process_logger(process_label(ns.role)).error(f"refused to start: {exc}")
         return EXIT_BAD_INPUT
     return run_container(ns.role, spec, rest or None)
 
