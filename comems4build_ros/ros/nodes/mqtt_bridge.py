@@ -1,7 +1,7 @@
 """``mqtt_bridge``: the topic contract on one side, a house behind MQTT on the other.
 
 The bridge stands in for ``plant_sim``: it publishes the plant's topics (``state/*``,
-``plant/step``, ``plant/record``, ``clock``, ``plant/done``, ``plant/events``) from the
+``plant/step``, ``plant/record``, ``/clock``, ``plant/done``, ``plant/events``) from the
 house's MQTT measurements and forwards each ``ems/command`` as MQTT set-points
 (heat-pump mode and modulation, fuel-cell power, battery power) with the topics, units
 and scaling of the topic map (``config/mqtt.yaml``). With the map's PV and load meters it
