@@ -105,9 +105,10 @@ def test_ros2_param_on_running_nodes(ros2, domain_id, tmp_path) -> None:
         assert all(p.poll() is None for p in procs.values()), {e: (tmp_path / f"{e}.log").read_text()[-800:]
                                                                for e, p in procs.items() if p.poll() is not None}
         for exe, node in nodes.items():
-            dump = run_until(ros2, ["param", "dump", node, "--no-daemon"], domain_id, tmp_path,
-                             lambda r: "ros__parameters" in r.stdout)
-            listed = run_until(ros2, ["param", "list", node, "--no-daemon"], domain_id, tmp_path,
+            # --no-daemon: each call discovers the graph anew; on a loaded machine give it time
+            dump = run_until(ros2, ["param", "dump", node, "--no-daemon", "--spin-time", "5", "--timeout", "10"],
+                             domain_id, tmp_path, lambda r: "ros__parameters" in r.stdout)
+            listed = run_until(ros2, ["param", "list", node, "--no-daemon", "--spin-time", "5"], domain_id, tmp_path,
                                lambda r: "config_files" in r.stdout or "bag_path" in r.stdout)
             values = yaml.safe_load(dump.stdout)[node]["ros__parameters"]
 
@@ -179,18 +180,23 @@ def test_log_level_and_rosout(ros2, domain_id, tmp_path) -> None:
                           "__ns:=/w", "-p", "wait_for_recorder:=maybe"], domain_id, tmp_path, timeout=120)
     text = res.stdout + res.stderr
     assert "[ERROR]" in text and "parameter 'wait_for_recorder'" in text and "[INFO]" not in text, text
-    echo = start_ros2(ros2, ["topic", "echo", "/rosout", "rcl_interfaces/msg/Log"], domain_id, tmp_path,
-                      tmp_path / "rosout.log")
     plant = start_ros2(ros2, ["run", "comems4build_ros", "plant_sim", "--ros-args", "-r", "__ns:=/w"], domain_id,
                        tmp_path, tmp_path / "plant.log")
+    echo = None
     try:
         wait_for(lambda: "/w/plant_sim" in node_names(ros2, domain_id, tmp_path), 90, "plant_sim up")
+        # /rosout is transient local (rcl's profile): a reader asking for that gets the node's
+        # lines from before it matched too (the start-up line), then every new one
+        echo = start_ros2(ros2, ["topic", "echo", "/rosout", "rcl_interfaces/msg/Log", "--qos-durability",
+                                 "transient_local", "--qos-reliability", "reliable"], domain_id, tmp_path,
+                          tmp_path / "rosout.log")
+        wait_for(lambda: "plant ready" in (tmp_path / "rosout.log").read_text(), 60, "the start-up line on /rosout")
         run_until(ros2, ["param", "set", "/w/plant_sim", "step_timeout_s", "4.5", "--no-daemon"], domain_id, tmp_path,
                   lambda r: "Set parameter" in r.stdout)
         wait_for(lambda: "parameter 'step_timeout_s' = 4.5 from now on" in (tmp_path / "rosout.log").read_text(), 30,
                  "the node's log line on /rosout")
     finally:
-        stop([plant, echo])
+        stop([plant, *([echo] if echo else [])])
     out = tmp_path / "run"
     launched = run_ros2(ros2, [*LAUNCH, "ems:=rbc", "weeks:=1", "steps:=3", "log_level:=debug", f"out:={out}"],
                         domain_id, tmp_path)
