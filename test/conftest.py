@@ -1,7 +1,8 @@
 """Fixtures shared by the test modules.
 
 ``params`` is the default plant (``config/plant.yaml``), built once per module; a module that
-tests another plant defines its own ``params``. ``domain_id`` is a ROS 2 domain id locked for
+tests another plant defines its own ``params``. ``ros2`` is the ROS 2 command-line tools
+(``test/ros2_tools.py``). ``domain_id`` is a ROS 2 domain id locked for
 one test with the launcher's own lock files, so tests that start nodes never meet.
 """
 
@@ -18,6 +19,14 @@ from comems4build_ros.core.config import PlantParams, load_plant_params
 def params() -> PlantParams:
     """The default plant parameters."""
     return load_plant_params()
+
+
+@pytest.fixture(scope="session")
+def ros2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    """The ``ros2`` command (with ``launch_ros``) and its environment (test/ros2_tools.py; skips without one)."""
+    from ros2_tools import ros2_command
+
+    return ros2_command(tmp_path_factory)
 
 
 @pytest.fixture()

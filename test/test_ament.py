@@ -63,3 +63,42 @@ def test_installed_recorder_smoke_run(ament_prefix: str, tmp_path: Path) -> None
         rec.proc.send_signal(signal.SIGINT)
         assert rec.proc.wait(timeout=20) == 0, rec.tail()
     assert (bag / "metadata.yaml").is_file() and (bag / "bag.mcap").is_file()
+
+
+#: The package.xml key of each distribution the package imports (rosdep keys; see package.xml).
+IMPORT_KEYS = {
+    "rclpy": "rclpy", "std_msgs": "std_msgs", "rcl_interfaces": "rcl_interfaces", "launch": "launch",
+    "launch_ros": "launch_ros", "numpy": "python3-numpy", "scipy": "python3-scipy", "pandas": "python3-pandas",
+    "yaml": "python3-yaml", "pydantic": "python3-pydantic", "matplotlib": "python3-matplotlib", "PIL": "python3-pil",
+    "tqdm": "python3-tqdm", "pulp": "python3-pulp", "holidays": "python3-holidays", "paho": "python3-paho-mqtt",
+    "distributed": "python3-distributed", "psutil": "python3-psutil", "rosbags": "python3-rosbags-pip",
+    "mcap": "python3-mcap-pip", "skfuzzy": "python3-scikit-fuzzy-pip", "highspy": "python3-highspy-pip",
+    "osqp": "python3-osqp-pip", "pvlib": "python3-pvlib-pip", "OpenDHW": "python3-opendhw-pip",
+    "amqtt": "python3-amqtt-pip", "pwdlib": "python3-pwdlib-pip",
+}
+#: Imported only when present (an optional comparison solver, docs/mpc.md), no dependency.
+OPTIONAL_IMPORTS = frozenset({"gurobipy"})
+#: Dependencies no module imports by name: the contract's message packages (loaded by type
+#: name), the launch front end, and what scikit-fuzzy needs without declaring it (networkx).
+INDIRECT_KEYS = ("rosgraph_msgs", "builtin_interfaces", "ros2launch", "python3-networkx", "python3-dask")
+
+
+def test_package_xml_lists_every_run_dependency() -> None:
+    """Every distribution any module of the package imports (anywhere, also inside functions) has
+    its exec_depend in package.xml, as have the indirect ones; a new import needs its key here."""
+    import ast
+    import xml.etree.ElementTree as ET
+
+    root = Path(__file__).resolve().parents[1]
+    imported: set[str] = set()
+    for path in (root / PACKAGE).rglob("*.py"):
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8"))):
+            if isinstance(node, ast.Import):
+                imported |= {a.name.split(".")[0] for a in node.names}
+            elif isinstance(node, ast.ImportFrom) and not node.level and node.module:
+                imported.add(node.module.split(".")[0])
+    imported -= set(sys.stdlib_module_names) | {PACKAGE, "__future__"} | OPTIONAL_IMPORTS
+    assert imported <= set(IMPORT_KEYS), f"no package.xml key known for {sorted(imported - set(IMPORT_KEYS))}"
+    declared = {e.text for e in ET.parse(root / "package.xml").getroot().iter("exec_depend")}
+    missing = sorted(({IMPORT_KEYS[m] for m in imported} | set(INDIRECT_KEYS)) - declared)
+    assert not missing, f"package.xml lacks exec_depend {missing}"

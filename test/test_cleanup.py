@@ -37,7 +37,7 @@ def _child(kind: str, code: int) -> list[str]:
 
 
 @pytest.mark.parametrize(("kind", "code", "exits", "says"), [
-    ("python", 0, 0, "[node] clean-up did not finish within 0.5 s; exiting with code 0 without it"),
+    ("python", 0, 0, "[node]: clean-up did not finish within 0.5 s; exiting with code 0 without it"),
     ("python", 3, 3, "exiting with code 3 without it"),
     ("native", 0, 1, "Timeout (0:00:01.500000)!"),
 ])
@@ -46,7 +46,7 @@ def test_a_hung_clean_up_still_ends_the_process(kind: str, code: int, exits: int
     res = subprocess.run(_child(kind, code), capture_output=True, text=True, timeout=30)
     assert time.monotonic() - t0 < 20  # not the 60 s of the hang
     assert res.returncode == exits, res.stderr
-    assert f"[node] cleaning up: exit code {code}" in res.stderr and says in res.stderr, res.stderr
+    assert f"[node]: cleaning up: exit code {code}" in res.stderr and says in res.stderr, res.stderr
     if kind == "native":  # where it hung: the stack of the main thread
         assert "most recent call first" in res.stderr and "<string>" in res.stderr, res.stderr
 
@@ -91,4 +91,4 @@ def test_a_stop_signal_that_rclpy_turned_into_a_runtime_error_is_a_stop() -> Non
     """)
     res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
     assert res.returncode == EXIT_INTERRUPTED, res.stderr
-    assert "Traceback" not in res.stderr and "[node] cause: stopped by a signal" in res.stderr, res.stderr
+    assert "Traceback" not in res.stderr and "[node]: cause: stopped by a signal" in res.stderr, res.stderr

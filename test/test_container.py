@@ -51,12 +51,13 @@ def test_load_spec_names_the_file_and_entry(tmp_path: Path) -> None:
         load_spec(_write(tmp_path, {"nodes": [{"namespace": "/a", "role": "ems"}, {"namespace": "/a", "role": "ems"}]}))
 
 
-def test_main_exit_code_2_on_bad_spec(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_main_exit_code_2_on_bad_spec(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
+    """(The message is a log line of rclpy's logger, written by rcutils to file descriptor 2.)"""
     assert main(["--role", "plant", "--spec", str(tmp_path / "missing.json")]) == 2
-    assert "missing.json" in capsys.readouterr().err
+    assert "missing.json" in capfd.readouterr().err
     spec = _write(tmp_path, {"nodes": [{"namespace": "/house_0"}]})
     assert main(["--role", "container", "--spec", str(spec)]) == 2  # a container's entries name their role
-    assert "node '/house_0' of a container needs a 'role'" in capsys.readouterr().err
+    assert "node '/house_0' of a container needs a 'role'" in capfd.readouterr().err
 
 
 def test_to_parameters_types() -> None:

@@ -74,11 +74,13 @@ def test_feed_publishes_and_recorder_records_what_the_ems_reads(layout: str, tmp
         feeds = [n.params for _, n in plan.nodes("feed")]
         recorders = [n.params for _, n in plan.nodes("recorder")]
         assert len(feeds) == 2 and len(recorders) == 2
+        # one clock per run: only the first house's bag records /clock
         if all_inputs:
-            assert all("for_ems" not in p for p in feeds) and all("skip_topics" not in p for p in recorders)
+            assert all("for_ems" not in p for p in feeds) and "skip_topics" not in recorders[0]
+            assert recorders[1]["skip_topics"] == ["/clock"]
         else:
             assert all(p["for_ems"] == "rbc_ems" for p in feeds)
-            assert all(p["skip_topics"] == unread for p in recorders)
+            assert recorders[0]["skip_topics"] == unread and recorders[1]["skip_topics"] == [*unread, "/clock"]
 
 
 def test_several_houses_one_process_per_role(tmp_path: Path) -> None:

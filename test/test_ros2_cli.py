@@ -15,7 +15,6 @@ import json
 import math
 import os
 import re
-import shutil
 import signal
 import subprocess
 import sys
@@ -24,6 +23,7 @@ import warnings
 from pathlib import Path
 
 import pytest
+from ros2_tools import run_ros2
 
 from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.loop import simulate
@@ -31,56 +31,10 @@ from comems4build_ros.core.loop import simulate
 pytestmark = pytest.mark.ros
 
 REPO = Path(__file__).resolve().parents[1]
-#: Folder of the ROS 2 CLI wheels (README, install.sh, wheels/); overridable by this variable.
-ROS2_CLI_ENV = "COMEMS4BUILD_ROS2_CLI"
-#: Their own PyPI dependencies (install.sh) and those of these, where this environment lacks them.
-CLI_DEPENDENCIES = {"argcomplete": "argcomplete", "importlib_metadata": "importlib-metadata", "zipp": "zipp",
-                    "catkin_pkg": "catkin-pkg", "osrf_pycommon": "osrf-pycommon", "docutils": "docutils",
-                    "lark": "lark", "psutil": "psutil", "packaging": "packaging", "yaml": "pyyaml",
-                    "dateutil": "python-dateutil", "pyparsing": "pyparsing"}
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 EXECUTABLES = ("feed", "fuzzy_ems", "mpc_ems", "mpc_qp_ems", "mqtt_bridge", "mqtt_plant", "plant_sim", "rbc_ems",
                "recorder", "replay", "thermostat_ems")
 CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
-
-
-def cli_folder() -> Path:
-    """Where the ROS 2 CLI wheels are looked for."""
-    return Path(os.environ.get(ROS2_CLI_ENV) or REPO.parent / "shared" / "ros2-cli")
-
-
-@pytest.fixture(scope="session")
-def ros2(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
-    """``{"argv": [...ros2], "env": {...}}``: the ``ros2`` command and the environment it needs."""
-    env = dict(os.environ, AMENT_PREFIX_PATH=sys.prefix, PYTHONUNBUFFERED="1")
-    own = shutil.which("ros2")
-    if own and subprocess.run([own, "launch", "--help"], capture_output=True, env=env).returncode == 0:
-        return {"argv": [own], "env": env}  # a real ROS 2 install
-    folder = cli_folder()
-    wheels = sorted((folder / "wheels").glob("*.whl"))
-    if not wheels:
-        pytest.skip(f"no ROS 2 command-line tools: neither 'ros2' with launch on PATH nor the wheels in {folder} "
-                    f"(set {ROS2_CLI_ENV} to the folder holding wheels/)")
-    site = tmp_path_factory.mktemp("ros2_cli") / "site"
-    missing = []
-    for module, dist in CLI_DEPENDENCIES.items():
-        if subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True).returncode != 0:
-            missing.append(dist)
-    res = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--disable-pip-version-check", "--no-deps",
-                          "--target", str(site), *missing, *map(str, wheels)], capture_output=True, text=True)
-    if res.returncode != 0:
-        pytest.skip(f"could not install the ROS 2 command-line tools from {folder}: {res.stderr.strip()[-500:]}")
-    env["PYTHONPATH"] = os.pathsep.join([str(site), *filter(None, [env.get("PYTHONPATH")])])
-    return {"argv": [sys.executable, str(site / "bin" / "ros2")], "env": env}
-
-
-
-def run_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, timeout: float = 300,
-             **kw: object) -> subprocess.CompletedProcess:
-    env = dict(ros2["env"], ROS_DOMAIN_ID=str(domain), ROS_LOG_DIR=str(tmp_path / "ros_log"),
-               ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST")
-    return subprocess.run([*ros2["argv"], *args], env=env, capture_output=True, text=True, timeout=timeout,
-                          cwd=tmp_path, **kw)
 
 
 def reference(ems: str, steps: int, seed: int | None = None) -> dict:
@@ -108,9 +62,13 @@ def evaluate(bag: Path, out: Path) -> dict:
 
 
 def test_ros2_pkg_executables(ros2, domain_id, tmp_path) -> None:
+    """Every executable of the package: the ROS nodes (an EMS node per row of config/ems.yaml) and mqtt_plant."""
+    from comems4build_ros.run.plan import ros_node_executables
+
     res = run_ros2(ros2, ["pkg", "executables", "comems4build_ros"], domain_id, tmp_path, timeout=60)
     assert res.returncode == 0, res.stderr
-    assert sorted(line.split()[1] for line in res.stdout.splitlines()) == sorted(EXECUTABLES)
+    listed = sorted(line.split()[1] for line in res.stdout.splitlines())
+    assert listed == sorted({*ros_node_executables(), "mqtt_plant"}) and set(EXECUTABLES) <= set(listed)
 
 
 def _plan_text(stdout: str) -> str:

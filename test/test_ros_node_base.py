@@ -19,7 +19,6 @@ rclpy = pytest.importorskip("rclpy")
 from comems4build_ros.core.config import ConfigError, load_plant_params, scenario_config_files  # noqa: E402
 from comems4build_ros.core.types import HP_DHW  # noqa: E402
 from comems4build_ros.ros.node import ArrayPublisher, ContractNode, layout_sizes  # noqa: E402
-from comems4build_ros.ros.parameters import plant_params_from_node  # noqa: E402
 from comems4build_ros.wire.contract import ContractError, load_contract  # noqa: E402
 from comems4build_ros.wire.ems_command import CommandError, command_bounds, command_to_action  # noqa: E402
 
@@ -178,7 +177,6 @@ def test_plant_params_from_ros_parameters(context, tmp_path):
     node = ContractNode(
         "plant_sim",
         context=context,
-        automatically_declare_parameters_from_overrides=True,
         parameter_overrides=[
             Parameter("config_files", value=[str(extra)]),
             Parameter("dhw.v_max_l", value=350.0),  # as `--params-file` with a dhw section sets it
@@ -186,7 +184,7 @@ def test_plant_params_from_ros_parameters(context, tmp_path):
         ],
     )
     try:
-        p = plant_params_from_node(node)
+        p = node.plant_params()
         assert p.battery.e_max_kwh == 10.0
         assert p.dhw.v_max_l == 350.0
         assert p.pv.n_modules == 20
@@ -201,12 +199,11 @@ def test_invalid_ros_parameter_names_the_parameter(context):
     node = ContractNode(
         "feed",
         context=context,
-        automatically_declare_parameters_from_overrides=True,
         parameter_overrides=[Parameter("battery.soc_min", value=0.95)],
     )
     try:
         with pytest.raises(ConfigError, match="battery"):
-            plant_params_from_node(node)
+            node.plant_params()
     finally:
         node.destroy_node()
 
@@ -247,7 +244,7 @@ def test_installed_executable_runs_with_the_venv_python(tmp_path, domain_id):
         [str(exe), "--ros-args", "-p", f"scenario:={missing}"], env=env, capture_output=True, text=True, timeout=120
     )
     assert proc.returncode == 2, proc.stderr
-    assert "[feed] error: scenario" in proc.stderr and "missing.csv" in proc.stderr
+    assert "[feed]: refused to start: scenario" in proc.stderr and "missing.csv" in proc.stderr
 
 
 def test_ready_cdr_bytes_equal_rclpy_serialisation(params) -> None:
@@ -370,7 +367,10 @@ def test_every_parameter_has_a_description_unit_and_range(context, tmp_path):
         plant = _descriptions(nodes[0])
         assert plant["battery.e_max_kwh"].description.endswith("[kWh]")
         assert plant["battery.e_max_kwh"].floating_point_range[0].from_value == 0.0
-        assert plant["step_timeout_s"].integer_range  # given as an integer: described as one
+        # given as the integer 3: the number 3.0 of the declared type (double), with its range
+        timeout = plant["step_timeout_s"]
+        assert timeout.type == Parameter.Type.DOUBLE.value and timeout.floating_point_range
+        assert nodes[0].get_parameter("step_timeout_s").value == 3.0
         assert plant["config_files"].type == Parameter.Type.STRING_ARRAY.value  # not a list holding ""
     finally:
         for node in nodes:

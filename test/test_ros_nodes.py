@@ -184,6 +184,12 @@ class Graph:
                        for spec in c.topics.values() if spec.name not in self.subs and spec.publishers]
         self._ready_pub = self.node.create_publisher(Bool, "recorder/ready", qos_profile(c.topic("recorder/ready")))
 
+    def leave(self) -> None:
+        """The observer, the plant's ``recorder_node``, closes its run as a recorder does: its
+        reader of plant/record leaves (the plant waits for that before it exits)."""
+        self.node.destroy_subscription(self.subs.pop("plant/record"))
+        self.executor.spin_once(timeout_sec=0.1)
+
     def ready(self, topics: tuple[str, ...] = ("plant/record", "plant/done", "state/t_air_c"), timeout: float = 60.0):
         """Wait until the observer is matched with the publishers of ``topics``, then say
         ``recorder/ready`` (the plant runs with ``wait_for_recorder``, as under the launcher)."""
@@ -241,8 +247,9 @@ class Graph:
         except NodeNameNonExistentError:  # node discovery is asynchronous: not (yet) known
             return set(), set()
 
-        def names(items: list) -> set[str]:
-            return {relative(ns, t) for t, _ in items if t not in ("/parameter_events", "/rosout")}
+        def names(items: list) -> set[str]:  # contract names: relative to ns, /clock absolute
+            return {t if t in self.contract.topics else relative(ns, t) for t, _ in items
+                    if t not in ("/parameter_events", "/rosout")}
 
         return names(pubs), names(subs)
 
@@ -331,7 +338,8 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
     ems_node = c.ems_node_name(ems)
     for node in ("plant_sim", "feed", ems_node):
         want_pub = {t.name for t in c.published_by(node)}
-        want_sub = {t.name for t in c.subscribed_by(node)}
+        # /clock: the contract lets ROS 2's time source read it; it does with use_sim_time only
+        want_sub = {t.name for t in c.subscribed_by(node)} - {"/clock"}
         t_end = time.monotonic() + 10.0  # endpoint discovery is asynchronous: give it time under load
         while graph.graph_topics(node) != (want_pub, want_sub) and time.monotonic() < t_end:
             graph.executor.spin_once(timeout_sec=0.1)
@@ -465,6 +473,7 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
     assert r1["hp_mode"] == 1 and r1["q_hp_sh_w"] > 0
     assert r2["fallback"] is False and r2["cmd_hp_mode"] == 0
     assert r2["foreign_commands"] == 1 and r2["rejected_commands"] == 5
+    graph.leave()  # the recorder's stand-in leaves: the plant, waiting for that, ends
     assert graph.procs["plant_sim"].wait(30) == 0
     log = graph.log("plant_sim")
     for expected in (
@@ -508,9 +517,9 @@ def test_feed_refuses_a_scenario_with_nan_or_gap(graph: Graph, scenario_csv: Pat
     assert graph.procs["feed_nan"].wait(120) == 2
     assert graph.procs["feed_gap"].wait(120) == 2
     nan_log, gap_log = graph.log("feed_nan"), graph.log("feed_gap")
-    assert "[feed] error:" in nan_log and "with_nan.csv" in nan_log and "line 12" in nan_log
+    assert "[feed]: refused to start:" in nan_log and "with_nan.csv" in nan_log and "line 12" in nan_log
     assert "column 't_amb_c'" in nan_log and "refuses a scenario with missing values" in nan_log
-    assert "[feed] error:" in gap_log and "with_gap.csv" in gap_log and "gap" in gap_log
+    assert "[feed]: refused to start:" in gap_log and "with_gap.csv" in gap_log and "gap" in gap_log
     assert "Traceback" not in nan_log + gap_log
 
 

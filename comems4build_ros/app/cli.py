@@ -18,7 +18,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "simulate": ("simulate", "one EMS in-process over a scenario; writes DIR/timeseries.csv (every state, command "
                              "and flow per step), DIR/weekly.csv (one row per week, a partial week marked) and "
                              "DIR/summary.json"),
-    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros, study, year, cosim"),
+    "bench": ("bench", "benchmarks that print figures: plant, ems, mpc, ros, cut, study, year, cosim"),
     "data": ("data", "build scenario CSVs from real sources (aWATTar, DWD, DHWCalc, load CSV)"),
     "fuzzy-surface": ("fuzzy_surface", "draw the input-output maps of the three fuzzy controllers (fig:FLC_3D) as "
                                        "PDF, SVG and PNG"),

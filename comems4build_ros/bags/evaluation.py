@@ -452,8 +452,8 @@ def describe_gaps(gaps: dict[str, list[int]]) -> str:
 
 
 def resolve_ns(ns: str, name: str) -> str:
-    """``/`` + ``a/b`` -> ``/a/b``; ``/house_1`` + ``a/b`` -> ``/house_1/a/b``."""
-    return f"{ns.rstrip('/')}/{name}"
+    """``/`` + ``a/b`` -> ``/a/b``; ``/house_1`` + ``a/b`` -> ``/house_1/a/b``; ``/clock`` stays."""
+    return name if name.startswith("/") else f"{ns.rstrip('/')}/{name}"
 
 
 def _ranges(values: list[int]) -> str:

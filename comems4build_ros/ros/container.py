@@ -39,18 +39,20 @@ nodes on ``plant/done``); the first non-zero result is the exit code (an EMS nod
 controller failed, a plant whose run stalled). SIGINT or SIGTERM give 0 only when every
 node's part of the run is complete, else exit code 3
 (:data:`~comems4build_ros.ros.process.EXIT_INTERRUPTED`). A bad parameter or scenario gives exit code 2 and a message
-naming the namespace. Parameter services are not started for contained nodes (fewer
-entities in the shared executor); ``ros2 param`` does not reach them.
+naming the namespace; so does a parameter a node does not have. Parameter services are not
+started for contained nodes (fewer entities in the shared executor); ``ros2 param`` does not
+reach them. Options for every node of the process (``--log-level``, ``-p use_sim_time:=true``)
+follow ``--ros-args`` on the container's command line.
 """
 
 from __future__ import annotations
 
 import argparse
-import sys
 from pathlib import Path
 from typing import Any
 
 from comems4build_ros.files.inputs import load_json_file
+from comems4build_ros.ros.log import process_logger
 from comems4build_ros.wire.exits import EXIT_BAD_INPUT
 
 #: Roles of the nodes a container runs.
@@ -100,6 +102,11 @@ def load_spec(path: str | Path) -> dict[str, Any]:
     return spec
 
 
+def process_label(role: str) -> str:
+    """The logger name of a container process of ``role`` (``container``, ``container_plant``, ...)."""
+    return CONTAINER if role == CONTAINER else f"container_{role}"
+
+
 def entry_role(entry: dict[str, Any], role: str) -> str:
     """Node role of one spec entry in a process of ``role`` (a container's entries name their own)."""
     if role != CONTAINER:
@@ -147,104 +154,102 @@ def node_factory(role: str, spec: dict[str, Any]) -> Any:
     raise ContainerSpecError(f"unknown role '{role}' (one of {', '.join(ROLES)})")
 
 
-def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None) -> int:
-    """Create every node of ``spec`` and spin them on one executor (:func:`~.process.make_executor`).
-
-    Shutdown order as :func:`comems4build_ros.ros.process.run_node`: executor shutdown,
-    destroy every node (a recorder closes its bag there), rclpy shutdown.
+def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None, end_process: bool = True) -> int:
+    """Create every node of ``spec`` and spin them on one executor (:func:`~.process.make_executor`)
+    until all are done (:func:`all_finished`); the clean-up and the exit code are those of
+    :func:`comems4build_ros.ros.process.run_node` (:func:`~comems4build_ros.ros.process.clean_up`).
     """
     import rclpy
     from rclpy.executors import ExternalShutdownException
-    from rclpy.task import Future
 
     from comems4build_ros.core.config import ConfigError
     from comems4build_ros.ros.process import (
-        cleanup_deadline,
-        ignore_stop_signals,
+        REFUSED_TAG,
+        clean_up,
         init_rclpy,
         interrupted_code,
+        log_crash,
         make_executor,
-        print_cpu,
         spin_until_done,
         stop_signalled,
     )
     from comems4build_ros.wire.contract import ContractError
 
-    makers: dict[str, Any] = {}
+    label = process_label(role)
     roles = [entry_role(e, role) for e in spec["nodes"]]
-    for r in roles:
-        if r not in makers:
-            makers[r] = node_factory(r, spec)
+    makers = {r: node_factory(r, spec) for r in dict.fromkeys(roles)}
     prepared = prepare_feed_scenarios(spec, role)
     init_rclpy(args)
     executor = make_executor()
     nodes: list[Any] = []
     code = 0
     current = "?"
-    progress_nodes: list[Any] = []
     try:
         for entry, r in zip(spec["nodes"], roles):
             current = entry["namespace"]
-            params = dict(entry.get("params", {}))
-            extra = {"scenario": prepared[current]} if r == "feed" and current in prepared else {}
-            node = makers[r](
-                namespace=current,
-                parameter_overrides=to_parameters(params),
-                start_parameter_services=False,
-                **extra,
-            )
-            nodes.append(node)
-            executor.add_node(node)
+            nodes.append(create_node(makers[r], entry, prepared.get(current) if r == "feed" else None))
+            executor.add_node(nodes[-1])
+        progress_nodes = [n for n, r in zip(nodes, roles) if r == "recorder"]
         period = float(spec.get("progress_period_s", 0.0))
-        recorders = [n for n, r in zip(nodes, roles) if r == "recorder"]
-        if recorders and period > 0:
-            progress_nodes = recorders
-            recorders[0].create_timer(period, lambda: print_progress(progress_nodes))
-        all_done = Future()
-        futures = [f for f in (getattr(n, "finished", None) for n in nodes) if f is not None]
-
-        def check(_: Any = None) -> None:
-            if all_done.done():
-                return
-            failed = [int(f.result() or 0) for f in futures if f.done() and int(f.result() or 0) != 0]
-            if failed:
-                all_done.set_result(failed[0])
-            elif role in FINISHING_ROLES and all(f.done() for f in futures):
-                all_done.set_result(0)
-
-        for f in futures:
-            f.add_done_callback(check)
-        spin_until_done(executor, all_done)
-        if all_done.done():
-            code = int(all_done.result() or 0)
-        else:  # the spin ended because the context was shut down (no exception)
-            code = interrupted_code(nodes, f"container {role}")
+        if progress_nodes and period > 0:
+            progress_nodes[0].create_timer(period, lambda: print_progress(progress_nodes))
+        done = all_finished(nodes, role)
+        spin_until_done(executor, done)
+        # the spin ended with every node done, or because the context was shut down (no exception)
+        code = int(done.result() or 0) if done.done() else interrupted_code(nodes, label)
         if progress_nodes:
             print_progress(progress_nodes)
     except (KeyboardInterrupt, ExternalShutdownException):
-        code = interrupted_code(nodes, f"container {role}")
+        code = interrupted_code(nodes, label)
     except RuntimeError:
         if rclpy.ok() and not stop_signalled():  # see run_node: a context shut down from elsewhere, a signal
             raise
-        code = interrupted_code(nodes, f"container {role}")
+        code = interrupted_code(nodes, label)
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
-        print(f"[container {role} {current}] error: {exc}", file=sys.stderr, flush=True)
+        process_logger(label).error(f"{REFUSED_TAG} node of namespace {current}: {exc}")
         code = EXIT_BAD_INPUT
+    except Exception:  # a bug: its traceback in the log, exit code 1 (the process ends in clean_up)
+        code = log_crash(label)
     finally:
-        ignore_stop_signals()  # a second Ctrl-C or the supervisor's signals must not cut the clean-up short
-        watchdog = cleanup_deadline(f"container {role}", code)
-        executor.shutdown()
-        for node in nodes:
-            node.destroy_node()
-        rclpy.try_shutdown()
-        watchdog.cancel()
-        print_cpu(f"container {role}")
+        clean_up(executor, nodes, label, code, end_process)
     return code
 
 
-def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str, Any]:
-    """Scenario of every feed node of ``spec`` (of a process of ``role``), built in parallel
-    worker processes.
+def create_node(make: Any, entry: dict[str, Any], prepared: tuple[Any, Any] | None) -> Any:
+    """One node of a spec entry (namespace, parameters; a feed's prepared scenario), its
+    parameters checked whole (:meth:`~comems4build_ros.ros.package_node.PackageNode.refuse_undeclared`)."""
+    extra = {} if prepared is None else {"scenario": prepared[0], "weeks_bound": prepared[1]}
+    node = make(namespace=entry["namespace"], parameter_overrides=to_parameters(dict(entry.get("params", {}))),
+                start_parameter_services=False, **extra)
+    node.refuse_undeclared()
+    return node
+
+
+def all_finished(nodes: list[Any], role: str) -> Any:
+    """A future done once every node's ``finished`` future is (result 0), or with the first
+    non-zero result (an EMS whose controller failed, a stalled plant) as soon as it comes."""
+    from rclpy.task import Future
+
+    done = Future()
+    futures = [f for f in (getattr(n, "finished", None) for n in nodes) if f is not None]
+
+    def check(_: Any = None) -> None:
+        if done.done():
+            return
+        failed = [int(f.result() or 0) for f in futures if f.done() and int(f.result() or 0) != 0]
+        if failed:
+            done.set_result(failed[0])
+        elif role in FINISHING_ROLES and all(f.done() for f in futures):
+            done.set_result(0)
+
+    for f in futures:
+        f.add_done_callback(check)
+    return done
+
+
+def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str, tuple[Any, Any]]:
+    """Scenario and ``weeks`` bound of every feed node of ``spec`` (of a process of ``role``), built
+    in parallel worker processes.
 
     Generating one default scenario takes about 1.5 s of CPU; a feed container with 16
     houses would spend 16 x that before the first step. The workers are forked before
@@ -266,11 +271,11 @@ def prepare_feed_scenarios(spec: dict[str, Any], role: str = "feed") -> dict[str
         futures = {e["namespace"]: pool.submit(prepare_scenario, dict(e.get("params", {}))) for e in nodes}
         for ns, fut in futures.items():
             try:
-                scenario, notes = fut.result()
+                scenario, notes, weeks_bound = fut.result()
             except Exception:  # noqa: BLE001 - the node's constructor reports it with its namespace
                 continue
             if not notes:  # loader notes are logged by the node itself: let it load
-                out[ns] = scenario
+                out[ns] = (scenario, weeks_bound)
     return out
 
 
@@ -293,7 +298,7 @@ def main(argv: list[str] | None = None) -> int:
         for entry in spec["nodes"]:
             entry_role(entry, ns.role)
     except ContainerSpecError as exc:
-        print(f"error: {exc}", file=sys.stderr)
+        process_logger(process_label(ns.role)).error(f"refused to start: {exc}")
         return EXIT_BAD_INPUT
     return run_container(ns.role, spec, rest or None)
 

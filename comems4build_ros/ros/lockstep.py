@@ -2,13 +2,14 @@
 
 A lock-step master announces step ``k`` (the state at its start on ``state/*``, then
 ``plant/step`` = ``k``), waits for the EMS's command for ``k``, applies it (the plant
-model, or the house behind MQTT), publishes the step's ``plant/record`` and ``clock``,
+model, or the house behind MQTT), publishes the step's ``plant/record`` and ``/clock``,
 and goes on to ``k + 1`` (docs/ros_nodes.md "Lock-step protocol"). :class:`LockStepMaster`
 owns what does not depend on what is stepped:
 
-* the loop's timing parameters (:data:`LOOP_PARAMS`, each positive) and flags
-  (``wait_for_recorder``, ``recorder_node``, ``exit_when_done``, ``ems_token`` or
-  ``ems_token_file``, ``record_window_steps``, ``stall_steps``);
+* the loop's timing parameters (:data:`LOOP_PARAMS`, each positive) and ``stall_steps``,
+  which may change during a run (``ros2 param set``: from the next watchdog tick), and
+  the read-only flags (``wait_for_recorder``, ``recorder_node``, ``exit_when_done``,
+  ``ems_token`` or ``ems_token_file``, ``record_window_steps``, ``publish_clock``);
 * run tokens (:meth:`accept_token`): the commands of one EMS only, ``ems_token`` or the
   token of the run's first valid command; any other is counted as foreign;
 * the start gate (:meth:`recorder_ready`): with ``wait_for_recorder``, the recorder's
@@ -16,7 +17,8 @@ owns what does not depend on what is stepped:
 * back-pressure (:meth:`behind`): no step announced more than ``record_window_steps``
   beyond ``recorder/progress``, the time held counted;
 * the run's fault counters and statistics (:meth:`stats`), fault events on
-  ``plant/events`` (:meth:`event`), ``clock`` (:meth:`publish_clock`);
+  ``plant/events`` (:meth:`event`), ``/clock`` (:meth:`publish_clock`: one clock per run,
+  parameter ``publish_clock``);
 * stalls (:meth:`check_stall`, with ``stall_steps`` > 0): the run ends with exit code
   :data:`~comems4build_ros.wire.exits.EXIT_STALLED`, naming the silent party, once the
   EMS has sent nothing for ``stall_steps`` step time-outs in a row (every one of them a
@@ -42,9 +44,9 @@ from rclpy.task import Future
 from std_msgs.msg import Bool, String, UInt32
 
 from comems4build_ros.ros.node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
-from comems4build_ros.ros.parameters import param, plant_params_from_node
 from comems4build_ros.ros.process import report_cause
 from comems4build_ros.wire.cdr import clock_cdr, uint32_cdr
+from comems4build_ros.wire.contract import CLOCK_TOPIC
 from comems4build_ros.wire.exits import EXIT_STALLED
 from comems4build_ros.wire.tokens import command_mac, read_token_file, secret_key
 
@@ -108,24 +110,23 @@ class LockStepMaster(ContractNode):
     """
 
     def __init__(self, node_name: str, extra_timing: dict[str, float] | None = None, **node_kwargs: Any) -> None:
-        super().__init__(node_name, automatically_declare_parameters_from_overrides=True, **node_kwargs)
-        self.params = plant_params_from_node(self)
+        super().__init__(node_name, **node_kwargs)
+        self.params = self.plant_params()
+        # The loop's timing may change during a run (ros2 param set): each takes effect at the
+        # next watchdog tick; the watchdog's own period changes the timer's.
         for name, default in {**LOOP_PARAMS, **(extra_timing or {})}.items():
-            value = float(param(self, name, default))
-            if not value > 0:
-                raise ValueError(f"node '{node_name}': parameter '{name}' must be positive")
-            setattr(self, name, value)
-        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
-        self.recorder_node = str(param(self, "recorder_node", RECORDER_NODE))
-        self.exit_when_done = bool(param(self, "exit_when_done", True))
-        token_file = str(param(self, "ems_token_file", ""))
+            setattr(self, name, self.param(name, default, on_change=self._timing_setter(name)))
+        self.wait_for_recorder = self.param("wait_for_recorder", False)
+        self.recorder_node = self.param("recorder_node", RECORDER_NODE)
+        self.exit_when_done = self.param("exit_when_done", True)
+        token_file = self.param("ems_token_file", "")
         # a run secret (file): every command authenticated; else a plain token (parameter) or none
         self._key = secret_key(read_token_file(token_file)) if token_file else None
-        self.ems_token = 0 if token_file else int(param(self, "ems_token", 0))
-        self.stall_steps = int(param(self, "stall_steps", 0))
-        self.record_window_steps = int(param(self, "record_window_steps", RECORD_WINDOW_STEPS))
-        if self.record_window_steps < 1:
-            raise ValueError(f"node '{node_name}': parameter 'record_window_steps' must be >= 1")
+        ems_token = self.param("ems_token", 0)
+        self.ems_token = 0 if token_file else ems_token
+        self.stall_steps = self.param("stall_steps", 0, on_change=lambda v: setattr(self, "stall_steps", v))
+        self.record_window_steps = self.param("record_window_steps", RECORD_WINDOW_STEPS)
+        self.publish_clock_on = self.param("publish_clock", True)
         self.sizes = layout_sizes(self.params)
         self.dt_ns = int(round(self.params.simulation.time_step_h * 3600.0 * NS_PER_S))
         # the run
@@ -146,14 +147,30 @@ class LockStepMaster(ContractNode):
         self._token = float(self.ems_token) if self.ems_token > 0 else None  # run token of applied commands
         self._recorder_ready = False
         self._recorded = 0  # steps the recorder has written without a gap (recorder/progress)
+        self._clock_ns = -1  # the simulated time last published on /clock [ns]
+        self._watchdog_timer: Any = None
         # what every master publishes and reads besides its state and commands
         self._record = ArrayPublisher(self, "plant/record", self.sizes)
         self._step_pub = self.contract_publisher("plant/step")
-        self._clock_pub = self.contract_publisher("clock")
+        self._clock_pub = self.contract_publisher(CLOCK_TOPIC) if self.publish_clock_on else None
         self._done_pub = self.contract_publisher("plant/done")
         self._events_pub = self.contract_publisher("plant/events")
         self.contract_subscription("recorder/ready", self._on_recorder_ready)
         self.contract_subscription("recorder/progress", self._on_recorder_progress)
+
+    def _timing_setter(self, name: str) -> Any:
+        """``on_change`` of a timing parameter: the new value is used from the next watchdog tick."""
+
+        def apply(value: float) -> None:
+            setattr(self, name, float(value))
+            if name == "watchdog_period_s" and self._watchdog_timer is not None:
+                self._watchdog_timer.timer_period_ns = int(float(value) * NS_PER_S)
+
+        return apply
+
+    def start_watchdog(self, callback: Any) -> None:
+        """The watchdog timer (period ``watchdog_period_s``, changeable during the run)."""
+        self._watchdog_timer = self.create_timer(self.watchdog_period_s, callback)
 
     # ------------------------------------------------------------------ recorder
     def _on_recorder_ready(self, msg: Bool) -> None:
@@ -311,7 +328,7 @@ class LockStepMaster(ContractNode):
         self.stalled = True
         self.done = True  # no further step: every handler of the subclasses checks done
         self.event("stall", cause)
-        report_cause(self.get_fully_qualified_name(), f"run stalled: {cause}")
+        report_cause(self.get_fully_qualified_name(), f"run stalled: {cause}", self.get_logger())
         self.finished.set_result(EXIT_STALLED)
 
     # ------------------------------------------------------------------ output
@@ -326,9 +343,15 @@ class LockStepMaster(ContractNode):
         """``plant/step`` = ``k``."""
         self._step_pub.publish(uint32_cdr(k))  # ready CDR bytes, as the arrays
 
-    def publish_clock(self, start_unix_s: float) -> None:
-        """``clock``: the end of the step that started at ``start_unix_s`` [s since the epoch]."""
-        self._clock_pub.publish(clock_cdr(int(round(start_unix_s * NS_PER_S)) + self.dt_ns))
+    def publish_clock(self, start_unix_s: float, end: bool = True) -> None:
+        """``/clock``: the end of the step that started at ``start_unix_s`` [s since the epoch]
+        (``end`` false: its start, the run's first time); nothing without ``publish_clock``
+        or for a time already published."""
+        t_ns = int(round(start_unix_s * NS_PER_S)) + (self.dt_ns if end else 0)
+        if self._clock_pub is None or t_ns <= self._clock_ns:
+            return
+        self._clock_ns = t_ns
+        self._clock_pub.publish(clock_cdr(t_ns))
 
     def stats(self) -> dict[str, float]:
         """Run statistics: steps, fault counters and the time held by the recorder [s]."""

@@ -1,13 +1,18 @@
-"""The base of every node of the package: the contract enforced, the recorder awaited.
+"""The base of the nodes of the contract: the contract enforced by role, type and QoS, the recorder awaited.
 
 * :class:`ContractNode`: its ``create_publisher`` / ``create_subscription`` refuse any
-  topic the contract (``msg_defs/topics.yaml``) does not declare for the node, so a node
-  cannot quietly publish or read something outside its row of
+  topic the contract (``msg_defs/topics.yaml``) does not declare for the node's role, so a
+  node cannot quietly publish or read something outside its row of
   ``tab:level_of_information``; :meth:`ContractNode.contract_publisher` and
   :meth:`ContractNode.contract_subscription` take the type and QoS from the contract.
-  It also holds the two waits a recorded run needs: the first publication until the
-  node's writers matched the recorder (:meth:`ContractNode.recorder_gate`), and the end of
-  the node until the recorder has left (:meth:`ContractNode.finish_when_recorded`).
+  The check is on what an endpoint is, not on the name it ends up with: the node's
+  contract role (the node name its class gives, whatever ``-r __node:=`` makes of it),
+  the contract topic the code asks for (before ``-r from:=to`` remapping, so a topic can
+  be moved into any naming scheme), the message type and the QoS (a publisher's must be
+  the contract's; a subscription's must match it: ROS 2's time source reads ``/clock``
+  best effort). It also holds the two waits a recorded run needs: the first publication
+  until the node's writers matched the recorder (:meth:`ContractNode.recorder_gate`), and
+  the end of the node until the recorder has left (:meth:`ContractNode.finish_when_recorded`).
 * :class:`ArrayPublisher` publishes one contract array topic in its layout order, as
   ready CDR bytes (:mod:`comems4build_ros.wire.cdr`).
 """
@@ -19,10 +24,9 @@ from array import array
 from collections.abc import Callable, Sequence
 from typing import Any
 
-from rclpy.node import Node
-
 from comems4build_ros.core.config import PlantParams
 from comems4build_ros.ros.interfaces import message_class, qos_profile
+from comems4build_ros.ros.package_node import PackageNode
 from comems4build_ros.wire.cdr import cdr_prefix
 from comems4build_ros.wire.contract import Contract, ContractError, Layout, load_contract, relative, sizes
 
@@ -45,12 +49,17 @@ GATE_POLL_S = 0.01
 FINISHED_LOCAL_RECORDERS: set[tuple[str, str]] = set()
 
 
-class ContractNode(Node):
+def _qos_words(qos: Any) -> str:
+    return (f"{qos.reliability.name.lower()}, {qos.durability.name.lower()}, {qos.history.name.lower()} "
+            f"depth {qos.depth}")
+
+
+class ContractNode(PackageNode):
     """A ``Node`` whose publishers and subscriptions must be declared in the topic contract.
 
     Parameters
     ----------
-    node_name : node name; must be a node of the contract
+    node_name : node name and contract role of the node; must be a node of the contract
     contract : contract to enforce (default: the package's ``msg_defs/topics.yaml``)
     kwargs : passed to ``rclpy.node.Node``
     """
@@ -58,38 +67,67 @@ class ContractNode(Node):
     def __init__(self, node_name: str, contract: Contract | None = None, **kwargs: Any) -> None:
         self.contract = contract or load_contract()
         self.contract.node(node_name)  # raises ContractError for an undeclared node
+        #: the node's name in the contract (its role), whatever name it runs under
+        self.contract_node = node_name
         super().__init__(node_name, **kwargs)
 
     # -- enforcement -------------------------------------------------------------
+    def _who(self) -> str:
+        name = self.get_name()
+        return f"node '{self.contract_node}'" + (f" (running as '{name}')" if name != self.contract_node else "")
+
     def _contract_name(self, topic: str) -> str:
-        """Contract (relative) name of ``topic`` as this node would resolve it."""
-        full = self.resolve_topic_name(topic)
-        if full in INFRASTRUCTURE_TOPICS:
-            return full
-        rel = relative(self.get_namespace(), full)
+        """Contract name of ``topic`` as the node's code asks for it (before remapping)."""
+        if topic in INFRASTRUCTURE_TOPICS or topic in self.contract.topics:
+            return topic  # rclpy's own topics and the contract's absolute ones (/clock)
+        if not topic.startswith("/"):
+            return topic.removeprefix("~/")
+        rel = relative(self.get_namespace(), topic)
         if rel is None:
-            raise ContractError(
-                f"node '{self.get_name()}': topic '{full}' lies outside its namespace '{self.get_namespace()}'"
-            )
+            raise ContractError(f"{self._who()}: topic '{topic}' lies outside its namespace '{self.get_namespace()}'")
         return rel
 
-    def create_publisher(self, msg_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
-        name = self._contract_name(topic)
-        if name not in INFRASTRUCTURE_TOPICS and not self.contract.may_publish(self.get_name(), name):
-            raise ContractError(
-                f"node '{self.get_name()}' may not publish '{name}' ({self.contract.path} does not declare it)"
-            )
-        kwargs.setdefault("event_callbacks", no_default_event_callbacks("publisher"))
-        return super().create_publisher(msg_type, topic, *args, **kwargs)
+    def _check_endpoint(self, kind: str, name: str, msg_type: Any, qos: Any) -> None:
+        """Refuse an endpoint of the wrong role, type or QoS (see the module docstring)."""
+        from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 
-    def create_subscription(self, msg_type: Any, topic: str, *args: Any, **kwargs: Any) -> Any:  # noqa: D102
+        allowed = (self.contract.may_publish if kind == "publish" else self.contract.may_subscribe)
+        if not allowed(self.contract_node, name):
+            raise ContractError(f"{self._who()} may not {kind}{' to' if kind == 'subscribe' else ''} '{name}' "
+                                f"({self.contract.path} does not declare it)")
+        spec = self.contract.topic(name)
+        want_type = message_class(spec)
+        if msg_type is not want_type:
+            got = getattr(msg_type, "__name__", msg_type)
+            raise ContractError(f"{self._who()}: topic '{name}': message type {got}, the contract says {spec.type}")
+        want = qos_profile(spec)
+        got_qos = qos if isinstance(qos, QoSProfile) else QoSProfile(depth=int(qos))
+        if kind == "publish":
+            same = (got_qos.reliability, got_qos.durability, got_qos.history, got_qos.depth) == (
+                want.reliability, want.durability, want.history, want.depth)
+        else:  # a reader may ask for less than the writer offers, never more
+            same = not (got_qos.reliability == ReliabilityPolicy.RELIABLE and want.reliability !=
+                        ReliabilityPolicy.RELIABLE) and not (got_qos.durability == DurabilityPolicy.TRANSIENT_LOCAL
+                                                             and want.durability != DurabilityPolicy.TRANSIENT_LOCAL)
+        if not same:
+            raise ContractError(f"{self._who()}: topic '{name}': QoS {_qos_words(got_qos)}, the contract says "
+                                f"{_qos_words(want)}")
+
+    def create_publisher(self, msg_type: Any, topic: str, qos_profile: Any, *args: Any,  # noqa: D102
+                         **kwargs: Any) -> Any:
         name = self._contract_name(topic)
-        if name not in INFRASTRUCTURE_TOPICS and not self.contract.may_subscribe(self.get_name(), name):
-            raise ContractError(
-                f"node '{self.get_name()}' may not subscribe to '{name}' ({self.contract.path} does not declare it)"
-            )
+        if name not in INFRASTRUCTURE_TOPICS:
+            self._check_endpoint("publish", name, msg_type, qos_profile)
+        kwargs.setdefault("event_callbacks", no_default_event_callbacks("publisher"))
+        return super().create_publisher(msg_type, topic, qos_profile, *args, **kwargs)
+
+    def create_subscription(self, msg_type: Any, topic: str, callback: Any, qos_profile: Any,  # noqa: D102
+                            *args: Any, **kwargs: Any) -> Any:
+        name = self._contract_name(topic)
+        if name not in INFRASTRUCTURE_TOPICS:
+            self._check_endpoint("subscribe", name, msg_type, qos_profile)
         kwargs.setdefault("event_callbacks", no_default_event_callbacks("subscription"))
-        return super().create_subscription(msg_type, topic, *args, **kwargs)
+        return super().create_subscription(msg_type, topic, callback, qos_profile, *args, **kwargs)
 
     # -- contract-typed helpers --------------------------------------------------
     def contract_publisher(self, topic: str) -> Any:
@@ -108,7 +146,7 @@ class ContractNode(Node):
         A DDS reader drops the samples of a writer that leaves before they were taken, so
         a node that exited at once on ``plant/done`` could take its last messages out of
         a busy recorder's queue. The node therefore stays until the recorder (node name
-        ``recorder``) has closed its bag and left, at most ``timeout_s``
+        :attr:`recorder_node`) has closed its bag and left, at most ``timeout_s``
         (:data:`LINGER_S`); without a recorder, or once the recorders are finished ones of
         this process (:data:`FINISHED_LOCAL_RECORDERS`), it ends at the next check.
         """
@@ -119,7 +157,7 @@ class ContractNode(Node):
         def check() -> None:
             if self.finished.done():
                 return
-            recorders = [i for i in self.get_subscriptions_info_by_topic(full) if i.node_name == RECORDER_NODE
+            recorders = [i for i in self.get_subscriptions_info_by_topic(full) if i.node_name == self.recorder_node
                          and (i.node_namespace, i.node_name) not in FINISHED_LOCAL_RECORDERS]
             if not recorders or time.monotonic() - t0 > limit:
                 self.finished.set_result(code)
@@ -200,7 +238,7 @@ class ContractNode(Node):
 
         def names(endpoints: Any) -> set[str]:
             full = {e.topic_name for e in endpoints} - INFRASTRUCTURE_TOPICS
-            return {relative(ns, t) or t for t in full}
+            return {t if t in self.contract.topics else relative(ns, t) or t for t in full}
 
         return names(self.publishers), names(self.subscriptions)
 

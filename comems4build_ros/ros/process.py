@@ -27,6 +27,8 @@ from rclpy.node import Node
 from rclpy.task import Future
 
 from comems4build_ros.core.config import ConfigError
+from comems4build_ros.ros.log import process_logger
+from comems4build_ros.ros.package_node import PackageNode
 from comems4build_ros.wire.contract import ContractError
 from comems4build_ros.wire.exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_WRITE_FAILED
 
@@ -109,7 +111,8 @@ def spin_until_done(executor: Any, future: Future) -> None:
         executor.spin_once(timeout_sec=SIGNAL_POLL_S)
 
 
-def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name: str = "node") -> int:
+def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name: str = "node",
+             end_process: bool = True) -> int:
     """Create a node, spin it on :func:`make_executor`'s executor and always shut down cleanly.
 
     The node may expose ``finished: rclpy.task.Future``; spinning stops when it
@@ -117,9 +120,12 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     (KeyboardInterrupt, :func:`init_rclpy`; ExternalShutdownException or rclpy's error on a
     context shut down from elsewhere) end the spin with exit code 0 if the node's part of the
     run is complete (:func:`run_complete`), else :data:`EXIT_INTERRUPTED`. A
-    :class:`ConfigError`, :class:`ContractError`, ``ValueError`` or a missing or existing file raised while the node
-    is created is reported on stderr with exit code :data:`EXIT_BAD_INPUT`.
-    Order of shutdown (as in the rclpy examples): executor shutdown, destroy node, rclpy shutdown.
+    :class:`ConfigError`, :class:`ContractError`, ``ValueError`` (a bad parameter, also one the
+    node does not have: :meth:`~comems4build_ros.ros.package_node.PackageNode.refuse_undeclared`)
+    or a missing or existing file raised while the node is created is logged as an error
+    (``refused to start: ...``) with exit code :data:`EXIT_BAD_INPUT`.
+    The clean-up (:func:`clean_up`) ends the process with the exit code (``end_process``;
+    False returns it, for a caller that goes on).
     """
     init_rclpy(args)
     executor = make_executor()
@@ -127,6 +133,8 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     code = 0
     try:
         node = make_node()
+        if isinstance(node, PackageNode):
+            node.refuse_undeclared()
         executor.add_node(node)
         finished: Future | None = getattr(node, "finished", None)
         if finished is None:
@@ -147,29 +155,68 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
             raise
         code = interrupted_code([node], name)
     except (ConfigError, ContractError, ValueError, FileNotFoundError, FileExistsError) as exc:
-        label = node.get_name() if node is not None else name
-        print(f"[{label}] error: {exc}", file=sys.stderr, flush=True)
+        logger = node.get_logger() if node is not None else process_logger(name)
+        logger.error(f"{REFUSED_TAG} {exc}")
         code = EXIT_BAD_INPUT
     except OSError as exc:  # a file the node writes during its run (a full disk, a read-only file system)
         label = node.get_name() if node is not None else name
         report_cause(label, f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
         code = EXIT_WRITE_FAILED
+    except Exception:  # a bug: its traceback in the log, exit code 1 (the process ends in clean_up)
+        code = log_crash(name)
     finally:
-        ignore_stop_signals()  # a second Ctrl-C or the supervisor's signals must not cut the clean-up short
-        watchdog = cleanup_deadline(name, code)
-        executor.shutdown()
-        if node is not None:
-            label = node.get_name()
-            try:
-                node.destroy_node()
-            except OSError as exc:  # a file closed at the end (the recorder's bag) on a full disk
-                report_cause(label, f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
-                code = EXIT_WRITE_FAILED
-        rclpy.try_shutdown()
-        watchdog.cancel()
-        print_cpu(name)
+        clean_up(executor, [node] if node is not None else [], name, code, end_process)
     return code
 
+
+def log_crash(label: str) -> int:
+    """Log the exception being handled with its traceback (an error of ``label``'s logger); exit code 1."""
+    import traceback
+
+    process_logger(label).error(f"crashed:\n{traceback.format_exc().rstrip()}")
+    return 1
+
+
+#: Start of the error line of a node that refused to start (bad parameter, scenario, contract).
+REFUSED_TAG = "refused to start:"
+#: Seconds the DDS side of the clean-up (the participant leaving the graph) may take before the
+#: process ends without it (:func:`clean_up`).
+TEARDOWN_TIMEOUT_S = 2.0
+
+
+def clean_up(executor: Any, nodes: list[Any], label: str, code: int, end_process: bool = True) -> None:
+    """End a node process with ``code``, in the order of the rclpy examples, every part bounded.
+
+    Executor shutdown and the nodes' destruction (a recorder closes its bag there) within
+    :func:`cleanup_deadline`; then rclpy's shutdown and the context's destruction (the DDS
+    participant leaves the graph) within :data:`TEARDOWN_TIMEOUT_S`; then, with
+    ``end_process``, ``os._exit(code)``. The run's outcome is decided before all this, and
+    nothing after it needs the interpreter's own teardown: it took 0.5 to 1 s of a node's
+    end on the loaded 2-core machine, and a participant's teardown left to it after a peer
+    was SIGKILLed held one process under ``ros2 launch`` until launch's SIGKILL 10 s later.
+    """
+    ignore_stop_signals()  # a second Ctrl-C or the supervisor's signals must not cut the clean-up short
+    watchdog = cleanup_deadline(label, code)
+    executor.shutdown()
+    for node in nodes:
+        try:
+            node.destroy_node()
+        except OSError as exc:  # a file closed at the end (the recorder's bag) on a full disk
+            report_cause(node.get_name(), f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
+            code = EXIT_WRITE_FAILED
+    print_cpu(label)
+    watchdog.cancel()
+    watchdog = cleanup_deadline(label, code, timeout_s=TEARDOWN_TIMEOUT_S, what="the DDS teardown")
+    context = rclpy.get_default_context()
+    rclpy.try_shutdown()
+    context.destroy()
+    watchdog.cancel()
+    if end_process:
+        import os
+
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(code)
 
 
 def run_complete(node: Any) -> bool:
@@ -192,24 +239,26 @@ def run_complete(node: Any) -> bool:
 
 def interrupted_code(nodes: list[Any], label: str) -> int:
     """Exit code after SIGINT/SIGTERM: 0 if every node's run is complete, else
-    :data:`EXIT_INTERRUPTED` (with a :func:`report_cause` line)."""
+    :data:`EXIT_INTERRUPTED` (with a :func:`report_cause` line, of the node's logger when the
+    process runs one node)."""
     if nodes and all(run_complete(n) for n in nodes):
         return 0
+    logger = nodes[0].get_logger() if len(nodes) == 1 and nodes[0] is not None else None
     if nodes and all(run_complete(n) or getattr(n, "run_over", False) for n in nodes):
         # plant/done came, the node was waiting for the recorder to leave: after a complete
         # run that is the supervisor's clean-up; otherwise its last messages may be unrecorded
-        report_cause(label, "stopped by a signal after the end of the run, before the recorder had left")
+        report_cause(label, "stopped by a signal after the end of the run, before the recorder had left", logger)
     else:
-        report_cause(label, "stopped by a signal before the end of its run")
+        report_cause(label, "stopped by a signal before the end of its run", logger)
     return EXIT_INTERRUPTED
 
 
-def report_cause(label: str, text: str) -> None:
-    """``[<label>] cause: <text>`` on stderr (the node's log): why it ends the run early.
+def report_cause(label: str, text: str, logger: Any = None) -> None:
+    """``cause: <text>``, an error of the node's logger (or of ``label``'s): why it ends the run early.
 
     The supervisor puts the last such line of a node's log first in its error message.
     """
-    print(f"[{label}] {CAUSE_TAG} {text}", file=sys.stderr, flush=True)
+    (logger or process_logger(label)).error(f"{CAUSE_TAG} {text}")
 
 
 #: Seconds the clean-up after a run (executor shutdown, node destruction, rclpy shutdown) may
@@ -236,7 +285,7 @@ class _Deadline:
 
 
 def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S,
-                     backstop_s: float = CLEANUP_BACKSTOP_S) -> Any:
+                     backstop_s: float = CLEANUP_BACKSTOP_S, what: str = "clean-up") -> Any:
     """Start a watchdog that ends the process with ``code`` if the clean-up hangs; returns it.
 
     A SIGINT that lands while rclpy holds one of its locks has been seen to leave the
@@ -258,15 +307,18 @@ def cleanup_deadline(label: str, code: int, timeout_s: float = CLEANUP_TIMEOUT_S
     import os
     import threading
 
+    logger = process_logger(label)
+
     def expire() -> None:
-        print(f"[{label}] clean-up did not finish within {timeout_s:g} s; exiting with code {code} without it",
-              file=sys.stderr, flush=True)
+        logger.warning(f"{what} did not finish within {timeout_s:g} s; exiting with code {code} without it")
+        sys.stderr.flush()
         os._exit(code)
 
     timer = threading.Timer(timeout_s, expire)
     timer.daemon = True
     timer.start()
-    print(f"[{label}] {CLEANUP_TAG} exit code {code}", file=sys.stderr, flush=True)
+    if what == "clean-up":
+        logger.info(f"{CLEANUP_TAG} exit code {code}")
     faulthandler.dump_traceback_later(timeout_s + backstop_s, exit=True, file=sys.stderr)
     return _Deadline(timer)
 
@@ -285,8 +337,8 @@ def ignore_stop_signals() -> None:
 
 
 def print_cpu(label: str) -> None:
-    """``[<label>] cpu_s user=<s> sys=<s>`` on stderr (the log): CPU time of this process [s]."""
+    """``cpu_s user=<s> sys=<s>``, an info line of ``label``'s logger: CPU time of this process [s]."""
     import resource
 
     ru = resource.getrusage(resource.RUSAGE_SELF)
-    print(f"[{label}] cpu_s user={ru.ru_utime:.2f} sys={ru.ru_stime:.2f}", file=sys.stderr, flush=True)
+    process_logger(label).info(f"cpu_s user={ru.ru_utime:.2f} sys={ru.ru_stime:.2f}")

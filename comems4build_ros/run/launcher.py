@@ -58,7 +58,7 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     bag = Path(opts.bag) if opts.bag is not None else out / "bag"
     if bag.exists():
         raise FileExistsError(f"{bag} exists: choose another --out or remove it")
-    params = load_plant_params(opts.config_files, opts.overrides)
+    params = opts.params or load_plant_params(opts.config_files, opts.overrides)
     bar = ProgressBar(f"launch {opts.ems} x{opts.houses}", unit="step",
                       enable=bool(opts.progress) and opts.on_progress is None)
     try:

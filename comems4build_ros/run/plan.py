@@ -50,6 +50,7 @@ from pathlib import Path
 from typing import Any
 
 from comems4build_ros.files.paths import shared_path
+from comems4build_ros.wire.contract import CLOCK_TOPIC
 from comems4build_ros.wire.tokens import new_token
 
 #: Console script of each node and the module run with ``python -m`` when there is none.
@@ -126,6 +127,9 @@ STALL_MARGIN_S = 10.0
 STALL_BACKSTOP_MIN_S = 90.0
 #: Directory of the run's token files under the output directory (mode 0700, removed after the run).
 SECRETS_DIR = ".secrets"
+#: The run's validated plant parameters, one ROS 2 parameter file every node reads
+#: (``config_files``), under the output directory.
+PLANT_PARAMS_FILE = Path("params") / "plant.yaml"
 
 
 @dataclass
@@ -154,7 +158,12 @@ class LaunchOptions:
         (instead of the bar; e.g. a worker's reporter to a parent's bars)
     plant_node_params : extra ROS parameters of plant_sim (e.g. ``step_timeout_s``)
     discovery_server : use a Fast DDS discovery server (None = with more than one house
-        in layout ``node``; never in the container layouts)
+        in layout ``node``; never in the container layouts). It hides the graph from a
+        plain ``ros2 node list``: the plan names the server's address and the super-client
+        setting that shows it (:meth:`RunPlan.describe`)
+    params : the plant parameters of ``config_files`` and ``overrides``, validated once by the
+        command (None = validated by :func:`plan_run`); the plan hands them to every node as
+        one parameter file (:data:`PLANT_PARAMS_FILE`)
     layout : process layout (:data:`LAYOUTS`, see :func:`effective_layout`): ``node`` (one
         process per node), ``house`` (container processes, each running every node of
         its share of the houses) or ``role`` (one container process per role for all
@@ -220,6 +229,7 @@ class LaunchOptions:
     bag: Path | None = None
     all_inputs: bool = False
     building: str = "rc"
+    params: Any = None
 
     def __post_init__(self) -> None:
         """An embedded scenario's plant file (``--scenario year``: ``config/year.yaml``) goes first."""
@@ -378,6 +388,9 @@ class RunPlan:
     setup : commands run before the first process (network namespaces, link)
     optional_setup : commands whose failure only prints a note (``tc netem``)
     teardown : commands run after the last process stopped
+    files : ``(path, text)`` written before the first process (the plant parameter file)
+    clock : the node publishing ``/clock`` (one clock per run; None = none)
+    discovery_server : ``host:port`` of the run's Fast DDS discovery server (None = simple discovery)
     """
 
     ems: str
@@ -396,6 +409,9 @@ class RunPlan:
     setup: tuple[tuple[str, ...], ...] = ()
     optional_setup: tuple[tuple[str, ...], ...] = ()
     teardown: tuple[tuple[str, ...], ...] = ()
+    files: tuple[tuple[str, str], ...] = ()
+    clock: str | None = None
+    discovery_server: str | None = None
 
     def process(self, name: str) -> ProcessPlan:
         """The process called ``name`` (KeyError naming the known ones)."""
@@ -406,7 +422,12 @@ class RunPlan:
 
     def nodes(self, role: str | None = None) -> list[tuple[ProcessPlan, NodePlan]]:
         """``(process, node)`` of every node (of ``role``), in start order."""
-        return [(p, n) for p in self.processes for n in p.nodes if role is None or n.role == role]
+        return self.nodes_of(self.processes, role)
+
+    @staticmethod
+    def nodes_of(processes: Sequence[ProcessPlan], role: str | None = None) -> list[tuple[ProcessPlan, NodePlan]]:
+        """``(process, node)`` of every node of ``processes`` (of ``role``), in start order."""
+        return [(p, n) for p in processes for n in p.nodes if role is None or n.role == role]
 
     def describe(self) -> str:
         """Human-readable plan: network sides, processes and the nodes each runs."""
@@ -416,6 +437,13 @@ class RunPlan:
             f"time limit {'none' if self.timeout_s is None else f'{self.timeout_s:g} s'}",
             f"bag: {self.bag}",
         ]
+        for path, _text in self.files:
+            lines.append(f"file: {path}")
+        if self.clock:
+            lines.append(f"clock: /clock from {self.clock} (one clock per run; a node of another house with "
+                         "use_sim_time follows it)" if len(self.houses) > 1 else f"clock: /clock from {self.clock}")
+        if self.discovery_server:
+            lines.append(discovery_hint(self.discovery_server))
         for cmd in (*self.setup, *self.optional_setup):
             lines.append(f"setup $ {' '.join(cmd)}")
         for g in self.sides.values():
@@ -446,6 +474,9 @@ class RunPlan:
             "layout": self.layout,
             "timeout_s": self.timeout_s,
             "env": self.env,
+            "files": [f for f, _ in self.files],
+            "clock": self.clock,
+            "discovery_server": self.discovery_server,
             "houses": [{"namespace": b.namespace, "seed": b.seed, "bag": str(b.bag)} for b in self.houses],
             "sides": [{"name": g.name, "env": g.env, "netns": g.netns, "address": g.address}
                        for g in self.sides.values()],
@@ -517,6 +548,13 @@ def ros_args(namespace: str = "", params: dict[str, Any] | None = None, params_f
 def container_command(role: str, spec_path: Path) -> list[str]:
     """Command line of a container process (``python -m comems4build_ros.ros.container``)."""
     return [*python_module(CONTAINER_MODULE), "--role", role, "--spec", str(spec_path)]
+
+
+def discovery_hint(address: str) -> str:
+    """How to see the graph of a run behind the discovery server at ``address`` (``host:port``):
+    ``ros2`` must join as a super client (ROS 2 docs, "Using Fast DDS Discovery Server")."""
+    return (f"discovery server {address}: the graph shows to 'ROS_DISCOVERY_SERVER={address} "
+            f"ROS_SUPER_CLIENT=TRUE ros2 node list' (ros2 daemon stop first, or --no-daemon)")
 
 
 def discovery_server_command(port: int) -> list[str] | None:
@@ -625,13 +663,15 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
 
 
 def house_params(
-    opts: LaunchOptions, seed: int | None, common: dict[str, Any], token_file: str = ""
+    opts: LaunchOptions, seed: int | None, common: dict[str, Any], token_file: str = "", clock: bool = True
 ) -> dict[str, dict[str, Any]]:
     """Parameters of the EMS, feed and plant of one house (role -> parameters).
 
     ``token_file``: the house's run token file (EMS ``run_token_file``, plant
     ``ems_token_file``); the token itself is never a parameter value (any local user sees
     command lines, and any DDS participant reads parameters with ``ros2 param get``).
+    ``clock``: the house's plant publishes ``/clock`` (the first house of a run only: one
+    clock per run, and the houses step independently).
     """
     weeks, steps = feed_window(opts.weeks, opts.steps)
     ems_params = dict(common, wait_for_recorder=True)  # first command once its writers matched the recorder
@@ -657,6 +697,8 @@ def house_params(
     if opts.building != "rc":  # a detailed building model: plant_sim loads the feed's scenario for its weather
         plant["building"] = opts.building
         plant.update({k: v for k, v in feed_params.items() if k in ("scenario", "weeks", "steps", "seed", "start")})
+    if not clock:
+        plant["publish_clock"] = False
     return {"ems": ems_params, "feed": feed_params, "plant": plant}
 
 
@@ -708,9 +750,12 @@ def unread_inputs(opts: LaunchOptions) -> list[str]:
 
 
 def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float,
-                    skip_topics: Sequence[str] = ()) -> dict[str, Any]:
+                    skip_topics: Sequence[str] = (), clock: bool = True) -> dict[str, Any]:
     """Parameters of the recorder of namespace ``ns`` writing the bag directory ``bag``
-    (``skip_topics``: topics no node of the run publishes, see :func:`unread_inputs`)."""
+    (``skip_topics``: topics no node of the run publishes, see :func:`unread_inputs`;
+    ``clock``: the house's plant publishes ``/clock``, which its bag records, else none does)."""
+    if not clock:
+        skip_topics = [*skip_topics, CLOCK_TOPIC]
     params: dict[str, Any] = {
         "bag_path": str(bag.resolve()),
         "namespaces": [ns],
@@ -791,10 +836,8 @@ def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]],
     for key in ("weeks", "steps", "seed", "start"):
         if feed.get(key):
             argv += [f"--{key}", str(feed[key])]
-    for f in feed.get("config_files", []):
+    for f in feed.get("config_files", []):  # the run's plant parameter file
         argv += ["--config", f]
-    for item in feed.get("overrides", []):
-        argv += ["--set", item]
     bridge = dict(params["plant"], broker_url=url, clock=opts.clock, run_id=run_id, mqtt_secret_file=secret_file,
                   **login)
     if opts.topic_map:
@@ -814,7 +857,9 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     ----------
     opts : launch options
     domain_id : ROS domain id of the run (the launcher locks a free one first)
-    params : plant parameters (default: loaded from ``opts.config_files`` and ``opts.overrides``)
+    params : validated plant parameters (default ``opts.params``, else loaded from
+        ``opts.config_files`` and ``opts.overrides``): written once into the run's plant
+        parameter file (:data:`PLANT_PARAMS_FILE`), the one thing every node parses
 
     Raises
     ------
@@ -822,32 +867,20 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         For an invalid house count, layout or ``houses_per_recorder``.
     """
     from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.ros.parameters import plant_params_file_text
 
     out = Path(opts.out)
     bag = Path(opts.bag) if opts.bag is not None else out / "bag"
-    if params is None:
-        params = load_plant_params(opts.config_files, opts.overrides)
-    ns_list = namespaces(opts.houses, opts.namespace)
-    check_plant_options(opts)
+    params = params or opts.params or load_plant_params(opts.config_files, opts.overrides)
+    layout = check_layout(opts)
     seeds = house_seeds(opts)
     info = run_info(opts, params, seeds)
-    layout = effective_layout(opts)
-    if opts.network not in NETWORKS:
-        raise ValueError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
-    if layout == "role" and opts.houses_per_recorder < 1:
-        raise ValueError(f"houses_per_recorder must be >= 1, got {opts.houses_per_recorder}")
-    if layout == "house" and opts.containers is not None and opts.containers < 1:
-        raise ValueError(f"containers must be >= 1, got {opts.containers}")
-    if layout == "house" and opts.network != "local":
-        raise ValueError("containers run on this host (network 'local'): 'netns' splits plant and EMS between hosts")
-    common: dict[str, Any] = {"config_files": info["config_files"]}
-    if opts.overrides:
-        common["overrides"] = [f"{k}={json.dumps(v)}" for k, v in opts.overrides.items()]
+    params_file = (out / PLANT_PARAMS_FILE).resolve()
+    common: dict[str, Any] = {"config_files": [str(params_file)]}
     secret_dir = (out / SECRETS_DIR).resolve()
     houses = tuple(HousePlan(ns, seed, bag_dir(bag, ns, opts.houses), new_token(),
-                                   str(secret_dir / f"{ns.strip('/').replace('/', '__') or 'root'}.token"))
-                      for ns, seed in zip(ns_list, seeds))
-
+                             str(secret_dir / f"{ns.strip('/').replace('/', '__') or 'root'}.token"))
+                   for ns, seed in zip(namespaces(opts.houses, opts.namespace), seeds))
     secrets = [(b.token_file, b.token) for b in houses]
     mqtt_secret: tuple[str, str] | None = None
     if opts.plant == "mqtt":  # the run's MQTT secret and id (mqtt_plant_processes)
@@ -859,35 +892,9 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         processes = _container_processes(opts, houses, common, bag, info, out / "containers")
     else:
         processes = _node_processes(opts, houses, common, bag, info, mqtt_secret)
-    use_server = opts.discovery_server
-    if use_server is None:
-        use_server = opts.houses > 1 and layout == "node" and opts.network == "local"
-    if use_server and opts.network != "local":
-        raise ValueError("a discovery server is not planned for the 'netns' network (unicast peers are used)")
-    if use_server:
-        port = DISCOVERY_PORT_BASE + domain_id
-        argv = discovery_server_command(port)
-        if argv is not None:
-            server = {"ROS_DISCOVERY_SERVER": f"127.0.0.1:{port}"}
-            processes = [
-                ProcessPlan("discovery_server", "discovery", tuple(argv), stop_stage=STAGE_SERVICES),
-                *(dataclasses.replace(p, env={**p.env, **server}) for p in processes),
-            ]
-        else:
-            print("launcher: fast-discovery-server not found, using simple discovery", file=sys.stderr)
-    sides = {LOCAL_SIDE: NetworkSide(LOCAL_SIDE)}
-    setup: tuple[tuple[str, ...], ...] = ()
-    optional_setup: tuple[tuple[str, ...], ...] = ()
-    teardown: tuple[tuple[str, ...], ...] = ()
-    if opts.network == "netns":
-        sides, setup, optional_setup, teardown = netns_network(domain_id, opts.netem)
-        processes = [
-            dataclasses.replace(p, side=NETNS_SIDE_OF_ROLE[p.role],
-                                argv=("ip", "netns", "exec", str(sides[NETNS_SIDE_OF_ROLE[p.role]].netns), *p.argv))
-            for p in processes
-        ]
-    elif opts.netem:
-        raise ValueError("netem applies to the 'netns' network only")
+    processes, server = with_discovery_server(opts, layout, domain_id, processes)
+    sides, setup, optional_setup, teardown, processes = network_sides(opts, domain_id, processes)
+    masters = [n for _p, n in RunPlan.nodes_of(processes, "plant") if n.params.get("publish_clock", True)]
     return RunPlan(
         ems=opts.ems,
         out=out,
@@ -905,28 +912,86 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
             opts.timeout_s if opts.timeout_s is not None else default_time_limit(opts)),
         stall_s=backstop_stall_s(opts, layout),
         secrets=tuple(secrets),
+        files=((str(params_file), plant_params_file_text(params)),),
+        clock=f"{masters[0].namespace.rstrip('/')}/{masters[0].name}" if masters else None,
+        discovery_server=server,
     )
+
+
+def check_layout(opts: LaunchOptions) -> str:
+    """The effective layout of ``opts`` after the checks of its house count, plant, network and
+    layout options (ValueError names the option)."""
+    namespaces(opts.houses, opts.namespace)
+    check_plant_options(opts)
+    layout = effective_layout(opts)
+    if opts.network not in NETWORKS:
+        raise ValueError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
+    if layout == "role" and opts.houses_per_recorder < 1:
+        raise ValueError(f"houses_per_recorder must be >= 1, got {opts.houses_per_recorder}")
+    if layout == "house" and opts.containers is not None and opts.containers < 1:
+        raise ValueError(f"containers must be >= 1, got {opts.containers}")
+    if layout == "house" and opts.network != "local":
+        raise ValueError("containers run on this host (network 'local'): 'netns' splits plant and EMS between hosts")
+    if opts.netem and opts.network != "netns":
+        raise ValueError("netem applies to the 'netns' network only")
+    return layout
+
+
+def with_discovery_server(opts: LaunchOptions, layout: str, domain_id: int,
+                          processes: list[ProcessPlan]) -> tuple[list[ProcessPlan], str | None]:
+    """``processes`` with a discovery server in front when the plan uses one (``discovery_server``,
+    default: several houses in layout ``node``) and its address, else unchanged and None."""
+    use_server = opts.discovery_server
+    if use_server is None:
+        use_server = opts.houses > 1 and layout == "node" and opts.network == "local"
+    if use_server and opts.network != "local":
+        raise ValueError("a discovery server is not planned for the 'netns' network (unicast peers are used)")
+    if not use_server:
+        return processes, None
+    port = DISCOVERY_PORT_BASE + domain_id
+    argv = discovery_server_command(port)
+    if argv is None:
+        print("launcher: fast-discovery-server not found, using simple discovery", file=sys.stderr)
+        return processes, None
+    address = f"127.0.0.1:{port}"
+    server = {"ROS_DISCOVERY_SERVER": address}
+    return [ProcessPlan("discovery_server", "discovery", tuple(argv), stop_stage=STAGE_SERVICES),
+            *(dataclasses.replace(p, env={**p.env, **server}) for p in processes)], address
+
+
+def network_sides(opts: LaunchOptions, domain_id: int, processes: list[ProcessPlan]) -> tuple[
+        dict[str, NetworkSide], Commands, Commands, Commands, list[ProcessPlan]]:
+    """The network sides of the plan, their set-up, optional set-up and tear-down commands, and
+    ``processes`` placed on them (``local``: every process on this machine as it is)."""
+    if opts.network != "netns":
+        return {LOCAL_SIDE: NetworkSide(LOCAL_SIDE)}, (), (), (), processes
+    sides, setup, optional_setup, teardown = netns_network(domain_id, opts.netem)
+    placed = [dataclasses.replace(p, side=NETNS_SIDE_OF_ROLE[p.role],
+                                  argv=("ip", "netns", "exec", str(sides[NETNS_SIDE_OF_ROLE[p.role]].netns), *p.argv))
+              for p in processes]
+    return sides, setup, optional_setup, teardown, placed
 
 
 def _node_processes(
     opts: LaunchOptions, houses: Sequence[HousePlan], common: dict[str, Any], bag: Path, info: dict[str, Any],
     mqtt_secret: tuple[str, str] | None = None,
 ) -> list[ProcessPlan]:
-    """Layout ``node``: one recorder per building, then EMS, feed and plant of each building
+    """Layout ``node``: one recorder per house (in the house's namespace, as in the container
+    layouts: no two nodes of a run share a name), then EMS, feed and plant of each house
     (``mqtt_secret``: the secret file and run id of a house behind MQTT)."""
     out: list[ProcessPlan] = []
     for b in houses:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S, unread_inputs(opts))
+        params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S, unread_inputs(opts), b is houses[0])
         out.append(ProcessPlan(
-            f"{prefix}recorder", "recorder", (*node_command("recorder"), *ros_args("", params)),
-            nodes=(NodePlan("recorder", "recorder", "/", params),), finishes=True, progress=True,
+            f"{prefix}recorder", "recorder", (*node_command("recorder"), *ros_args(b.namespace, params)),
+            nodes=(NodePlan("recorder", "recorder", b.namespace, params),), finishes=True, progress=True,
             stop_stage=STAGE_RECORDERS,
         ))
     ems_name = ems_node_name(opts.ems)
     for b in houses:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = house_params(opts, b.seed, common, b.token_file)
+        params = house_params(opts, b.seed, common, b.token_file, b is houses[0])
         ns = b.namespace
         out.append(ProcessPlan(f"{prefix}{opts.ems}_ems", "ems",
                                (*node_command("ems", opts.ems), *ros_args(ns, params["ems"])),
@@ -946,15 +1011,15 @@ def _node_processes(
 
 
 def _contained_nodes(
-    opts: LaunchOptions, b: HousePlan, common: dict[str, Any], bag: Path, info: dict[str, Any]
+    opts: LaunchOptions, b: HousePlan, common: dict[str, Any], bag: Path, info: dict[str, Any], clock: bool
 ) -> list[NodePlan]:
     """Recorder, EMS, feed and plant of house ``b`` as nodes of a container
     process: the recorder's and the plant's timers slower, the plant's step timeout longer)."""
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
     nodes = [NodePlan("recorder", "recorder", b.namespace,
-                      dict(recorder_params(b.namespace, b.bag, info, 0.0, unread_inputs(opts)),
+                      dict(recorder_params(b.namespace, b.bag, info, 0.0, unread_inputs(opts), clock),
                            tick_s=CONTAINER_RECORDER_TICK_S))]
-    for role, params in house_params(opts, b.seed, common, b.token_file).items():
+    for role, params in house_params(opts, b.seed, common, b.token_file, clock).items():
         if role == "plant":
             params = {"step_timeout_s": CONTAINER_STEP_TIMEOUT_S, "watchdog_period_s": CONTAINER_WATCHDOG_PERIOD_S,
                       **params}
@@ -994,12 +1059,13 @@ def _container_processes(
     if effective_layout(opts) == "house":
         n = container_count(opts)
         return [_container_process(f"container_{j}", "container",
-                              [node for b in houses[j::n] for node in _contained_nodes(opts, b, common, bag, info)],
+                              [node for b in houses[j::n]
+                               for node in _contained_nodes(opts, b, common, bag, info, b is houses[0])],
                               spec_dir, opts.ems, True)
                 for j in range(n)]
     by_role: dict[str, list[NodePlan]] = {"recorder": [], "ems": [], "feed": [], "plant": []}
     for b in houses:
-        for node in _contained_nodes(opts, b, common, bag, info):
+        for node in _contained_nodes(opts, b, common, bag, info, b is houses[0]):
             by_role[node.role].append(node)
     per = opts.houses_per_recorder
     recorders = by_role["recorder"]

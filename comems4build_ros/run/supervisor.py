@@ -45,6 +45,7 @@ import ctypes
 import errno
 import fcntl
 import os
+import re
 import signal
 import subprocess
 import sys
@@ -62,6 +63,7 @@ from comems4build_ros.run.plan import (
     STAGE_RECORDERS,
     STAGE_SERVICES,
     RunPlan,
+    discovery_hint,
     fastdds_profile,
     node_label,
     profile_env,
@@ -166,6 +168,23 @@ def _child_setup(nice: int) -> Callable[[], None]:
     return setup
 
 
+#: A node's log line as rclpy's console writes it, ``[ERROR] [1795...] [house_0.plant_sim]: cause: ...``
+#: (``ros2 launch`` puts ``[<process>] `` in front): the logger's name and the message.
+LOG_LINE = re.compile(r"\[(?P<name>[^\]\s]+)\]: (?P<message>.*)$")
+
+
+def tagged_line(line: str) -> tuple[str, str, str] | None:
+    """``(logger, tag, text)`` of a node's log line whose message starts with a tag of
+    :mod:`comems4build_ros.wire.exits` (``cause:``, ``cleaning up:``), else None."""
+    m = LOG_LINE.search(line)
+    if m is None:
+        return None
+    for tag in (CAUSE_TAG, CLEANUP_TAG):
+        if m.group("message").startswith(f"{tag} "):
+            return m.group("name"), tag, m.group("message")[len(tag) + 1:].strip()
+    return None
+
+
 @dataclass
 class Child:
     """One running node process."""
@@ -193,16 +212,17 @@ class Child:
         return "\n".join(self.log_text().rstrip().splitlines()[-lines:])
 
     def cause(self) -> str | None:
-        """The last ``[<node>] cause: <text>`` line of the log (:mod:`comems4build_ros.wire.exits`), or None."""
-        lines = [ln for ln in self.log_text().splitlines() if f"] {CAUSE_TAG} " in ln]
-        return lines[-1].strip() if lines else None
+        """The last ``cause: <text>`` line of the log (:mod:`comems4build_ros.wire.exits`) as
+        ``[<logger>] cause: <text>``, or None (see :func:`tagged_line`)."""
+        lines = [m for m in map(tagged_line, self.log_text().splitlines()) if m and m[1] == CAUSE_TAG]
+        return f"[{lines[-1][0]}] {CAUSE_TAG} {lines[-1][2]}" if lines else None
 
     def decided_before_hang(self) -> int | None:
         """The exit code the node's run had decided when its clean-up hung and the C-level
         backstop ended it with code 1 (:func:`~comems4build_ros.ros.process.cleanup_deadline`:
         a ``cleaning up: exit code N`` line of the log, later the backstop's ``Timeout (``),
         or None if that is not what happened."""
-        _, tag, rest = self.log_text().rpartition(f"] {CLEANUP_TAG} exit code ")
+        _, tag, rest = self.log_text().rpartition(f"{CLEANUP_TAG} exit code ")
         if not tag or BACKSTOP_MARK not in rest:
             return None
         word = rest.split(maxsplit=1)[0] if rest.split() else ""
@@ -635,10 +655,10 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
         with ProcessGroup(env, plan.out / "log") as group:
             recorders: list[Child] = []
             plants: list[Child] = []
+            write_plan_files(plan)
+            if plan.discovery_server:
+                print(f"launcher: {discovery_hint(plan.discovery_server)}", file=sys.stderr, flush=True)
             for p in plan.processes:
-                for path, text in p.files:
-                    Path(path).parent.mkdir(parents=True, exist_ok=True)
-                    Path(path).write_text(text, encoding="utf-8")
                 extra = {**plan.sides[p.side].env, **p.env}
                 listener = progress.listener(len(recorders)) if p.progress else None
                 child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
@@ -657,26 +677,42 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
     return Supervised(t0, t_first_record, t_end)
 
 
+def write_plan_files(plan: RunPlan) -> None:
+    """Write the files the plan's processes read (the plant parameter file, container specs)."""
+    for path, text in (*plan.files, *(f for p in plan.processes for f in p.files)):
+        Path(path).parent.mkdir(parents=True, exist_ok=True)
+        Path(path).write_text(text, encoding="utf-8")
+
+
+def write_secrets(plan: RunPlan) -> None:
+    """Write the plan's token files (mode 0600 in a directory of mode 0700,
+    :func:`comems4build_ros.wire.tokens.write_token_file`)."""
+    for d in {Path(path).parent for path, _ in plan.secrets}:
+        private_dir(d)
+    for path, token in plan.secrets:
+        write_token_file(path, token)
+
+
+def remove_secrets(plan: RunPlan) -> None:
+    """Remove the plan's token files and their directories (nothing of them is left)."""
+    for path, _ in plan.secrets:
+        Path(path).unlink(missing_ok=True)
+    for d in {Path(path).parent for path, _ in plan.secrets}:
+        with contextlib.suppress(OSError):
+            d.rmdir()
+
+
 @contextlib.contextmanager
 def _secrets(plan: RunPlan) -> Iterator[None]:
-    """Write the plan's token files (mode 0600 in a directory of mode 0700) for the run,
-    and remove them after it (:func:`comems4build_ros.wire.tokens.write_token_file`)."""
+    """The plan's token files for the run (:func:`write_secrets`), removed after it."""
     if not plan.secrets:
         yield
         return
-    dirs = {Path(path).parent for path, _ in plan.secrets}
     try:
-        for d in dirs:
-            private_dir(d)
-        for path, token in plan.secrets:
-            write_token_file(path, token)
+        write_secrets(plan)
         yield
     finally:
-        for path, _ in plan.secrets:
-            Path(path).unlink(missing_ok=True)
-        for d in dirs:
-            with contextlib.suppress(OSError):
-                d.rmdir()
+        remove_secrets(plan)
 
 
 @contextlib.contextmanager

@@ -78,7 +78,9 @@ _LABEL_RE = re.compile(
     r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)"  # name or head.key
     r"(?:\[(?P<size>[A-Za-z0-9_]+)\])?$"  # optional [size]
 )
-_TOPIC_RE = re.compile(r"^[A-Za-z][A-Za-z0-9_]*(?:/[A-Za-z][A-Za-z0-9_]*)*$")
+_TOPIC_RE = re.compile(r"^/?[A-Za-z][A-Za-z0-9_]*(?:/[A-Za-z][A-Za-z0-9_]*)*$")
+#: The one absolute topic of the contract: the ROS 2 time source's (same in every namespace).
+CLOCK_TOPIC = "/clock"
 
 #: Default comfort look-ahead of the fuzzy EMS in steps (k .. k+5, sec:information).
 COMFORT_AHEAD_STEPS = 6
@@ -286,7 +288,7 @@ class Contract:
     boolean_labels: frozenset[str]
 
     def topic(self, name: str) -> TopicSpec:
-        """Topic spec by relative name (a leading ``/`` or namespace is not accepted).
+        """Topic spec by contract name (relative, or ``/clock``; no namespace).
 
         Raises
         ------
@@ -480,7 +482,9 @@ def _parse_topic(name: Any, raw: Any, contract: Contract, groups: Mapping[str, t
                  default_qos: Mapping[str, Any]) -> TopicSpec:
     path, where = contract.path, f"topic '{name}'"
     if not isinstance(name, str) or not _TOPIC_RE.match(name):
-        raise _err(path, where, "name must be relative ('a/b', letters, digits, '_')")
+        raise _err(path, where, "name must be relative ('a/b', letters, digits, '_') or /clock")
+    if name.startswith("/") and name != CLOCK_TOPIC:
+        raise _err(path, where, f"the only absolute topic is {CLOCK_TOPIC} (the time source's); others are relative")
     if not isinstance(raw, Mapping):
         raise _err(path, where, "must be a mapping")
     extra = set(raw) - TOPIC_KEYS
@@ -558,7 +562,9 @@ def load_contract(path: str | Path | None = None) -> Contract:
 
 
 def resolve(namespace: str, topic: str) -> str:
-    """Absolute topic name of a relative contract name under ``namespace`` (``/`` = root)."""
+    """Absolute topic name of a contract name under ``namespace`` (``/`` = root; ``/clock`` stays)."""
+    if topic.startswith("/"):
+        return topic
     ns = namespace.rstrip("/")
     return f"{ns}/{topic}" if ns else f"/{topic}"
 

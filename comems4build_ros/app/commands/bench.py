@@ -11,6 +11,7 @@ TARGETS = {
     "ems": "ems",
     "mpc": "mpc",
     "ros": "ros",
+    "cut": "cut",
     "study": "study",
     "year": "year",
     "cosim": "cosim",

@@ -187,11 +187,12 @@ def launch_options(args: argparse.Namespace) -> Any:
     UsageError
         Naming the option, file or parameter that is invalid.
     """
-    from comems4build_ros.app.commands.options import UsageError, ems_controller, load_params
+    from comems4build_ros.app.commands.options import UsageError, add_scenario_config, ems_controller, load_params
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.ems import UnknownEMSError, controller_class
     from comems4build_ros.run.plan import LaunchOptions
 
+    add_scenario_config(args)  # --scenario year: its plant file first (the params below are the run's)
     try:
         controller_class(args.ems)
     except UnknownEMSError as exc:
@@ -234,6 +235,7 @@ def launch_options(args: argparse.Namespace) -> Any:
         bag=Path(args.bag) if args.bag else None,
         all_inputs=bool(args.all_inputs),
         building=getattr(args, "building_text", "rc"),
+        params=params,  # validated once here; the plan hands them to every node as one file
     )
 
 

@@ -425,6 +425,36 @@ def _length_text(weeks: float | None, hours: int | None) -> str:
     return f"{hours} h" if hours is not None else ""
 
 
+def data_weeks(spec: str | Path, params: PlantParams, start: str | None = None) -> int | None:
+    """Whole weeks of run the data of scenario ``spec`` hold from ``start`` (default: the first
+    hour), its look-ahead kept: the largest ``weeks`` :func:`resolve_scenario` accepts without
+    an extension (0 for a CSV file shorter than a week, which runs all its rows). None where
+    that is not known without generating the data (``synthetic`` with a ``start``).
+
+    Raises
+    ------
+    ScenarioError
+        For a missing or invalid file or a start outside the data (as :func:`resolve_scenario`).
+    """
+    name = str(spec) if str(spec) in EMBEDDED else Path(spec).name
+    if str(spec) == "synthetic":
+        return None if start is not None else load_scenario_settings().weeks
+    if str(spec) in MEASURED_SECTIONS:
+        from comems4build_ros.core.scenario.measured import measured_hours
+
+        measured = load_measured_settings(section=MEASURED_SECTIONS[str(spec)])
+        index, lookahead_h = measured_hours(params, measured), measured.lookahead_h
+    else:
+        kind = path_kind(Path(spec))
+        if kind:
+            raise ScenarioError(f"scenario '{spec}': {kind} (use 'default', 'synthetic' or a scenario CSV file)")
+        index, lookahead_h = read_scenario_frame(Path(spec)).index, 0
+    if start is not None:
+        t0 = local_time(start, params.site.timezone, f"{name}: start").tz_convert("UTC")
+        index = index[index >= t0]
+    return max(0, len(index) - lookahead_h) // HOURS_PER_WEEK
+
+
 def resolve_scenario(
     spec: str | Path,
     params: PlantParams,

@@ -178,6 +178,15 @@ def rank_matched(values: np.ndarray, key: np.ndarray) -> np.ndarray:
     return np.sort(values)[order]
 
 
+def measured_hours(params: PlantParams, measured: MeasuredParams) -> pd.DatetimeIndex:
+    """The hours [UTC] the package data of ``measured`` cover from its start (those of the price
+    file; :func:`measured_frame` has one row per hour of it), without building the frame."""
+    tz = params.site.timezone
+    spot = read_entsoe_prices(_data_path(measured.prices_file), measured.prices_column)
+    start = pd.Timestamp(measured.start).tz_localize(tz).tz_convert("UTC")
+    return spot.index[spot.index >= start]
+
+
 def measured_frame(
     params: PlantParams, measured: MeasuredParams, generator: ScenarioParams, seed: int | None = None,
     fill: str | None = None,

@@ -27,7 +27,14 @@ on ``plant/done`` (end of the run); stopped by a signal before it, with exit cod
 Parameters: ``ems`` (set by the entry point), ``ems_options`` (string array of
 ``key=value``, as ``comems4build simulate --ems-option``), ``run_token_file`` or
 ``run_token`` and the plant
-parameters (:func:`comems4build_ros.ros.parameters.plant_params_from_node`).
+parameters (:meth:`comems4build_ros.ros.package_node.PackageNode.plant_params`), ``wait_for_recorder``
+and ``recorder_node`` (the recorder whose readers its writers wait for, and whose leaving
+ends the node), all read-only during the run.
+
+Composition: ``-r __node:=NAME`` runs the node under another name (its contract role stays
+its EMS's node), ``-r ems/command:=...`` sends its commands elsewhere, e.g. to run a
+shadow EMS beside the one the plant applies (docs/ros_tools.md "Remapping"). With
+``--log-level debug`` it logs each decision.
 """
 
 from __future__ import annotations
@@ -46,7 +53,6 @@ from comems4build_ros.core.ems import make_controller
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.types import ACTION_FIELDS
 from comems4build_ros.ros.node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
-from comems4build_ros.ros.parameters import param, plant_params_from_node
 from comems4build_ros.ros.process import run_node
 from comems4build_ros.wire.cdr import parse_array, string_cdr
 from comems4build_ros.wire.contract import ContractError, load_contract, nest
@@ -75,11 +81,10 @@ class EMSNode(EndsWithRun, ContractNode):
     def __init__(self, ems: str, **node_kwargs: Any) -> None:
         contract = load_contract()
         node_name = contract.ems_node_name(ems)
-        super().__init__(node_name, contract, automatically_declare_parameters_from_overrides=True, **node_kwargs)
+        super().__init__(node_name, contract, **node_kwargs)
         spec = contract.node(node_name)
-        params = plant_params_from_node(self)
-        items = param(self, "ems_options", [])
-        options = parse_options([items] if isinstance(items, str) else items, node_name)
+        params = self.plant_params()
+        options = parse_options(self.param("ems_options", []), node_name)
         self.controller = make_controller(ems, params, options)
         self.controller.reset()
         self.level = self.controller.info_level
@@ -89,9 +94,10 @@ class EMSNode(EndsWithRun, ContractNode):
                 f"the contract says '{spec.info_level}'"
             )
         sizes = layout_sizes(params)
-        token_file = str(param(self, "run_token_file", ""))
+        token_file = self.param("run_token_file", "")
         self._key = secret_key(read_token_file(token_file)) if token_file else None  # authenticate each command
-        token = 0 if token_file else int(param(self, "run_token", 0))
+        run_token = self.param("run_token", 0)
+        token = 0 if token_file else run_token
         self.token = float(token if token > 0 else default_token(self.get_fully_qualified_name()))
         self._cmd = ArrayPublisher(self, "ems/command", sizes)
         self._info_pub = self.contract_publisher("ems/info")
@@ -104,8 +110,9 @@ class EMSNode(EndsWithRun, ContractNode):
         self.steps = 0
         for i, topic in enumerate(self._inputs):
             self.contract_subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name), raw=True)
-        self.exit_when_done = bool(param(self, "exit_when_done", True))
-        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
+        self.exit_when_done = self.param("exit_when_done", True)
+        self.wait_for_recorder = self.param("wait_for_recorder", False)
+        self.recorder_node = self.param("recorder_node", self.recorder_node)
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
         self.finished = Future()
@@ -184,6 +191,9 @@ class EMSNode(EndsWithRun, ContractNode):
         self._answered = step
         self._last_cmd = payload
         self.steps += 1
+        if self.debug:
+            self.get_logger().debug(f"step {step}: decided and sent: " + ", ".join(
+                f"{f}={getattr(action, f):g}" for f in ACTION_FIELDS))
 
 
 def ems_of_program(program: str) -> str | None:
@@ -206,7 +216,9 @@ def main(args: list[str] | None = None, ems: str | None = None) -> int:
         ems = ems_of_program(sys.argv[0])
     if ems is None:
         if "--ems" not in argv or argv.index("--ems") + 1 >= len(argv):
-            print("ems_node: error: give the EMS as '--ems NAME'", file=sys.stderr)
+            from comems4build_ros.ros.log import process_logger
+
+            process_logger("ems_node").error("refused to start: give the EMS as '--ems NAME'")
             return 2
         ems = argv[argv.index("--ems") + 1]
     return run_node(lambda: EMSNode(ems), args, f"{ems}_ems")

@@ -25,12 +25,15 @@ while it waits, e.g. for a restarted EMS) makes it publish the steps
 It exits with code 0 on ``plant/done`` (end of the run).
 
 Parameters: ``scenario`` (``default`` or a CSV path), ``weeks`` (whole weeks, 0 = the
-default length), ``steps`` (cut the run to its first N steps, 0 = all), ``start`` (ISO
-time, empty = from the beginning), ``seed`` (default scenario only, -1 = the seed of
-``config/scenario.yaml``), ``forecast_mode`` (empty = ``config/forecast.yaml``),
-``lookahead_steps``, ``allow_gap_fill`` (default false), ``for_ems`` (empty = every EMS
-topic) and the plant parameters (see
-:func:`comems4build_ros.ros.parameters.plant_params_from_node`). A scenario with a time gap,
+default length; its range ends at the whole weeks the scenario's data hold from
+``start``, :func:`comems4build_ros.core.scenario.data_weeks`), ``steps`` (cut the run to its
+first N steps, 0 = all), ``start`` (ISO time, empty = from the beginning), ``seed``
+(default scenario only, -1 = the seed of ``config/scenario.yaml``), ``forecast_mode``
+(empty = ``config/forecast.yaml``), ``lookahead_steps`` (may change during a run),
+``allow_gap_fill`` (default false), ``for_ems`` (empty = every EMS topic), ``inputs``,
+``live_config``, ``live_cache_dir``, ``wait_for_recorder``, ``recorder_node``,
+``exit_when_done`` and the plant parameters (see
+:meth:`comems4build_ros.ros.package_node.PackageNode.plant_params`). A scenario with a time gap,
 a non-finite value, or missing values the core loader would interpolate makes the feed
 refuse to start (exit code 2, the message names file, line and column); with
 ``allow_gap_fill:=true`` the loader's documented interpolation is accepted.
@@ -49,7 +52,7 @@ from comems4build_ros.core.scenario.base import Scenario
 from comems4build_ros.core.scenario.run import check_scenario, load_scenario
 from comems4build_ros.core.types import EXOGENOUS_FIELDS, PlantState
 from comems4build_ros.ros.node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
-from comems4build_ros.ros.parameters import param, plant_params_from_node
+from comems4build_ros.ros.parameters import ParameterError, spec_of
 from comems4build_ros.ros.process import run_node
 
 NODE_NAME = "feed"
@@ -65,6 +68,8 @@ EMS_TOPICS = (
     "feed/season",
     "feed/t_amb",
 )
+#: ``weeks_bound`` of :class:`Feed` not given: computed from the scenario's data.
+_UNKNOWN = object()
 #: Default number of steps published ahead of the step the plant waits for.
 LOOKAHEAD_STEPS = 4
 #: Feed parameters that choose the scenario, with their defaults.
@@ -80,16 +85,19 @@ def scenario_args(values: dict[str, Any], params: Any) -> tuple[Any, ...]:
             None if seed < 0 else seed, int(values["steps"]) or None, bool(values["allow_gap_fill"]))
 
 
-def prepare_scenario(node_params: dict[str, Any]) -> tuple[Scenario, list[str]]:
+def prepare_scenario(node_params: dict[str, Any]) -> tuple[Scenario, list[str], int | None]:
     """The scenario a feed node with ROS parameters ``node_params`` (``config_files``,
-    ``overrides`` and :data:`SCENARIO_PARAMS`) loads, and the loader's notes; no rclpy."""
+    ``overrides`` and :data:`SCENARIO_PARAMS`) loads, the loader's notes and the bound of its
+    ``weeks`` (:func:`comems4build_ros.core.scenario.data_weeks`); no rclpy."""
     from comems4build_ros.core.config import load_plant_params, parse_assignments
+    from comems4build_ros.core.scenario import data_weeks
 
     overrides = parse_assignments(node_params.get("overrides") or [], "parameter 'overrides':")
     params = load_plant_params([f for f in node_params.get("config_files") or [] if f], overrides)
     values = {name: node_params.get(name, default) for name, default in SCENARIO_PARAMS.items()}
     notes: list[str] = []
-    return load_scenario(*scenario_args(values, params), notes=notes), notes
+    bound = data_weeks(str(values["scenario"]), params, str(values["start"]) or None)
+    return load_scenario(*scenario_args(values, params), notes=notes), notes, bound
 
 
 class LiveFeed:
@@ -121,8 +129,8 @@ class LiveFeed:
         self.feed = feed
         self.base = base
         self.params = params
-        settings = load_live_settings(str(param(feed, "live_config", "")) or None)
-        cache_dir = Path(str(param(feed, "live_cache_dir", "")) or Path.home() / ".cache" / "comems4build_ros")
+        settings = load_live_settings(feed.live_config or None)
+        cache_dir = Path(feed.live_cache_dir or Path.home() / ".cache" / "comems4build_ros")
         tz = params.site.timezone
         self.warnings: queue.SimpleQueue[str] = queue.SimpleQueue()
         price_cache = Path(settings.prices.cache_file or cache_dir / "live_prices.json")
@@ -203,48 +211,23 @@ class LiveFeed:
 class Feed(EndsWithRun, ContractNode):
     """Scenario publisher node (see the module docstring)."""
 
-    def __init__(self, scenario: Scenario | None = None, **node_kwargs: Any) -> None:
+    def __init__(self, scenario: Scenario | None = None, weeks_bound: Any = _UNKNOWN, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``;
-        ``scenario``: the scenario of the node's parameters prepared beforehand
-        (:func:`prepare_scenario`, used by a container process of feeds to build many in parallel)."""
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
+        ``scenario`` and ``weeks_bound``: the scenario of the node's parameters and the bound of
+        its ``weeks``, prepared beforehand (:func:`prepare_scenario`, used by a container process
+        of feeds to build many in parallel)."""
+        super().__init__(NODE_NAME, **node_kwargs)
         from comems4build_ros.core.loop import load_forecast_settings
 
-        params = plant_params_from_node(self)
-        values = {name: param(self, name, default) for name, default in SCENARIO_PARAMS.items()}
+        params = self.plant_params()
+        values, mode = self._read_parameters(params, weeks_bound)
+        self.refuse_undeclared()  # before the scenario is built: a typo is named at once
         seed = int(values["seed"])
-        mode = str(param(self, "forecast_mode", ""))
-        self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
-        self.inputs = str(param(self, "inputs", "scenario"))
-        if self.inputs not in ("scenario", "live"):
-            raise ValueError(f"node '{NODE_NAME}': parameter 'inputs': '{self.inputs}' is not 'scenario' or 'live'")
         # Publishers first: DDS discovery (its own threads) matches them with the recorder
         # and the EMS while this thread builds the scenario, the longest part of start-up.
-        sizes_ = layout_sizes(params)
-        self._truth = ArrayPublisher(self, "feed/truth", sizes_)
-        forecast_topics = tuple(t.name for t in self.contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
-        # With a house behind MQTT its own meters give the PV output and load: the
-        # mqtt_bridge publishes feed/measured and the feed leaves it out.
-        self.publish_measured = bool(param(self, "publish_measured", True))
-        # Serving one EMS, the feed publishes only what that EMS reads (its information
-        # level, tab:level_of_information); without, every EMS input (any EMS, or a bag
-        # that can later drive any EMS with replay --inputs-only).
-        self.for_ems = str(param(self, "for_ems", ""))
-        self.level = "mpc"
-        unread: set[str] = set()
-        if self.for_ems:
-            unread = set(self.contract.inputs_not_read(self.for_ems))
-            self.level = self.contract.node(self.for_ems).info_level or "mpc"
-        ems_topics = [t for t in EMS_TOPICS if (self.publish_measured or t != "feed/measured") and t not in unread]
-        self.topics = (*ems_topics, *(t for t in forecast_topics if t not in unread))
-        self._pubs = [ArrayPublisher(self, t, sizes_) for t in self.topics]
-        self._events = self.contract_publisher("feed/events")
-        self._info_pub = self.contract_publisher("feed/info")
-        self._pub_fields = [p.layout.fields for p in self._pubs]
+        self._create_publishers(params)
         # (an announcement that comes in meanwhile waits in the queue until the node spins)
         self.contract_subscription("plant/step", self._on_plant_step)
-        self.exit_when_done = bool(param(self, "exit_when_done", True))
-        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
         self.contract_subscription("plant/done", self._on_done)
         self._done = False
         self.finished = Future()
@@ -277,6 +260,69 @@ class Feed(EndsWithRun, ContractNode):
             f"scenario '{scenario.name}': {self.n_steps} steps from {scenario.time[0].isoformat()}, "
             f"forecast {self._forecast.mode}, {self.lookahead} steps ahead, inputs: {self.inputs}"
         )
+
+    def _read_parameters(self, params: Any, weeks_bound: Any) -> tuple[dict[str, Any], str]:
+        """Declare and read every parameter besides the plant's: the scenario's (returned with the
+        forecast mode), the others as attributes (``lookahead_steps`` may change during a run)."""
+        values = self._scenario_values(params, weeks_bound)
+        mode = self.param("forecast_mode", "")
+        self.lookahead = self.param("lookahead_steps", LOOKAHEAD_STEPS,
+                                    on_change=lambda v: setattr(self, "lookahead", v))
+        self.inputs = self.param("inputs", "scenario")
+        if self.inputs not in ("scenario", "live"):
+            raise ValueError(f"node '{NODE_NAME}': parameter 'inputs': '{self.inputs}' is not 'scenario' or 'live'")
+        self.live_config = self.param("live_config", "")
+        self.live_cache_dir = self.param("live_cache_dir", "")
+        # With a house behind MQTT its own meters give the PV output and load: the
+        # mqtt_bridge publishes feed/measured and the feed leaves it out.
+        self.publish_measured = self.param("publish_measured", True)
+        # Serving one EMS, the feed publishes only what that EMS reads (its information
+        # level, tab:level_of_information); without, every EMS input (any EMS, or a bag
+        # that can later drive any EMS with replay --inputs-only).
+        self.for_ems = self.param("for_ems", "")
+        self.exit_when_done = self.param("exit_when_done", True)
+        self.wait_for_recorder = self.param("wait_for_recorder", False)
+        self.recorder_node = self.param("recorder_node", self.recorder_node)
+        return values, mode
+
+    def _create_publishers(self, params: Any) -> None:
+        """feed/truth, the EMS topics the run's EMS reads (``for_ems``), feed/events and feed/info."""
+        sizes_ = layout_sizes(params)
+        self._truth = ArrayPublisher(self, "feed/truth", sizes_)
+        forecast_topics = tuple(t.name for t in self.contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
+        self.level = "mpc"
+        unread: set[str] = set()
+        if self.for_ems:
+            unread = set(self.contract.inputs_not_read(self.for_ems))
+            self.level = self.contract.node(self.for_ems).info_level or "mpc"
+        ems_topics = [t for t in EMS_TOPICS if (self.publish_measured or t != "feed/measured") and t not in unread]
+        self.topics = (*ems_topics, *(t for t in forecast_topics if t not in unread))
+        self._pubs = [ArrayPublisher(self, t, sizes_) for t in self.topics]
+        self._events = self.contract_publisher("feed/events")
+        self._info_pub = self.contract_publisher("feed/info")
+        self._pub_fields = [p.layout.fields for p in self._pubs]
+
+    def _scenario_values(self, params: Any, weeks_bound: Any) -> dict[str, Any]:
+        """The parameters of :data:`SCENARIO_PARAMS`, ``weeks`` declared with the bound of the
+        scenario's data (``weeks_bound``, computed here unless given)."""
+        import dataclasses
+
+        from comems4build_ros.core.scenario import data_weeks
+
+        values = {name: self.param(name, default) for name, default in SCENARIO_PARAMS.items() if name != "weeks"}
+        if weeks_bound is _UNKNOWN:
+            weeks_bound = data_weeks(values["scenario"], params, values["start"] or None)
+        spec = spec_of("weeks")
+        held = ""
+        if weeks_bound is not None:
+            held = (f"the data of scenario '{values['scenario']}' hold {weeks_bound} whole week(s) from "
+                    f"{values['start'] or 'its start'} (its look-ahead kept)")
+            spec = dataclasses.replace(spec, high=float(weeks_bound), description=f"{spec.description}; {held}")
+        try:
+            values["weeks"] = self.param("weeks", SCENARIO_PARAMS["weeks"], spec=spec)
+        except ParameterError as exc:
+            raise ParameterError(f"{exc}{': ' + held if held else ''}") from None
+        return values
 
     def _use_scenario(self, scenario: Scenario) -> None:
         """Build the observation values of every step from ``scenario`` (again when live inputs change)."""
@@ -352,6 +398,8 @@ class Feed(EndsWithRun, ContractNode):
             if self._live is not None and j >= self._next:
                 self._live.published(j)
             self._publish_step(j)
+        if first <= last and self.debug:
+            self.get_logger().debug(f"plant/step {k}: inputs of steps {first}..{last} published")
         self._next = max(self._next, last + 1)
         self._last_request = k
 

@@ -1,7 +1,7 @@
 """``mqtt_bridge``: the topic contract on one side, a house behind MQTT on the other.
 
 The bridge stands in for ``plant_sim``: it publishes the plant's topics (``state/*``,
-``plant/step``, ``plant/record``, ``clock``, ``plant/done``, ``plant/events``) from the
+``plant/step``, ``plant/record``, ``/clock``, ``plant/done``, ``plant/events``) from the
 house's MQTT measurements and forwards each ``ems/command`` as MQTT set-points
 (heat-pump mode and modulation, fuel-cell power, battery power) with the topics, units
 and scaling of the topic map (``config/mqtt.yaml``). With the map's PV and load meters it
@@ -109,7 +109,6 @@ from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Pr
 from comems4build_ros.mqtt.topicmap import PayloadError, load_topic_map
 from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
 from comems4build_ros.ros.node import ArrayPublisher
-from comems4build_ros.ros.parameters import param
 from comems4build_ros.ros.process import run_node
 from comems4build_ros.wire.contract import WITHHELD_EVENT
 from comems4build_ros.wire.ems_command import CommandError, check_token
@@ -148,19 +147,20 @@ class MqttBridge(LockStepMaster):
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
         super().__init__(NODE_NAME, {"house_timeout_s": HOUSE_TIMEOUT_S}, **node_kwargs)
-        secret_file = str(param(self, "mqtt_secret_file", ""))
-        username = str(param(self, "broker_username", ""))
+        secret_file = self.param("mqtt_secret_file", "")
+        username = self.param("broker_username", "")
         if username and not secret_file:
             raise ValueError(f"node '{NODE_NAME}': parameter 'broker_username' needs 'mqtt_secret_file' (its password)")
-        self.map = load_topic_map(str(param(self, "topic_map", "")) or None, str(param(self, "broker_url", "")) or None,
-                                  username or None, secret_file if username else None)
-        self.peer = Peer(check_run_id(str(param(self, "run_id", "")) or new_run_id()),
+        topic_map, broker_url = self.param("topic_map", ""), self.param("broker_url", "")
+        self.map = load_topic_map(topic_map or None, broker_url or None, username or None,
+                                  secret_file if username else None)
+        self.peer = Peer(check_run_id(self.param("run_id", "") or new_run_id()),
                          read_peer_key(secret_file) if secret_file else None)
-        self.clock = parse_clock(str(param(self, "clock", "sim")), self.params.simulation.time_step_h)
-        delay = float(param(self, "measure_delay_s", -1.0))
+        self.clock = parse_clock(self.param("clock", "sim"), self.params.simulation.time_step_h)
+        delay = self.param("measure_delay_s", -1.0)
         self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
                                                             MEASURE_DELAY_MAX_S)
-        client_id = str(param(self, "client_id", "comems4build_bridge"))
+        client_id = self.param("client_id", "comems4build_bridge")
         if self.clock.wall and self.measure_delay_s >= COMMAND_DEADLINE_SHARE * self.clock.period_s:
             raise ValueError(f"node '{NODE_NAME}': parameter 'measure_delay_s' must be below "
                              f"{COMMAND_DEADLINE_SHARE:g} of the step period ({self.clock.period_s:g} s)")
@@ -238,7 +238,7 @@ class MqttBridge(LockStepMaster):
                              will=(self.map.availability_topic, NOT_AVAILABLE),
                              on_connect=self._on_connect, wake=self._wake.trigger)
         self.link.start()
-        self.create_timer(self.watchdog_period_s, self._watchdog)
+        self.start_watchdog(self._watchdog)
         self.get_logger().info(
             f"bridge to {self.map.broker.url} (user: {self.map.broker.username or 'anonymous'}, "
             f"TLS: {self.map.broker.tls}), run '{self.peer.run_id}' (authentication codes: "

@@ -18,7 +18,10 @@ step (``ems/command``) have arrived. Protocol (docs/ros_nodes.md):
    (:func:`comems4build_ros.core.ems.fallback.safe_action`), logs and counts it
    (``fallback_steps``) and moves on; the EMS takes over again as soon as it answers.
 3. Step the plant, announce ``k + 1``, then publish ``plant/record`` (one timeseries row
-   of the in-process loop) and ``clock`` (end of step ``k``).
+   of the in-process loop) and ``/clock`` (end of step ``k``; the start of step 0 once its
+   inputs came; only with ``publish_clock``, one clock per run).
+
+With ``--log-level debug`` the node logs each announcement, command and step.
 
 After the last step the node publishes ``plant/done``, waits until the record messages
 are acknowledged, and exits (``exit_when_done``) with code 0. With ``wait_for_recorder`` it
@@ -82,7 +85,7 @@ class PlantSimNode(LockStepMaster):
         self._t_step_announced = 0.0
         self._announced = -1
         self._rtt = array("d")  # announce -> command round trips [s]
-        self.create_timer(self.watchdog_period_s, self._watchdog)
+        self.start_watchdog(self._watchdog)
         self.get_logger().info(
             f"plant ready: step timeout {self.step_timeout_s} s, start-up timeout {self.startup_timeout_s} s, "
             f"wait for recorder: {self.wait_for_recorder}"
@@ -95,18 +98,14 @@ class PlantSimNode(LockStepMaster):
         EnergyPlus writes its weather from the scenario, which plant_sim loads with the feed's
         scenario parameters (the launcher gives it the same ones).
         """
-        from comems4build_ros.ros.parameters import param
-
-        building = str(param(self, "building", "rc"))
+        building = self.param("building", "rc")
         if building == "rc":
             return None
         from comems4build_ros.core.loop import building_model
-        from comems4build_ros.ros.nodes.feed import SCENARIO_PARAMS, prepare_scenario
-        from comems4build_ros.ros.parameters import string_list
+        from comems4build_ros.ros.nodes.feed import SCENARIO_PARAMS, load_scenario, scenario_args
 
-        values = {name: param(self, name, default) for name, default in SCENARIO_PARAMS.items()}
-        values.update(config_files=string_list(self, "config_files"), overrides=string_list(self, "overrides"))
-        scenario, _ = prepare_scenario(values)
+        values = {name: self.param(name, default) for name, default in SCENARIO_PARAMS.items()}
+        scenario = load_scenario(*scenario_args(values, self.params))
         model = building_model(building, self.params, scenario)
         self.get_logger().info(f"building model: {model.name} ({building})")
         return model
@@ -136,6 +135,8 @@ class PlantSimNode(LockStepMaster):
         self._truth[step] = data
         if self.n_steps is None:
             self.n_steps = int(data[1])
+        if step == 0:  # the run's first time: the start of step 0 (later ones come with each step's end)
+            self.publish_clock(data[self._ti["time_unix_s"]], end=False)
         self._try_advance()
 
     def _on_command(self, msg: Float64MultiArray) -> None:
@@ -159,6 +160,9 @@ class PlantSimNode(LockStepMaster):
         self._cmd = action
         self._cmd_data = list(msg.data)
         now = time.monotonic()
+        if self.debug:
+            waited_ms = 1e3 * (now - self._t_step_announced)
+            self.get_logger().debug(f"step {step}: command accepted {waited_ms:.2f} ms after the announcement")
         if self._ever_commanded:  # the first round trip includes the EMS start-up
             self._rtt.append(now - self._t_step_announced)
         else:
@@ -178,6 +182,10 @@ class PlantSimNode(LockStepMaster):
         if self._announced != self.k:
             self._announced = self.k
             self._t_step_announced = self._t_announce
+            if self.debug:
+                self.get_logger().debug(f"step {self.k}: announced (state/*, plant/step)")
+        elif self.debug:
+            self.get_logger().debug(f"step {self.k}: announced again (waiting {self._t_announce - self._t_wait:.2f} s)")
 
     def _start(self) -> None:
         self.started = True
@@ -230,6 +238,9 @@ class PlantSimNode(LockStepMaster):
                 self._announce()  # first, so the EMS works on k + 1 while the record goes out
         self._record.publish(row)
         self.publish_clock(t0)
+        if self.debug:
+            self.get_logger().debug(f"step {k}: stepped ({'fallback' if fallback else 'command'}), plant/record and "
+                                    "/clock published")
         if last:
             self.finish_run()
 

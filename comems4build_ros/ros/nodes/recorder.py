@@ -51,6 +51,21 @@ no channel.
 Other parameters: ``tick_s`` (housekeeping timer period, default 0.05 s), ``bag_path``
 (directory to create, required), ``run_info`` (JSON string, stored as ``run_info.json`` in
 the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``).
+``settle_s``, ``ready_timeout_s``, ``optional_wait_s``, ``done_grace_s``,
+``done_timeout_s``, ``progress_period_s`` and ``tick_s`` may change during a run (``ros2
+param set``); the others are read-only.
+
+Names: every channel of the bag has its contract name under its namespace (``/clock`` once),
+whatever a remapping makes of the topic the subscription reads (``-r
+/house_0/ems/command:=/house_0/ctrl/setpoints`` records the commands read from
+``ctrl/setpoints`` as ``/house_0/ems/command``), so the bag evaluates the same in any naming
+scheme; the node's first log line lists the remapped topics.
+
+Time: each message is stamped with its receive time, or with ``use_sim_time`` true with the
+node's ROS time, the simulated time of ``/clock`` (as ``ros2 bag record --use-sim-time``);
+messages before the node has a time get the first one it has: the start of the run's
+first step, or its end when ROS 2's time source (a best-effort reader of depth 1) kept only
+the later of two early ticks.
 """
 
 from __future__ import annotations
@@ -63,7 +78,6 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, UInt32
 
@@ -71,7 +85,7 @@ from comems4build_ros.bags.bag import BagWriter, decode, qos_for_bag
 from comems4build_ros.bags.evaluation import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, is_per_step, withheld_topics
 from comems4build_ros.ros.interfaces import message_class, qos_profile
 from comems4build_ros.ros.node import FINISHED_LOCAL_RECORDERS, no_default_event_callbacks
-from comems4build_ros.ros.parameters import param, string_list
+from comems4build_ros.ros.package_node import PackageNode
 from comems4build_ros.ros.process import run_node
 from comems4build_ros.wire.cdr import array_step, parse_array, uint32_value
 from comems4build_ros.wire.contract import (
@@ -161,59 +175,18 @@ def default_wait_topics(contract: Contract) -> list[str]:
     return [t.name for t in contract.topics.values() if any(roles.get(p) in WAIT_ROLES for p in t.publishers)]
 
 
-class Recorder(Node):
+class Recorder(PackageNode):
     """Bag recorder node (see the module docstring)."""
 
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True, **node_kwargs)
+        from rclpy.task import Future
+
+        super().__init__(NODE_NAME, **node_kwargs)
         self.contract = load_contract()
         self.contract.node(NODE_NAME)
-        bag_path = self.bag_path = str(param(self, "bag_path", ""))
-        if not bag_path:
-            raise ValueError(f"node '{NODE_NAME}': parameter 'bag_path' (bag directory to create) is required")
-        namespaces = string_list(self, "namespaces") or [self.get_namespace()]
-        self.namespaces = ["/" + ns.strip("/") if ns.strip("/") else "/" for ns in namespaces]
-        if len(set(self.namespaces)) != len(self.namespaces):
-            raise ValueError(f"node '{NODE_NAME}': parameter 'namespaces' lists a namespace twice: {namespaces}")
-        wait = [str(t) for t in param(self, "wait_for_topics", ["*"]) if str(t)]
-        if wait == ["*"]:
-            wait = default_wait_topics(self.contract)
-        # Topics a run does not publish (the feed serving one EMS leaves out what it does
-        # not read): no subscription, no channel in the bag, no wait for a publisher.
-        self.skip = set(string_list(self, "skip_topics"))
-        for t in (*wait, *sorted(self.skip)):
-            self.contract.topic(t)  # ContractError names an unknown topic
-        wait = [t for t in wait if t not in self.skip]
-        self.settle_s = float(param(self, "settle_s", SETTLE_S))
-        self.ready_timeout_s = float(param(self, "ready_timeout_s", READY_TIMEOUT_S))
-        self.stop_when_done = bool(param(self, "stop_when_done", True))
-        self.done_grace_s = float(param(self, "done_grace_s", DONE_GRACE_S))
-        self.done_timeout_s = float(param(self, "done_timeout_s", DONE_TIMEOUT_S))
-        self.progress_period_s = float(param(self, "progress_period_s", 0.0))
-        run_info = str(param(self, "run_info", ""))
-        info_obj: Any = None
-        if run_info:
-            try:
-                info_obj = json.loads(run_info)
-            except json.JSONDecodeError as exc:
-                raise ValueError(f"node '{NODE_NAME}': parameter 'run_info' is not JSON: {exc}") from None
-
-        self.writer = BagWriter(
-            bag_path,
-            chunk_period_s=float(param(self, "chunk_period_s", 1.0)),
-            chunk_max_bytes=int(param(self, "chunk_max_bytes", 256 * 1024)),
-        )
-        # The bag holds the run token of every command (ems/command): readable by this user
-        # only, before the first message comes (tokens.py).
-        os.chmod(bag_path, 0o700)
-        if info_obj is not None:
-            (Path(bag_path) / RUN_INFO_FILE).write_text(json.dumps(info_obj, indent=2) + "\n", encoding="utf-8")
-            self.writer.set_custom_data(RUN_INFO_KEY, json.dumps(info_obj, separators=(",", ":")))
-
-        self._subs: list[tuple[str, Any]] = []  # (full topic, subscription) of the wait list
-        self._optional: list[tuple[str, Any]] = []  # ... of the optional topics of the wait list
-        self.optional_wait_s = float(param(self, "optional_wait_s", OPTIONAL_WAIT_S))
+        bag_path, wait, info_obj, chunks = self._read_parameters()
+        self.writer = self._open_bag(bag_path, info_obj, chunks)
         self.records = dict.fromkeys(self.namespaces, 0)
         # Steps recorded of each topic published once a step (what the bag's gap check
         # expects): the end of the run waits until each topic seen has every step (EMS
@@ -221,15 +194,99 @@ class Recorder(Node):
         self.per_step: dict[str, list[StepsSeen]] = {ns: [] for ns in self.namespaces}
         self.fallbacks = dict.fromkeys(self.namespaces, 0)
         self.withheld = dict.fromkeys(self.namespaces, 0)  # steps without state by design (WITHHELD_EVENT)
-        no_state = withheld_topics(self.contract)
-        roles = {n.name: n.role for n in self.contract.nodes.values()}
         self.n_steps: dict[str, int] = {}
         self.done_at: dict[str, float] = {}
+        self._subs: list[tuple[str, Any]] = []  # (full topic, subscription) of the wait list
+        self._optional: list[tuple[str, Any]] = []  # ... of the optional topics of the wait list
+        self._pending_sim: list[tuple[str, int, bytes]] = []  # use_sim_time: messages before the first /clock
+        remapped = self._subscribe(wait)
+        self._create_publishers()
+        self.contiguous = dict.fromkeys(self.namespaces, 0)  # steps 0..c-1 of plant/record written
+        self._ahead: dict[str, set[int]] = {ns: set() for ns in self.namespaces}
+        self._published_progress = dict.fromkeys(self.namespaces, -1)
+        self._progress_msg = UInt32()
+        self.ready = False
+        self._t0 = time.monotonic()
+        self._matched_at: float | None = None
+        self._last_record_at = self._t0
+        self._last_msg_at = self._t0  # last message of any topic (end of run: the queues are drained)
+        self._t_progress = 0.0
+        self.finished = Future()
+        self._tick_timer = self.create_timer(self.tick_s, self._tick)
+        self.get_logger().info(
+            f"recording {len(self.contract.topics)} topics x {len(self.namespaces)} namespace(s) to {bag_path}"
+            + (f"; remapped: {', '.join(f'{a} -> {b}' for a, b in remapped)}" if remapped else "")
+        )
+
+    def _read_parameters(self) -> tuple[str, list[str], Any, tuple[float, int]]:
+        """Declare and read every parameter: the bag path, the topics to wait for, the run
+        information (parsed) and the chunk limits; the others become attributes (those of the
+        end of the run and the progress lines may change during a run)."""
+        bag_path = self.bag_path = self.param("bag_path", "")
+        if not bag_path:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'bag_path' (bag directory to create) is required")
+        namespaces = self.string_list("namespaces") or [self.get_namespace()]
+        self.namespaces = ["/" + ns.strip("/") if ns.strip("/") else "/" for ns in namespaces]
+        if len(set(self.namespaces)) != len(self.namespaces):
+            raise ValueError(f"node '{NODE_NAME}': parameter 'namespaces' lists a namespace twice: {namespaces}")
+        wait = self.param("wait_for_topics", ["*"])
+        if wait == ["*"]:
+            wait = default_wait_topics(self.contract)
+        # Topics a run does not publish (the feed serving one EMS leaves out what it does
+        # not read, the clock of another house): no subscription, no channel in the bag, no
+        # wait for a publisher.
+        self.skip = set(self.string_list("skip_topics"))
+        for t in (*wait, *sorted(self.skip)):
+            self.contract.topic(t)  # ContractError names an unknown topic
+        wait = [t for t in wait if t not in self.skip]
+
+        def setter(name: str) -> Any:
+            return lambda value: setattr(self, name, value)
+
+        for name, default in (("settle_s", SETTLE_S), ("ready_timeout_s", READY_TIMEOUT_S),
+                              ("optional_wait_s", OPTIONAL_WAIT_S), ("done_grace_s", DONE_GRACE_S),
+                              ("done_timeout_s", DONE_TIMEOUT_S), ("progress_period_s", 0.0)):
+            setattr(self, name, self.param(name, default, on_change=setter(name)))
+        self.stop_when_done = self.param("stop_when_done", True)
+        self.tick_s = self.param("tick_s", TICK_S, on_change=self._set_tick)
+        run_info = self.param("run_info", "")
+        info_obj: Any = None
+        if run_info:
+            try:
+                info_obj = json.loads(run_info)
+            except json.JSONDecodeError as exc:
+                raise ValueError(f"node '{NODE_NAME}': parameter 'run_info' is not JSON: {exc}") from None
+        chunks = (self.param("chunk_period_s", 1.0), self.param("chunk_max_bytes", 256 * 1024))
+        return bag_path, wait, info_obj, chunks
+
+    def _set_tick(self, value: float) -> None:
+        self.tick_s = value
+        self._tick_timer.timer_period_ns = int(value * 1e9)
+
+    def _open_bag(self, bag_path: str, info_obj: Any, chunks: tuple[float, int]) -> BagWriter:
+        """Create the bag (mode 0700: every ``ems/command`` in it carries the run token,
+        tokens.py) with the run information, before the first message comes."""
+        writer = BagWriter(bag_path, chunk_period_s=chunks[0], chunk_max_bytes=chunks[1])
+        os.chmod(bag_path, 0o700)
+        if info_obj is not None:
+            (Path(bag_path) / RUN_INFO_FILE).write_text(json.dumps(info_obj, indent=2) + "\n", encoding="utf-8")
+            writer.set_custom_data(RUN_INFO_KEY, json.dumps(info_obj, separators=(",", ":")))
+        return writer
+
+    def _subscribe(self, wait: list[str]) -> list[tuple[str, str]]:
+        """One recording subscription per contract topic and namespace (``/clock`` once: it is
+        the same in every namespace), each written under its contract name; returns the
+        ``(contract name, name it reads)`` pairs a remapping changed."""
+        no_state = withheld_topics(self.contract)
+        roles = {n.name: n.role for n in self.contract.nodes.values()}
+        remapped: list[tuple[str, str]] = []
+        seen: set[str] = set()
         for ns in self.namespaces:
             for spec in self.contract.topics.values():
-                if spec.name in self.skip:
-                    continue
                 full = resolve(ns, spec.name)
+                if spec.name in self.skip or full in seen:
+                    continue
+                seen.add(full)
                 self.writer.add_topic(full, spec.type, self._bag_qos(spec.qos))
                 holder: list[Any] = []
                 counter = None
@@ -244,8 +301,14 @@ class Recorder(Node):
                     raw=True, event_callbacks=no_default_event_callbacks("subscription"),
                 )
                 holder.append(sub)
+                if sub.topic_name != full:
+                    remapped.append((full, sub.topic_name))
                 if spec.name in wait:
                     (self._optional if spec.name in OPTIONAL_TOPICS else self._subs).append((full, sub))
+        return remapped
+
+    def _create_publishers(self) -> None:
+        """``recorder/ready`` and ``recorder/progress`` of every namespace recorded."""
         self._ready_pubs = []
         self._progress_pubs: dict[str, Any] = {}
         ready_spec = self.contract.topic("recorder/ready")
@@ -257,27 +320,6 @@ class Recorder(Node):
             self._progress_pubs[ns] = self.create_publisher(
                 message_class(progress_spec), resolve(ns, PROGRESS_TOPIC), qos_profile(progress_spec)
             )
-        self.contiguous = dict.fromkeys(self.namespaces, 0)  # steps 0..c-1 of plant/record written
-        self._ahead: dict[str, set[int]] = {ns: set() for ns in self.namespaces}
-        self._published_progress = dict.fromkeys(self.namespaces, -1)
-        self._progress_msg = UInt32()
-        self.ready = False
-        self._t0 = time.monotonic()
-        self._matched_at: float | None = None
-        self._last_record_at = self._t0
-        self._last_msg_at = self._t0  # last message of any topic (end of run: the queues are drained)
-        self._t_progress = 0.0
-        self.finished = None
-        from rclpy.task import Future
-
-        self.finished = Future()
-        tick_s = float(param(self, "tick_s", TICK_S))
-        if not tick_s > 0:
-            raise ValueError(f"node '{NODE_NAME}': parameter 'tick_s' must be positive")
-        self.create_timer(tick_s, self._tick)
-        self.get_logger().info(
-            f"recording {len(self.contract.topics)} topics x {len(self.namespaces)} namespace(s) to {bag_path}"
-        )
 
     # ------------------------------------------------------------------ qos
     @staticmethod
@@ -312,7 +354,10 @@ class Recorder(Node):
         def on_msg(raw: bytes, info: Any) -> None:
             while True:
                 t_ns = info.get("received_timestamp") or time.time_ns()
-                write(full, t_ns, raw)
+                if self.sim_time:
+                    self._write_sim(full, t_ns, raw)
+                else:
+                    write(full, t_ns, raw)
                 if counter is not None:
                     counter.add(raw)
                 if special:
@@ -326,6 +371,24 @@ class Recorder(Node):
                 raw, info = taken
 
         return on_msg
+
+    def _write_sim(self, full: str, received_ns: int, raw: bytes) -> None:
+        """With ``use_sim_time``: write the message stamped with the node's simulated time (as
+        ``ros2 bag record --use-sim-time``); one that comes before the node has a time waits for
+        the first and gets it (see the module docstring)."""
+        t_ns = self.get_clock().now().nanoseconds
+        if t_ns <= 0:
+            self._pending_sim.append((full, received_ns, raw))
+            return
+        self._flush_sim(t_ns)
+        self.writer.write(full, t_ns, raw)
+
+    def _flush_sim(self, t_ns: int | None) -> None:
+        """Write the messages held for the first ``/clock`` at ``t_ns`` (None: at their receive
+        time, when the bag closes without any clock)."""
+        pending, self._pending_sim = self._pending_sim, []
+        for full, received_ns, raw in pending:
+            self.writer.write(full, received_ns if t_ns is None else t_ns, raw)
 
     def _special(self, ns: str, name: str, raw: bytes) -> None:
         """Progress and end-of-run bookkeeping from plant/record, feed/truth, plant/done."""
@@ -477,6 +540,7 @@ class Recorder(Node):
         exit code 5 naming it); what was written stays readable (``evaluate`` salvages it).
         """
         try:
+            self._flush_sim(None)
             self.writer.close()
         except OSError as exc:
             raise OSError(exc.errno, exc.strerror or str(exc), exc.filename or self.bag_path) from None

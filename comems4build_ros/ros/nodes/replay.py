@@ -44,7 +44,6 @@ from rclpy.task import Future
 
 from comems4build_ros.bags.bag import BagInfo, decode, iter_messages
 from comems4build_ros.ros.node import ContractNode
-from comems4build_ros.ros.parameters import param
 from comems4build_ros.ros.process import run_node
 
 NODE_NAME = "replay"
@@ -67,7 +66,10 @@ SKIP_TOPICS = frozenset({"recorder/ready", "recorder/progress"})
 
 
 def _split(topic: str, names: set[str]) -> tuple[str, str] | None:
-    """``/house_1/feed/truth`` -> (``/house_1``, ``feed/truth``) for a known contract name."""
+    """``/house_1/feed/truth`` -> (``/house_1``, ``feed/truth``) for a known contract name;
+    an absolute contract name (``/clock``) -> (``""``, ``/clock``): it belongs to every namespace."""
+    if topic in names and topic.startswith("/"):
+        return "", topic
     for name in names:
         if topic == f"/{name}":
             return "/", name
@@ -80,17 +82,22 @@ class Replay(ContractNode):
     """Bag replay node (see the module docstring)."""
 
     def __init__(self, cli: argparse.Namespace) -> None:
-        super().__init__(NODE_NAME, automatically_declare_parameters_from_overrides=True)
-        bag = cli.bag or str(param(self, "bag_path", ""))
+        super().__init__(NODE_NAME)
+        bag_path = self.param("bag_path", "")
+        bag = cli.bag or bag_path
         if not bag:
             raise ValueError(f"node '{NODE_NAME}': give the bag (argument BAG or parameter 'bag_path')")
-        self.rate = float(cli.rate if cli.rate is not None else param(self, "rate", 1.0))
-        self.inputs_only = bool(cli.inputs_only or param(self, "inputs_only", False))
-        self.lookahead = max(0, int(param(self, "lookahead_steps", LOOKAHEAD_STEPS)))
-        wanted_ns = cli.source_namespace or str(param(self, "source_namespace", ""))
-        self.wait_s = float(param(self, "wait_for_subscribers_s", WAIT_FOR_SUBSCRIBERS_S))
-        self.wait_for_recorder = bool(param(self, "wait_for_recorder", False))
-        self.settle_s = float(param(self, "settle_s", SETTLE_S))
+        rate = self.param("rate", 1.0)
+        self.rate = float(cli.rate if cli.rate is not None else rate)
+        inputs_only = self.param("inputs_only", False)
+        self.inputs_only = cli.inputs_only or inputs_only
+        self.lookahead = self.param("lookahead_steps", LOOKAHEAD_STEPS)
+        source_ns = self.param("source_namespace", "")
+        wanted_ns = cli.source_namespace or source_ns
+        self.wait_s = self.param("wait_for_subscribers_s", WAIT_FOR_SUBSCRIBERS_S)
+        self.wait_for_recorder = self.param("wait_for_recorder", False)
+        self.recorder_node = self.param("recorder_node", self.recorder_node)
+        self.settle_s = self.param("settle_s", SETTLE_S)
         self._t_created = time.monotonic()
         self._matched_at: float | None = None
 
@@ -98,26 +105,7 @@ class Replay(ContractNode):
         names = set(contract.topics) - SKIP_TOPICS
         if self.inputs_only:
             names = {t.name for t in contract.published_by(INPUT_ROLE)}
-        by_ns: dict[str, list[tuple[str, int, bytes]]] = {}
-        info = BagInfo(Path(bag), [], False)
-        for topic, _msgtype, t_ns, raw in iter_messages(bag, info=info):
-            hit = _split(topic, names)
-            if hit is not None:
-                by_ns.setdefault(hit[0], []).append((hit[1], t_ns, bytes(raw)))
-        if not by_ns:
-            raise ValueError(f"bag {bag}: no message on the topics to replay ({', '.join(sorted(names))})")
-        if wanted_ns:
-            ns = "/" + wanted_ns.strip("/") if wanted_ns.strip("/") else "/"
-        elif len(by_ns) == 1:
-            ns = next(iter(by_ns))
-        else:
-            ns = self.get_namespace()
-        if ns not in by_ns:
-            raise ValueError(
-                f"bag {bag}: no recorded namespace '{ns}' (recorded: {', '.join(sorted(by_ns))}); "
-                "set 'source_namespace'"
-            )
-        messages = sorted(by_ns[ns], key=lambda m: m[1])
+        ns, messages = self._read_bag(bag, names, wanted_ns)
         # every topic of the replayed set gets its publisher, also one without messages
         # (feed/events of a run without input events) or not recorded at all (the inputs the
         # run's EMS did not read): a recorder waits for the publishers of its topics
@@ -126,18 +114,7 @@ class Replay(ContractNode):
         self._finishing = False
         self.finished = Future()
         if self.inputs_only:
-            self._steps: dict[int, list[tuple[str, bytes]]] = {}
-            seen: set[tuple[str, int]] = set()
-            for name, _t, raw in messages:
-                if not contract.topic(name).is_array:  # feed/info: once, now (transient local)
-                    if (name, -1) not in seen:
-                        seen.add((name, -1))
-                        self._pubs[name].publish(raw)
-                    continue
-                step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
-                if (name, step) not in seen:
-                    seen.add((name, step))
-                    self._steps.setdefault(step, []).append((name, raw))
+            self._steps = self._steps_of(messages)
             self.last_step = max(self._steps)
             self._next = 0
             self._last_request = -1
@@ -154,6 +131,48 @@ class Replay(ContractNode):
             self.create_timer(TICK_S, self._tick)
             pace = "as fast as possible" if self.rate <= 0 else f"at {self.rate:g}x the recorded pace"
             self.get_logger().info(f"replaying {len(messages)} messages of {bag} ({ns}) {pace}")
+
+    def _read_bag(self, bag: str, names: set[str], wanted_ns: str) -> tuple[str, list[tuple[str, int, bytes]]]:
+        """The namespace to replay and its messages ``(contract name, receive time [ns], raw)`` in
+        time order (``/clock`` belongs to every namespace)."""
+        by_ns: dict[str, list[tuple[str, int, bytes]]] = {}
+        info = BagInfo(Path(bag), [], False)
+        for topic, _msgtype, t_ns, raw in iter_messages(bag, info=info):
+            hit = _split(topic, names)
+            if hit is not None:
+                by_ns.setdefault(hit[0], []).append((hit[1], t_ns, bytes(raw)))
+        everywhere = by_ns.pop("", [])  # /clock: replayed with whichever namespace is
+        if not by_ns:
+            raise ValueError(f"bag {bag}: no message on the topics to replay ({', '.join(sorted(names))})")
+        if wanted_ns:
+            ns = "/" + wanted_ns.strip("/") if wanted_ns.strip("/") else "/"
+        elif len(by_ns) == 1:
+            ns = next(iter(by_ns))
+        else:
+            ns = self.get_namespace()
+        if ns not in by_ns:
+            raise ValueError(
+                f"bag {bag}: no recorded namespace '{ns}' (recorded: {', '.join(sorted(by_ns))}); "
+                "set 'source_namespace'"
+            )
+        return ns, sorted(by_ns[ns] + everywhere, key=lambda m: m[1])
+
+    def _steps_of(self, messages: list[tuple[str, int, bytes]]) -> dict[int, list[tuple[str, bytes]]]:
+        """--inputs-only: the first message of each topic and step, by step (``feed/info``, not
+        one a step, is published once now: transient local)."""
+        steps: dict[int, list[tuple[str, bytes]]] = {}
+        seen: set[tuple[str, int]] = set()
+        for name, _t, raw in messages:
+            if not self.contract.topic(name).is_array:
+                if (name, -1) not in seen:
+                    seen.add((name, -1))
+                    self._pubs[name].publish(raw)
+                continue
+            step = int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
+            if (name, step) not in seen:
+                seen.add((name, step))
+                steps.setdefault(step, []).append((name, raw))
+        return steps
 
     # ------------------------------------------------------------------ full replay
     def _tick(self) -> None:

@@ -1,0 +1,125 @@
+"""The real ROS 2 command-line tools for the conformance tests (not a test module).
+
+``ros2_command`` finds ``ros2`` with ``launch_ros``: a ROS 2 install on PATH, or else the
+wheels of the folder ``COMEMS4BUILD_ROS2_CLI`` (default: ``ros2-cli`` in the ``shared``
+folder beside the repository) installed into a temporary overlay of this environment
+(``pip install --target``, put first on ``PYTHONPATH``); it skips, saying why, where
+neither is there. The package is found through ``AMENT_PREFIX_PATH`` = this environment's
+prefix, as a ROS user sets it. ``conftest.py`` makes it the session fixture ``ros2``.
+"""
+
+from __future__ import annotations
+
+import os
+import shutil
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+#: Folder of the ROS 2 CLI wheels (README, install.sh, wheels/); overridable by this variable.
+ROS2_CLI_ENV = "COMEMS4BUILD_ROS2_CLI"
+#: Their own PyPI dependencies (install.sh) and those of these, where this environment lacks them.
+CLI_DEPENDENCIES = {"argcomplete": "argcomplete", "importlib_metadata": "importlib-metadata", "zipp": "zipp",
+                    "catkin_pkg": "catkin-pkg", "osrf_pycommon": "osrf-pycommon", "docutils": "docutils",
+                    "lark": "lark", "psutil": "psutil", "packaging": "packaging", "yaml": "pyyaml",
+                    "dateutil": "python-dateutil", "pyparsing": "pyparsing"}
+
+
+def cli_folder() -> Path:
+    """Where the ROS 2 CLI wheels are looked for."""
+    return Path(os.environ.get(ROS2_CLI_ENV) or REPO.parent / "shared" / "ros2-cli")
+
+
+def ros2_command(tmp_path_factory: pytest.TempPathFactory) -> dict[str, object]:
+    """``{"argv": [...ros2], "env": {...}}``: the ``ros2`` command and the environment it needs."""
+    env = dict(os.environ, AMENT_PREFIX_PATH=sys.prefix, PYTHONUNBUFFERED="1")
+    own = shutil.which("ros2")
+    if own and subprocess.run([own, "launch", "--help"], capture_output=True, env=env).returncode == 0:
+        return {"argv": [own], "env": env}  # a real ROS 2 install
+    folder = cli_folder()
+    wheels = sorted((folder / "wheels").glob("*.whl"))
+    if not wheels:
+        pytest.skip(f"no ROS 2 command-line tools: neither 'ros2' with launch on PATH nor the wheels in {folder} "
+                    f"(set {ROS2_CLI_ENV} to the folder holding wheels/)")
+    site = tmp_path_factory.mktemp("ros2_cli") / "site"
+    missing = []
+    for module, dist in CLI_DEPENDENCIES.items():
+        if subprocess.run([sys.executable, "-c", f"import {module}"], capture_output=True).returncode != 0:
+            missing.append(dist)
+    res = subprocess.run([sys.executable, "-m", "pip", "install", "-q", "--disable-pip-version-check", "--no-deps",
+                          "--target", str(site), *missing, *map(str, wheels)], capture_output=True, text=True)
+    if res.returncode != 0:
+        pytest.skip(f"could not install the ROS 2 command-line tools from {folder}: {res.stderr.strip()[-500:]}")
+    env["PYTHONPATH"] = os.pathsep.join([str(site), *filter(None, [env.get("PYTHONPATH")])])
+    return {"argv": [sys.executable, str(site / "bin" / "ros2")], "env": env}
+
+
+def ros2_env(ros2: dict, domain: int, tmp_path: Path, **extra: str) -> dict[str, str]:
+    """The environment of a ``ros2`` call of one test: its domain, logs in ``tmp_path``, this host only."""
+    return dict(ros2["env"], ROS_DOMAIN_ID=str(domain), ROS_LOG_DIR=str(tmp_path / "ros_log"),
+                ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **extra)
+
+
+def run_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, timeout: float = 300,
+             env: dict[str, str] | None = None, **kw: object) -> subprocess.CompletedProcess:
+    """``ros2 <args>`` to its end: exit code, stdout and stderr."""
+    return subprocess.run([*ros2["argv"], *args], env=env or ros2_env(ros2, domain, tmp_path), capture_output=True,
+                          text=True, timeout=timeout, cwd=tmp_path, **kw)
+
+
+def start_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, log: Path,
+               env: dict[str, str] | None = None) -> subprocess.Popen:
+    """``ros2 <args>`` in the background (its own session), stdout and stderr into ``log``."""
+    with open(log, "wb") as out:
+        return subprocess.Popen([*ros2["argv"], *args], env=env or ros2_env(ros2, domain, tmp_path), cwd=tmp_path,
+                                stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
+
+
+def stop(procs: list[subprocess.Popen], timeout: float = 30) -> list[int]:
+    """SIGINT to each still running process group (``ros2 run`` and its node), then their exit codes."""
+    for p in procs:
+        if p.poll() is None:
+            os.killpg(p.pid, signal.SIGINT)
+    codes = []
+    for p in procs:
+        try:
+            codes.append(p.wait(timeout=timeout))
+        except subprocess.TimeoutExpired:
+            os.killpg(p.pid, signal.SIGKILL)
+            codes.append(p.wait())
+    return codes
+
+
+def wait_for(check: Callable[[], bool], timeout: float, what: str, period: float = 0.5) -> None:
+    """Wait until ``check()`` holds (AssertionError naming ``what`` after ``timeout`` s)."""
+    end = time.monotonic() + timeout
+    while time.monotonic() < end:
+        if check():
+            return
+        time.sleep(period)
+    raise AssertionError(f"not within {timeout:g} s: {what}")
+
+
+def node_names(ros2: dict, domain: int, tmp_path: Path, env: dict[str, str] | None = None) -> set[str]:
+    """``ros2 node list --no-daemon`` (no daemon to stop afterwards)."""
+    res = run_ros2(ros2, ["node", "list", "--no-daemon", "--spin-time", "1"], domain, tmp_path, timeout=60, env=env)
+    return set(res.stdout.split())
+
+
+def run_until(ros2: dict, args: list[str], domain: int, tmp_path: Path,
+              ok: Callable[[subprocess.CompletedProcess], bool], tries: int = 6,
+              env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
+    """``ros2 <args>`` until ``ok(result)`` (at most ``tries`` times, 1 s apart): a query of a node
+    just discovered can miss it once on a loaded machine. Returns the last result."""
+    for _ in range(tries):
+        res = run_ros2(ros2, args, domain, tmp_path, timeout=90, env=env)
+        if ok(res):
+            return res
+        time.sleep(1.0)
+    return res
