@@ -32,6 +32,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "sweep": ("sweep", "sensitivity grid on local processes or a Dask cluster; one table and one plot per KPI "
                        "(PDF, SVG, PNG)"),
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
+    "validate": ("validate", "the three EMS on the calibration set and on cases the defaults were not chosen on "
+                             "(other winters, stations and households): the share of cases where each of the "
+                             "paper's findings holds, cost ratios, H2 left, weeks with discomfort"),
     "size": ("size", "sizing study over the year: a grid or sampled design of PV, battery, electrolyser, FC and "
                      "H2 store sizes per EMS; annual cost (energy, annuities, O&M, wear), self-sufficiency, whether "
                      "the seasonal cycle closes, the Pareto front; table, figure and report"),
