@@ -31,6 +31,20 @@ def test_angstrom_prescott_at_noon_on_the_equator_at_the_equinox():
     assert dhi[2] / ghi[2] == pytest.approx(0.9735, abs=0.002)
 
 
+def test_clear_sky_variant_scales_the_ineichen_ghi():
+    """model="ineichen": (a_s + b_s n/N) / (a_s + b_s) times pvlib's Ineichen clear-sky GHI, so a
+    cloudless hour is the clear sky itself and an overcast one a third of it."""
+    import pvlib
+
+    start = pd.DatetimeIndex(["2016-01-10 10:30"] * 2, tz="UTC")
+    ghi, _ = va.ghi_from_sunshine(start, np.array([1.0, 0.0]), 48.35, 11.81, 453.0, model="ineichen")
+    clear = pvlib.location.Location(48.35, 11.81, altitude=453.0).get_clearsky(
+        start + pd.Timedelta(minutes=30), model="ineichen")["ghi"].to_numpy()
+    assert ghi == pytest.approx([clear[0], clear[0] / 3])
+    with pytest.raises(ValueError, match="unknown sunshine model 'nope'"):
+        va.ghi_from_sunshine(start, np.array([1.0, 0.0]), 48.35, 11.81, 453.0, model="nope")
+
+
 def test_no_radiation_at_night_and_diffuse_never_above_global():
     start = pd.date_range("2016-01-10 00:00", periods=48, freq="h", tz="UTC")
     sf = np.tile(np.linspace(0, 1, 24), 2)

@@ -310,26 +310,38 @@ def _json_default(value: Any) -> Any:
 
 
 def radiation_check(plan: Plan) -> list[dict[str, Any]]:
-    """Daily GHI per month and the diffuse share of each station's winters beside the calibration's.
+    """Daily GHI per month, the diffuse share and the sunshine gaps of each group of cases.
 
-    The calibration cases' radiation is modelled with seeds (the default scenario); the
-    winter cases' from the sunshine duration (:func:`~comems4build_ros.core.scenario.validation.ghi_from_sunshine`).
-    One row per group: median over its cases (and its range).
+    The calibration and household cases' radiation is modelled with seeds (the default
+    scenario); the winter cases' from the sunshine duration
+    (:func:`~comems4build_ros.core.scenario.validation.ghi_from_sunshine`, FAO-56), each
+    station also by the variant on pvlib's Ineichen clear sky. One row per group: median over
+    its cases (and its range).
     """
     from comems4build_ros.core.scenario import resolve_scenario
-    from comems4build_ros.core.scenario.validation import radiation_statistics
+    from comems4build_ros.core.scenario.validation import case_of, radiation_statistics, winter_radiation
 
     groups: dict[str, list[dict[str, float]]] = {}
     for c in plan.cases:
         params = _params(c)
         sc = resolve_scenario(c.scenario, params, weeks=plan.weeks, seed=c.seed)
         frame = pd.DataFrame({"ghi_w_m2": sc.ghi_w_m2, "dhi_w_m2": sc.dhi_w_m2}, index=sc.time.tz_convert("UTC"))
-        label = {"calibration": "Karlsruhe, modelled (calibration seeds)",
-                 "household": "Karlsruhe, modelled (household seeds)"}.get(
-            c.kind, f"{c.id.split('-')[0].capitalize()}, from sunshine duration")
-        groups.setdefault(label, []).append(radiation_statistics(frame, params.site.timezone, sc.n_steps))
+        if c.kind == "winter":
+            station = c.id.split("-")[0].capitalize()
+            label = f"{station}, from sunshine duration (FAO-56)"
+            variant = winter_radiation(case_of(c.id), params, model="ineichen")
+            groups.setdefault(f"{station}, from sunshine duration (Ineichen clear-sky variant)", []).append(
+                radiation_statistics(variant, params.site.timezone, sc.n_steps))
+        else:
+            label = {"calibration": "Karlsruhe, modelled (calibration seeds)",
+                     "household": "Karlsruhe, modelled (household seeds)"}[c.kind]
+        stats = radiation_statistics(frame, params.site.timezone, sc.n_steps)
+        if "sunshine_gaps_h" in sc.meta:
+            stats["sunshine_gaps_h"] = float(sc.meta["sunshine_gaps_h"])
+        groups.setdefault(label, []).append(stats)
     rows = []
-    for label, stats in groups.items():
+    for label in sorted(groups, key=lambda g: (not g.startswith("Karlsruhe"), g)):
+        stats = groups[label]
         keys = sorted({k for s in stats for k in s})
         rows.append({"group": label, "cases": len(stats),
                      **{k: _dist([s[k] for s in stats if k in s]) for k in keys}})

@@ -175,14 +175,18 @@ def _radiation(doc: Document, report: Mapping[str, Any]) -> None:
     if not rows:
         return
     doc.h(2, "Radiation of the cases")
-    doc.p("Daily global horizontal irradiation per month (kWh/m2/d) and the diffuse share of the run's steps, median "
-          "over the group's cases [range]: the winter cases' from the sunshine duration (Angstrom-Prescott with "
-          "FAO-56's coefficients, Erbs), the paper's winter modelled with seeds as in the default scenario.")
-    months = sorted({k for r in rows for k in r if k.startswith("ghi_kwh_m2_day_m")})
+    doc.p("Daily global horizontal irradiation per month (kWh/m2/d), the diffuse share of the run's steps and the "
+          "daylight hours without a sunshine report (interpolated), median over the group's cases [range]: the "
+          "winter cases' radiation from the sunshine duration (Angstrom-Prescott with FAO-56's coefficients on the "
+          "extraterrestrial irradiance, Erbs; what the cases run on), beside the variant on pvlib's Ineichen clear "
+          "sky (not run) and the paper's winter modelled with seeds as in the default scenario.")
+    months = sorted({k for r in rows for k in r if k.startswith("ghi_kwh_m2_day_m")},
+                    key=lambda m: (int(m[-2:]) < 7, m))
     names = {"m12": "December", "m01": "January", "m02": "February"}
-    head = ["group", "cases", *(names.get(m[-3:], m[-3:]) for m in months), "diffuse share"]
+    head = ["group", "cases", *(names.get(m[-3:], m[-3:]) for m in months), "diffuse share",
+            "sunshine gaps [h]"]
     doc.table(head, [[r["group"], str(r["cases"]), *(_dist(r.get(m)) for m in months),
-                      _dist(r.get("diffuse_share"))] for r in rows])
+                      _dist(r.get("diffuse_share")), _dist(r.get("sunshine_gaps_h"), 0)] for r in rows])
 
 
 def _figures(doc: Document, report: Mapping[str, Any], out: Path, rel_dir: str | None = None) -> None:

@@ -223,7 +223,9 @@ def validation_cases(settings: ValidationSettings | None = None) -> list[Validat
         for y in s.winters:
             subset = DEVELOPMENT if y in s.development.winters else HELD_OUT
             cases.append(ValidationCase(winter_id(station, y), WEATHER, subset, y, station, s.load_seed))
-    paper_winter = 2022  # sec:parameters: twelve weeks from 2022-12-01
+    from comems4build_ros.core.scenario.settings import load_measured_settings
+
+    paper_winter = load_measured_settings().start.year  # sec:parameters: twelve weeks from 2022-12-01
     for seed, kwh in zip(s.households.seeds, s.households.annual_kwh):
         subset = DEVELOPMENT if seed in s.development.households else HELD_OUT
         cases.append(ValidationCase(f"household-{seed}", HOUSEHOLD, subset, paper_winter, "", seed, kwh))
@@ -382,9 +384,13 @@ def extraterrestrial_horizontal_w_m2(time_start: pd.DatetimeIndex, latitude_deg:
     return e0 * np.clip(np.cos(np.radians(zenith)), 0.0, None), zenith
 
 
+#: Variants of :func:`ghi_from_sunshine`: what the Angstrom-Prescott factor multiplies.
+SUNSHINE_MODELS = ("fao56", "ineichen")
+
+
 def ghi_from_sunshine(
     time_start: pd.DatetimeIndex, sunshine_fraction: np.ndarray, latitude_deg: float, longitude_deg: float,
-    altitude_m: float, a_s: float = 0.25, b_s: float = 0.50,
+    altitude_m: float, a_s: float = 0.25, b_s: float = 0.50, model: str = "fao56",
 ) -> tuple[np.ndarray, np.ndarray]:
     """Hourly mean global and diffuse horizontal irradiance [W/m2] from the hour's sunshine fraction.
 
@@ -397,6 +403,11 @@ def ghi_from_sunshine(
     ``R_a``, FAO-56's clear-sky ``R_so`` (eq. 37) near sea level. The diffuse part is the
     Erbs, Klein and Duffie (1982) decomposition (``pvlib.irradiance.erbs``), at most the global.
 
+    ``model="ineichen"`` is the variant on a clear-sky model instead: the factor normalised
+    to a cloudless hour, ``(a_s + b_s n/N) / (a_s + b_s)``, times pvlib's Ineichen clear-sky
+    GHI with its Linke turbidity climatology (Ineichen and Perez 2002), as the default
+    scenario's radiation is built; docs/validation.md compares the two.
+
     Parameters
     ----------
     time_start : UTC start of each hour
@@ -404,19 +415,34 @@ def ghi_from_sunshine(
     latitude_deg, longitude_deg : site [deg]
     altitude_m : site altitude [m]
     a_s, b_s : Angstrom-Prescott coefficients [-]
+    model : ``fao56`` (on R_a, the default) or ``ineichen`` (on the clear-sky GHI)
 
     Returns
     -------
     ghi, dhi : [W/m2], zero when the sun is below the horizon at the middle of the hour
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``model`` or a sunshine fraction outside [0, 1].
     """
     import pvlib
 
+    if model not in SUNSHINE_MODELS:
+        raise ValueError(f"unknown sunshine model '{model}' (known: {', '.join(SUNSHINE_MODELS)})")
     sf = np.asarray(sunshine_fraction, dtype=float)
     if np.any(~np.isfinite(sf)) or np.any((sf < 0) | (sf > 1)):
         raise ValueError("sunshine fraction must be finite and in [0, 1]")
     r_a, zenith = extraterrestrial_horizontal_w_m2(time_start, latitude_deg, longitude_deg, altitude_m)
-    ghi = (a_s + b_s * sf) * r_a
     mid = pd.DatetimeIndex(time_start) + pd.Timedelta(minutes=30)
+    if model == "fao56":
+        ghi = (a_s + b_s * sf) * r_a
+    else:
+        loc = pvlib.location.Location(latitude_deg, longitude_deg, altitude=altitude_m)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore", DeprecationWarning)
+            clear = np.asarray(loc.get_clearsky(mid, model="ineichen")["ghi"], dtype=float)
+        ghi = np.where(r_a > 0, (a_s + b_s * sf) / (a_s + b_s) * clear, 0.0)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", DeprecationWarning)
         dhi = np.asarray(pvlib.irradiance.erbs(ghi, zenith, mid)["dhi"], dtype=float)
@@ -470,6 +496,33 @@ def _data_path(name: str) -> Path:
     return data_dir() / name
 
 
+def _winter_radiation(st: StationSettings, s: ValidationSettings, index: pd.DatetimeIndex, sunshine_min: pd.Series,
+                      source: str, model: str = "fao56") -> tuple[np.ndarray, np.ndarray, int]:
+    """GHI and DHI [W/m2] of the hours ``index`` from the station's sunshine duration, and the daylight gaps [h]."""
+    r_a, _ = extraterrestrial_horizontal_w_m2(index, st.latitude_deg, st.longitude_deg, st.altitude_m)
+    sf = sunshine_fraction(sunshine_min, r_a, s.radiation.max_gap_h, source)
+    ghi, dhi = ghi_from_sunshine(index, sf, st.latitude_deg, st.longitude_deg, st.altitude_m,
+                                 s.radiation.a_s, s.radiation.b_s, model)
+    return ghi, dhi, int(((r_a > 0) & sunshine_min.isna().to_numpy()).sum())
+
+
+def winter_radiation(case: ValidationCase, params: PlantParams, settings: ValidationSettings | None = None,
+                     model: str = "fao56") -> pd.DataFrame:
+    """A winter case's radiation by ``model`` (:data:`SUNSHINE_MODELS`): ``ghi_w_m2``, ``dhi_w_m2`` [W/m2].
+
+    The case's hours (weeks and look-ahead, UTC index); ``fao56`` is what its scenario holds.
+    """
+    s = settings or load_validation_settings()
+    st = s.stations[case.station]
+    start = pd.Timestamp(year=case.winter, month=s.start_month, day=s.start_day).tz_localize(params.site.timezone)
+    index = pd.date_range(start.tz_convert("UTC"), periods=s.weeks * HOURS_PER_WEEK + s.lookahead_h, freq="h",
+                          name="time")
+    path = _data_path(st.file)
+    wx = read_station_hourly(path).reindex(index)
+    ghi, dhi, _ = _winter_radiation(st, s, index, wx["sunshine_min"], str(path), model)
+    return pd.DataFrame({"ghi_w_m2": ghi, "dhi_w_m2": dhi}, index=index)
+
+
 def _winter_frame(case: ValidationCase, params: PlantParams, s: ValidationSettings, generator: Any,
                   n_hours: int) -> tuple[pd.DataFrame, dict]:
     from comems4build_ros.core.scenario.comfort import is_off_day
@@ -496,10 +549,7 @@ def _winter_frame(case: ValidationCase, params: PlantParams, s: ValidationSettin
             raise ScenarioError(f"{station_path}: no air temperature for {run} hours from {first.isoformat()} "
                                 f"(case {case.id}; at most {s.radiation.max_gap_h} are interpolated)")
         wx["t_amb_c"] = wx["t_amb_c"].interpolate(limit_direction="both")
-    r_a, _ = extraterrestrial_horizontal_w_m2(index, st.latitude_deg, st.longitude_deg, st.altitude_m)
-    sf = sunshine_fraction(wx["sunshine_min"], r_a, s.radiation.max_gap_h, str(station_path))
-    ghi, dhi = ghi_from_sunshine(index, sf, st.latitude_deg, st.longitude_deg, st.altitude_m,
-                                 s.radiation.a_s, s.radiation.b_s)
+    ghi, dhi, day_gaps = _winter_radiation(st, s, index, wx["sunshine_min"], str(station_path))
     time = index.tz_convert(tz)
     local_dates = time.normalize().tz_localize(None)
     day = ((local_dates - local_dates[0]).days).to_numpy()
@@ -509,7 +559,6 @@ def _winter_frame(case: ValidationCase, params: PlantParams, s: ValidationSettin
     frame = pd.DataFrame({"t_amb_c": wx["t_amb_c"].to_numpy(), "ghi_w_m2": ghi, "dhi_w_m2": dhi,
                           "spot_eur_per_mwh": spot.to_numpy(), "p_load_w": load, "dhw_l_per_h": dhw},
                          index=index)[list(CSV_COLUMNS[1:])]
-    day_gaps = int(((r_a > 0) & wx["sunshine_min"].isna().to_numpy()).sum())
     meta = {
         "source": "validation",
         "case": case.id,
@@ -521,6 +570,7 @@ def _winter_frame(case: ValidationCase, params: PlantParams, s: ValidationSettin
                      f"by Erbs; {day_gaps} daylight hours without a report interpolated"),
         "p_load_w": f"modelled: household load model (seed {case.seed})",
         "dhw_l_per_h": f"DHWcalc via OpenDHW ({dhw_path.name})",
+        "sunshine_gaps_h": day_gaps,
         "station": {"dwd_id": st.dwd_id, "name": st.name, "latitude_deg": st.latitude_deg,
                     "longitude_deg": st.longitude_deg, "altitude_m": st.altitude_m},
         "seed": case.seed,
