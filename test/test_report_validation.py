@@ -91,8 +91,18 @@ def test_documents_and_figure_written(out):
                  "## Every reading: calibration and validation", "figures/validation_cases.png"):
         assert text in md
     assert (out / "validation.html").read_text(encoding="utf-8").count("<table") >= 5
-    for fmt in ("png", "pdf", "svg"):
-        assert (out / "figures" / f"validation_cases.{fmt}").is_file()
+    for name in ("validation_cases", "validation_prices"):
+        for fmt in ("png", "pdf", "svg"):
+            assert (out / "figures" / f"{name}.{fmt}").is_file()
+
+
+def test_mpc_break_even_by_hand():
+    """0.350 EUR/h (10908 EUR / 35000 h + 0.038 EUR/h, tab:degradation_HESS, per operating hour) at
+    zeta * P_FC,max = 0.8 * 2441.6 W = 1.953 kW: 0.179 EUR/kWh."""
+    from comems4build_ros.core.config import load_plant_params
+
+    assert rv.mpc_fc_break_even_eur_per_kwh(load_plant_params()) == pytest.approx(
+        (10908 / 35000 + 0.038) / (0.8 * 2.4416), rel=1e-9)
 
 
 def test_update_doc_between_the_markers(out, tmp_path):

@@ -286,6 +286,7 @@ def evaluate(plan: Plan, runs_dir: Path, out: Path, runs_made: int, wall_s: floa
         "study": study,
         "ambiguities": {a.key: a.title for a in plan.study.ambiguities},
         "radiation": radiation_check(plan),
+        "mpc_break_even_eur_per_kwh": mpc_fc_break_even_eur_per_kwh(load_plant_params()),
         "runs_made": runs_made,
         "wall_s": wall_s,
         "load_at_start": load_at_start,
@@ -381,51 +382,93 @@ def _legend_handles() -> tuple[list[Any], list[str]]:
     return handles, labels
 
 
+def mpc_fc_break_even_eur_per_kwh(params: PlantParams) -> float:
+    """Buy price below which the MPC's FC costs more per kWh than the grid [EUR/kWh].
+
+    The MPC charges the FC's lifecycle cost per operating hour (``eq:batt_andFC_operation_degradation``,
+    ``config/mpc.yaml`` ``fc_lifecycle_eta``); at its full permissible power ``zeta * P_FC,max``
+    an hour of FC output replaces that many kWh of purchase, so a cheaper grid makes the FC a loss
+    (starts and the H2 itself aside).
+    """
+    from comems4build_ros.core.ems.mpc.settings import MILPOptions, lifecycle_costs, load_options
+
+    lc = lifecycle_costs(params, load_options(MILPOptions, "mpc", None).fc_lifecycle_eta)
+    fc = params.fuel_cell
+    return lc.sigma_fc_eur_per_h / (fc.zeta * fc.p_max_w / 1000.0)
+
+
 def draw_figures(report: Mapping[str, Any], out: Path) -> dict[str, Path]:
-    """The validation figures (one point per case), written to ``out/figures``; name -> PNG path."""
+    """The validation figures (one point per case), written to ``out/figures``; name -> PNG path.
+
+    ``validation_cases``: the checks (cost ratios, H2 left and weeks with discomfort, the FC
+    against the MPC's); ``validation_prices``: the cost ratios and the MPC's H2 left against the
+    prices of each case.
+    """
     import matplotlib.pyplot as plt
 
     from comems4build_ros.report.style import figsize, paper_style, save_figure
 
     crit = report["criteria"]
     written = {}
+    handles, labels = _legend_handles()
+
+    def line(ax: Any, x: float | None = None, y: float | None = None) -> None:
+        if x is not None:
+            ax.axvline(x, color="#7A7A7A", linewidth=0.6, linestyle="--")
+        if y is not None:
+            ax.axhline(y, color="#7A7A7A", linewidth=0.6, linestyle="--")
+
     with paper_style():
-        fig, axes = plt.subplots(2, 2, figsize=figsize("double", 150))
-        ax = axes[0][0]
+        fig, axes = plt.subplots(1, 3, figsize=figsize("double", 75))
+        ax = axes[0]
         _scatter(ax, report, lambda m: m["ratios"].get("rbc/fuzzy"), lambda m: m["ratios"].get("mpc/fuzzy"))
-        ax.axvline(1.0, color="#7A7A7A", linewidth=0.6, linestyle="--")
-        ax.axhline(1.0, color="#7A7A7A", linewidth=0.6, linestyle="--")
+        line(ax, 1.0, 1.0)
         ax.plot(43.10 / 25.02, 12.96 / 25.02, marker="*", color="#D55E00", linestyle="none", markersize=7)
         ax.set_xlabel("cost ratio RBC / ComEMS4Build [–]")
         ax.set_ylabel("cost ratio MPC / ComEMS4Build [–]")
-        ax.set_title("(a) weekly cost medians; star: the paper", loc="left")
-        ax = axes[0][1]
+        ax.set_title("(a) weekly cost medians (star: paper)", loc="left")
+        ax = axes[1]
         _scatter(ax, report, lambda m: 100 * m["loh_end"].get("fuzzy", float("nan")),
                  lambda m: m["discomfort_weeks"].get("fuzzy"))
         lo, hi = crit["h2_left"]
         ax.axvspan(100 * lo, 100 * hi, color="#009E73", alpha=0.12, linewidth=0)
-        allowed = max((m["allowed_weeks"] for m in report["cases"]), default=0)
-        ax.axhline(allowed + 0.5, color="#7A7A7A", linewidth=0.6, linestyle="--")
-        ax.set_xlabel("ComEMS4Build: H$_2$ left at the end [%]")
+        line(ax, y=max((m["allowed_weeks"] for m in report["cases"]), default=0) + 0.5)
+        ax.set_xlabel("ComEMS4Build: H$_2$ left [%]")
         ax.set_ylabel("ComEMS4Build: weeks with discomfort [–]")
-        ax.set_title("(b) store left (band: 2..30 %); comfort held below the line", loc="left")
-        ax = axes[1][0]
+        ax.set_title("(b) H$_2$ left (band) and comfort", loc="left")
+        ax = axes[2]
         _scatter(ax, report, lambda m: _rel(m["fc_hours"]["fuzzy"], m["fc_hours"]["mpc"])
                  if "mpc" in m["fc_hours"] else None,
                  lambda m: _rel(m["fc_load_w"]["fuzzy"], m["fc_load_w"]["mpc"])
                  if "mpc" in m["fc_load_w"] and m["fc_load_w"]["mpc"] > 0 else None)
-        ax.axvline(0.0, color="#7A7A7A", linewidth=0.6, linestyle="--")
-        ax.axhline(0.0, color="#7A7A7A", linewidth=0.6, linestyle="--")
-        ax.set_xlabel("ComEMS4Build's FC hours vs the MPC's [%]")
-        ax.set_ylabel("its mean FC load vs the MPC's [%]")
-        ax.set_title("(c) fuel cell: more hours at lower load (lower right)", loc="left")
-        ax = axes[1][1]
-        _scatter(ax, report, lambda m: m["spread"], lambda m: m["ratios"].get("rbc/fuzzy"))
-        ax.axhline(1.0, color="#7A7A7A", linewidth=0.6, linestyle="--")
-        ax.set_xlabel("median daily spread of the buy price [EUR/kWh]")
-        ax.set_ylabel("cost ratio RBC / ComEMS4Build [–]")
-        ax.set_title("(d) cost advantage over the RBC vs the price spread", loc="left")
-        handles, labels = _legend_handles()
+        line(ax, 0.0, 0.0)
+        ax.set_xlabel("FC hours vs the MPC's [%]")
+        ax.set_ylabel("mean FC load vs the MPC's [%]")
+        ax.set_title("(c) ComEMS4Build's fuel cell", loc="left")
         fig.legend(handles, labels, loc="outside lower center", ncol=len(handles))
         written["validation_cases"] = save_figure(fig, out / "figures" / "validation_cases")
+
+        fig, axes = plt.subplots(1, 3, figsize=figsize("double", 75))
+        ax = axes[0]
+        _scatter(ax, report, lambda m: m["spread"], lambda m: m["ratios"].get("rbc/fuzzy"))
+        line(ax, y=1.0)
+        ax.set_xlabel("daily spread of the buy price [EUR/kWh]")
+        ax.set_ylabel("cost ratio RBC / ComEMS4Build [–]")
+        ax.set_title("(a) advantage over the RBC", loc="left")
+        ax = axes[1]
+        _scatter(ax, report, lambda m: m["price_mean"], lambda m: m["ratios"].get("mpc/fuzzy"))
+        line(ax, y=1.0)
+        ax.set_xlabel("mean buy price [EUR/kWh]")
+        ax.set_ylabel("cost ratio MPC / ComEMS4Build [–]")
+        ax.set_title("(b) the MPC's advantage", loc="left")
+        ax = axes[2]
+        _scatter(ax, report, lambda m: m["price_mean"], lambda m: 100 * m["loh_end"]["mpc"]
+                 if "mpc" in m["loh_end"] else None)
+        if report.get("mpc_break_even_eur_per_kwh") is not None:
+            line(ax, x=report["mpc_break_even_eur_per_kwh"])
+        ax.set_xlabel("mean buy price [EUR/kWh]")
+        ax.set_ylabel("MPC: H$_2$ left [%]")
+        ax.set_title("(c) the MPC's H$_2$ (line: FC wear per kWh)", loc="left")
+        fig.legend(handles, labels, loc="outside lower center", ncol=len(handles))
+        written["validation_prices"] = save_figure(fig, out / "figures" / "validation_prices")
     return written

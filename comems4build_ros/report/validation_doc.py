@@ -105,19 +105,21 @@ def _distributions(doc: Document, report: Mapping[str, Any]) -> None:
 def _cases(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "Every case")
     doc.p("Mean buy price and median daily spread of the buy price (EUR/kWh); weekly cost medians (EUR/week); "
-          "ComEMS4Build's H2 left; weeks with discomfort of ComEMS4Build (RBC, MPC); the checks in the order of the "
-          "first table (comfort, cost order, H2 left, FC longer at lower load, RBC sells most).")
+          "H2 left at the end of ComEMS4Build (MPC, RBC); weeks with discomfort of ComEMS4Build (RBC, MPC); the "
+          "checks in the order of the first table (comfort, cost order, H2 left, FC longer at lower load, RBC sells "
+          "most).")
     rows = []
     for m in report["cases"]:
         c = m["cost"]
         w = m["discomfort_weeks"]
         rows.append([m["id"], m["subset"], f"{m['price_mean']:.3f}", f"{m['spread']:.3f}",
                      *(f"{c[e]:.2f}" if e in c else "-" for e in ("mpc", "fuzzy", "rbc")),
-                     _pct(m["loh_end"].get("fuzzy"), 1),
+                     f"{_pct(m['loh_end'].get('fuzzy'), 1)} ({_pct(m['loh_end'].get('mpc'), 1)}, "
+                     f"{_pct(m['loh_end'].get('rbc'), 1)})",
                      f"{w.get('fuzzy', '-')} ({w.get('rbc', '-')}, {w.get('mpc', '-')})",
                      " ".join(MARK[m["criteria"][k]] for k in report["criteria_text"])])
     doc.table(["case", "subset", "buy price", "spread", "MPC cost", "ComEMS4Build cost", "RBC cost",
-               "ComEMS4Build H2 left", "weeks with discomfort", "checks"], rows)
+               "H2 left", "weeks with discomfort", "checks"], rows)
 
 
 def _findings(doc: Document, report: Mapping[str, Any]) -> None:
@@ -189,18 +191,31 @@ def _radiation(doc: Document, report: Mapping[str, Any]) -> None:
                       _dist(r.get("diffuse_share")), _dist(r.get("sunshine_gaps_h"), 0)] for r in rows])
 
 
+#: Captions of the figures.
+CAPTIONS = {
+    "validation_cases": (
+        "One point per case: filled black the calibration cases, filled blue the development cases, open orange "
+        "the held-out cases; triangles winter cases, squares household cases. (a) Cost ratios (weekly medians) with "
+        "the paper's (star); (b) ComEMS4Build's H2 left at the end and its weeks with discomfort against the "
+        "checks' band and limit; (c) its FC working hours and mean FC load against the MPC's (the check: lower "
+        "right)."),
+    "validation_prices": (
+        "The same cases against their prices: (a) ComEMS4Build's advantage over the RBC against the median daily "
+        "spread of the buy price; (b) the MPC's cost against ComEMS4Build's and (c) the MPC's H2 left at the end "
+        "against the mean buy price; the line in (c) is the price below which an hour of the MPC's FC at full "
+        "permissible power costs more in lifecycle cost than the electricity it replaces."),
+}
+
+
 def _figures(doc: Document, report: Mapping[str, Any], out: Path, rel_dir: str | None = None) -> None:
-    if "validation_cases" not in report.get("figures", {}):
+    names = [k for k in CAPTIONS if k in report.get("figures", {})]
+    if not names:
         return
     doc.h(2, "Figures")
-    rel = report["figures"]["validation_cases"]
-    png = out / rel if rel_dir is None else out / Path(rel).name
-    doc.figure(png, rel_dir if rel_dir is not None else str(Path(rel).parent),
-               "One point per case: filled black the calibration cases, filled blue the development cases, open "
-               "orange the held-out cases; triangles winter cases, squares household cases. (a) cost ratios with "
-               "the paper's (star); (b) ComEMS4Build's H2 left and weeks with discomfort against the bands of the "
-               "checks; (c) its FC hours and mean FC load against the MPC's; (d) its cost advantage over the RBC "
-               "against the daily spread of the buy price.")
+    for name in names:
+        rel = report["figures"][name]
+        png = out / rel if rel_dir is None else out / Path(rel).name
+        doc.figure(png, rel_dir if rel_dir is not None else str(Path(rel).parent), CAPTIONS[name])
 
 
 def build_document(report: Mapping[str, Any], out: Path) -> Document:
