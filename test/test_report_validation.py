@@ -47,7 +47,7 @@ def test_daily_spread_is_the_median_of_each_local_days_max_minus_min():
 def test_subset_shares_from_hand_made_cases():
     def case(comfort, order, loh):
         return {"criteria": {"comfort": comfort, "cost_order": order, "h2_left": True, "fc_longer_lower": None,
-                             "rbc_sells_most": False},
+                             "rbc_sells_most": False, "net_cost_order": True},
                 "findings": {"a": "held", "b": "n/a"}, "ratios": {"rbc/fuzzy": 1.5, "mpc/fuzzy": 0.5},
                 "loh_end": {"fuzzy": loh}, "discomfort_weeks": {"fuzzy": 1}, "fc_hours": {"fuzzy": 10.0},
                 "fc_load_w": {"fuzzy": 900.0}, "cost": {"fuzzy": 20.0}}
@@ -56,6 +56,7 @@ def test_subset_shares_from_hand_made_cases():
     assert s["criteria"]["comfort"] == {"held": 2, "cases": 3, "share": pytest.approx(2 / 3), "met": False}
     assert s["criteria"]["h2_left"]["met"] is True
     assert s["criteria"]["fc_longer_lower"] == {"held": 0, "cases": 0, "share": None, "met": None}
+    assert s["criteria"]["net_cost_order"]["held"] == 3
     assert s["findings"] == {"a": {"held": 3, "cases": 3}, "b": {"held": 0, "cases": 0}}
     assert s["loh_end"]["fuzzy"] == {"median": 0.2, "low": 0.1, "high": 0.3, "n": 3}
 
@@ -66,6 +67,7 @@ def test_every_case_checked_and_the_missing_ems_reported_as_not_run(out):
     assert list(rep["subsets"]) == ["calibration", "development", "held-out"]
     for c in rep["cases"]:
         assert c["criteria"]["cost_order"] is None and c["criteria"]["fc_longer_lower"] is None
+        assert c["criteria"]["net_cost_order"] is None
         assert c["criteria"]["comfort"] == (c["discomfort_weeks"]["fuzzy"] <= c["allowed_weeks"])
         lo, hi = rep["criteria"]["h2_left"]
         assert c["criteria"]["h2_left"] == (lo <= c["loh_end"]["fuzzy"] <= hi)

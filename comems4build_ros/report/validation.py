@@ -42,6 +42,14 @@ CRITERIA: dict[str, tuple[str, str]] = {
     "rbc_sells_most": ("RBC sells most", "the RBC sells the most energy (sec:discussion; weekly median, ties by "
                        "total)"),
 }
+#: Shown beside the checks, not one of them: the cost order with the H2 left valued as the paper
+#: values it (sec:results: "Potential savings from the rest of the H2 ... multiplying the rest of
+#: the H2 by average electricity price"), ``cost_net_eur_total`` of the run summaries.
+SUPPLEMENTARY: dict[str, tuple[str, str]] = {
+    "net_cost_order": ("net cost order", "net cost (bought - sold - the H2 left valued at the mean buy price, as "
+                       "sec:results values it) ordered MPC < ComEMS4Build < RBC (not a check: the paper's table "
+                       "compares the electricity cost)"),
+}
 #: Display names.
 EMS_LABEL = {"mpc": "MPC", "fuzzy": "ComEMS4Build", "rbc": "RBC"}
 #: Hours per day and per week.
@@ -107,6 +115,7 @@ def case_metrics(runs: Mapping[str, RunData], params: PlantParams, criteria: Any
         "fc_toggles": {e: float(v["fc_toggles"]) for e, v in s.items()},
         "fc_load_w": {e: float(v["fc_mean_load_w"]) for e, v in s.items()},
         "sell": {e: _sells(r) for e, r in runs.items()},
+        "net_cost": {e: float(v["cost_net_eur_total"]) / n_weeks for e, v in s.items()},
         "price_mean": float(any_run.timeseries["price_buy_eur_per_kwh"].mean()),
         "spread": daily_spread_eur_per_kwh(any_run.timeseries, tz),
         "weeks": n_weeks,
@@ -124,6 +133,8 @@ def case_metrics(runs: Mapping[str, RunData], params: PlantParams, criteria: Any
         "rbc_sells_most": all(out["sell"]["rbc"] > v for e, v in out["sell"].items() if e != "rbc")
         if "rbc" in have and len(have) == 3 else None,
     }
+    net = out["net_cost"]
+    checks["net_cost_order"] = (net["mpc"] < net["fuzzy"] < net["rbc"]) if have >= {"mpc", "fuzzy", "rbc"} else None
     out["criteria"] = checks
     variants = {**{(e, base_eta): r for e, r in runs.items()},
                 **{(e, heat_eta): at_efficiency(r, heat_eta) for e, r in runs.items()}}
@@ -148,7 +159,7 @@ def subset_summary(metrics: Sequence[Mapping[str, Any]], share: float) -> dict[s
     """Shares of the cases holding each check and finding, and the distributions, over ``metrics``."""
     n = len(metrics)
     crit = {}
-    for key in CRITERIA:
+    for key in (*CRITERIA, *SUPPLEMENTARY):
         vals = [m["criteria"][key] for m in metrics if m["criteria"][key] is not None]
         held = sum(bool(v) for v in vals)
         crit[key] = {"held": held, "cases": len(vals), "share": held / len(vals) if vals else None,
@@ -279,6 +290,7 @@ def evaluate(plan: Plan, runs_dir: Path, out: Path, runs_made: int, wall_s: floa
         "criteria": {"share": vs.criteria.share, "discomfort_weeks_per_12": vs.criteria.discomfort_weeks_per_12,
                      "h2_left": list(vs.criteria.h2_left)},
         "criteria_text": {k: list(v) for k, v in CRITERIA.items()},
+        "supplementary_text": {k: list(v) for k, v in SUPPLEMENTARY.items()},
         "findings_text": {f.key: f.claim for f in FINDINGS},
         "cases": base,
         "subsets": subsets,

@@ -82,6 +82,8 @@ def _checks(doc: Document, report: Mapping[str, Any]) -> None:
             c = report["subsets"][s]["criteria"][key]
             row.append(_share(c) + ("" if c["met"] is None else (" met" if c["met"] else " NOT MET")))
         rows.append(row)
+    for key, (_label, claim) in report.get("supplementary_text", {}).items():
+        rows.append([claim, *(_share(report["subsets"][s]["criteria"].get(key)) for s in _subsets(report))])
     doc.table(["check", *_subsets(report)], rows)
 
 
@@ -107,7 +109,7 @@ def _cases(doc: Document, report: Mapping[str, Any]) -> None:
     doc.p("Mean buy price and median daily spread of the buy price (EUR/kWh); weekly cost medians (EUR/week); "
           "H2 left at the end of ComEMS4Build (MPC, RBC); weeks with discomfort of ComEMS4Build (RBC, MPC); the "
           "checks in the order of the first table (comfort, cost order, H2 left, FC longer at lower load, RBC sells "
-          "most).")
+          "most; in brackets the net cost order).")
     rows = []
     for m in report["cases"]:
         c = m["cost"]
@@ -117,7 +119,8 @@ def _cases(doc: Document, report: Mapping[str, Any]) -> None:
                      f"{_pct(m['loh_end'].get('fuzzy'), 1)} ({_pct(m['loh_end'].get('mpc'), 1)}, "
                      f"{_pct(m['loh_end'].get('rbc'), 1)})",
                      f"{w.get('fuzzy', '-')} ({w.get('rbc', '-')}, {w.get('mpc', '-')})",
-                     " ".join(MARK[m["criteria"][k]] for k in report["criteria_text"])])
+                     " ".join(MARK[m["criteria"][k]] for k in report["criteria_text"])
+                     + f" (net: {MARK[m['criteria'].get('net_cost_order')]})"])
     doc.table(["case", "subset", "buy price", "spread", "MPC cost", "ComEMS4Build cost", "RBC cost",
                "H2 left", "weeks with discomfort", "checks"], rows)
 
