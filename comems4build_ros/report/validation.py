@@ -252,7 +252,8 @@ def _case_metrics(plan: Plan, data: Mapping[str, RunData], case: StudyCase, key:
 
 
 def evaluate(plan: Plan, runs_dir: Path, out: Path, runs_made: int, wall_s: float, figures: bool = True,
-             runs_from: str | None = None, load_at_start: float | None = None) -> ValidationResult:
+             runs_from: str | None = None, load_at_start: float | None = None,
+             runs_resumed: int = 0) -> ValidationResult:
     """Evaluate the runs of ``plan`` in ``runs_dir``; write ``validation.md|.html|.json`` and ``figures/``.
 
     Parameters
@@ -261,6 +262,7 @@ def evaluate(plan: Plan, runs_dir: Path, out: Path, runs_made: int, wall_s: floa
     runs_dir : folder holding one run directory per planned run
     out : output directory of the documents
     runs_made, wall_s : runs the command made and its wall time [s] (stated in the documents)
+    runs_resumed : finished runs of an interrupted command taken from the run store (``--resume``)
     figures : draw the figures (one point per case)
     runs_from : the earlier ``validate --out`` whose runs are evaluated again (None: this command's)
     load_at_start : the 1-minute load average when the command started (stated with the wall time)
@@ -300,6 +302,7 @@ def evaluate(plan: Plan, runs_dir: Path, out: Path, runs_made: int, wall_s: floa
         "radiation": radiation_check(plan),
         "mpc_break_even_eur_per_kwh": mpc_fc_break_even_eur_per_kwh(load_plant_params()),
         "runs_made": runs_made,
+        "runs_resumed": runs_resumed,
         "wall_s": wall_s,
         "load_at_start": load_at_start,
         "runs_from": runs_from,

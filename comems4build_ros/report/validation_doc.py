@@ -57,10 +57,13 @@ def _subsets(report: Mapping[str, Any]) -> list[str]:
 def _intro(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "Summary")
     counts = {s: report["subsets"][s]["cases"] for s in _subsets(report)}
-    made = (f"the runs of {report['runs_from']} evaluated again" if report.get("runs_from") else
-            f"{report['runs_made']} runs made in {report['wall_s']:.0f} s"
-            + (f" (load average {report['load_at_start']:.2f} at the start)"
-               if report.get("load_at_start") is not None else ""))
+    resumed = (f", {report['runs_resumed']} more taken from an interrupted command's run store"
+               if report.get("runs_resumed") else "")
+    timing = (f"{report['runs_made']} runs made{resumed} in {report['wall_s']:.0f} s"
+              + (f" with the load average {report['load_at_start']:.2f} at the start"
+                 if report.get("load_at_start") is not None else ""))
+    made = (f"the runs of {report['runs_from']} evaluated again ({timing} there)" if report.get("runs_from")
+            else timing)
     doc.p(f"The three EMS ({', '.join(report['ems'])}) over {report['weeks']:g} weeks on "
           + ", ".join(f"{n} {s} case{'s' if n != 1 else ''}" for s, n in counts.items())
           + f" ({report['tasks']} runs; {made}). Calibration: the paper's winter on the reproduction's seeds "

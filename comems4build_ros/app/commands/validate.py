@@ -82,13 +82,13 @@ def run(args: argparse.Namespace) -> int:
             earlier = json.loads((Path(args.from_runs) / "validation.json").read_text(encoding="utf-8"))
         res = evaluate(p, runs_dir, out, int(earlier.get("runs_made", 0)), float(earlier.get("wall_s", 0.0)),
                        figures=not args.no_figures, runs_from=str(args.from_runs),
-                       load_at_start=earlier.get("load_at_start"))
+                       load_at_start=earlier.get("load_at_start"), runs_resumed=int(earlier.get("runs_resumed", 0)))
     else:
         with study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore
-            made = make_runs(p, out / "runs", jobs=args.jobs, show_progress=False if args.no_progress else None)
+            planned = make_runs(p, out / "runs", jobs=args.jobs, show_progress=False if args.no_progress else None)
             executor.complete()
-        res = evaluate(p, out / "runs", out, made, time.perf_counter() - t0, figures=not args.no_figures,
-                       load_at_start=load)
+        res = evaluate(p, out / "runs", out, planned - executor.resumed, time.perf_counter() - t0,
+                       figures=not args.no_figures, load_at_start=load, runs_resumed=executor.resumed)
     rep = res.report
     for key, (label, _) in CRITERIA.items():
         parts = []
@@ -96,8 +96,10 @@ def run(args: argparse.Namespace) -> int:
             c = d["criteria"][key]
             parts.append(f"{s} {c['held']}/{c['cases']}" if c["cases"] else f"{s} -")
         print(f"{label}: " + ", ".join(parts))
+    resumed = f", {rep['runs_resumed']} more taken from {out / '.runstore'}" if rep.get("runs_resumed") else ""
     done = (f"runs of {args.from_runs} evaluated again" if args.from_runs else
-            f"{rep['runs_made']} runs in {rep['wall_s']:.0f} s (load average {rep['load_at_start']:.2f} at the start)")
+            f"{rep['runs_made']} runs made{resumed} in {rep['wall_s']:.0f} s (load average "
+            f"{rep['load_at_start']:.2f} at the start)")
     print(f"{len(rep['cases'])} cases; {done}; wrote {res.markdown}, {res.html}, {res.json}")
     if args.update_doc:
         from comems4build_ros.report.validation_doc import update_doc
