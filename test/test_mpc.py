@@ -142,6 +142,21 @@ def test_full_tank_and_fc_heat(params3, dump):
         assert np.all(np.round(plan["s_fc"]) == 0)
 
 
+def test_buy_price_below_the_sell_price_is_bounded(params3):
+    """Spot below (p_sell - a) / b (-16 EUR/MWh with the default tariff): buying to sell would be
+    unbounded without the physical bound P_sell <= P_PV + P_FC,max + P_d,max in those steps (winters
+    before 2022 have such hours). Hand value: no PV, battery without power, so at most P_FC,max is
+    sold, and the step with the dearer buy price is not bounded."""
+    ctrl = MPCController(params3, {"mip_rel_gap": 0.0, "warm_start": False})
+    ctrl.act(mpc_obs(3, prices=(0.05, 0.05, 0.3), load_w=500.0))
+    res = ctrl.last_result
+    assert res.optimal and ctrl.n_fallback == 0
+    fc_max = ctrl.const.p_fc_max_w
+    assert np.all(res.plan["p_sell"][:2] <= fc_max + 1e-6)
+    sell = ctrl.model.v["p_sell"]
+    assert sell[0].upBound == pytest.approx(fc_max) and sell[2].upBound is None
+
+
 def test_names_are_time_indexed(params):
     ctrl = MPCController(params, {})
     names = set(ctrl.model.prob.constraints)

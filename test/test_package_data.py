@@ -3,6 +3,7 @@
 import hashlib
 
 import numpy as np
+import pandas as pd
 import pytest
 
 from comems4build_ros.core.scenario.measured import data_dir
@@ -21,7 +22,15 @@ CHECKSUMS = {
         "52192ec1aedda0324945f65d98cfcfef8f3cb72032428e5730427f8e1fb1fa34",
     "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200_log.txt":
         "d8eb7072a66e8e5479bb5ec4114312531a4e0c249e77cdf06d84d5bc1dffcaa5",
+    "DE_day_ahead_EURperMWh_winters_2015-2024_validation.csv":
+        "17ff15b1a3e14e5b6511a2a42b772b4d9537776c3c93c4ff856876c92d817fed",
+    "DWD_01262_Muenchen-Flughafen_tu_sd_stunde_winters_2015-2024.csv":
+        "b3142287d7ec59c76ca94239f975433950689555f1aa703b83eab0cee582e838",
+    "DWD_01975_Hamburg-Fuhlsbuettel_tu_sd_stunde_winters_2015-2024.csv":
+        "94467d29005fdf45f054bf221cf8610fd73d7d10b754e831bc496b17eb75c708",
 }
+#: Largest tracked file [bytes].
+MAX_BYTES = 5 * 1024 * 1024
 
 
 @pytest.mark.parametrize("name", sorted(CHECKSUMS))
@@ -40,6 +49,27 @@ def test_shapes():
     assert dwd_year[0] == dwd[0] and len(dwd_year) == 1 + 8425
     dhw = np.loadtxt(data_dir() / "OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200.txt")
     assert dhw.shape == (8760,) and dhw.mean() * 24 == pytest.approx(200.0, abs=0.5)
+
+
+def test_validation_files_hold_the_winters():
+    """Prices of 8 winters (1 Dec to 1 Mar local; 2021/22 held back at the source), station hours of 9."""
+    prices = pd.read_csv(data_dir() / "DE_day_ahead_EURperMWh_winters_2015-2024_validation.csv")
+    assert list(prices.columns) == ["utc_start", "local_start_Europe_Berlin", "price_EUR_per_MWh"]
+    local = pd.to_datetime(prices["utc_start"], utc=True).dt.tz_convert("Europe/Berlin")
+    winters = (local.dt.year - (local.dt.month < 6)).value_counts().sort_index()
+    assert winters.index.tolist() == [2015, 2016, 2017, 2018, 2019, 2020, 2022, 2023]
+    leap = {2015: 24, 2019: 24, 2023: 24}  # February 2016, 2020 and 2024 have 29 days
+    assert all(n == 90 * 24 + leap.get(y, 0) for y, n in winters.items())
+    assert local.iloc[0].isoformat() == "2015-12-01T00:00:00+01:00"
+    for name in ("DWD_01262_Muenchen-Flughafen_tu_sd_stunde_winters_2015-2024.csv",
+                 "DWD_01975_Hamburg-Fuhlsbuettel_tu_sd_stunde_winters_2015-2024.csv"):
+        st = pd.read_csv(data_dir() / name, sep=";", dtype={"MESS_DATUM": str})
+        assert list(st.columns) == ["MESS_DATUM", "TT_TU", "RF_TU", "SD_SO"] and len(st) == 19944
+        assert (st["TT_TU"] != -999).all() and st["SD_SO"].dropna().between(0, 60).all()
+
+
+def test_every_data_file_under_5_mb():
+    assert all((p.stat().st_size < MAX_BYTES) for p in data_dir().iterdir())
 
 
 def test_provenance_and_licences_beside_the_data():

@@ -42,6 +42,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "cosim-study": ("cosim_study", "RBC, ComEMS4Build, MPC and the thermostat on the 4R3C and on the EnergyPlus "
                                    "house (MPC on an identified model): the paper's table and findings on both, "
                                    "reports and figures as compare, and docs/cosimulation.md"),
+    "validate": ("validate", "the three EMS on the calibration set and on cases the defaults were not chosen on "
+                             "(other winters, stations and households): the share of cases where each of the "
+                             "paper's findings holds, cost ratios, H2 left, weeks with discomfort"),
     "size": ("size", "sizing study over the year: a grid or sampled design of PV, battery, electrolyser, FC and "
                      "H2 store sizes per EMS; annual cost (energy, annuities, O&M, wear), self-sufficiency, whether "
                      "the seasonal cycle closes, the Pareto front; table, figure and report"),

@@ -332,14 +332,14 @@ def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path |
         target = path.parent / DOC_FIGURES
         target.mkdir(parents=True, exist_ok=True)
         for rel in report["figures"].values():
-            _downscaled(Path(figures_from) / rel, target / Path(rel).name)
+            downscale_png(Path(figures_from) / rel, target / Path(rel).name)
         figures = (target, DOC_FIGURES)
     from comems4build_ros.files.outputs import write_text_atomic
 
     return write_text_atomic(path, f"{head}{DOC_BEGIN}\n{doc_section(report, figures)}\n{DOC_END}{tail}")
 
 
-def _downscaled(src: Path, dst: Path) -> None:
+def downscale_png(src: Path, dst: Path) -> None:
     """Copy the PNG ``src`` to ``dst`` at :data:`DOC_FIGURE_WIDTH_PX` wide (never wider than it is)."""
     from PIL import Image
 

@@ -39,7 +39,7 @@ class RunTask:
     ----------
     ems : EMS name
     out_dir : run directory to write (timeseries.csv, weekly.csv, summary.json, bag/)
-    scenario : ``default`` or a scenario CSV
+    scenario : an embedded scenario (``default``, ``validation/<id>``, ...) or a scenario CSV
     start, weeks : window of the scenario (None = its default)
     seed : seed of generated scenario data (None = config/scenario.yaml)
     extend : ``"synthetic"`` allows a run longer than the scenario's data (in-process only)
@@ -84,9 +84,9 @@ class RunTask:
         return (entry.weight if entry else 1.0) * float(self.weeks or default_weeks)
 
     def _input_files(self) -> list[str]:
-        from comems4build_ros.core.scenario import EMBEDDED
+        from comems4build_ros.core.scenario import is_embedded
 
-        return [*self.config, *([] if str(self.scenario) in EMBEDDED else [str(self.scenario)])]
+        return [*self.config, *([] if is_embedded(self.scenario) else [str(self.scenario)])]
 
     def _read(self, path: str) -> bytes:
         return self.inputs[path] if path in self.inputs else Path(path).read_bytes()
@@ -97,7 +97,7 @@ class RunTask:
         The run's settings, the name and SHA-256 of every file it reads from outside the
         package, and the environment record (:func:`comems4build_ros.study.spec.environment`).
         """
-        from comems4build_ros.core.scenario import EMBEDDED
+        from comems4build_ros.core.scenario import is_embedded
         from comems4build_ros.study.spec import environment, file_digest
 
         def file(path: str) -> dict[str, str]:
@@ -110,7 +110,7 @@ class RunTask:
         if self.forecast is not None:
             spec["forecast"] = self.forecast
         spec["config"] = [file(p) for p in self.config]
-        spec["scenario"] = str(self.scenario) if str(self.scenario) in EMBEDDED else file(str(self.scenario))
+        spec["scenario"] = str(self.scenario) if is_embedded(self.scenario) else file(str(self.scenario))
         spec["environment"] = environment()
         return json.loads(json.dumps(spec, default=str))
 

@@ -314,7 +314,7 @@ def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
     embedded scenario (``default``, ``year``, ``synthetic``) is no path. ``evaluate``'s
     positional bag is ``BAG``; ``launch``'s ``--bag`` is an output, not an input.
     ``--from-runs DIR`` reads ``DIR/runs/`` and the study's record in ``DIR``
-    (``compare.json``, ``reproduce.json``), so that a report can be rebuilt beside its runs.
+    (``compare.json``, ``reproduce.json``, ``validation.json``), so that a report can be rebuilt beside its runs.
     """
     from pathlib import Path
 
@@ -329,7 +329,8 @@ def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
         if name == "building":  # energyplus:FILE.idf, fmu:FILE.fmu name a file; rc and energyplus none
             values = [v.partition(":")[2] for v in values if v.partition(":")[2]]
         if name == "from_runs":
-            values = [str(Path(v) / sub) for v in values for sub in ("runs", "compare.json", "reproduce.json")]
+            values = [str(Path(v) / sub) for v in values for sub in ("runs", "compare.json", "reproduce.json",
+                                                                        "validation.json")]
         if values:
             out["BAG" if name == "bag" else f"--{name.replace('_', '-')}"] = values
     return out

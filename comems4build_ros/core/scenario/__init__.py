@@ -6,7 +6,8 @@ Public API
   (``config/scenario.yaml`` section ``measured``, :mod:`.measured`)
 - :func:`synthetic_scenario` : the seeded synthetic generator (section ``scenario``)
 - :func:`load_scenario_csv` / :func:`write_scenario_csv` : the scenario CSV format
-- :func:`resolve_scenario` : ``"default"`` or a CSV path, with ``start`` / ``weeks`` cuts
+- :func:`resolve_scenario` : ``"default"``, a validation case (``validation/<id>``,
+  :mod:`.validation`) or a CSV path, with ``start`` / ``weeks`` cuts
 - :func:`comfort_bounds` : ``eq:T_min`` with public holidays counted as weekend days
 """
 
@@ -52,6 +53,7 @@ __all__ = [
     "comfort_bounds",
     "default_scenario",
     "run_steps",
+    "is_embedded",
     "is_off_day",
     "load_measured_settings",
     "load_scenario_csv",
@@ -72,6 +74,16 @@ _CACHE: dict[tuple, object] = {}
 EMBEDDED = ("default", "synthetic", "year")
 #: Embedded scenarios from measured data -> their section of ``config/scenario.yaml``.
 MEASURED_SECTIONS = {"default": "measured", "year": "measured_year"}
+
+
+def is_embedded(spec: str | Path) -> bool:
+    """True for a scenario built from package data by its name alone (no file of the caller's disk).
+
+    The embedded scenarios (:data:`EMBEDDED`) and the validation cases (``validation/<id>``).
+    """
+    from comems4build_ros.core.scenario.validation import is_validation
+
+    return str(spec) in EMBEDDED or is_validation(spec)
 
 
 def steps_of_weeks(weeks: float, name: str) -> int:
@@ -469,7 +481,8 @@ def resolve_scenario(
 
     Parameters
     ----------
-    spec : ``"default"``, ``"synthetic"`` or a CSV path
+    spec : ``"default"``, ``"synthetic"``, ``"year"``, a validation case ``"validation/<id>"``
+        (``config/validation.yaml``; a winter case needs the plant at its station) or a CSV path
     params : plant parameters (``simulation.time_step_h`` must be the data's 1 h)
     start : ISO date/time of the first step (naive = site local time); default: the first row
     weeks, hours : run length (at most one; default: the configured 12 weeks of an embedded
@@ -492,10 +505,14 @@ def resolve_scenario(
         For a missing or invalid file, a window outside the data, a bad run length, a seed
         or settings given for a CSV, or a plant step other than the data's.
     """
-    name = str(spec) if str(spec) in EMBEDDED else Path(spec).name
+    name = str(spec) if is_embedded(spec) else Path(spec).name
     check_time_step(params, f"scenario '{name}'")
     n_steps = run_steps(weeks, hours, f"scenario '{name}'")
     length = _length_text(weeks, hours)
+    from comems4build_ros.core.scenario.validation import is_validation
+
+    if is_validation(spec):
+        return _validation_scenario(name, params, start, n_steps, length, seed, extend, settings_overrides)
     if str(spec) in EMBEDDED:
         parts = split_overrides(settings_overrides)
         settings = load_scenario_settings(overrides=parts["scenario"])
@@ -532,3 +549,39 @@ def resolve_scenario(
     if kind:
         raise ScenarioError(f"scenario '{spec}': {kind} (use 'default', 'synthetic' or a scenario CSV file)")
     return load_scenario_csv(path, params, start=start, weeks=weeks, hours=hours, extend=extend, seed=seed)
+
+
+def _validation_scenario(
+    name: str, params: PlantParams, start: str | None, n_steps: int | None, length: str, seed: int | None,
+    extend: str | None, settings_overrides: Mapping[str, Any] | None,
+) -> Scenario:
+    """A case of the validation set (:mod:`.validation`), cut to its window.
+
+    Raises
+    ------
+    ScenarioError
+        For an unknown case, a seed or scenario settings given (the case fixes both), or a
+        plant that does not stand at a winter case's station.
+    """
+    from comems4build_ros.core.scenario.validation import (
+        WEATHER,
+        case_of,
+        check_site,
+        load_validation_settings,
+        validation_frame,
+    )
+
+    if seed is not None and extend is None:
+        raise ScenarioError(f"scenario '{name}': a validation case fixes its own seeds; give no seed")
+    if settings_overrides:
+        raise ScenarioError(f"scenario '{name}': a validation case takes no scenario settings "
+                            "(config/validation.yaml defines it)")
+    settings = load_validation_settings()
+    case = case_of(name, settings)
+    if case.kind == WEATHER:
+        check_site(case, params, settings)
+    frame, meta = validation_frame(case, params, settings)
+    if n_steps is None and start is None:
+        n_steps = steps_of_weeks(settings.weeks, f"scenario '{name}'")
+    return _window(name, frame, params, start, n_steps, settings.lookahead_h, meta, extend, seed, length,
+                   keep_lookahead=True, generator=load_scenario_settings())

@@ -29,7 +29,8 @@ A year-round plant (``docs/seasonal.md``; not in the paper) adds, each only wher
   P_EL = alpha_EL * P_EL,max capped at dP, 0 below P_EL,min; dP_new = dP + P_el,FC - P_EL;
   and the daily H2 budget ``eq:deltaLOH`` spread over the heating season: on its first step
   the budget becomes (LOH - ``simulation.loh_season_end``) / days of the season, outside the
-  season it is 0 (the FC saves the store for the winter).
+  season it is 0 (the FC saves the store for the winter); it is booked as a fixed daily
+  budget whatever ``fc.h2_allowance`` says.
 
 The membership functions and rule bases are the data files ``config/fuzzy/flex.yaml``,
 ``fc.yaml`` and ``battery.yaml``; the options choose other files or override entries.
@@ -192,11 +193,16 @@ class FuzzyEMS:
         self._p_fc_max_w = fc.zeta * fc.p_max_w
         self._p_fc_min_w = fc.p_min_w
         self._dt_h = params.simulation.time_step_h
-        self._allowance = DailyH2Allowance(
-            str(_option(fc_sec, "fc", "h2_allowance", self.fc.source, str)),
-            params.simulation.loh_init,
-            params.hydrogen.loh_min,
-        )
+        allowance = str(_option(fc_sec, "fc", "h2_allowance", self.fc.source, str))
+        if allowance not in DailyH2Allowance.MODES:
+            raise ConfigError(f"{self.fc.source}: option 'fc.h2_allowance' must be one of "
+                              f"{', '.join(DailyH2Allowance.MODES)}, got {allowance!r}")
+        # A plant with an electrolyser spreads its budget over the heating season once, at the
+        # season's start (season_dloh, docs/seasonal.md): eq:deltaLOH's period is not the run there,
+        # so its daily budget is booked as given ("fixed").
+        if params.electrolyser.n_modules > 0:
+            allowance = "fixed"
+        self._allowance = DailyH2Allowance(allowance, params.simulation.loh_init, params.hydrogen.loh_min)
         self.step_info: dict[str, float] = {}
         # year-round plant: cooling and the electrolyser, each only where installed
         self._cooling = bool(params.cooling.enabled)

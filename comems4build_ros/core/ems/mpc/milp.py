@@ -410,11 +410,18 @@ class MILPModel:
             if k.year_round:
                 target = h.loh_season if h.loh_season is not None else np.zeros(n)
                 C["loh_season"][t].changeRHS(float(target[t]))
-                # the house exports at most what it generates (a buy price below the sell price,
-                # spot < -16 EUR/MWh in the year's data, would otherwise make buying to sell unbounded)
-                V["p_sell"][t].upBound = float(max(h.p_pv_w[t], 0.0)) + k.p_fc_max_w + k.p_d_max_w
                 # outside the heating season the FC spends only H2 above the seasonal target
                 V["p_fc"][t].upBound = 0.0 if h.loh0 <= float(target[0]) else k.p_fc_max_w
+            # the house exports at most what it generates: with a buy price below the sell price
+            # (spot below (p_sell - a) / b = -16 EUR/MWh with the default tariff, which the year's data
+            # and winters before 2022 have) buying to sell would otherwise be unbounded. The winter
+            # plant gets the bound only in such steps: elsewhere it cannot bind, and a bound that
+            # cannot bind still changes HiGHS's path to a solution within the gap (the paper's
+            # winter, which has no such step, keeps its plans).
+            if k.year_round or float(h.price_buy_eur_per_kwh[t]) < float(h.price_sell_eur_per_kwh):
+                V["p_sell"][t].upBound = float(max(h.p_pv_w[t], 0.0)) + k.p_fc_max_w + k.p_d_max_w
+            else:
+                V["p_sell"][t].upBound = None
             obj[V["p_buy"][t]] = k.dt_h * float(h.price_buy_eur_per_kwh[t]) / W_PER_KW
             obj[V["p_sell"][t]] = -k.dt_h * float(h.price_sell_eur_per_kwh) / W_PER_KW
         C["soc"][0].changeRHS(float(h.soc0))

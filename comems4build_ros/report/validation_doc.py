@@ -1,0 +1,283 @@
+"""``validation.md`` and ``validation.html`` from the content of ``validation.json``, and docs/validation.md.
+
+Both documents come from the same blocks (:class:`~comems4build_ros.report.document.Document`),
+so they hold the same numbers; every number is read from the report mapping that
+:func:`comems4build_ros.report.validation.evaluate` computed from its runs.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from comems4build_ros.report.document import Document
+
+#: Title of both documents.
+TITLE = "ComEMS4Build: validation on cases the defaults were not chosen on"
+#: Markers of the generated part of ``docs/validation.md``.
+DOC_BEGIN = "<!-- validation:begin -->"
+DOC_END = "<!-- validation:end -->"
+#: Figures of the docs (next to the page).
+DOC_FIGURES = "figures/validation"
+#: Subsets in table order.
+SUBSETS = ("calibration", "development", "held-out")
+#: Marks of a check in the per-case table.
+MARK = {True: "yes", False: "NO", None: "-"}
+
+
+def _pct(x: float | None, digits: int = 0) -> str:
+    return "-" if x is None else f"{100 * x:.{digits}f} %"
+
+
+def _share(c: Mapping[str, Any] | None) -> str:
+    if not c or not c["cases"]:
+        return "-"
+    return f"{c['held']} of {c['cases']} ({_pct(c['share'])})"
+
+
+def _dist(d: Mapping[str, float] | None, digits: int = 2, scale: float = 1.0, unit: str = "") -> str:
+    if not d:
+        return "-"
+    f = f"{{:.{digits}f}}"
+    return (f"{f.format(scale * d['median'])}{unit} [{f.format(scale * d['low'])}.."
+            f"{f.format(scale * d['high'])}]")
+
+
+def _signed(d: Mapping[str, float] | None) -> str:
+    if not d:
+        return "-"
+    return f"{d['median']:+.1f} % [{d['low']:+.1f}..{d['high']:+.1f}]"
+
+
+def _subsets(report: Mapping[str, Any]) -> list[str]:
+    return [s for s in SUBSETS if s in report["subsets"]]
+
+
+def _intro(doc: Document, report: Mapping[str, Any]) -> None:
+    doc.h(2, "Summary")
+    counts = {s: report["subsets"][s]["cases"] for s in _subsets(report)}
+    resumed = (f", {report['runs_resumed']} more taken from an interrupted command's run store"
+               if report.get("runs_resumed") else "")
+    timing = (f"{report['runs_made']} runs made{resumed} in {report['wall_s']:.0f} s"
+              + (f" with the load average {report['load_at_start']:.2f} at the start"
+                 if report.get("load_at_start") is not None else ""))
+    made = (f"the runs of {report['runs_from']} evaluated again ({timing} there)" if report.get("runs_from")
+            else timing)
+    doc.p(f"The three EMS ({', '.join(report['ems'])}) over {report['weeks']:g} weeks on "
+          + ", ".join(f"{n} {s} case{'s' if n != 1 else ''}" for s, n in counts.items())
+          + f" ({report['tasks']} runs; {made}). Calibration: the paper's winter on the reproduction's seeds "
+          f"({', '.join(str(s) for s in report['seeds'])}), on which the defaults were chosen. Development and "
+          "held-out: the validation set of config/validation.yaml (other winters at other stations with their own "
+          "prices, other households on the paper's winter), split before any run; choices may look at the "
+          "development cases, never at the held-out ones.")
+
+
+def _checks(doc: Document, report: Mapping[str, Any]) -> None:
+    share = report["criteria"]["share"]
+    doc.h(2, "The checks on every case")
+    doc.p(f"Share of the cases of each subset where the check holds; a check is met on a subset when it holds in "
+          f"at least {_pct(share)} of its cases.")
+    rows = []
+    for key, (_label, claim) in report["criteria_text"].items():
+        row = [claim]
+        for s in _subsets(report):
+            c = report["subsets"][s]["criteria"][key]
+            row.append(_share(c) + ("" if c["met"] is None else (" met" if c["met"] else " NOT MET")))
+        rows.append(row)
+    for key, (_label, claim) in report.get("supplementary_text", {}).items():
+        rows.append([claim, *(_share(report["subsets"][s]["criteria"].get(key)) for s in _subsets(report))])
+    doc.table(["check", *_subsets(report)], rows)
+
+
+def _distributions(doc: Document, report: Mapping[str, Any]) -> None:
+    doc.h(2, "Distributions over the cases")
+    doc.p("Median over the subset's cases [lowest..highest]. Paper: cost ratios RBC / ComEMS4Build 1.72 and MPC / "
+          "ComEMS4Build 0.52, ComEMS4Build's H2 left 14.14 %, its weeks with discomfort 2, its FC +48.44 % hours "
+          "against the MPC's.")
+    rows = []
+    for s in _subsets(report):
+        d = report["subsets"][s]
+        rows.append([s, str(d["cases"]), _dist(d["ratio_rbc"]), _dist(d["ratio_mpc"]),
+                     _dist(d["loh_end"]["fuzzy"], 1, 100.0, " %"), _dist(d["discomfort_weeks"]["fuzzy"], 0),
+                     _dist(d["discomfort_weeks"]["rbc"], 0), _signed(d["fc_hours_vs_mpc"]),
+                     _signed(d["fc_load_vs_mpc"])])
+    doc.table(["subset", "cases", "RBC / ComEMS4Build", "MPC / ComEMS4Build", "ComEMS4Build H2 left",
+               "ComEMS4Build weeks with discomfort", "RBC weeks with discomfort", "ComEMS4Build FC hours vs MPC",
+               "its mean FC load vs MPC"], rows)
+
+
+def _cases(doc: Document, report: Mapping[str, Any]) -> None:
+    doc.h(2, "Every case")
+    doc.p("Mean buy price and median daily spread of the buy price (EUR/kWh); weekly cost medians (EUR/week); "
+          "H2 left at the end of ComEMS4Build (MPC, RBC); weeks with discomfort of ComEMS4Build (RBC, MPC); the "
+          "checks in the order of the first table (comfort, cost order, H2 left, FC longer at lower load, RBC sells "
+          "most; in brackets the net cost order).")
+    rows = []
+    for m in report["cases"]:
+        c = m["cost"]
+        w = m["discomfort_weeks"]
+        rows.append([m["id"], m["subset"], f"{m['price_mean']:.3f}", f"{m['spread']:.3f}",
+                     *(f"{c[e]:.2f}" if e in c else "-" for e in ("mpc", "fuzzy", "rbc")),
+                     f"{_pct(m['loh_end'].get('fuzzy'), 1)} ({_pct(m['loh_end'].get('mpc'), 1)}, "
+                     f"{_pct(m['loh_end'].get('rbc'), 1)})",
+                     f"{w.get('fuzzy', '-')} ({w.get('rbc', '-')}, {w.get('mpc', '-')})",
+                     " ".join(MARK[m["criteria"][k]] for k in report["criteria_text"])
+                     + f" (net: {MARK[m['criteria'].get('net_cost_order')]})"])
+    doc.table(["case", "subset", "buy price", "spread", "MPC cost", "ComEMS4Build cost", "RBC cost",
+               "H2 left", "weeks with discomfort", "checks"], rows)
+
+
+def _findings(doc: Document, report: Mapping[str, Any]) -> None:
+    doc.h(2, "The paper's findings on every case")
+    doc.p("Each qualitative finding of the reproduction (comems4build_ros/report/findings.py), checked on every case: "
+          "on how many of the subset's cases it holds.")
+    rows = []
+    for key, claim in report["findings_text"].items():
+        row = [f"`{key}`: {claim}"]
+        for s in _subsets(report):
+            f = report["subsets"][s]["findings"].get(key)
+            row.append("-" if not f or not f["cases"] else f"{f['held']} of {f['cases']}")
+        rows.append(row)
+    doc.table(["finding", *_subsets(report)], rows)
+
+
+def _fit(fit: Mapping[str, Any] | None) -> str:
+    if not fit:
+        return "-"
+    return (f"{_pct(fit['median_rel_error'], 1)} / {_pct(fit['table_rel_error'], 1)}; "
+            f"{fit['findings_held']} of {fit['findings_total']} findings")
+
+
+def _study(doc: Document, report: Mapping[str, Any]) -> None:
+    if not report["study"]:
+        return
+    doc.h(2, "Every reading: calibration and validation")
+    doc.p("Each reading of the reproduction's ambiguities (config/reproduce.yaml) run on every case with every other "
+          "ambiguity at its default; (default) marks the shipped reading. Calibration fit: the reproduction's "
+          "seed-median error over every stated figure / over the headline table and the findings holding on its "
+          "seeds. Then per subset the share of cases holding each check (comfort, cost order, H2 left, FC longer "
+          "at lower load, RBC sells most) and the medians of ComEMS4Build's H2 left and of the cost ratio "
+          "RBC / ComEMS4Build.")
+    by_amb: dict[str, list[Mapping[str, Any]]] = {}
+    for r in report["study"]:
+        by_amb.setdefault(r["ambiguity"], []).append(r)
+    for amb, readings in by_amb.items():
+        doc.h(3, f"{report['ambiguities'].get(amb, amb)} ({amb})")
+        rows = []
+        for r in readings:
+            name = r["reading"] + (" (default)" if r["default"] else "")
+            for s in _subsets(report):
+                d = r["subsets"].get(s)
+                if d is None:
+                    continue
+                checks = " / ".join(_pct(d["criteria"][k]["share"]) for k in report["criteria_text"])
+                rows.append([name, s, _fit(r["calibration_fit"]) if s == "calibration" else "",
+                             checks, _dist(d["loh_end"]["fuzzy"], 1, 100.0, " %"), _dist(d["ratio_rbc"])])
+        doc.table(["reading", "subset", "calibration fit", "checks held (shares)", "ComEMS4Build H2 left",
+                   "RBC / ComEMS4Build"], rows)
+
+
+def _radiation(doc: Document, report: Mapping[str, Any]) -> None:
+    rows = report.get("radiation") or []
+    if not rows:
+        return
+    doc.h(2, "Radiation of the cases")
+    doc.p("Daily global horizontal irradiation per month (kWh/m2/d), the diffuse share of the run's steps and the "
+          "daylight hours without a sunshine report (interpolated), median over the group's cases [range]: the "
+          "winter cases' radiation from the sunshine duration (Angstrom-Prescott with FAO-56's coefficients on the "
+          "extraterrestrial irradiance, Erbs; what the cases run on), beside the variant on pvlib's Ineichen clear "
+          "sky (not run) and the paper's winter modelled with seeds as in the default scenario.")
+    months = sorted({k for r in rows for k in r if k.startswith("ghi_kwh_m2_day_m")},
+                    key=lambda m: (int(m[-2:]) < 7, m))
+    names = {"m12": "December", "m01": "January", "m02": "February"}
+    head = ["group", "cases", *(names.get(m[-3:], m[-3:]) for m in months), "diffuse share",
+            "sunshine gaps [h]"]
+    doc.table(head, [[r["group"], str(r["cases"]), *(_dist(r.get(m)) for m in months),
+                      _dist(r.get("diffuse_share")), _dist(r.get("sunshine_gaps_h"), 0)] for r in rows])
+
+
+#: Captions of the figures.
+CAPTIONS = {
+    "validation_cases": (
+        "One point per case: filled black the calibration cases, filled blue the development cases, open orange "
+        "the held-out cases; triangles winter cases, squares household cases. (a) Cost ratios (weekly medians) with "
+        "the paper's (star); (b) ComEMS4Build's H2 left at the end and its weeks with discomfort against the "
+        "checks' band and limit; (c) its FC working hours and mean FC load against the MPC's (the check: lower "
+        "right)."),
+    "validation_prices": (
+        "The same cases against their prices: (a) ComEMS4Build's advantage over the RBC against the median daily "
+        "spread of the buy price; (b) the MPC's cost against ComEMS4Build's and (c) the MPC's H2 left at the end "
+        "against the mean buy price; the line in (c) is the price below which an hour of the MPC's FC at full "
+        "permissible power costs more in lifecycle cost than the electricity it replaces."),
+}
+
+
+def _figures(doc: Document, report: Mapping[str, Any], out: Path, rel_dir: str | None = None) -> None:
+    names = [k for k in CAPTIONS if k in report.get("figures", {})]
+    if not names:
+        return
+    doc.h(2, "Figures")
+    for name in names:
+        rel = report["figures"][name]
+        png = out / rel if rel_dir is None else out / Path(rel).name
+        doc.figure(png, rel_dir if rel_dir is not None else str(Path(rel).parent), CAPTIONS[name])
+
+
+def build_document(report: Mapping[str, Any], out: Path) -> Document:
+    """The whole report as a :class:`Document`."""
+    doc = Document(TITLE)
+    for part in (_intro, _checks, _distributions, _cases, _findings, _study, _radiation):
+        part(doc, report)
+    _figures(doc, report, out)
+    return doc
+
+
+def write_documents(report: Mapping[str, Any], out: Path) -> tuple[Path, Path]:
+    """Write ``validation.md`` and ``validation.html`` into ``out``; return their paths."""
+    doc = build_document(report, out)
+    md, html_path = out / "validation.md", out / "validation.html"
+    md.write_text(doc.markdown(), encoding="utf-8")
+    html_path.write_text(doc.html(), encoding="utf-8")
+    return md, html_path
+
+
+def doc_section(report: Mapping[str, Any], figures: tuple[Path, str] | None = None) -> str:
+    """The generated part of docs/validation.md (headings one level down).
+
+    ``figures``: the directory holding the figures' PNGs and its path relative to the
+    document; None leaves the figures out.
+    """
+    doc = Document(TITLE)
+    for part in (_intro, _checks, _distributions, _cases, _findings, _study, _radiation):
+        part(doc, report)
+    if figures is not None:
+        _figures(doc, report, figures[0], figures[1])
+    text = doc.markdown()
+    body = text[text.index("\n## "):].strip()  # without the title and the table of contents
+    return "\n".join(("#" + line) if line.startswith("#") else line for line in body.splitlines())
+
+
+def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path | None = None) -> Path:
+    """Replace the text between the validation markers of ``path`` with :func:`doc_section`.
+
+    ``figures_from``: the command's output directory; its figures are copied (as PNG of the
+    docs' width) next to ``path`` under ``figures/validation``.
+    """
+    from comems4build_ros.report.reproduce_doc import downscale_png
+
+    path = Path(path)
+    text = path.read_text(encoding="utf-8")
+    head, sep, rest = text.partition(DOC_BEGIN)
+    _, sep2, tail = rest.partition(DOC_END)
+    if not sep or not sep2:
+        raise ValueError(f"{path}: markers {DOC_BEGIN} / {DOC_END} not found")
+    figures = None
+    if figures_from is not None and report.get("figures"):
+        target = path.parent / DOC_FIGURES
+        target.mkdir(parents=True, exist_ok=True)
+        for rel in report["figures"].values():
+            downscale_png(Path(figures_from) / rel, target / Path(rel).name)
+        figures = (target, DOC_FIGURES)
+    path.write_text(f"{head}{DOC_BEGIN}\n{doc_section(report, figures)}\n{DOC_END}{tail}", encoding="utf-8")
+    return path
