@@ -252,6 +252,12 @@ def run(house: MqttPlantSim, link: MqttLink, clock: Clock, republish_s: float = 
     bridge = BridgeView(house)
     t_records = -1.0
 
+    def publish_record(record: bytes) -> None:
+        nonlocal t_records
+        if m.sim_record_topic:
+            link.publish(m.sim_record_topic, record)
+            t_records = time.monotonic()
+
     def handle() -> None:
         nonlocal t_records
         for msg in link.drain():
@@ -265,61 +271,9 @@ def run(house: MqttPlantSim, link: MqttLink, clock: Clock, republish_s: float = 
             _publish_all(link, house.repeat_records())
 
     if clock.wall:
-        t_sent = -1.0
-        while bridge.run_msg is None:  # the bridge starts once it has heard from the house
-            if time.monotonic() - t_sent > republish_s:
-                _publish_all(link, house.measurement_payloads(0))
-                t_sent = time.monotonic()
-            handle()
-            time.sleep(0.01)
-        t0, period = float(bridge.run_msg["t0_unix_s"]), float(bridge.run_msg["period_s"])
-        print(f"[mqtt_plant] wall clock: step 0 at {t0:.3f}, period {period:g} s (run '{house.peer.run_id}')",
-              file=sys.stderr, flush=True)
-        while house.k < house.n_steps:
-            k = house.k
-            _sleep_until(t0 + k * period, handle)
-            _publish_all(link, house.measurement_payloads(k))
-            _sleep_until(t0 + (k + 1) * period, handle)
-            handle()
-            # the set-points of step k may be a moment late on a loaded machine (machine
-            # jitter is multiplied by the clock's factor): wait up to WALL_SETPOINT_WAIT_SHARE
-            limit = t0 + (k + 1 + WALL_SETPOINT_WAIT_SHARE) * period
-            while not house.complete(k) and time.time() < limit:
-                time.sleep(POLL_S)
-                handle()
-            if house.complete(k):
-                action, of = house.action_for(house.pending[k]), k
-            else:  # the device holds its last set-points (lost in a broker outage, or late)
-                house.late_steps += 1
-                held = [s for s in house.latest_step.values() if s is not None]
-                action, of = house.action_for(house.latest), (min(held) if held else -1)
-            record = house.step(action, of)
-            if m.sim_record_topic:
-                link.publish(m.sim_record_topic, record)
-                t_records = time.monotonic()
-    else:
-        t_last_setpoint = time.monotonic()
-        while house.k < house.n_steps:
-            k = house.k
-            out = house.measurement_payloads(k)
-            _publish_all(link, out)
-            t_sent = time.monotonic()
-            while not house.complete(k):
-                time.sleep(POLL_S)
-                handle()
-                now = time.monotonic()
-                if now - t_sent > republish_s and bridge.step < k:
-                    _publish_all(link, out)  # the bridge has not announced k yet, or a message was lost
-                    t_sent = now
-                if now - t_last_setpoint > idle_timeout_s:
-                    print(f"[mqtt_plant] error: no set-points for step {k} within {idle_timeout_s:g} s",
-                          file=sys.stderr, flush=True)
-                    return 1
-            t_last_setpoint = time.monotonic()
-            record = house.step(house.action_for(house.pending[k]))
-            if m.sim_record_topic:
-                link.publish(m.sim_record_topic, record)
-                t_records = time.monotonic()
+        _run_wall_clock(house, link, bridge, handle, publish_record, republish_s)
+    elif _run_sim_clock(house, link, bridge, handle, publish_record, republish_s, idle_timeout_s) != 0:
+        return 1
     # the records not yet acknowledged: repeat until the bridge announced the end
     t_end = time.monotonic()
     while bridge.step < house.n_steps and time.monotonic() - t_end < done_timeout_s:
@@ -330,6 +284,69 @@ def run(house: MqttPlantSim, link: MqttLink, clock: Clock, republish_s: float = 
           f"unreadable set-points: {house.bad_payloads}, steps without their own set-points: "
           f"{house.late_steps}, foreign messages not applied: {house.peer.foreign_total} {house.peer.foreign}",
           file=sys.stderr, flush=True)
+    return 0
+
+
+def _run_wall_clock(house: MqttPlantSim, link: MqttLink, bridge: BridgeView, handle: Any, publish_record: Any,
+                    republish_s: float) -> None:
+    """The steps on the wall clock the bridge's run message sets: measurements at each step's
+    start, the set-points applied at its end (an earlier step's held when they are late)."""
+    t_sent = -1.0
+    while bridge.run_msg is None:  # the bridge starts once it has heard from the house
+        if time.monotonic() - t_sent > republish_s:
+            _publish_all(link, house.measurement_payloads(0))
+            t_sent = time.monotonic()
+        handle()
+        time.sleep(0.01)
+    t0, period = float(bridge.run_msg["t0_unix_s"]), float(bridge.run_msg["period_s"])
+    print(f"[mqtt_plant] wall clock: step 0 at {t0:.3f}, period {period:g} s (run '{house.peer.run_id}')",
+          file=sys.stderr, flush=True)
+    while house.k < house.n_steps:
+        k = house.k
+        _sleep_until(t0 + k * period, handle)
+        _publish_all(link, house.measurement_payloads(k))
+        _sleep_until(t0 + (k + 1) * period, handle)
+        handle()
+        # the set-points of step k may be a moment late on a loaded machine (machine
+        # jitter is multiplied by the clock's factor): wait up to WALL_SETPOINT_WAIT_SHARE
+        limit = t0 + (k + 1 + WALL_SETPOINT_WAIT_SHARE) * period
+        while not house.complete(k) and time.time() < limit:
+            time.sleep(POLL_S)
+            handle()
+        if house.complete(k):
+            action, of = house.action_for(house.pending[k]), k
+        else:  # the device holds its last set-points (lost in a broker outage, or late)
+            house.late_steps += 1
+            held = [s for s in house.latest_step.values() if s is not None]
+            action, of = house.action_for(house.latest), (min(held) if held else -1)
+        record = house.step(action, of)
+        publish_record(record)
+
+
+def _run_sim_clock(house: MqttPlantSim, link: MqttLink, bridge: BridgeView, handle: Any, publish_record: Any,
+                   republish_s: float, idle_timeout_s: float) -> int:
+    """The steps in lock-step with the bridge: each waits for its set-points (measurements
+    repeated while the bridge has not announced it); 1 after ``idle_timeout_s`` without any."""
+    t_last_setpoint = time.monotonic()
+    while house.k < house.n_steps:
+        k = house.k
+        out = house.measurement_payloads(k)
+        _publish_all(link, out)
+        t_sent = time.monotonic()
+        while not house.complete(k):
+            time.sleep(POLL_S)
+            handle()
+            now = time.monotonic()
+            if now - t_sent > republish_s and bridge.step < k:
+                _publish_all(link, out)  # the bridge has not announced k yet, or a message was lost
+                t_sent = now
+            if now - t_last_setpoint > idle_timeout_s:
+                print(f"[mqtt_plant] error: no set-points for step {k} within {idle_timeout_s:g} s",
+                      file=sys.stderr, flush=True)
+                return 1
+        t_last_setpoint = time.monotonic()
+        record = house.step(house.action_for(house.pending[k]))
+        publish_record(record)
     return 0
 
 

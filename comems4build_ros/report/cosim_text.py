@@ -33,13 +33,16 @@ def at_bounds(identified: dict[str, float]) -> str:
 def document(*, table: str, findings: str, notes: str, held: dict[str, int], evaluated: dict[str, int],
              ratios: str, linearity: str, ident: dict[str, Any], house: dict[str, Any],
              thermostat: dict[str, dict[str, Any]], commands: dict[str, str], changes: str) -> str:
-    """The document's markdown."""
-    v = ident["validation"]
-    bounds = at_bounds(ident["identified"])
-    e = ident.get("evaluation_weeks_thermostat", {})
-    idp = ident["identified"]
+    """The document's markdown: the house, its coupling, the MPC's identified model, then the results."""
+    return (_house_part(house, commands) + _COUPLING + _identified_part(ident, commands)
+            + _results_part(table=table, findings=findings, notes=notes, held=held, evaluated=evaluated,
+                            ratios=ratios, linearity=linearity, thermostat=thermostat, commands=commands,
+                            changes=changes))
+
+
+def _house_part(house: dict[str, Any], commands: dict[str, str]) -> str:
+    """Why the study, and the house against its typology."""
     lo, hi = house["heating_kwh_typology_range"]
-    t_rc, t_ep = thermostat.get("rc", {}), thermostat.get("energyplus", {})
     return f"""# Co-simulation: the paper's claims on a building the code did not shape
 
 *Written by `{commands['study']}`; every number below comes from that command's runs (the
@@ -100,7 +103,11 @@ radiation the PV sees, the direct normal part from them at mid-hour; relative hu
 pressure 1005 hPa, wind 3 m/s from the south-west, sky cover 8/10 (6/10 opaque) and albedo
 0.2 are choices (the EPW's header names them).
 
-## How the building is coupled
+"""
+
+
+#: How the building model is coupled to the plant (no figures).
+_COUPLING = """## How the building is coupled
 
 The building's thermal model is one part of the plant (`BuildingModel`: per step the floor
 heat, the weather and the appliance load in, T_air and two further temperatures out, and a
@@ -117,7 +124,16 @@ heat pump's heat goes in, the air temperature comes out within the same step), s
 node would add a lock-step exchange per step for no new information, and the in-process and
 ROS runs share one code path.
 
-## The MPC's model, identified
+"""
+
+
+def _identified_part(ident: dict[str, Any], commands: dict[str, str]) -> str:
+    """The MPC's 4R3C identified from the house: excitation, fit and held-out prediction errors."""
+    v = ident["validation"]
+    bounds = at_bounds(ident["identified"])
+    e = ident.get("evaluation_weeks_thermostat", {})
+    idp = ident["identified"]
+    return f"""## The MPC's model, identified
 
 `{commands['identify']}` runs the house over {_f(ident['train']['weeks'], 0)} weeks from
 {ident['train']['start'][:10]} (outside the twelve evaluation weeks) under a multi-level
@@ -139,7 +155,15 @@ stationary Kalman filter (`--ems-option observer=kalman`).
 | identified g_s, f_conv, a_sol, f_gains_air | {_f(idp['g_s_m2'], 2)} m2, {_f(idp['f_conv'], 2)}, {_f(idp['a_sol_k_m2_per_w'], 3)} K m2/W, {_f(idp['f_gains_air'], 2)} |
 | parameters at a bound of the fit | {bounds} |
 
-## The paper's table on the detailed house
+"""
+
+
+def _results_part(*, table: str, findings: str, notes: str, held: dict[str, int], evaluated: dict[str, int],
+                  ratios: str, linearity: str, thermostat: dict[str, dict[str, Any]], commands: dict[str, str],
+                  changes: str) -> str:
+    """The paper's table and findings on both buildings, what changes and why, speed, reproducing."""
+    t_rc, t_ep = thermostat.get("rc", {}), thermostat.get("energyplus", {})
+    return f"""## The paper's table on the detailed house
 
 Weekly medians over the twelve weeks at the paper's FC system efficiency of 75 %. The MPC on
 the EnergyPlus house plans with the identified model and perfect forecasts of the weather,

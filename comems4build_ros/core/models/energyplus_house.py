@@ -279,6 +279,16 @@ def idf_text(spec: HouseSpec | None = None) -> str:
     spec = spec or HouseSpec()
     h = heat_loss_coefficient(spec)
     out = [HEADER.format(h_tr=h["h_tr_w_per_k"], h_ve=h["h_ve_w_per_k"], h=h["h_w_per_k"])]
+    out += _simulation_objects(spec)
+    out += _construction_objects(spec)
+    for i, zone in enumerate(ZONES):
+        out += _zone_objects(spec, i, zone)
+    return "".join(o if o.endswith("\n") else o + "\n" for o in out)
+
+
+def _simulation_objects(spec: HouseSpec) -> list[str]:
+    """Version, run control, ground temperature and the schedules the co-simulation sets."""
+    out: list[str] = []
     out.append(_obj("Version", "25.2"))
     out.append(_obj("SimulationControl", "No", "No", "No", "No", "Yes", "No", 1))
     out.append(_obj("Building", "TABULA DE.N.SFH.09.Gen advanced", 0.0, "Suburbs", 0.04, 0.4,
@@ -299,6 +309,12 @@ def idf_text(spec: HouseSpec | None = None) -> str:
                     "Until: 24:00", 1.0, "For: AllOtherDays", "Until: 24:00", 1.0,
                     comment="at home on weekday evenings and nights and all weekend (eq:T_min's presence)"))
     out.append(_obj("Schedule:Constant", "Activity", "Any Number", 100.0))
+    return out
+
+
+def _construction_objects(spec: HouseSpec) -> list[str]:
+    """Materials, glazing and constructions (the floors with the heating's pipes in the screed)."""
+    out: list[str] = []
     mats = {}
     for layers in constructions(spec).values():
         for x in layers:
@@ -313,53 +329,58 @@ def idf_text(spec: HouseSpec | None = None) -> str:
         out.append(_obj("ConstructionProperty:InternalHeatSource", f"{name} Pipes", name, SOURCE_AFTER_LAYER,
                         SOURCE_AFTER_LAYER, 1, 0.15, 0.0, comment="the floor heating's pipes in the screed"))
     out.append(_obj("Construction", "Window", "Triple Glazing"))
+    return out
+
+
+def _zone_objects(spec: HouseSpec, i: int, zone: str) -> list[str]:
+    """Storey ``i`` (zone ``zone``): its surfaces, windows, floor heating, gains and air change."""
+    out: list[str] = []
     w, d, hs = spec.width_m, spec.depth_m, spec.storey_m
     sides = ("South", "East", "North", "West")
-    for i, zone in enumerate(ZONES):
-        z0, z1 = i * hs, (i + 1) * hs
-        tag = "GF" if i == 0 else "UF"
-        out.append(_obj("Zone", zone, 0, 0, 0, 0, 1, 1, "autocalculate", "autocalculate"))
-        for side, share in zip(sides, spec.window_share):
-            wall = f"{tag} {side} Wall"
-            out.append(_surface(wall, "Wall", "Exterior Wall", zone, "Outdoors", "", True,
-                                _wall_points(side, w, d, z0, z1)))
-            pts = _window_points(side, spec, z0, spec.window_m2 * share / 2.0)
-            coords: list[object] = []
-            for p in pts:
-                coords.extend(round(v, 4) for v in p)
-            out.append(_obj("FenestrationSurface:Detailed", f"{tag} {side} Window", "Window", "Window", wall, "",
-                            "autocalculate", "", 1.0, 4, *coords))
-        floor_pts = [(w, 0, z0), (0, 0, z0), (0, d, z0), (w, d, z0)]
-        top_pts = [(0, 0, z1), (w, 0, z1), (w, d, z1), (0, d, z1)]
-        if i == 0:
-            out.append(_surface(FLOORS[0], "Floor", "Ground Slab", zone, "Ground", "", False, floor_pts))
-            out.append(_surface("GF Ceiling", "Ceiling", "Storey Ceiling", zone, "Surface", FLOORS[1], False,
-                                top_pts))
-        else:
-            out.append(_surface(FLOORS[1], "Floor", "Storey Floor", zone, "Surface", "GF Ceiling", False, floor_pts))
-            out.append(_surface("UF Roof", "Roof", "Roof", zone, "Outdoors", "", True, top_pts))
-        out.append(_obj("InternalMass", f"{tag} Partitions", "Partitions", zone, "", 1.5 * spec.floor_m2,
-                        comment="partition walls and furniture, both faces (choice)"))
-        out.append(_obj("SurfaceProperty:HeatBalanceSourceTerm", FLOORS[i], HEAT_SCHEDULE, "",
-                        comment="cooling through the floor (negative heat) at its top face"))
-        out.append(_obj("Schedule:Constant", RADIANT_SETPOINTS[i], "Any Number", -100.0,
-                        comment="set point of the floor heating, set each system time step by the co-simulation"))
-        out.append(_obj("ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], "Always On", zone, FLOORS[i],
-                        "HeatingDesignCapacity", RADIANT_CAPACITY_W, "", "", "MeanAirTemperature", "HalfFlowPower",
-                        RADIANT_THROTTLING_K, RADIANT_SETPOINTS[i],
-                        comment="underfloor heating: the heat pump's heat into the screed at the pipes"))
-        out.append(_obj("ZoneHVAC:EquipmentConnections", zone, f"{tag} Equipment", "", "", f"{tag} Air Node",
-                        f"{tag} Return Node"))
-        out.append(_obj("ZoneHVAC:EquipmentList", f"{tag} Equipment", "SequentialLoad",
-                        "ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], 1, 1, "", ""))
-        out.append(_obj("ElectricEquipment", f"{tag} Appliances", zone, GAINS_SCHEDULE, "EquipmentLevel", 1.0,
-                        "", "", 0.0, 0.3, 0.0))
-        out.append(_obj("People", f"{tag} Occupants", zone, "Occupancy", "People", spec.occupants / 2, "", "",
-                        0.3, "autocalculate", "Activity"))
-        out.append(_obj("ZoneInfiltration:DesignFlowRate", f"{tag} Air Change", zone, "Always On", "AirChanges/Hour",
-                        "", "", "", spec.air_ach, 1.0, 0.0, 0.0, 0.0,
-                        comment="infiltration + ventilation after heat recovery (choice)"))
-    return "".join(o if o.endswith("\n") else o + "\n" for o in out)
+    z0, z1 = i * hs, (i + 1) * hs
+    tag = "GF" if i == 0 else "UF"
+    out.append(_obj("Zone", zone, 0, 0, 0, 0, 1, 1, "autocalculate", "autocalculate"))
+    for side, share in zip(sides, spec.window_share):
+        wall = f"{tag} {side} Wall"
+        out.append(_surface(wall, "Wall", "Exterior Wall", zone, "Outdoors", "", True,
+                            _wall_points(side, w, d, z0, z1)))
+        pts = _window_points(side, spec, z0, spec.window_m2 * share / 2.0)
+        coords: list[object] = []
+        for p in pts:
+            coords.extend(round(v, 4) for v in p)
+        out.append(_obj("FenestrationSurface:Detailed", f"{tag} {side} Window", "Window", "Window", wall, "",
+                        "autocalculate", "", 1.0, 4, *coords))
+    floor_pts = [(w, 0, z0), (0, 0, z0), (0, d, z0), (w, d, z0)]
+    top_pts = [(0, 0, z1), (w, 0, z1), (w, d, z1), (0, d, z1)]
+    if i == 0:
+        out.append(_surface(FLOORS[0], "Floor", "Ground Slab", zone, "Ground", "", False, floor_pts))
+        out.append(_surface("GF Ceiling", "Ceiling", "Storey Ceiling", zone, "Surface", FLOORS[1], False,
+                            top_pts))
+    else:
+        out.append(_surface(FLOORS[1], "Floor", "Storey Floor", zone, "Surface", "GF Ceiling", False, floor_pts))
+        out.append(_surface("UF Roof", "Roof", "Roof", zone, "Outdoors", "", True, top_pts))
+    out.append(_obj("InternalMass", f"{tag} Partitions", "Partitions", zone, "", 1.5 * spec.floor_m2,
+                    comment="partition walls and furniture, both faces (choice)"))
+    out.append(_obj("SurfaceProperty:HeatBalanceSourceTerm", FLOORS[i], HEAT_SCHEDULE, "",
+                    comment="cooling through the floor (negative heat) at its top face"))
+    out.append(_obj("Schedule:Constant", RADIANT_SETPOINTS[i], "Any Number", -100.0,
+                    comment="set point of the floor heating, set each system time step by the co-simulation"))
+    out.append(_obj("ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], "Always On", zone, FLOORS[i],
+                    "HeatingDesignCapacity", RADIANT_CAPACITY_W, "", "", "MeanAirTemperature", "HalfFlowPower",
+                    RADIANT_THROTTLING_K, RADIANT_SETPOINTS[i],
+                    comment="underfloor heating: the heat pump's heat into the screed at the pipes"))
+    out.append(_obj("ZoneHVAC:EquipmentConnections", zone, f"{tag} Equipment", "", "", f"{tag} Air Node",
+                    f"{tag} Return Node"))
+    out.append(_obj("ZoneHVAC:EquipmentList", f"{tag} Equipment", "SequentialLoad",
+                    "ZoneHVAC:LowTemperatureRadiant:Electric", RADIANT[i], 1, 1, "", ""))
+    out.append(_obj("ElectricEquipment", f"{tag} Appliances", zone, GAINS_SCHEDULE, "EquipmentLevel", 1.0,
+                    "", "", 0.0, 0.3, 0.0))
+    out.append(_obj("People", f"{tag} Occupants", zone, "Occupancy", "People", spec.occupants / 2, "", "",
+                    0.3, "autocalculate", "Activity"))
+    out.append(_obj("ZoneInfiltration:DesignFlowRate", f"{tag} Air Change", zone, "Always On", "AirChanges/Hour",
+                    "", "", "", spec.air_ach, 1.0, 0.0, 0.0, 0.0,
+                    comment="infiltration + ventilation after heat recovery (choice)"))
+    return out
 
 
 def shipped_idf() -> Path:

@@ -514,31 +514,7 @@ def resolve_scenario(
     if is_validation(spec):
         return _validation_scenario(name, params, start, n_steps, length, seed, extend, settings_overrides)
     if str(spec) in EMBEDDED:
-        parts = split_overrides(settings_overrides)
-        settings = load_scenario_settings(overrides=parts["scenario"])
-        if str(spec) in MEASURED_SECTIONS:
-            section = MEASURED_SECTIONS[str(spec)]
-            other = next(s for s in MEASURED_SECTIONS.values() if s != section)
-            if parts[other]:
-                raise ScenarioError(f"scenario '{spec}': '{other}.*' settings apply to another scenario "
-                                    f"(this one reads '{section}.*')")
-            measured = load_measured_settings(overrides=parts[section], section=section)
-            frame, meta = _measured_frame(params, measured, settings, measured.seed if seed is None else int(seed),
-                                          None)
-            lookahead_h, default_weeks = measured.lookahead_h, measured.weeks
-        else:
-            if parts["measured"] or parts["measured_year"]:
-                raise ScenarioError("scenario 'synthetic': 'measured.*' and 'measured_year.*' settings apply to the "
-                                    "scenarios from measured data only")
-            full = synthetic_scenario(params, weeks=settings.weeks, seed=seed, settings=settings)
-            frame = pd.DataFrame({c: getattr(full, c) for c in CSV_COLUMNS[1:]}, index=full.time.tz_convert("UTC"))
-            meta = dict(full.meta)
-            lookahead_h, default_weeks = settings.lookahead_h, settings.weeks
-        meta.pop("weeks", None)
-        if n_steps is None and start is None:
-            n_steps = steps_of_weeks(default_weeks, f"scenario '{name}'")
-        return _window(name, frame, params, start, n_steps, lookahead_h, meta, extend, seed, length,
-                       keep_lookahead=True, generator=settings)
+        return _embedded_scenario(str(spec), name, params, start, n_steps, length, seed, extend, settings_overrides)
     if settings_overrides:
         raise ScenarioError(f"scenario '{spec}': scenario settings apply to the embedded scenarios only")
     if seed is not None and extend is None:
@@ -549,6 +525,38 @@ def resolve_scenario(
     if kind:
         raise ScenarioError(f"scenario '{spec}': {kind} (use 'default', 'synthetic' or a scenario CSV file)")
     return load_scenario_csv(path, params, start=start, weeks=weeks, hours=hours, extend=extend, seed=seed)
+
+
+def _embedded_scenario(spec: str, name: str, params: PlantParams, start: str | None, n_steps: int | None,
+                       length: str, seed: int | None, extend: str | None,
+                       settings_overrides: Mapping[str, Any] | None) -> Scenario:
+    """An embedded scenario (``default``, ``year``: measured; ``synthetic``: generated) cut to
+    its window (the arguments as :func:`resolve_scenario` has checked them)."""
+    parts = split_overrides(settings_overrides)
+    settings = load_scenario_settings(overrides=parts["scenario"])
+    if str(spec) in MEASURED_SECTIONS:
+        section = MEASURED_SECTIONS[str(spec)]
+        other = next(s for s in MEASURED_SECTIONS.values() if s != section)
+        if parts[other]:
+            raise ScenarioError(f"scenario '{spec}': '{other}.*' settings apply to another scenario "
+                                f"(this one reads '{section}.*')")
+        measured = load_measured_settings(overrides=parts[section], section=section)
+        frame, meta = _measured_frame(params, measured, settings, measured.seed if seed is None else int(seed),
+                                      None)
+        lookahead_h, default_weeks = measured.lookahead_h, measured.weeks
+    else:
+        if parts["measured"] or parts["measured_year"]:
+            raise ScenarioError("scenario 'synthetic': 'measured.*' and 'measured_year.*' settings apply to the "
+                                "scenarios from measured data only")
+        full = synthetic_scenario(params, weeks=settings.weeks, seed=seed, settings=settings)
+        frame = pd.DataFrame({c: getattr(full, c) for c in CSV_COLUMNS[1:]}, index=full.time.tz_convert("UTC"))
+        meta = dict(full.meta)
+        lookahead_h, default_weeks = settings.lookahead_h, settings.weeks
+    meta.pop("weeks", None)
+    if n_steps is None and start is None:
+        n_steps = steps_of_weeks(default_weeks, f"scenario '{name}'")
+    return _window(name, frame, params, start, n_steps, lookahead_h, meta, extend, seed, length,
+                   keep_lookahead=True, generator=settings)
 
 
 def _validation_scenario(

@@ -147,24 +147,7 @@ class MqttBridge(LockStepMaster):
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
         super().__init__(NODE_NAME, {"house_timeout_s": HOUSE_TIMEOUT_S}, **node_kwargs)
-        secret_file = self.param("mqtt_secret_file", "")
-        username = self.param("broker_username", "")
-        if username and not secret_file:
-            raise ValueError(f"node '{NODE_NAME}': parameter 'broker_username' needs 'mqtt_secret_file' (its password)")
-        topic_map, broker_url = self.param("topic_map", ""), self.param("broker_url", "")
-        self.map = load_topic_map(topic_map or None, broker_url or None, username or None,
-                                  secret_file if username else None)
-        self.peer = Peer(check_run_id(self.param("run_id", "") or new_run_id()),
-                         read_peer_key(secret_file) if secret_file else None)
-        self.clock = parse_clock(self.param("clock", "sim"), self.params.simulation.time_step_h)
-        delay = self.param("measure_delay_s", -1.0)
-        self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
-                                                            MEASURE_DELAY_MAX_S)
-        client_id = self.param("client_id", "comems4build_bridge")
-        if self.clock.wall and self.measure_delay_s >= COMMAND_DEADLINE_SHARE * self.clock.period_s:
-            raise ValueError(f"node '{NODE_NAME}': parameter 'measure_delay_s' must be below "
-                             f"{COMMAND_DEADLINE_SHARE:g} of the step period ({self.clock.period_s:g} s)")
-
+        client_id = self._read_parameters()
         self.dt_h = self.params.simulation.time_step_h
         sizes = self.sizes
         m = self.map.measurements
@@ -191,7 +174,48 @@ class MqttBridge(LockStepMaster):
         self._switch_by_command: set[str] = set()  # switches and settings set by a command since the start
         self._switches_published = -1  # the connect count whose switch states were published
 
-        # run state
+        self._reset_run_state()
+        self._wake = self.create_guard_condition(self._on_mqtt)
+        subs = [*self._topic_measurement, *self._switch_topics, *self._switch_states, *self._setting_topics,
+                *self._setting_states, self.map.step_topic, self.map.run_topic]
+        if self.map.sim_record_topic:
+            subs.append(self.map.sim_record_topic)
+        self.link = MqttLink(self.map.broker, client_id, subs,
+                             will=(self.map.availability_topic, NOT_AVAILABLE),
+                             on_connect=self._on_connect, wake=self._wake.trigger)
+        self.link.start()
+        self.start_watchdog(self._watchdog)
+        self.get_logger().info(
+            f"bridge to {self.map.broker.url} (user: {self.map.broker.username or 'anonymous'}, "
+            f"TLS: {self.map.broker.tls}), run '{self.peer.run_id}' (authentication codes: "
+            f"{'on' if self.peer.key else 'off'}), clock {self.clock.spec()}, {len(m)} measurements, "
+            f"device limits {self.limiter.limits}"
+        )
+
+    def _read_parameters(self) -> str:
+        """The broker login, topic map, run id and key, clock and measurement delay from the
+        node's parameters (each checked); returns the MQTT client id."""
+        secret_file = self.param("mqtt_secret_file", "")
+        username = self.param("broker_username", "")
+        if username and not secret_file:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'broker_username' needs 'mqtt_secret_file' (its password)")
+        topic_map, broker_url = self.param("topic_map", ""), self.param("broker_url", "")
+        self.map = load_topic_map(topic_map or None, broker_url or None, username or None,
+                                  secret_file if username else None)
+        self.peer = Peer(check_run_id(self.param("run_id", "") or new_run_id()),
+                         read_peer_key(secret_file) if secret_file else None)
+        self.clock = parse_clock(self.param("clock", "sim"), self.params.simulation.time_step_h)
+        delay = self.param("measure_delay_s", -1.0)
+        self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
+                                                            MEASURE_DELAY_MAX_S)
+        client_id = self.param("client_id", "comems4build_bridge")
+        if self.clock.wall and self.measure_delay_s >= COMMAND_DEADLINE_SHARE * self.clock.period_s:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'measure_delay_s' must be below "
+                             f"{COMMAND_DEADLINE_SHARE:g} of the step period ({self.clock.period_s:g} s)")
+        return client_id
+
+    def _reset_run_state(self) -> None:
+        """The state of a run before its first step: lock-step phase, records, totals, fallbacks."""
         self.phase = "measure"  # measure -> command -> sent (lock-step); command/sent per wall step
         self.t0_unix_s: float | None = None
         self._truth: dict[int, tuple[float, float]] = {}  # step -> (time_unix_s, t_min_c)
@@ -200,7 +224,7 @@ class MqttBridge(LockStepMaster):
         self.fallback_for: dict[int, bool] = {}
         self.bad_measurements = 0
         self.untagged_announcements = 0  # wall modes: steps announced without measurements tagged for them
-        self._tagged = all(spec.step_key for spec in m.values())
+        self._tagged = all(spec.step_key for spec in self.map.measurements.values())
         self.alarms = 0
         self._ever_commanded = False
         self._last_cmd: list[float] | None = None
@@ -229,22 +253,6 @@ class MqttBridge(LockStepMaster):
         self._foreign_reported = 0
         self._ha_state_text = json.dumps(self._ha_state(None))
 
-        self._wake = self.create_guard_condition(self._on_mqtt)
-        subs = [*self._topic_measurement, *self._switch_topics, *self._switch_states, *self._setting_topics,
-                *self._setting_states, self.map.step_topic, self.map.run_topic]
-        if self.map.sim_record_topic:
-            subs.append(self.map.sim_record_topic)
-        self.link = MqttLink(self.map.broker, client_id, subs,
-                             will=(self.map.availability_topic, NOT_AVAILABLE),
-                             on_connect=self._on_connect, wake=self._wake.trigger)
-        self.link.start()
-        self.start_watchdog(self._watchdog)
-        self.get_logger().info(
-            f"bridge to {self.map.broker.url} (user: {self.map.broker.username or 'anonymous'}, "
-            f"TLS: {self.map.broker.tls}), run '{self.peer.run_id}' (authentication codes: "
-            f"{'on' if self.peer.key else 'off'}), clock {self.clock.spec()}, {len(m)} measurements, "
-            f"device limits {self.limiter.limits}"
-        )
 
     # ------------------------------------------------------------------ MQTT side
     def _on_connect(self) -> None:
