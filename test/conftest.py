@@ -36,3 +36,16 @@ def domain_id() -> Iterator[int]:
 
     with acquire_domain_id() as did:
         yield did
+
+
+@pytest.fixture()
+def rclpy_context(tmp_path, monkeypatch: pytest.MonkeyPatch, domain_id: int) -> Iterator[object]:
+    """A private rclpy context (own domain id, discovery on this machine, logs in tmp)."""
+    import rclpy
+
+    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "log"))
+    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
+    ctx = rclpy.context.Context()
+    rclpy.init(context=ctx, domain_id=domain_id)
+    yield ctx
+    rclpy.try_shutdown(context=ctx)

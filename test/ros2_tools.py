@@ -10,12 +10,15 @@ prefix, as a ROS user sets it. ``conftest.py`` makes it the session fixture ``ro
 
 from __future__ import annotations
 
+import json
+import math
 import os
 import shutil
 import signal
 import subprocess
 import sys
 import time
+import warnings
 from collections.abc import Callable
 from pathlib import Path
 
@@ -123,3 +126,37 @@ def run_until(ros2: dict, args: list[str], domain: int, tmp_path: Path,
             return res
         time.sleep(1.0)
     return res
+
+
+#: ``comems4build`` in this interpreter (the installed package's command line).
+CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
+#: Summary entries that differ between runs of the same figures (timing, transport).
+TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
+
+
+def reference(ems: str, steps: int, seed: int | None = None) -> dict:
+    """In-process summary over the window the feed builds (default scenario, first week)."""
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario.run import load_scenario
+
+    params = load_plant_params()
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        return simulate(ems, load_scenario("default", params, None, 1, seed, steps), params).summary
+
+
+def same_kpis(got: dict, want: dict) -> None:
+    """Every figure of the in-process summary, bit for bit (timing entries aside)."""
+    keys = set(want) - set(TIMING_KEYS)
+    assert keys <= set(got)
+    for k in sorted(keys):
+        a, b = got[k], want[k]
+        assert (isinstance(a, float) and math.isnan(a) and math.isnan(b)) or a == b, k
+
+
+def evaluate(bag: Path, out: Path) -> dict:
+    """``comems4build evaluate BAG --out OUT``; its summary."""
+    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True, timeout=180)
+    assert res.returncode == 0, res.stderr
+    return json.loads((out / "summary.json").read_text())

@@ -118,13 +118,8 @@ def test_the_plan_file_gives_the_validated_parameters_back_exactly(tmp_path_fact
 
 # ---------------------------------------------------------------------- nodes
 @pytest.fixture()
-def context(tmp_path, monkeypatch, domain_id):
-    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "log"))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
+def context(rclpy_context):
+    return rclpy_context
 
 
 def _make(kind: str, context: object, tmp_path: Path, **given: object) -> object:

@@ -11,54 +11,24 @@ environment's prefix, as a ROS user sets it.
 
 from __future__ import annotations
 
-import json
-import math
 import os
 import re
 import signal
 import subprocess
-import sys
 import time
-import warnings
 from pathlib import Path
 
 import pytest
-from ros2_tools import run_ros2
-
-from comems4build_ros.core.config import load_plant_params
-from comems4build_ros.core.loop import simulate
+from ros2_tools import CLI, evaluate, reference, run_ros2, same_kpis
 
 pytestmark = pytest.mark.ros
 
 REPO = Path(__file__).resolve().parents[1]
-TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 EXECUTABLES = ("feed", "fuzzy_ems", "mpc_ems", "mpc_qp_ems", "mqtt_bridge", "mqtt_plant", "plant_sim", "rbc_ems",
                "recorder", "replay", "thermostat_ems")
-CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
 
 
-def reference(ems: str, steps: int, seed: int | None = None) -> dict:
-    """In-process summary over the window the feed builds (default scenario, first week)."""
-    from comems4build_ros.core.scenario.run import load_scenario
 
-    params = load_plant_params()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return simulate(ems, load_scenario("default", params, None, 1, seed, steps), params).summary
-
-
-def same_kpis(got: dict, want: dict) -> None:
-    keys = set(want) - set(TIMING_KEYS)
-    assert keys <= set(got)
-    for k in sorted(keys):
-        a, b = got[k], want[k]
-        assert (isinstance(a, float) and math.isnan(a) and math.isnan(b)) or a == b, k
-
-
-def evaluate(bag: Path, out: Path) -> dict:
-    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True, timeout=120)
-    assert res.returncode == 0, res.stderr
-    return json.loads((out / "summary.json").read_text())
 
 
 def test_ros2_pkg_executables(ros2, domain_id, tmp_path) -> None:

@@ -8,52 +8,32 @@ package, as docs/ros_tools.md shows them.
 
 from __future__ import annotations
 
-import json
-import math
 import re
 import subprocess
-import sys
 import time
-import warnings
-from pathlib import Path
 
 import pytest
 import yaml
-from ros2_tools import node_names, ros2_env, run_ros2, run_until, start_ros2, stop, wait_for
-
-from comems4build_ros.core.config import load_plant_params
-from comems4build_ros.core.loop import simulate
+from ros2_tools import (
+    CLI,
+    evaluate,
+    node_names,
+    reference,
+    ros2_env,
+    run_ros2,
+    run_until,
+    same_kpis,
+    start_ros2,
+    stop,
+    wait_for,
+)
 
 pytestmark = pytest.mark.ros
 
-CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
-TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 LAUNCH = ["launch", "comems4build_ros", "comems4build.launch.py"]
 
 
-def reference(ems: str, steps: int, seed: int | None = None) -> dict:
-    """In-process summary over the window the feed builds (default scenario, first week)."""
-    from comems4build_ros.core.scenario.run import load_scenario
 
-    params = load_plant_params()
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return simulate(ems, load_scenario("default", params, None, 1, seed, steps), params).summary
-
-
-def same_kpis(got: dict, want: dict) -> None:
-    """Every figure of the in-process summary, bit for bit (timing entries aside)."""
-    keys = set(want) - set(TIMING_KEYS)
-    assert keys <= set(got)
-    for k in sorted(keys):
-        a, b = got[k], want[k]
-        assert (isinstance(a, float) and math.isnan(a) and math.isnan(b)) or a == b, k
-
-
-def evaluate(bag: Path, out: Path) -> dict:
-    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True, timeout=180)
-    assert res.returncode == 0, res.stderr
-    return json.loads((out / "summary.json").read_text())
 
 
 # ---------------------------------------------------------------------- ros2 run: bad parameters

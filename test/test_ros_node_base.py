@@ -29,14 +29,8 @@ REPO = Path(__file__).resolve().parents[1]
 
 
 @pytest.fixture()
-def context(tmp_path, monkeypatch, domain_id):
-    """A private rclpy context (own domain id, logs in tmp)."""
-    monkeypatch.setenv("ROS_LOG_DIR", str(tmp_path / "log"))
-    monkeypatch.setenv("ROS_AUTOMATIC_DISCOVERY_RANGE", "LOCALHOST")
-    ctx = rclpy.context.Context()
-    rclpy.init(context=ctx, domain_id=domain_id)
-    yield ctx
-    rclpy.try_shutdown(context=ctx)
+def context(rclpy_context):
+    return rclpy_context
 
 
 

@@ -8,7 +8,7 @@ numbers; every number is read from the report mapping that
 
 from __future__ import annotations
 
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
@@ -321,22 +321,33 @@ def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path |
     ``figures_from``: the reproduction's output directory; its figures are copied (as PNG of
     :data:`DOC_FIGURE_WIDTH_PX`) next to ``path`` under :data:`DOC_FIGURES` and shown.
     """
+    return replace_doc_section(path, report, figures_from, (DOC_BEGIN, DOC_END), DOC_FIGURES, doc_section)
+
+
+def replace_doc_section(path: str | Path, report: Mapping[str, Any], figures_from: Path | None,
+                        markers: tuple[str, str], figures_dir: str,
+                        section: Callable[[Mapping[str, Any], Any], str]) -> Path:
+    """Replace the text between the two ``markers`` of the document ``path`` (written atomically)
+    with ``section(report, figures)``; the report's figures, when ``figures_from`` (the command's
+    output directory) is given, are copied as PNG of the docs' width under ``figures_dir`` next
+    to ``path`` (``figures``: that folder and its relative name, else None)."""
+    from comems4build_ros.files.outputs import write_text_atomic
+
     path = Path(path)
+    begin, end = markers
     text = path.read_text(encoding="utf-8")
-    head, sep, rest = text.partition(DOC_BEGIN)
-    _, sep2, tail = rest.partition(DOC_END)
+    head, sep, rest = text.partition(begin)
+    _, sep2, tail = rest.partition(end)
     if not sep or not sep2:
-        raise ValueError(f"{path}: markers {DOC_BEGIN} / {DOC_END} not found")
+        raise ValueError(f"{path}: markers {begin} / {end} not found")
     figures = None
     if figures_from is not None and report.get("figures"):
-        target = path.parent / DOC_FIGURES
+        target = path.parent / figures_dir
         target.mkdir(parents=True, exist_ok=True)
         for rel in report["figures"].values():
             downscale_png(Path(figures_from) / rel, target / Path(rel).name)
-        figures = (target, DOC_FIGURES)
-    from comems4build_ros.files.outputs import write_text_atomic
-
-    return write_text_atomic(path, f"{head}{DOC_BEGIN}\n{doc_section(report, figures)}\n{DOC_END}{tail}")
+        figures = (target, figures_dir)
+    return write_text_atomic(path, f"{head}{begin}\n{section(report, figures)}\n{end}{tail}")
 
 
 def downscale_png(src: Path, dst: Path) -> None:

@@ -264,20 +264,6 @@ def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path |
     ``figures_from``: the command's output directory; its figures are copied (as PNG of the
     docs' width) next to ``path`` under ``figures/validation``.
     """
-    from comems4build_ros.report.reproduce_doc import downscale_png
+    from comems4build_ros.report.reproduce_doc import replace_doc_section
 
-    path = Path(path)
-    text = path.read_text(encoding="utf-8")
-    head, sep, rest = text.partition(DOC_BEGIN)
-    _, sep2, tail = rest.partition(DOC_END)
-    if not sep or not sep2:
-        raise ValueError(f"{path}: markers {DOC_BEGIN} / {DOC_END} not found")
-    figures = None
-    if figures_from is not None and report.get("figures"):
-        target = path.parent / DOC_FIGURES
-        target.mkdir(parents=True, exist_ok=True)
-        for rel in report["figures"].values():
-            downscale_png(Path(figures_from) / rel, target / Path(rel).name)
-        figures = (target, DOC_FIGURES)
-    path.write_text(f"{head}{DOC_BEGIN}\n{doc_section(report, figures)}\n{DOC_END}{tail}", encoding="utf-8")
-    return path
+    return replace_doc_section(path, report, figures_from, (DOC_BEGIN, DOC_END), DOC_FIGURES, doc_section)

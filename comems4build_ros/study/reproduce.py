@@ -20,7 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_plant_params, read_ros_params
-from comems4build_ros.study.runner import RunTask, run_tasks
+from comems4build_ros.study.runner import RunTask, missing_in, run_into
 
 #: The paper's three EMS, in the order of its tables.
 EMS = ("mpc", "fuzzy", "rbc")
@@ -492,23 +492,9 @@ def make_runs(
     progress : callback ``(done, total, name)`` after each run
     show_progress : one progress bar per run on stderr (None = when stderr is a terminal)
     """
-    runs_dir.mkdir(parents=True, exist_ok=True)
-    todo = []
-    for name, task in prepared.tasks.items():
-        task.out_dir = str(runs_dir / name)
-        todo.append(task)
-    done = [0]
-
-    def on_done(task: RunTask, _: dict[str, Any]) -> None:
-        done[0] += 1
-        if progress:
-            progress(done[0], len(todo), Path(task.out_dir).name)
-
-    if todo:
-        run_tasks(todo, jobs=jobs, on_done=on_done, progress=show_progress)
-    return len(todo)
+    return run_into(prepared.tasks, runs_dir, jobs, progress, show_progress)
 
 
 def missing_runs(prepared: Prepared, runs_dir: Path) -> list[str]:
     """Names of the study's runs without a finished run directory (``summary.json``) in ``runs_dir``."""
-    return [n for n in prepared.tasks if not (runs_dir / n / "summary.json").is_file()]
+    return missing_in(prepared.tasks, runs_dir)

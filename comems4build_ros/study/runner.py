@@ -16,7 +16,7 @@ import dataclasses
 import json
 import tempfile
 import time
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -238,3 +238,30 @@ def run_tasks(
 
     ex = executor or current() or StudyExecutor(LocalBackend(jobs))
     return run_jobs(tasks, ex, on_done=on_done, progress=progress)
+
+
+def run_into(tasks: Mapping[str, RunTask], runs_dir: Path, jobs: int | None = None,
+             progress: Callable[[int, int, str], None] | None = None, show_progress: bool | None = None) -> int:
+    """Make every run of ``tasks`` (name -> task) into ``runs_dir/<name>`` with :func:`run_tasks`;
+    the number of runs made. ``progress``: callback ``(done, total, name)`` after each run;
+    ``show_progress``: one progress bar per run on stderr (None = when stderr is a terminal)."""
+    runs_dir.mkdir(parents=True, exist_ok=True)
+    todo = []
+    for name, task in tasks.items():
+        task.out_dir = str(runs_dir / name)
+        todo.append(task)
+    done = [0]
+
+    def on_done(task: RunTask, _: dict[str, Any]) -> None:
+        done[0] += 1
+        if progress:
+            progress(done[0], len(todo), Path(task.out_dir).name)
+
+    if todo:
+        run_tasks(todo, jobs=jobs, on_done=on_done, progress=show_progress)
+    return len(todo)
+
+
+def missing_in(names: Iterable[str], runs_dir: Path) -> list[str]:
+    """The names of ``names`` without a finished run directory (``summary.json``) in ``runs_dir``."""
+    return [n for n in names if not (runs_dir / n / "summary.json").is_file()]

@@ -25,7 +25,7 @@ from typing import Any
 
 from comems4build_ros.core.config import ConfigError
 from comems4build_ros.study.reproduce import EMS, Study, check_tasks, load_study
-from comems4build_ros.study.runner import RunTask, run_tasks
+from comems4build_ros.study.runner import RunTask, missing_in, run_into
 
 #: The subset of the cases the defaults were chosen on.
 CALIBRATION = "calibration"
@@ -257,23 +257,9 @@ def make_runs(
     Runs are handed to the enclosing study's executor (``--jobs``, ``--scheduler``,
     ``--resume``) or to ``jobs`` local worker processes, longest first.
     """
-    runs_dir.mkdir(parents=True, exist_ok=True)
-    todo = []
-    for name, task in p.tasks.items():
-        task.out_dir = str(runs_dir / name)
-        todo.append(task)
-    done = [0]
-
-    def on_done(task: RunTask, _: dict[str, Any]) -> None:
-        done[0] += 1
-        if progress:
-            progress(done[0], len(todo), Path(task.out_dir).name)
-
-    if todo:
-        run_tasks(todo, jobs=jobs, on_done=on_done, progress=show_progress)
-    return len(todo)
+    return run_into(p.tasks, runs_dir, jobs, progress, show_progress)
 
 
 def missing_runs(p: Plan, runs_dir: Path) -> list[str]:
     """Names of the plan's runs without a finished run directory (``summary.json``) in ``runs_dir``."""
-    return [n for n in p.tasks if not (runs_dir / n / "summary.json").is_file()]
+    return missing_in(p.tasks, runs_dir)

@@ -61,6 +61,21 @@ def read_entsoe_prices(path: str | Path, column: str) -> pd.Series:
     ScenarioError
         Naming the file, line and column of a missing column, a bad time or a bad number.
     """
+    return read_price_csv(path, column, gapless=True)
+
+
+def read_price_csv(path: str | Path, column: str, gapless: bool) -> pd.Series:
+    """Day-ahead prices [EUR/MWh] of a CSV file with the columns ``utc_start`` and ``column``.
+
+    ``gapless``: every row one hour after the previous one (one contiguous period); else the
+    rows need only follow each other in time (several winters in one file).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, line and column of a missing column, a bad time or number, or a row
+        out of order.
+    """
     path = Path(path)
     try:
         df = pd.read_csv(path, dtype=str)
@@ -69,21 +84,22 @@ def read_entsoe_prices(path: str | Path, column: str) -> pd.Series:
     for col in ("utc_start", column):
         if col not in df.columns:
             raise ScenarioError(f"{path}: line 1 (header): column '{col}' missing (found {', '.join(df.columns)})")
-    try:
-        index = pd.DatetimeIndex(pd.to_datetime(df["utc_start"], utc=True, format="ISO8601"), name="time")
-    except (ValueError, TypeError):
-        stamps = df["utc_start"]
-        bad = next(i for i, t in enumerate(stamps) if pd.isna(pd.to_datetime(t, errors="coerce", utc=True)))
-        raise ScenarioError(f"{path}: line {bad + 2}, column 'utc_start': '{stamps[bad]}' is not a time") from None
+    stamps = pd.to_datetime(df["utc_start"], utc=True, format="ISO8601", errors="coerce")
+    if stamps.isna().any():
+        i = int(np.flatnonzero(stamps.isna().to_numpy())[0])
+        raise ScenarioError(f"{path}: line {i + 2}, column 'utc_start': '{df['utc_start'][i]}' is not a time")
     values = pd.to_numeric(df[column], errors="coerce").to_numpy(dtype=float)
     bad_rows = np.flatnonzero(~np.isfinite(values))
     if len(bad_rows):
         i = int(bad_rows[0])
         raise ScenarioError(f"{path}: line {i + 2}, column '{column}': '{df[column][i]}' is not a number")
-    steps = (index[1:] - index[:-1]) / pd.Timedelta(hours=1)
-    if len(steps) and not np.all(np.asarray(steps) == 1.0):
-        i = int(np.flatnonzero(np.asarray(steps) != 1.0)[0]) + 1
-        raise ScenarioError(f"{path}: line {i + 2}, column 'utc_start': not one hour after the previous row")
+    index = pd.DatetimeIndex(stamps, name="time")
+    steps_h = np.asarray((index[1:] - index[:-1]) / pd.Timedelta(hours=1), dtype=float)
+    wrong = np.flatnonzero(steps_h != 1.0) if gapless else np.flatnonzero(steps_h <= 0)
+    if len(wrong):
+        i = int(wrong[0]) + 1
+        what = "not one hour after the previous row" if gapless else "not after the previous row"
+        raise ScenarioError(f"{path}: line {i + 2}, column 'utc_start': {what}")
     return pd.Series(values, index=index, name="spot_eur_per_mwh")
 
 

@@ -340,29 +340,9 @@ def read_price_winters(path: str | Path, column: str) -> pd.Series:
         Naming the file, line and column of a missing column, a bad time or number, or a row
         not after the previous one.
     """
-    path = Path(path)
-    try:
-        df = pd.read_csv(path, dtype=str)
-    except (OSError, pd.errors.ParserError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read as CSV: {exc}") from None
-    for col in ("utc_start", column):
-        if col not in df.columns:
-            raise ScenarioError(f"{path}: line 1 (header): column '{col}' missing (found {', '.join(df.columns)})")
-    stamps = pd.to_datetime(df["utc_start"], utc=True, format="ISO8601", errors="coerce")
-    if stamps.isna().any():
-        i = int(np.flatnonzero(stamps.isna().to_numpy())[0])
-        raise ScenarioError(f"{path}: line {i + 2}, column 'utc_start': '{df['utc_start'][i]}' is not a time")
-    values = pd.to_numeric(df[column], errors="coerce").to_numpy(dtype=float)
-    bad = np.flatnonzero(~np.isfinite(values))
-    if len(bad):
-        i = int(bad[0])
-        raise ScenarioError(f"{path}: line {i + 2}, column '{column}': '{df[column][i]}' is not a number")
-    index = pd.DatetimeIndex(stamps, name="time")
-    back = np.flatnonzero(np.diff(index.asi8) <= 0)
-    if len(back):
-        i = int(back[0]) + 1
-        raise ScenarioError(f"{path}: line {i + 2}, column 'utc_start': not after the previous row")
-    return pd.Series(values, index=index, name="spot_eur_per_mwh")
+    from comems4build_ros.core.scenario.measured import read_price_csv
+
+    return read_price_csv(path, column, gapless=False)
 
 
 def extraterrestrial_horizontal_w_m2(time_start: pd.DatetimeIndex, latitude_deg: float, longitude_deg: float,
