@@ -74,7 +74,8 @@ IMPORT_KEYS = {
     "distributed": "python3-distributed", "psutil": "python3-psutil", "rosbags": "python3-rosbags-pip",
     "mcap": "python3-mcap-pip", "skfuzzy": "python3-scikit-fuzzy-pip", "highspy": "python3-highspy-pip",
     "osqp": "python3-osqp-pip", "pvlib": "python3-pvlib-pip", "OpenDHW": "python3-opendhw-pip",
-    "amqtt": "python3-amqtt-pip", "pwdlib": "python3-pwdlib-pip",
+    "amqtt": "python3-amqtt-pip", "pwdlib": "python3-pwdlib-pip", "pyenergyplus": "python3-pyenergyplus-lbnl-pip",
+    "fmpy": "python3-fmpy-pip", "pythonfmu": "python3-pythonfmu-pip",
 }
 #: Imported only when present (an optional comparison solver, docs/mpc.md), no dependency.
 OPTIONAL_IMPORTS = frozenset({"gurobipy"})

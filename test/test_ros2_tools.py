@@ -90,6 +90,7 @@ def test_ros2_param_on_running_nodes(ros2, domain_id, tmp_path) -> None:
                              domain_id, tmp_path, lambda r: "ros__parameters" in r.stdout)
             listed = run_until(ros2, ["param", "list", node, "--no-daemon", "--spin-time", "5"], domain_id, tmp_path,
                                lambda r: "config_files" in r.stdout or "bag_path" in r.stdout)
+            assert "ros__parameters" in dump.stdout, (node, dump.stdout[-1500:], dump.stderr[-1500:])
             values = yaml.safe_load(dump.stdout)[node]["ros__parameters"]
 
             def flat(d: dict, prefix: str = "") -> set[str]:
@@ -217,9 +218,10 @@ def test_ros2_launch_honours_the_launchers_arguments(ros2, domain_id, tmp_path) 
                          timeout=120)
     assert cli.returncode == 0, cli.stderr
 
-    def plan(text: str) -> list[str]:  # the plan as printed, the free port of the embedded broker masked
-        return [re.sub(r"(127\.0\.0\.1:|--port )\d+", r"\1P", ln) for ln in text[text.index("run plan:"):].splitlines()
-                if not ln.startswith("[INFO]")]
+    def plan(text: str) -> list[str]:  # the plan as printed, the broker's free port and the run's id masked
+        lines = [ln for ln in text[text.index("run plan:"):].splitlines() if not ln.startswith("[INFO]")]
+        masked = [re.sub(r"(127\.0\.0\.1:|--port )\d+", r"\1P", ln) for ln in lines]
+        return [re.sub(r"(--run-id |run_id:=\\?\"?)[0-9a-f]+", r"\1ID", ln) for ln in masked]
 
     assert plan(res.stdout) == plan(cli.stdout)
 

@@ -119,9 +119,10 @@ PARAMETERS: dict[str, ParamSpec] = {
                                "gives it to the first house's plant only)", allowed="true or false",
                                source="docs/ros_tools.md 'Simulated time'"),
     # plant_sim: the building's thermal model (with the feed's scenario parameters when not rc)
-    "building": ParamSpec("str", "building model of plant_sim: rc (the paper's 4R3C), energyplus[:IDF] or fmu:PATH",
-                          allowed="rc, energyplus, energyplus:FILE.idf or fmu:FILE.fmu",
-                          source="docs/cosimulation.md"),
+    "building_model": ParamSpec("str", "building model of plant_sim: rc (the paper's 4R3C), energyplus[:IDF] or "
+                                "fmu:PATH (not 'building': that is the section of the 4R3C's parameters)",
+                                allowed="rc, energyplus, energyplus:FILE.idf or fmu:FILE.fmu",
+                                source="docs/cosimulation.md"),
     # feed
     "scenario": ParamSpec("str", "scenario of the run", allowed="'default', 'year', 'synthetic' or a scenario "
                           "CSV path", source=_SCENARIO),

@@ -199,10 +199,11 @@ def clean_up(executor: Any, nodes: list[Any], label: str, code: int, end_process
     watchdog = cleanup_deadline(label, code)
     executor.shutdown()
     for node in nodes:
+        node_name = node.get_name()  # not to be asked once its destruction was requested
         try:
             node.destroy_node()
         except OSError as exc:  # a file closed at the end (the recorder's bag) on a full disk
-            report_cause(node.get_name(), f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
+            report_cause(node_name, f"cannot write {exc.filename or 'a file'}: {exc.strerror or exc}")
             code = EXIT_WRITE_FAILED
     print_cpu(label)
     watchdog.cancel()

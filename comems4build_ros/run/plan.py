@@ -695,7 +695,7 @@ def house_params(
     plant = dict(common, wait_for_recorder=True, stall_steps=STALL_STEPS,
                  **({"ems_token_file": token_file} if token_file else {}), **opts.plant_node_params)
     if opts.building != "rc":  # a detailed building model: plant_sim loads the feed's scenario for its weather
-        plant["building"] = opts.building
+        plant["building_model"] = opts.building
         plant.update({k: v for k, v in feed_params.items() if k in ("scenario", "weeks", "steps", "seed", "start")})
     if not clock:
         plant["publish_clock"] = False

@@ -98,7 +98,7 @@ class PlantSimNode(LockStepMaster):
         EnergyPlus writes its weather from the scenario, which plant_sim loads with the feed's
         scenario parameters (the launcher gives it the same ones).
         """
-        building = self.param("building", "rc")
+        building = self.param("building_model", "rc")
         if building == "rc":
             return None
         from comems4build_ros.core.loop import building_model
