@@ -111,7 +111,7 @@ def wait_for(check: Callable[[], bool], timeout: float, what: str, period: float
 
 def node_names(ros2: dict, domain: int, tmp_path: Path, env: dict[str, str] | None = None) -> set[str]:
     """``ros2 node list --no-daemon`` (no daemon to stop afterwards)."""
-    res = run_ros2(ros2, ["node", "list", "--no-daemon", "--spin-time", "1"], domain, tmp_path, timeout=60, env=env)
+    res = run_ros2(ros2, ["node", "list", "--no-daemon", "--spin-time", "3"], domain, tmp_path, timeout=60, env=env)
     return set(res.stdout.split())
 
 

@@ -31,6 +31,8 @@ from ros2_tools import (
 pytestmark = pytest.mark.ros
 
 LAUNCH = ["launch", "comems4build_ros", "comems4build.launch.py"]
+#: Each ``ros2 param`` call discovers the graph anew (--no-daemon): time for it on a loaded machine.
+DISCOVER = ["--spin-time", "5", "--timeout", "10"]
 
 
 
@@ -61,7 +63,7 @@ def test_ros2_run_refuses_a_bad_parameter_naming_it(ros2, domain_id, tmp_path, e
 # ---------------------------------------------------------------------- ros2 run: running nodes
 RUNS = {
     "plant_sim": ["-r", "__ns:=/t", "-p", "startup_timeout_s:=60.0", "-p", "step_timeout_s:=60.0"],
-    "feed": ["-r", "__ns:=/t", "-p", "steps:=48", "-p", "weeks:=1"],
+    "feed": ["-r", "__ns:=/t", "-p", "steps:=336", "-p", "weeks:=2"],  # longer than the test (0.5-s fallbacks)
     "fuzzy_ems": ["-r", "__ns:=/s", "-p", "use_sim_time:=true"],
     "recorder": ["-r", "__ns:=/r", "-p", "use_sim_time:=true"],
     "mqtt_bridge": ["-r", "__ns:=/m", "-p", "broker_url:=mqtt://127.0.0.1:9", "-p", "startup_timeout_s:=60.0"],
@@ -101,26 +103,28 @@ def test_ros2_param_on_running_nodes(ros2, domain_id, tmp_path) -> None:
             assert flat(values) == names and len(names) > 15, (exe, dump.stdout[-500:], listed.stdout[-500:])
             if exe != "recorder":
                 assert values["config_files"] == [] and values["battery"]["e_max_kwh"] == 6.5, exe
-        refused = run_until(ros2, ["param", "set", "/t/plant_sim", "battery.e_max_kwh", "3.0", "--no-daemon"],
-                            domain_id, tmp_path, lambda r: "Setting parameter" in r.stdout + r.stderr)
+        refused = run_until(ros2, ["param", "set", "/t/plant_sim", "battery.e_max_kwh", "3.0", "--no-daemon",
+                                   *DISCOVER], domain_id, tmp_path,
+                            lambda r: "Setting parameter" in r.stdout + r.stderr)
         assert "Setting parameter failed: Trying to set a read-only parameter: battery.e_max_kwh" in refused.stderr
         t_set = time.monotonic()
         for name in ("startup_timeout_s", "step_timeout_s"):
-            ok = run_until(ros2, ["param", "set", "/t/plant_sim", name, "0.5", "--no-daemon"], domain_id, tmp_path,
-                           lambda r: "Set parameter" in r.stdout)
+            ok = run_until(ros2, ["param", "set", "/t/plant_sim", name, "0.5", "--no-daemon", *DISCOVER], domain_id,
+                           tmp_path, lambda r: "Set parameter" in r.stdout)
             assert "Set parameter successful" in ok.stdout, ok.stdout + ok.stderr
         wait_for(lambda: "fallback" in (tmp_path / "plant_sim.log").read_text(), 40, "a fallback step after the "
                  "new time-outs")
         assert time.monotonic() - t_set < 40  # not the 60 s given at the start
-        live = run_until(ros2, ["param", "set", "/t/plant_sim", "use_sim_time", "true", "--no-daemon"], domain_id,
-                         tmp_path, lambda r: "Set parameter" in r.stdout)
+        live = run_until(ros2, ["param", "set", "/t/plant_sim", "use_sim_time", "true", "--no-daemon", *DISCOVER],
+                         domain_id, tmp_path, lambda r: "Set parameter" in r.stdout)
         assert "Set parameter successful" in live.stdout, live.stdout + live.stderr
         run_ros2(ros2, ["topic", "pub", "--once", "/clock", "rosgraph_msgs/msg/Clock", "{clock: {sec: 1669849200}}"],
                  domain_id, tmp_path, timeout=60)
-        run_until(ros2, ["param", "set", "/s/fuzzy_ems", "use_sim_time", "true", "--no-daemon"], domain_id,
+        run_until(ros2, ["param", "set", "/s/fuzzy_ems", "use_sim_time", "true", "--no-daemon", *DISCOVER], domain_id,
                   tmp_path, lambda r: "Set parameter" in r.stdout)
         wait_for(lambda: "[sim " in (tmp_path / "fuzzy_ems.log").read_text(), 30, "a log line with the sim time")
-        assert all(p.poll() is None for p in procs.values())
+        assert all(p.poll() is None for p in procs.values()), {e: (tmp_path / f"{e}.log").read_text()[-800:]
+                                                               for e, p in procs.items() if p.poll() is not None}
     finally:
         codes = stop(list(procs.values()))
     logs = {e: (tmp_path / f"{e}.log").read_text() for e in procs}
@@ -172,8 +176,9 @@ def test_log_level_and_rosout(ros2, domain_id, tmp_path) -> None:
                                  "transient_local", "--qos-reliability", "reliable"], domain_id, tmp_path,
                           tmp_path / "rosout.log")
         wait_for(lambda: "plant ready" in (tmp_path / "rosout.log").read_text(), 60, "the start-up line on /rosout")
-        run_until(ros2, ["param", "set", "/w/plant_sim", "step_timeout_s", "4.5", "--no-daemon"], domain_id, tmp_path,
-                  lambda r: "Set parameter" in r.stdout)
+        res = run_until(ros2, ["param", "set", "/w/plant_sim", "step_timeout_s", "4.5", "--no-daemon", *DISCOVER],
+                        domain_id, tmp_path, lambda r: "Set parameter" in r.stdout)
+        assert "Set parameter successful" in res.stdout, res.stdout + res.stderr
         wait_for(lambda: "parameter 'step_timeout_s' = 4.5 from now on" in (tmp_path / "rosout.log").read_text(), 30,
                  "the node's log line on /rosout")
     finally:
