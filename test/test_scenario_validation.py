@@ -98,7 +98,7 @@ def test_station_file_sunshine_belongs_to_the_hour_it_ends(tmp_path):
 @pytest.mark.parametrize("rows, message", [
     (["2016010100;x;90.0;"], r"line 2, column 'TT_TU': 'x' is not a number"),
     (["2016010100;1.0;90.0;", "2016010101;1.0;90.0;61"], r"line 3, column 'SD_SO': 61 min is outside 0..60"),
-    (["2016010100;70.0;90.0;"], r"line 2, column 'TT_TU': 70 degC is outside -60..60"),
+    (["2016010100;70.0;90.0;"], r"line 2, column 'TT_TU': value 70 outside the plausible range -60..60 degC"),
     (["20160101;1.0;90.0;"], r"line 2, column 'MESS_DATUM': '20160101' is not yyyymmddHH"),
     (["2016010100;1.0;90.0"], r"line 2: 3 fields, header has 4"),
 ])

@@ -273,7 +273,9 @@ PRICE_MAX_EUR_PER_KWH = 10.0
 class SimulationParams(Section):
     """Run settings: step [h], horizon [h], H2 season [weeks] and initial states."""
 
-    time_step_h: float = Pos
+    #: Step [h]: the scenarios have 1 h rows (paper sec:parameters), a run checks the match;
+    #: at most a day, since the day-based rules (``eq:deltaLOH``, forecasts) count steps per day.
+    time_step_h: float = Phys(0, 24, lo_open=True)
     horizon_h: int = Field(gt=0, le=168)
     season_weeks: float = Phys(0, 53, lo_open=True)
     soc_init: float = Frac

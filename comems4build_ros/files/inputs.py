@@ -331,3 +331,52 @@ def expect_mapping(data: Any, source: str, what: str) -> dict[str, Any]:
         raise InputFileError(f"{source}: expected {what} (a mapping), got {type(data).__name__}")
     return data
 
+
+
+#: A plain decimal number as the text sources write it (DWD and DHWCalc files, MQTT
+#: ``number`` commands, command-line lists): ASCII digits, an optional sign, point and
+#: exponent. Python's own ``float``/``int`` also take forms no such source writes and that
+#: signal a damaged or crafted input: digit groups (``1_000``), digits of other scripts
+#: (``١٢``), ``nan``/``inf`` spelled out, and surroundings of Unicode space or control
+#: characters (``\x1c``, no-break space) that ``str.strip`` removes.
+_DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
+_INTEGER = re.compile(r"[+-]?[0-9]+")
+#: The only characters allowed around a number: ASCII space, tab, carriage return, line feed.
+ASCII_SPACE = " \t\r\n"
+
+
+def parse_decimal(text: str) -> float:
+    """The value [as written] of ``text``, a plain decimal number (``"12"``, ``"-0.5"``, ``"1e3"``).
+
+    Only ASCII space, tab, CR and LF may surround it. Raises ``ValueError`` (whose message
+    quotes the text) for anything else, including the forms Python's ``float`` accepts beyond
+    plain decimals (see :data:`_DECIMAL`); the caller names the file, line, field or topic.
+    """
+    core = text.strip(ASCII_SPACE)
+    if _DECIMAL.fullmatch(core) is None:
+        raise ValueError(f"{text[:40]!r} is not a plain decimal number")
+    return float(core)
+
+
+def parse_integer(text: str) -> int:
+    """The value of ``text``, a plain decimal integer (ASCII digits, optional sign, ASCII space around).
+
+    Raises ``ValueError`` for anything else (``"1_0"``, ``"١٢"``, ``"0x10"``, ``"1.0"``).
+    """
+    core = text.strip(ASCII_SPACE)
+    if _INTEGER.fullmatch(core) is None:
+        raise ValueError(f"{text[:40]!r} is not a plain decimal integer")
+    return int(core)
+
+
+def text_lines(text: str) -> list[str]:
+    """The lines of ``text`` as an editor numbers them: split at LF only, a trailing CR dropped.
+
+    ``str.splitlines`` also splits at the ASCII separators ``\\x1c``-``\\x1e``, ``\\x85`` and
+    U+2028/U+2029, so a stray one in a data file would shift every line number after it in
+    the error messages that name a line (and hide the damage as a short line).
+    """
+    lines = text.split("\n")
+    if lines and lines[-1] == "":
+        lines.pop()
+    return [line[:-1] if line.endswith("\r") else line for line in lines]

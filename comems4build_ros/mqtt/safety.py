@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass, field
 
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH, Action
+from comems4build_ros.files.inputs import parse_decimal
 from comems4build_ros.mqtt.topicmap import TopicMap
 
 
@@ -199,11 +200,12 @@ def parse_setting(topic: str, payload: bytes, low: float, high: float) -> float:
     Raises
     ------
     SettingError
-        For a payload that is not UTF-8, not a finite number or outside the range.
+        For a payload that is not UTF-8, not a plain decimal number (digits of other scripts,
+        digit groups ``1_000``, control or Unicode space characters around it are refused;
+        see :func:`~comems4build_ros.files.inputs.parse_decimal`), not finite or outside the range.
     """
     try:
-        text = payload.decode("utf-8").strip()
-        value = float(text)
+        value = parse_decimal(payload.decode("utf-8"))
     except (UnicodeDecodeError, ValueError):
         raise SettingError(f"topic '{topic}': {payload[:40]!r} is not a number") from None
     if not math.isfinite(value) or not low <= value <= high:

@@ -28,6 +28,8 @@ import stat
 import zlib
 from pathlib import Path
 
+from comems4build_ros.files.inputs import parse_integer
+
 #: Tokens are integers in 1 .. MAX_TOKEN - 1 (exact in float64).
 MAX_TOKEN = 2**53
 
@@ -99,14 +101,14 @@ def read_token_file(path: str | Path) -> int:
     p = Path(path)
     try:
         mode = p.stat().st_mode
-        text = p.read_text(encoding="ascii").strip()
+        text = p.read_text(encoding="ascii")
     except (OSError, UnicodeDecodeError) as exc:
         raise ValueError(f"token file {p}: {exc}") from None
     if mode & (stat.S_IRWXG | stat.S_IRWXO):
         raise ValueError(f"token file {p}: mode {stat.filemode(mode)} lets other users read or change it; "
                          "give it mode 0600")
     try:
-        token = int(text)
+        token = parse_integer(text)
     except ValueError:
         raise ValueError(f"token file {p}: not an integer") from None
     if not 0 < token < MAX_TOKEN:

@@ -61,11 +61,12 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
 def parse_etas(text: str) -> list[float]:
     """``"0.75,0.90"`` -> ``[0.75, 0.9]`` (each in (0, 1], no duplicates)."""
     from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.files.inputs import parse_decimal
 
     etas = []
     for part in text.split(","):
         try:
-            eta = float(part)
+            eta = parse_decimal(part)
         except ValueError:
             raise UsageError(f"--fc-efficiency: '{part}' is not a number") from None
         if not 0.0 < eta <= 1.0:

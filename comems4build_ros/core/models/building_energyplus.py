@@ -60,6 +60,7 @@ from comems4build_ros.core.models import energyplus_house as house
 from comems4build_ros.core.models.building import Temperatures
 from comems4build_ros.core.models.epw import Weather, check_epw_covers, standard_offset_h, standard_times, write_epw
 from comems4build_ros.core.types import Exogenous
+from comems4build_ros.files.inputs import ASCII_SPACE, parse_decimal, parse_integer, text_lines
 
 #: Largest zone time step allowed [min].
 MAX_ZONE_STEP_MIN = 15
@@ -119,6 +120,19 @@ class Radiant:
     area_m2: float
 
 
+def _surface_area_m2(surf: list[str]) -> float:
+    """Area [m2] of a ``BuildingSurface:Detailed`` object from its vertex count and coordinates.
+
+    Raises ``ValueError`` or ``IndexError`` for a count or coordinate that is not a plain
+    number or for missing vertices; the callers name the object.
+    """
+    n = parse_integer(surf[11])
+    coords = surf[12:12 + 3 * n]
+    if n < 3 or len(coords) != 3 * n:
+        raise IndexError(f"{n} vertices")
+    return polygon_area_m2([parse_decimal(v) for v in coords])
+
+
 def polygon_area_m2(coords: list[float]) -> float:
     """Area [m2] of a planar polygon given as x1, y1, z1, x2, ... (Newell's method)."""
     pts = np.asarray(coords, dtype=float).reshape(-1, 3)
@@ -129,10 +143,10 @@ def polygon_area_m2(coords: list[float]) -> float:
 
 def _objects(text: str) -> list[list[str]]:
     """The IDF's objects as lists of fields (comments removed, whitespace stripped)."""
-    body = "\n".join(line.split("!", 1)[0] for line in text.splitlines())
+    body = "\n".join(line.split("!", 1)[0] for line in text_lines(text))
     out = []
     for chunk in body.split(";"):
-        fields = [f.strip() for f in chunk.split(",")]
+        fields = [f.strip(ASCII_SPACE) for f in chunk.split(",")]
         if fields and fields[0]:
             out.append(fields)
     return out
@@ -182,7 +196,7 @@ def check_idf(path: str | Path) -> IDFInterface:
             floors.append(o[1])
             surf = surfaces[o[1].lower()]
             try:
-                areas.append(polygon_area_m2([float(v) for v in surf[12:12 + 3 * int(float(surf[11]))]]))
+                areas.append(_surface_area_m2(surf))
             except (ValueError, IndexError):
                 raise IDFError(f"{path}: object BuildingSurface:Detailed '{o[1]}': field Number of Vertices or a "
                                "vertex coordinate is not a number") from None
@@ -195,7 +209,13 @@ def check_idf(path: str | Path) -> IDFInterface:
     walls = [o[1] for o in kinds.get("buildingsurface:detailed", [])
              if len(o) > 6 and o[2].lower() == "wall" and o[6].lower() == "outdoors"]
     steps = kinds.get("timestep", [])
-    n = int(float(steps[0][1])) if steps and len(steps[0]) > 1 else 6
+    try:
+        n = parse_integer(steps[0][1]) if steps and len(steps[0]) > 1 else 6
+    except ValueError:
+        raise IDFError(f"{path}: object Timestep: field Number of Timesteps per Hour: {steps[0][1][:40]!r} "
+                       "is not a whole number") from None
+    if n <= 0:
+        raise IDFError(f"{path}: object Timestep: field Number of Timesteps per Hour = {n}, must be > 0")
     if 60 / n > MAX_ZONE_STEP_MIN:
         raise IDFError(f"{path}: object Timestep: field Number of Timesteps per Hour = {n} gives "
                        f"{60 / n:g} min, at most {MAX_ZONE_STEP_MIN} min allowed (at least 4 per hour)")
@@ -212,11 +232,11 @@ def _radiant(path: Path, o: list[str], surfaces: dict[str, list[str]], constants
     if f[5].lower() != "heatingdesigncapacity":
         raise IDFError(f"{where}: field Heating Design Capacity Method must be HeatingDesignCapacity")
     try:
-        capacity, throttling = float(f[6]), float(f[11])
+        capacity, throttling = parse_decimal(f[6]), parse_decimal(f[11])
     except ValueError:
         raise IDFError(f"{where}: field Heating Design Capacity or Heating Throttling Range is not a number "
                        "(autosize is not driven)") from None
-    if not (capacity > 0 and throttling > 0):
+    if not (0 < capacity < math.inf and 0 < throttling < math.inf):
         raise IDFError(f"{where}: field Heating Design Capacity and Heating Throttling Range must be > 0")
     if f[9].lower() != "meanairtemperature" or f[10].lower() != "halfflowpower":
         raise IDFError(f"{where}: field Temperature Control Type must be MeanAirTemperature and Setpoint Control "
@@ -228,7 +248,7 @@ def _radiant(path: Path, o: list[str], surfaces: dict[str, list[str]], constants
     if surf is None:
         raise IDFError(f"{where}: field Surface Name: '{f[4]}' is no BuildingSurface:Detailed of the file")
     try:
-        area = polygon_area_m2([float(v) for v in surf[12:12 + 3 * int(float(surf[11]))]])
+        area = _surface_area_m2(surf)
     except (ValueError, IndexError):
         raise IDFError(f"{where}: the vertices of surface '{f[4]}' are not numbers") from None
     return Radiant(f[1], f[3], f[4], f[12], capacity, throttling, area)
@@ -241,7 +261,7 @@ _DROP = ("runperiod", "site:location", "sizingperiod:designday", "sizingperiod:w
 def run_idf_text(idf_text: str, site: SiteParams, offset_h: float, first_std: pd.Timestamp, days: int) -> str:
     """The IDF with its own run period and location replaced by the run's (``first_std`` naive standard time)."""
     kept = []
-    body = "\n".join(line.split("!", 1)[0] for line in idf_text.splitlines())
+    body = "\n".join(line.split("!", 1)[0] for line in text_lines(idf_text))
     for chunk in body.split(";"):
         head = chunk.split(",", 1)[0].strip().lower()
         if not head or head in _DROP:

@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from comems4build_ros.core.config import SiteParams
+from comems4build_ros.files.inputs import parse_decimal, parse_integer, text_lines
 
 #: Fields of an EPW data record that the scenario does not give (choices, written in the header).
 CHOICES = {
@@ -164,7 +165,7 @@ def epw_hours(path: str | Path) -> pd.DatetimeIndex:
     path = Path(path)
     if not path.is_file():
         raise EPWError(f"{path}: EPW file not found")
-    lines = path.read_text(encoding="utf-8", errors="replace").splitlines()
+    lines = text_lines(path.read_text(encoding="utf-8", errors="replace"))
     if len(lines) <= HEADER_LINES or not lines[0].startswith("LOCATION"):
         raise EPWError(f"{path}: line 1: field LOCATION: not an EPW file (8 header lines, then hourly records)")
     starts = []
@@ -173,9 +174,9 @@ def epw_hours(path: str | Path) -> pd.DatetimeIndex:
         if len(parts) < 22:
             raise EPWError(f"{path}: line {i}: {len(parts)} fields, an EPW record has 35")
         try:
-            y, mo, d, h = (int(parts[j]) for j in range(4))
+            y, mo, d, h = (parse_integer(parts[j]) for j in range(4))
             starts.append(pd.Timestamp(year=y, month=mo, day=d) + pd.Timedelta(hours=h - 1))
-            float(parts[6])
+            parse_decimal(parts[6])
         except ValueError:
             raise EPWError(f"{path}: line {i}: field year/month/day/hour or dry bulb is not valid: {line[:60]!r}") \
                 from None

@@ -47,7 +47,7 @@ from comems4build_ros.core.scenario.csvio import (
     parse_times,
     read_text_file,
 )
-from comems4build_ros.files.inputs import InputFileError, load_json_text
+from comems4build_ros.files.inputs import ASCII_SPACE, InputFileError, load_json_text, parse_decimal, text_lines
 
 #: aWATTar market data endpoint (aWATTar API documentation, api.awattar.de).
 AWATTAR_URL = "https://api.awattar.de/v1/marketdata"
@@ -160,12 +160,15 @@ DWD_TIME_FORMATS = {12: "%Y%m%d%H%M", 10: "%Y%m%d%H"}
 def read_dwd_product(
     path: str | Path, columns: tuple[str, ...],
     check: Callable[[pd.DataFrame, Callable[[int], str]], None] | None = None,
+    empty_ok: tuple[str, ...] = (), encoding: str = "latin-1",
 ) -> pd.DataFrame:
     """Read a DWD open-data product (semicolon separated, ``MESS_DATUM`` UTC, rows end with ``eor``).
 
     Returns a frame of the requested columns (floats, -999 -> NaN) indexed by UTC time.
-    ``check(frame, where)`` judges the values before any averaging; ``where(i)`` is the
-    file line of row ``i`` (for :func:`~.csvio.check_values`).
+    A value is a plain decimal number (:func:`~comems4build_ros.files.inputs.parse_decimal`);
+    an empty field is NaN in the columns of ``empty_ok`` (sunshine at night in the hourly
+    station product) and refused elsewhere. ``check(frame, where)`` judges the values before
+    any averaging; ``where(i)`` is the file line of row ``i`` (for :func:`~.csvio.check_values`).
 
     Raises
     ------
@@ -175,17 +178,17 @@ def read_dwd_product(
         whatever ``check`` refuses.
     """
     path = Path(path)
-    lines = _read_text_lines(path)
-    header = [h.strip() for h in lines[0].split(";")]
+    lines = text_lines(read_text_file(path, encoding))
+    header = [h.strip(ASCII_SPACE) for h in lines[0].split(";")]
     for col in ("MESS_DATUM", *columns):
         if col not in header:
             raise ScenarioError(f"{path}: line 1 (header): column '{col}' missing (found {';'.join(header)})")
     pos = {c: header.index(c) for c in ("MESS_DATUM", *columns)}
     stamps, line_nos, rows = [], [], []
     for n, line in enumerate(lines[1:], start=2):
-        if not line.strip():
+        if not line.strip(ASCII_SPACE):
             continue
-        fields = [f.strip() for f in line.split(";")]
+        fields = [f.strip(ASCII_SPACE) for f in line.split(";")]
         if len(fields) != len(header):
             raise ScenarioError(f"{path}: line {n}: {len(fields)} fields, header has {len(header)}")
         if header[-1].lower() == "eor" and fields[-1].lower() != "eor":
@@ -195,17 +198,20 @@ def read_dwd_product(
         row = []
         for col in columns:
             text = fields[pos[col]]
+            if text == "" and col in empty_ok:
+                row.append(np.nan)
+                continue
             try:
-                value = float(text)
+                value = parse_decimal(text)
             except ValueError:
-                raise ScenarioError(f"{path}: line {n}, column '{col}': '{text}' is not a number") from None
+                raise ScenarioError(f"{path}: line {n}, column '{col}': {text[:40]!r} is not a number") from None
             row.append(np.nan if value == MISSING_MARKER else value)
         rows.append(row)
     if not rows:
         raise ScenarioError(f"{path}: no data rows")
     df = pd.DataFrame(rows, index=_dwd_times(path, stamps, line_nos), columns=list(columns))
     for col in columns:
-        if df[col].isna().all():
+        if col not in empty_ok and df[col].isna().all():
             raise ScenarioError(
                 f"{path}: column '{col}': every one of the {len(df)} values is missing ({MISSING_MARKER:g}); "
                 "no data to build from"
@@ -297,12 +303,12 @@ def read_dwd_solar(path: str | Path) -> pd.DataFrame:
 
 def _read_text_lines(path: Path) -> list[str]:
     """Lines of a Latin-1 source file (DWD, DHWCalc), checked by :func:`~.csvio.read_text_file`."""
-    return read_text_file(path, "latin-1").splitlines()
+    return text_lines(read_text_file(path, "latin-1"))
 
 
 def _is_number(text: str) -> bool:
     try:
-        float(text)
+        parse_decimal(text)
     except ValueError:
         return False
     return True
@@ -324,7 +330,7 @@ def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
     n_fields = 0
     counter0 = 0.0  # first step counter of a two-column file
     for n, line in enumerate(_read_text_lines(path), start=1):
-        fields = re.split(r"[;,\s]+", line.strip()) if line.strip() else []
+        fields = re.split(r"[;, \t]+", line.strip(ASCII_SPACE)) if line.strip(ASCII_SPACE) else []
         if not fields:
             continue
         if not values and n == 1 and not _is_number(fields[-1]):
@@ -337,18 +343,19 @@ def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
                     f"{path}: line {n}: {n_fields} columns; a DHWCalc file has one column of draws in l/h "
                     "(or two: a step counter and the draw)"
                 )
-            counter0 = float(fields[0]) if n_fields == 2 and _is_number(fields[0]) else 0.0
+            counter0 = parse_decimal(fields[0]) if n_fields == 2 and _is_number(fields[0]) else 0.0
         if len(fields) != n_fields:
             raise ScenarioError(f"{path}: line {n}: {len(fields)} column(s), line {first_data_line} has {n_fields}")
-        if n_fields == 2 and not (_is_number(fields[0]) and float(fields[0]) == counter0 + len(values)):
+        if n_fields == 2 and not (_is_number(fields[0]) and parse_decimal(fields[0]) == counter0 + len(values)):
             raise ScenarioError(
                 f"{path}: line {n}, column 1: '{fields[0]}' is not the step counter of a two-column DHWCalc file "
                 f"(expected {counter0 + len(values):g}); a two-column file must hold a counter and the draws in l/h"
             )
         try:
-            values.append(float(fields[-1]))
+            values.append(parse_decimal(fields[-1]))
         except ValueError:
-            raise ScenarioError(f"{path}: line {n}, column {n_fields}: '{fields[-1]}' is not a number (l/h)") from None
+            raise ScenarioError(
+                f"{path}: line {n}, column {n_fields}: {fields[-1][:40]!r} is not a number (l/h)") from None
     arr = np.asarray(values)
     if len(arr) not in DHWCALC_STEPS:
         raise ScenarioError(

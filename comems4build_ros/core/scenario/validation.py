@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import json
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -34,7 +35,8 @@ from pydantic import Field, model_validator
 
 from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
 from comems4build_ros.core.scenario.base import CSV_COLUMNS
-from comems4build_ros.core.scenario.csvio import ScenarioError
+from comems4build_ros.core.scenario.csvio import ScenarioError, check_values
+from comems4build_ros.core.scenario.loaders import read_dwd_product
 from comems4build_ros.core.scenario.settings import HOURS_PER_DAY
 
 #: Prefix of a validation case's scenario name (``--scenario validation/<case id>``).
@@ -277,53 +279,19 @@ def read_station_hourly(path: str | Path) -> pd.DataFrame:
         Naming the file, line and column of a missing column, a bad time or a bad number.
     """
     path = Path(path)
-    try:
-        lines = path.read_text(encoding="utf-8").splitlines()
-    except (OSError, UnicodeDecodeError) as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc}") from None
-    if not lines:
-        raise ScenarioError(f"{path}: empty file")
-    header = [h.strip() for h in lines[0].split(";")]
-    for col in ("MESS_DATUM", "TT_TU", "SD_SO"):
-        if col not in header:
-            raise ScenarioError(f"{path}: line 1 (header): column '{col}' missing (found {';'.join(header)})")
-    pos = {c: header.index(c) for c in ("MESS_DATUM", "TT_TU", "SD_SO")}
-    stamps, temp, sun = [], [], []
-    for n, line in enumerate(lines[1:], start=2):
-        if not line.strip():
-            continue
-        fields = [f.strip() for f in line.split(";")]
-        if len(fields) != len(header):
-            raise ScenarioError(f"{path}: line {n}: {len(fields)} fields, header has {len(header)}")
-        stamps.append(fields[pos["MESS_DATUM"]])
-        for col, out, empty_ok in (("TT_TU", temp, False), ("SD_SO", sun, True)):
-            text = fields[pos[col]]
-            if text == "" and empty_ok:
-                out.append(np.nan)
-                continue
-            try:
-                value = float(text)
-            except ValueError:
-                raise ScenarioError(f"{path}: line {n}, column '{col}': '{text}' is not a number") from None
-            out.append(np.nan if value == -999 else value)
-    try:
-        index = pd.DatetimeIndex(pd.to_datetime(stamps, format="%Y%m%d%H", utc=True), name="time")
-    except ValueError:
-        bad = next(i for i, s in enumerate(stamps) if pd.isna(pd.to_datetime(s, format="%Y%m%d%H", errors="coerce")))
-        raise ScenarioError(f"{path}: line {bad + 2}, column 'MESS_DATUM': '{stamps[bad]}' is not yyyymmddHH") from None
-    sun_a = np.array(sun)
-    bad = np.flatnonzero((sun_a < 0) | (sun_a > MINUTES_PER_HOUR))
-    if len(bad):
-        raise ScenarioError(f"{path}: line {bad[0] + 2}, column 'SD_SO': {sun_a[bad[0]]:g} min is outside 0..60")
-    temp_a = np.array(temp)
-    bad = np.flatnonzero(np.abs(temp_a) > 60)
-    if len(bad):
-        raise ScenarioError(f"{path}: line {bad[0] + 2}, column 'TT_TU': {temp_a[bad[0]]:g} degC is outside -60..60")
+
+    def check(df: pd.DataFrame, where: Callable[[int], str]) -> None:
+        check_values(path, "t_amb_c", df["TT_TU"].to_numpy(), where, "column 'TT_TU'")
+        sun_a = df["SD_SO"].to_numpy()
+        bad = np.flatnonzero((sun_a < 0) | (sun_a > MINUTES_PER_HOUR))
+        if len(bad):
+            raise ScenarioError(f"{path}: {where(int(bad[0]))}, column 'SD_SO': {sun_a[bad[0]]:g} min is outside 0..60")
+
+    df = read_dwd_product(path, ("TT_TU", "SD_SO"), check, empty_ok=("SD_SO",), encoding="utf-8-sig")
+    index = df.index
+    temp_a, sun_a = df["TT_TU"].to_numpy(), df["SD_SO"].to_numpy()
     t = pd.Series(temp_a, index=index)
     sd = pd.Series(sun_a, index=index - pd.Timedelta(hours=1))  # the hour that ends at the stamp
-    if index.has_duplicates:
-        i = int(np.flatnonzero(index.duplicated())[0])
-        raise ScenarioError(f"{path}: line {i + 2}, column 'MESS_DATUM': {stamps[i]} given twice")
     full = pd.date_range(sd.index.min(), index.max(), freq="h", name="time")
     return pd.DataFrame({"t_amb_c": t.reindex(full), "sunshine_min": sd.reindex(full)})
 
