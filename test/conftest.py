@@ -1,7 +1,8 @@
 """Fixtures shared by the test modules.
 
-``params`` is the default plant (``config/plant.yaml``), built once per module; a module that
-tests another plant defines its own ``params``. ``ros2`` is the ROS 2 command-line tools
+``tmp_path`` is a fresh folder named ``t<N>`` (not after the test). ``params`` is the
+default plant (``config/plant.yaml``), built once per module; a module that tests another
+plant defines its own ``params``. ``ros2`` is the ROS 2 command-line tools
 (``test/ros2_tools.py``). ``domain_id`` is a ROS 2 domain id locked for
 one test with the launcher's own lock files, so tests that start nodes never meet.
 """
@@ -9,10 +10,19 @@ one test with the launcher's own lock files, so tests that start nodes never mee
 from __future__ import annotations
 
 from collections.abc import Iterator
+from pathlib import Path
 
 import pytest
 
 from comems4build_ros.core.config import PlantParams, load_plant_params
+
+
+@pytest.fixture
+def tmp_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A fresh folder per test named ``t<N>``, not after the test as pytest's own: an error
+    message names the file, and a folder such as ``test_time_backwards0`` would answer for the
+    word ``backwards`` a test expects of the message."""
+    return tmp_path_factory.mktemp("t", numbered=True)
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,7 @@
 """ComEMS4Build controller (FLC_flex -> FLC_FC -> FLC_B) on hand-made observations and a short run."""
 
 import pytest
+from observations import observation_data
 
 from comems4build_ros.core.config import ConfigError
 from comems4build_ros.core.ems import make_controller
@@ -10,34 +11,7 @@ from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
 
 
 def obs_data(**changes):
-    d = {
-        "step": 18,
-        "day_index": 0,
-        "hour_of_day": 18,
-        "weekday": 1,
-        "is_weekend": False,
-        "t_air_c": 22.0,
-        "v_dhw_l": 250.0,
-        "soc": 0.5,
-        "loh": 0.8,
-        "hp_mod_prev": 0.0,
-        "p_pv_w": 0.0,
-        "p_load_w": 500.0,
-        "t_min_c": 21.0,
-        "t_max_c": 24.0,
-        "price_buy_eur_per_kwh": 0.40,
-        "price_sell_eur_per_kwh": 0.0794,
-        "prices_buy_24h": tuple([0.40] + [0.30] * 23),  # current price is the day's highest
-        "t_min_5h_c": (21.0,) * 6,
-        "ghi_w_m2": 0.0,
-        "dloh_per_day": 1.0 / 84.0,
-        "fc_on_prev": False,
-        "el_on_prev": False,
-        "days_to_heating_season": 0.0,
-        "heating_season_days_left": 84.0,
-    }
-    d.update(changes)
-    return d
+    return observation_data(**changes)
 
 
 def fuzzy_obs(**changes):

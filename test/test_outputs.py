@@ -158,27 +158,22 @@ def test_interrupted_at_any_rename_the_earlier_result_stays(tmp_path_factory: py
         (o.stage / "d").mkdir()
         (o.stage / "d" / "x").write_text("old")
     before = snapshot(out)
-    real, calls = os.replace, [0]
-
-    def replace(src: object, dst: object) -> None:
-        calls[0] += 1
-        if calls[0] == k:
-            raise KeyboardInterrupt
-        real(src, dst)
-
-    os.replace = replace
-    try:
-        with OutputDir(out, "t", writes=("a", "d", "s.json"), in_place=in_place) as o:
-            (o.stage / "a").write_text("new")
-            (o.stage / "d").mkdir()
-            (o.stage / "d" / "y").write_text("new")
-            outputs.write_text_atomic(o.stage / "s.json", "{}")
-    except KeyboardInterrupt:
+    with pytest.MonkeyPatch.context() as mp:
+        calls = _fault_points(mp, k)
+        try:
+            with OutputDir(out, "t", writes=("a", "d", "s.json"), in_place=in_place) as o:
+                (o.stage / "a").write_text("new")
+                (o.stage / "d").mkdir()
+                (o.stage / "d" / "y").write_text("new")
+                outputs.write_text_atomic(o.stage / "s.json", "{}")
+        except KeyboardInterrupt:
+            interrupted = True
+        else:
+            interrupted = False
+    if interrupted:
         assert snapshot(out) == before
     else:
         assert calls[0] < k and (out / "a").read_text() == "new" and not (out / "d" / "x").exists()
-    finally:
-        os.replace = real
     assert not [p for p in out.iterdir() if p.name.startswith((".partial", ".previous", ".replaced"))]
 
 

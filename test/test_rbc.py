@@ -1,6 +1,7 @@
 """Rule-based controller (sec:RBC) on hand-made observations and a short run."""
 
 import pytest
+from observations import observation_data
 
 from comems4build_ros.core.config import ConfigError
 from comems4build_ros.core.ems import make_controller
@@ -13,25 +14,7 @@ DAY = tuple(0.20 + 0.01 * i for i in range(24))  # 24 distinct prices 0.20 .. 0.
 
 
 def basic(**changes):
-    d = {
-        "step": 10,
-        "day_index": 0,
-        "hour_of_day": 10,
-        "weekday": 1,
-        "is_weekend": False,
-        "t_air_c": 22.0,
-        "v_dhw_l": 250.0,
-        "soc": 0.5,
-        "loh": 0.8,
-        "hp_mod_prev": 0.0,
-        "p_pv_w": 0.0,
-        "p_load_w": 500.0,
-        "t_min_c": 21.0,
-        "t_max_c": 24.0,
-        "price_buy_eur_per_kwh": 0.30,
-        "price_sell_eur_per_kwh": 0.0794,
-        "prices_buy_24h": DAY,
-    }
+    d = observation_data(step=10, hour_of_day=10, price_buy_eur_per_kwh=0.30, prices_buy_24h=DAY)
     d.update(changes)
     return Observation("basic", {k: d[k] for k in COMMON_FIELDS})
 

@@ -129,6 +129,20 @@ def read_ros_params(path: str | Path, node: str | None = None) -> dict[str, Any]
     return merged
 
 
+def read_param_section(path: str | Path, name: str) -> dict[str, Any]:
+    """Section ``name`` (a mapping) of the merged ``ros__parameters`` of the parameter file ``path``.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file: unreadable, not in parameter-file form, or without the section.
+    """
+    data = read_ros_params(path).get(name)
+    if not isinstance(data, Mapping):
+        raise ConfigError(f"{path}: no '{name}' section (a mapping) under ros__parameters")
+    return dict(data)
+
+
 def deep_merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
     """Merge ``extra`` into ``base`` in place, recursing into mappings; return ``base``."""
     for key, value in extra.items():
@@ -218,6 +232,22 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
                 msg = "unknown parameter"
             lines.append(f"{source}: parameter '{loc}': {msg}" if loc else f"{source}: {msg}")
         raise ConfigError("\n".join(lines)) from None
+
+
+def load_section(model: type[M], path: str | Path | None, default_file: str, section: str,
+                 overrides: Mapping[str, Any] | None = None) -> M:
+    """Section ``section`` of the parameter file ``path`` (``None``: ``config/<default_file>``)
+    with ``overrides`` (top-level keys) applied, validated as ``model``.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the parameter that is missing or invalid, or the missing section.
+    """
+    path = Path(path) if path else config_dir() / default_file
+    data = read_param_section(path, section)
+    data.update(overrides or {})
+    return validate(model, data, str(path))
 
 
 class Section(BaseModel):

@@ -24,7 +24,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.core.config import ConfigError, config_dir, read_ros_params
+from comems4build_ros.core.config import ConfigError, config_dir, read_param_section
 
 #: Weeks of the year the annual figures refer to (the year scenario: 52 weeks).
 WEEKS_PER_YEAR = 52.0
@@ -73,9 +73,7 @@ def load_costs(files: Sequence[str | Path] = ()) -> Costs:
     """
     merged: dict[str, Any] = {}
     for path in [default_costs_file(), *files]:
-        data = read_ros_params(path).get("costs")
-        if not isinstance(data, Mapping):
-            raise ConfigError(f"{path}: expected a 'costs' section under ros__parameters")
+        data = read_param_section(path, "costs")
         for key, value in data.items():
             if key == "interest_rate":
                 merged[key] = _number(path, "costs.interest_rate", value, 0.0, False)

@@ -21,7 +21,7 @@ import pandas as pd
 from pydantic import Field
 
 from comems4build_ros.core import kpi
-from comems4build_ros.core.config import PlantParams, Section, config_dir, read_ros_params, validate
+from comems4build_ros.core.config import PlantParams, Section, load_section
 from comems4build_ros.core.ems import make_controller
 from comems4build_ros.core.ems.base import (
     BOUNDS_AHEAD,
@@ -98,10 +98,7 @@ class ForecastParams(Section):
 
 def load_forecast_settings(path: str | Path | None = None, **overrides: Any) -> ForecastParams:
     """Read the ``forecast`` section of ``config/forecast.yaml`` (or ``path``), with overrides."""
-    path = Path(path) if path else config_dir() / "forecast.yaml"
-    data = dict(read_ros_params(path).get("forecast", {}))
-    data.update(overrides)
-    return validate(ForecastParams, data, str(path))
+    return load_section(ForecastParams, path, "forecast.yaml", "forecast", overrides)
 
 
 class ForecastModel:

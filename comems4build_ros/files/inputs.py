@@ -51,6 +51,10 @@ MAX_ALIASES = 1000
 #: config/reproduce.yaml, has under 1000).
 MAX_NODES = 100_000
 
+#: White space in the text inputs: ASCII space, tab, carriage return, line feed (the only
+#: characters allowed around a number, see :func:`parse_decimal`).
+ASCII_SPACE = " \t\r\n"
+
 _STR = "tag:yaml.org,2002:str"
 _MERGE = "tag:yaml.org,2002:merge"
 
@@ -87,14 +91,19 @@ def _where(source: str, mark: Any) -> str:
     return f"{source}:{mark.line + 1}:{mark.column + 1}"
 
 
-def read_text(path: str | Path, what: str, max_bytes: int = MAX_DOCUMENT_BYTES) -> str:
-    """The UTF-8 text of the regular file ``path``, at most ``max_bytes``.
+def read_text(path: str | Path, what: str, max_bytes: int = MAX_DOCUMENT_BYTES, encoding: str = "utf-8",
+              data_file: bool = False) -> str:
+    """The text of the regular file ``path``, at most ``max_bytes``, decoded with ``encoding``.
+
+    ``data_file``: also refuse NUL bytes (binary content in a Latin-1 file, which decodes) and
+    a file with nothing but white space (data files: scenario CSV, DWD, DHWCalc, JSON).
 
     Raises
     ------
     InputFileError
         Naming the file and ``what`` it should be: no such file, a directory, a device, FIFO
-        or socket, unreadable, larger than ``max_bytes``, or not UTF-8 text.
+        or socket, unreadable, larger than ``max_bytes``, not text in ``encoding`` or, with
+        ``data_file``, binary or empty.
     """
     path = Path(path)
     kind = path_kind(path)
@@ -107,13 +116,18 @@ def read_text(path: str | Path, what: str, max_bytes: int = MAX_DOCUMENT_BYTES) 
         raise InputFileError(f"{path}: cannot read {what}: {exc.strerror or exc}") from None
     if len(data) > max_bytes:
         raise InputFileError(f"{path}: cannot read {what}: larger than {max_bytes} bytes")
+    if data_file and b"\0" in data:
+        raise InputFileError(f"{path}: cannot read {what}: binary content (NUL bytes), not a text file")
     try:
-        return data.decode("utf-8")
+        text = data.decode(encoding)
     except UnicodeDecodeError as exc:
         raise InputFileError(
             f"{path}: cannot read {what}: not UTF-8 text (byte 0x{exc.object[exc.start]:02x} at offset "
             f"{exc.start}); a binary file?"
         ) from None
+    if data_file and not text.strip(ASCII_SPACE + "\ufeff"):
+        raise InputFileError(f"{path}: cannot read {what}: empty file")
+    return text
 
 
 def path_kind(path: str | Path) -> str:
@@ -341,8 +355,6 @@ def expect_mapping(data: Any, source: str, what: str) -> dict[str, Any]:
 #: characters (``\x1c``, no-break space) that ``str.strip`` removes.
 _DECIMAL = re.compile(r"[+-]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][+-]?[0-9]+)?")
 _INTEGER = re.compile(r"[+-]?[0-9]+")
-#: The only characters allowed around a number: ASCII space, tab, carriage return, line feed.
-ASCII_SPACE = " \t\r\n"
 
 
 def parse_decimal(text: str) -> float:

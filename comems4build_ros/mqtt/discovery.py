@@ -257,37 +257,25 @@ def discovery_messages(topic_map: TopicMap, limits: dict[str, tuple[float, float
         "device_class": "problem",
         **common,
     }))
+    def commanded(title: str, name: str, object_id: str, topics: tuple[str, str]) -> dict[str, Any]:
+        """Fields of an entity the user commands (a switch, a number); the command is retained on
+        the broker, so a bridge that (re)connects applies the user's last one."""
+        return {"name": title, "unique_id": f"{topic_map.node_id}_{name}",
+                "object_id": f"{topic_map.node_id}_{object_id}", "command_topic": topics[0],
+                "state_topic": topics[1], "retain": True, **common}
+
     for name, (title, object_id) in SWITCHES.items():
-        cmd, state = topic_map.switch_topics(name)
         out.append((config_topic(topic_map, "switch", name), {
-            "name": title,
-            "unique_id": f"{topic_map.node_id}_{name}",
-            "object_id": f"{topic_map.node_id}_{object_id}",
-            "command_topic": cmd,
-            "state_topic": state,
-            "payload_on": PAYLOAD_ON,
-            "payload_off": PAYLOAD_OFF,
-            "retain": True,  # the user's command stays on the broker: applied when the bridge (re)connects
-            **common,
+            **commanded(title, name, object_id, topic_map.switch_topics(name)),
+            "payload_on": PAYLOAD_ON, "payload_off": PAYLOAD_OFF,
         }))
     for name, (title, object_id, _setpoint, step) in SETTINGS.items():
         if limits is None:
             continue
-        cmd, state = topic_map.setting_topics(name)
         out.append((config_topic(topic_map, "number", name), {
-            "name": title,
-            "unique_id": f"{topic_map.node_id}_{name}",
-            "object_id": f"{topic_map.node_id}_{object_id}",
-            "command_topic": cmd,
-            "state_topic": state,
-            "min": 0.0,
-            "max": setting_max(limits, name),
-            "step": step,
-            "mode": "box",
-            "unit_of_measurement": "W",
-            "device_class": "power",
-            "retain": True,  # as the switches: kept on the broker, applied when the bridge (re)connects
-            **common,
+            **commanded(title, name, object_id, topic_map.setting_topics(name)),
+            "min": 0.0, "max": setting_max(limits, name), "step": step, "mode": "box",
+            "unit_of_measurement": "W", "device_class": "power",
         }))
     out.extend((config_topic(topic_map, comp, obj), None) for comp, obj in RETIRED)
     return out

@@ -470,23 +470,23 @@ def covered_weeks(run: RunData) -> list[int]:
 @finding("no_dhw_cover_at_75", "paper sec:heat_recovery", "at 75 % FC system efficiency no EMS covers a "
          "whole week's DHW demand with FC heat", ())
 def _no_cover_75(ctx: Context) -> Verdict:
-    runs = {e: r for (e, eta), r in ctx.variants.items() if abs(eta - 0.75) < 1e-9}
-    if not runs:
-        return Verdict(NA, "no runs at eta_sys = 0.75")
-    cov = {e: covered_weeks(r) for e, r in runs.items()}
-    ok = all(not v for v in cov.values())
-    return _v(ok, "weeks covered at 75 %: " + "; ".join(f"{e} {v or 'none'}" for e, v in cov.items()))
+    return _dhw_cover(ctx, 0.75, lambda cov: all(not v for v in cov.values()))
 
 
 @finding("some_dhw_cover_at_90", "paper sec:heat_recovery", "at 90 % FC system efficiency some EMS (RBC and MPC in "
          "the paper) cover the DHW demand with FC heat in some weeks", ())
 def _cover_90(ctx: Context) -> Verdict:
-    runs = {e: r for (e, eta), r in ctx.variants.items() if abs(eta - 0.90) < 1e-9}
+    return _dhw_cover(ctx, 0.90, lambda cov: any(cov.values()))
+
+
+def _dhw_cover(ctx: Context, eta_sys: float, holds: Callable[[dict[str, list[int]]], bool]) -> Verdict:
+    """``holds(weeks covered per EMS)`` over the runs at FC system efficiency ``eta_sys`` [-]."""
+    runs = {e: r for (e, eta), r in ctx.variants.items() if abs(eta - eta_sys) < 1e-9}
     if not runs:
-        return Verdict(NA, "no runs at eta_sys = 0.90")
+        return Verdict(NA, f"no runs at eta_sys = {eta_sys:.2f}")
     cov = {e: covered_weeks(r) for e, r in runs.items()}
-    ok = any(cov.values())
-    return _v(ok, "weeks covered at 90 %: " + "; ".join(f"{e} {v or 'none'}" for e, v in cov.items()))
+    return _v(holds(cov), f"weeks covered at {eta_sys * 100:.0f} %: "
+              + "; ".join(f"{e} {v or 'none'}" for e, v in cov.items()))
 
 
 def share_above_half(run: RunData, v_max_l: float) -> float:

@@ -463,27 +463,23 @@ def draw_figures(report: Mapping[str, Any], out: Path) -> dict[str, Path]:
         fig.legend(handles, labels, loc="outside lower center", ncol=len(handles))
         written["validation_cases"] = save_figure(fig, out / "figures" / "validation_cases")
 
+        panels = (  # x, y, reference lines, x label, y label, title
+            (lambda m: m["spread"], lambda m: m["ratios"].get("rbc/fuzzy"), {"y": 1.0},
+             "daily spread of the buy price [EUR/kWh]", "cost ratio RBC / ComEMS4Build [–]",
+             "(a) advantage over the RBC"),
+            (lambda m: m["price_mean"], lambda m: m["ratios"].get("mpc/fuzzy"), {"y": 1.0},
+             "mean buy price [EUR/kWh]", "cost ratio MPC / ComEMS4Build [–]", "(b) the MPC's advantage"),
+            (lambda m: m["price_mean"], lambda m: 100 * m["loh_end"]["mpc"] if "mpc" in m["loh_end"] else None,
+             {"x": report.get("mpc_break_even_eur_per_kwh")},
+             "mean buy price [EUR/kWh]", "MPC: H$_2$ left [%]", "(c) the MPC's H$_2$ (line: FC wear per kWh)"),
+        )
         fig, axes = plt.subplots(1, 3, figsize=figsize("double", 75))
-        ax = axes[0]
-        _scatter(ax, report, lambda m: m["spread"], lambda m: m["ratios"].get("rbc/fuzzy"))
-        line(ax, y=1.0)
-        ax.set_xlabel("daily spread of the buy price [EUR/kWh]")
-        ax.set_ylabel("cost ratio RBC / ComEMS4Build [–]")
-        ax.set_title("(a) advantage over the RBC", loc="left")
-        ax = axes[1]
-        _scatter(ax, report, lambda m: m["price_mean"], lambda m: m["ratios"].get("mpc/fuzzy"))
-        line(ax, y=1.0)
-        ax.set_xlabel("mean buy price [EUR/kWh]")
-        ax.set_ylabel("cost ratio MPC / ComEMS4Build [–]")
-        ax.set_title("(b) the MPC's advantage", loc="left")
-        ax = axes[2]
-        _scatter(ax, report, lambda m: m["price_mean"], lambda m: 100 * m["loh_end"]["mpc"]
-                 if "mpc" in m["loh_end"] else None)
-        if report.get("mpc_break_even_eur_per_kwh") is not None:
-            line(ax, x=report["mpc_break_even_eur_per_kwh"])
-        ax.set_xlabel("mean buy price [EUR/kWh]")
-        ax.set_ylabel("MPC: H$_2$ left [%]")
-        ax.set_title("(c) the MPC's H$_2$ (line: FC wear per kWh)", loc="left")
+        for ax, (x_of, y_of, ref, x_label, y_label, title) in zip(axes, panels):
+            _scatter(ax, report, x_of, y_of)
+            line(ax, **ref)
+            ax.set_xlabel(x_label)
+            ax.set_ylabel(y_label)
+            ax.set_title(title, loc="left")
         fig.legend(handles, labels, loc="outside lower center", ncol=len(handles))
         written["validation_prices"] = save_figure(fig, out / "figures" / "validation_prices")
     return written

@@ -387,7 +387,8 @@ def sweep(name: str, value: str, grace_s: float = GRACE_S) -> list[int]:
 
 @contextlib.contextmanager
 def sigterm_as_keyboard_interrupt() -> Iterator[None]:
-    """Within the block, SIGTERM to the launcher behaves like Ctrl-C (main thread only)."""
+    """Within the block, SIGTERM to this process (a launch, a study) behaves like Ctrl-C, so it ends
+    cleanly (main thread only)."""
     if threading.current_thread() is not threading.main_thread():
         yield
         return

@@ -36,12 +36,11 @@ import queue as _queue
 import signal
 import socket
 import tempfile
-import threading
 import time
 import traceback
 import uuid
 from collections import deque
-from collections.abc import Callable, Iterator, Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
@@ -661,7 +660,9 @@ class StudyExecutor:
                                      "remove that directory to start over")
             self.backend.open()
             stack.callback(self.backend.close)
-            stack.enter_context(_terminate_as_interrupt())  # SIGTERM ends the study as Ctrl-C does
+            from comems4build_ros.run.supervisor import sigterm_as_keyboard_interrupt
+
+            stack.enter_context(sigterm_as_keyboard_interrupt())  # SIGTERM ends the study as Ctrl-C does
         except BaseException:
             stack.close()
             raise
@@ -698,23 +699,6 @@ class StudyExecutor:
 def current() -> StudyExecutor | None:
     """The executor of the enclosing ``with StudyExecutor(...)`` block, if any."""
     return _CURRENT.get()
-
-
-@contextlib.contextmanager
-def _terminate_as_interrupt() -> Iterator[None]:
-    """SIGTERM raises KeyboardInterrupt in the main thread while a study runs (so it ends cleanly)."""
-    if threading.current_thread() is not threading.main_thread():
-        yield
-        return
-
-    def handler(signum: int, frame: Any) -> None:
-        raise KeyboardInterrupt
-
-    old = signal.signal(signal.SIGTERM, handler)
-    try:
-        yield
-    finally:
-        signal.signal(signal.SIGTERM, old)
 
 
 def run_jobs(

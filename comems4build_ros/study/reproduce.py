@@ -4,7 +4,7 @@
 targets, and every place where the paper is silent or reads two ways (an *ambiguity*) with
 its readings. :func:`prepare` reads and checks it; :func:`plan` turns it into the runs to
 make (the three EMS on every seed under the default readings, and each other reading on
-top of them) and the cases that read them; :func:`make_runs` runs them. What the runs show
+top of them) and the cases that read them; :func:`~comems4build_ros.study.runner.run_into` runs them. What the runs show
 beside the paper is :mod:`comems4build_ros.report.reproduce` (the evaluation) and
 ``comems4build reproduce`` joins the two.
 """
@@ -14,13 +14,13 @@ from __future__ import annotations
 import dataclasses
 import json
 import math
-from collections.abc import Callable, Iterable, Mapping, Sequence
+from collections.abc import Iterable, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_plant_params, read_ros_params
-from comems4build_ros.study.runner import RunTask, missing_in, run_into
+from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_plant_params, read_param_section
+from comems4build_ros.study.runner import RunTask
 
 #: The paper's three EMS, in the order of its tables.
 EMS = ("mpc", "fuzzy", "rbc")
@@ -182,9 +182,7 @@ def load_study(path: str | Path | None = None) -> Study:
         Naming the file and the entry that is missing or invalid.
     """
     path = Path(path) if path is not None else config_dir() / STUDY_FILE
-    data = read_ros_params(path).get("reproduce")
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: no 'reproduce' section under ros__parameters")
+    data = read_param_section(path, "reproduce")
     ambiguities = []
     keys: set[str] = set()
     for i, a in enumerate(_need(data, "ambiguities", str(path), list)):
@@ -476,25 +474,3 @@ def prepare(
         cases = [cases[0], *(c for c in cases[1:] if c.ambiguity in only)]
         tasks = {n: t for n, t in tasks.items() if n in runs_of(cases, study)}
     return Prepared(study, tasks, cases, params, with_study, tuple(only or ()))
-
-
-def make_runs(
-    prepared: Prepared,
-    runs_dir: Path,
-    jobs: int | None = None,
-    progress: Callable[[int, int, str], None] | None = None,
-    show_progress: bool | None = None,
-) -> int:
-    """Make every run of a prepared study into ``runs_dir/<name>``; the number of runs made.
-
-    Parameters
-    ----------
-    progress : callback ``(done, total, name)`` after each run
-    show_progress : one progress bar per run on stderr (None = when stderr is a terminal)
-    """
-    return run_into(prepared.tasks, runs_dir, jobs, progress, show_progress)
-
-
-def missing_runs(prepared: Prepared, runs_dir: Path) -> list[str]:
-    """Names of the study's runs without a finished run directory (``summary.json``) in ``runs_dir``."""
-    return missing_in(prepared.tasks, runs_dir)

@@ -5,7 +5,7 @@ The calibration set is the paper's winter (the default scenario) on the seeds of
 ``config/validation.yaml`` (:mod:`comems4build_ros.core.scenario.validation`): other winters
 at two other stations and other households, split into a development and a held-out subset.
 :func:`plan` turns the cases, and optionally the readings of the reproduction's ambiguities
-(``config/reproduce.yaml``), into runs; :func:`make_runs` runs them on local workers or a
+(``config/reproduce.yaml``), into runs; :func:`~comems4build_ros.study.runner.run_into` runs them on local workers or a
 Dask cluster (:func:`comems4build_ros.study.runner.run_tasks`). What the runs show is
 :mod:`comems4build_ros.report.validation`.
 
@@ -18,14 +18,14 @@ and are left to ``reproduce``.
 
 from __future__ import annotations
 
-from collections.abc import Callable, Sequence
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
 from comems4build_ros.core.config import ConfigError
 from comems4build_ros.study.reproduce import EMS, Study, check_tasks, load_study
-from comems4build_ros.study.runner import RunTask, missing_in, run_into
+from comems4build_ros.study.runner import RunTask
 
 #: The subset of the cases the defaults were chosen on.
 CALIBRATION = "calibration"
@@ -164,7 +164,7 @@ class Plan:
     ----------
     cases : the cases
     variants : the readings studied (empty: the defaults only)
-    tasks : run name -> task (``out_dir`` filled by :func:`make_runs`)
+    tasks : run name -> task (``out_dir`` filled by :func:`~comems4build_ros.study.runner.run_into`)
     runs : (case id, variant key or :data:`BASE`) -> EMS -> run name
     weeks : run length [weeks]
     ems : the EMS run
@@ -243,23 +243,3 @@ def plan(
             runs[(c.id, v.key)] = per
     check_tasks(tasks.values())
     return Plan(the_cases, variants, tasks, runs, n_weeks, tuple(ems), study)
-
-
-def make_runs(
-    p: Plan,
-    runs_dir: Path,
-    jobs: int | None = None,
-    progress: Callable[[int, int, str], None] | None = None,
-    show_progress: bool | None = None,
-) -> int:
-    """Make every run of the plan into ``runs_dir/<name>``; the number of runs made.
-
-    Runs are handed to the enclosing study's executor (``--jobs``, ``--scheduler``,
-    ``--resume``) or to ``jobs`` local worker processes, longest first.
-    """
-    return run_into(p.tasks, runs_dir, jobs, progress, show_progress)
-
-
-def missing_runs(p: Plan, runs_dir: Path) -> list[str]:
-    """Names of the plan's runs without a finished run directory (``summary.json``) in ``runs_dir``."""
-    return missing_in(p.tasks, runs_dir)

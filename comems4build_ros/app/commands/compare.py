@@ -12,10 +12,13 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from comems4build_ros.app.commands.options import (
-    add_building_options,
-    add_executor_options,
     add_scenario_options,
+    add_study_options,
     ems_help,
+    output_dir,
+    scenario_of,
+    study_executor,
+    study_inputs,
 )
 
 if TYPE_CHECKING:
@@ -43,19 +46,15 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              f"runs/<ems>_eta<percent>/ for the heat-recovery figure (default {DEFAULT_ETAS}; "
                              "fuel_cell.eta_sys from --set or --config instead runs that one efficiency, and "
                              "giving both is refused)")
-    parser.add_argument("--config", action="append", default=[], metavar="FILE",
-                        help="parameter file merged over config/plant.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run, e.g. --set battery.e_max_kwh=10")
-    add_executor_options(parser, jobs_default="CPU count in-process, 1 with --via ros")
-    add_building_options(parser)
+    add_study_options(parser, jobs_default="CPU count in-process, 1 with --via ros")
     parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
                         help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
     parser.add_argument("--from-runs", default=None, metavar="DIR",
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="output directory (default with --from-runs: that DIR)")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
 
 def parse_etas(text: str) -> list[float]:
@@ -108,17 +107,7 @@ def run_name(ems: str, eta: float, base_eta: float) -> str:
 
 def run(args: argparse.Namespace) -> int:
     """Run the comparison (unless --from-runs) and write the report."""
-    from comems4build_ros.app.commands.options import add_scenario_config
-
-    add_scenario_config(args)
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import (
-        check_config_files,
-        ems_names,
-        output_dir,
-        scenario_of,
-        study_executor,
-    )
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.ems import ems_entry
@@ -141,14 +130,10 @@ def run(args: argparse.Namespace) -> int:
         return 0
     if args.out is None:
         raise UsageError("--out is required (unless --from-runs)")
-    emss = ems_names(args.ems)
-    from comems4build_ros.app.commands.options import building_choice
-
-    args.building_choice = building_choice(args)
+    emss = study_inputs(args)
     if args.building_choice.kind != "rc" and args.via == "ros":
         raise UsageError("--building with --via ros: use comems4build launch --building (compare runs it in-process)")
     levels = {ems: str(ems_entry(ems).info_level) for ems in emss}
-    check_config_files(args.config)
     overrides = parse_assignments(args.set, "--set")
     etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
     if args.scenario == "year" and args.fc_efficiency is None:

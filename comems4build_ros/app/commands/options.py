@@ -291,6 +291,29 @@ def building_choice(args: argparse.Namespace) -> Any:
     return choice
 
 
+def add_study_options(parser: argparse.ArgumentParser, config_help: str = "config/plant.yaml",
+                      jobs_default: str = "CPU count") -> None:
+    """What every study command (compare, sweep, size) offers: ``--config``, where its runs
+    execute (:func:`add_executor_options`), the building model (:func:`add_building_options`)
+    and ``--no-progress``."""
+    parser.add_argument("--config", action="append", default=[], metavar="FILE",
+                        help=f"parameter file merged over {config_help} (repeatable)")
+    add_executor_options(parser, jobs_default)
+    add_building_options(parser)
+    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
+
+
+def study_inputs(args: argparse.Namespace) -> list[str]:
+    """The checked inputs of a study command: its EMS names (returned), its scenario settings,
+    building model (set as ``args.building_choice``) and parameter files; a usage error
+    (exit 2) names the option before any run starts."""
+    add_scenario_config(args)
+    emss = ems_names(args.ems)
+    args.building_choice = building_choice(args)
+    check_config_files(args.config)
+    return emss
+
+
 def check_building_covers(choice: Any, scenario: Any, params: Any) -> None:
     """An ``--epw`` that does not cover the scenario's run is a usage error naming the file and field."""
     from comems4build_ros.core.models.buildings import BuildingChoiceError, check_covers

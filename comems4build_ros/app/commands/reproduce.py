@@ -182,7 +182,8 @@ def reproduce(
 
     from comems4build_ros.core.config import ConfigError
     from comems4build_ros.report.reproduce import evaluate
-    from comems4build_ros.study.reproduce import make_runs, missing_runs, prepare
+    from comems4build_ros.study.reproduce import prepare
+    from comems4build_ros.study.runner import missing_in, run_into
 
     t0 = time.perf_counter()
     prepared = prepare(with_study, study_path, weeks, only, seeds)
@@ -194,7 +195,7 @@ def reproduce(
     out = Path(out_dir)
     if from_runs is not None:
         runs_dir = Path(from_runs) / "runs"
-        missing = missing_runs(prepared, runs_dir)
+        missing = missing_in(prepared.tasks, runs_dir)
         if missing:
             raise ConfigError(f"{runs_dir}: no run directory with a summary.json for {', '.join(missing)} "
                               f"(this study needs {len(prepared.tasks)} runs)")
@@ -212,5 +213,5 @@ def reproduce(
         return evaluate(prepared, runs_dir, out, int(earlier.get("runs_made", 0)), float(earlier.get("wall_s", 0.0)),
                         runs_from=str(from_runs), figures=figures)
     runs_dir = out / "runs"
-    made = make_runs(prepared, runs_dir, jobs=jobs, progress=progress, show_progress=show_progress)
+    made = run_into(prepared.tasks, runs_dir, jobs=jobs, progress=progress, show_progress=show_progress)
     return evaluate(prepared, runs_dir, out, made, time.perf_counter() - t0, figures=figures)

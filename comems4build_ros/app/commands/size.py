@@ -14,8 +14,7 @@ from comems4build_ros.app.commands.options import (
     COUNT,
     SEED,
     WEEKS,
-    add_building_options,
-    add_executor_options,
+    add_study_options,
     ems_help,
 )
 
@@ -44,14 +43,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
                         help="run length in weeks, > 0 (default: the year's 52; shorter runs are checks: their "
                              "annual figures are scaled to 52 weeks)")
-    parser.add_argument("--config", action="append", default=[], metavar="FILE",
-                        help="parameter file merged over config/plant.yaml and config/year.yaml (repeatable)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run (not one of the sized ones)")
-    add_executor_options(parser)
-    add_building_options(parser)
+    add_study_options(parser, "config/plant.yaml and config/year.yaml")
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
 
 def parse_values(text: str, option: str, integer: bool) -> list[float]:
@@ -83,24 +78,18 @@ def run(args: argparse.Namespace) -> int:
     """Run every size point for every EMS over the year; write size.csv, size.md, figures/, report.*."""
     from comems4build_ros.app.cli import UsageError
     from comems4build_ros.app.commands.options import (
-        add_scenario_config,
         check_config_files,
-        ems_names,
         output_dir,
         scenario_of,
         study_executor,
+        study_inputs,
     )
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.economics import load_costs
 
     args.scenario = "year"
-    add_scenario_config(args)
-    emss = ems_names(args.ems)
-    from comems4build_ros.app.commands.options import building_choice
-
-    args.building_choice = building_choice(args)
-    check_config_files(args.config)
+    emss = study_inputs(args)
     check_config_files(args.costs, "--costs")
     costs = load_costs(args.costs)
     overrides = parse_assignments(args.set, "--set")

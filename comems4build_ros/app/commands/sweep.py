@@ -8,12 +8,7 @@ import sys
 import time
 from pathlib import Path
 
-from comems4build_ros.app.commands.options import (
-    add_building_options,
-    add_executor_options,
-    add_scenario_options,
-    ems_help,
-)
+from comems4build_ros.app.commands import options as opt
 
 #: What ``sweep`` writes into its output directory.
 SWEEP_FILES = ("runs", "figures", "sweep.csv", "sweep.md", "sweep.json")
@@ -24,30 +19,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--param", action="append", required=True, metavar="PATH=V1,V2,...",
                         help="dotted plant parameter and its values, e.g. battery.e_max_kwh=5,6.5,10 (repeatable; "
                              "the grid is the product of all)")
-    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help=ems_help(many=True))
-    add_scenario_options(parser, hours=False)
-    parser.add_argument("--config", action="append", default=[], metavar="FILE",
-                        help="parameter file merged over config/plant.yaml (repeatable)")
-    add_executor_options(parser)
-    add_building_options(parser)
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help=opt.ems_help(many=True))
+    opt.add_scenario_options(parser, hours=False)
+    opt.add_study_options(parser)
     parser.add_argument("--timeseries", action="store_true", help="also write each run's timeseries.csv")
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
-    parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run every case of the grid and write sweep.csv, sweep.md, figures/<kpi>.{png,pdf,svg} and runs/."""
-    from comems4build_ros.app.commands.options import add_scenario_config
-
-    add_scenario_config(args)
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import (
-        check_config_files,
-        ems_names,
-        output_dir,
-        scenario_of,
-        study_executor,
-    )
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.report.sweep import sweep_kpis
     from comems4build_ros.study.sweep import grid, parse_param
@@ -61,18 +42,14 @@ def run(args: argparse.Namespace) -> int:
         if path in params:
             raise UsageError(f"--param {path} given twice")
         params[path] = values
-    emss = ems_names(args.ems)
-    from comems4build_ros.app.commands.options import building_choice
-
-    args.building_choice = building_choice(args)
-    check_config_files(args.config)
+    emss = opt.study_inputs(args)
     cases = grid(params, emss)
     for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
         plant = load_plant_params(args.config, case.values)
-    scenario_of(args, plant)  # the scenario and the run length, checked once before any run
-    output = output_dir(args, "sweep", writes=SWEEP_FILES, replaces=SWEEP_FILES)
+    opt.scenario_of(args, plant)  # the scenario and the run length, checked once before any run
+    output = opt.output_dir(args, "sweep", writes=SWEEP_FILES, replaces=SWEEP_FILES)
     output.check()
-    with output, study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+    with output, opt.study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
         wall = _sweep(args, params, emss, cases, output.stage)
         output.commit()  # runs/, tables and figures replace an older sweep's when all are written
         executor.complete()

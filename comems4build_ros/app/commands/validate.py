@@ -64,7 +64,8 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.files.inputs import load_json_file
     from comems4build_ros.report.validation import CRITERIA, evaluate
     from comems4build_ros.study.reproduce import EMS
-    from comems4build_ros.study.validate import make_runs, missing_runs, plan
+    from comems4build_ros.study.runner import missing_in, run_into
+    from comems4build_ros.study.validate import plan
 
     if args.from_runs and (args.scheduler or args.resume):
         raise UsageError("--scheduler and --resume apply to runs; --from-runs makes none")
@@ -83,7 +84,7 @@ def run(args: argparse.Namespace) -> int:
     output.check()
     if args.from_runs:
         runs_dir = Path(args.from_runs) / "runs"
-        missing = missing_runs(p, runs_dir)
+        missing = missing_in(p.tasks, runs_dir)
         if missing:
             raise UsageError(f"--from-runs {args.from_runs}: no finished run for {', '.join(missing[:5])}"
                              f"{' ...' if len(missing) > 5 else ''} (this plan needs {len(p.tasks)} runs)")
@@ -99,7 +100,7 @@ def run(args: argparse.Namespace) -> int:
     else:
         # the runs' executor; finished runs kept in OUT/.runstore (--resume takes them)
         with output, study_executor(args, args.out) as executor:
-            planned = make_runs(p, output.stage / "runs", jobs=args.jobs,
+            planned = run_into(p.tasks, output.stage / "runs", jobs=args.jobs,
                                 show_progress=False if args.no_progress else None)
             res = evaluate(p, output.stage / "runs", output.stage, planned - executor.resumed,
                            time.perf_counter() - t0, figures=not args.no_figures, load_at_start=load,

@@ -335,32 +335,12 @@ def read_text_file(path: str | Path, encoding: str = "utf-8-sig") -> str:
     path : file to read
     encoding : ``utf-8-sig`` (scenario CSV, JSON) or ``latin-1`` (DWD and DHWCalc text files)
     """
-    from comems4build_ros.core.config import path_kind
-
-    path = Path(path)
-    kind = path_kind(path)
-    if kind:
-        raise ScenarioError(f"{path}: {kind} (a text file is needed)")
-    from comems4build_ros.files.inputs import MAX_FILE_BYTES
+    from comems4build_ros.files.inputs import MAX_FILE_BYTES, InputFileError, read_text
 
     try:
-        with open(path, "rb") as fh:
-            raw = fh.read(MAX_FILE_BYTES + 1)
-    except OSError as exc:
-        raise ScenarioError(f"{path}: cannot read: {exc.strerror}") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ScenarioError(f"{path}: larger than {MAX_FILE_BYTES} bytes")
-    if b"\0" in raw:
-        raise ScenarioError(f"{path}: binary content (NUL bytes), not a text file")
-    try:
-        text = raw.decode(encoding)
-    except UnicodeDecodeError as exc:
-        raise ScenarioError(
-            f"{path}: not UTF-8 text (byte 0x{raw[exc.start]:02x} at offset {exc.start}); a binary file?"
-        ) from None
-    if not text.strip():
-        raise ScenarioError(f"{path}: empty file")
-    return text
+        return read_text(path, "a text file", MAX_FILE_BYTES, encoding, data_file=True)
+    except InputFileError as exc:
+        raise ScenarioError(str(exc)) from None
 
 
 def check_header(path: str | Path, text: str, required: tuple[str, ...]) -> list[str]:

@@ -42,7 +42,12 @@ import numpy as np
 import pandas as pd
 from pydantic import Field
 
-from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
+from comems4build_ros.core.config import (
+    ConfigError,
+    PlantParams,
+    Section,
+    load_section,
+)
 from comems4build_ros.core.scenario import scenario_from_frame
 from comems4build_ros.core.scenario.base import CSV_COLUMNS, Scenario
 from comems4build_ros.core.scenario.csvio import ScenarioError
@@ -101,11 +106,7 @@ class LiveInputParams(_Model):
 
 def load_live_settings(path: str | Path | None = None) -> LiveInputParams:
     """Read ``config/live_inputs.yaml`` (or ``path``); errors name the file and parameter."""
-    path = Path(path) if path else config_dir() / "live_inputs.yaml"
-    data = read_ros_params(path).get("live_inputs")
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: no 'live_inputs' section")
-    return validate(LiveInputParams, data, str(path))
+    return load_section(LiveInputParams, path, "live_inputs.yaml", "live_inputs")
 
 
 def http_get(url: str, timeout_s: float, retries: int, retry_delay_s: float,

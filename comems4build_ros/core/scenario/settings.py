@@ -12,13 +12,23 @@ import copy
 from collections.abc import Mapping
 from datetime import date, datetime
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
-from pydantic import Field, model_validator
+from pydantic import AfterValidator, Field, model_validator
 
-from comems4build_ros.core.config import ConfigError, Section, config_dir, read_ros_params, set_dotted, validate
+from comems4build_ros.core.config import ConfigError, Section, config_dir, read_param_section, set_dotted, validate
 
 HOURS_PER_DAY = 24
+
+
+def _local(value: datetime) -> datetime:
+    if value.tzinfo is not None:
+        raise ValueError("a local time of the site: give it without UTC offset")
+    return value
+
+
+#: A time of the site's clock (naive ``datetime``; the site's time zone gives its UTC offset).
+LocalTime = Annotated[datetime, AfterValidator(_local)]
 
 
 class _Section(Section):
@@ -166,7 +176,7 @@ class ScenarioParams(_Section):
     """The ``scenario`` section of ``config/scenario.yaml``."""
 
     seed: int = Field(ge=0)
-    start: datetime
+    start: LocalTime
     weeks: int = Field(ge=1)
     lookahead_h: int = Field(ge=0)
     temperature: TemperatureParams
@@ -175,12 +185,6 @@ class ScenarioParams(_Section):
     price: PriceParams
     load: LoadParams
     dhw: DHWDrawParams
-
-    @model_validator(mode="after")
-    def _check(self) -> ScenarioParams:
-        if self.start.tzinfo is not None:
-            raise ValueError("start is a local time of the site: give it without UTC offset")
-        return self
 
 
 class MeasuredTemperatureParams(_Section):
@@ -206,7 +210,7 @@ class MeasuredParams(_Section):
     ``solar`` and ``load`` settings and the seed given here.
     """
 
-    start: datetime
+    start: LocalTime
     weeks: int = Field(ge=1)
     lookahead_h: int = Field(ge=0)
     seed: int = Field(ge=0)
@@ -217,12 +221,6 @@ class MeasuredParams(_Section):
     dhw_day1_weekday: int = Field(ge=0, le=6)
     kc_from_temperature_amplitude: bool
 
-    @model_validator(mode="after")
-    def _check(self) -> MeasuredParams:
-        if self.start.tzinfo is not None:
-            raise ValueError("start is a local time of the site: give it without UTC offset")
-        return self
-
 
 #: Methods that fill the hours after the end of the measured temperature record.
 FILL_METHODS = ("repeat", "synthetic")
@@ -231,10 +229,7 @@ FILL_METHODS = ("repeat", "synthetic")
 def _section(path: str | Path | None, name: str, overrides: Mapping[str, Any] | None) -> tuple[dict, str]:
     """Section ``name`` of a scenario parameter file with dotted ``overrides`` applied, and its label."""
     path = Path(path) if path is not None else default_scenario_file()
-    data = read_ros_params(path)
-    if name not in data:
-        raise ConfigError(f"{path}: no '{name}' section under ros__parameters")
-    section = copy.deepcopy(data[name])
+    section = copy.deepcopy(read_param_section(path, name))
     for key, value in (overrides or {}).items():
         set_dotted(section, str(key), value)
     label = f"{path} + overrides ({', '.join(f'{name}.{k}' for k in overrides)})" if overrides else str(path)

@@ -33,7 +33,7 @@ import numpy as np
 import pandas as pd
 from pydantic import Field, model_validator
 
-from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
+from comems4build_ros.core.config import PlantParams, Section, load_section
 from comems4build_ros.core.scenario.base import CSV_COLUMNS
 from comems4build_ros.core.scenario.csvio import ScenarioError, check_values
 from comems4build_ros.core.scenario.loaders import read_dwd_product
@@ -168,11 +168,7 @@ def load_validation_settings(path: str | Path | None = None) -> ValidationSettin
     ConfigError
         Naming the file and the parameter that is missing or invalid.
     """
-    path = Path(path) if path is not None else config_dir() / VALIDATION_FILE
-    data = read_ros_params(path).get("validation")
-    if not isinstance(data, dict):
-        raise ConfigError(f"{path}: no 'validation' section under ros__parameters")
-    return validate(ValidationSettings, data, str(path))
+    return load_section(ValidationSettings, path, VALIDATION_FILE, "validation")
 
 
 @dataclass(frozen=True)
