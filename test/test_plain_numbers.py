@@ -248,3 +248,29 @@ def test_mqtt_setting_is_plain(text: str) -> None:
     topic = "comems4build/setting/battery_power_limit/set"
     with pytest.raises(SettingError, match=re.escape(f"topic '{topic}'")):
         parse_setting(topic, text.encode(), -1e7, 1e7)
+
+
+@given(text=lenient_only(latin1=False), as_json=st.booleans(), where=st.sampled_from(["value", "step"]))
+def test_mqtt_measurement_is_plain(text: str, as_json: bool, where: str) -> None:
+    """A house measurement (plain or JSON ``{"value": ..., "step": ...}``) and its step tag."""
+    import json
+
+    from comems4build_ros.mqtt.topicmap import MeasurementSpec, PayloadError
+
+    spec = MeasurementSpec(topic="zone/t", range=(-1e9, 1e9), json_key="value" if as_json else "",
+                           step_key="step" if as_json else "")
+    if not as_json:
+        payload = text.encode()
+    else:
+        doc = {"value": text, "step": "3"} if where == "value" else {"value": "21.5", "step": text.replace(".", "")}
+        payload = json.dumps(doc).encode()
+    with pytest.raises(PayloadError, match=re.escape("topic 'zone/t'")):
+        spec.decode(payload)
+
+
+@given(value=st.floats(-1e6, 1e6, allow_nan=False), scale=st.sampled_from([1.0, 0.01, 1000.0]))
+def test_mqtt_measurement_of_any_plain_number_is_read(value: float, scale: float) -> None:
+    from comems4build_ros.mqtt.topicmap import MeasurementSpec
+
+    spec = MeasurementSpec(topic="zone/t", scale=scale, range=(-1e12, 1e12))
+    assert spec.decode(spec.encode(value)) == (value, None)

@@ -6,7 +6,9 @@ arithmetic on the payload text: with power-of-ten scales (%, kW) and decimal off
 value sent by one side and read by the other comes back to the last bit, which lets the
 closed loop over MQTT reproduce the in-process run exactly.
 
-Payloads are a plain number (Home Assistant's default) or a JSON object (``json_key``),
+Payloads are a plain decimal number (Home Assistant's default; ``1_000``, digits of other
+scripts, ``nan`` or ``inf`` are refused, :func:`~comems4build_ros.files.inputs.parse_decimal`)
+or a JSON object (``json_key``),
 optionally with a step counter (``step_key``) used by the lock-step clock.
 """
 
@@ -23,6 +25,7 @@ from pydantic import Field, field_validator, model_validator
 
 from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
+from comems4build_ros.files.inputs import ASCII_SPACE, parse_decimal, parse_integer
 
 #: Measurements the bridge knows: SI name -> meaning [unit]. The first four are required.
 MEASUREMENTS: dict[str, str] = {
@@ -81,9 +84,10 @@ class _Scaled(_Model):
     # -- codec -------------------------------------------------------------------
     def to_si(self, text: str) -> float:
         """SI value of the device value ``text`` (``si = mqtt * scale + offset``, decimal)."""
+        parse_decimal(text)  # a plain decimal, as devices and Home Assistant write it (ValueError)
         with localcontext() as ctx:
             ctx.prec = DECIMAL_PRECISION
-            d = Decimal(text)
+            d = Decimal(text.strip(ASCII_SPACE))
             if self.scale != 1.0 or self.offset != 0.0:
                 d = d * Decimal(repr(self.scale)) + Decimal(repr(self.offset))
             return float(d)
@@ -110,7 +114,7 @@ class _Scaled(_Model):
     def _value_text(self, payload: bytes) -> tuple[Any, int | None]:
         """The value (text or JSON scalar) and step tag of a payload."""
         try:
-            text = payload.decode("utf-8").strip()
+            text = payload.decode("utf-8").strip(ASCII_SPACE)
         except UnicodeDecodeError:
             raise PayloadError(f"topic '{self.topic}': payload is not UTF-8") from None
         if not self.json_key:
@@ -124,7 +128,7 @@ class _Scaled(_Model):
         step = None
         if self.step_key and self.step_key in obj:
             try:
-                step = int(str(obj[self.step_key]))
+                step = parse_integer(str(obj[self.step_key]))
             except ValueError:
                 raise PayloadError(f"topic '{self.topic}': step '{obj[self.step_key]}' is not an integer") from None
         return obj[self.json_key], step
@@ -156,7 +160,7 @@ class MeasurementSpec(_Scaled):
         value, step = self._value_text(payload)
         if isinstance(value, bool):
             return (1.0 if value else 0.0), step
-        text = str(value).strip()
+        text = str(value).strip(ASCII_SPACE)
         if text.lower() in TRUE_WORDS:
             return 1.0, step
         if text.lower() in FALSE_WORDS:
@@ -188,7 +192,7 @@ class SetpointSpec(_Scaled):
     def decode(self, payload: bytes) -> tuple[float, int | None]:
         """``(SI value, step tag or None)``; a mapped word back to its number."""
         value, step = self._value_text(payload)
-        text = str(value).strip()
+        text = str(value).strip(ASCII_SPACE)
         if self.values:
             for number, word in self.values.items():
                 if text == word:
