@@ -8,7 +8,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from comems4build_ros.core.config import ConfigError, load_plant_params
+from comems4build_ros.core.config import ConfigError, config_dir, load_plant_params
 from comems4build_ros.core.scenario import ScenarioError, default_scenario, is_embedded, resolve_scenario
 from comems4build_ros.core.scenario import validation as va
 
@@ -188,7 +188,7 @@ def test_a_shorter_run_is_the_start_of_the_full_one():
 
 
 def test_bad_validation_file_is_named(tmp_path):
-    text = (va.config_dir() / va.VALIDATION_FILE).read_text(encoding="utf-8")
+    text = (config_dir() / va.VALIDATION_FILE).read_text(encoding="utf-8")
     path = tmp_path / "v.yaml"
     path.write_text(text.replace("b_s: 0.50", "b_s: 0.90"), encoding="utf-8")
     with pytest.raises(ConfigError, match=r"v.yaml: parameter 'radiation': .*a_s \+ b_s = 1.15"):
