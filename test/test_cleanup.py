@@ -15,6 +15,8 @@ import time
 from pathlib import Path
 
 import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
 
 from comems4build_ros.run.supervisor import ProcessGroup, exit_code
 
@@ -92,3 +94,32 @@ def test_a_stop_signal_that_rclpy_turned_into_a_runtime_error_is_a_stop() -> Non
     res = subprocess.run([sys.executable, "-c", script], capture_output=True, text=True, timeout=60)
     assert res.returncode == EXIT_INTERRUPTED, res.stderr
     assert "Traceback" not in res.stderr and "[node]: cause: stopped by a signal" in res.stderr, res.stderr
+
+
+@pytest.fixture(scope="module")
+def hung_outputs() -> dict[tuple[str, int], str]:
+    """The real stderr of a child whose clean-up hung, per (kind, decided code)."""
+    return {(kind, code): subprocess.run(_child(kind, code), capture_output=True, text=True, timeout=30).stderr
+            for kind, code in (("native", 0), ("native", 3), ("python", 0))}
+
+
+@given(cuts=st.lists(st.integers(0, 4000), max_size=12), noise=st.text(max_size=200))
+@settings(max_examples=100, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+def test_ros2_launch_reads_the_decision_from_stderr_in_any_chunks(hung_outputs: dict, cuts: list[int],
+                                                                  noise: str) -> None:
+    """What ``ros2 launch`` sees of a process (its stderr in chunks of any size, after other
+    output) gives the same decision as the launcher's log: 0 or 3 after a backstop, None
+    when the watchdog thread ended it (its own exit code stands) or nothing hung."""
+    from comems4build_ros.wire.exits import HangWatch, decided_before_hang
+
+    for (kind, code), text in hung_outputs.items():
+        watch = HangWatch()
+        full = noise + text
+        bounds = sorted({0, len(full), *(c for c in cuts if c < len(full))})
+        for a, b in zip(bounds, bounds[1:]):
+            watch.feed(full[a:b])
+        expect = code if kind == "native" else None
+        assert watch.decided() == decided_before_hang(full) == expect, (kind, code, full[-300:])
+    watch = HangWatch()
+    watch.feed(noise)
+    assert watch.decided() is None

@@ -23,7 +23,10 @@ shuts down; any other exit while the run is in progress (a node that fails, is s
 by a signal before the end of its run, ends a stalled run naming the silent node, or a
 process that may not end by itself), or the plan's time limit, ends the launch at once
 with an error naming the process, its exit code and what it means
-(:mod:`comems4build_ros.wire.exits`), so ``ros2 launch`` exits non-zero. The run tokens
+(:mod:`comems4build_ros.wire.exits`), so ``ros2 launch`` exits non-zero. As with the
+supervisor, a process whose run was complete (its ``cleaning up: exit code 0`` line on
+stderr) and whose clean-up then hung until its C-level watchdog ended it with code 1 is a
+completed process, with a warning. The run tokens
 are written as the supervisor writes them (mode 0600 in ``<out>/.secrets``, mode 0700)
 and removed, with their directory, when the launch shuts down. Evaluate the bag afterwards with ``comems4build
 evaluate BAG --out DIR``.
@@ -51,7 +54,7 @@ from comems4build_ros.run.plan import (
     ros_node_executables,
 )
 from comems4build_ros.run.supervisor import LaunchError, describe_nodes, remove_secrets, write_plan_files, write_secrets
-from comems4build_ros.wire.exits import exit_meaning
+from comems4build_ros.wire.exits import HangWatch, exit_meaning
 
 PACKAGE = "comems4build_ros"
 #: Launch arguments: name -> (default, description, ``comems4build launch`` option). A list
@@ -257,7 +260,7 @@ def plan_actions(plan: RunPlan, global_params: list[Any] | None = None, log_leve
     """Launch actions of ``plan``: its files, its processes in order (with the launch-wide
     parameters and log level, :func:`process_action`), the exit rule, the time limit."""
     from launch.actions import EmitEvent, OpaqueFunction, RegisterEventHandler, TimerAction
-    from launch.event_handlers import OnProcessExit, OnShutdown
+    from launch.event_handlers import OnProcessExit, OnProcessIO, OnShutdown
     from launch.events import Shutdown
 
     if plan.setup or plan.optional_setup:
@@ -277,6 +280,11 @@ def plan_actions(plan: RunPlan, global_params: list[Any] | None = None, log_leve
             if state["over"] or context.is_shutdown:
                 return None
             code = event.returncode
+            if code == 1 and watches[process.name].decided() == 0:
+                # its run was complete, then the clean-up hung in native code and the backstop ended it
+                print(f"[WARNING] [launch]: process '{process.name}' had finished its run (exit code 0) but its "
+                      "clean-up hung and its watchdog ended it (the stacks are above)", file=sys.stderr, flush=True)
+                code = 0
             if code != 0 or not process.finishes:
                 state["over"] = True
                 nodes = [node_label(n) for n in process.nodes]
@@ -297,10 +305,18 @@ def plan_actions(plan: RunPlan, global_params: list[Any] | None = None, log_leve
             state["over"] = True
             raise LaunchError(f"run not finished within the time limit of {plan.timeout_s:g} s (timeout:=S sets it)")
 
+    def follow(watch: HangWatch) -> Any:
+        def on_stderr(event: Any) -> None:
+            watch.feed(event.text.decode("utf-8", "replace"))
+
+        return on_stderr
+
+    watches = {p.name: HangWatch() for p in plan.processes}
     actions: list[Any] = [RegisterEventHandler(OnShutdown(on_shutdown=lambda event, context: remove_secrets(plan)))]
     for p in plan.processes:
         action = process_action(plan, p, list(global_params or []), log_level)
-        actions += [action, RegisterEventHandler(OnProcessExit(target_action=action, on_exit=rule(p)))]
+        actions += [action, RegisterEventHandler(OnProcessExit(target_action=action, on_exit=rule(p))),
+                    RegisterEventHandler(OnProcessIO(target_action=action, on_stderr=follow(watches[p.name])))]
     if plan.timeout_s is not None:
         actions.append(TimerAction(period=float(plan.timeout_s), actions=[OpaqueFunction(function=time_limit)]))
     return actions

@@ -68,7 +68,7 @@ from comems4build_ros.run.plan import (
     node_label,
     profile_env,
 )
-from comems4build_ros.wire.exits import BACKSTOP_MARK, CAUSE_TAG, CLEANUP_TAG, exit_meaning
+from comems4build_ros.wire.exits import CAUSE_TAG, CLEANUP_TAG, decided_before_hang, exit_meaning
 from comems4build_ros.wire.tokens import private_dir, write_token_file
 
 #: Domain ids tried by :func:`acquire_domain_id` (0..101 keep Fast DDS's ports below the
@@ -222,11 +222,7 @@ class Child:
         backstop ended it with code 1 (:func:`~comems4build_ros.ros.process.cleanup_deadline`:
         a ``cleaning up: exit code N`` line of the log, later the backstop's ``Timeout (``),
         or None if that is not what happened."""
-        _, tag, rest = self.log_text().rpartition(f"{CLEANUP_TAG} exit code ")
-        if not tag or BACKSTOP_MARK not in rest:
-            return None
-        word = rest.split(maxsplit=1)[0] if rest.split() else ""
-        return int(word) if word.lstrip("-").isdigit() else None
+        return decided_before_hang(self.log_text())
 
     def paused(self) -> bool:
         """The process is stopped (SIGSTOP, state ``T`` in ``/proc/<pid>/stat``)."""

@@ -49,3 +49,38 @@ def exit_meaning(code: int) -> str:
         except ValueError:
             return f"killed by signal {-code}"
     return EXIT_CODES.get(code, "error")
+
+
+def decided_before_hang(output: str) -> int | None:
+    """The exit code a node process's run had decided when its clean-up hung and the C-level
+    backstop ended it with code 1, read from the process's output (its log, or what ``ros2
+    launch`` saw on its stderr): a ``cleaning up: exit code N`` line (:data:`CLEANUP_TAG`),
+    then the backstop's :data:`BACKSTOP_MARK`; None if that is not what happened."""
+    _, tag, rest = output.rpartition(f"{CLEANUP_TAG} exit code ")
+    if not tag or BACKSTOP_MARK not in rest:
+        return None
+    word = rest.split(maxsplit=1)[0] if rest.split() else ""
+    return int(word) if word.lstrip("-").isdigit() else None
+
+
+class HangWatch:
+    """Follows a process's output in chunks and keeps only what :func:`decided_before_hang`
+    needs: the text from the last ``cleaning up:`` line on (at most ``limit`` characters),
+    whatever the chunks' boundaries."""
+
+    def __init__(self, limit: int = 65536) -> None:
+        self.limit = limit
+        self.text = ""
+
+    def feed(self, chunk: str) -> None:
+        """Add a chunk of output [text]."""
+        text = self.text + chunk
+        at = text.rfind(CLEANUP_TAG)
+        if at >= 0:
+            self.text = text[at:][: self.limit]
+        else:  # no clean-up yet: only what may be the start of a line cut between chunks
+            self.text = text[-len(CLEANUP_TAG) + 1:]
+
+    def decided(self) -> int | None:
+        """:func:`decided_before_hang` of what was fed."""
+        return decided_before_hang(self.text)
