@@ -59,8 +59,12 @@ def decided_before_hang(output: str) -> int | None:
     _, tag, rest = output.rpartition(f"{CLEANUP_TAG} exit code ")
     if not tag or BACKSTOP_MARK not in rest:
         return None
-    word = rest.split(maxsplit=1)[0] if rest.split() else ""
-    return int(word) if word.lstrip("-").isdigit() else None
+    from comems4build_ros.files.inputs import parse_integer
+
+    try:  # str.isdigit would pass "²", which int refuses
+        return parse_integer(rest.split(maxsplit=1)[0] if rest.split() else "")
+    except ValueError:
+        return None
 
 
 class HangWatch:
