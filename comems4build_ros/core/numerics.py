@@ -16,8 +16,19 @@ import numpy as np
 def rowdot(a: np.ndarray, x: np.ndarray) -> np.ndarray:
     """Each row of ``a`` times ``x``, summed over the last axis: ``a @ x`` without BLAS.
 
-    ``a`` of shape (..., m) and ``x`` of shape (m,) (or broadcastable); NumPy's own pairwise
-    sum is the same on every CPU.
+    NumPy's own pairwise sum is the same on every CPU.
+
+    Parameters
+    ----------
+    a : numpy.ndarray
+        Matrix (or stack of matrices) of shape (..., m), any unit.
+    x : numpy.ndarray
+        Vector of shape (m,) or broadcastable against ``a``, any unit.
+
+    Returns
+    -------
+    numpy.ndarray
+        ``sum_j a[..., j] * x[j]`` of shape (...,), in the unit of ``a`` times that of ``x``.
     """
     return (a * x).sum(axis=-1)
 
@@ -32,8 +43,10 @@ class PiecewiseLinear:
 
     Parameters
     ----------
-    xs : increasing abscissae (at least two)
-    ys : ordinates, one per abscissa
+    xs : sequence of float
+        Increasing abscissae (at least two), in the unit of the table's input.
+    ys : sequence of float
+        Ordinates, one per abscissa, in the unit of the table's output.
     """
 
     __slots__ = ("xs", "ys")
@@ -43,6 +56,18 @@ class PiecewiseLinear:
         self.ys = [float(y) for y in ys]
 
     def __call__(self, x: float) -> float:
+        """Interpolate the table at ``x`` (the end values outside the table).
+
+        Parameters
+        ----------
+        x : float
+            Abscissa, in the unit of ``xs``.
+
+        Returns
+        -------
+        float
+            Interpolated ordinate, in the unit of ``ys``.
+        """
         xs = self.xs
         if x <= xs[0]:
             return self.ys[0]

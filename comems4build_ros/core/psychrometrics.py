@@ -15,7 +15,28 @@ MAGNUS_C_C = 243.04
 
 
 def dew_point_c(t_air_c: float, rh: float) -> float:
-    """Dew point [degC] of air at ``t_air_c`` [degC] and relative humidity ``rh`` (0..1]."""
+    """Dew point of moist air by the Magnus formula (Alduchov and Eskridge 1996).
+
+    ``gamma = ln(rh) + b * t / (c + t)``, ``t_dew = c * gamma / (b - gamma)`` with
+    :data:`MAGNUS_B` and :data:`MAGNUS_C_C`.
+
+    Parameters
+    ----------
+    t_air_c : float
+        Air temperature [degC].
+    rh : float
+        Relative humidity, in (0, 1] [-].
+
+    Returns
+    -------
+    float
+        Dew point [degC].
+
+    Raises
+    ------
+    ValueError
+        If ``rh`` is outside (0, 1].
+    """
     if not 0.0 < rh <= 1.0:
         raise ValueError(f"relative humidity {rh} outside (0, 1]")
     gamma = math.log(rh) + MAGNUS_B * t_air_c / (MAGNUS_C_C + t_air_c)

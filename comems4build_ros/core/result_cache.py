@@ -55,7 +55,14 @@ PVLIB_DISTS = ("pvlib", "numpy", "pandas")
 
 
 def cache_dir() -> Path | None:
-    """Directory of the cache files, or None when the cache is switched off."""
+    """Return the directory of the cache files.
+
+    Returns
+    -------
+    pathlib.Path or None
+        ``$COMEMS4BUILD_CACHE_DIR``, else ``$XDG_CACHE_HOME/comems4build_ros`` (default
+        ``~/.cache/comems4build_ros``); None when the cache is switched off.
+    """
     value = os.environ.get(CACHE_ENV)
     if value is not None:
         return None if value.strip().lower() in _OFF else Path(value)
@@ -65,7 +72,19 @@ def cache_dir() -> Path | None:
 
 @cache
 def versions(dists: tuple[str, ...]) -> tuple[str, ...]:
-    """``name=version`` of each distribution in ``dists`` and of this package (``?`` if absent)."""
+    """Return the installed versions of the distributions a result depends on.
+
+    Parameters
+    ----------
+    dists : tuple of str
+        Distribution names (e.g. :data:`PVLIB_DISTS`).
+
+    Returns
+    -------
+    tuple of str
+        ``name=version`` of each distribution in ``dists`` and of this package, ``name=?``
+        for one that is not installed.
+    """
     out = []
     for dist in (*dists, "comems4build_ros"):
         try:
@@ -76,8 +95,25 @@ def versions(dists: tuple[str, ...]) -> tuple[str, ...]:
 
 
 def key_of(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray], dists: Sequence[str] = ()) -> str:
-    """Hex digest naming the result of ``kind`` for ``params``, the arrays ``inputs`` and the
-    versions of the distributions ``dists``."""
+    """Return the key of a result: a digest of everything the result depends on.
+
+    Parameters
+    ----------
+    kind : str
+        Name of the computation (also the cache file's prefix).
+    params : dict
+        Its parameters (JSON-serialisable; other values by ``str``).
+    inputs : sequence of numpy.ndarray
+        Its input arrays (dtype, shape and bytes enter the key).
+    dists : sequence of str, optional
+        Distributions whose versions the result depends on (see :func:`versions`).
+
+    Returns
+    -------
+    str
+        SHA-256 hex digest of :data:`CACHE_FORMAT`, ``kind``, ``params``, the versions and
+        the arrays.
+    """
     head = json.dumps({"format": CACHE_FORMAT, "kind": kind, "params": params, "versions": versions(tuple(dists))},
                       sort_keys=True, default=str)
     h = hashlib.sha256(head.encode())
@@ -89,13 +125,29 @@ def key_of(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray], dist
 
 
 def _path(kind: str, key: str) -> Path | None:
+    """Return the file of ``key``, or None when the cache is off."""
     d = cache_dir()
     return None if d is None else d / f"{kind}-{key[:40]}.npz"
 
 
 def load(kind: str, key: str, shape: tuple[int, ...] | None = None) -> tuple[np.ndarray, ...] | None:
-    """The cached arrays of ``key`` (each of shape ``shape``, if given), or None (no file, a
-    different key, a damaged file)."""
+    """Read the arrays stored under a key.
+
+    Parameters
+    ----------
+    kind : str
+        Name of the computation.
+    key : str
+        Key from :func:`key_of`.
+    shape : tuple of int, optional
+        Shape every array must have; a file with another shape counts as a miss.
+
+    Returns
+    -------
+    tuple of numpy.ndarray or None
+        The stored float arrays, or None when there is no file, it holds another key or
+        shape, or it is damaged.
+    """
     path = _path(kind, key)
     if path is None or not path.is_file():
         return None
@@ -113,8 +165,22 @@ def load(kind: str, key: str, shape: tuple[int, ...] | None = None) -> tuple[np.
 
 
 def store(kind: str, key: str, arrays: Sequence[np.ndarray]) -> bool:
-    """Write ``arrays`` under ``key`` atomically (a reader never sees half a file); False when
-    the cache is off or its directory cannot be written."""
+    """Write arrays under a key atomically (a reader never sees half a file).
+
+    Parameters
+    ----------
+    kind : str
+        Name of the computation.
+    key : str
+        Key from :func:`key_of`.
+    arrays : sequence of numpy.ndarray
+        Results, stored as float arrays.
+
+    Returns
+    -------
+    bool
+        True if written; False when the cache is off or its directory cannot be written.
+    """
     path = _path(kind, key)
     if path is None:
         return False
@@ -131,8 +197,29 @@ def store(kind: str, key: str, arrays: Sequence[np.ndarray]) -> bool:
 def cached(kind: str, params: dict[str, Any], inputs: Sequence[np.ndarray],
            compute: Callable[[], Sequence[np.ndarray]], *, dists: Sequence[str] = (),
            shape: tuple[int, ...] | None = None) -> tuple[np.ndarray, ...]:
-    """``compute()`` (float arrays, each of shape ``shape`` if given), or its result stored
-    earlier for the same ``kind``, ``params``, ``inputs`` and versions of ``dists``."""
+    """Return a computation's result from the cache, computing and storing it on a miss.
+
+    Parameters
+    ----------
+    kind : str
+        Name of the computation.
+    params : dict
+        Its parameters (part of the key).
+    inputs : sequence of numpy.ndarray
+        Its input arrays (part of the key).
+    compute : callable
+        Computes the result when it is not cached: a sequence of arrays.
+    dists : sequence of str, optional
+        Distributions whose versions the result depends on.
+    shape : tuple of int, optional
+        Shape every array must have.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        ``compute()`` as float arrays, or the same result stored earlier for the same
+        ``kind``, ``params``, ``inputs`` and versions (bit-identical).
+    """
     key = key_of(kind, params, inputs, dists)
     hit = load(kind, key, shape)
     if hit is not None:

@@ -26,13 +26,21 @@ class PlantState:
 
     Attributes
     ----------
-    soc : battery state of charge [-]
-    loh : hydrogen level, fraction of the store's LHV energy [-]
-    t_air_c, t_wall_in_c, t_wall_out_c : 4R3C node temperatures [degC]
-    v_dhw_l : usable hot-water volume at T_DHW [l]
-    hp_mod : heat-pump modulation eta_HP applied in the step [-]
-    fc_on : fuel cell was on in the step (s_FC)
-    el_on : electrolyser was on (producing) in the step
+    soc : float
+        Battery state of charge SOC (``eq:batt_soc``) [-].
+    loh : float
+        Level of hydrogen LOH, fraction of the store's LHV energy (``eq:LOH``) [-].
+    t_air_c, t_wall_in_c, t_wall_out_c : float
+        Node temperatures of the building model: room air, inner and outer wall
+        (``eq:state_update_bldgs``) [degC].
+    v_dhw_l : float
+        Usable hot-water volume at T_DHW (``eq:DHW_model``) [l].
+    hp_mod : float, default 0.0
+        Heat-pump modulation eta_HP applied in the step (``sec:hp``) [-].
+    fc_on : bool, default False
+        The fuel cell was on in the step (s_FC of ``eq:working_hours``).
+    el_on : bool, default False
+        The electrolyser was on (producing) in the step.
     """
 
     soc: float
@@ -46,7 +54,13 @@ class PlantState:
     el_on: bool = False
 
     def copy(self) -> PlantState:
-        """Independent copy."""
+        """Return an independent copy of the state.
+
+        Returns
+        -------
+        PlantState
+            A new record with the same field values.
+        """
         return PlantState(*(getattr(self, f.name) for f in fields(self)))
 
 
@@ -56,11 +70,17 @@ class Action:
 
     Attributes
     ----------
-    hp_mod : heat-pump modulation eta_HP, physically {0} U [mod_min, 1] [-]
-    hp_mode : HP_OFF, HP_SH, HP_DHW or HP_COOL
-    p_fc_w : requested fuel-cell electrical output [W], 0 or [P_min, zeta * P_max]
-    p_bess_w : battery power [W], > 0 charging, < 0 discharging
-    p_el_w : requested electrolyser electrical intake [W], 0 or [P_EL,min, P_EL,max]
+    hp_mod : float, default 0.0
+        Heat-pump modulation eta_HP, physically {0} U [mod_min, 1] (``sec:hp``) [-].
+    hp_mode : int, default HP_OFF
+        Heat-pump circuit (s_SH, s_DHW of ``eq:zetas``): :data:`HP_OFF`, :data:`HP_SH`, :data:`HP_DHW`
+        or :data:`HP_COOL`.
+    p_fc_w : float, default 0.0
+        Requested fuel-cell electrical output, 0 or [P_min, zeta * P_max] (``sec:h2``) [W].
+    p_bess_w : float, default 0.0
+        Battery power, > 0 charging, < 0 discharging (``eq:batt_soc``) [W].
+    p_el_w : float, default 0.0
+        Requested electrolyser electrical intake, 0 or [P_EL,min, P_EL,max] [W].
     """
 
     hp_mod: float = 0.0
@@ -76,13 +96,20 @@ class Exogenous:
 
     Attributes
     ----------
-    t_amb_c : ambient air temperature [degC]
-    ghi_w_m2 : global horizontal irradiance q_s [W/m2]
-    p_pv_w : PV AC output from ``eq:power_pv`` [W]
-    p_load_w : appliance load P_el,load [W]
-    dhw_l_per_h : hot-water draw at T_DHW [l/h]
-    price_buy_eur_per_kwh, price_sell_eur_per_kwh : tariffs [EUR/kWh]
-    t_min_c, t_max_c : comfort bounds ``eq:T_min`` [degC]
+    t_amb_c : float
+        Ambient air temperature [degC].
+    ghi_w_m2 : float
+        Global horizontal irradiance q_s [W/m2].
+    p_pv_w : float
+        PV AC output (``eq:power_pv``) [W].
+    p_load_w : float
+        Appliance load P_el,load [W].
+    dhw_l_per_h : float
+        Hot-water draw at T_DHW [l/h].
+    price_buy_eur_per_kwh, price_sell_eur_per_kwh : float
+        Buying and selling tariffs (``eq:costs``) [EUR/kWh].
+    t_min_c, t_max_c : float
+        Comfort bounds (``eq:T_min``) [degC].
     """
 
     t_amb_c: float
@@ -118,6 +145,59 @@ class Flows:
     (the electrolyser's intake ``p_el_w`` added to the paper's demand side);
     ``balance_residual_w`` is left side minus right side. In cooling mode ``cop`` is the
     EER and the heat taken from the rooms is ``q_cool_w`` (``q_hp_sh_w`` is 0).
+
+    Attributes
+    ----------
+    p_pv_w : float
+        PV AC output (``eq:power_pv``) [W].
+    p_load_w : float
+        Appliance load [W].
+    p_hp_el_w : float
+        Heat-pump electrical intake [W].
+    hp_mode : int
+        Circuit the heat pump served after clipping (``HP_*``).
+    hp_mod : float
+        Modulation applied after clipping [-].
+    cop : float
+        Coefficient of performance of the step (EER in cooling; 0 when off) [-].
+    q_hp_sh_w, q_hp_dhw_w : float
+        Heat-pump heat to space heating and to the hot-water tank [W].
+    p_fc_w : float
+        Fuel-cell electrical output [W].
+    fc_on, fc_start, fc_stop : bool
+        The fuel cell ran in the step, was switched on at its start, was switched off
+        (s_FC,on and s_FC,off of ``eq:on_off_logic``).
+    p_h2_w : float
+        Hydrogen consumed by the fuel cell, LHV power (``eq:molar_flows``) [W].
+    eta_fc_el : float
+        Fuel-cell electrical efficiency of the step (``eq:efficiency_FC``) [-].
+    q_fc_rec_w, q_fc_dump_w : float
+        Recovered fuel-cell heat delivered to the hot-water tank, and recoverable heat the
+        full tank could not take (``eq:FC_sys_efficiency``, ``eq:DHW_heat``) [W].
+    p_ch_w, p_dis_w : float
+        Battery charging and discharging power (``eq:batt_soc``) [W].
+    p_buy_w, p_sell_w : float
+        Power bought from and sold to the grid (``eq:power_balance``) [W].
+    q_dhw_demand_w, q_dhw_loss_w, q_dhw_unmet_w : float
+        Hot-water draw as heat, the tank's standing loss, and the part of both the tank
+        could not serve (``eq:DHW_model``) [W].
+    price_buy_eur_per_kwh, price_sell_eur_per_kwh : float
+        Tariffs of the step [EUR/kWh].
+    balance_residual_w : float
+        Left side minus right side of the power balance [W].
+    clipped : int
+        Bit set of the ``CLIP_*`` flags: what the plant changed in the action.
+    p_el_w : float, default 0.0
+        Electrolyser intake incl. compression and standby [W].
+    el_on, el_start : bool, default False
+        The electrolyser produced in the step; it was switched on at its start.
+    p_h2_el_w : float, default 0.0
+        Hydrogen produced by the electrolyser, LHV power [W].
+    q_el_rec_w, q_el_dump_w : float, default 0.0
+        Recovered electrolyser heat delivered to the tank, and what the full tank could not
+        take [W].
+    q_cool_w : float, default 0.0
+        Heat taken from the rooms by cooling [W].
     """
 
     p_pv_w: float
@@ -156,7 +236,13 @@ class Flows:
     q_cool_w: float = 0.0  # heat taken from the rooms by cooling [W]
 
     def as_dict(self) -> dict[str, float]:
-        """Field name -> value."""
+        """Return the record as a plain dictionary.
+
+        Returns
+        -------
+        dict of str to float
+            Field name -> value, units as in the attributes.
+        """
         return asdict(self)
 
 
