@@ -40,10 +40,18 @@ class ConfigError(ValueError):
 
 
 def config_dir() -> Path:
-    """Directory of the default parameter files.
+    """Return the directory of the default parameter files.
 
-    The source tree's ``config/`` when running from a checkout, else the installed
-    ``<prefix>/share/comems4build_ros/config``.
+    Returns
+    -------
+    pathlib.Path
+        The source tree's ``config/`` when running from a checkout, else the installed
+        ``<prefix>/share/comems4build_ros/config``.
+
+    Raises
+    ------
+    ConfigError
+        If neither directory exists.
     """
     found = shared_path("config", "config")
     if found is None or not found.is_dir():
@@ -58,10 +66,23 @@ SCENARIO_PLANT_FILES = {"year": "year.yaml"}
 
 
 def scenario_config_files(scenario: str | Path, files: Iterable[str | Path] = ()) -> list[str]:
-    """``files`` with the plant file of an embedded ``scenario`` in front (once; absolute path).
+    """Put the plant file of an embedded scenario in front of the user's parameter files.
 
     ``--scenario year`` runs the year-round plant (``config/year.yaml``: electrolyser,
     cooling, a nearly empty store at the start); every other scenario the files as given.
+
+    Parameters
+    ----------
+    scenario : str or pathlib.Path
+        Scenario name (``winter``, ``year``...) or file.
+    files : iterable of str or pathlib.Path, optional
+        The user's parameter files (``--config``), in order.
+
+    Returns
+    -------
+    list of str
+        ``files`` with the scenario's plant file (absolute path) in front, once; ``files``
+        unchanged for a scenario without one (:data:`SCENARIO_PLANT_FILES`).
     """
     out = [str(f) for f in files]
     name = SCENARIO_PLANT_FILES.get(str(scenario))
@@ -72,17 +93,36 @@ def scenario_config_files(scenario: str | Path, files: Iterable[str | Path] = ()
 
 
 def default_plant_file() -> Path:
-    """Path of the default ``plant.yaml``."""
+    """Return the path of the default plant parameters, ``config/plant.yaml``."""
     return config_dir() / "plant.yaml"
 
 
 def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError) -> Any:
-    """Parse a YAML file through the project's one YAML loader (:func:`comems4build_ros.files.inputs.load_yaml_file`).
+    """Parse a YAML file through the project's one YAML loader.
 
-    ``error`` names the file (and ``what`` it is) when that fails: a directory, a device, a
-    file that is not UTF-8 text (e.g. binary), invalid YAML, a document over the loader's
-    limits (size, depth, aliases), a key that is not a string or is given twice, each with
-    the line and column.
+    The loader is :func:`comems4build_ros.files.inputs.load_yaml_file`.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The YAML file.
+    what : str
+        What the file is, for the message (``"parameter file"``).
+    error : type of Exception, optional
+        Exception raised on failure (default :class:`ConfigError`).
+
+    Returns
+    -------
+    object
+        The parsed document.
+
+    Raises
+    ------
+    Exception
+        ``error``, naming the file and ``what`` it is: a directory, a device, a file that is
+        not UTF-8 text (e.g. binary), invalid YAML, a document over the loader's limits
+        (size, depth, aliases), a key that is not a string or is given twice, each with the
+        line and column.
     """
     try:
         return load_yaml_file(path, what)
@@ -91,7 +131,25 @@ def load_yaml(path: str | Path, what: str, error: type[Exception] = ConfigError)
 
 
 def check_input_file(path: str | Path, what: str) -> Path:
-    """``path`` if it is a readable regular file, else :class:`ConfigError` naming ``what`` (e.g. ``--config``)."""
+    """Check that an input path is a readable regular file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The path given.
+    what : str
+        Where it was given, for the message (e.g. ``--config``).
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``what`` and the path if it is missing, a directory, unreadable...
+    """
     kind = path_kind(path)
     if kind:
         raise ConfigError(f"{what} {path}: {kind}")
@@ -103,9 +161,16 @@ def read_ros_params(path: str | Path, node: str | None = None) -> dict[str, Any]
 
     Parameters
     ----------
-    path : file name
-    node : node name whose section is merged over the ``/**`` section; ``None`` merges
-        every section in file order.
+    path : str or pathlib.Path
+        The parameter file.
+    node : str, optional
+        Node name whose section is merged over the ``/**`` section; None merges every
+        section in file order.
+
+    Returns
+    -------
+    dict
+        The merged parameters (nested sections as dicts).
 
     Raises
     ------
@@ -130,7 +195,19 @@ def read_ros_params(path: str | Path, node: str | None = None) -> dict[str, Any]
 
 
 def read_param_section(path: str | Path, name: str) -> dict[str, Any]:
-    """Section ``name`` (a mapping) of the merged ``ros__parameters`` of the parameter file ``path``.
+    """Read one section of a parameter file's merged ``ros__parameters``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The parameter file.
+    name : str
+        The section (a mapping), e.g. ``costs``.
+
+    Returns
+    -------
+    dict
+        A copy of the section.
 
     Raises
     ------
@@ -144,7 +221,20 @@ def read_param_section(path: str | Path, name: str) -> dict[str, Any]:
 
 
 def deep_merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]:
-    """Merge ``extra`` into ``base`` in place, recursing into mappings; return ``base``."""
+    """Merge a mapping into a dict in place, recursing into mappings (``extra`` wins).
+
+    Parameters
+    ----------
+    base : dict
+        Updated in place.
+    extra : mapping
+        Values merged over ``base``; its nested mappings are copied.
+
+    Returns
+    -------
+    dict
+        ``base``.
+    """
     for key, value in extra.items():
         if isinstance(value, Mapping) and isinstance(base.get(key), dict):
             deep_merge(base[key], value)
@@ -156,7 +246,22 @@ def deep_merge(base: dict[str, Any], extra: Mapping[str, Any]) -> dict[str, Any]
 
 
 def set_dotted(data: dict[str, Any], dotted: str, value: Any) -> None:
-    """Set ``data['a']['b'] = value`` for ``dotted='a.b'`` (creating mappings)."""
+    """Set a nested value by its dotted name: ``data['a']['b'] = value`` for ``'a.b'``.
+
+    Parameters
+    ----------
+    data : dict
+        Updated in place; missing sections are created.
+    dotted : str
+        Dotted parameter name, e.g. ``battery.e_max_kwh``.
+    value : object
+        The value.
+
+    Raises
+    ------
+    ConfigError
+        If a part of the name other than the last is not a section.
+    """
     keys = dotted.split(".")
     node = data
     for key in keys[:-1]:
@@ -170,9 +275,22 @@ M = TypeVar("M", bound=BaseModel)
 
 
 def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
-    """``["a.b=1.5", "c=x"]`` -> ``{"a.b": 1.5, "c": "x"}``, each value read as YAML (``--set``, ``--ems-option``).
+    """Parse ``KEY=VALUE`` assignments (``--set``, ``--ems-option``), each value read as YAML.
 
-    Empty items are skipped (a ROS string-array parameter's empty default).
+    ``["a.b=1.5", "c=x"]`` gives ``{"a.b": 1.5, "c": "x"}``. Empty items are skipped (a
+    ROS string-array parameter's empty default).
+
+    Parameters
+    ----------
+    items : iterable of str
+        The assignments.
+    what : str
+        The option or node parameter they came from, for the message.
+
+    Returns
+    -------
+    dict
+        Key (stripped) -> parsed value; a later item overrides an earlier one.
 
     Raises
     ------
@@ -195,10 +313,24 @@ def parse_assignments(items: Iterable[str], what: str) -> dict[str, Any]:
 
 
 def check_known_keys(data: Mapping[str, Any], known: Iterable[str], where: str) -> None:
-    """Raise :class:`ConfigError` naming the first key of ``data`` that is not in ``known``.
+    """Refuse keys that are not known, suggesting the closest known one.
 
     For option mappings read without a pydantic model (the fuzzy rule-base files and their
     overrides): a misspelt key is refused instead of silently ignored.
+
+    Parameters
+    ----------
+    data : mapping
+        The options read.
+    known : iterable of str
+        The keys allowed.
+    where : str
+        The file or option, for the message.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``where`` and the first key of ``data`` that is not in ``known``.
     """
     import difflib
 
@@ -211,7 +343,25 @@ def check_known_keys(data: Mapping[str, Any], known: Iterable[str], where: str) 
 
 
 def finite_number(value: Any, where: str) -> float:
-    """``value`` as a float; :class:`ConfigError` naming ``where`` for a boolean, text, inf or NaN."""
+    """Return a parameter value as a finite float.
+
+    Parameters
+    ----------
+    value : object
+        The value read.
+    where : str
+        The file and parameter, for the message.
+
+    Returns
+    -------
+    float
+        ``float(value)``.
+
+    Raises
+    ------
+    ConfigError
+        Naming ``where`` for a boolean, text, inf or NaN.
+    """
     import math
 
     if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
@@ -220,7 +370,27 @@ def finite_number(value: Any, where: str) -> float:
 
 
 def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
-    """Validate ``data`` against a pydantic model; errors name source and parameter."""
+    """Validate parameters against a pydantic model.
+
+    Parameters
+    ----------
+    model : type of pydantic.BaseModel
+        The model, usually a :class:`Section`.
+    data : mapping
+        The parameters.
+    source : str
+        The file(s) they came from, for the messages.
+
+    Returns
+    -------
+    pydantic.BaseModel
+        The validated ``model`` instance.
+
+    Raises
+    ------
+    ConfigError
+        One line per error, naming ``source``, the parameter and the rule broken.
+    """
     try:
         return model.model_validate(data)
     except ValidationError as exc:
@@ -236,8 +406,25 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
 
 def load_section(model: type[M], path: str | Path | None, default_file: str, section: str,
                  overrides: Mapping[str, Any] | None = None) -> M:
-    """Section ``section`` of the parameter file ``path`` (``None``: ``config/<default_file>``)
-    with ``overrides`` (top-level keys) applied, validated as ``model``.
+    """Read one section of a parameter file, apply overrides, and validate it.
+
+    Parameters
+    ----------
+    model : type of pydantic.BaseModel
+        The model of the section.
+    path : str or pathlib.Path or None
+        The parameter file; None reads ``config/<default_file>``.
+    default_file : str
+        File name under ``config/`` used when ``path`` is None.
+    section : str
+        The section under ``ros__parameters``.
+    overrides : mapping, optional
+        Top-level keys of the section replaced before validation.
+
+    Returns
+    -------
+    pydantic.BaseModel
+        The validated ``model`` instance.
 
     Raises
     ------
@@ -263,7 +450,9 @@ class Section(BaseModel):
     @field_validator("*", mode="before")
     @classmethod
     def _no_bool_numbers(cls, value: Any, info: ValidationInfo) -> Any:
-        """``e_max_kwh: true`` must not become 1.0 (YAML ``true``/``yes``/``on`` are booleans).
+        """Refuse booleans for number fields: ``e_max_kwh: true`` must not become 1.0.
+
+        YAML ``true``/``yes``/``on`` are booleans.
 
         Text is parsed as a number (PyYAML reads ``7.27e6`` without a sign in the exponent as
         text); text that is not a number is refused by the field's type.
@@ -283,13 +472,25 @@ Frac = Field(ge=0, le=1)
 
 
 def Phys(lo: float, hi: float, lo_open: bool = False) -> Any:  # noqa: N802 (reads as a field type, like Field)
-    """A physical range ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``) of a parameter.
+    """Declare a parameter's physical range ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``).
 
     The ranges bound what a residential building and its devices can have, generously (a
     decade or more beyond the largest shipped or studied value), so that a value no
     building has (a room air capacity of 1e-300 J/K, a sell price of 1e300 EUR/kWh) is
     refused naming the parameter instead of surfacing later as a non-finite state or a
     solver that finds nothing.
+
+    Parameters
+    ----------
+    lo, hi : float
+        Bounds, in the parameter's unit.
+    lo_open : bool, optional
+        Exclude ``lo`` (default: include it).
+
+    Returns
+    -------
+    pydantic.fields.FieldInfo
+        The field with the bounds.
     """
     return Field(gt=lo, le=hi) if lo_open else Field(ge=lo, le=hi)
 
@@ -301,7 +502,31 @@ PRICE_MAX_EUR_PER_KWH = 10.0
 
 
 class SimulationParams(Section):
-    """Run settings: step [h], horizon [h], H2 season [weeks] and initial states."""
+    """Run settings: step [h], horizon [h], H2 season [weeks] and initial states.
+
+    Values and their sources: ``config/plant.yaml`` (``simulation``).
+
+    Attributes
+    ----------
+    time_step_h : float
+        Step t_s, in (0, 24] (``sec:parameters``: 1 h) [h].
+    horizon_h : int
+        MPC horizon H and day-ahead window of the price features (``eq:EDF_prices``) [h].
+    season_weeks : float
+        Length of the winter whose steps N enter ``eq:deltaLOH`` [weeks].
+    soc_init, loh_init : float
+        Initial SOC and LOH (``tab:parameters_PV_batt_dhw_h2``) [-].
+    t_air_init_c : float
+        Initial room air temperature [degC].
+    v_dhw_init_l : float
+        Initial usable hot-water volume [l].
+    heating_season_start, heating_season_end : str
+        Heating season of a year-round run as local ``MM-DD`` dates (end exclusive), over
+        which the fuel cell's daily H2 budget (``eq:deltaLOH``) is spread; used only with an
+        electrolyser.
+    loh_season_end : float
+        LOH the store should still hold at the end of the heating season [-].
+    """
 
     #: Step [h]: the scenarios have 1 h rows (paper sec:parameters), a run checks the match;
     #: at most a day, since the day-based rules (``eq:deltaLOH``, forecasts) count steps per day.
@@ -332,7 +557,17 @@ class SimulationParams(Section):
 
 
 class SiteParams(Section):
-    """Location of the house (degrees, metres, IANA time zone)."""
+    """Location of the house (degrees, metres, IANA time zone).
+
+    Attributes
+    ----------
+    latitude_deg, longitude_deg : float
+        Geographic coordinates, north and east positive [deg].
+    altitude_m : float
+        Altitude above sea level [m].
+    timezone : str
+        IANA time zone of the local clock (``Europe/Berlin``).
+    """
 
     latitude_deg: float = Field(ge=-90, le=90)
     longitude_deg: float = Field(ge=-180, le=180)
@@ -342,7 +577,7 @@ class SiteParams(Section):
     @field_validator("timezone")
     @classmethod
     def _known_zone(cls, value: str) -> str:
-        """An IANA time zone name the tz database knows (e.g. ``Europe/Berlin``)."""
+        """Accept an IANA time zone name the tz database knows (e.g. ``Europe/Berlin``)."""
         import zoneinfo
 
         try:
@@ -353,7 +588,33 @@ class SiteParams(Section):
 
 
 class PVParams(Section):
-    """PV array, ``eq:power_pv``."""
+    """PV array, ``eq:power_pv``.
+
+    Values: ``tab:parameters_PV_batt_dhw_h2`` and ``config/plant.yaml``.
+
+    Attributes
+    ----------
+    n_modules : int
+        Number of modules n_module [-].
+    a_module_m2 : float
+        Area of one module a_module [m2].
+    eta_stc : float
+        Module efficiency at standard test conditions eta_STC [-].
+    eta_lt : float
+        Inverter and tracking efficiency eta_L&T [-].
+    eta_t_per_k : float
+        Temperature coefficient eta_T [1/K].
+    noct_c : float
+        Nominal operating cell temperature NOCT [degC].
+    t_stc_c : float
+        Cell temperature at standard test conditions T_STC [degC].
+    tilt_deg, azimuth_deg : float
+        Array tilt from horizontal and azimuth (pvlib convention: 180 = south) [deg].
+    albedo : float
+        Ground reflectance [-].
+    sky_model : str
+        pvlib's sky-diffuse transposition model for G[k].
+    """
 
     n_modules: int = Field(ge=0, le=10_000)
     a_module_m2: float = Phys(0, 10, lo_open=True)
@@ -369,7 +630,23 @@ class PVParams(Section):
 
 
 class BatteryParams(Section):
-    """Battery energy storage, ``eq:batt_soc`` .. ``eq:s_summ``."""
+    """Battery energy storage, ``eq:batt_soc`` .. ``eq:s_summ``.
+
+    Values: ``tab:parameters_PV_batt_dhw_h2``.
+
+    Attributes
+    ----------
+    e_max_kwh : float
+        Capacity E_B,max [kWh].
+    p_ch_max_w, p_d_max_w : float
+        Largest charging and discharging power P_ch,max, P_d,max [W].
+    p_ch_min_w, p_d_min_w : float
+        Smallest non-zero charging and discharging power (``eq:bat_ch_dis_const``) [W].
+    eta_ch, eta_d : float
+        Charging and discharging efficiency [-].
+    soc_min, soc_max : float
+        SOC bounds (``eq:SOC_const``) [-].
+    """
 
     e_max_kwh: float = Phys(0, 1.0e4, lo_open=True)
     p_ch_max_w: float = Phys(0, P_MAX_W)
@@ -393,7 +670,34 @@ class BatteryParams(Section):
 
 
 class FuelCellParams(Section):
-    """PEM fuel cell, ``eq:molar_flows`` .. ``eq:FC_sys_efficiency``."""
+    """PEM fuel cell, ``eq:molar_flows`` .. ``eq:FC_sys_efficiency``.
+
+    Values: ``tab:parameters_PV_batt_dhw_h2``, the Horizon H-2000 datasheet and
+    ``config/plant.yaml``. The cell polarization
+    ``V_cell(i) = e_ocv - a_tafel * ln(1 + i / i_tafel) - r_ohm * i`` gives the H2 flow of
+    ``eq:molar_flows`` through Faraday's law.
+
+    Attributes
+    ----------
+    p_max_w, p_nom_w, p_min_w : float
+        Largest, nominal and smallest electrical output P_FC,max, P_FC,nom, P_FC,min [W].
+    zeta : float
+        Security factor: output at most ``zeta * p_max_w`` (``sec:h2``) [-].
+    eta_sys : float
+        System efficiency with heat recovery eta_sys,FC (``eq:FC_sys_efficiency``) [-].
+    n_cells : int
+        Cells in the stack (Horizon H-2000 datasheet) [-].
+    e_ocv_v : float
+        Open-circuit voltage per cell [V].
+    a_tafel_v : float
+        Activation-loss (Tafel) slope per cell [V].
+    i_tafel_a : float
+        Activation-loss reference current [A].
+    r_ohm_ohm : float
+        Ohmic resistance per cell [Ohm].
+    eta_el_mpc : float
+        Constant electrical efficiency of the MPC's linear model (``sec:MPC``) [-].
+    """
 
     p_max_w: float = Phys(0, P_MAX_W, lo_open=True)
     p_nom_w: float = Phys(0, P_MAX_W, lo_open=True)
@@ -417,7 +721,15 @@ class FuelCellParams(Section):
 
 
 class HydrogenParams(Section):
-    """Hydrogen store, ``eq:LOH`` (energy content at LHV)."""
+    """Hydrogen store, ``eq:LOH`` (energy content at LHV).
+
+    Attributes
+    ----------
+    e_max_kwh : float
+        LHV energy of the full store E_H2,max (``tab:parameters_PV_batt_dhw_h2``) [kWh].
+    loh_min, loh_max : float
+        LOH bounds [-].
+    """
 
     e_max_kwh: float = Phys(0, 1.0e6, lo_open=True)
     loh_min: float = Frac
@@ -438,7 +750,31 @@ class ElectrolyserParams(Section):
     minimal load, the last 1.0), standby draw [W] while installed and off, the H2 lost
     in a start [h of production], compression from ``p_out_bar`` to ``p_store_bar`` with an
     isothermal efficiency, and the share of the stack's waste heat recovered into the DHW
-    tank. ``n_modules = 0``: no electrolyser (the paper's plant).
+    tank. ``n_modules = 0``: no electrolyser (the paper's plant). Values and sources
+    (Enapter EL 2.1 datasheet): ``config/plant.yaml``.
+
+    Attributes
+    ----------
+    n_modules : int
+        Installed modules [-].
+    h2_rated_nl_per_h : float
+        Rated H2 output of one module [Nl/h].
+    load_points : list of float
+        H2 outputs of the power table as fractions of the rated output [-].
+    p_el_points_w : list of float
+        Electrical intake of one module at each load point [W].
+    p_standby_w : float
+        Draw of an installed module while off [W].
+    start_lost_h : float
+        H2 production lost in a start, at most 1 [h].
+    p_out_bar, p_store_bar : float
+        Module outlet and store pressure of the compression [bar].
+    t_compression_c : float
+        Gas temperature of the isothermal compression [degC].
+    eta_compressor : float
+        Isothermal efficiency of the compressor [-].
+    heat_recovery : float
+        Share of the stack's waste heat recovered into the DHW tank [-].
     """
 
     n_modules: int = Field(ge=0, le=100)
@@ -477,7 +813,23 @@ class CoolingParams(Section):
     ``q_cool_max_w``: heat the floor can take from the rooms at the supply temperature
     ``t_supply_c`` [W]; EER(T_amb) piecewise linear (``eer_t_amb_c``, ``eer``), held
     outside the table. The supply must stay above the dew point of the room air at the
-    design state (``design_room_c``, ``design_rh``) plus ``dew_point_margin_k``.
+    design state (``design_room_c``, ``design_rh``) plus ``dew_point_margin_k``. Values and
+    sources (EN 1264-5, EN 16798-1, EN 14511): ``config/plant.yaml``.
+
+    Attributes
+    ----------
+    enabled : bool
+        The heat pump can cool (``HP_COOL``).
+    q_cool_max_w : float
+        Heat the floor can take from the rooms [W].
+    t_supply_c : float
+        Cooling supply temperature [degC].
+    design_room_c, design_rh : float
+        Room air state of the condensation check [degC], [-].
+    dew_point_margin_k : float
+        Margin of the supply above the dew point [K].
+    eer_t_amb_c, eer : list of float
+        EER table over the ambient temperature [degC], [-].
     """
 
     enabled: bool
@@ -510,7 +862,26 @@ class CoolingParams(Section):
 
 
 class HeatPumpParams(Section):
-    """Air-source heat pump, ``sec:hp``."""
+    """Air-source heat pump, ``sec:hp``.
+
+    LG Therma V HM051M U43 (``sec:parameters``). COP and largest electrical intake are
+    piecewise linear in T_amb, held constant outside their tables.
+
+    Attributes
+    ----------
+    t_supply_sh_c, t_supply_dhw_c : float
+        Supply temperatures of space heating and hot water [degC].
+    mod_min : float
+        Smallest non-zero modulation eta_HP [-].
+    cop_t_amb_c : list of float
+        Ambient temperatures of the COP tables [degC].
+    cop_45c, cop_55c : list of float
+        COP at 45 degC and 55 degC supply at ``cop_t_amb_c`` [-].
+    p_el_max_t_amb_c : list of float
+        Ambient temperatures of the intake table [degC].
+    p_el_max_w : list of float
+        Largest electrical intake P_el,max at ``p_el_max_t_amb_c`` [W].
+    """
 
     t_supply_sh_c: float = Phys(20, 80)
     t_supply_dhw_c: float = Phys(30, 80)
@@ -543,7 +914,25 @@ class HeatPumpParams(Section):
 
 
 class DHWParams(Section):
-    """Hot-water tank, ``eq:DHW_model``."""
+    """Hot-water tank, ``eq:DHW_model``.
+
+    Values: ``tab:parameters_PV_batt_dhw_h2``.
+
+    Attributes
+    ----------
+    v_max_l, v_min_l : float
+        Usable volume bounds V_DHW,max, V_DHW,min [l].
+    t_dhw_c : float
+        Tank temperature T_DHW [degC].
+    t_cold_c : float
+        Mains water temperature (Delta T_DHW = t_dhw_c - t_cold_c) [degC].
+    q_loss_w : float
+        Standing loss Q_l,DHW [W].
+    rho_kg_per_l : float
+        Water density [kg/l].
+    c_j_per_kg_k : float
+        Specific heat capacity of water [J/(kg K)].
+    """
 
     v_max_l: float = Phys(0, 1.0e5, lo_open=True)
     v_min_l: float = Phys(0, 1.0e5)
@@ -563,7 +952,27 @@ class DHWParams(Section):
 
 
 class BuildingParams(Section):
-    """4R3C building, ``eq:dT_i`` .. ``eq:dT_wout`` (SI units)."""
+    """4R3C building, ``eq:dT_i`` .. ``eq:dT_wout`` (SI units).
+
+    Values and sources (Sperber, Frey, Bertsch 2020; calibration): ``config/plant.yaml``.
+
+    Attributes
+    ----------
+    c_air_j_per_k, c_wall_j_per_k : float
+        Capacities C_air and C_w (each wall node) [J/K].
+    r_w_air_k_per_w, r_air_amb_k_per_w, r_w_k_per_w, r_w_amb_k_per_w : float
+        Resistances R_w,air, R_air,amb, R_w, R_w,amb [K/W].
+    g_s_m2 : float
+        Solar aperture g_s [m2].
+    f_conv : float
+        Convective share of the space-heating heat f_conv [-].
+    a_sol_k_m2_per_w : float
+        Sol-air factor: T_amb,eq = T_amb + a_sol * q_s [K m2/W].
+    t_amb_init_c : float
+        Ambient temperature of the initial steady wall profile [degC].
+    f_gains_air : float
+        Share of the appliance load that heats the air node (0: the paper's model) [-].
+    """
 
     c_air_j_per_k: float = Phys(1.0e4, 1.0e10)  # a room of 10 m3 of air (1.2e4 J/K) .. a large building's mass
     c_wall_j_per_k: float = Phys(1.0e5, 1.0e11)
@@ -582,7 +991,20 @@ class BuildingParams(Section):
 
 
 class GridParams(Section):
-    """Tariff: ``p_buy = a + b * spot`` [EUR/kWh] (spot in EUR/kWh); constant sell price ``eq:costs``."""
+    """Tariff: ``p_buy = a + b * spot`` [EUR/kWh] (spot in EUR/kWh); constant sell price ``eq:costs``.
+
+    The derivation of a and b from ``sec:results`` and ``sec:heat_recovery`` on the ENTSO-E
+    DE-LU day-ahead prices: ``config/plant.yaml``.
+
+    Attributes
+    ----------
+    buy_offset_eur_per_kwh : float
+        Offset a [EUR/kWh].
+    buy_spot_factor : float
+        Factor b on the spot price (spot in EUR/kWh) [-].
+    price_sell_eur_per_kwh : float
+        Sell price p_sell (``sec:parameters``) [EUR/kWh].
+    """
 
     buy_offset_eur_per_kwh: float = Phys(-PRICE_MAX_EUR_PER_KWH, PRICE_MAX_EUR_PER_KWH)
     buy_spot_factor: float = Phys(0, 10, lo_open=True)
@@ -590,7 +1012,25 @@ class GridParams(Section):
 
 
 class ComfortParams(Section):
-    """Comfort bounds, ``eq:T_min``."""
+    """Comfort bounds, ``eq:T_min``.
+
+    Attributes
+    ----------
+    t_min_home_c, t_min_away_c : float
+        Lower bound T_air,min when at home and when sleeping or away [degC].
+    t_max_c : float
+        Upper bound T_air,max [degC].
+    home_hours_weekday, home_hours_weekend : list of int
+        ``[start, end)`` pairs of home hours, local time [h].
+    holidays_country, holidays_subdivision : str
+        Calendar whose public holidays count as weekend days (ISO 3166 codes).
+    discomfort_sample : str
+        Where in a step ``eq:discomfort`` reads T_air: ``end``, ``start`` or ``mean``.
+    t_max_cooling_c : float
+        Upper bound in the cooling season (EN 16798-1 category II) [degC].
+    cooling_season_months : list of int
+        First and last month of the cooling season, inclusive.
+    """
 
     t_min_home_c: float = Phys(5, 30)
     t_min_away_c: float = Phys(5, 30)
@@ -622,13 +1062,26 @@ class ComfortParams(Section):
 
 
 def check_holiday_calendar(country: str, subdivision: str) -> None:
-    """Raise ``ValueError`` naming the parameter unless the ``holidays`` library knows the calendar.
+    """Check that the ``holidays`` library knows a holiday calendar.
 
     ``country`` is an ISO 3166-1 alpha-2 code (``DE``), ``subdivision`` one of its
     subdivisions (``BW``) or empty (the national holidays only). A calendar found once is
     remembered on disk for the installed ``holidays`` version
     (:mod:`comems4build_ros.core.result_cache`): ``holidays`` imports every country's calendar to
-    look one up (0.1 s), in every process that validates the plant parameters.
+    look one up, in every process that validates the plant parameters.
+
+    Parameters
+    ----------
+    country : str
+        ISO 3166-1 alpha-2 code.
+    subdivision : str
+        A subdivision of ``country``, or empty.
+
+    Raises
+    ------
+    ValueError
+        Naming the parameter (``holidays_country``, ``holidays_subdivision``) and, where
+        found, the closest known codes.
     """
     from comems4build_ros.core.result_cache import cached
 
@@ -637,7 +1090,7 @@ def check_holiday_calendar(country: str, subdivision: str) -> None:
 
 
 def _check_holiday_calendar(country: str, subdivision: str) -> None:
-    """:func:`check_holiday_calendar` asking the ``holidays`` library."""
+    """Run :func:`check_holiday_calendar` by asking the ``holidays`` library."""
     import holidays
 
     supported = holidays.list_supported_countries()
@@ -658,7 +1111,25 @@ def _check_holiday_calendar(country: str, subdivision: str) -> None:
 
 
 class DegradationParams(Section):
-    """Lifecycle and toggling costs, ``tab:degradation_HESS``."""
+    """Lifecycle and toggling costs, ``tab:degradation_HESS``.
+
+    Attributes
+    ----------
+    sigma_in_fc_eur : float
+        Fuel-cell investment sigma_in,FC [EUR].
+    l_fc_h : float
+        Fuel-cell life L_FC [h].
+    sigma_om_fc_eur_per_h : float
+        Fuel-cell operation and maintenance sigma_om,FC [EUR/h].
+    sigma_fc_on_eur, sigma_fc_off_eur : float
+        Cost of a fuel-cell start and stop sigma_FC,on, sigma_FC,off [EUR].
+    sigma_in_b_eur : float
+        Battery investment sigma_in,B [EUR].
+    sigma_om_b_eur_per_h : float
+        Battery operation and maintenance [EUR/h].
+    n_b_cycles : float
+        Battery cycle life N_B (``eq:batt_lifecycle``) [-].
+    """
 
     sigma_in_fc_eur: float = Phys(0, 1.0e7)
     l_fc_h: float = Phys(0, 1.0e6, lo_open=True)
@@ -671,7 +1142,27 @@ class DegradationParams(Section):
 
 
 class PlantParams(Section):
-    """All plant parameters (one section per device)."""
+    """All plant parameters (one section per device).
+
+    Read with :func:`load_plant_params`.
+
+    Attributes
+    ----------
+    simulation : SimulationParams
+    site : SiteParams
+    pv : PVParams
+    battery : BatteryParams
+    fuel_cell : FuelCellParams
+    hydrogen : HydrogenParams
+    electrolyser : ElectrolyserParams
+    heat_pump : HeatPumpParams
+    cooling : CoolingParams
+    dhw : DHWParams
+    building : BuildingParams
+    grid : GridParams
+    comfort : ComfortParams
+    degradation : DegradationParams
+    """
 
     simulation: SimulationParams
     site: SiteParams
@@ -705,7 +1196,18 @@ OTHER_SECTIONS = {
 
 
 def unknown_section_text(key: str) -> str:
-    """Message for a section that is not a plant section: what it is, or the closest plant section."""
+    """Explain why a section is not read as a plant section.
+
+    Parameters
+    ----------
+    key : str
+        The section name.
+
+    Returns
+    -------
+    str
+        Where its values go instead (:data:`OTHER_SECTIONS`), or the closest plant section.
+    """
     import difflib
 
     if key in OTHER_SECTIONS:
@@ -723,9 +1225,16 @@ def load_plant_params(
 
     Parameters
     ----------
-    paths : parameter files merged over the default ``config/plant.yaml`` in order.
-        Sections that are not plant sections (e.g. ``mpc``) are ignored here.
-    overrides : ``{"battery.e_max_kwh": 10.0}``-style dotted overrides applied last.
+    paths : iterable of str or pathlib.Path, optional
+        Parameter files merged over the default ``config/plant.yaml`` in order; each may
+        hold only plant sections (:data:`PLANT_SECTIONS`).
+    overrides : mapping, optional
+        ``{"battery.e_max_kwh": 10.0}``-style dotted overrides applied last.
+
+    Returns
+    -------
+    PlantParams
+        The validated parameters.
 
     Raises
     ------

@@ -48,22 +48,44 @@ COMPONENTS = ("pv", "battery", "electrolyser", "fuel_cell", "hydrogen")
 
 @dataclass(frozen=True)
 class Costs:
-    """The cost figures of ``config/costs.yaml``: ``interest_rate`` [1/a] and one mapping per component."""
+    """The cost figures of ``config/costs.yaml`` (sources in its comments).
+
+    Attributes
+    ----------
+    interest_rate : float
+        Interest rate of the annuities, in [0, 1) [1/a].
+    items : dict of str to dict of str to float
+        Per component of :data:`COMPONENTS`, its figures keyed as in :data:`COST_KEYS`
+        (units in the key names: ``invest_eur_per_kwp`` [EUR/kWp], ``life_a`` [a],
+        ``life_h`` [h], ``om_share_per_a`` [1/a], ``om_eur_per_h`` [EUR/h], ``on_eur`` [EUR]...).
+    """
 
     interest_rate: float
     items: dict[str, dict[str, float]]
 
     def __getitem__(self, component: str) -> dict[str, float]:
+        """Return the figures of one component (``costs["fuel_cell"]["life_h"]``)."""
         return self.items[component]
 
 
 def default_costs_file() -> Path:
-    """``config/costs.yaml``."""
+    """Return the path of the default cost figures, ``config/costs.yaml``."""
     return config_dir() / "costs.yaml"
 
 
 def load_costs(files: Sequence[str | Path] = ()) -> Costs:
-    """``config/costs.yaml`` with each of ``files`` merged over it (only the keys a file gives).
+    """Read the cost figures: ``config/costs.yaml`` with each of ``files`` merged over it.
+
+    Parameters
+    ----------
+    files : sequence of str or pathlib.Path, optional
+        Parameter files with a ``costs`` section, merged in order (only the keys a file
+        gives replace the earlier ones).
+
+    Returns
+    -------
+    Costs
+        The merged figures, every key of :data:`COST_KEYS` present.
 
     Raises
     ------
@@ -100,6 +122,7 @@ def load_costs(files: Sequence[str | Path] = ()) -> Costs:
 
 
 def _number(path: str | Path, name: str, value: Any, lo: float, lo_open: bool) -> float:
+    """Return ``value`` as a float, or raise ConfigError if not finite or below ``lo``."""
     if isinstance(value, bool) or not isinstance(value, (int, float)) or not math.isfinite(value):
         raise ConfigError(f"{path}: {name} = {value!r} is not a finite number")
     if value < lo or (lo_open and value == lo):
@@ -108,7 +131,27 @@ def _number(path: str | Path, name: str, value: Any, lo: float, lo_open: bool) -
 
 
 def crf(rate: float, years: float) -> float:
-    """Capital recovery factor [1/a]: the annuity of 1 EUR over ``years`` at ``rate`` (1/years at rate 0)."""
+    """Capital recovery factor: the annuity of 1 EUR over ``years`` at ``rate``.
+
+    ``CRF = r (1+r)^n / ((1+r)^n - 1)``, and ``1/n`` at ``r = 0``.
+
+    Parameters
+    ----------
+    rate : float
+        Interest rate r [1/a].
+    years : float
+        Life n, > 0 [a].
+
+    Returns
+    -------
+    float
+        Capital recovery factor [1/a].
+
+    Raises
+    ------
+    ValueError
+        If ``years`` is not positive.
+    """
     if years <= 0:
         raise ValueError(f"life {years} a must be > 0")
     if rate == 0:
@@ -118,8 +161,21 @@ def crf(rate: float, years: float) -> float:
 
 
 def investments(sizes: Mapping[str, float], costs: Costs) -> dict[str, float]:
-    """Investment per component [EUR] of ``sizes`` (``pv_kwp``, ``battery_kwh``, ``el_modules``,
-    ``fc_kw``, ``h2_kwh``)."""
+    """Return the investment of each component: its size times its specific cost.
+
+    Parameters
+    ----------
+    sizes : mapping of str to float
+        ``pv_kwp`` [kWp], ``battery_kwh`` [kWh], ``el_modules`` [-], ``fc_kw`` [kW] and
+        ``h2_kwh`` [kWh, LHV].
+    costs : Costs
+        Cost figures (:func:`load_costs`).
+
+    Returns
+    -------
+    dict of str to float
+        Component of :data:`COMPONENTS` -> investment [EUR].
+    """
     return {
         "pv": sizes["pv_kwp"] * costs["pv"]["invest_eur_per_kwp"],
         "battery": sizes["battery_kwh"] * costs["battery"]["invest_eur_per_kwh"],
@@ -130,7 +186,20 @@ def investments(sizes: Mapping[str, float], costs: Costs) -> dict[str, float]:
 
 
 def battery_cycles(summary: Mapping[str, Any], usable_kwh: float) -> float:
-    """Equivalent full cycles of the run: energy charged over the usable capacity [-]."""
+    """Return the battery's equivalent full cycles in a run: energy charged over usable capacity.
+
+    Parameters
+    ----------
+    summary : mapping
+        The run's summary with ``bess_charged_kwh_total`` [kWh].
+    usable_kwh : float
+        Usable capacity ``E_max * (SOC_max - SOC_min)`` [kWh].
+
+    Returns
+    -------
+    float
+        Equivalent full cycles [-]; 0 for a battery without usable capacity.
+    """
     return float(summary["bess_charged_kwh_total"]) / usable_kwh if usable_kwh > 0 else 0.0
 
 
@@ -138,19 +207,30 @@ def annual_costs(sizes: Mapping[str, float], summary: Mapping[str, Any], costs: 
                  usable_battery_kwh: float) -> dict[str, float]:
     """Annual costs [EUR/a] and wear figures of one sized run.
 
+    Figures of the run are scaled to :data:`WEEKS_PER_YEAR`; each component's life is the
+    shorter of its calendar life and its wear life (``tab:degradation_HESS``).
+
     Parameters
     ----------
-    sizes : ``pv_kwp``, ``battery_kwh``, ``el_modules``, ``fc_kw``, ``h2_kwh``
-    summary : the run's ``summary.json`` (a year-round run: ``cost_net_eur``, ``fc_working_hours``,
-        ``fc_toggles``, ``el_working_hours``, ``bess_charged_kwh_total``, ``weeks``)
-    costs : :func:`load_costs`
-    usable_battery_kwh : ``E_max * (SOC_max - SOC_min)`` [kWh]
+    sizes : mapping of str to float
+        ``pv_kwp`` [kWp], ``battery_kwh`` [kWh], ``el_modules`` [-], ``fc_kw`` [kW],
+        ``h2_kwh`` [kWh].
+    summary : mapping
+        The run's ``summary.json`` (a year-round run): ``cost_net_eur`` [EUR],
+        ``fc_working_hours`` [h], ``fc_toggles`` [-], ``el_working_hours`` [h] (optional),
+        ``bess_charged_kwh_total`` [kWh], ``weeks`` [-].
+    costs : Costs
+        Cost figures (:func:`load_costs`).
+    usable_battery_kwh : float
+        ``E_max * (SOC_max - SOC_min)`` [kWh].
 
     Returns
     -------
-    dict with ``energy_eur_a`` (bought - sold per 52 weeks), ``annuity_eur_a``, ``om_eur_a``,
-    ``total_eur_a``, ``invest_eur``, per component ``life_<c>_a`` (the life used), and the
-    wear per year: ``fc_hours_a``, ``fc_toggles_a``, ``el_hours_a``, ``battery_cycles_a``.
+    dict of str to float
+        ``energy_eur_a`` (bought - sold per 52 weeks), ``annuity_eur_a``, ``om_eur_a``,
+        ``total_eur_a`` [EUR/a]; ``invest_eur`` [EUR]; per component ``life_<c>_a`` (the
+        life used) [a]; and the wear per year: ``fc_hours_a`` [h/a], ``fc_toggles_a`` [1/a],
+        ``el_hours_a`` [h/a], ``battery_cycles_a`` [1/a].
     """
     scale = WEEKS_PER_YEAR / float(summary["weeks"])
     fc_h = float(summary["fc_working_hours"]) * scale
@@ -183,7 +263,7 @@ def annual_costs(sizes: Mapping[str, float], summary: Mapping[str, Any], costs: 
 
 
 def cycle_closes(summary: Mapping[str, Any]) -> tuple[bool | None, str]:
-    """Whether the run closes the seasonal H2 cycle, and why (or why not).
+    """Tell whether a run closes the seasonal H2 cycle, and why (or why not).
 
     The cycle closes when all four hold: the summer filled the store (LOH at the heating
     season's start above LOH at the run's start; not tested when the run starts inside the
@@ -192,6 +272,19 @@ def cycle_closes(summary: Mapping[str, Any]) -> tuple[bool | None, str]:
     (``h2_empty_at`` is None: LOH never reached LOH_min), and the heating season was served
     (no heating-season week with discomfort, ``eq:discomfort``). ``None`` when the run has no
     full heating-season week (a window outside it): then the cycle is not tested.
+
+    Parameters
+    ----------
+    summary : mapping
+        The run's ``summary.json``: ``heating_season_weeks``, ``loh_init``, ``loh_end`` and
+        ``loh_heating_season_start`` [-] (LOH as fractions), ``h2_empty_at`` (a time or
+        None), ``heating_season_discomfort_weeks``.
+
+    Returns
+    -------
+    tuple of (bool or None, str)
+        Whether the cycle closes (None: not tested), and ``"closes"`` or the reasons it does
+        not, joined by ``"; "``.
     """
     if not int(summary.get("heating_season_weeks") or 0):
         return None, "the run has no full heating-season week"
