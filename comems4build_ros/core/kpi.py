@@ -92,41 +92,128 @@ def _energy_kwh(power_w: np.ndarray, dt_h: float) -> float:
 
 
 def discomfort_kh(t_air_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray, dt_h: float) -> float:
-    """Thermal discomfort ``eq:discomfort``: band violation integrated over time [K*h]."""
+    """Thermal discomfort ``eq:discomfort``: band violation integrated over time.
+
+    ``d = t_s * sum_k (max(T_min[k] - T[k], 0) + max(T[k] - T_max[k], 0))``.
+
+    Parameters
+    ----------
+    t_air_c : numpy.ndarray
+        Air temperature compared with the band, per step [degC].
+    t_min_c, t_max_c : numpy.ndarray
+        Comfort bounds T_air,min and T_air,max of each step (``eq:T_min``) [degC].
+    dt_h : float
+        Step t_s [h].
+
+    Returns
+    -------
+    float
+        Discomfort [K*h].
+    """
     below = np.clip(t_min_c - t_air_c, 0.0, None)
     above = np.clip(t_air_c - t_max_c, 0.0, None)
     return float(np.sum(below + above) * dt_h)
 
 
 def discomfort_hours(t_air_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarray, dt_h: float) -> float:
-    """Time outside the comfort band (CityLearn-style share, as hours) [h]."""
+    """Time outside the comfort band (CityLearn's share of time, as hours).
+
+    Parameters
+    ----------
+    t_air_c : numpy.ndarray
+        Air temperature compared with the band, per step [degC].
+    t_min_c, t_max_c : numpy.ndarray
+        Comfort bounds T_air,min and T_air,max of each step (``eq:T_min``) [degC].
+    dt_h : float
+        Step t_s [h].
+
+    Returns
+    -------
+    float
+        Hours with the temperature below T_min or above T_max [h].
+    """
     return float(np.count_nonzero((t_air_c < t_min_c) | (t_air_c > t_max_c)) * dt_h)
 
 
 def cost_eur(price_eur_per_kwh: np.ndarray, power_w: np.ndarray, dt_h: float) -> float:
-    """Energy cost or reimbursement ``eq:costs``: ``t_s * sum(p[k] * P[k])`` [EUR]."""
+    """Energy cost or reimbursement ``eq:costs``: ``t_s * sum(p[k] * P[k])``.
+
+    Parameters
+    ----------
+    price_eur_per_kwh : numpy.ndarray
+        Price p_buy or p_sell of each step [EUR/kWh].
+    power_w : numpy.ndarray
+        Mean power P_buy or P_sell of each step [W].
+    dt_h : float
+        Step t_s [h].
+
+    Returns
+    -------
+    float
+        Cost or reimbursement [EUR].
+    """
     return float(np.sum(price_eur_per_kwh * power_w) * dt_h / W_PER_KW)
 
 
 def fc_working_hours(fc_on: np.ndarray, dt_h: float) -> float:
-    """Fuel-cell working hours ``eq:working_hours`` [h]."""
+    """Fuel-cell working hours ``eq:working_hours``: ``t_s * sum(s_FC[k])``.
+
+    Parameters
+    ----------
+    fc_on : numpy.ndarray
+        s_FC of each step (non-zero: on).
+    dt_h : float
+        Step t_s [h].
+
+    Returns
+    -------
+    float
+        Working hours [h].
+    """
     return float(np.count_nonzero(fc_on) * dt_h)
 
 
 def fc_toggles(fc_start: np.ndarray) -> int:
-    """Fuel-cell start-ups ``eq:on_off_switching`` [-]."""
+    """Fuel-cell start-ups ``eq:on_off_switching``: ``sum(s_FC,on[k])``.
+
+    Parameters
+    ----------
+    fc_start : numpy.ndarray
+        s_FC,on of each step (non-zero: started, ``eq:on_off_logic``).
+
+    Returns
+    -------
+    int
+        Number of start-ups [-].
+    """
     return int(np.count_nonzero(fc_start))
 
 
 def comfort_sample_c(ts: pd.DataFrame, sample: str = "end", t_air_init_c: float | None = None) -> np.ndarray:
-    """Air temperature compared with the comfort band in each step [degC] (:data:`DISCOMFORT_SAMPLES`).
+    """Return the air temperature compared with the comfort band in each step.
+
+    ``eq:discomfort`` does not say where within step k it reads T_air[k]; the readings are
+    :data:`DISCOMFORT_SAMPLES`.
 
     Parameters
     ----------
-    ts : per-step timeseries (``t_air_c`` = state at the end of each step)
-    sample : ``end``, ``start`` or ``mean``
-    t_air_init_c : air temperature before the first step [degC] (``start``/``mean``;
-        default: the first end-of-step value)
+    ts : pandas.DataFrame
+        Per-step timeseries; ``t_air_c`` is the state at the end of each step [degC].
+    sample : str, optional
+        ``end`` (default), ``start`` or ``mean``.
+    t_air_init_c : float, optional
+        Air temperature before the first step, for ``start`` and ``mean`` [degC]; default:
+        the first end-of-step value.
+
+    Returns
+    -------
+    numpy.ndarray
+        One temperature per step [degC].
+
+    Raises
+    ------
+    ValueError
+        For an unknown ``sample``.
     """
     end = ts["t_air_c"].to_numpy(dtype=float)
     if sample == "end":
@@ -188,20 +275,45 @@ RUN_TOTALS = {
 
 
 def run_totals(ts: pd.DataFrame, dt_h: float, t_comfort: np.ndarray | None = None) -> dict[str, float]:
-    """The run totals of the rows so far, as :func:`summarize` gives them at the end (the same
-    arithmetic, each at its :data:`KPI_RESOLUTION`): the grid purchase cost ``cost_eur_total``
-    (gross, ``eq:costs``' purchase term) and the feed-in reimbursement
-    ``reimbursement_eur_total`` [EUR], the discomfort ``discomfort_kh_total`` [K*h]
-    (``eq:discomfort``), grid import ``buy_kwh_total`` and export ``sell_kwh_total`` [kWh].
+    """Return the run totals of the rows so far, as :func:`summarize` gives them at the end.
 
-    ``t_comfort``: as for :func:`summarize` (:func:`comfort_sample_c`).
+    The same arithmetic, each value at its :data:`KPI_RESOLUTION`.
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Per-step timeseries with at least :data:`REQUIRED_COLUMNS`.
+    dt_h : float
+        Step t_s [h].
+    t_comfort : numpy.ndarray, optional
+        Air temperature compared with the band per step (:func:`comfort_sample_c`) [degC];
+        default: the end-of-step ``t_air_c``.
+
+    Returns
+    -------
+    dict of str to float
+        The keys of :data:`RUN_TOTALS`: grid purchase cost ``cost_eur_total`` (gross,
+        ``eq:costs``' purchase term) and feed-in reimbursement ``reimbursement_eur_total``
+        [EUR], discomfort ``discomfort_kh_total`` (``eq:discomfort``) [K*h], grid import
+        ``buy_kwh_total`` and export ``sell_kwh_total`` [kWh].
     """
     total = _week_kpis(ts, dt_h, t_comfort)
     return {key: at_resolution(key, total[name]) for key, name in RUN_TOTALS.items()}
 
 
 def kpi_unit(key: str) -> str | None:
-    """Unit (a key of :data:`KPI_RESOLUTION`) of a KPI key by its name, None for counts and text."""
+    """Return the unit of a KPI key, read from the tokens of its name.
+
+    Parameters
+    ----------
+    key : str
+        KPI key, e.g. ``h2_kwh_week_min``.
+
+    Returns
+    -------
+    str or None
+        A key of :data:`KPI_RESOLUTION` (``kWh``), or None for counts and text.
+    """
     tokens = key.split("_")
     for token, unit in _UNIT_TOKENS:
         if token in tokens:
@@ -210,7 +322,21 @@ def kpi_unit(key: str) -> str | None:
 
 
 def at_resolution(key: str, value: Any) -> Any:
-    """``value`` rounded to the resolution of its unit (:data:`KPI_RESOLUTION`); ints, text and None unchanged."""
+    """Round a KPI value to the resolution of its unit (:data:`KPI_RESOLUTION`).
+
+    Parameters
+    ----------
+    key : str
+        KPI key; its unit comes from :func:`kpi_unit`.
+    value : object
+        The value.
+
+    Returns
+    -------
+    object
+        ``value`` rounded (as float, -0.0 as 0.0); booleans, ints, text, None, non-finite
+        values and :data:`UNROUNDED_KEYS` unchanged.
+    """
     unit = kpi_unit(key)
     if unit is None or key in UNROUNDED_KEYS or isinstance(value, bool | int | str) or value is None:
         return value
@@ -228,17 +354,27 @@ def weekly_kpis(
 
     Parameters
     ----------
-    ts : per-step timeseries with at least :data:`REQUIRED_COLUMNS`
-    dt_h : step length [h]
-    discomfort_sample, t_air_init_c : see :func:`comfort_sample_c`
+    ts : pandas.DataFrame
+        Per-step timeseries with at least :data:`REQUIRED_COLUMNS`.
+    dt_h : float, optional
+        Step t_s [h].
+    discomfort_sample : str, optional
+        Where in a step the air temperature is compared (:func:`comfort_sample_c`).
+    t_air_init_c : float, optional
+        Air temperature before the first step [degC] (:func:`comfort_sample_c`).
 
     Returns
     -------
-    DataFrame
+    pandas.DataFrame
         Columns ``week`` (1-based), ``start`` (ISO time of the week's first step),
         ``full_week`` (False for a last week shorter than 168 h, which the weekly medians
         leave out) and the keys of the per-period KPIs (units in the names: kh = K*h, eur,
         kwh, h, w), each at its :data:`KPI_RESOLUTION`.
+
+    Raises
+    ------
+    ValueError
+        If ``ts`` lacks a column of :data:`REQUIRED_COLUMNS`.
     """
     missing = [c for c in REQUIRED_COLUMNS if c not in ts.columns]
     if missing:
@@ -256,10 +392,20 @@ def weekly_kpis(
 
 
 def median_weeks(weekly: pd.DataFrame) -> pd.DataFrame:
-    """The weeks the weekly medians and extremes are taken over: the full weeks.
+    """Select the weeks the weekly medians and extremes are taken over: the full weeks.
 
     A run shorter than one week has no full week; then its one partial week is used
     (and :func:`summarize` says so in ``week_medians_over``).
+
+    Parameters
+    ----------
+    weekly : pandas.DataFrame
+        Output of :func:`weekly_kpis`.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The rows with ``full_week``, or all rows if there is none.
     """
     if "full_week" not in weekly:
         return weekly
@@ -268,7 +414,22 @@ def median_weeks(weekly: pd.DataFrame) -> pd.DataFrame:
 
 
 def h2_empty_at(ts: pd.DataFrame, loh_min: float, dt_h: float = 1.0) -> str | None:
-    """ISO time (end of the step) when the H2 store first reached LOH_min, or ``None``."""
+    """Return when the H2 store first reached LOH_min (within :data:`LOH_EMPTY_TOL`).
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Timeseries with ``time`` (step start) and ``loh`` (end of step) [-].
+    loh_min : float
+        Lower bound of the store [-].
+    dt_h : float, optional
+        Step t_s [h].
+
+    Returns
+    -------
+    str or None
+        ISO time of the end of that step, or None if the store never reached it.
+    """
     loh = ts["loh"].to_numpy(dtype=float)
     hit = np.flatnonzero(loh <= loh_min + LOH_EMPTY_TOL)
     if hit.size == 0:
@@ -278,9 +439,21 @@ def h2_empty_at(ts: pd.DataFrame, loh_min: float, dt_h: float = 1.0) -> str | No
 
 
 def dhw_unmet_steps(ts: pd.DataFrame) -> tuple[int, str | None]:
-    """Steps whose hot-water draw and standing loss the tank could not serve (``q_dhw_unmet_w``
-    above :data:`DHW_UNMET_TOL_W`: the tank sat at V_DHW,min, ``sec:dhw``), and the ISO start
-    time of the first of them (``None`` if there is none)."""
+    """Count the steps whose hot-water draw and standing loss the tank could not serve.
+
+    A step counts when ``q_dhw_unmet_w`` is above :data:`DHW_UNMET_TOL_W`: the tank sat at
+    V_DHW,min (``sec:dhw``).
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Timeseries with ``time`` and ``q_dhw_unmet_w`` [W].
+
+    Returns
+    -------
+    tuple of (int, str or None)
+        Number of such steps, and the ISO start time of the first (None if there is none).
+    """
     hit = np.flatnonzero(ts["q_dhw_unmet_w"].to_numpy(dtype=float) > DHW_UNMET_TOL_W)
     if hit.size == 0:
         return 0, None
@@ -288,7 +461,7 @@ def dhw_unmet_steps(ts: pd.DataFrame) -> tuple[int, str | None]:
 
 
 def heat_recovered_at(ts: pd.DataFrame, eta_sys: float, dt_h: float = 1.0) -> pd.Series:
-    """FC heat of each step at system efficiency ``eta_sys`` for the run's own dispatch [kWh].
+    """Return the FC heat of each step at system efficiency ``eta_sys`` for the run's own dispatch.
 
     ``eq:FC_sys_efficiency``: ``Q_hr = n_FC * LHV * (eta_sys - eta_el)``, i.e. the step's H2
     power ``p_h2_w`` (LHV) times ``eta_sys - eta_el`` while the FC is on. The paper evaluates
@@ -297,9 +470,17 @@ def heat_recovered_at(ts: pd.DataFrame, eta_sys: float, dt_h: float = 1.0) -> pd
 
     Parameters
     ----------
-    ts : timeseries with ``p_h2_w`` [W], ``eta_fc_el`` [-] and ``fc_on``
-    eta_sys : FC system efficiency [-]
-    dt_h : step length [h]
+    ts : pandas.DataFrame
+        Timeseries with ``p_h2_w`` [W], ``eta_fc_el`` [-] and ``fc_on``.
+    eta_sys : float
+        Fuel-cell system efficiency eta_sys,FC [-].
+    dt_h : float, optional
+        Step t_s [h].
+
+    Returns
+    -------
+    pandas.Series
+        Recoverable heat of each step, 0 while the fuel cell is off [kWh].
     """
     on = ts["fc_on"].astype(bool).to_numpy()
     q_w = ts["p_h2_w"].to_numpy(dtype=float) * np.maximum(eta_sys - ts["eta_fc_el"].to_numpy(dtype=float), 0.0)
@@ -307,7 +488,7 @@ def heat_recovered_at(ts: pd.DataFrame, eta_sys: float, dt_h: float = 1.0) -> pd
 
 
 def h2_left_value_eur(loh_end: float, loh_min: float, e_h2_max_kwh: float, price_eur_per_kwh: float) -> float:
-    """Value of the usable H2 left at the end [EUR] (paper ``sec:results``).
+    """Value of the usable H2 left at the end (``sec:results``).
 
     ``(LOH_end - LOH_min) * E_H2,max * p_buy,avg``: the paper values the H2 its EMS leave in
     the store at the run's mean buy price (68.68 / 97.75 / 36.04 EUR for RBC /
@@ -315,9 +496,17 @@ def h2_left_value_eur(loh_end: float, loh_min: float, e_h2_max_kwh: float, price
 
     Parameters
     ----------
-    loh_end, loh_min : H2 level at the end and its lower bound [-]
-    e_h2_max_kwh : LHV energy of the full store [kWh]
-    price_eur_per_kwh : mean buy price of the run [EUR/kWh]
+    loh_end, loh_min : float
+        H2 level at the end and its lower bound [-].
+    e_h2_max_kwh : float
+        LHV energy of the full store E_H2,max [kWh].
+    price_eur_per_kwh : float
+        Mean buy price of the run p_buy,avg [EUR/kWh].
+
+    Returns
+    -------
+    float
+        Value of the H2 above LOH_min, 0 if none is left [EUR].
     """
     return max(loh_end - loh_min, 0.0) * e_h2_max_kwh * price_eur_per_kwh
 
@@ -333,7 +522,7 @@ def summarize(
     e_h2_max_kwh: float | None = None,
     t_comfort: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """Run summary (``summary.json``): weekly medians, extremes and run totals.
+    """Summarise a run (``summary.json``): weekly medians, extremes and run totals.
 
     Medians, minima, maxima and the spread over weeks are taken over the full weeks
     (:func:`median_weeks`); ``weeks`` counts every row of ``weekly`` (a last partial week
@@ -346,15 +535,30 @@ def summarize(
 
     Parameters
     ----------
-    ts : per-step timeseries
-    weekly : output of :func:`weekly_kpis`
-    loh_min : lower bound of the H2 store [-]
-    dt_h : step length [h]
-    extra : entries added as they are (e.g. ``ems``, ``scenario``, ``wall_s``)
-    e_h2_max_kwh : LHV energy of the full H2 store [kWh]; with it the summary values the
-        H2 left (:func:`h2_left_value_eur`) and gives the cost net of that value
-    t_comfort : air temperature compared with the comfort band per step
-        (:func:`comfort_sample_c`; default: end of step), as for ``weekly``
+    ts : pandas.DataFrame
+        Per-step timeseries with at least :data:`REQUIRED_COLUMNS` (optional columns
+        ``fallback``, ``ems_fallback``, ``ems_slack_used``).
+    weekly : pandas.DataFrame
+        Output of :func:`weekly_kpis`.
+    loh_min : float
+        Lower bound of the H2 store [-].
+    dt_h : float, optional
+        Step t_s [h].
+    extra : mapping, optional
+        Entries added as they are (e.g. ``ems``, ``scenario``, ``wall_s``).
+    e_h2_max_kwh : float, optional
+        LHV energy of the full H2 store [kWh]; with it the summary values the H2 left
+        (:func:`h2_left_value_eur`) and gives the cost net of that value.
+    t_comfort : numpy.ndarray, optional
+        Air temperature compared with the comfort band per step (:func:`comfort_sample_c`;
+        default: end of step), as for ``weekly`` [degC].
+
+    Returns
+    -------
+    dict
+        The summary keys (units in the names: ``_eur`` [EUR], ``_kwh`` [kWh], ``_kh``
+        [K*h], ``_w`` [W], ``_h``/``hours`` [h], LOH and efficiencies [-]), each at its
+        :data:`KPI_RESOLUTION`, with ``kpi_resolution`` and ``extra``.
     """
     on = ts["fc_on"].to_numpy(dtype=float) > 0.5
     eta = ts["eta_fc_el"].to_numpy(dtype=float)
@@ -435,6 +639,7 @@ _HP_COLUMNS = (("hp_heating_kwh", 1), ("hp_dhw_kwh", 2), ("hp_cooling_kwh", 3))
 
 
 def _sum_kwh(ts: pd.DataFrame, column: str, dt_h: float, mask: np.ndarray | None = None) -> float:
+    """Return the energy [kWh] of a power column [W], over the steps of ``mask`` if given."""
     values = ts[column].to_numpy(dtype=float)
     if mask is not None:
         values = values[mask]
@@ -442,10 +647,20 @@ def _sum_kwh(ts: pd.DataFrame, column: str, dt_h: float, mask: np.ndarray | None
 
 
 def energy_balance_rel_error(ts: pd.DataFrame) -> float:
-    """|supply - demand| of the whole run over its throughput (``eq:power_balance`` summed) [-].
+    """Relative error of the run's energy balance (``eq:power_balance`` summed over the run).
 
     Supply: PV, grid purchase, FC, battery discharge; demand: sale, appliances, HP, battery
     charge, electrolyser. Throughput: the supply's sum.
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Timeseries with the power columns of both sides [W].
+
+    Returns
+    -------
+    float
+        ``|supply - demand| / supply``, 0 without supply [-].
     """
     col = {c: ts[c].to_numpy(dtype=float) for c in ("p_pv_w", "p_buy_w", "p_fc_w", "p_dis_w", "p_sell_w",
                                                      "p_load_w", "p_hp_el_w", "p_ch_w", "p_el_w")}
@@ -455,12 +670,25 @@ def energy_balance_rel_error(ts: pd.DataFrame) -> float:
 
 
 def monthly_table(ts: pd.DataFrame, dt_h: float = 1.0, t_comfort: np.ndarray | None = None) -> pd.DataFrame:
-    """Energy and comfort per calendar month (local time) of a run [kWh, K*h, EUR, -].
+    """Tabulate energy and comfort per calendar month (local time) of a run.
 
-    Columns: bought, sold, PV, appliances, EL input, H2 produced (LHV), FC output, HP
-    electricity for heating, hot water and cooling, discomfort (both bounds) and
-    overheating (above the upper bound) in K*h, cost net of the reimbursement, LOH at
-    the end of the month.
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Timeseries of a year-round run (with ``hp_mode``, ``p_el_w``, ``p_h2_el_w``).
+    dt_h : float, optional
+        Step t_s [h].
+    t_comfort : numpy.ndarray, optional
+        Air temperature compared with the bounds per step [degC]; default: end of step.
+
+    Returns
+    -------
+    pandas.DataFrame
+        One row per month: ``month`` (``YYYY-MM``), ``hours`` [h]; bought, sold, PV,
+        appliances, EL input, H2 produced (LHV), FC output, HP electricity for heating,
+        hot water and cooling [kWh]; ``discomfort_kh`` (both bounds) and
+        ``overheating_kh`` (above the upper bound) [K*h]; ``cost_eur`` net of the
+        reimbursement [EUR]; ``loh_end`` at the end of the month [-].
     """
     month = ts["time"].astype(str).str[:7].to_numpy()
     t = ts["t_air_c"].to_numpy(dtype=float) if t_comfort is None else np.asarray(t_comfort, dtype=float)
@@ -488,10 +716,22 @@ def monthly_table(ts: pd.DataFrame, dt_h: float = 1.0, t_comfort: np.ndarray | N
 
 
 def loh_at(ts: pd.DataFrame, when: str) -> float | None:
-    """LOH at the local time ``when`` (ISO, naive = the run's offset): the end state of the step before it [-].
+    """Return the LOH at a local time: the end state of the step before it.
 
-    None if the run does not reach ``when``; the first row's start is the run's initial LOH,
-    which the timeseries does not hold, so a ``when`` at or before the first step gives None.
+    The first row's start is the run's initial LOH, which the timeseries does not hold, so
+    a ``when`` at or before the first step gives None.
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Timeseries with ``time`` (ISO with offset) and ``loh`` [-].
+    when : str
+        ISO time; naive means the run's UTC offset.
+
+    Returns
+    -------
+    float or None
+        LOH [-], or None if the run does not reach ``when``.
     """
     times = pd.to_datetime(ts["time"].astype(str), utc=True)
     target = pd.Timestamp(when)
@@ -507,25 +747,35 @@ def year_kpis(
     ts: pd.DataFrame, weekly: pd.DataFrame, dt_h: float, season_start: str, season_end: str,
     t_comfort: np.ndarray | None = None,
 ) -> dict[str, Any]:
-    """KPIs of a year-round run with an electrolyser and cooling.
+    """Compute the KPIs of a year-round run with an electrolyser and cooling.
 
     Parameters
     ----------
-    ts, weekly : the run's timeseries and weekly table
-    dt_h : step [h]
-    season_start, season_end : heating season as ``MM-DD`` (``simulation.heating_season_*``)
-    t_comfort : air temperature compared with the bounds (default: end of step)
+    ts : pandas.DataFrame
+        The run's timeseries.
+    weekly : pandas.DataFrame
+        Its weekly table (:func:`weekly_kpis`).
+    dt_h : float
+        Step t_s [h].
+    season_start, season_end : str
+        Heating season as local ``MM-DD`` dates, end exclusive
+        (``simulation.heating_season_*``).
+    t_comfort : numpy.ndarray, optional
+        Air temperature compared with the bounds per step [degC]; default: end of step.
 
     Returns
     -------
-    dict with: ``h2_produced_kwh`` (LHV), ``el_input_kwh`` (standby and compression
-    included), ``el_working_hours``, ``el_starts``, ``el_mean_eta`` (H2 over the intake while
-    producing), ``h2_round_trip`` (FC electrical output over EL electrical input),
-    ``loh_heating_season_start`` (LOH when the first heating season of the run starts),
-    ``self_sufficiency`` (1 - bought / (appliances + HP + EL)), ``overheating_kh``,
-    ``hp_cooling_kwh``, ``cost_net_eur`` (bought - sold), ``heating_season_weeks`` and
-    ``heating_season_discomfort_weeks`` (weeks starting in the season; those above
-    :data:`DISCOMFORT_TOL_KH`), ``energy_balance_rel_error``
+    dict
+        ``h2_produced_kwh`` (LHV) [kWh], ``el_input_kwh`` (standby and compression
+        included) [kWh], ``el_working_hours`` [h], ``el_starts`` [-], ``el_mean_eta`` (H2
+        over the intake while producing) [-], ``h2_round_trip`` (FC electrical output over
+        EL electrical input) [-], ``loh_heating_season_start`` (LOH when the first heating
+        season of the run starts, or None) [-], ``self_sufficiency``
+        (1 - bought / (appliances + HP + EL)) [-], ``overheating_kh`` [K*h],
+        ``hp_cooling_kwh`` [kWh], ``cost_net_eur`` (bought - sold) [EUR],
+        ``heating_season_weeks`` and ``heating_season_discomfort_weeks`` (full weeks starting
+        in the season; those above :data:`DISCOMFORT_TOL_KH`), ``energy_balance_rel_error``
+        [-].
     """
     on = ts["el_on"].to_numpy(dtype=float) > 0.5
     h2 = _sum_kwh(ts, "p_h2_el_w", dt_h)
