@@ -52,7 +52,7 @@ TIMESERIES_COLUMNS = ("time", "step", *FLOW_FIELDS, *STATE_COLUMNS, *COMMAND_COL
 
 
 def dloh_per_day(params: PlantParams) -> float:
-    """Daily permissible H2 use ``eq:deltaLOH``: ``24 h * LOH_init / N`` as a fraction/day.
+    """Daily permissible H2 use ``eq:deltaLOH``: ``24 h * LOH_init / N``.
 
     ``N`` is the number of steps of the whole winter (``simulation.season_weeks``, the
     paper's twelve weeks), not of the run: a run shorter than the season spends H2 at the
@@ -60,7 +60,14 @@ def dloh_per_day(params: PlantParams) -> float:
 
     Parameters
     ----------
-    params : plant parameters (initial LOH, step length, season length)
+    params : PlantParams
+        Plant parameters: ``simulation.loh_init`` [-], ``time_step_h`` [h] and
+        ``season_weeks`` [weeks].
+
+    Returns
+    -------
+    float
+        Delta LOH, the share of the store's energy the EMS may spend per day [1/day].
     """
     sim = params.simulation
     steps_per_day = HOURS_PER_DAY / sim.time_step_h
@@ -69,7 +76,20 @@ def dloh_per_day(params: PlantParams) -> float:
 
 
 def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]:
-    """Per-step :class:`Exogenous` records for the whole scenario (PV computed once)."""
+    """Build the per-step :class:`Exogenous` records of a whole scenario (PV computed once).
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The run's inputs (weather, loads, prices, comfort bounds).
+    params : PlantParams
+        Plant parameters; ``pv`` and ``site`` give the PV output (``eq:power_pv``).
+
+    Returns
+    -------
+    list of Exogenous
+        One record per row of the scenario.
+    """
     p_pv = pv_power_w(
         scenario.time, scenario.ghi_w_m2, scenario.dhi_w_m2, scenario.t_amb_c, params.pv, params.site
     )
@@ -88,7 +108,19 @@ def exogenous_series(scenario: Scenario, params: PlantParams) -> list[Exogenous]
 
 
 class ForecastParams(Section):
-    """Forecast settings (``config/forecast.yaml``); see that file for the sources."""
+    """Forecast settings (``config/forecast.yaml``); see that file for the sources.
+
+    Attributes
+    ----------
+    mode : str
+        ``perfect`` (the paper's setting) or ``imperfect`` (:class:`ForecastModel`).
+    seed : int
+        Seed of the forecast errors.
+    sigma_t_amb_k_24h : float
+        Standard deviation of the ambient-temperature error at 24 h lead [K].
+    sigma_ghi_rel_24h : float
+        Relative standard deviation of the irradiance and PV error at 24 h lead [-].
+    """
 
     mode: str = Field(pattern="^(perfect|imperfect)$")
     seed: int
@@ -97,7 +129,20 @@ class ForecastParams(Section):
 
 
 def load_forecast_settings(path: str | Path | None = None, **overrides: Any) -> ForecastParams:
-    """Read the ``forecast`` section of ``config/forecast.yaml`` (or ``path``), with overrides."""
+    """Read the forecast settings.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        Parameter file with a ``forecast`` section; default ``config/forecast.yaml``.
+    **overrides
+        Settings replacing the file's (``mode="imperfect"``).
+
+    Returns
+    -------
+    ForecastParams
+        The validated settings.
+    """
     return load_section(ForecastParams, path, "forecast.yaml", "forecast", overrides)
 
 
@@ -111,6 +156,16 @@ class ForecastModel:
     ``sigma_24h * sqrt(lead / 24)``; lead 0 is the measured current step and stays exact.
     The noise of step ``k`` is drawn from a generator seeded with ``(seed, k)``, so runs
     are reproducible and the in-process and ROS paths see identical forecasts.
+
+    Parameters
+    ----------
+    series : mapping of str to list of float
+        Each key of :data:`FORECAST_KEYS` over the run, padded by at least
+        :data:`PRICE_WINDOW` steps at the end (units in the key names).
+    settings : ForecastParams
+        Mode, seed and error sizes.
+    steps_per_day : int
+        Steps per day (24 at 1 h steps).
     """
 
     def __init__(self, series: Mapping[str, list[float]], settings: ForecastParams, steps_per_day: int) -> None:
@@ -121,7 +176,19 @@ class ForecastModel:
         self._scale = np.sqrt(lead / steps_per_day)
 
     def window(self, k: int) -> dict[str, tuple[float, ...]]:
-        """Forecast of every key in :data:`FORECAST_KEYS` for steps ``k .. k+23``."""
+        """Return the forecast of every key in :data:`FORECAST_KEYS` for steps ``k .. k+23``.
+
+        Parameters
+        ----------
+        k : int
+            The current step.
+
+        Returns
+        -------
+        dict of str to tuple of float
+            Key -> :data:`PRICE_WINDOW` values, in the key's unit (``t_amb_c`` [degC],
+            ``ghi_w_m2`` [W/m2], ``p_pv_w`` and ``p_load_w`` [W], ``dhw_l_per_h`` [l/h]...).
+        """
         s = self._series
         out = {key: s[key][k : k + PRICE_WINDOW] for key in FORECAST_KEYS}
         if self._s.mode == "imperfect":
@@ -139,15 +206,28 @@ class ForecastModel:
 
 
 class ObservationBuilder:
-    """Builds the :class:`Observation` of one information level for each step.
+    """Builder of the :class:`Observation` of one information level for each step.
+
+    The levels are the inputs each EMS may use (``tab:level_of_information``).
 
     Parameters
     ----------
-    scenario : the run's inputs
-    params : plant parameters
-    level : information level (``basic``, ``fuzzy``, ``mpc``)
-    exo : per-step exogenous records from :func:`exogenous_series`
-    forecast : forecast settings for the MPC level (default: ``config/forecast.yaml``)
+    scenario : Scenario
+        The run's inputs.
+    params : PlantParams
+        Plant parameters.
+    level : str
+        Information level: ``basic``, ``fuzzy`` or ``mpc`` (:data:`INFO_LEVELS`).
+    exo : sequence of Exogenous
+        Per-step exogenous records from :func:`exogenous_series`.
+    forecast : ForecastParams, optional
+        Forecast settings for the MPC level (default: ``config/forecast.yaml``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown level, or at the MPC level a horizon other than :data:`PRICE_WINDOW`
+        steps.
     """
 
     def __init__(
@@ -202,7 +282,21 @@ class ObservationBuilder:
         )
 
     def data(self, k: int, state: PlantState) -> dict[str, Any]:
-        """All fields of the level for step ``k`` given the state at the end of ``k-1``."""
+        """Return every field of the level for step ``k``.
+
+        Parameters
+        ----------
+        k : int
+            The step to decide.
+        state : PlantState
+            State at the end of step ``k - 1``.
+
+        Returns
+        -------
+        dict
+            Field name -> value (units in the names: ``t_air_c`` [degC], ``soc`` [-],
+            ``prices_buy_24h`` [EUR/kWh], ``dloh_per_day`` [1/day]...).
+        """
         e = self._exo[k]
         d: dict[str, Any] = {
             "step": k,
@@ -239,7 +333,20 @@ class ObservationBuilder:
         return d
 
     def build(self, k: int, state: PlantState) -> Observation:
-        """The :class:`Observation` for step ``k``."""
+        """Build the :class:`Observation` for step ``k``.
+
+        Parameters
+        ----------
+        k : int
+            The step to decide.
+        state : PlantState
+            State at the end of step ``k - 1``.
+
+        Returns
+        -------
+        Observation
+            The level's fields (:meth:`data`).
+        """
         return Observation(self.level, self.data(k, state))
 
 
@@ -253,10 +360,32 @@ def record_row(
     ghi_spot: tuple[float, float],
     fallback: bool,
 ) -> list[Any]:
-    """One timeseries row in :data:`TIMESERIES_COLUMNS` order.
+    """Assemble one timeseries row in :data:`TIMESERIES_COLUMNS` order.
 
-    ``ghi_spot`` is ``(ghi_w_m2, spot_eur_per_mwh)``; ``ghi_w_m2`` is also in ``exo`` but
-    the spot price is not, so both come together from the scenario.
+    Parameters
+    ----------
+    time_iso : str
+        ISO start time of the step.
+    k : int
+        Step index.
+    flows : Flows
+        Everything that happened in the step.
+    state : PlantState
+        State at the end of the step.
+    command : Action
+        The EMS's action before the plant clipped it (``cmd_*`` columns).
+    exo : Exogenous
+        The step's exogenous inputs.
+    ghi_spot : tuple of (float, float)
+        ``(ghi_w_m2, spot_eur_per_mwh)`` from the scenario [W/m2], [EUR/MWh]; the spot price
+        is not in ``exo``, so both come together.
+    fallback : bool
+        The plant applied a fallback action (no valid command in time).
+
+    Returns
+    -------
+    list
+        The row's values.
     """
     row: list[Any] = [time_iso, k]
     row.extend(getattr(flows, f) for f in FLOW_FIELDS)
@@ -269,7 +398,20 @@ def record_row(
 
 @dataclass
 class RunResult:
-    """Outputs of one run: per-step timeseries, weekly KPIs and the summary."""
+    """Outputs of one run: per-step timeseries, weekly KPIs and the summary.
+
+    Attributes
+    ----------
+    timeseries : pandas.DataFrame
+        One row per step, :data:`TIMESERIES_COLUMNS` and any ``ems_*``/``building_*``
+        columns (units in the names).
+    weekly : pandas.DataFrame
+        :func:`comems4build_ros.core.kpi.weekly_kpis`.
+    summary : dict
+        :func:`comems4build_ros.core.kpi.summarize` and the run's details.
+    monthly : pandas.DataFrame or None
+        :func:`comems4build_ros.core.kpi.monthly_table`, for year-round plants only.
+    """
 
     timeseries: pd.DataFrame
     weekly: pd.DataFrame
@@ -278,12 +420,40 @@ class RunResult:
 
 
 def is_year_round(params: PlantParams) -> bool:
-    """The plant has an electrolyser or cooling: its runs get the year's KPIs and monthly table."""
+    """Tell whether the plant has an electrolyser or cooling.
+
+    Such a plant's runs get the year's KPIs and the monthly table.
+
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters.
+
+    Returns
+    -------
+    bool
+        True with ``electrolyser.n_modules > 0`` or ``cooling.enabled``.
+    """
     return params.electrolyser.n_modules > 0 or params.cooling.enabled
 
 
 def evaluate_timeseries(ts: pd.DataFrame, params: PlantParams, extra: Mapping[str, Any] | None = None) -> RunResult:
-    """Weekly KPIs and summary of a timeseries (shared by in-process and bag evaluation)."""
+    """Compute the weekly KPIs and summary of a timeseries (in-process and bag evaluation alike).
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Per-step timeseries of a run (:data:`TIMESERIES_COLUMNS`).
+    params : PlantParams
+        The run's plant parameters (step, comfort sampling, H2 store, season).
+    extra : mapping, optional
+        Entries added to the summary as they are.
+
+    Returns
+    -------
+    RunResult
+        ``ts`` with its weekly table, summary and (year-round plants) monthly table.
+    """
     dt_h = params.simulation.time_step_h
     sample, t0 = params.comfort.discomfort_sample, params.simulation.t_air_init_c
     weekly = kpi.weekly_kpis(ts, dt_h, sample, t0)
@@ -316,18 +486,32 @@ def simulate(
 
     Parameters
     ----------
-    ems : EMS name (see :data:`comems4build_ros.core.ems.REGISTRY`) or a controller object
-    scenario : inputs of the run
-    params : plant parameters
-    ems_options : options passed to the controller's constructor (name only)
-    progress : called as ``progress(steps done, total steps)`` after every step (for a bar,
-        see :mod:`comems4build_ros.run.progress`); None = silent
-    forecast : forecast settings for an MPC (default ``config/forecast.yaml``: perfect)
-    building : the building model: None or ``"rc"`` (the paper's 4R3C), a
+    ems : str or Controller
+        EMS name (see :data:`comems4build_ros.core.ems.REGISTRY`) or a controller object.
+    scenario : Scenario
+        Inputs of the run.
+    params : PlantParams
+        Plant parameters.
+    ems_options : mapping, optional
+        Options passed to the controller's constructor (with a name only).
+    progress : callable, optional
+        Called as ``progress(steps done, total steps)`` after every step (for a bar, see
+        :mod:`comems4build_ros.run.progress`); None = silent.
+    forecast : ForecastParams, optional
+        Forecast settings for an MPC (default ``config/forecast.yaml``: perfect).
+    building : object, optional
+        The building model: None or ``"rc"`` (the paper's 4R3C, ``sec:bldg``), a
         :class:`~comems4build_ros.core.models.buildings.BuildingChoice` or its text
-        (``energyplus[:IDF]``, ``fmu:PATH``); closed at the end of the run. A detailed model's
-        per-step record (the heat EnergyPlus reports it received) adds ``building_*`` columns
-    building_dir : EnergyPlus's output folder (default: a temporary folder, removed)
+        (``energyplus[:IDF]``, ``fmu:PATH``); closed at the end of the run. A detailed
+        model's per-step record (the heat EnergyPlus reports it received) adds
+        ``building_*`` columns.
+    building_dir : str or pathlib.Path, optional
+        EnergyPlus's output folder (default: a temporary folder, removed).
+
+    Returns
+    -------
+    RunResult
+        Timeseries, weekly KPIs, summary (and monthly table for year-round plants).
     """
     t_start = _time.perf_counter()
     ctrl = make_controller(ems, params, ems_options) if isinstance(ems, str) else ems
@@ -340,7 +524,25 @@ def simulate(
 
 
 def building_model(building: Any, params: PlantParams, scenario: Scenario, workdir: str | Path | None = None) -> Any:
-    """The run's building model (:func:`~comems4build_ros.core.models.buildings.make_building` on the scenario)."""
+    """Make the run's building model.
+
+    Parameters
+    ----------
+    building : object
+        None or ``"rc"`` (the paper's 4R3C), a model object (returned as is), or a choice
+        for :func:`~comems4build_ros.core.models.buildings.make_building`.
+    params : PlantParams
+        Plant parameters.
+    scenario : Scenario
+        The run's inputs (the weather of a detailed model).
+    workdir : str or pathlib.Path, optional
+        Output folder of a detailed model.
+
+    Returns
+    -------
+    object
+        A building model with ``step``, ``initial_temperatures`` and ``close``.
+    """
     from comems4build_ros.core.models.building import RCBuilding
     from comems4build_ros.core.models.buildings import make_building
     from comems4build_ros.core.models.epw import Weather
@@ -359,6 +561,7 @@ BUILDING_COLUMNS = ("building_q_floor_set_w", "building_q_floor_received_w", "bu
 
 def _simulate(ctrl: Controller, scenario: Scenario, params: PlantParams, progress: Any,
               forecast: ForecastParams | None, model: Any, t_start: float) -> RunResult:
+    """Run the closed loop of :func:`simulate` with a reset controller and an open building model."""
     plant = Plant(params, model)
     record = hasattr(model, "last") and model.name != "rc"
     brows: list[tuple[float, float, float]] = []
@@ -412,11 +615,21 @@ def _simulate(ctrl: Controller, scenario: Scenario, params: PlantParams, progres
 
 
 def heat_balance_error(ts: pd.DataFrame) -> float:
-    """Largest relative difference between the heat the plant gave the building and what it received.
+    """Return the largest relative difference between the heat the plant gave the building and what it received.
 
     Per step |Q_plant - Q_received| / max(|Q_plant|, 1 W), with Q_plant = q_hp_sh_w - q_cool_w
     (what the plant's heat pump put into the floor) and Q_received the heat the detailed model
     reports it received (EnergyPlus's source-term output, hourly mean).
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        Timeseries with ``q_hp_sh_w``, ``q_cool_w`` and ``building_q_floor_received_w`` [W].
+
+    Returns
+    -------
+    float
+        The largest relative difference over the steps [-].
     """
     q_plant = ts["q_hp_sh_w"].to_numpy(float) - ts["q_cool_w"].to_numpy(float)
     q_in = ts["building_q_floor_received_w"].to_numpy(float)
@@ -424,6 +637,7 @@ def heat_balance_error(ts: pd.DataFrame) -> float:
 
 
 def _json_default(value: Any) -> Any:
+    """Convert a NumPy scalar for ``json.dumps``; refuse anything else."""
     if isinstance(value, np.generic):
         return value.item()
     raise TypeError(f"not JSON serialisable: {type(value).__name__}")
@@ -434,12 +648,27 @@ RUN_FILES = ("timeseries.csv", "weekly.csv", "summary.json", "monthly.csv")
 
 
 def write_run(result: RunResult, out_dir: str | Path, timeseries: bool = True) -> Path:
-    """Write ``timeseries.csv`` (optional), ``weekly.csv`` and ``summary.json`` to ``out_dir``.
+    """Write a run's files: ``timeseries.csv`` (optional), ``weekly.csv``, ``summary.json``.
 
-    All or nothing: the files are written into a temporary directory inside ``out_dir``
-    and renamed into place only when every one was written (:func:`~.fileio.atomic_dir`),
-    so a failure (e.g. a full disk) leaves no partial result; a ``timeseries.csv`` of an
-    earlier run in ``out_dir`` is removed when this one writes none.
+    ``monthly.csv`` too for a year-round plant. All or nothing: the files are written into
+    a temporary directory inside ``out_dir`` and renamed into place only when every one was
+    written (:func:`comems4build_ros.files.outputs.atomic_dir`), so a failure (e.g. a full
+    disk) leaves no partial result; a ``timeseries.csv`` of an earlier run in ``out_dir`` is
+    removed when this one writes none. Non-finite summary values are written as ``null``.
+
+    Parameters
+    ----------
+    result : RunResult
+        The run's outputs.
+    out_dir : str or pathlib.Path
+        The run directory.
+    timeseries : bool, optional
+        Write ``timeseries.csv`` (default True).
+
+    Returns
+    -------
+    pathlib.Path
+        ``out_dir``.
     """
     out = Path(out_dir)
     clean = {k: (None if isinstance(v, float) and not math.isfinite(v) else v) for k, v in result.summary.items()}
