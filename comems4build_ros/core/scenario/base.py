@@ -44,18 +44,36 @@ class Scenario:
 
     Attributes
     ----------
-    name : label (``default`` or the CSV file name)
-    time : tz-aware hourly index (local time of the site), start of each step
-    t_amb_c : ambient temperature [degC]
-    ghi_w_m2, dhi_w_m2 : global and diffuse horizontal irradiance [W/m2]
-    spot_eur_per_mwh : day-ahead spot price [EUR/MWh]
-    price_buy_eur_per_kwh : buy tariff [EUR/kWh]
-    price_sell_eur_per_kwh : sell tariff [EUR/kWh]
-    p_load_w : appliance load [W]
-    dhw_l_per_h : hot-water draw at T_DHW [l/h]
-    t_min_c, t_max_c : comfort bounds eq:T_min [degC]
-    n_steps : steps of the run
-    meta : free-form provenance (seed, source files, gap fills)
+    name : str
+        Label (``default`` or the CSV file name).
+    time : pandas.DatetimeIndex
+        Tz-aware hourly index (local time of the site), start of each step.
+    t_amb_c : numpy.ndarray
+        Ambient temperature [degC].
+    ghi_w_m2, dhi_w_m2 : numpy.ndarray
+        Global and diffuse horizontal irradiance [W/m2].
+    spot_eur_per_mwh : numpy.ndarray
+        Day-ahead spot price [EUR/MWh].
+    price_buy_eur_per_kwh : numpy.ndarray
+        Buy tariff p_buy (``eq:costs``) [EUR/kWh].
+    price_sell_eur_per_kwh : numpy.ndarray
+        Sell tariff p_sell [EUR/kWh].
+    p_load_w : numpy.ndarray
+        Appliance load P_el,load [W].
+    dhw_l_per_h : numpy.ndarray
+        Hot-water draw at T_DHW [l/h].
+    t_min_c, t_max_c : numpy.ndarray
+        Comfort bounds (``eq:T_min``) [degC].
+    n_steps : int
+        Steps of the run, 1 .. ``len(time)``.
+    meta : dict
+        Free-form provenance (seed, source files, gap fills).
+
+    Raises
+    ------
+    ValueError
+        If a series of :data:`SERIES` does not have the length of ``time`` or ``n_steps``
+        is outside 1 .. ``len(time)``.
     """
 
     name: str
@@ -74,6 +92,7 @@ class Scenario:
     meta: dict = field(default_factory=dict)
 
     def __post_init__(self) -> None:
+        """Check the lengths and convert every series to a float array."""
         n = len(self.time)
         for name in SERIES:
             arr = np.asarray(getattr(self, name), dtype=float)
@@ -84,7 +103,22 @@ class Scenario:
             raise ValueError(f"scenario '{self.name}': n_steps={self.n_steps} outside 1..{n}")
 
     def window(self, name: str, k: int, length: int) -> np.ndarray:
-        """``length`` values of series ``name`` from step ``k``, edge-padded at the end."""
+        """Return ``length`` values of a series from step ``k``, edge-padded at the end.
+
+        Parameters
+        ----------
+        name : str
+            A series of :data:`SERIES`.
+        k : int
+            First step.
+        length : int
+            Number of values.
+
+        Returns
+        -------
+        numpy.ndarray
+            The values, in the series' unit; past the last row the last value repeats.
+        """
         arr = getattr(self, name)
         end = k + length
         if end <= len(arr):

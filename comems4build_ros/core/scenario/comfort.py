@@ -13,10 +13,26 @@ from comems4build_ros.core.config import ComfortParams
 
 @lru_cache(maxsize=32)
 def holiday_dates(country: str, subdivision: str, years: tuple[int, ...]) -> frozenset[date]:
-    """Public holidays of a country/subdivision (empty: national only) in the given years,
-    from the ``holidays`` library; remembered on disk per library version
-    (:mod:`comems4build_ros.core.result_cache`: the library imports every country's calendar to
-    look one up, 0.1 s in each feed and EMS process)."""
+    """Return the public holidays of a country or subdivision in the given years.
+
+    From the ``holidays`` library; remembered on disk per library version
+    (:mod:`comems4build_ros.core.result_cache`: the library imports every country's calendar
+    to look one up, in each feed and EMS process).
+
+    Parameters
+    ----------
+    country : str
+        ISO 3166-1 alpha-2 code (``DE``).
+    subdivision : str
+        A subdivision (``BW``); empty for the national holidays only.
+    years : tuple of int
+        Calendar years.
+
+    Returns
+    -------
+    frozenset of datetime.date
+        The holidays.
+    """
     from comems4build_ros.core.result_cache import cached
 
     def library() -> tuple[np.ndarray]:
@@ -31,17 +47,26 @@ def holiday_dates(country: str, subdivision: str, years: tuple[int, ...]) -> fro
 
 
 def _local_index(time: pd.DatetimeIndex | pd.Timestamp) -> pd.DatetimeIndex:
+    """Return ``time`` as an index (one element for a single timestamp)."""
     idx = pd.DatetimeIndex([time]) if isinstance(time, pd.Timestamp) else pd.DatetimeIndex(time)
     return idx
 
 
 def is_off_day(time: pd.DatetimeIndex | pd.Timestamp, comfort: ComfortParams) -> np.ndarray:
-    """True where the local date is a Saturday, Sunday or public holidays of ``comfort``.
+    """Mark the local dates that are a Saturday, Sunday or public holiday of ``comfort``.
 
     Parameters
     ----------
-    time : local times (tz-aware in the site's zone, or naive local times)
-    comfort : comfort section of the plant parameters (holidays_country, holidays_subdivision)
+    time : pandas.DatetimeIndex or pandas.Timestamp
+        Local times (tz-aware in the site's zone, or naive local times).
+    comfort : ComfortParams
+        Comfort section of the plant parameters (``holidays_country``,
+        ``holidays_subdivision``).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        True on off days, one per time.
     """
     idx = _local_index(time)
     if len(idx) == 0:
@@ -57,7 +82,7 @@ def is_off_day(time: pd.DatetimeIndex | pd.Timestamp, comfort: ComfortParams) ->
 def heating_season_days(
     time: pd.DatetimeIndex, start_mmdd: str, end_mmdd: str
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Days to the next heating season and days left in it, for each step start [d].
+    """Return the days to the next heating season and the days left in it, for each step start.
 
     The season runs from the local date ``start_mmdd`` (``"12-01"``) to ``end_mmdd``
     (exclusive, ``"03-01"``), across the turn of the year when the end lies before the
@@ -65,8 +90,15 @@ def heating_season_days(
 
     Parameters
     ----------
-    time : local step starts (tz-aware in the site's zone)
-    start_mmdd, end_mmdd : season bounds as ``MM-DD``
+    time : pandas.DatetimeIndex
+        Local step starts (tz-aware in the site's zone).
+    start_mmdd, end_mmdd : str
+        Season bounds as ``MM-DD``.
+
+    Returns
+    -------
+    tuple of numpy.ndarray
+        Days to the start of the next season, and days left in the current season [d].
     """
     idx = pd.DatetimeIndex(time)
     naive = idx.tz_localize(None) if idx.tz is not None else idx
@@ -91,7 +123,7 @@ def heating_season_days(
 
 
 def _in_hours(hour: np.ndarray, pairs: list[int]) -> np.ndarray:
-    """True where ``hour`` lies in one of the ``[start, end)`` pairs."""
+    """Mark where ``hour`` lies in one of the ``[start, end)`` pairs."""
     inside = np.zeros(hour.shape, dtype=bool)
     for start, end in zip(pairs[::2], pairs[1::2]):
         inside |= (hour >= start) & (hour < end)
@@ -101,7 +133,7 @@ def _in_hours(hour: np.ndarray, pairs: list[int]) -> np.ndarray:
 def comfort_bounds(
     time: pd.DatetimeIndex | pd.Timestamp, comfort: ComfortParams
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Lower and upper air-temperature bounds ``eq:T_min`` [degC] for each hour.
+    """Return the lower and upper air-temperature bounds ``eq:T_min`` for each hour.
 
     ``T_min = t_min_home_c`` when the occupants are at home (weekdays in
     ``home_hours_weekday``, weekends and public holidays in ``home_hours_weekend``; both
@@ -112,12 +144,15 @@ def comfort_bounds(
 
     Parameters
     ----------
-    time : start of each hourly step, local time of the site (tz-aware or naive local)
-    comfort : :class:`~comems4build_ros.core.config.ComfortParams`
+    time : pandas.DatetimeIndex or pandas.Timestamp
+        Start of each hourly step, local time of the site (tz-aware or naive local).
+    comfort : ComfortParams
+        Comfort section of the plant parameters.
 
     Returns
     -------
-    t_min_c, t_max_c : arrays [degC] of the length of ``time``
+    t_min_c, t_max_c : numpy.ndarray
+        Bounds T_air,min and T_air,max, of the length of ``time`` [degC].
     """
     idx = _local_index(time)
     hour = np.asarray(idx.hour)

@@ -33,6 +33,13 @@ class ScenarioInputError(ValueError):
 def check_scenario(scenario: Scenario, time_step_h: float) -> None:
     """Refuse a scenario with non-finite values or irregular time steps.
 
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario to check.
+    time_step_h : float
+        The plant's step; the index must advance by exactly it [h].
+
     Raises
     ------
     ScenarioInputError
@@ -69,19 +76,33 @@ def load_scenario(
     allow_gap_fill: bool = False,
     notes: list[str] | None = None,
 ) -> Scenario:
-    """The run's scenario through the core's loaders (their file checks included).
+    """Load the run's scenario through the core's loaders (their file checks included).
 
     Parameters
     ----------
-    spec : ``default`` or a scenario CSV path
-    params : plant parameters
-    start, weeks : window of the run (see :func:`comems4build_ros.core.scenario.resolve_scenario`)
-    seed : generator seed of the default scenario (None = the configured seed)
-    steps : cut the run to its first ``steps`` steps (the rest stays as look-ahead);
-        None = the whole window
-    allow_gap_fill : accept missing values the loader filled by interpolation (its
-        ``ScenarioWarning``); by default they make the feed refuse the scenario
-    notes : receives the text of every other loader warning
+    spec : str
+        ``default``, another embedded scenario's name, or a scenario CSV path.
+    params : PlantParams
+        Plant parameters.
+    start : str or None
+        First day of the run (see :func:`comems4build_ros.core.scenario.resolve_scenario`).
+    weeks : int or None
+        Length of the run [weeks].
+    seed : int or None
+        Generator seed of the default scenario (None = the configured seed).
+    steps : int, optional
+        Cut the run to its first ``steps`` steps (the rest stays as look-ahead); None = the
+        whole window.
+    allow_gap_fill : bool, optional
+        Accept missing values the loader filled by interpolation (its ``ScenarioWarning``);
+        by default they make the feed refuse the scenario.
+    notes : list of str, optional
+        Receives the text of every other loader warning.
+
+    Returns
+    -------
+    Scenario
+        The run's scenario.
 
     Raises
     ------
