@@ -77,9 +77,18 @@ MEASURED_SECTIONS = {"default": "measured", "year": "measured_year"}
 
 
 def is_embedded(spec: str | Path) -> bool:
-    """True for a scenario built from package data by its name alone (no file of the caller's disk).
+    """Tell whether a scenario is built from package data by its name alone (no file of the caller's disk).
 
-    The embedded scenarios (:data:`EMBEDDED`) and the validation cases (``validation/<id>``).
+    Parameters
+    ----------
+    spec : str or pathlib.Path
+        A scenario name or path.
+
+    Returns
+    -------
+    bool
+        True for the embedded scenarios (:data:`EMBEDDED`) and the validation cases
+        (``validation/<id>``).
     """
     from comems4build_ros.core.scenario.validation import is_validation
 
@@ -87,7 +96,19 @@ def is_embedded(spec: str | Path) -> bool:
 
 
 def steps_of_weeks(weeks: float, name: str) -> int:
-    """Run length [steps] of ``weeks`` weeks at 1 h; fractions allowed if they give whole hours.
+    """Return the run length of ``weeks`` weeks in 1 h steps; fractions allowed if they give whole hours.
+
+    Parameters
+    ----------
+    weeks : float
+        Run length [weeks].
+    name : str
+        The scenario, for the message.
+
+    Returns
+    -------
+    int
+        ``weeks * 168`` [steps].
 
     Raises
     ------
@@ -107,7 +128,7 @@ _CACHE_MAX = 16
 
 
 def _tariff(spot_eur_per_mwh: np.ndarray, params: PlantParams) -> tuple[np.ndarray, np.ndarray]:
-    """Buy price ``a + b * spot / 1000`` and the constant sell price [EUR/kWh] (paper ``eq:costs``).
+    """Return the buy price ``a + b * spot / 1000`` and the constant sell price [EUR/kWh] (``eq:costs``).
 
     ``a`` = ``grid.buy_offset_eur_per_kwh``, ``b`` = ``grid.buy_spot_factor`` (derivation in
     ``config/plant.yaml``).
@@ -130,6 +151,25 @@ def scenario_from_frame(
     The time is converted to the site's zone; the tariff comes from ``price_buy_eur_per_kwh``
     when present, else ``a + b * spot / 1000`` (``grid``); comfort bounds from
     ``params.comfort`` (``eq:T_min``).
+
+    Parameters
+    ----------
+    name : str
+        The scenario's label.
+    frame : pandas.DataFrame
+        Columns of :data:`CSV_COLUMNS` after ``time`` (units in the names), indexed by
+        tz-aware hourly time.
+    params : PlantParams
+        Plant parameters (time zone, tariff, comfort).
+    n_steps : int
+        Steps of the run; the rows after them are look-ahead.
+    meta : dict, optional
+        Provenance, copied into the scenario.
+
+    Returns
+    -------
+    Scenario
+        The scenario.
     """
     time = pd.DatetimeIndex(frame.index).tz_convert(params.site.timezone)
     time.name = "time"
@@ -157,7 +197,7 @@ def scenario_from_frame(
 
 
 def _generated_frame(params: PlantParams, settings: ScenarioParams, n_steps: int, seed: int) -> pd.DataFrame:
-    """Generated series as a frame, cached in memory on everything they depend on."""
+    """Return the generated series as a frame, cached in memory on everything they depend on."""
     from comems4build_ros.core.scenario.generator import generate
 
     hours = n_steps + settings.lookahead_h
@@ -182,19 +222,29 @@ def _generated_frame(params: PlantParams, settings: ScenarioParams, n_steps: int
 def synthetic_scenario(
     params: PlantParams, weeks: float = 12, seed: int | None = None, settings: ScenarioParams | None = None
 ) -> Scenario:
-    """The synthetic winter scenario (generated, deterministic, no network; ``--scenario synthetic``).
+    """Build the synthetic winter scenario (generated, deterministic, no network; ``--scenario synthetic``).
 
     Parameters
     ----------
-    params : plant parameters (site, tariff, comfort)
-    weeks : run length [weeks] (fractions allowed when ``weeks * 168`` is a whole number of
-        hours); the arrays hold ``weeks * 168 + lookahead_h`` hours
-    seed : random seed (default: ``scenario.seed`` of ``config/scenario.yaml``)
-    settings : generator settings (default: ``config/scenario.yaml``)
+    params : PlantParams
+        Plant parameters (site, tariff, comfort).
+    weeks : float, optional
+        Run length [weeks] (fractions allowed when ``weeks * 168`` is a whole number of
+        hours); the arrays hold ``weeks * 168 + lookahead_h`` hours.
+    seed : int, optional
+        Random seed (default: ``scenario.seed`` of ``config/scenario.yaml``).
+    settings : ScenarioParams, optional
+        Generator settings (default: ``config/scenario.yaml``).
 
     Returns
     -------
-    Scenario named ``synthetic`` with ``n_steps = weeks * 168``.
+    Scenario
+        Named ``synthetic``, with ``n_steps = weeks * 168``.
+
+    Warns
+    -----
+    ScenarioWarning
+        For more weeks than the generator is calibrated for.
     """
     settings = settings or load_scenario_settings()
     n_steps = steps_of_weeks(weeks, "synthetic scenario")
@@ -218,7 +268,7 @@ def synthetic_scenario(
 def _measured_frame(
     params: PlantParams, measured: MeasuredParams, settings: ScenarioParams, seed: int, fill: str | None
 ) -> tuple[pd.DataFrame, dict]:
-    """The measured frame (all covered hours), cached in memory on everything it depends on."""
+    """Return the measured frame (all covered hours), cached in memory on everything it depends on."""
     from comems4build_ros.core.scenario.measured import measured_frame
 
     key = (
@@ -246,7 +296,7 @@ def default_scenario(
     measured: MeasuredParams | None = None,
     fill: str | None = None,
 ) -> Scenario:
-    """The embedded default scenario: the paper's winter from measured data (no network).
+    """Build the embedded default scenario: the paper's winter from measured data (no network).
 
     Prices, ambient temperature and hot-water draws are measured (package data; the
     temperature after the end of its record is filled and flagged in
@@ -255,13 +305,24 @@ def default_scenario(
 
     Parameters
     ----------
-    params : plant parameters (site, tariff, comfort)
-    weeks : run length [weeks] (default ``measured.weeks`` = 12; fractions allowed when
-        they give whole hours); the arrays hold ``weeks * 168 + lookahead_h`` hours
-    seed : seed of the modelled radiation and load (default ``measured.seed``)
-    settings : synthetic generator settings (its ``solar`` and ``load`` models)
-    measured : the ``measured`` settings (default ``config/scenario.yaml``)
-    fill : temperature fill method (default ``measured.temperature.fill``)
+    params : PlantParams
+        Plant parameters (site, tariff, comfort).
+    weeks : float, optional
+        Run length [weeks] (default ``measured.weeks`` = 12; fractions allowed when they
+        give whole hours); the arrays hold ``weeks * 168 + lookahead_h`` hours.
+    seed : int, optional
+        Seed of the modelled radiation and load (default ``measured.seed``).
+    settings : ScenarioParams, optional
+        Synthetic generator settings (its ``solar`` and ``load`` models).
+    measured : MeasuredParams, optional
+        The ``measured`` settings (default ``config/scenario.yaml``).
+    fill : str, optional
+        Temperature fill method (default ``measured.temperature.fill``).
+
+    Returns
+    -------
+    Scenario
+        Named ``default``, with ``n_steps = weeks * 168``.
 
     Raises
     ------
@@ -291,7 +352,21 @@ EXTEND_METHODS = ("synthetic",)
 
 
 def run_steps(weeks: float | None, hours: int | None, name: str) -> int | None:
-    """Run length [steps at 1 h] of ``weeks`` or ``hours`` (at most one given; None = the scenario's default).
+    """Return the run length in 1 h steps from ``weeks`` or ``hours`` (at most one given).
+
+    Parameters
+    ----------
+    weeks : float or None
+        Run length [weeks].
+    hours : int or None
+        Run length [h].
+    name : str
+        The scenario, for the message.
+
+    Returns
+    -------
+    int or None
+        Steps of the run; None when neither is given (the scenario's default).
 
     Raises
     ------
@@ -316,6 +391,13 @@ def check_time_step(params: PlantParams, name: str) -> None:
     Every scenario (generated or CSV) has one row per hour; a ``simulation.time_step_h``
     of 2 would integrate 2 h of physics per 1 h row and report twice the weeks.
 
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (``simulation.time_step_h`` [h]).
+    name : str
+        The scenario, for the message.
+
     Raises
     ------
     ScenarioError
@@ -332,7 +414,7 @@ def check_time_step(params: PlantParams, name: str) -> None:
 def _synthetic_extension(
     params: PlantParams, after: pd.Timestamp, rows: int, seed: int | None, settings: ScenarioParams | None = None
 ) -> tuple[pd.DataFrame, int]:
-    """``rows`` generated hours starting one hour after ``after`` (UTC index, the CSV columns) and the seed used."""
+    """Generate ``rows`` hours from one hour after ``after`` (UTC index, the CSV columns); return them and the seed."""
     from comems4build_ros.core.scenario.generator import generate
 
     settings = settings or load_scenario_settings()
@@ -409,15 +491,31 @@ def load_scenario_csv(
 
     Parameters
     ----------
-    path : CSV file
-    params : plant parameters (tariff unless the file has ``price_buy_eur_per_kwh``, comfort, time zone)
-    start : ISO date/time of the first step (naive = local time of the site); default: first row
-    weeks : run length [weeks] (fractions giving whole hours allowed); default: all whole weeks
-        of the file (rows after them are look-ahead; a file shorter than one week runs all its rows)
-    lookahead_h : rows kept after the run for the day-ahead window [h]
-    hours : run length [h] instead of ``weeks``
-    extend : ``"synthetic"`` allows a run longer than the file (generated rows after its end)
-    seed : generator seed of such an extension (default ``config/scenario.yaml``)
+    path : str or pathlib.Path
+        The CSV file.
+    params : PlantParams
+        Plant parameters (tariff unless the file has ``price_buy_eur_per_kwh``, comfort,
+        time zone).
+    start : str, optional
+        ISO date/time of the first step (naive = local time of the site); default: the
+        first row.
+    weeks : float, optional
+        Run length [weeks] (fractions giving whole hours allowed); default: all whole weeks
+        of the file (rows after them are look-ahead; a file shorter than one week runs all
+        its rows).
+    lookahead_h : int, optional
+        Rows kept after the run for the day-ahead window [h].
+    hours : int, optional
+        Run length [h] instead of ``weeks``.
+    extend : str, optional
+        ``"synthetic"`` allows a run longer than the file (generated rows after its end).
+    seed : int, optional
+        Generator seed of such an extension (default ``config/scenario.yaml``).
+
+    Returns
+    -------
+    Scenario
+        Named after the file.
 
     Raises
     ------
@@ -432,16 +530,32 @@ def load_scenario_csv(
 
 
 def _length_text(weeks: float | None, hours: int | None) -> str:
+    """Return the run length as given, for messages (``"2 week(s)"``, ``"36 h"`` or empty)."""
     if weeks is not None:
         return f"{weeks:g} week(s)"
     return f"{hours} h" if hours is not None else ""
 
 
 def data_weeks(spec: str | Path, params: PlantParams, start: str | None = None) -> int | None:
-    """Whole weeks of run the data of scenario ``spec`` hold from ``start`` (default: the first
-    hour), its look-ahead kept: the largest ``weeks`` :func:`resolve_scenario` accepts without
-    an extension (0 for a CSV file shorter than a week, which runs all its rows). None where
-    that is not known without generating the data (``synthetic`` with a ``start``).
+    """Return the whole weeks of run a scenario's data hold from ``start``, its look-ahead kept.
+
+    That is the largest ``weeks`` :func:`resolve_scenario` accepts without an extension.
+
+    Parameters
+    ----------
+    spec : str or pathlib.Path
+        ``default``, ``synthetic``, ``year`` or a scenario CSV path.
+    params : PlantParams
+        Plant parameters (site and time zone).
+    start : str, optional
+        ISO date/time of the first step (naive = site local time); default: the first hour.
+
+    Returns
+    -------
+    int or None
+        Whole weeks (0 for a CSV file shorter than a week, which runs all its rows); None
+        where that is not known without generating the data (``synthetic`` with a
+        ``start``).
 
     Raises
     ------
@@ -477,27 +591,45 @@ def resolve_scenario(
     extend: str | None = None,
     settings_overrides: Mapping[str, Any] | None = None,
 ) -> Scenario:
-    """The scenario of a run: ``"default"`` (measured), ``"synthetic"`` (generated) or a CSV path, cut to its window.
+    """Resolve the scenario of a run and cut it to its window.
+
+    ``"default"`` (measured), ``"synthetic"`` (generated), ``"year"``, a validation case or
+    a CSV path. The data of the default scenario are every hour its package data cover
+    (2160 h from 2022-12-01); those of the synthetic one the generator's configured period
+    (``weeks`` plus ``lookahead_h``). An embedded scenario's run must leave its look-ahead
+    in the data (or in the extension); a shorter run is exactly the beginning of the full
+    one.
 
     Parameters
     ----------
-    spec : ``"default"``, ``"synthetic"``, ``"year"``, a validation case ``"validation/<id>"``
-        (``config/validation.yaml``; a winter case needs the plant at its station) or a CSV path
-    params : plant parameters (``simulation.time_step_h`` must be the data's 1 h)
-    start : ISO date/time of the first step (naive = site local time); default: the first row
-    weeks, hours : run length (at most one; default: the configured 12 weeks of an embedded
-        scenario, the whole weeks of a CSV file or of the data after ``start``)
-    seed : seed of generated data: the synthetic generator, the modelled radiation and load of
-        the default scenario, and any synthetic extension
-    extend : ``None`` refuses a run longer than the scenario's data; ``"synthetic"``
-        appends generated data after its end (recorded in ``meta["extended"]``)
-    settings_overrides : dotted keys of ``config/scenario.yaml`` for an embedded scenario
-        (``{"measured.temperature.fill": "synthetic", "scenario.load.annual_kwh": 4000}``)
+    spec : str or pathlib.Path
+        ``"default"``, ``"synthetic"``, ``"year"``, a validation case ``"validation/<id>"``
+        (``config/validation.yaml``; a winter case needs the plant at its station) or a
+        CSV path.
+    params : PlantParams
+        Plant parameters (``simulation.time_step_h`` must be the data's 1 h).
+    start : str, optional
+        ISO date/time of the first step (naive = site local time); default: the first row.
+    weeks : float, optional
+        Run length [weeks] (at most one of ``weeks`` and ``hours``; default: the configured
+        12 weeks of an embedded scenario, the whole weeks of a CSV file or of the data after
+        ``start``).
+    hours : int, optional
+        Run length [h].
+    seed : int, optional
+        Seed of generated data: the synthetic generator, the modelled radiation and load of
+        the default scenario, and any synthetic extension.
+    extend : str, optional
+        None refuses a run longer than the scenario's data; ``"synthetic"`` appends
+        generated data after its end (recorded in ``meta["extended"]``).
+    settings_overrides : mapping, optional
+        Dotted keys of ``config/scenario.yaml`` for an embedded scenario
+        (``{"measured.temperature.fill": "synthetic", "scenario.load.annual_kwh": 4000}``).
 
-    The data of the default scenario are every hour its package data cover (2160 h from
-    2022-12-01); those of the synthetic one the generator's configured period (``weeks``
-    plus ``lookahead_h``). An embedded scenario's run must leave its look-ahead in the data
-    (or in the extension); a shorter run is exactly the beginning of the full one.
+    Returns
+    -------
+    Scenario
+        The run's inputs with ``n_steps`` set and the look-ahead after them.
 
     Raises
     ------
@@ -530,8 +662,11 @@ def resolve_scenario(
 def _embedded_scenario(spec: str, name: str, params: PlantParams, start: str | None, n_steps: int | None,
                        length: str, seed: int | None, extend: str | None,
                        settings_overrides: Mapping[str, Any] | None) -> Scenario:
-    """An embedded scenario (``default``, ``year``: measured; ``synthetic``: generated) cut to
-    its window (the arguments as :func:`resolve_scenario` has checked them)."""
+    """Build an embedded scenario cut to its window.
+
+    ``default`` and ``year`` come from measured data, ``synthetic`` is generated; the
+    arguments are those :func:`resolve_scenario` has checked.
+    """
     parts = split_overrides(settings_overrides)
     settings = load_scenario_settings(overrides=parts["scenario"])
     if str(spec) in MEASURED_SECTIONS:
@@ -563,7 +698,7 @@ def _validation_scenario(
     name: str, params: PlantParams, start: str | None, n_steps: int | None, length: str, seed: int | None,
     extend: str | None, settings_overrides: Mapping[str, Any] | None,
 ) -> Scenario:
-    """A case of the validation set (:mod:`.validation`), cut to its window.
+    """Build a case of the validation set (:mod:`.validation`), cut to its window.
 
     Raises
     ------
