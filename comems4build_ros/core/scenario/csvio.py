@@ -80,6 +80,7 @@ class ScenarioWarning(UserWarning):
 
 
 def _line(i: int) -> int:
+    """Return the file line of data row ``i`` (the header is line 1)."""
     return i + FIRST_DATA_LINE
 
 
@@ -88,11 +89,28 @@ ISO_EXAMPLE = "2022-12-01T06:00:00+01:00"
 
 
 def iso_time(text: str, what: str) -> datetime:
-    """``text`` as an ISO 8601 date or date/time (``datetime.fromisoformat``: naive or with an offset).
+    """Parse an ISO 8601 date or date/time (``datetime.fromisoformat``: naive or with an offset).
 
     The one rule for every time that enters as text (``--start``, ``--end``, the ``time``
     column of a scenario or load CSV): ``12/01/2022`` or ``1.12.2022`` are refused, not
-    guessed. :class:`ScenarioError` names ``what`` (the option, or file, line and column).
+    guessed.
+
+    Parameters
+    ----------
+    text : str
+        The time as written.
+    what : str
+        Where it was written (the option, or file, line and column), for the message.
+
+    Returns
+    -------
+    datetime.datetime
+        The time, naive or with its UTC offset.
+
+    Raises
+    ------
+    ScenarioError
+        Naming ``what`` for a text that is not ISO 8601.
     """
     try:
         return datetime.fromisoformat(str(text).strip())
@@ -102,11 +120,25 @@ def iso_time(text: str, what: str) -> datetime:
 
 
 def local_time(text: str, timezone: str, what: str) -> pd.Timestamp:
-    """An ISO 8601 date/time as a time of the zone ``timezone``; a naive one is local time there.
+    """Parse an ISO 8601 date/time as a time of the zone ``timezone``; a naive one is local time there.
 
     A naive local time that the clocks skip (the spring-forward gap of daylight saving
     time) or pass twice (autumn) is refused with a message naming ``what`` and the offsets
     that make it unique, instead of being shifted or guessed.
+
+    Parameters
+    ----------
+    text : str
+        The time as written.
+    timezone : str
+        IANA time zone of the site.
+    what : str
+        Where it was written, for the message.
+
+    Returns
+    -------
+    pandas.Timestamp
+        The time, tz-aware in ``timezone``.
 
     Raises
     ------
@@ -129,11 +161,27 @@ def local_time(text: str, timezone: str, what: str) -> pd.Timestamp:
 
 def parse_times(path: str | Path, raw: pd.Series, column: str = "time", line_of=None,
                 whole_hours: bool = False) -> pd.DatetimeIndex:
-    """UTC index of a column of ISO 8601 times, each with its UTC offset (:func:`iso_time`).
+    """Parse a column of ISO 8601 times, each with its UTC offset (:func:`iso_time`), to a UTC index.
 
-    ``whole_hours``: every time must be the start of an hour in the offset it is written
-    with (``10:00+01:00``; ``10:30+05:30`` is a whole hour of India's time), as the hourly
-    steps of a scenario are (the comfort bounds of ``eq:T_min`` change on the hour).
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The source, for messages.
+    raw : pandas.Series
+        The times as written.
+    column : str, optional
+        The column's name, for messages.
+    line_of : callable, optional
+        Row index -> file line (default: data rows from line 2).
+    whole_hours : bool, optional
+        Every time must be the start of an hour in the offset it is written with
+        (``10:00+01:00``; ``10:30+05:30`` is a whole hour of India's time), as the hourly
+        steps of a scenario are (the comfort bounds of ``eq:T_min`` change on the hour).
+
+    Returns
+    -------
+    pandas.DatetimeIndex
+        The times in UTC.
 
     Raises
     ------
@@ -157,7 +205,24 @@ def parse_times(path: str | Path, raw: pd.Series, column: str = "time", line_of=
 
 
 def check_hourly(path: str | Path, time: pd.DatetimeIndex, column: str = "time", line_of=_line) -> None:
-    """Raise :class:`ScenarioError` unless ``time`` increases by exactly one hour per row."""
+    """Refuse a time index that does not increase by exactly one hour per row.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The source, for messages.
+    time : pandas.DatetimeIndex
+        The times of the rows.
+    column : str, optional
+        The column's name, for messages.
+    line_of : callable, optional
+        Row index -> file line.
+
+    Raises
+    ------
+    ScenarioError
+        For no rows, or naming the line of a duplicate, backward, gap or non-hourly time.
+    """
     if len(time) == 0:
         raise ScenarioError(f"{path}: no data rows")
     step = np.diff(time.as_unit("s").asi8).astype(float)
@@ -180,6 +245,7 @@ def check_hourly(path: str | Path, time: pd.DatetimeIndex, column: str = "time",
 
 
 def _numeric(path: Path, df: pd.DataFrame, col: str) -> np.ndarray:
+    """Return a text column as floats, missing values (empty, NaN, -999) as NaN; refuse text and inf."""
     values = pd.to_numeric(df[col].replace(r"^\s*$", np.nan, regex=True), errors="coerce")
     bad = values.isna() & df[col].notna() & ~df[col].astype(str).str.strip().str.lower().isin(("", "nan"))
     if bad.any():
@@ -195,6 +261,7 @@ def _numeric(path: Path, df: pd.DataFrame, col: str) -> np.ndarray:
 
 
 def _line_label(i: int) -> str:
+    """Return ``line N`` for data row ``i``."""
     return f"line {_line(i)}"
 
 
@@ -205,11 +272,26 @@ def fill_gaps(
 
     Parameters
     ----------
-    path : source named in messages
-    col : column named in messages
-    arr : values with NaN for missing ones
-    where : row index -> location text for messages (default ``line N`` of a CSV)
-    max_fill_h : longest run that is filled [rows = h]
+    path : str or pathlib.Path
+        Source named in messages.
+    col : str
+        Column named in messages.
+    arr : numpy.ndarray
+        Values with NaN for missing ones, in the column's unit.
+    where : callable, optional
+        Row index -> location text for messages (default ``line N`` of a CSV).
+    max_fill_h : int, optional
+        Longest run that is filled [rows = h].
+
+    Returns
+    -------
+    numpy.ndarray
+        ``arr`` with the runs filled (``arr`` itself when nothing is missing).
+
+    Warns
+    -----
+    ScenarioWarning
+        Naming the filled rows.
 
     Raises
     ------
@@ -249,7 +331,7 @@ def fill_gaps(
 def check_values(
     source: str | Path, col: str, arr: np.ndarray, where: Callable[[int], str] = _line_label, name: str = ""
 ) -> np.ndarray:
-    """The plausibility rules of a scenario column, applied wherever its values enter.
+    """Apply the plausibility rules of a scenario column, wherever its values enter.
 
     The scenario CSV reader and the source loaders (aWATTar, DWD, DHWCalc, load CSV) call
     this with their own locations, so a value is judged by one rule whatever file it comes
@@ -261,15 +343,27 @@ def check_values(
 
     Parameters
     ----------
-    source : file named in messages
-    col : scenario column whose rules apply (a key of :data:`PLAUSIBLE`)
-    arr : values in the column's unit
-    where : row index -> position in the source (``line 5``, ``data[3]``)
-    name : the values' name in the source (default ``column '<col>'``), e.g. ``column 'GS_10' (as ghi_w_m2)``
+    source : str or pathlib.Path
+        File named in messages.
+    col : str
+        Scenario column whose rules apply (a key of :data:`PLAUSIBLE`).
+    arr : numpy.ndarray
+        Values in the column's unit.
+    where : callable, optional
+        Row index -> position in the source (``line 5``, ``data[3]``).
+    name : str, optional
+        The values' name in the source (default ``column '<col>'``), e.g.
+        ``column 'GS_10' (as ghi_w_m2)``.
 
     Returns
     -------
-    The values, small negative irradiance set to 0.
+    numpy.ndarray
+        The values, small negative irradiance set to 0.
+
+    Warns
+    -----
+    ScenarioWarning
+        When small negative irradiance is set to 0.
 
     Raises
     ------
@@ -316,6 +410,22 @@ def check_diffuse(
 
     Diffuse horizontal irradiance is a part of the global horizontal irradiance; a larger
     value is a swapped column or a bad record (DWD ``DS_10`` > ``GS_10``).
+
+    Parameters
+    ----------
+    source : str or pathlib.Path
+        File named in messages.
+    ghi, dhi : numpy.ndarray
+        Global and diffuse horizontal irradiance [W/m2].
+    where : callable, optional
+        Row index -> position in the source.
+    name : str, optional
+        The diffuse values' name in the source.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the first row where the diffuse exceeds the global irradiance.
     """
     excess = np.flatnonzero(dhi > ghi + DIFFUSE_EXCESS_W_M2)
     if len(excess):
@@ -328,12 +438,25 @@ OTHER_SEPARATORS = {";": "semicolon", "\t": "tab", "|": "vertical bar"}
 
 
 def read_text_file(path: str | Path, encoding: str = "utf-8-sig") -> str:
-    """The text of a data file; :class:`ScenarioError` names a directory, a device, binary content or an empty file.
+    """Read the text of a data file.
 
     Parameters
     ----------
-    path : file to read
-    encoding : ``utf-8-sig`` (scenario CSV, JSON) or ``latin-1`` (DWD and DHWCalc text files)
+    path : str or pathlib.Path
+        File to read.
+    encoding : str, optional
+        ``utf-8-sig`` (scenario CSV, JSON) or ``latin-1`` (DWD and DHWCalc text files).
+
+    Returns
+    -------
+    str
+        The file's text.
+
+    Raises
+    ------
+    ScenarioError
+        Naming a directory, a device, binary content, an empty file or one over the size
+        limit.
     """
     from comems4build_ros.files.inputs import MAX_FILE_BYTES, InputFileError, read_text
 
@@ -344,7 +467,21 @@ def read_text_file(path: str | Path, encoding: str = "utf-8-sig") -> str:
 
 
 def check_header(path: str | Path, text: str, required: tuple[str, ...]) -> list[str]:
-    """Column names of the header line (stripped), checked for separator, duplicates and ``required``.
+    """Return the column names of the header line (stripped), checked for separator, duplicates and ``required``.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The file, for messages.
+    text : str
+        The file's text.
+    required : tuple of str
+        Columns that must be present.
+
+    Returns
+    -------
+    list of str
+        The column names in file order.
 
     Raises
     ------
@@ -374,7 +511,23 @@ def check_header(path: str | Path, text: str, required: tuple[str, ...]) -> list
 
 
 def read_scenario_frame(path: str | Path) -> pd.DataFrame:
-    """Read and check a scenario CSV; return a frame indexed by UTC time with the known columns.
+    """Read and check a scenario CSV.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file (format in the module docstring).
+
+    Returns
+    -------
+    pandas.DataFrame
+        Indexed by UTC time, with the columns of :data:`CSV_COLUMNS` and any of
+        :data:`OPTIONAL_CSV_COLUMNS` (units in the names), gaps filled.
+
+    Warns
+    -----
+    ScenarioWarning
+        For filled gaps and small negative irradiance set to 0.
 
     Raises
     ------
@@ -407,7 +560,19 @@ def write_scenario_csv(scenario: Scenario, path: str | Path) -> Path:
 
     The buy price is written as ``price_buy_eur_per_kwh`` so that a re-read scenario keeps
     the tariff it was built with. Times are written in the scenario's (local) zone with
-    their UTC offset.
+    their UTC offset; the file is replaced atomically.
+
+    Parameters
+    ----------
+    scenario : Scenario
+        The scenario.
+    path : str or pathlib.Path
+        The CSV file.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
     """
     from comems4build_ros.files.outputs import atomic_write
 
