@@ -64,7 +64,29 @@ _STREAMS = ("wind", "solar", "temperature", "price", "load", "dhw")
 
 @dataclass(frozen=True)
 class GeneratedSeries:
-    """Raw hourly series of the generator (local, tz-aware ``time``)."""
+    """Raw hourly series of the generator (local, tz-aware ``time``).
+
+    Attributes
+    ----------
+    time : pandas.DatetimeIndex
+        Start of each hour, tz-aware in the site's zone.
+    t_amb_c : numpy.ndarray
+        Ambient temperature [degC].
+    ghi_w_m2, dhi_w_m2 : numpy.ndarray
+        Global and diffuse horizontal irradiance, hourly means [W/m2].
+    spot_eur_per_mwh : numpy.ndarray
+        Day-ahead spot price [EUR/MWh].
+    p_load_w : numpy.ndarray
+        Appliance load, hourly mean [W].
+    dhw_l_per_h : numpy.ndarray
+        Hot-water draws [l/h].
+    off_day : numpy.ndarray of bool
+        The hour lies on a weekend day or public holiday.
+    kc_day : numpy.ndarray
+        Daily clear-sky index, one per day [-].
+    wind_day : numpy.ndarray
+        Latent daily wind index, one per day [-].
+    """
 
     time: pd.DatetimeIndex
     t_amb_c: np.ndarray
@@ -79,6 +101,7 @@ class GeneratedSeries:
 
 
 def _streams(seed: int) -> dict[str, np.random.Generator]:
+    """Return one independent generator per component of :data:`_STREAMS`."""
     children = np.random.SeedSequence(seed).spawn(len(_STREAMS))
     return {name: np.random.default_rng(child) for name, child in zip(_STREAMS, children)}
 
@@ -94,7 +117,7 @@ def _ar1(rng: np.random.Generator, n: int, phi: float, sigma: float, stationary:
 
 
 def _episode_profile(days: pd.DatetimeIndex, settings: ScenarioParams) -> tuple[np.ndarray, np.ndarray]:
-    """Daily temperature anomaly [K] and wind offset of the configured episodes (ramped)."""
+    """Return the daily temperature anomaly [K] and wind offset of the configured episodes (ramped)."""
     t = settings.temperature
     anomaly = np.zeros(len(days))
     wind = np.zeros(len(days))
@@ -115,7 +138,7 @@ def _episode_profile(days: pd.DatetimeIndex, settings: ScenarioParams) -> tuple[
 
 
 def _daily_kc(rng: np.random.Generator, n_days: int, wind: np.ndarray, settings: ScenarioParams) -> np.ndarray:
-    """Daily clear-sky index from a two-state Markov chain with Beta draws [-]."""
+    """Draw the daily clear-sky index from a two-state Markov chain with Beta draws [-]."""
     s = settings.solar
     p_fair = s.p_overcast_to_fair / (s.p_overcast_to_fair + s.p_fair_to_overcast)
     u = rng.random(n_days)
@@ -129,7 +152,7 @@ def _daily_kc(rng: np.random.Generator, n_days: int, wind: np.ndarray, settings:
 
 
 def _diurnal_shape(hour: np.ndarray, t_min_hour: float, t_max_hour: float) -> np.ndarray:
-    """Diurnal temperature shape in [-0.5, 0.5] with zero daily mean (two half cosines)."""
+    """Return the diurnal temperature shape in [-0.5, 0.5] with zero daily mean (two half cosines)."""
     rise = t_max_hour - t_min_hour
     fall = HOURS_PER_DAY - rise
     x = (hour - t_min_hour) % HOURS_PER_DAY
@@ -140,7 +163,7 @@ def _solar(
     rng: np.random.Generator, time: pd.DatetimeIndex, day: np.ndarray, kc_day: np.ndarray,
     settings: ScenarioParams, site: SiteParams,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Hourly mean GHI and DHI [W/m2] (clear-sky at the middle of the hour times kc).
+    """Return hourly mean GHI and DHI [W/m2] (clear-sky at the middle of the hour times kc).
 
     The pvlib part is cached on disk (:mod:`comems4build_ros.core.result_cache`): a hit gives the
     same arrays without importing pvlib.
@@ -160,7 +183,7 @@ def _solar(
 def _solar_pvlib(
     mid: pd.DatetimeIndex, kc_h: np.ndarray, model: str, site: SiteParams
 ) -> tuple[np.ndarray, np.ndarray]:
-    """GHI and DHI [W/m2] at the times ``mid`` with hourly clear-sky index ``kc_h`` [-] (pvlib)."""
+    """Compute GHI and DHI [W/m2] at the times ``mid`` with hourly clear-sky index ``kc_h`` [-] (pvlib)."""
     import pvlib
 
     loc = pvlib.location.Location(site.latitude_deg, site.longitude_deg, tz=site.timezone, altitude=site.altitude_m)
@@ -178,7 +201,7 @@ def _temperature(
     rng: np.random.Generator, time: pd.DatetimeIndex, day: np.ndarray, kc_day: np.ndarray,
     wind_day: np.ndarray, anomaly_day: np.ndarray, settings: ScenarioParams,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Hourly ambient temperature [degC] and the daily means behind it."""
+    """Return the hourly ambient temperature [degC] and the daily means behind it."""
     t = settings.temperature
     n_days = len(kc_day)
     daily = t.mean_c + anomaly_day + t.wind_k * wind_day + _ar1(rng, n_days, t.ar_phi, t.ar_sigma_k)
@@ -194,7 +217,7 @@ def _prices(
     rng: np.random.Generator, time: pd.DatetimeIndex, days: pd.DatetimeIndex, day: np.ndarray,
     wind_day: np.ndarray, t_daily: np.ndarray, off_day_daily: np.ndarray, settings: ScenarioParams,
 ) -> np.ndarray:
-    """Hourly day-ahead spot price [EUR/MWh]."""
+    """Return the hourly day-ahead spot price [EUR/MWh]."""
     p = settings.price
     n_days = len(days)
     anchor_x = np.array([(pd.Timestamp(d) - days[0].tz_localize(None)).days for d in p.level_dates], dtype=float)
@@ -202,6 +225,7 @@ def _prices(
     # Residual-load factor, centred so that E[R_d] = 1 for W ~ N(0, 1) and the average
     # share of off days: the fuel-cost level is then the expected price level.
     def wind_effect(w: np.ndarray) -> np.ndarray:
+        """Return the saturated wind (or calm) effect on the residual load [-]."""
         sat = p.wind_saturation * np.tanh(w / p.wind_saturation)
         return np.where(w > 0, p.wind_coef, p.calm_coef) * sat
 
@@ -225,13 +249,44 @@ def _prices(
 
 
 def dynamisation_factor(day_of_year: np.ndarray, coef: list[float]) -> np.ndarray:
-    """BDEW H0 dynamisation factor ``F(d) = sum_i c_i d^i`` (``d`` = day of year, 1..365) [-]."""
+    """Compute the BDEW H0 dynamisation factor ``F(d) = sum_i c_i d^i`` of the standard load profile.
+
+    Parameters
+    ----------
+    day_of_year : numpy.ndarray
+        Day of the year d, 1..365.
+    coef : list of float
+        Polynomial coefficients c_0, c_1, ... (BDEW; ``config/scenario.yaml``).
+
+    Returns
+    -------
+    numpy.ndarray
+        F(d) [-].
+    """
     d = np.asarray(day_of_year, dtype=float)
     return sum(c * d**i for i, c in enumerate(coef))
 
 
 def expected_load_w(time: pd.DatetimeIndex, off_day: np.ndarray, settings: ScenarioParams) -> np.ndarray:
-    """Expected appliance load [W] per hour: annual energy * dynamisation * day-type shape."""
+    """Return the expected appliance load per hour: annual energy * dynamisation * day-type shape.
+
+    The dynamisation factor (BDEW H0) is normalised to a year mean of 1, each hourly shape
+    (workday, off day) to a mean of 1.
+
+    Parameters
+    ----------
+    time : pandas.DatetimeIndex
+        Start of each hour, local time.
+    off_day : numpy.ndarray of bool
+        The hour lies on a weekend day or public holiday.
+    settings : ScenarioParams
+        Generator settings (``load``: ``annual_kwh`` [kWh/a], shapes, coefficients).
+
+    Returns
+    -------
+    numpy.ndarray
+        Expected load [W].
+    """
     ld = settings.load
     year_mean = dynamisation_factor(np.arange(1, DAYS_PER_YEAR + 1), ld.dynamisation_coef).mean()
     dyn = dynamisation_factor(np.minimum(time.day_of_year.to_numpy(), DAYS_PER_YEAR), ld.dynamisation_coef) / year_mean
@@ -246,7 +301,7 @@ def _load(
     rng: np.random.Generator, time: pd.DatetimeIndex, day: np.ndarray, off_day: np.ndarray,
     settings: ScenarioParams,
 ) -> np.ndarray:
-    """Hourly appliance load [W] (base + log-normal activity + appliance cycles)."""
+    """Draw the hourly appliance load [W] (base + log-normal activity + appliance cycles)."""
     ld = settings.load
     expected = expected_load_w(time, off_day, settings)
     daily_kwh = ld.annual_kwh / DAYS_PER_YEAR
@@ -276,14 +331,23 @@ def _load(
 
 
 def opendhw_offday_mass_ratio(step_s: int) -> float:
-    """Daily probability mass of OpenDHW's off-day profile over its workday profile [-].
+    """Return the daily probability mass of OpenDHW's off-day profile over its workday profile.
 
     OpenDHW 0.2.9 (building type SFH) multiplies its ``weekend_weekday_factor`` onto base
     profiles whose off-day mass is already about 1.22 times the workday mass, so a factor
     of 1.2 gives off-day draws about 1.46 times the workday draws. Dividing the wanted
     factor (DHWCalc meaning: off-day volume / workday volume, 1.2 in DHWCalc's single-family
-    profile) by this ratio
-    gives the DHWCalc ratio in expectation.
+    profile) by this ratio gives the DHWCalc ratio in expectation.
+
+    Parameters
+    ----------
+    step_s : int
+        Time step of the OpenDHW profile [s].
+
+    Returns
+    -------
+    float
+        Off-day mass over workday mass [-].
     """
     import OpenDHW
 
@@ -293,7 +357,7 @@ def opendhw_offday_mass_ratio(step_s: int) -> float:
 
 
 def _dhw(seed_int: int, time: pd.DatetimeIndex, settings: ScenarioParams, country: str, subdiv: str) -> np.ndarray:
-    """Hourly hot-water draws [l/h] from OpenDHW, one profile per calendar year.
+    """Draw hourly hot-water draws [l/h] from OpenDHW, one profile per calendar year.
 
     OpenDHW draws with the global ``random`` module; its state is saved and restored.
     Local times past day 365 (31 Dec of leap years) reuse day 365.
@@ -339,14 +403,32 @@ def generate(
 ) -> GeneratedSeries:
     """Generate ``hours`` hourly values of every series from ``start`` (default: settings.start).
 
+    The method is in the module docstring.
+
     Parameters
     ----------
-    settings : generator settings (``config/scenario.yaml``)
-    site : location and time zone (solar geometry, local calendar)
-    country, subdivision : public-holiday calendar (off days for prices, load and DHW)
-    hours : number of hourly steps [h]
-    seed : random seed
-    start : local start time (naive local or tz-aware); midnight recommended
+    settings : ScenarioParams
+        Generator settings (``config/scenario.yaml``).
+    site : SiteParams
+        Location and time zone (solar geometry, local calendar).
+    country, subdivision : str
+        Public-holiday calendar (off days for prices, load and DHW).
+    hours : int
+        Number of hourly steps [h].
+    seed : int
+        Random seed.
+    start : pandas.Timestamp, optional
+        Local start time (naive local or tz-aware); midnight recommended.
+
+    Returns
+    -------
+    GeneratedSeries
+        The hourly series.
+
+    Raises
+    ------
+    ConfigError
+        If the load settings leave no share for the activity part.
     """
     start = pd.Timestamp(settings.start if start is None else start)
     start = start.tz_localize(site.timezone) if start.tzinfo is None else start.tz_convert(site.timezone)
