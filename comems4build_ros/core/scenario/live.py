@@ -71,6 +71,8 @@ class _Model(Section):
 
 
 class _FetchParams(_Model):
+    """Fetch settings both live sources share."""
+
     timeout_s: float = Field(gt=0)  # per attempt [s]
     retries: int = Field(ge=1)  # attempts per fetch
     retry_delay_s: float = Field(ge=0)  # wait between attempts [s]
@@ -78,7 +80,27 @@ class _FetchParams(_Model):
 
 
 class LivePriceParams(_FetchParams):
-    """``live_inputs.prices`` of ``config/live_inputs.yaml``."""
+    """``live_inputs.prices`` of ``config/live_inputs.yaml``.
+
+    Attributes
+    ----------
+    timeout_s : float
+        Time limit of one attempt [s].
+    retries : int
+        Attempts per fetch.
+    retry_delay_s : float
+        Wait between attempts [s].
+    cache_file : str
+        Cache file (empty: the default location).
+    url : str
+        aWATTar market-data endpoint (http or https).
+    publication_time : str
+        Local ``HH:MM`` after which the next day's day-ahead prices are fetched.
+    days_ahead : int
+        Days requested, today included.
+    retry_later_s : float
+        Wait after a failed fetch before the next one [s].
+    """
 
     url: str = Field(pattern=r"^https?://")
     publication_time: str = Field(pattern=r"^([01]\d|2[0-3]):[0-5]\d$")
@@ -87,7 +109,22 @@ class LivePriceParams(_FetchParams):
 
 
 class LiveWeatherParams(_FetchParams):
-    """``live_inputs.weather`` of ``config/live_inputs.yaml``."""
+    """``live_inputs.weather`` of ``config/live_inputs.yaml``.
+
+    Attributes
+    ----------
+    timeout_s, retries, retry_delay_s, cache_file
+        As for :class:`LivePriceParams`.
+    url : str
+        HTTP JSON forecast endpoint (empty: no live weather).
+    time_key, t_amb_key, ghi_key : str
+        Dotted keys of the time list, the ambient temperatures [degC] and the global
+        horizontal irradiances [W/m2] in the answer.
+    time_format : str
+        ``iso``, ``unix_s`` or ``unix_ms``.
+    refresh_s : float
+        Time between fetches [s].
+    """
 
     url: str = ""
     time_key: str
@@ -98,20 +135,60 @@ class LiveWeatherParams(_FetchParams):
 
 
 class LiveInputParams(_Model):
-    """The ``live_inputs`` section."""
+    """The ``live_inputs`` section.
+
+    Attributes
+    ----------
+    prices : LivePriceParams
+    weather : LiveWeatherParams
+    """
 
     prices: LivePriceParams
     weather: LiveWeatherParams
 
 
 def load_live_settings(path: str | Path | None = None) -> LiveInputParams:
-    """Read ``config/live_inputs.yaml`` (or ``path``); errors name the file and parameter."""
+    """Read the live-input settings.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        Parameter file with a ``live_inputs`` section; default ``config/live_inputs.yaml``.
+
+    Returns
+    -------
+    LiveInputParams
+        The validated settings.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the parameter.
+    """
     return load_section(LiveInputParams, path, "live_inputs.yaml", "live_inputs")
 
 
 def http_get(url: str, timeout_s: float, retries: int, retry_delay_s: float,
              sleep: Callable[[float], None] = time.sleep) -> str:
-    """GET ``url`` with up to ``retries`` attempts; the body as text.
+    """GET ``url`` with up to ``retries`` attempts.
+
+    Parameters
+    ----------
+    url : str
+        The URL.
+    timeout_s : float
+        Time limit of one attempt [s].
+    retries : int
+        Attempts.
+    retry_delay_s : float
+        Wait between attempts [s].
+    sleep : callable, optional
+        The wait (tests pass their own).
+
+    Returns
+    -------
+    str
+        The body, decoded as UTF-8.
 
     Raises
     ------
@@ -136,7 +213,15 @@ def http_get(url: str, timeout_s: float, retries: int, retry_delay_s: float,
 
 
 def write_json_atomic(path: Path, doc: Any) -> None:
-    """Write ``doc`` as JSON through a temporary file in the same directory and a rename."""
+    """Write a document as JSON through a temporary file in the same directory and a rename.
+
+    Parameters
+    ----------
+    path : pathlib.Path
+        The file; its directory is created.
+    doc : object
+        JSON-serialisable document.
+    """
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=path.name + ".", dir=path.parent)
     try:
@@ -149,10 +234,12 @@ def write_json_atomic(path: Path, doc: Any) -> None:
 
 
 def _series_to_doc(series: pd.Series) -> dict[str, float]:
+    """Return a UTC-indexed series as ``{unix seconds: value}`` for the cache file."""
     return {str(int(t.timestamp())): float(v) for t, v in series.items()}
 
 
 def _series_from_doc(doc: Any, name: str) -> pd.Series:
+    """Return the series of a cache document (:func:`_series_to_doc`), sorted."""
     index = pd.to_datetime([int(k) for k in doc], unit="s", utc=True)
     return pd.Series([float(v) for v in doc.values()], index=index, name=name).sort_index()
 
@@ -173,6 +260,7 @@ class _CachedSource:
         self.last_warning = ""
 
     def _warn(self, text: str) -> None:
+        """Count and remember a warning, and pass it on."""
         self.warnings += 1
         self.last_warning = text
         self.warn(text)
@@ -183,12 +271,18 @@ class PriceSource(_CachedSource):
 
     Parameters
     ----------
-    settings : price settings
-    timezone : the site's time zone (publication time and "today")
-    cache_path : cache file (JSON: UTC hour start [s] -> price [EUR/MWh])
-    warn : receives one line per failed fetch
-    now : clock [s since the epoch] (tests pass their own)
-    sleep : wait between attempts (tests pass their own)
+    settings : LivePriceParams
+        Price settings.
+    timezone : str
+        The site's IANA time zone (publication time and "today").
+    cache_path : pathlib.Path
+        Cache file (JSON: UTC hour start [s] -> price [EUR/MWh]); read on start if present.
+    warn : callable
+        Receives one line per failed fetch.
+    now : callable, optional
+        Clock [s since the epoch] (tests pass their own).
+    sleep : callable, optional
+        Wait between attempts [s] (tests pass their own).
     """
 
     def __init__(self, settings: LivePriceParams, timezone: str, cache_path: Path, warn: Callable[[str], None],
@@ -204,11 +298,18 @@ class PriceSource(_CachedSource):
                 self._warn(f"cache {self.cache_path} unreadable ({exc}); starting without cached prices")
 
     def _local_midnight(self, t: float) -> pd.Timestamp:
+        """Return the local midnight of the day of ``t`` [s since the epoch]."""
         return pd.Timestamp(t, unit="s", tz="UTC").tz_convert(self.tz).normalize()
 
     def next_due(self) -> float:
-        """When the next fetch is due [s since the epoch]: now if never fetched, else the next
-        publication time after the last success (or ``retry_later_s`` after a failure)."""
+        """Return when the next fetch is due.
+
+        Returns
+        -------
+        float
+            Time [s since the epoch]: -inf if never fetched, else the next publication time
+            after the last success, or ``retry_later_s`` after a failure.
+        """
         if self.last_attempt is None:
             return -math.inf
         if self.last_success is None or self.last_success < self.last_attempt:
@@ -221,14 +322,36 @@ class PriceSource(_CachedSource):
         return publication.timestamp()
 
     def url_for(self, t: float) -> str:
-        """Request URL for today (local) and ``days_ahead - 1`` following days."""
+        """Return the request URL for today (local) and the ``days_ahead - 1`` following days.
+
+        Parameters
+        ----------
+        t : float
+            Now [s since the epoch].
+
+        Returns
+        -------
+        str
+            The URL with ``start`` and ``end`` in epoch milliseconds (aWATTar API).
+        """
         start = self._local_midnight(t)
         end = start + pd.Timedelta(days=self.settings.days_ahead)
         query = urllib.parse.urlencode({"start": int(start.timestamp() * 1000), "end": int(end.timestamp() * 1000)})
         return f"{self.settings.url}?{query}"
 
     def refresh(self, force: bool = False) -> bool:
-        """Fetch if due (or ``force``); True if new prices were merged. Failures only warn."""
+        """Fetch the prices if due; failures only warn.
+
+        Parameters
+        ----------
+        force : bool, optional
+            Fetch even if not due.
+
+        Returns
+        -------
+        bool
+            True if new prices were merged (and the cache written).
+        """
         t = self.now()
         if not force and t < self.next_due():
             return False
@@ -253,14 +376,36 @@ class PriceSource(_CachedSource):
         return True
 
     def has_price(self, t: float) -> bool:
-        """Whether a live price (fetched now or cached) is known for the hour of ``t`` itself
-        (no other day's price standing in for it)."""
+        """Tell whether a live price (fetched now or cached) is known for the hour of ``t`` itself.
+
+        No other day's price stands in for it here.
+
+        Parameters
+        ----------
+        t : float
+            A time [s since the epoch].
+
+        Returns
+        -------
+        bool
+            True if the hour has a live price.
+        """
         hour = pd.Timestamp(t, unit="s", tz="UTC").floor("h")
         return hour in self.prices.index and not math.isnan(float(self.prices[hour]))
 
     def known(self, times: pd.DatetimeIndex) -> np.ndarray:
-        """For each hour start in ``times``: whether a live price is known for that hour itself
-        (False where :meth:`values` gives another day's price standing in for it)."""
+        """Tell for each hour start whether a live price is known for that hour itself.
+
+        Parameters
+        ----------
+        times : pandas.DatetimeIndex
+            Hour starts, tz-aware.
+
+        Returns
+        -------
+        numpy.ndarray of bool
+            False where :meth:`values` gives another day's price standing in for it.
+        """
         if self.prices.empty:
             return np.zeros(len(times), dtype=bool)
         known = self.prices.reindex(pd.DatetimeIndex(times).tz_convert("UTC"))
@@ -268,6 +413,11 @@ class PriceSource(_CachedSource):
 
     def require(self, t: float) -> None:
         """Refuse a run on live inputs without a live price for the hour of ``t`` (its first step).
+
+        Parameters
+        ----------
+        t : float
+            Start of the run [s since the epoch].
 
         Raises
         ------
@@ -284,14 +434,32 @@ class PriceSource(_CachedSource):
             "hours); check the network and the source, or run on the scenario's inputs (--inputs scenario)")
 
     def describe(self) -> str:
-        """Which prices are known (for warnings)."""
+        """Describe which prices are known (for warnings).
+
+        Returns
+        -------
+        str
+            ``none known yet`` or how many hours are known and up to when.
+        """
         if self.prices.empty:
             return "none known yet"
         return f"{len(self.prices)} h known up to {self.prices.index.max().isoformat()}"
 
     def values(self, times: pd.DatetimeIndex) -> np.ndarray:
-        """Spot price [EUR/MWh] for each hour start in ``times``; hours without a live price
-        take the same local hour of the latest day that has one; NaN if none is known."""
+        """Return the spot price for each hour start.
+
+        Hours without a live price take the same local hour of the latest day that has one.
+
+        Parameters
+        ----------
+        times : pandas.DatetimeIndex
+            Hour starts, tz-aware.
+
+        Returns
+        -------
+        numpy.ndarray
+            Spot price [EUR/MWh]; NaN everywhere if none is known.
+        """
         out = np.full(len(times), np.nan)
         if self.prices.empty:
             return out
@@ -309,6 +477,7 @@ class PriceSource(_CachedSource):
 
 
 def _dig(doc: Any, dotted: str, source: str) -> Any:
+    """Return the value under a dotted key of a JSON document, or raise ScenarioError naming it."""
     cur = doc
     for part in dotted.split("."):
         if not isinstance(cur, dict) or part not in cur:
@@ -318,7 +487,23 @@ def _dig(doc: Any, dotted: str, source: str) -> Any:
 
 
 def parse_weather(text: str, settings: LiveWeatherParams, timezone: str, source: str) -> pd.DataFrame:
-    """Hourly ``t_amb_c`` [degC] and ``ghi_w_m2`` [W/m2] of a forecast answer, UTC index.
+    """Parse a weather-forecast answer into hourly means.
+
+    Parameters
+    ----------
+    text : str
+        The JSON answer.
+    settings : LiveWeatherParams
+        Its keys and time format.
+    timezone : str
+        Zone of naive ISO times.
+    source : str
+        The URL, for messages.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``t_amb_c`` [degC] and ``ghi_w_m2`` [W/m2], hourly means on a UTC index.
 
     Raises
     ------
@@ -355,7 +540,23 @@ def parse_weather(text: str, settings: LiveWeatherParams, timezone: str, source:
 
 
 class WeatherSource(_CachedSource):
-    """HTTP JSON weather forecast with retries, periodic refresh and a cache (module docstring)."""
+    """HTTP JSON weather forecast with retries, periodic refresh and a cache (module docstring).
+
+    Parameters
+    ----------
+    settings : LiveWeatherParams
+        Weather settings.
+    timezone : str
+        The site's IANA time zone.
+    cache_path : pathlib.Path
+        Cache file (JSON: per series, UTC hour start [s] -> value); read on start if present.
+    warn : callable
+        Receives one line per failed fetch.
+    now : callable, optional
+        Clock [s since the epoch] (tests pass their own).
+    sleep : callable, optional
+        Wait between attempts [s] (tests pass their own).
+    """
 
     def __init__(self, settings: LiveWeatherParams, timezone: str, cache_path: Path, warn: Callable[[str], None],
                  now: Callable[[], float] = time.time, sleep: Callable[[float], None] = time.sleep) -> None:
@@ -374,7 +575,18 @@ class WeatherSource(_CachedSource):
         return bool(self.settings.url)
 
     def refresh(self, force: bool = False) -> bool:
-        """Fetch if ``refresh_s`` passed (or ``force``); True if new values were merged."""
+        """Fetch the forecast if ``refresh_s`` passed since the last attempt; failures only warn.
+
+        Parameters
+        ----------
+        force : bool, optional
+            Fetch even if not due.
+
+        Returns
+        -------
+        bool
+            True if new values were merged (and the cache written); False also without a URL.
+        """
         t = self.now()
         if not self.enabled or (not force and self.last_attempt is not None
                                 and t - self.last_attempt < self.settings.refresh_s):
@@ -393,7 +605,20 @@ class WeatherSource(_CachedSource):
         return True
 
     def values(self, times: pd.DatetimeIndex, name: str) -> np.ndarray:
-        """Forecast ``name`` for each hour start of ``times`` (NaN where the forecast has none)."""
+        """Return the forecast of one series for each hour start.
+
+        Parameters
+        ----------
+        times : pandas.DatetimeIndex
+            Hour starts, tz-aware.
+        name : str
+            ``t_amb_c`` [degC] or ``ghi_w_m2`` [W/m2].
+
+        Returns
+        -------
+        numpy.ndarray
+            Values in the series' unit; NaN where the forecast has none.
+        """
         if self.frame.empty:
             return np.full(len(times), np.nan)
         return self.frame[name].reindex(pd.DatetimeIndex(times).tz_convert("UTC")).to_numpy(dtype=float)
@@ -408,10 +633,26 @@ STAND_IN_STATES = ("none", "prices", "weather", "prices+weather")
 
 def stand_in_state(times: pd.DatetimeIndex, prices: PriceSource,
                    weather: WeatherSource | None = None) -> list[str]:
-    """For each hour start in ``times``, which live inputs :func:`live_scenario` had to replace
-    by stand-in values (one of :data:`STAND_IN_STATES`): prices without a live price for
-    the hour (the same hour of the latest day with prices stands in), weather where the
-    forecast has no value or no weather source is configured (the scenario's stands in)."""
+    """Tell for each hour start which live inputs :func:`live_scenario` had to replace by stand-in values.
+
+    Prices stand in for an hour without a live price (the same hour of the latest day with
+    prices); weather where the forecast has no value or no weather source is configured
+    (the scenario's).
+
+    Parameters
+    ----------
+    times : pandas.DatetimeIndex
+        Hour starts, tz-aware.
+    prices : PriceSource
+        The price source.
+    weather : WeatherSource, optional
+        The weather source.
+
+    Returns
+    -------
+    list of str
+        One of :data:`STAND_IN_STATES` per hour.
+    """
     price = ~prices.known(times)
     wx = np.ones(len(times), dtype=bool)
     if weather is not None and weather.enabled:
@@ -421,13 +662,31 @@ def stand_in_state(times: pd.DatetimeIndex, prices: PriceSource,
 
 def live_scenario(base: Scenario, params: PlantParams, start: pd.Timestamp, prices: PriceSource,
                   weather: WeatherSource | None = None) -> Scenario:
-    """``base`` laid on the hours from ``start`` with the live prices and weather in it.
+    """Lay a scenario on the hours from ``start`` and put the live prices and weather in it.
 
     The load and hot-water series of ``base`` are kept step by step; the comfort bounds
     are recomputed for the new hours (``eq:T_min``); the spot price comes from ``prices``
-    (the scenario's where no live price is known at all); ambient temperature and global
-    irradiance come from ``weather`` where it has values, with the diffuse part limited
-    to the global value.
+    (the scenario's where no live price is known at all) and the buy price from the plant's
+    tariff (``eq:costs``); ambient temperature and global irradiance come from ``weather``
+    where it has values, with the diffuse part limited to the global value.
+
+    Parameters
+    ----------
+    base : Scenario
+        The scenario whose series are laid on the new hours.
+    params : PlantParams
+        Plant parameters (time zone, tariff, comfort).
+    start : pandas.Timestamp
+        First hour of the run (floored to the hour), tz-aware.
+    prices : PriceSource
+        Live day-ahead prices.
+    weather : WeatherSource, optional
+        Live weather forecast.
+
+    Returns
+    -------
+    Scenario
+        Named ``<base>+live``, ``n_steps`` as in ``base``.
     """
     start = pd.Timestamp(start).tz_convert(params.site.timezone).floor("h")
     time_index = pd.date_range(start, periods=len(base.time), freq=pd.Timedelta(milliseconds=MS_PER_HOUR))
