@@ -67,7 +67,18 @@ DHWCALC_STEPS = {365 * HOURS_PER_DAY * k: 3600 // k for k in (1, 2, 4, 6, 12, 60
 
 
 def j_per_cm2_10min_to_w_m2(value_j_cm2: np.ndarray | float) -> np.ndarray:
-    """Mean irradiance [W/m2] of a 10-minute radiation sum [J/cm2]: ``v * 10000 / 600``."""
+    """Convert a DWD 10-minute radiation sum to the mean irradiance: ``v * 10000 / 600``.
+
+    Parameters
+    ----------
+    value_j_cm2 : numpy.ndarray or float
+        Radiation sum over 10 minutes (DWD ``GS_10``, ``DS_10``) [J/cm2].
+
+    Returns
+    -------
+    numpy.ndarray
+        Mean irradiance over the 10 minutes [W/m2].
+    """
     return np.asarray(value_j_cm2, dtype=float) * CM2_PER_M2 / SECONDS_PER_10MIN
 
 
@@ -75,17 +86,37 @@ def j_per_cm2_10min_to_w_m2(value_j_cm2: np.ndarray | float) -> np.ndarray:
 
 
 def read_awattar_json(path: str | Path) -> pd.Series:
-    """Day-ahead prices of an aWATTar ``/v1/marketdata`` answer file (see :func:`parse_awattar`)."""
+    """Read the day-ahead prices of an aWATTar ``/v1/marketdata`` answer file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The JSON file.
+
+    Returns
+    -------
+    pandas.Series
+        Spot prices [EUR/MWh] by UTC hour start (:func:`parse_awattar`).
+    """
     return parse_awattar(read_text_file(path), str(Path(path)))
 
 
 def parse_awattar(text: str, source: str) -> pd.Series:
-    """Day-ahead prices of an aWATTar ``/v1/marketdata`` answer as an hourly series.
+    """Parse the day-ahead prices of an aWATTar ``/v1/marketdata`` answer into an hourly series.
+
+    Parameters
+    ----------
+    text : str
+        The JSON answer (``{"data": [{"start_timestamp": ms, "end_timestamp": ms,
+        "marketprice": EUR/MWh, "unit": "Eur/MWh"}]}``, aWATTar API).
+    source : str
+        The file or URL, for messages.
 
     Returns
     -------
-    Series of spot prices [EUR/MWh] indexed by the UTC start of each hour. Intervals shorter
-    than 1 h (e.g. 15 min) are averaged to the hour.
+    pandas.Series
+        Spot prices [EUR/MWh] indexed by the UTC start of each hour. Intervals shorter than
+        1 h (e.g. 15 min) are averaged to the hour.
 
     Raises
     ------
@@ -141,7 +172,17 @@ def parse_awattar(text: str, source: str) -> pd.Series:
 def fetch_awattar(start: pd.Timestamp, end: pd.Timestamp, timeout_s: float = 30.0) -> str:
     """Download aWATTar market data between two times (needs internet access).
 
-    Returns the JSON text of ``GET /v1/marketdata?start=<ms>&end=<ms>``.
+    Parameters
+    ----------
+    start, end : pandas.Timestamp
+        The window, tz-aware.
+    timeout_s : float, optional
+        Time limit of the request [s].
+
+    Returns
+    -------
+    str
+        The JSON text of ``GET /v1/marketdata?start=<ms>&end=<ms>``.
     """
     query = urllib.parse.urlencode(
         {"start": int(start.tz_convert("UTC").timestamp() * 1000), "end": int(end.tz_convert("UTC").timestamp() * 1000)}
@@ -164,11 +205,28 @@ def read_dwd_product(
 ) -> pd.DataFrame:
     """Read a DWD open-data product (semicolon separated, ``MESS_DATUM`` UTC, rows end with ``eor``).
 
-    Returns a frame of the requested columns (floats, -999 -> NaN) indexed by UTC time.
-    A value is a plain decimal number (:func:`~comems4build_ros.files.inputs.parse_decimal`);
-    an empty field is NaN in the columns of ``empty_ok`` (sunshine at night in the hourly
-    station product) and refused elsewhere. ``check(frame, where)`` judges the values before
-    any averaging; ``where(i)`` is the file line of row ``i`` (for :func:`~.csvio.check_values`).
+    A value is a plain decimal number (:func:`~comems4build_ros.files.inputs.parse_decimal`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The product file.
+    columns : tuple of str
+        The columns to read.
+    check : callable, optional
+        ``check(frame, where)`` judges the values before any averaging; ``where(i)`` is the
+        file line of row ``i`` (for :func:`~.csvio.check_values`).
+    empty_ok : tuple of str, optional
+        Columns where an empty field is NaN (sunshine at night in the hourly station
+        product); elsewhere it is refused.
+    encoding : str, optional
+        The file's encoding.
+
+    Returns
+    -------
+    pandas.DataFrame
+        The requested columns (floats in the product's units, -999 -> NaN) indexed by UTC
+        time.
 
     Raises
     ------
@@ -227,8 +285,10 @@ def read_dwd_product(
 
 
 def _dwd_times(path: Path, stamps: list[str], line_nos: list[int]) -> pd.DatetimeIndex:
-    """UTC index of DWD ``MESS_DATUM`` stamps (one vectorised parse per stamp length);
-    :class:`ScenarioError` names the line of the first stamp that is not yyyymmddHH[MM]."""
+    """Parse DWD ``MESS_DATUM`` stamps to a UTC index (one vectorised parse per stamp length).
+
+    :class:`ScenarioError` names the line of the first stamp that is not yyyymmddHH[MM].
+    """
     lengths = np.array([len(s) for s in stamps])
     ns = np.zeros(len(stamps), dtype="int64")
     bad = ~np.isin(lengths, list(DWD_TIME_FORMATS)) | ~np.array([s.isdigit() for s in stamps], dtype=bool)
@@ -245,7 +305,7 @@ def _dwd_times(path: Path, stamps: list[str], line_nos: list[int]) -> pd.Datetim
 
 
 def _hourly_from_10min(df: pd.DataFrame, end_stamped: bool) -> pd.DataFrame:
-    """Hourly means of 10-minute values; hours with fewer than MIN_VALID_10MIN values are NaN."""
+    """Average 10-minute values to hours; hours with fewer than MIN_VALID_10MIN values are NaN."""
     shifted = df.copy()
     if end_stamped:
         shifted.index = shifted.index - pd.Timedelta(minutes=10)
@@ -255,12 +315,29 @@ def _hourly_from_10min(df: pd.DataFrame, end_stamped: bool) -> pd.DataFrame:
 
 
 def read_dwd_temperature(path: str | Path) -> pd.Series:
-    """Hourly air temperature [degC] from a DWD 10-minute (``TT_10``) or hourly (``TT_TU``) file."""
+    """Read the hourly air temperature from a DWD 10-minute (``TT_10``) or hourly (``TT_TU``) file.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The DWD product file.
+
+    Returns
+    -------
+    pandas.Series
+        ``t_amb_c`` [degC] by UTC hour start; NaN for hours without enough valid values.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, line and column.
+    """
     path = Path(path)
     header = _read_text_lines(path)[0].upper()
     for col in ("TT_10", "TT_TU"):
         if col in header:
             def check(df: pd.DataFrame, where: Callable[[int], str], col: str = col) -> None:
+                """Judge each value as an air temperature [degC]."""
                 check_values(path, "t_amb_c", df[col].to_numpy(), where, f"column '{col}'")
 
             df = read_dwd_product(path, (col,), check)
@@ -271,13 +348,28 @@ def read_dwd_temperature(path: str | Path) -> pd.Series:
 
 
 def read_dwd_solar(path: str | Path) -> pd.DataFrame:
-    """Hourly mean global and diffuse horizontal irradiance [W/m2] from a DWD 10-minute solar file.
+    """Read the hourly mean global and diffuse horizontal irradiance from a DWD 10-minute solar file.
 
     ``GS_10`` and ``DS_10`` are sums over 10 minutes in J/cm2; the mean irradiance of an
     interval is ``v * 10000 / 600`` W/m2 (:func:`j_per_cm2_10min_to_w_m2`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The DWD product file.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``ghi_w_m2`` and ``dhi_w_m2`` [W/m2] by UTC hour start.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, line and column, also for diffuse above global irradiance.
     """
     def check(df: pd.DataFrame, where: Callable[[int], str]) -> None:
-        """Each 10-minute value as irradiance [W/m2] within the scenario's range."""
+        """Judge each 10-minute value as irradiance [W/m2] within the scenario's range."""
         for c, col in (("GS_10", "ghi_w_m2"), ("DS_10", "dhi_w_m2")):
             check_values(path, col, j_per_cm2_10min_to_w_m2(df[c].to_numpy()), where,
                          f"column '{c}' (J/cm2 in 10 min as W/m2)")
@@ -290,6 +382,7 @@ def read_dwd_solar(path: str | Path) -> pd.DataFrame:
     hourly = _hourly_from_10min(w, end_stamped=True)
 
     def hour(i: int) -> str:  # the 10-minute stamps (end of each interval) that make up hour i
+        """Name the 10-minute stamps of hourly row ``i``."""
         first = hourly.index[i] + pd.Timedelta(minutes=10)
         return f"MESS_DATUM {first:%Y%m%d%H%M}..{first + pd.Timedelta(minutes=50):%Y%m%d%H%M} (hourly mean)"
 
@@ -302,11 +395,12 @@ def read_dwd_solar(path: str | Path) -> pd.DataFrame:
 
 
 def _read_text_lines(path: Path) -> list[str]:
-    """Lines of a Latin-1 source file (DWD, DHWCalc), checked by :func:`~.csvio.read_text_file`."""
+    """Return the lines of a Latin-1 source file (DWD, DHWCalc), checked by :func:`~.csvio.read_text_file`."""
     return text_lines(read_text_file(path, "latin-1"))
 
 
 def _is_number(text: str) -> bool:
+    """Tell whether ``text`` is a plain decimal number."""
     try:
         parse_decimal(text)
     except ValueError:
@@ -315,7 +409,7 @@ def _is_number(text: str) -> bool:
 
 
 def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
-    """Hourly hot-water draws [l/h] from a DHWCalc output file (one value in l/h per line, one year).
+    """Read the hourly hot-water draws from a DHWCalc output file (one value in l/h per line, one year).
 
     A file with two columns (separated by ``;``, ``,`` or blanks) must hold a step counter
     (consecutive integers) and the draw: the draw column is read, never the counter; more
@@ -323,6 +417,25 @@ def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
     The number of rows gives the step (8760 -> 1 h, 35040 -> 15 min, ... 525600 -> 1 min);
     step ``i`` starts at ``year``-01-01 00:00 local time + ``i`` steps (DHWCalc ignores
     daylight saving). A header line that is not a number is skipped.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The DHWCalc file.
+    year : int
+        Calendar year the profile is laid on.
+    timezone : str
+        The site's IANA time zone (its standard-time offset places the steps).
+
+    Returns
+    -------
+    pandas.Series
+        ``dhw_l_per_h`` [l/h], hourly means by UTC hour start (8760 values).
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, line and column.
     """
     path = Path(path)
     values: list[float] = []
@@ -375,15 +488,29 @@ def read_dhwcalc(path: str | Path, year: int, timezone: str) -> pd.Series:
 
 
 def read_load_csv(path: str | Path, column: str | None = None, unit: str | None = None) -> pd.Series:
-    """Hourly mean appliance load [W] from a CSV with ``time`` (ISO 8601 with offset) and a power column.
-
-    Parameters
-    ----------
-    column : power column (default: the only column other than ``time``)
-    unit : ``W`` or ``kW`` (default: from a ``_w`` / ``_kw`` suffix of the column name)
+    """Read the hourly mean appliance load from a CSV with ``time`` (ISO 8601 with offset) and a power column.
 
     Sub-hourly rows (regular steps dividing one hour, value = mean power over the step
     starting at its time) are averaged to 1 h.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+    column : str, optional
+        Power column (default: the only column other than ``time``).
+    unit : str, optional
+        ``W`` or ``kW`` (default: from a ``_w`` / ``_kw`` suffix of the column name).
+
+    Returns
+    -------
+    pandas.Series
+        ``p_load_w`` [W] by UTC hour start.
+
+    Raises
+    ------
+    ScenarioError
+        Naming the file, line and column.
     """
     import io
 
@@ -442,11 +569,25 @@ def read_load_csv(path: str | Path, column: str | None = None, unit: str | None 
 
 
 def repeat_year_profile(profile: pd.Series, index: pd.DatetimeIndex, timezone: str) -> pd.Series:
-    """Values of a one-year hourly profile (e.g. DHWCalc) at ``index``, by position in the year.
+    """Return the values of a one-year hourly profile (e.g. DHWCalc) at ``index``, by position in the year.
 
     The position is (day of year, hour) in local standard time (UTC + the zone's January
     offset, as DHWCalc ignores daylight saving); day 366 of leap years reuses day 365.
     So a profile for one year serves a window in any year, e.g. Dec 2022 .. Feb 2023.
+
+    Parameters
+    ----------
+    profile : pandas.Series
+        8760 hourly values, in any unit.
+    index : pandas.DatetimeIndex
+        Hour starts, tz-aware.
+    timezone : str
+        The site's IANA time zone.
+
+    Returns
+    -------
+    pandas.Series
+        The profile's values on ``index``, in its unit.
     """
     values = profile.to_numpy(dtype=float)
     year = index[0].year
@@ -475,9 +616,36 @@ def build_scenario_frame(
     local time, end exclusive). DHW and load are taken from the default generator when not
     given (same window, same seed), and the returned provenance says so.
 
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (site, time zone, holiday calendar).
+    prices : tuple of (str, pandas.Series)
+        Spot prices [EUR/MWh].
+    temperature : tuple of (str, pandas.Series)
+        Ambient temperature [degC].
+    solar : tuple of (str, pandas.DataFrame)
+        ``ghi_w_m2`` and ``dhi_w_m2`` [W/m2].
+    dhw : tuple of (str, pandas.Series), optional
+        One-year hot-water profile [l/h] (:func:`read_dhwcalc`).
+    load : tuple of (str, pandas.Series), optional
+        Appliance load [W].
+    start, end : str, optional
+        Window bounds (ISO, naive = local time, end exclusive).
+    seed : int, optional
+        Seed of the generated DHW and load (default ``config/scenario.yaml``).
+
     Returns
     -------
-    frame, provenance (column -> source)
+    frame : pandas.DataFrame
+        UTC-indexed, the columns of :data:`CSV_COLUMNS` after ``time``; short gaps filled.
+    provenance : dict of str to str
+        Column -> source name.
+
+    Raises
+    ------
+    ScenarioError
+        If the sources share no hours or a gap is too long to fill.
     """
     tz = params.site.timezone
     required = {
@@ -508,6 +676,7 @@ def build_scenario_frame(
         values = series.reindex(index).to_numpy(dtype=float)
 
         def where(i: int, _index: pd.DatetimeIndex = index) -> str:
+            """Name row ``i`` by its local time."""
             return f"time {_index[i].tz_convert(tz).isoformat()}"
 
         frame[col] = fill_gaps(name, col, values, where=where)
@@ -528,7 +697,22 @@ def build_scenario_frame(
 
 
 def write_frame_csv(frame: pd.DataFrame, path: str | Path, timezone: str) -> Path:
-    """Write a scenario frame (UTC index) as a scenario CSV with local times and offsets (all or nothing)."""
+    """Write a scenario frame (UTC index) as a scenario CSV with local times and offsets (all or nothing).
+
+    Parameters
+    ----------
+    frame : pandas.DataFrame
+        UTC-indexed scenario columns.
+    path : str or pathlib.Path
+        The CSV file.
+    timezone : str
+        Zone of the written times.
+
+    Returns
+    -------
+    pathlib.Path
+        ``path``.
+    """
     from comems4build_ros.files.outputs import atomic_write
 
     path = Path(path)
