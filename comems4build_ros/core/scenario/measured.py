@@ -44,17 +44,30 @@ DHWCALC_DAYS = 365
 
 
 def data_dir() -> Path:
-    """Directory of the package data files (``comems4build_ros/data``)."""
+    """Return the directory of the package data files (``comems4build_ros/data``)."""
     return PACKAGE_DIR / "data"
 
 
 def _data_path(name: str) -> Path:
+    """Return a data file's path: ``name`` itself if absolute, else under :func:`data_dir`."""
     path = Path(name)
     return path if path.is_absolute() else data_dir() / path
 
 
 def read_entsoe_prices(path: str | Path, column: str) -> pd.Series:
-    """Hourly day-ahead spot prices [EUR/MWh] of an ENTSO-E export (``utc_start`` + price column).
+    """Read the hourly day-ahead spot prices of an ENTSO-E Transparency Platform export.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        CSV file with ``utc_start`` and the price column, one row per hour without gaps.
+    column : str
+        The price column [EUR/MWh].
+
+    Returns
+    -------
+    pandas.Series
+        ``spot_eur_per_mwh`` [EUR/MWh] by UTC hour start.
 
     Raises
     ------
@@ -65,10 +78,22 @@ def read_entsoe_prices(path: str | Path, column: str) -> pd.Series:
 
 
 def read_price_csv(path: str | Path, column: str, gapless: bool) -> pd.Series:
-    """Day-ahead prices [EUR/MWh] of a CSV file with the columns ``utc_start`` and ``column``.
+    """Read day-ahead prices from a CSV file with the columns ``utc_start`` and ``column``.
 
-    ``gapless``: every row one hour after the previous one (one contiguous period); else the
-    rows need only follow each other in time (several winters in one file).
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file.
+    column : str
+        The price column [EUR/MWh].
+    gapless : bool
+        Every row one hour after the previous one (one contiguous period); else the rows
+        need only follow each other in time (several winters in one file).
+
+    Returns
+    -------
+    pandas.Series
+        ``spot_eur_per_mwh`` [EUR/MWh] by UTC time.
 
     Raises
     ------
@@ -104,7 +129,7 @@ def read_price_csv(path: str | Path, column: str, gapless: bool) -> pd.Series:
 
 
 def dhwcalc_day_of_year(dates: pd.DatetimeIndex, day1_weekday: int) -> np.ndarray:
-    """File day (1..365) of a DHWcalc year for each calendar date: same weekday, nearest day of year.
+    """Return the file day (1..365) of a DHWcalc year for each calendar date: same weekday, nearest day of year.
 
     A DHWcalc year starts on a fixed weekday (``day1_weekday``, 0 = Monday) and places its
     weekend draw pattern accordingly. Day ``d`` of the calendar takes the file day
@@ -113,8 +138,15 @@ def dhwcalc_day_of_year(dates: pd.DatetimeIndex, day1_weekday: int) -> np.ndarra
 
     Parameters
     ----------
-    dates : local dates (one per calendar day)
-    day1_weekday : weekday of the file's day 1 (0 = Monday .. 6 = Sunday)
+    dates : pandas.DatetimeIndex
+        Local dates (one per calendar day).
+    day1_weekday : int
+        Weekday of the file's day 1 (0 = Monday .. 6 = Sunday).
+
+    Returns
+    -------
+    numpy.ndarray of int
+        File day per date, 1..365.
     """
     doy = np.minimum(np.asarray(dates.day_of_year), DHWCALC_DAYS)
     file_weekday = (doy - 1 + day1_weekday) % DAYS_PER_WEEK
@@ -126,9 +158,28 @@ def dhwcalc_day_of_year(dates: pd.DatetimeIndex, day1_weekday: int) -> np.ndarra
 
 
 def dhwcalc_draws(path: str | Path, time: pd.DatetimeIndex, day1_weekday: int) -> np.ndarray:
-    """Hourly hot-water draws [l/h] of a 1-h DHWcalc file at the local hours ``time``.
+    """Return the hourly hot-water draws of a 1-h DHWcalc file at the local hours ``time``.
 
     DHWcalc ignores daylight saving: the hour of day is taken in local standard time.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The DHWcalc file (8760 hourly values in l/h).
+    time : pandas.DatetimeIndex
+        Hour starts, tz-aware.
+    day1_weekday : int
+        Weekday of the file's day 1 (0 = Monday).
+
+    Returns
+    -------
+    numpy.ndarray
+        Draws [l/h], one per hour of ``time``.
+
+    Raises
+    ------
+    ScenarioError
+        For a file that is not at 1 h resolution, or as :func:`read_dhwcalc`.
     """
     from comems4build_ros.core.scenario.loaders import read_dhwcalc
 
@@ -146,21 +197,40 @@ def fill_temperature(
     t_amb: np.ndarray, n_measured: int, method: str, reference_days: int, seam_h: int,
     synthetic: np.ndarray | None = None,
 ) -> np.ndarray:
-    """Extend a measured hourly temperature series past its last measured hour [degC].
+    """Extend a measured hourly temperature series past its last measured hour.
 
     Parameters
     ----------
-    t_amb : hourly values; those from index ``n_measured`` on are replaced
-    n_measured : number of measured leading values
-    method : ``repeat``: the values of the last ``reference_days`` measured days, repeated
-        in order (whole days, so the diurnal cycle keeps its phase), plus an offset that
+    t_amb : numpy.ndarray
+        Hourly values [degC]; those from index ``n_measured`` on are replaced.
+    n_measured : int
+        Number of measured leading values.
+    method : str
+        ``repeat``: the values of the last ``reference_days`` measured days, repeated in
+        order (whole days, so the diurnal cycle keeps its phase), plus an offset that
         closes the jump at the seam and decays linearly to zero over ``seam_h`` hours;
         ``synthetic``: the synthetic generator's temperature for the same hours
         (``synthetic``, same length as ``t_amb``), shifted by the mean difference of the
-        measured and generated values over the last ``reference_days`` measured days
-    reference_days : days of measured data the fill refers to [d]
-    seam_h : hours over which the seam offset of ``repeat`` decays [h]
-    synthetic : generated temperature for ``synthetic`` [degC]
+        measured and generated values over the last ``reference_days`` measured days.
+    reference_days : int
+        Days of measured data the fill refers to [d].
+    seam_h : int
+        Hours over which the seam offset of ``repeat`` decays [h].
+    synthetic : numpy.ndarray, optional
+        Generated temperature for ``synthetic`` [degC].
+
+    Returns
+    -------
+    numpy.ndarray
+        The filled series [degC] (a copy).
+
+    Raises
+    ------
+    ScenarioError
+        If fewer hours are measured than the fill refers to.
+    ValueError
+        For an unknown method, or ``synthetic`` without a generated series of the same
+        length.
     """
     out = np.array(t_amb, dtype=float)
     n = len(out)
@@ -189,14 +259,41 @@ def fill_temperature(
 
 
 def rank_matched(values: np.ndarray, key: np.ndarray) -> np.ndarray:
-    """``values`` re-ordered so that their ranks follow the ranks of ``key`` (ties by position)."""
+    """Re-order values so that their ranks follow the ranks of ``key`` (ties by position).
+
+    Parameters
+    ----------
+    values : numpy.ndarray
+        Values to re-order, any unit.
+    key : numpy.ndarray
+        Key of the same length.
+
+    Returns
+    -------
+    numpy.ndarray
+        The sorted ``values`` placed at the rank of each key.
+    """
     order = np.argsort(np.argsort(key, kind="stable"), kind="stable")
     return np.sort(values)[order]
 
 
 def measured_hours(params: PlantParams, measured: MeasuredParams) -> pd.DatetimeIndex:
-    """The hours [UTC] the package data of ``measured`` cover from its start (those of the price
-    file; :func:`measured_frame` has one row per hour of it), without building the frame."""
+    """Return the hours the package data of ``measured`` cover from its start, without building the frame.
+
+    Those are the hours of the price file; :func:`measured_frame` has one row per hour of it.
+
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (time zone).
+    measured : MeasuredParams
+        The ``measured`` settings (price file and start).
+
+    Returns
+    -------
+    pandas.DatetimeIndex
+        Hour starts in UTC.
+    """
     tz = params.site.timezone
     spot = read_entsoe_prices(_data_path(measured.prices_file), measured.prices_column)
     start = pd.Timestamp(measured.start).tz_localize(tz).tz_convert("UTC")
@@ -207,19 +304,33 @@ def measured_frame(
     params: PlantParams, measured: MeasuredParams, generator: ScenarioParams, seed: int | None = None,
     fill: str | None = None,
 ) -> tuple[pd.DataFrame, dict]:
-    """All hours the package data covers, from ``measured.start``, as a scenario frame.
+    """Build a scenario frame of all hours the package data cover, from ``measured.start``.
 
     Parameters
     ----------
-    params : plant parameters (site, holidays)
-    measured : the ``measured`` settings
-    generator : the synthetic generator's settings (its ``solar`` and ``load`` models)
-    seed : seed of the modelled radiation and load (default ``measured.seed``)
-    fill : temperature fill method (default ``measured.temperature.fill``)
+    params : PlantParams
+        Plant parameters (site, holidays).
+    measured : MeasuredParams
+        The ``measured`` settings.
+    generator : ScenarioParams
+        The synthetic generator's settings (its ``solar`` and ``load`` models).
+    seed : int, optional
+        Seed of the modelled radiation and load (default ``measured.seed``).
+    fill : str, optional
+        Temperature fill method (default ``measured.temperature.fill``).
 
     Returns
     -------
-    frame with a UTC index and the scenario CSV columns, and the provenance ``meta``
+    frame : pandas.DataFrame
+        UTC-indexed, the scenario CSV columns (units in the names).
+    meta : dict
+        Provenance of each series (ENTSO-E, DWD, DHWcalc, modelled), the seed and the
+        temperature fill (``t_amb_filled``).
+
+    Raises
+    ------
+    ScenarioError
+        For a data file that does not cover the scenario's start.
     """
     tz = params.site.timezone
     seed = measured.seed if seed is None else int(seed)
@@ -264,7 +375,7 @@ def measured_frame(
 
 def _temperature(path: Path, index: pd.DatetimeIndex, time: pd.DatetimeIndex, params: PlantParams,
                  measured: MeasuredParams, generator: ScenarioParams, seed: int, fill: str) -> tuple[np.ndarray, int]:
-    """The measured ambient temperature on ``index``, its missing end filled [degC]; and the measured hours."""
+    """Return the measured ambient temperature on ``index``, its missing end filled [degC]; and the measured hours."""
     from comems4build_ros.core.scenario.generator import generate
     from comems4build_ros.core.scenario.loaders import read_dwd_temperature
 
@@ -290,7 +401,7 @@ def _temperature(path: Path, index: pd.DatetimeIndex, time: pd.DatetimeIndex, pa
 def _modelled_radiation_and_load(time: pd.DatetimeIndex, t_amb: np.ndarray, params: PlantParams,
                                  measured: MeasuredParams, generator: ScenarioParams, seed: int
                                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """GHI and DHI [W/m2] and the appliance load [W]: the generator's models on the measured calendar."""
+    """Model GHI and DHI [W/m2] and the appliance load [W]: the generator's models on the measured calendar."""
     from comems4build_ros.core.scenario.comfort import is_off_day
     from comems4build_ros.core.scenario.generator import _daily_kc, _load, _solar, _streams
 
@@ -309,7 +420,20 @@ def _modelled_radiation_and_load(time: pd.DatetimeIndex, t_amb: np.ndarray, para
 
 
 def filled_mask(time: pd.DatetimeIndex, meta: dict) -> np.ndarray:
-    """True for the hours of ``time`` whose temperature was filled (from ``meta["t_amb_filled"]``)."""
+    """Mark the hours whose temperature was filled.
+
+    Parameters
+    ----------
+    time : pandas.DatetimeIndex
+        Hour starts, tz-aware.
+    meta : dict
+        A scenario's ``meta`` (its ``t_amb_filled`` entry).
+
+    Returns
+    -------
+    numpy.ndarray of bool
+        True from the first filled hour on.
+    """
     info = (meta or {}).get("t_amb_filled") or {}
     start = info.get("from")
     if not start:
