@@ -22,6 +22,7 @@ HOURS_PER_DAY = 24
 
 
 def _local(value: datetime) -> datetime:
+    """Accept a naive time (the site's clock); refuse one with a UTC offset."""
     if value.tzinfo is not None:
         raise ValueError("a local time of the site: give it without UTC offset")
     return value
@@ -36,7 +37,17 @@ class _Section(Section):
 
 
 class Episode(_Section):
-    """A weather episode: daily-mean anomaly [K] and wind offset between two local dates (inclusive)."""
+    """A weather episode: daily-mean anomaly [K] and wind offset between two local dates (inclusive).
+
+    Attributes
+    ----------
+    start, end : datetime.date
+        First and last local day of the episode.
+    anomaly_k : float
+        Offset of the daily mean temperature [K].
+    wind : float
+        Offset of the latent daily wind index [-].
+    """
 
     start: date
     end: date
@@ -51,7 +62,31 @@ class Episode(_Section):
 
 
 class TemperatureParams(_Section):
-    """Ambient temperature model [degC, K]."""
+    """Ambient temperature model [degC, K].
+
+    Daily mean = ``mean_c`` + episode anomaly + ``wind_k`` * wind index + AR(1) anomaly;
+    hourly value = daily means interpolated between noons + diurnal cycle + AR(1) noise.
+    Values and sources (DWD Rheinstetten statistics): ``config/scenario.yaml``.
+
+    Attributes
+    ----------
+    mean_c : float
+        Climate mean [degC].
+    ar_phi, ar_sigma_k : float
+        AR(1) coefficient [-] and innovation standard deviation [K] of the daily anomaly.
+    wind_k : float
+        Warming per unit of the wind index [K].
+    amp_overcast_k, amp_clear_k : float
+        Daily range = ``amp_overcast_k + amp_clear_k * kc_day`` [K].
+    t_min_hour, t_max_hour : float
+        Local hours of the diurnal minimum and maximum [h].
+    noise_phi, noise_sigma_k : float
+        AR(1) coefficient [-] and standard deviation [K] of the hourly noise.
+    episodes : list of Episode
+        Configured warm and cold spells.
+    episode_ramp_days : int
+        Length of the linear ramp into and out of an episode [d].
+    """
 
     mean_c: float
     ar_phi: float = Field(ge=0, lt=1)
@@ -74,13 +109,37 @@ class TemperatureParams(_Section):
 
 
 class WindParams(_Section):
-    """Latent daily wind index (dimensionless)."""
+    """Latent daily wind index (dimensionless).
+
+    Attributes
+    ----------
+    ar_phi : float
+        AR(1) coefficient of the daily index [-].
+    """
 
     ar_phi: float = Field(ge=0, lt=1)
 
 
 class SolarParams(_Section):
-    """Clear-sky model and stochastic cloudiness."""
+    """Clear-sky model and stochastic cloudiness.
+
+    Attributes
+    ----------
+    clearsky_model : str
+        pvlib clear-sky model (``ineichen``, ``haurwitz``, ``simplified_solis``).
+    p_overcast_to_fair, p_fair_to_overcast : float
+        Daily transition probabilities of the two-state Markov chain [-].
+    overcast_kc_mean, fair_kc_mean : float
+        Mean daily clear-sky index of each state [-].
+    kc_concentration : float
+        Sum a + b of the Beta distribution of the daily index [-].
+    wind_kc : float
+        Lowering of the daily index per unit of the wind index [-].
+    hourly_phi, hourly_sigma : float
+        AR(1) coefficient and relative standard deviation of the hourly variation [-].
+    kc_max : float
+        Cap of the clear-sky index (cloud enhancement) [-].
+    """
 
     clearsky_model: str
     p_overcast_to_fair: float = Field(gt=0, le=1)
@@ -101,7 +160,41 @@ class SolarParams(_Section):
 
 
 class PriceParams(_Section):
-    """Day-ahead spot price model [EUR/MWh]."""
+    """Day-ahead spot price model [EUR/MWh].
+
+    Daily level = fuel-cost level (interpolated between anchors) times a residual-load
+    factor; hourly price = level * (1 + ``shape_gain`` * s(h)) + noise. Values and sources
+    (ENTSO-E DE-LU statistics): ``config/scenario.yaml``.
+
+    Attributes
+    ----------
+    level_dates : list of datetime.date
+        Anchor dates of the fuel-cost level (strictly increasing).
+    level_eur_per_mwh : list of float
+        Level at each anchor [EUR/MWh].
+    wind_coef, calm_coef : float
+        Lowering of the residual-load factor per unit of positive / negative wind [-].
+    wind_saturation : float
+        s of ``s * tanh(W / s)`` for the wind index [-].
+    temp_coef : float
+        Rise of the factor per K below the climate mean [1/K].
+    offday_coef : float
+        Change of the factor on weekends and public holidays [-].
+    ar_phi, ar_sigma : float
+        AR(1) coefficient and innovation standard deviation of the daily remainder [-].
+    hour_profile_eur_per_mwh : list of float
+        Hour-of-day mean prices, 24 values (its shape is used) [EUR/MWh].
+    shape_gain : float
+        Gain on the relative hourly shape s(h) [-].
+    noise_phi : float
+        AR(1) coefficient of the hourly noise [-].
+    noise_abs_eur_per_mwh : float
+        Absolute part of the noise standard deviation [EUR/MWh].
+    noise_rel : float
+        Part of the noise standard deviation relative to the daily level [-].
+    negative_compression : float
+        Factor on negative prices [-].
+    """
 
     level_dates: list[date]
     level_eur_per_mwh: list[float]
@@ -133,7 +226,31 @@ class PriceParams(_Section):
 
 
 class LoadParams(_Section):
-    """Appliance load model [W]."""
+    """Appliance load model [W].
+
+    Expected load = ``annual_kwh`` * BDEW H0 dynamisation * day-type shape; split into a
+    steady base, a log-normal activity part and appliance cycles. Values and sources:
+    ``config/scenario.yaml``.
+
+    Attributes
+    ----------
+    annual_kwh : float
+        Annual appliance energy [kWh/a].
+    dynamisation_coef : list of float
+        Coefficients c_i of the BDEW dynamisation polynomial ``F(d) = sum c_i d^i``.
+    shape_workday, shape_offday : list of float
+        Relative hourly shapes of workdays and off days, 24 values each [-].
+    base_share : float
+        Share of the expected load that is steady [-].
+    noise_phi, noise_sigma : float
+        AR(1) coefficient and standard deviation of the log of the activity part [-].
+    cycles_per_day : float
+        Mean appliance runs per day (Poisson) [1/d].
+    cycle_kwh : float
+        Energy of one run [kWh].
+    cycle_hours : int
+        Duration of one run [h].
+    """
 
     annual_kwh: float = Field(gt=0)
     dynamisation_coef: list[float]
@@ -156,7 +273,19 @@ class LoadParams(_Section):
 
 
 class DHWDrawParams(_Section):
-    """Hot-water draw profile via OpenDHW [l/h]."""
+    """Hot-water draw profile via OpenDHW (the DHWCalc method) [l/h].
+
+    Attributes
+    ----------
+    litres_per_day : float
+        Mean daily draw (``sec:parameters``: 200 l/day) [l/d].
+    weekend_weekday_factor : float
+        Off-day draws over workday draws (DHWCalc) [-].
+    categories : int
+        DHWCalc draw-off categories, 1 or 4.
+    step_s : int
+        Generation step, dividing one hour [s].
+    """
 
     litres_per_day: float = Field(gt=0)
     weekend_weekday_factor: float = Field(gt=0)
@@ -173,7 +302,25 @@ class DHWDrawParams(_Section):
 
 
 class ScenarioParams(_Section):
-    """The ``scenario`` section of ``config/scenario.yaml``."""
+    """The ``scenario`` section of ``config/scenario.yaml``: the synthetic generator.
+
+    Attributes
+    ----------
+    seed : int
+        Default random seed.
+    start : datetime.datetime
+        First hour, local time of the site.
+    weeks : int
+        Configured length [weeks].
+    lookahead_h : int
+        Hours generated after the run for the day-ahead window [h].
+    temperature : TemperatureParams
+    wind : WindParams
+    solar : SolarParams
+    price : PriceParams
+    load : LoadParams
+    dhw : DHWDrawParams
+    """
 
     seed: int = Field(ge=0)
     start: LocalTime
@@ -188,7 +335,19 @@ class ScenarioParams(_Section):
 
 
 class MeasuredTemperatureParams(_Section):
-    """How the measured temperature record is extended past its last hour."""
+    """How the measured temperature record is extended past its last hour.
+
+    Attributes
+    ----------
+    file : str
+        DWD hourly ``TT_TU`` file (package data or absolute path).
+    fill : str
+        Fill method, one of :data:`FILL_METHODS`.
+    fill_reference_days : int
+        Measured days the fill refers to [d].
+    fill_seam_h : int
+        Hours over which the seam offset of ``repeat`` decays [h].
+    """
 
     file: str
     fill: str
@@ -208,6 +367,26 @@ class MeasuredParams(_Section):
     Measured prices, temperature and hot-water draws of the paper's winter (package data,
     ``comems4build_ros/data``), radiation and appliance load modelled with the generator's
     ``solar`` and ``load`` settings and the seed given here.
+
+    Attributes
+    ----------
+    start : datetime.datetime
+        First hour, local time of the site.
+    weeks : int
+        Default run length [weeks].
+    lookahead_h : int
+        Hours of data kept after the run for the day-ahead window [h].
+    seed : int
+        Seed of the modelled radiation and load.
+    prices_file, prices_column : str
+        ENTSO-E day-ahead price file and its price column [EUR/MWh].
+    temperature : MeasuredTemperatureParams
+    dhw_file : str
+        DHWcalc file at 1 h resolution [l/h].
+    dhw_day1_weekday : int
+        Weekday of the DHWcalc file's day 1 (0 = Monday).
+    kc_from_temperature_amplitude : bool
+        Re-order the daily clear-sky indices by the measured daily temperature amplitude.
     """
 
     start: LocalTime
@@ -227,7 +406,7 @@ FILL_METHODS = ("repeat", "synthetic")
 
 
 def _section(path: str | Path | None, name: str, overrides: Mapping[str, Any] | None) -> tuple[dict, str]:
-    """Section ``name`` of a scenario parameter file with dotted ``overrides`` applied, and its label."""
+    """Return section ``name`` of a scenario parameter file with dotted ``overrides`` applied, and its label."""
     path = Path(path) if path is not None else default_scenario_file()
     section = copy.deepcopy(read_param_section(path, name))
     for key, value in (overrides or {}).items():
@@ -244,7 +423,19 @@ def load_measured_settings(
     ``section``: ``measured`` (the paper's winter, ``--scenario default``) or
     ``measured_year`` (the year around it, ``--scenario year``).
 
-    ``overrides`` are dotted keys inside the section (``{"temperature.fill": "synthetic"}``).
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The parameter file (default ``config/scenario.yaml``).
+    overrides : mapping, optional
+        Dotted keys inside the section (``{"temperature.fill": "synthetic"}``).
+    section : str, optional
+        ``measured`` or ``measured_year``.
+
+    Returns
+    -------
+    MeasuredParams
+        The validated section.
 
     Raises
     ------
@@ -256,7 +447,7 @@ def load_measured_settings(
 
 
 def default_scenario_file() -> Path:
-    """Path of the default ``scenario.yaml``."""
+    """Return the path of the default scenario settings, ``config/scenario.yaml``."""
     return config_dir() / "scenario.yaml"
 
 
@@ -265,7 +456,17 @@ def load_scenario_settings(
 ) -> ScenarioParams:
     """Read and validate the ``scenario`` section (the synthetic generator) of a parameter file.
 
-    ``overrides`` are dotted keys inside the section (``{"load.annual_kwh": 4000}``).
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The parameter file (default ``config/scenario.yaml``).
+    overrides : mapping, optional
+        Dotted keys inside the section (``{"load.annual_kwh": 4000}``).
+
+    Returns
+    -------
+    ScenarioParams
+        The validated section.
 
     Raises
     ------
@@ -277,12 +478,23 @@ def load_scenario_settings(
 
 
 def split_overrides(overrides: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:
-    """Dotted overrides ``{"scenario.load.annual_kwh": 4000, "measured.seed": 3}`` per section.
+    """Split dotted overrides ``{"scenario.load.annual_kwh": 4000, "measured.seed": 3}`` by section.
+
+    Parameters
+    ----------
+    overrides : mapping or None
+        Keys ``<section>.<dotted key>``.
+
+    Returns
+    -------
+    dict of str to dict
+        ``scenario``, ``measured`` and ``measured_year`` -> their overrides without the
+        section prefix (empty where none is given).
 
     Raises
     ------
     ConfigError
-        For a key outside the sections ``scenario`` and ``measured``.
+        For a key outside the sections ``scenario``, ``measured`` and ``measured_year``.
     """
     out: dict[str, dict[str, Any]] = {"scenario": {}, "measured": {}, "measured_year": {}}
     for key, value in (overrides or {}).items():
