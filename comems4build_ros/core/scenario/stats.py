@@ -36,7 +36,27 @@ DAYS_PER_WEEK = 7
 
 @dataclass(frozen=True)
 class Stat:
-    """One statistic: key, label, unit, reference value (None if none), misfit scale, tolerance."""
+    """One statistic of the scenario table and its reference figure.
+
+    Attributes
+    ----------
+    key : str
+        Key in :func:`scenario_stats`.
+    label : str
+        Row label of the table.
+    unit : str
+        Unit of the value and the reference.
+    ref : float or None
+        Reference value (ENTSO-E, DWD, DHWcalc, household figures), None if there is none.
+    ref_text : str
+        The reference as printed.
+    scale : float or None
+        Misfit scale (about one standard deviation across seeds), in ``unit``; None = not
+        in the misfit.
+    tol : float or None
+        Acceptance band of the synthetic generator in the tests, ``|generated - ref| <= tol``,
+        in ``unit``.
+    """
 
     key: str
     label: str
@@ -97,10 +117,18 @@ def scenario_stats(scenario: Scenario, off_day: np.ndarray | None = None,
 
     Parameters
     ----------
-    scenario : the scenario (local time index)
-    off_day : weekend-or-holiday flag per row (default: from ``t_min_c`` is not usable, so
-        computed by the caller via :func:`comems4build_ros.core.scenario.is_off_day`)
-    dynamisation_coef : BDEW H0 polynomial for the annual equivalent of the load
+    scenario : Scenario
+        The scenario (local time index).
+    off_day : numpy.ndarray of bool, optional
+        Weekend-or-holiday flag per row, computed by the caller with
+        :func:`comems4build_ros.core.scenario.is_off_day`; default: no off days.
+    dynamisation_coef : list of float, optional
+        BDEW H0 polynomial for the annual equivalent of the load; default: the plain mean.
+
+    Returns
+    -------
+    dict of str to float
+        Key of :data:`STATS` -> value in that statistic's unit.
     """
     n = scenario.n_steps
     time = scenario.time[:n]
@@ -111,7 +139,7 @@ def scenario_stats(scenario: Scenario, off_day: np.ndarray | None = None,
 
 
 def _price_stats(scenario: Scenario, time: pd.DatetimeIndex, off: np.ndarray) -> dict[str, float]:
-    """The spot and buy price statistics of :data:`STATS` [EUR/MWh, EUR/kWh, h]."""
+    """Compute the spot and buy price statistics of :data:`STATS` [EUR/MWh, EUR/kWh, h]."""
     spot = pd.Series(scenario.spot_eur_per_mwh[:len(time)], index=time)
     daily = spot.groupby(pd.Index(time.date))
     spread = daily.max() - daily.min()
@@ -139,7 +167,7 @@ def _price_stats(scenario: Scenario, time: pd.DatetimeIndex, off: np.ndarray) ->
 
 
 def _temperature_stats(scenario: Scenario, time: pd.DatetimeIndex) -> dict[str, float]:
-    """The ambient temperature statistics of :data:`STATS`, up to :data:`TEMPERATURE_END` [degC, K]."""
+    """Compute the ambient temperature statistics of :data:`STATS`, up to :data:`TEMPERATURE_END` [degC, K]."""
     t_end = pd.Timestamp(TEMPERATURE_END).tz_localize(time.tz)
     sel = time < t_end
     temp = pd.Series(scenario.t_amb_c[:len(time)][sel], index=time[sel])
@@ -160,7 +188,7 @@ def _temperature_stats(scenario: Scenario, time: pd.DatetimeIndex) -> dict[str, 
 
 
 def _radiation_stats(scenario: Scenario, time: pd.DatetimeIndex) -> dict[str, float]:
-    """Monthly GHI [kWh/m2/d] and the diffuse share [-] of :data:`STATS`."""
+    """Compute the monthly GHI [kWh/m2/d] and the diffuse share [-] of :data:`STATS`."""
     n = len(time)
     ghi = pd.Series(scenario.ghi_w_m2[:n], index=time)
     ghi_month = ghi.groupby(time.month).mean() * 24 * KWH_PER_WH
@@ -174,7 +202,7 @@ def _radiation_stats(scenario: Scenario, time: pd.DatetimeIndex) -> dict[str, fl
 
 def _demand_stats(scenario: Scenario, time: pd.DatetimeIndex, off: np.ndarray,
                   dynamisation_coef: list[float] | None) -> dict[str, float]:
-    """Appliance load [kWh, kWh/a, h] and hot-water draw [l/d, -] statistics of :data:`STATS`."""
+    """Compute the appliance load [kWh, kWh/a, h] and hot-water draw [l/d, -] statistics of :data:`STATS`."""
     n = len(time)
     date = pd.Index(time.date)
     load = pd.Series(scenario.p_load_w[:n], index=time)
@@ -196,11 +224,23 @@ def _demand_stats(scenario: Scenario, time: pd.DatetimeIndex, off: np.ndarray,
 
 
 def misfit(stats: dict[str, float]) -> float:
-    """Sum of squared, scaled deviations from the reference figures (statistics with a ``scale``)."""
+    """Sum the squared, scaled deviations from the reference figures (statistics with a ``scale``).
+
+    Parameters
+    ----------
+    stats : dict of str to float
+        Output of :func:`scenario_stats`.
+
+    Returns
+    -------
+    float
+        ``sum(((value - ref) / scale) ** 2)`` [-].
+    """
     return float(sum(((stats[s.key] - s.ref) / s.scale) ** 2 for s in STATS if s.scale is not None))
 
 
 def _stats_of(sc: Scenario, params) -> dict[str, float]:
+    """Compute :func:`scenario_stats` with the off days and load polynomial of the configuration."""
     from comems4build_ros.core.scenario import is_off_day, load_scenario_settings
 
     coef = load_scenario_settings().load.dynamisation_coef
@@ -208,7 +248,20 @@ def _stats_of(sc: Scenario, params) -> dict[str, float]:
 
 
 def synthetic_stats(params=None, seed: int | None = None) -> dict[str, float]:
-    """Statistics of the synthetic scenario (plant parameters and settings from config/)."""
+    """Compute the statistics of the synthetic scenario (plant parameters and settings from config/).
+
+    Parameters
+    ----------
+    params : PlantParams, optional
+        Plant parameters (default ``config/plant.yaml``).
+    seed : int, optional
+        Generator seed (default ``config/scenario.yaml``).
+
+    Returns
+    -------
+    dict of str to float
+        As :func:`scenario_stats`.
+    """
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.scenario import load_scenario_settings, synthetic_scenario
 
@@ -218,7 +271,20 @@ def synthetic_stats(params=None, seed: int | None = None) -> dict[str, float]:
 
 
 def default_stats(params=None, seed: int | None = None) -> dict[str, float]:
-    """Statistics of the embedded default scenario (measured data; ``seed`` of the modelled parts)."""
+    """Compute the statistics of the embedded default scenario (measured data).
+
+    Parameters
+    ----------
+    params : PlantParams, optional
+        Plant parameters (default ``config/plant.yaml``).
+    seed : int, optional
+        Seed of the modelled radiation and load (default ``config/scenario.yaml``).
+
+    Returns
+    -------
+    dict of str to float
+        As :func:`scenario_stats`.
+    """
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.scenario import default_scenario
 
@@ -227,6 +293,7 @@ def default_stats(params=None, seed: int | None = None) -> dict[str, float]:
 
 
 def _fmt(value: float) -> str:
+    """Format a statistic with a precision that suits its size (``-`` if not finite)."""
     if not np.isfinite(value):
         return "-"
     if float(value).is_integer():
@@ -239,7 +306,18 @@ def _fmt(value: float) -> str:
 
 
 def markdown_table(default: dict[str, float], synthetic: dict[str, float]) -> str:
-    """Markdown table: the default (measured) and synthetic scenario next to the reference figures."""
+    """Format the default (measured) and synthetic scenario's statistics next to the reference figures.
+
+    Parameters
+    ----------
+    default, synthetic : dict of str to float
+        Outputs of :func:`scenario_stats`.
+
+    Returns
+    -------
+    str
+        A Markdown table, one row per entry of :data:`STATS`.
+    """
     lines = [
         "| statistic | unit | default (measured) | synthetic | reference |",
         "|---|---|---:|---:|---|",
@@ -254,7 +332,20 @@ DOC_END = "<!-- stats:end -->"
 
 
 def update_doc(path: str, table: str) -> None:
-    """Replace the text between :data:`DOC_BEGIN` and :data:`DOC_END` in a Markdown file."""
+    """Replace the text between :data:`DOC_BEGIN` and :data:`DOC_END` in a Markdown file.
+
+    Parameters
+    ----------
+    path : str
+        The Markdown file.
+    table : str
+        The new text.
+
+    Raises
+    ------
+    ValueError
+        If the markers are not found.
+    """
     with open(path, encoding="utf-8") as fh:
         text = fh.read()
     head, sep, rest = text.partition(DOC_BEGIN)
@@ -266,12 +357,36 @@ def update_doc(path: str, table: str) -> None:
 
 
 def rank_seeds(n: int, params=None) -> list[tuple[int, float]]:
-    """``(seed, misfit)`` for seeds ``0..n-1``, best first."""
+    """Rank the synthetic generator's seeds by their misfit to the reference figures.
+
+    Parameters
+    ----------
+    n : int
+        Seeds ``0..n-1`` are tried.
+    params : PlantParams, optional
+        Plant parameters (default ``config/plant.yaml``).
+
+    Returns
+    -------
+    list of tuple of (int, float)
+        ``(seed, misfit)``, best first.
+    """
     return sorted(((seed, misfit(synthetic_stats(params, seed))) for seed in range(n)), key=lambda x: x[1])
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Print the statistics table of the embedded scenarios, or rank the generator's seeds."""
+    """Print the statistics table of the embedded scenarios, or rank the generator's seeds.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Command-line arguments (default ``sys.argv[1:]``).
+
+    Returns
+    -------
+    int
+        Exit code 0.
+    """
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--seed", type=int, default=None, help="synthetic seed (default: config/scenario.yaml)")
     parser.add_argument("--rank-seeds", type=int, default=0, metavar="N", help="rank synthetic seeds 0..N-1 by misfit")
