@@ -60,7 +60,23 @@ class _Section(Section):
 
 
 class StationSettings(_Section):
-    """A DWD station of the winter cases."""
+    """A DWD station of the winter cases.
+
+    Attributes
+    ----------
+    dwd_id : int
+        DWD station id.
+    name : str
+        Station name.
+    file : str
+        Hourly station file (``TT_TU``, ``SD_SO``) in the package data.
+    latitude_deg, longitude_deg : float
+        Station coordinates [deg].
+    altitude_m : float
+        Station altitude [m].
+    holidays_subdivision : str
+        Public-holiday subdivision of the station's state (ISO 3166-2 suffix).
+    """
 
     dwd_id: int = Field(ge=1)
     name: str
@@ -72,7 +88,15 @@ class StationSettings(_Section):
 
 
 class RadiationSettings(_Section):
-    """Angstrom-Prescott coefficients (FAO-56 eq. 35) and the longest sunshine gap filled [h]."""
+    """Angstrom-Prescott coefficients (FAO-56 eq. 35) and the longest sunshine gap filled [h].
+
+    Attributes
+    ----------
+    a_s, b_s : float
+        Coefficients of ``R_s = (a_s + b_s * n / N) * R_a``, ``a_s + b_s <= 1`` [-].
+    max_gap_h : int
+        Longest run of daylight hours without a report that is interpolated [h].
+    """
 
     a_s: float = Field(ge=0, le=1)
     b_s: float = Field(ge=0, le=1)
@@ -87,7 +111,15 @@ class RadiationSettings(_Section):
 
 
 class HouseholdSettings(_Section):
-    """Seeds and annual appliance energies [kWh/a] of the household cases (one each)."""
+    """Seeds and annual appliance energies [kWh/a] of the household cases (one each).
+
+    Attributes
+    ----------
+    seeds : list of int
+        Distinct seeds, one per household case.
+    annual_kwh : list of float
+        Annual appliance energy of each case [kWh/a].
+    """
 
     seeds: list[int]
     annual_kwh: list[float]
@@ -104,14 +136,32 @@ class HouseholdSettings(_Section):
 
 
 class SplitSettings(_Section):
-    """The development subset (winters and household seeds); every other case is held out."""
+    """The development subset (winters and household seeds); every other case is held out.
+
+    Attributes
+    ----------
+    winters : list of int
+        Years of the development winters' Decembers.
+    households : list of int
+        Seeds of the development households.
+    """
 
     winters: list[int]
     households: list[int]
 
 
 class CriteriaSettings(_Section):
-    """What each case is checked for (``docs/validation.md``)."""
+    """What each case is checked for (``docs/validation.md``; ``sec:results``, ``sec:discussion``).
+
+    Attributes
+    ----------
+    share : float
+        A finding holds when it holds in at least this share of a subset's cases [-].
+    discomfort_weeks_per_12 : float
+        Most weeks with discomfort per 12 weeks [-].
+    h2_left : tuple of (float, float)
+        Range of the share of the store left at the end [-].
+    """
 
     share: float = Field(gt=0, le=1)
     discomfort_weeks_per_12: float = Field(ge=0, le=12)
@@ -126,7 +176,33 @@ class CriteriaSettings(_Section):
 
 
 class ValidationSettings(_Section):
-    """The ``validation`` section of ``config/validation.yaml``."""
+    """The ``validation`` section of ``config/validation.yaml``.
+
+    Attributes
+    ----------
+    weeks : int
+        Length of a case [weeks].
+    lookahead_h : int
+        Hours of data after the run for the day-ahead window [h].
+    start_month, start_day : int
+        Local start date of the winter cases.
+    prices_file, prices_column : str
+        ENTSO-E day-ahead price file of the winters and its price column [EUR/MWh].
+    winters : list of int
+        Years of the winters' Decembers.
+    stations : dict of str to StationSettings
+        Station key (lower case; it names the cases) -> station.
+    radiation : RadiationSettings
+    load_seed : int
+        Seed of the winter cases' appliance load.
+    dhw_file : str
+        DHWcalc file of the winter cases [l/h].
+    dhw_day1_weekday : int
+        Weekday of the DHWcalc file's day 1 (0 = Monday).
+    households : HouseholdSettings
+    development : SplitSettings
+    criteria : CriteriaSettings
+    """
 
     weeks: int = Field(ge=1)
     lookahead_h: int = Field(ge=0)
@@ -163,6 +239,16 @@ class ValidationSettings(_Section):
 def load_validation_settings(path: str | Path | None = None) -> ValidationSettings:
     """Read and check ``config/validation.yaml`` (or ``path``).
 
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        Parameter file with a ``validation`` section.
+
+    Returns
+    -------
+    ValidationSettings
+        The validated settings.
+
     Raises
     ------
     ConfigError
@@ -177,13 +263,20 @@ class ValidationCase:
 
     Attributes
     ----------
-    id : case name (``muenchen-2015-16``, ``household-101``)
-    kind : :data:`WEATHER` or :data:`HOUSEHOLD`
-    subset : :data:`DEVELOPMENT` or :data:`HELD_OUT`
-    winter : year of the winter's December
-    station : station key (winter cases; "" for households)
-    seed : seed of the modelled radiation, load and draws (households) or of the load (winters)
-    annual_kwh : annual appliance energy of a household case [kWh/a] (None: the scenario section's)
+    id : str
+        Case name (``muenchen-2015-16``, ``household-101``).
+    kind : str
+        :data:`WEATHER` or :data:`HOUSEHOLD`.
+    subset : str
+        :data:`DEVELOPMENT` or :data:`HELD_OUT`.
+    winter : int
+        Year of the winter's December.
+    station : str
+        Station key (winter cases; "" for households).
+    seed : int
+        Seed of the modelled radiation, load and draws (households) or of the load (winters).
+    annual_kwh : float or None
+        Annual appliance energy of a household case [kWh/a] (None: the scenario section's).
     """
 
     id: str
@@ -196,11 +289,23 @@ class ValidationCase:
 
     @property
     def scenario(self) -> str:
-        """The scenario name of the case (``validation/<id>``)."""
+        """Scenario name of the case (``validation/<id>``)."""
         return PREFIX + self.id
 
     def plant_overrides(self, settings: ValidationSettings) -> dict[str, Any]:
-        """Plant parameters the case's runs need: the station's site and holidays (winter cases)."""
+        """Return the plant parameters the case's runs need: the station's site and holidays (winter cases).
+
+        Parameters
+        ----------
+        settings : ValidationSettings
+            The validation settings (the stations).
+
+        Returns
+        -------
+        dict
+            Dotted plant parameter -> value (``site.latitude_deg`` [deg], ``site.altitude_m``
+            [m], ...); empty for a household case.
+        """
         if self.kind != WEATHER:
             return {}
         st = settings.stations[self.station]
@@ -209,12 +314,36 @@ class ValidationCase:
 
 
 def winter_id(station: str, winter: int) -> str:
-    """``muenchen-2015-16`` for the winter 2015/16 at ``muenchen``."""
+    """Name a winter case: ``muenchen-2015-16`` for the winter 2015/16 at ``muenchen``.
+
+    Parameters
+    ----------
+    station : str
+        Station key.
+    winter : int
+        Year of the winter's December.
+
+    Returns
+    -------
+    str
+        The case id.
+    """
     return f"{station}-{winter}-{(winter + 1) % 100:02d}"
 
 
 def validation_cases(settings: ValidationSettings | None = None) -> list[ValidationCase]:
-    """Every case of the validation set: the winters at each station, then the households."""
+    """List every case of the validation set: the winters at each station, then the households.
+
+    Parameters
+    ----------
+    settings : ValidationSettings, optional
+        The validation settings (default: read ``config/validation.yaml``).
+
+    Returns
+    -------
+    list of ValidationCase
+        The cases.
+    """
     s = settings or load_validation_settings()
     cases = []
     for station in s.stations:
@@ -231,7 +360,19 @@ def validation_cases(settings: ValidationSettings | None = None) -> list[Validat
 
 
 def case_of(name: str, settings: ValidationSettings | None = None) -> ValidationCase:
-    """The case called ``name`` (``validation/<id>`` or ``<id>``).
+    """Find the case called ``name`` (``validation/<id>`` or ``<id>``).
+
+    Parameters
+    ----------
+    name : str
+        Case or scenario name.
+    settings : ValidationSettings, optional
+        The validation settings (default: read).
+
+    Returns
+    -------
+    ValidationCase
+        The case.
 
     Raises
     ------
@@ -248,7 +389,18 @@ def case_of(name: str, settings: ValidationSettings | None = None) -> Validation
 
 
 def is_validation(spec: str | Path) -> bool:
-    """True for a scenario name of the validation set (``validation/<id>``)."""
+    """Tell whether a scenario name belongs to the validation set (``validation/<id>``).
+
+    Parameters
+    ----------
+    spec : str or pathlib.Path
+        A scenario name or path.
+
+    Returns
+    -------
+    bool
+        True if it starts with :data:`PREFIX`.
+    """
     return str(spec).startswith(PREFIX)
 
 
@@ -256,18 +408,24 @@ def is_validation(spec: str | Path) -> bool:
 
 
 def read_station_hourly(path: str | Path) -> pd.DataFrame:
-    """Hourly DWD station data with air temperature and sunshine duration.
+    """Read hourly DWD station data with air temperature and sunshine duration.
 
     The file has the columns ``MESS_DATUM`` (yyyymmddHH, UTC), ``TT_TU`` [degC] and ``SD_SO``
     (sunshine duration [min] of the hour *ending* at ``MESS_DATUM``; empty when the station
     reports none, at night); -999 marks a missing value.
 
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The station file.
+
     Returns
     -------
-    frame indexed by the UTC start of each hour with ``t_amb_c`` [degC] (``TT_TU`` of the stamp:
-    the hourly product's value at HH serves the step starting at HH, as for the default
-    scenario) and ``sunshine_min`` [min] (``SD_SO`` of the next stamp, i.e. of the hour that
-    starts here; NaN where none was reported).
+    pandas.DataFrame
+        Indexed by the UTC start of each hour, with ``t_amb_c`` [degC] (``TT_TU`` of the
+        stamp: the hourly product's value at HH serves the step starting at HH, as for the
+        default scenario) and ``sunshine_min`` [min] (``SD_SO`` of the next stamp, i.e. of
+        the hour that starts here; NaN where none was reported).
 
     Raises
     ------
@@ -277,6 +435,7 @@ def read_station_hourly(path: str | Path) -> pd.DataFrame:
     path = Path(path)
 
     def check(df: pd.DataFrame, where: Callable[[int], str]) -> None:
+        """Judge the temperatures [degC] and sunshine durations (0..60 min)."""
         check_values(path, "t_amb_c", df["TT_TU"].to_numpy(), where, "column 'TT_TU'")
         sun_a = df["SD_SO"].to_numpy()
         bad = np.flatnonzero((sun_a < 0) | (sun_a > MINUTES_PER_HOUR))
@@ -293,10 +452,22 @@ def read_station_hourly(path: str | Path) -> pd.DataFrame:
 
 
 def read_price_winters(path: str | Path, column: str) -> pd.Series:
-    """Hourly day-ahead prices [EUR/MWh] of an ENTSO-E export cut to several winters.
+    """Read the hourly day-ahead prices of an ENTSO-E export cut to several winters.
 
     Like :func:`~comems4build_ros.core.scenario.measured.read_entsoe_prices`, but the rows may
     jump from one winter to the next; within the data the hours must increase.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The CSV file (``utc_start`` and the price column).
+    column : str
+        The price column [EUR/MWh].
+
+    Returns
+    -------
+    pandas.Series
+        ``spot_eur_per_mwh`` [EUR/MWh] by UTC hour start.
 
     Raises
     ------
@@ -311,11 +482,28 @@ def read_price_winters(path: str | Path, column: str) -> pd.Series:
 
 def extraterrestrial_horizontal_w_m2(time_start: pd.DatetimeIndex, latitude_deg: float, longitude_deg: float,
                                      altitude_m: float) -> tuple[np.ndarray, np.ndarray]:
-    """Extraterrestrial irradiance on the horizontal R_a [W/m2] and the zenith [deg] at the middle of each hour.
+    """Compute the extraterrestrial irradiance on the horizontal R_a and the zenith at the middle of each hour.
 
     ``R_a = E_0 * max(cos(zenith), 0)`` with ``E_0`` = ``pvlib.irradiance.get_extra_radiation``
     (the solar constant with the Earth-Sun distance of the day) and the zenith of
     ``pvlib.solarposition`` at the middle of the hour (FAO-56 eq. 28 in its instantaneous form).
+
+    Parameters
+    ----------
+    time_start : pandas.DatetimeIndex
+        Start of each hour, tz-aware.
+    latitude_deg, longitude_deg : float
+        Site [deg].
+    altitude_m : float
+        Site altitude [m].
+
+    Returns
+    -------
+    r_a : numpy.ndarray
+        Extraterrestrial irradiance on the horizontal [W/m2], 0 with the sun below the
+        horizon.
+    zenith : numpy.ndarray
+        Solar zenith angle [deg].
     """
     import pvlib
 
@@ -336,7 +524,7 @@ def ghi_from_sunshine(
     time_start: pd.DatetimeIndex, sunshine_fraction: np.ndarray, latitude_deg: float, longitude_deg: float,
     altitude_m: float, a_s: float = 0.25, b_s: float = 0.50, model: str = "fao56",
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Hourly mean global and diffuse horizontal irradiance [W/m2] from the hour's sunshine fraction.
+    """Model the hourly mean global and diffuse horizontal irradiance from the hour's sunshine fraction.
 
     The Angstrom-Prescott relation (Angstrom 1924; Prescott 1940) in the form of FAO-56
     (Allen et al. 1998, eq. 35), ``R_s = (a_s + b_s * n / N) * R_a``, applied per hour:
@@ -354,16 +542,24 @@ def ghi_from_sunshine(
 
     Parameters
     ----------
-    time_start : UTC start of each hour
-    sunshine_fraction : sunshine duration of the hour / 60 min, in [0, 1] [-]
-    latitude_deg, longitude_deg : site [deg]
-    altitude_m : site altitude [m]
-    a_s, b_s : Angstrom-Prescott coefficients [-]
-    model : ``fao56`` (on R_a, the default) or ``ineichen`` (on the clear-sky GHI)
+    time_start : pandas.DatetimeIndex
+        UTC start of each hour.
+    sunshine_fraction : numpy.ndarray
+        Sunshine duration of the hour / 60 min, in [0, 1] [-].
+    latitude_deg, longitude_deg : float
+        Site [deg].
+    altitude_m : float
+        Site altitude [m].
+    a_s, b_s : float, optional
+        Angstrom-Prescott coefficients [-].
+    model : str, optional
+        ``fao56`` (on R_a, the default) or ``ineichen`` (on the clear-sky GHI).
 
     Returns
     -------
-    ghi, dhi : [W/m2], zero when the sun is below the horizon at the middle of the hour
+    ghi, dhi : numpy.ndarray
+        Global and diffuse horizontal irradiance [W/m2], zero when the sun is below the
+        horizon at the middle of the hour.
 
     Raises
     ------
@@ -395,11 +591,27 @@ def ghi_from_sunshine(
 
 
 def sunshine_fraction(sunshine_min: pd.Series, r_a_w_m2: np.ndarray, max_gap_h: int, source: str) -> np.ndarray:
-    """The hour's sunshine fraction [-]: 0 at night, gaps in daylight filled by interpolation.
+    """Return the hour's sunshine fraction: 0 at night, gaps in daylight filled by interpolation.
 
     A station reports no sunshine duration at night; an hour with the sun up (``R_a > 0``)
     and no report is a gap: runs of at most ``max_gap_h`` such hours take the fraction
     interpolated linearly in time between the neighbouring daylight reports.
+
+    Parameters
+    ----------
+    sunshine_min : pandas.Series
+        Sunshine duration of each hour [min], NaN where none was reported.
+    r_a_w_m2 : numpy.ndarray
+        Extraterrestrial irradiance on the horizontal of each hour [W/m2].
+    max_gap_h : int
+        Longest daylight gap filled [h].
+    source : str
+        The station file, for the message.
+
+    Returns
+    -------
+    numpy.ndarray
+        Sunshine fraction of each hour, in [0, 1] [-].
 
     Raises
     ------
@@ -426,6 +638,8 @@ def sunshine_fraction(sunshine_min: pd.Series, r_a_w_m2: np.ndarray, max_gap_h: 
 
 @dataclass(frozen=True)
 class _Built:
+    """A built case: its frame and ``meta``."""
+
     frame: pd.DataFrame
     meta: dict
 
@@ -435,6 +649,7 @@ _CACHE_MAX = 8
 
 
 def _data_path(name: str) -> Path:
+    """Return the path of a package data file."""
     from comems4build_ros.core.scenario.measured import data_dir
 
     return data_dir() / name
@@ -442,7 +657,7 @@ def _data_path(name: str) -> Path:
 
 def _winter_radiation(st: StationSettings, s: ValidationSettings, index: pd.DatetimeIndex, sunshine_min: pd.Series,
                       source: str, model: str = "fao56") -> tuple[np.ndarray, np.ndarray, int]:
-    """GHI and DHI [W/m2] of the hours ``index`` from the station's sunshine duration, and the daylight gaps [h]."""
+    """Model GHI and DHI [W/m2] of the hours ``index`` from sunshine duration; count the daylight gaps [h]."""
     r_a, _ = extraterrestrial_horizontal_w_m2(index, st.latitude_deg, st.longitude_deg, st.altitude_m)
     sf = sunshine_fraction(sunshine_min, r_a, s.radiation.max_gap_h, source)
     ghi, dhi = ghi_from_sunshine(index, sf, st.latitude_deg, st.longitude_deg, st.altitude_m,
@@ -452,9 +667,24 @@ def _winter_radiation(st: StationSettings, s: ValidationSettings, index: pd.Date
 
 def winter_radiation(case: ValidationCase, params: PlantParams, settings: ValidationSettings | None = None,
                      model: str = "fao56") -> pd.DataFrame:
-    """A winter case's radiation by ``model`` (:data:`SUNSHINE_MODELS`): ``ghi_w_m2``, ``dhi_w_m2`` [W/m2].
+    """Model a winter case's radiation by one of :data:`SUNSHINE_MODELS`.
 
-    The case's hours (weeks and look-ahead, UTC index); ``fao56`` is what its scenario holds.
+    Parameters
+    ----------
+    case : ValidationCase
+        A winter case.
+    params : PlantParams
+        Plant parameters (time zone).
+    settings : ValidationSettings, optional
+        The validation settings (default: read).
+    model : str, optional
+        ``fao56`` (what the case's scenario holds) or ``ineichen``.
+
+    Returns
+    -------
+    pandas.DataFrame
+        ``ghi_w_m2`` and ``dhi_w_m2`` [W/m2] over the case's hours (weeks and look-ahead,
+        UTC index).
     """
     s = settings or load_validation_settings()
     st = s.stations[case.station]
@@ -469,6 +699,7 @@ def winter_radiation(case: ValidationCase, params: PlantParams, settings: Valida
 
 def _winter_frame(case: ValidationCase, params: PlantParams, s: ValidationSettings, generator: Any,
                   n_hours: int) -> tuple[pd.DataFrame, dict]:
+    """Build a winter case's frame (UTC index) and ``meta`` from the package data."""
     from comems4build_ros.core.scenario.comfort import is_off_day
     from comems4build_ros.core.scenario.generator import _load, _streams
     from comems4build_ros.core.scenario.measured import dhwcalc_draws
@@ -524,6 +755,7 @@ def _winter_frame(case: ValidationCase, params: PlantParams, s: ValidationSettin
 
 def _household_frame(case: ValidationCase, params: PlantParams, s: ValidationSettings, n_hours: int,
                      generator: Any, measured: Any) -> tuple[pd.DataFrame, dict]:
+    """Build a household case's frame (UTC index) and ``meta`` on the paper's winter."""
     from comems4build_ros.core.scenario.generator import _dhw, _streams
     from comems4build_ros.core.scenario.measured import measured_frame
 
@@ -548,6 +780,15 @@ def _household_frame(case: ValidationCase, params: PlantParams, s: ValidationSet
 def check_site(case: ValidationCase, params: PlantParams, settings: ValidationSettings) -> None:
     """Refuse a plant that does not stand where the case's weather was measured.
 
+    Parameters
+    ----------
+    case : ValidationCase
+        A winter case.
+    params : PlantParams
+        The plant parameters of the run.
+    settings : ValidationSettings
+        The validation settings (the stations).
+
     Raises
     ------
     ScenarioError
@@ -570,15 +811,32 @@ def validation_frame(
     case: ValidationCase, params: PlantParams, settings: ValidationSettings | None = None,
     generator: Any = None, measured: Any = None,
 ) -> tuple[pd.DataFrame, dict]:
-    """All hours of a case (its weeks and look-ahead) as a scenario frame (UTC index) and its ``meta``.
+    """Build all hours of a case (its weeks and look-ahead) as a scenario frame, cached in memory.
 
     Parameters
     ----------
-    case : the case
-    params : plant parameters (site, time zone, holidays)
-    settings : ``config/validation.yaml`` (default: read)
-    generator : the synthetic generator's settings (``config/scenario.yaml`` section ``scenario``)
-    measured : the default scenario's settings (section ``measured``; household cases)
+    case : ValidationCase
+        The case.
+    params : PlantParams
+        Plant parameters (site, time zone, holidays).
+    settings : ValidationSettings, optional
+        ``config/validation.yaml`` (default: read).
+    generator : ScenarioParams, optional
+        The synthetic generator's settings (``config/scenario.yaml`` section ``scenario``).
+    measured : MeasuredParams, optional
+        The default scenario's settings (section ``measured``; household cases).
+
+    Returns
+    -------
+    frame : pandas.DataFrame
+        UTC-indexed, the scenario CSV columns (units in the names).
+    meta : dict
+        Provenance of each series (ENTSO-E, DWD, modelled), the case and its seed.
+
+    Raises
+    ------
+    ScenarioError
+        For data that do not cover the case.
     """
     from comems4build_ros.core.scenario.settings import load_measured_settings, load_scenario_settings
 
@@ -601,13 +859,22 @@ def validation_frame(
 
 
 def radiation_statistics(frame: pd.DataFrame, tz: str, n_steps: int) -> dict[str, float]:
-    """Daily GHI per calendar month [kWh/m2/d] and the diffuse share of GHI [-] of a run's steps.
+    """Compute the daily GHI per calendar month and the diffuse share of GHI over a run's steps.
 
     Parameters
     ----------
-    frame : scenario frame with a UTC index, ``ghi_w_m2`` and ``dhi_w_m2`` [W/m2]
-    tz : site time zone (months are local)
-    n_steps : steps of the run (the look-ahead is left out)
+    frame : pandas.DataFrame
+        Scenario frame with a UTC index, ``ghi_w_m2`` and ``dhi_w_m2`` [W/m2].
+    tz : str
+        Site time zone (months are local).
+    n_steps : int
+        Steps of the run (the look-ahead is left out).
+
+    Returns
+    -------
+    dict of str to float
+        ``ghi_kwh_m2_day_mMM`` per month [kWh/m2/d] and ``diffuse_share`` [-] (NaN without
+        irradiance).
     """
     f = frame.iloc[:n_steps]
     month = f.index.tz_convert(tz).month
