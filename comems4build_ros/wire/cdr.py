@@ -16,13 +16,30 @@ from array import array
 
 
 def cdr_prefix(label: str, n: int) -> bytes:
-    """CDR bytes of a ``Float64MultiArray`` (one dimension ``label``, size and stride ``n``,
-    data offset 0) up to its ``n`` float64 values, little endian (encapsulation CDR_LE).
+    """Serialise the head of a ``Float64MultiArray``: its CDR bytes up to its ``n`` float64 values.
 
-    Layout (alignment counted after the 4-byte encapsulation header): dimension count;
-    label length (with the terminating NUL), label, NUL, padding to 4; size; stride; data
-    offset; value count; padding to 8; then the values. Equal to rclpy's serialisation
-    (test/test_ros_node_base.py).
+    One dimension ``label``, size and stride ``n``, data offset 0, little endian
+    (encapsulation CDR_LE). Layout (alignment counted after the 4-byte encapsulation
+    header): dimension count; label length (with the terminating NUL), label, NUL, padding
+    to 4; size; stride; data offset; value count; padding to 8; then the values. Equal to
+    rclpy's serialisation (test/test_ros_node_base.py).
+
+    Parameters
+    ----------
+    label : str
+        Label of the one layout dimension.
+    n : int
+        Number of values.
+
+    Returns
+    -------
+    bytes
+        The prefix; append the values as little-endian float64 to get the message.
+
+    Raises
+    ------
+    RuntimeError
+        On a big-endian machine.
     """
     if sys.byteorder != "little":  # array.tobytes() is native: CDR_LE needs little endian
         raise RuntimeError("ready CDR bytes need a little-endian machine")
@@ -37,15 +54,36 @@ def cdr_prefix(label: str, n: int) -> bytes:
 
 
 def string_cdr(text: str) -> bytes:
-    """CDR bytes of a ``std_msgs/String`` holding ``text`` (encapsulation CDR_LE, length with
-    the NUL, UTF-8 bytes, NUL): what rclpy serialises, without house the message object
-    (test/test_ros_node_base.py)."""
+    """Serialise a ``std_msgs/String`` to CDR bytes, as rclpy does, without the message object.
+
+    Encapsulation CDR_LE, length with the NUL, UTF-8 bytes, NUL (test/test_ros_node_base.py).
+
+    Parameters
+    ----------
+    text : str
+        The string.
+
+    Returns
+    -------
+    bytes
+        The serialised message.
+    """
     raw = text.encode("utf-8")
     return b"\x00\x01\x00\x00" + (len(raw) + 1).to_bytes(4, "little") + raw + b"\0"
 
 
 def uint32_cdr(value: int) -> bytes:
-    """CDR bytes of a ``std_msgs/UInt32`` (``plant/step``): encapsulation CDR_LE, the value.
+    """Serialise a ``std_msgs/UInt32`` (``plant/step``) to CDR bytes: encapsulation CDR_LE, the value.
+
+    Parameters
+    ----------
+    value : int
+        The value, 0 .. 2**32 - 1.
+
+    Returns
+    -------
+    bytes
+        The serialised message.
 
     Raises
     ------
@@ -58,8 +96,19 @@ def uint32_cdr(value: int) -> bytes:
 
 
 def clock_cdr(t_ns: int) -> bytes:
-    """CDR bytes of a ``rosgraph_msgs/Clock`` at ``t_ns`` [ns since the epoch]: its
-    ``builtin_interfaces/Time`` as int32 ``sec`` and uint32 ``nanosec``, CDR_LE.
+    """Serialise a ``rosgraph_msgs/Clock`` to CDR bytes.
+
+    Its ``builtin_interfaces/Time`` as int32 ``sec`` and uint32 ``nanosec``, CDR_LE.
+
+    Parameters
+    ----------
+    t_ns : int
+        The time [ns since the epoch].
+
+    Returns
+    -------
+    bytes
+        The serialised message.
 
     Raises
     ------
@@ -73,7 +122,7 @@ def clock_cdr(t_ns: int) -> bytes:
 
 
 def _array_data(raw: bytes) -> tuple[int, int]:
-    """``(byte offset, count)`` of the values of a CDR ``Float64MultiArray`` (labels skipped).
+    """Locate the values of a CDR ``Float64MultiArray``: ``(byte offset, count)`` (labels skipped).
 
     Raises
     ------
@@ -104,11 +153,20 @@ def _array_data(raw: bytes) -> tuple[int, int]:
 
 
 def parse_array(raw: bytes) -> array:
-    """Values of a CDR-serialised ``Float64MultiArray`` (any layout dimensions), as ``array('d')``.
+    """Read the values of a CDR-serialised ``Float64MultiArray`` (any layout dimensions).
 
-    Reads the little-endian CDR directly (dimension labels skipped): about 10x cheaper
-    than rclpy's conversion to a message object, which the EMS node did 10 to 20 times
-    per step (docs/ros_tools.md "Profile of a step").
+    Reads the little-endian CDR directly (dimension labels skipped), without rclpy's
+    conversion to a message object (docs/ros_tools.md "Profile of a step").
+
+    Parameters
+    ----------
+    raw : bytes
+        The serialised message.
+
+    Returns
+    -------
+    array.array
+        The values as ``array('d')``, in the units of the topic's layout.
 
     Raises
     ------
@@ -122,7 +180,17 @@ def parse_array(raw: bytes) -> array:
 
 
 def array_step(raw: bytes) -> int:
-    """Element 0 (the step of every contract array topic) of a CDR ``Float64MultiArray``.
+    """Read element 0 of a CDR ``Float64MultiArray``: the step of every contract array topic.
+
+    Parameters
+    ----------
+    raw : bytes
+        The serialised message.
+
+    Returns
+    -------
+    int
+        The step.
 
     Raises
     ------
@@ -136,7 +204,17 @@ def array_step(raw: bytes) -> int:
 
 
 def uint32_value(raw: bytes) -> int:
-    """The value of a CDR ``std_msgs/UInt32`` (e.g. ``plant/step``).
+    """Read the value of a CDR ``std_msgs/UInt32`` (e.g. ``plant/step``).
+
+    Parameters
+    ----------
+    raw : bytes
+        The serialised message.
+
+    Returns
+    -------
+    int
+        The value.
 
     Raises
     ------

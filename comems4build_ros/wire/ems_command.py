@@ -24,7 +24,15 @@ COMMAND_RANGE_ABS_TOL_W = 1.0
 
 
 class CommandError(ValueError):
-    """An ``ems/command`` message is invalid; ``field`` names the offending element."""
+    """An ``ems/command`` message is invalid; ``field`` names the offending element.
+
+    Parameters
+    ----------
+    field : str
+        Label of the offending element (``(length)`` for a wrong length).
+    reason : str
+        What is wrong with it.
+    """
 
     def __init__(self, field: str, reason: str) -> None:
         super().__init__(f"field '{field}': {reason}")
@@ -34,13 +42,25 @@ class CommandError(ValueError):
 
 
 def command_bounds(params: PlantParams) -> dict[str, tuple[float, float]]:
-    """Accepted range of each ``ems/command`` field (device limits plus tolerance).
+    """Return the accepted range of each ``ems/command`` field (device limits plus tolerance).
 
-    hp_mod [-] in [0, 1]; p_fc_w [W] in [0, P_FC,max]; p_bess_w [W] in [-P_d,max, P_ch,max],
-    each widened by :data:`COMMAND_RANGE_REL_TOL` and :data:`COMMAND_RANGE_ABS_TOL_W`.
+    hp_mod [-] in [0, 1]; p_fc_w [W] in [0, P_FC,max]; p_bess_w [W] in [-P_d,max, P_ch,max];
+    p_el_w [W] in [0, P_EL,max]; each widened by :data:`COMMAND_RANGE_REL_TOL` and
+    :data:`COMMAND_RANGE_ABS_TOL_W`.
+
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (device limits, ``tab:parameters_PV_batt_dhw_h2``).
+
+    Returns
+    -------
+    dict of str to tuple of (float, float)
+        Field -> (lowest, highest) accepted value, in the field's unit.
     """
 
     def widen(lo: float, hi: float, abs_tol: float) -> tuple[float, float]:
+        """Widen ``[lo, hi]`` by the relative and the absolute tolerance."""
         span = max(abs(lo), abs(hi))
         tol = COMMAND_RANGE_REL_TOL * span + abs_tol
         return lo - tol, hi + tol
@@ -57,7 +77,18 @@ VALID_HP_MODES = (HP_OFF, HP_SH, HP_DHW, HP_COOL)
 
 
 def check_token(token: float) -> None:
-    """Raise :class:`CommandError` unless ``token`` is a run token (integer in 1 .. 2^53-1)."""
+    """Refuse a value that is not a run token (an integer in 1 .. 2^53-1).
+
+    Parameters
+    ----------
+    token : float
+        The command's token element.
+
+    Raises
+    ------
+    CommandError
+        Naming the field ``token``.
+    """
     if not 0 < token < MAX_TOKEN or token != int(token):
         raise CommandError("token", f"not an integer in 1..2^53-1: {token}")
 
@@ -66,6 +97,20 @@ def command_to_action(
     data: Sequence[float], layout: Layout, bounds: dict[str, tuple[float, float]]
 ) -> tuple[int, Action]:
     """Validate one ``ems/command`` payload and return ``(step, Action)``.
+
+    Parameters
+    ----------
+    data : sequence of float
+        The payload: step, the :class:`Action` fields (units in their names), token.
+    layout : Layout
+        The contract layout of ``ems/command``.
+    bounds : dict of str to tuple of (float, float)
+        Accepted ranges (:func:`command_bounds`).
+
+    Returns
+    -------
+    tuple of (int, Action)
+        The step and the action.
 
     Raises
     ------

@@ -40,7 +40,18 @@ BACKSTOP_MARK = "Timeout ("
 
 
 def exit_meaning(code: int) -> str:
-    """Words for a process's exit code (a negative code is the signal that killed it)."""
+    """Name what a process's exit code means.
+
+    Parameters
+    ----------
+    code : int
+        The exit code; a negative code is the signal that killed the process.
+
+    Returns
+    -------
+    str
+        Words from :data:`EXIT_CODES`, or ``killed by SIGTERM``-style words.
+    """
     import signal
 
     if code < 0:
@@ -52,10 +63,23 @@ def exit_meaning(code: int) -> str:
 
 
 def decided_before_hang(output: str) -> int | None:
-    """The exit code a node process's run had decided when its clean-up hung and the C-level
-    backstop ended it with code 1, read from the process's output (its log, or what ``ros2
-    launch`` saw on its stderr): a ``cleaning up: exit code N`` line (:data:`CLEANUP_TAG`),
-    then the backstop's :data:`BACKSTOP_MARK`; None if that is not what happened."""
+    """Read the exit code a node's run had decided before its clean-up hung.
+
+    When the clean-up hangs, the C-level backstop ends the process with code 1. The
+    decision is read from the process's output (its log, or what ``ros2 launch`` saw on its
+    stderr): a ``cleaning up: exit code N`` line (:data:`CLEANUP_TAG`), then the backstop's
+    :data:`BACKSTOP_MARK`.
+
+    Parameters
+    ----------
+    output : str
+        The process's output.
+
+    Returns
+    -------
+    int or None
+        N, or None if that is not what happened.
+    """
     _, tag, rest = output.rpartition(f"{CLEANUP_TAG} exit code ")
     if not tag or BACKSTOP_MARK not in rest:
         return None
@@ -68,16 +92,29 @@ def decided_before_hang(output: str) -> int | None:
 
 
 class HangWatch:
-    """Follows a process's output in chunks and keeps only what :func:`decided_before_hang`
-    needs: the text from the last ``cleaning up:`` line on (at most ``limit`` characters),
-    whatever the chunks' boundaries."""
+    """Follower of a process's output in chunks, for :func:`decided_before_hang`.
+
+    It keeps only the text from the last ``cleaning up:`` line on (at most ``limit``
+    characters), whatever the chunks' boundaries.
+
+    Parameters
+    ----------
+    limit : int, optional
+        Most characters kept.
+    """
 
     def __init__(self, limit: int = 65536) -> None:
         self.limit = limit
         self.text = ""
 
     def feed(self, chunk: str) -> None:
-        """Add a chunk of output [text]."""
+        """Add a chunk of output.
+
+        Parameters
+        ----------
+        chunk : str
+            The next part of the output.
+        """
         text = self.text + chunk
         at = text.rfind(CLEANUP_TAG)
         if at >= 0:
@@ -86,5 +123,11 @@ class HangWatch:
             self.text = text[-len(CLEANUP_TAG) + 1:]
 
     def decided(self) -> int | None:
-        """:func:`decided_before_hang` of what was fed."""
+        """Return :func:`decided_before_hang` of what was fed.
+
+        Returns
+        -------
+        int or None
+            The decided exit code, or None.
+        """
         return decided_before_hang(self.text)
