@@ -44,7 +44,18 @@ WITHHELD_EVENT = "withheld"
 
 
 def event_step_kind(line: str) -> tuple[int, str] | None:
-    """``(step, kind)`` of a ``plant/events`` line ``<step> <kind> <detail>`` (None if malformed)."""
+    """Split a ``plant/events`` line ``<step> <kind> <detail>``.
+
+    Parameters
+    ----------
+    line : str
+        The event line.
+
+    Returns
+    -------
+    tuple of (int, str) or None
+        ``(step, kind)``, or None if the line is malformed.
+    """
     parts = line.split(None, 2)
     if len(parts) < 2:
         return None
@@ -92,7 +103,19 @@ class ContractError(ValueError):
 
 @dataclass(frozen=True)
 class QoSSpec:
-    """QoS of one topic (``reliable``/``best_effort``, ``keep_last``, depth, durability)."""
+    """QoS of one topic.
+
+    Attributes
+    ----------
+    reliability : str
+        ``reliable`` or ``best_effort``.
+    history : str
+        ``keep_last`` or ``keep_all``.
+    depth : int
+        Queue depth [messages].
+    durability : str
+        ``volatile`` or ``transient_local``.
+    """
 
     reliability: str = "reliable"
     history: str = "keep_last"
@@ -102,11 +125,22 @@ class QoSSpec:
 
 @dataclass(frozen=True)
 class Field:
-    """One decoded entry of an array layout: a scalar (``size`` None) or a vector."""
+    """One decoded entry of an array layout: a scalar (``size`` None) or a vector.
 
-    name: str  # label name without size, may be dotted (``forecast.t_amb_c``)
-    start: int  # index of the first element
-    size: int | None  # None for a scalar
+    Attributes
+    ----------
+    name : str
+        Label name without size, may be dotted (``forecast.t_amb_c``); its unit is in the
+        name.
+    start : int
+        Index of the first element.
+    size : int or None
+        Number of elements; None for a scalar.
+    """
+
+    name: str
+    start: int
+    size: int | None
 
     @property
     def stop(self) -> int:
@@ -116,7 +150,20 @@ class Field:
 
 @dataclass(frozen=True)
 class Layout:
-    """Resolved layout of a ``Float64MultiArray`` topic."""
+    """Resolved layout of a ``Float64MultiArray`` topic.
+
+    Attributes
+    ----------
+    topic : str
+        Contract name of the topic.
+    fields : tuple of Field
+        The entries in element order.
+    length : int
+        Number of elements.
+    integer, boolean : frozenset of str
+        Field names read back as int and as bool (contract ``integer_labels``,
+        ``boolean_labels``).
+    """
 
     topic: str
     fields: tuple[Field, ...]
@@ -134,8 +181,11 @@ class Layout:
 
     @functools.cached_property
     def dim_label(self) -> str:
-        """Label of the message's one ``MultiArrayDimension``: the field names in order,
-        comma-separated, vectors as ``name[size]`` (what ``ros2 topic echo`` shows)."""
+        """Label of the message's one ``MultiArrayDimension``.
+
+        The field names in order, comma-separated, vectors as ``name[size]`` (what ``ros2
+        topic echo`` shows).
+        """
         return ",".join(f.name if f.size is None else f"{f.name}[{f.size}]" for f in self.fields)
 
     @functools.cached_property
@@ -146,7 +196,17 @@ class Layout:
         return out
 
     def pack(self, values: Mapping[str, Any]) -> array:
-        """Values by field name -> ``array('d')`` in layout order (vectors as sequences).
+        """Pack values by field name into the message's elements in layout order.
+
+        Parameters
+        ----------
+        values : mapping of str to object
+            Field name -> number, or sequence for a vector (units as in the names).
+
+        Returns
+        -------
+        array.array
+            ``array('d')`` of :attr:`length` elements.
 
         Raises
         ------
@@ -171,9 +231,20 @@ class Layout:
         return out
 
     def unpack(self, data: Sequence[float]) -> dict[str, Any]:
-        """Element sequence -> field name -> value (int/bool labels converted, vectors as float tuples).
+        """Unpack a message's elements into field name -> value.
 
         Dotted names are returned flat (``"forecast.t_amb_c"``); see :func:`nest`.
+
+        Parameters
+        ----------
+        data : sequence of float
+            The elements.
+
+        Returns
+        -------
+        dict of str to object
+            Field name -> float, int or bool (per :attr:`integer` and :attr:`boolean`), or a
+            tuple of floats for a vector.
 
         Raises
         ------
@@ -198,7 +269,18 @@ class Layout:
 
 
 def nest(flat: Mapping[str, Any]) -> dict[str, Any]:
-    """``{"forecast.t_amb_c": x}`` -> ``{"forecast": {"t_amb_c": x}}`` (one level)."""
+    """Nest dotted keys one level: ``{"forecast.t_amb_c": x}`` -> ``{"forecast": {"t_amb_c": x}}``.
+
+    Parameters
+    ----------
+    flat : mapping of str to object
+        Output of :meth:`Layout.unpack`.
+
+    Returns
+    -------
+    dict
+        Undotted keys as they are, dotted ones grouped under their head.
+    """
     out: dict[str, Any] = {}
     for key, value in flat.items():
         head, dot, tail = key.partition(".")
@@ -211,7 +293,27 @@ def nest(flat: Mapping[str, Any]) -> dict[str, Any]:
 
 @dataclass(frozen=True)
 class TopicSpec:
-    """One topic of the contract."""
+    """One topic of the contract.
+
+    Attributes
+    ----------
+    name : str
+        Contract name (relative, or ``/clock``).
+    type : str
+        Interface type (one of :data:`ALLOWED_TYPES`).
+    unit : str
+        Unit of the values.
+    publishers, subscribers : tuple of str
+        Nodes that may publish and subscribe (groups resolved).
+    qos : QoSSpec
+        The topic's QoS.
+    layout_labels : tuple of str
+        Layout labels of an array topic (``name``, ``name[size]``).
+    description : str
+        What the topic carries.
+    contract : Contract or None
+        The contract it belongs to (its integer and boolean labels).
+    """
 
     name: str
     type: str
@@ -229,7 +331,17 @@ class TopicSpec:
         return self.type == ARRAY_TYPE
 
     def layout(self, sizes: Mapping[str, int]) -> Layout:
-        """The resolved layout, symbols in ``name[symbol]`` looked up in ``sizes``.
+        """Resolve the topic's array layout.
+
+        Parameters
+        ----------
+        sizes : mapping of str to int
+            Values of the size symbols in ``name[symbol]`` (:func:`sizes`) [steps].
+
+        Returns
+        -------
+        Layout
+            The resolved layout.
 
         Raises
         ------
@@ -260,13 +372,33 @@ class TopicSpec:
         return Layout(self.name, tuple(fields_), pos, integer, boolean)
 
     def field_names(self) -> tuple[str, ...]:
-        """Field names of the layout without sizes (``step`` included)."""
+        """Return the field names of the layout without sizes (``step`` included).
+
+        Returns
+        -------
+        tuple of str
+            The names in layout order.
+        """
         return tuple(_LABEL_RE.match(raw).group("name") for raw in self.layout_labels)  # type: ignore[union-attr]
 
 
 @dataclass(frozen=True)
 class NodeSpec:
-    """One node of the contract."""
+    """One node of the contract.
+
+    Attributes
+    ----------
+    name : str
+        Node name.
+    role : str
+        One of :data:`NODE_ROLES`.
+    ems : str or None
+        EMS name of an EMS node (``config/ems.yaml``).
+    info_level : str or None
+        Information level of an EMS node (``tab:level_of_information``).
+    subscribes_all, publishes_all : bool
+        The node may subscribe to / publish every topic.
+    """
 
     name: str
     role: str
@@ -278,7 +410,21 @@ class NodeSpec:
 
 @dataclass
 class Contract:
-    """All topics and nodes of ``msg_defs/topics.yaml``."""
+    """All topics and nodes of ``msg_defs/topics.yaml``.
+
+    Attributes
+    ----------
+    path : pathlib.Path
+        The contract file.
+    version : int
+        Format version (1).
+    topics : dict of str to TopicSpec
+        Contract name -> topic.
+    nodes : dict of str to NodeSpec
+        Node name -> node (the EMS nodes of ``config/ems.yaml`` included).
+    integer_labels, boolean_labels : frozenset of str
+        Layout fields read back as int and as bool.
+    """
 
     path: Path
     version: int
@@ -288,7 +434,17 @@ class Contract:
     boolean_labels: frozenset[str]
 
     def topic(self, name: str) -> TopicSpec:
-        """Topic spec by contract name (relative, or ``/clock``; no namespace).
+        """Look up a topic by contract name (relative, or ``/clock``; no namespace).
+
+        Parameters
+        ----------
+        name : str
+            Contract name.
+
+        Returns
+        -------
+        TopicSpec
+            The topic.
 
         Raises
         ------
@@ -301,14 +457,43 @@ class Contract:
             raise ContractError(f"topic '{name}' is not in the contract {self.path}") from None
 
     def node(self, name: str) -> NodeSpec:
-        """Node spec by name."""
+        """Look up a node by name.
+
+        Parameters
+        ----------
+        name : str
+            Node name.
+
+        Returns
+        -------
+        NodeSpec
+            The node.
+
+        Raises
+        ------
+        ContractError
+            If the node is not in the contract.
+        """
         try:
             return self.nodes[name]
         except KeyError:
             raise ContractError(f"node '{name}' is not in the contract {self.path}") from None
 
     def may_publish(self, node: str, topic: str) -> bool:
-        """True if ``node`` may publish ``topic``."""
+        """Tell whether ``node`` may publish ``topic``.
+
+        Parameters
+        ----------
+        node : str
+            Node name.
+        topic : str
+            Contract name.
+
+        Returns
+        -------
+        bool
+            False also for an unknown node or topic.
+        """
         spec = self.topics.get(topic)
         nspec = self.nodes.get(node)
         if spec is None or nspec is None:
@@ -316,7 +501,20 @@ class Contract:
         return nspec.publishes_all or node in spec.publishers
 
     def may_subscribe(self, node: str, topic: str) -> bool:
-        """True if ``node`` may subscribe to ``topic``."""
+        """Tell whether ``node`` may subscribe to ``topic``.
+
+        Parameters
+        ----------
+        node : str
+            Node name.
+        topic : str
+            Contract name.
+
+        Returns
+        -------
+        bool
+            False also for an unknown node or topic.
+        """
         spec = self.topics.get(topic)
         nspec = self.nodes.get(node)
         if spec is None or nspec is None:
@@ -324,15 +522,53 @@ class Contract:
         return nspec.subscribes_all or node in spec.subscribers
 
     def published_by(self, node: str) -> tuple[TopicSpec, ...]:
-        """Topics ``node`` is declared to publish (explicitly, not via ``publishes_all``)."""
+        """List the topics ``node`` is declared to publish (explicitly, not via ``publishes_all``).
+
+        Parameters
+        ----------
+        node : str
+            Node name.
+
+        Returns
+        -------
+        tuple of TopicSpec
+            The topics, in contract order.
+        """
         return tuple(t for t in self.topics.values() if node in t.publishers)
 
     def subscribed_by(self, node: str) -> tuple[TopicSpec, ...]:
-        """Topics ``node`` is declared to subscribe to (explicitly)."""
+        """List the topics ``node`` is declared to subscribe to (explicitly).
+
+        Parameters
+        ----------
+        node : str
+            Node name.
+
+        Returns
+        -------
+        tuple of TopicSpec
+            The topics, in contract order.
+        """
         return tuple(t for t in self.topics.values() if node in t.subscribers)
 
     def ems_node_name(self, ems: str) -> str:
-        """Node name of the EMS ``ems`` (e.g. ``fuzzy`` -> ``fuzzy_ems``)."""
+        """Return the node name of an EMS (e.g. ``fuzzy`` -> ``fuzzy_ems``).
+
+        Parameters
+        ----------
+        ems : str
+            EMS name.
+
+        Returns
+        -------
+        str
+            The node name.
+
+        Raises
+        ------
+        ContractError
+            If no EMS node has that EMS, naming the known ones.
+        """
         for spec in self.nodes.values():
             if spec.role == "ems" and spec.ems == ems:
                 return spec.name
@@ -340,8 +576,20 @@ class Contract:
         raise ContractError(f"no EMS node for '{ems}' in {self.path} (known: {', '.join(known)})")
 
     def inputs_not_read(self, ems_node: str) -> tuple[str, ...]:
-        """Feed topics only EMS nodes read, and ``ems_node`` does not (its information level,
-        ``tab:level_of_information``): what a run of that EMS needs no feed to publish.
+        """List the feed topics only EMS nodes read and ``ems_node`` does not.
+
+        That follows from its information level (``tab:level_of_information``): what a run
+        of that EMS needs no feed to publish.
+
+        Parameters
+        ----------
+        ems_node : str
+            Node name of an EMS.
+
+        Returns
+        -------
+        tuple of str
+            Contract names of those topics.
 
         Raises
         ------
@@ -357,9 +605,20 @@ class Contract:
         )
 
     def input_fields(self, node: str) -> frozenset[str]:
-        """Observation field names the subscribed array topics of ``node`` deliver (``step`` excluded).
+        """Return the observation field names the subscribed array topics of ``node`` deliver.
 
-        Dotted labels count as their head (``forecast.t_amb_c`` -> ``forecast``).
+        Dotted labels count as their head (``forecast.t_amb_c`` -> ``forecast``); ``step`` is
+        left out.
+
+        Parameters
+        ----------
+        node : str
+            Node name.
+
+        Returns
+        -------
+        frozenset of str
+            The field names.
         """
         names: set[str] = set()
         for t in self.subscribed_by(node):
@@ -370,7 +629,18 @@ class Contract:
 
 
 def contract_path() -> Path:
-    """Path of ``topics.yaml``: source tree first, then the installed share directory."""
+    """Return the path of ``topics.yaml``: source tree first, then the installed share directory.
+
+    Returns
+    -------
+    pathlib.Path
+        The contract file.
+
+    Raises
+    ------
+    ContractError
+        If neither exists.
+    """
     found = shared_path("msg_defs", "msg_defs", CONTRACT_FILE)
     if found is None:
         raise ContractError(f"cannot find the topic contract ({SOURCE_ROOT / 'msg_defs' / CONTRACT_FILE} or "
@@ -379,13 +649,20 @@ def contract_path() -> Path:
 
 
 def sizes(params: Any = None, comfort_ahead: int | None = None) -> dict[str, int]:
-    """Values of the layout size symbols.
+    """Return the values of the layout size symbols.
 
     Parameters
     ----------
-    params : ``PlantParams`` (``simulation.horizon_h`` [h] / ``time_step_h`` [h] gives
-        ``horizon`` in steps); ``None`` uses the defaults of ``config/plant.yaml``.
-    comfort_ahead : comfort look-ahead [steps]; default :data:`COMFORT_AHEAD_STEPS`.
+    params : PlantParams, optional
+        ``simulation.horizon_h`` [h] / ``time_step_h`` [h] gives ``horizon`` in steps; None
+        uses the defaults of ``config/plant.yaml``.
+    comfort_ahead : int, optional
+        Comfort look-ahead [steps]; default :data:`COMFORT_AHEAD_STEPS`.
+
+    Returns
+    -------
+    dict of str to int
+        ``horizon`` and ``comfort_ahead`` [steps].
     """
     if params is None:
         from comems4build_ros.core.config import load_plant_params
@@ -397,10 +674,12 @@ def sizes(params: Any = None, comfort_ahead: int | None = None) -> dict[str, int
 
 
 def _err(path: Path, where: str, msg: str) -> ContractError:
+    """Return a ContractError naming the file and the place."""
     return ContractError(f"{path}: {where}: {msg}")
 
 
 def _names(path: Path, where: str, value: Any) -> tuple[str, ...]:
+    """Return a list of node names as a tuple (empty for None); refuse anything else."""
     if value is None:
         return ()
     if not isinstance(value, list) or not all(isinstance(v, str) for v in value):
@@ -409,7 +688,7 @@ def _names(path: Path, where: str, value: Any) -> tuple[str, ...]:
 
 
 def _ems_groups(ems_nodes: Mapping[str, tuple[str, str]]) -> dict[str, tuple[str, ...]]:
-    """``ems`` and ``ems:<level>`` -> the EMS nodes they stand for (levels of ``tab:level_of_information``)."""
+    """Map ``ems`` and ``ems:<level>`` to the EMS nodes they stand for (levels of ``tab:level_of_information``)."""
     from comems4build_ros.core.ems.base import INFO_LEVELS
 
     groups = {EMS_GROUP: tuple(ems_nodes)}
@@ -419,7 +698,7 @@ def _ems_groups(ems_nodes: Mapping[str, tuple[str, str]]) -> dict[str, tuple[str
 
 
 def _parse_nodes(doc: Mapping[str, Any], path: Path, ems_nodes: Mapping[str, tuple[str, str]]) -> dict[str, NodeSpec]:
-    """The ``nodes`` of the contract, and the EMS nodes (name -> (EMS, information level))."""
+    """Parse the ``nodes`` of the contract and add the EMS nodes (name -> (EMS, information level))."""
     nodes: dict[str, NodeSpec] = {}
     for name, raw in (doc.get("nodes") or {}).items():
         where = f"node '{name}'"
@@ -445,6 +724,7 @@ def _parse_nodes(doc: Mapping[str, Any], path: Path, ems_nodes: Mapping[str, tup
 
 
 def _parse_qos(raw: Mapping[str, Any], default_qos: Mapping[str, Any], path: Path, where: str) -> QoSSpec:
+    """Parse a topic's QoS over the contract's defaults."""
     qos_raw = {**default_qos, **(raw.get("qos") or {})}
     if set(qos_raw) - QOS_KEYS:
         raise _err(path, f"{where}.qos", f"unknown key(s): {', '.join(sorted(set(qos_raw) - QOS_KEYS))}")
@@ -461,6 +741,7 @@ def _parse_qos(raw: Mapping[str, Any], default_qos: Mapping[str, Any], path: Pat
 
 
 def _check_layout(layout: Any, type_name: str, path: Path, where: str) -> None:
+    """Refuse a layout that is missing, malformed or on a topic that is not an array."""
     if type_name == ARRAY_TYPE:
         if not isinstance(layout, list) or not layout:
             raise _err(path, f"{where}.layout", "a Float64MultiArray topic needs a non-empty label list")
@@ -480,6 +761,7 @@ def _check_layout(layout: Any, type_name: str, path: Path, where: str) -> None:
 
 def _parse_topic(name: Any, raw: Any, contract: Contract, groups: Mapping[str, tuple[str, ...]],
                  default_qos: Mapping[str, Any]) -> TopicSpec:
+    """Parse and check one topic of the contract."""
     path, where = contract.path, f"topic '{name}'"
     if not isinstance(name, str) or not _TOPIC_RE.match(name):
         raise _err(path, where, "name must be relative ('a/b', letters, digits, '_') or /clock")
@@ -514,10 +796,18 @@ def parse_contract(doc: Any, path: Path, ems_nodes: Mapping[str, tuple[str, str]
 
     Parameters
     ----------
-    doc : the YAML document
-    path : its file (named in errors)
-    ems_nodes : EMS node name -> (EMS name, information level); default the rows of
-        ``config/ems.yaml`` (:func:`comems4build_ros.core.ems.ems_table`)
+    doc : object
+        The YAML document.
+    path : pathlib.Path
+        Its file (named in errors).
+    ems_nodes : mapping of str to tuple of (str, str), optional
+        EMS node name -> (EMS name, information level); default the rows of
+        ``config/ems.yaml`` (:func:`comems4build_ros.core.ems.ems_table`).
+
+    Returns
+    -------
+    Contract
+        The contract.
 
     Raises
     ------
@@ -552,17 +842,47 @@ def parse_contract(doc: Any, path: Path, ems_nodes: Mapping[str, tuple[str, str]
 
 @functools.lru_cache(maxsize=4)
 def _load_cached(path: str) -> Contract:
+    """Load and parse the contract file ``path`` (cached)."""
     p = Path(path)
     return parse_contract(load_yaml(p, "the topic contract", ContractError), p)
 
 
 def load_contract(path: str | Path | None = None) -> Contract:
-    """Load (and cache) the contract; ``None`` = the package's ``msg_defs/topics.yaml``."""
+    """Load (and cache) the topic contract.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path, optional
+        The contract file; None = the package's ``msg_defs/topics.yaml``.
+
+    Returns
+    -------
+    Contract
+        The contract.
+
+    Raises
+    ------
+    ContractError
+        Naming the file, the topic or node and the rule broken.
+    """
     return _load_cached(str(Path(path) if path is not None else contract_path()))
 
 
 def resolve(namespace: str, topic: str) -> str:
-    """Absolute topic name of a contract name under ``namespace`` (``/`` = root; ``/clock`` stays)."""
+    """Return the absolute topic name of a contract name under a namespace.
+
+    Parameters
+    ----------
+    namespace : str
+        The namespace (``/`` = root).
+    topic : str
+        Contract name; an absolute one (``/clock``) stays as it is.
+
+    Returns
+    -------
+    str
+        The absolute name.
+    """
     if topic.startswith("/"):
         return topic
     ns = namespace.rstrip("/")
@@ -570,7 +890,20 @@ def resolve(namespace: str, topic: str) -> str:
 
 
 def relative(namespace: str, full_name: str) -> str | None:
-    """Contract name of an absolute topic ``full_name`` under ``namespace`` (None if outside)."""
+    """Return the contract name of an absolute topic under a namespace.
+
+    Parameters
+    ----------
+    namespace : str
+        The namespace.
+    full_name : str
+        Absolute topic name.
+
+    Returns
+    -------
+    str or None
+        The name relative to ``namespace``, or None if the topic lies outside it.
+    """
     ns = namespace.rstrip("/") + "/"
     if full_name.startswith(ns):
         return full_name[len(ns) :]
@@ -578,7 +911,20 @@ def relative(namespace: str, full_name: str) -> str | None:
 
 
 def markdown_table(contract: Contract | None = None, topics: Iterable[str] | None = None) -> str:
-    """Markdown table of the topics (name, type, unit, publishers, subscribers, layout)."""
+    """Format the topics as a Markdown table (name, type, unit, publishers, subscribers, layout).
+
+    Parameters
+    ----------
+    contract : Contract, optional
+        The contract (default: the package's).
+    topics : iterable of str, optional
+        Contract names of the rows (default: every topic).
+
+    Returns
+    -------
+    str
+        The table.
+    """
     c = contract or load_contract()
     rows = [
         "| topic | type | unit | publishers | subscribers (+ recorder) | layout |",

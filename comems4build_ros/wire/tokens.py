@@ -39,30 +39,81 @@ MAC_BYTES = 6
 
 
 def command_mac(secret: bytes, values: bytes) -> float:
-    """Authentication code of a command: the first :data:`MAC_BYTES` of HMAC-SHA256 of
-    ``values`` (the float64 bytes of every element but the token) under ``secret``, as a
-    token (an integer in 1 .. 2^48, float)."""
+    """Compute the authentication code of a command (run-secret mode).
+
+    The first :data:`MAC_BYTES` of HMAC-SHA256 of ``values`` under ``secret``.
+
+    Parameters
+    ----------
+    secret : bytes
+        HMAC key (:func:`secret_key`).
+    values : bytes
+        The float64 bytes of every element of the command but the token.
+
+    Returns
+    -------
+    float
+        The code as a token: an integer in 1 .. 2^48 - 1, exact in float64.
+    """
     code = int.from_bytes(hmac.digest(secret, values, "sha256")[:MAC_BYTES], "big")
     return float(code or 1)
 
 
 def secret_key(token: int) -> bytes:
-    """HMAC key of a run secret read from a token file."""
+    """Return the HMAC key of a run secret read from a token file.
+
+    Parameters
+    ----------
+    token : int
+        The run secret.
+
+    Returns
+    -------
+    bytes
+        Its decimal digits in ASCII.
+    """
     return str(int(token)).encode("ascii")
 
 
 def default_token(fully_qualified_name: str) -> int:
-    """Token of an EMS started without one: CRC-32 of its fully qualified node name + 1."""
+    """Return the token of an EMS started without one: CRC-32 of its fully qualified node name + 1.
+
+    Parameters
+    ----------
+    fully_qualified_name : str
+        The node's name with its namespace.
+
+    Returns
+    -------
+    int
+        The token, 1 .. 2^32.
+    """
     return zlib.crc32(fully_qualified_name.encode("utf-8")) + 1
 
 
 def new_token() -> int:
-    """A random run secret for one house of a launch (1 .. 2^53 - 1)."""
+    """Draw a random run secret for one house of a launch.
+
+    Returns
+    -------
+    int
+        The secret, 1 .. 2^53 - 1 (from :mod:`secrets`).
+    """
     return secrets.randbelow(MAX_TOKEN - 1) + 1
 
 
 def private_dir(path: str | Path) -> Path:
     """Create ``path`` (and parents) if needed and make it accessible to this user only (mode 0700).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The directory.
+
+    Returns
+    -------
+    pathlib.Path
+        The directory.
 
     Raises
     ------
@@ -78,8 +129,23 @@ def private_dir(path: str | Path) -> Path:
 
 
 def write_token_file(path: str | Path, token: int) -> Path:
-    """Write ``token`` to ``path`` readable by this user only (mode 0600, created so from
-    the start: never world-readable, not even for a moment), in a :func:`private_dir`."""
+    """Write a token to a file readable by this user only, in a :func:`private_dir`.
+
+    The file has mode 0600 from its creation on: never world-readable, not even for a
+    moment.
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The token file (replaced if present).
+    token : int
+        The token.
+
+    Returns
+    -------
+    pathlib.Path
+        The token file.
+    """
     p = Path(path)
     private_dir(p.parent)
     p.unlink(missing_ok=True)
@@ -90,7 +156,17 @@ def write_token_file(path: str | Path, token: int) -> Path:
 
 
 def read_token_file(path: str | Path) -> int:
-    """The token in ``path`` (see :func:`write_token_file`).
+    """Read the token in a token file (see :func:`write_token_file`).
+
+    Parameters
+    ----------
+    path : str or pathlib.Path
+        The token file.
+
+    Returns
+    -------
+    int
+        The token, 1 .. 2^53 - 1.
 
     Raises
     ------
