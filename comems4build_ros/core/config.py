@@ -424,7 +424,7 @@ def load_section(model: type[M], path: str | Path | None, default_file: str, sec
     Returns
     -------
     pydantic.BaseModel
-        The validated ``model`` instance.
+        The section as a ``model`` instance.
 
     Raises
     ------
@@ -1201,7 +1201,7 @@ def unknown_section_text(key: str) -> str:
     Parameters
     ----------
     key : str
-        The section name.
+        A top-level section of a user's plant parameter file.
 
     Returns
     -------

@@ -120,12 +120,10 @@ def discomfort_hours(t_air_c: np.ndarray, t_min_c: np.ndarray, t_max_c: np.ndarr
 
     Parameters
     ----------
-    t_air_c : numpy.ndarray
-        Air temperature compared with the band, per step [degC].
-    t_min_c, t_max_c : numpy.ndarray
-        Comfort bounds T_air,min and T_air,max of each step (``eq:T_min``) [degC].
+    t_air_c, t_min_c, t_max_c : numpy.ndarray
+        Air temperature and its bounds per step, as for :func:`discomfort_kh` [degC].
     dt_h : float
-        Step t_s [h].
+        Length of a step [h].
 
     Returns
     -------

@@ -337,10 +337,8 @@ class ObservationBuilder:
 
         Parameters
         ----------
-        k : int
-            The step to decide.
-        state : PlantState
-            State at the end of step ``k - 1``.
+        k, state
+            As for :meth:`data`.
 
         Returns
         -------

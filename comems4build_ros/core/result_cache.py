@@ -169,10 +169,8 @@ def store(kind: str, key: str, arrays: Sequence[np.ndarray]) -> bool:
 
     Parameters
     ----------
-    kind : str
-        Name of the computation.
-    key : str
-        Key from :func:`key_of`.
+    kind, key : str
+        As for :func:`load`.
     arrays : sequence of numpy.ndarray
         Results, stored as float arrays.
 

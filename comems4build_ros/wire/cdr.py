@@ -108,7 +108,7 @@ def clock_cdr(t_ns: int) -> bytes:
     Returns
     -------
     bytes
-        The serialised message.
+        The ``Clock`` message as CDR bytes.
 
     Raises
     ------
@@ -185,12 +185,12 @@ def array_step(raw: bytes) -> int:
     Parameters
     ----------
     raw : bytes
-        The serialised message.
+        A contract array message as CDR bytes.
 
     Returns
     -------
     int
-        The step.
+        Its step.
 
     Raises
     ------
@@ -209,12 +209,12 @@ def uint32_value(raw: bytes) -> int:
     Parameters
     ----------
     raw : bytes
-        The serialised message.
+        A ``UInt32`` message as CDR bytes.
 
     Returns
     -------
     int
-        The value.
+        The value, 0 .. 2**32 - 1.
 
     Raises
     ------

@@ -439,12 +439,12 @@ class Contract:
         Parameters
         ----------
         name : str
-            Contract name.
+            Contract name of the topic.
 
         Returns
         -------
         TopicSpec
-            The topic.
+            Its type, unit, publishers, subscribers, QoS and layout labels.
 
         Raises
         ------
@@ -462,12 +462,12 @@ class Contract:
         Parameters
         ----------
         name : str
-            Node name.
+            Name of a declared node or an EMS node.
 
         Returns
         -------
         NodeSpec
-            The node.
+            Its role (and EMS and information level for an EMS node).
 
         Raises
         ------
@@ -485,14 +485,15 @@ class Contract:
         Parameters
         ----------
         node : str
-            Node name.
+            The publishing node's name.
         topic : str
-            Contract name.
+            Contract name of the topic it would publish.
 
         Returns
         -------
         bool
-            False also for an unknown node or topic.
+            True if the topic lists the node among its publishers or the node publishes
+            all; False for an unknown node or topic.
         """
         spec = self.topics.get(topic)
         nspec = self.nodes.get(node)
@@ -501,19 +502,18 @@ class Contract:
         return nspec.publishes_all or node in spec.publishers
 
     def may_subscribe(self, node: str, topic: str) -> bool:
-        """Tell whether ``node`` may subscribe to ``topic``.
+        """Tell whether ``node`` may subscribe to ``topic`` (the reading side of :meth:`may_publish`).
 
         Parameters
         ----------
-        node : str
-            Node name.
-        topic : str
-            Contract name.
+        node, topic : str
+            The subscribing node's name and the contract name of the topic it would read.
 
         Returns
         -------
         bool
-            False also for an unknown node or topic.
+            True if the topic lists the node among its subscribers or the node subscribes
+            to all; False for an unknown node or topic.
         """
         spec = self.topics.get(topic)
         nspec = self.nodes.get(node)
@@ -527,12 +527,12 @@ class Contract:
         Parameters
         ----------
         node : str
-            Node name.
+            A publisher's name.
 
         Returns
         -------
         tuple of TopicSpec
-            The topics, in contract order.
+            The topics whose ``publishers`` name it, in contract order.
         """
         return tuple(t for t in self.topics.values() if node in t.publishers)
 
@@ -542,12 +542,12 @@ class Contract:
         Parameters
         ----------
         node : str
-            Node name.
+            A subscriber's name.
 
         Returns
         -------
         tuple of TopicSpec
-            The topics, in contract order.
+            The topics whose ``subscribers`` name it, in contract order.
         """
         return tuple(t for t in self.topics.values() if node in t.subscribers)
 
@@ -858,12 +858,12 @@ def load_contract(path: str | Path | None = None) -> Contract:
     Returns
     -------
     Contract
-        The contract.
+        The parsed contract (the same object again for the same path).
 
     Raises
     ------
     ContractError
-        Naming the file, the topic or node and the rule broken.
+        For an unreadable file, or as :func:`parse_contract`.
     """
     return _load_cached(str(Path(path) if path is not None else contract_path()))
 

@@ -345,7 +345,7 @@ class PriceSource(_CachedSource):
         Parameters
         ----------
         force : bool, optional
-            Fetch even if not due.
+            Fetch now, whatever :meth:`next_due` says.
 
         Returns
         -------
@@ -383,7 +383,7 @@ class PriceSource(_CachedSource):
         Parameters
         ----------
         t : float
-            A time [s since the epoch].
+            Any time within the hour [s since the epoch].
 
         Returns
         -------
@@ -453,7 +453,7 @@ class PriceSource(_CachedSource):
         Parameters
         ----------
         times : pandas.DatetimeIndex
-            Hour starts, tz-aware.
+            The run's hour starts, tz-aware in any zone.
 
         Returns
         -------
@@ -550,12 +550,8 @@ class WeatherSource(_CachedSource):
         The site's IANA time zone.
     cache_path : pathlib.Path
         Cache file (JSON: per series, UTC hour start [s] -> value); read on start if present.
-    warn : callable
-        Receives one line per failed fetch.
-    now : callable, optional
-        Clock [s since the epoch] (tests pass their own).
-    sleep : callable, optional
-        Wait between attempts [s] (tests pass their own).
+    warn, now, sleep : callable
+        As for :class:`PriceSource`.
     """
 
     def __init__(self, settings: LiveWeatherParams, timezone: str, cache_path: Path, warn: Callable[[str], None],
@@ -580,7 +576,7 @@ class WeatherSource(_CachedSource):
         Parameters
         ----------
         force : bool, optional
-            Fetch even if not due.
+            Fetch now, even before ``refresh_s`` has passed.
 
         Returns
         -------

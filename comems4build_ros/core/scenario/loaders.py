@@ -356,7 +356,7 @@ def read_dwd_solar(path: str | Path) -> pd.DataFrame:
     Parameters
     ----------
     path : str or pathlib.Path
-        The DWD product file.
+        The DWD 10-minute solar product (``GS_10``, ``DS_10``).
 
     Returns
     -------

@@ -275,10 +275,9 @@ def default_stats(params=None, seed: int | None = None) -> dict[str, float]:
 
     Parameters
     ----------
-    params : PlantParams, optional
-        Plant parameters (default ``config/plant.yaml``).
-    seed : int, optional
-        Seed of the modelled radiation and load (default ``config/scenario.yaml``).
+    params, seed : optional
+        Plant parameters (default ``config/plant.yaml``) and the seed of the modelled
+        radiation and load (default ``config/scenario.yaml``).
 
     Returns
     -------
@@ -336,10 +335,8 @@ def update_doc(path: str, table: str) -> None:
 
     Parameters
     ----------
-    path : str
-        The Markdown file.
-    table : str
-        The new text.
+    path, table : str
+        The Markdown file and the new text between its markers.
 
     Raises
     ------

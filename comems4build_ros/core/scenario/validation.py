@@ -394,7 +394,7 @@ def is_validation(spec: str | Path) -> bool:
     Parameters
     ----------
     spec : str or pathlib.Path
-        A scenario name or path.
+        What ``--scenario`` was given.
 
     Returns
     -------
@@ -460,14 +460,14 @@ def read_price_winters(path: str | Path, column: str) -> pd.Series:
     Parameters
     ----------
     path : str or pathlib.Path
-        The CSV file (``utc_start`` and the price column).
+        The CSV file (``utc_start`` and the price column), the winters one after another.
     column : str
-        The price column [EUR/MWh].
+        Name of the price column [EUR/MWh].
 
     Returns
     -------
     pandas.Series
-        ``spot_eur_per_mwh`` [EUR/MWh] by UTC hour start.
+        ``spot_eur_per_mwh`` [EUR/MWh] by UTC hour start, with jumps between winters.
 
     Raises
     ------
