@@ -20,7 +20,7 @@ DOC_BEGIN = "<!-- tariffs:begin -->"
 DOC_END = "<!-- tariffs:end -->"
 #: ct per EUR.
 CT_PER_EUR = 100.0
-#: Month of the middle of a year's first half (the table shows the components of January..June).
+#: The month whose components the table's price at spot 0 uses (the first half-year's).
 JANUARY = 1
 
 

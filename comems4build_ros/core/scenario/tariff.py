@@ -23,7 +23,6 @@ paper's tariff.
 
 from __future__ import annotations
 
-from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, Protocol
@@ -374,10 +373,3 @@ def make_tariff(name: str, params: PlantParams, commissioned: int | None = None,
         return HouseholdTariff(load_tariffs(path), params.site.timezone, int(commissioned))
     raise ScenarioError(f"unknown tariff '{name}' (known: {', '.join(TARIFFS)})")
 
-
-def components_of(tables: Tables, year: int, month: int) -> Mapping[str, float]:
-    """The net components, shares and feed-in rate of ``year`` in ``month`` (tables, tests) [EUR/kWh, -]."""
-    entry = tables.data.year(year, tables.path, "a table of the components")
-    out = {name: float(item.at(np.array([month]))[0]) for name, item in entry.sourced().items()
-           if item.known and not name.endswith("average_gross_eur_per_kwh")}
-    return out
