@@ -239,14 +239,6 @@ def test_a_year_or_feed_in_rate_the_data_lack_is_named(tmp_path):
         tf.make_tariff("flat", PARAMS)
 
 
-def test_validation_file_refuses_an_unknown_tariff(tmp_path):
-    text = (config_dir() / va.VALIDATION_FILE).read_text(encoding="utf-8")
-    path = tmp_path / "v.yaml"
-    path.write_text(text.replace("tariff: household", "tariff: flat"), encoding="utf-8")
-    with pytest.raises(ConfigError, match=r"v.yaml: parameter 'tariff': Input should be 'paper' or 'household'"):
-        va.load_validation_settings(path)
-
-
 # --------------------------------------------------------------------------- the documentation
 
 
