@@ -196,6 +196,9 @@ def test_bad_validation_file_is_named(tmp_path):
     path.write_text(text.replace("households: [101, 103, 105, 107]", "households: [101, 199]"), encoding="utf-8")
     with pytest.raises(ConfigError, match=r"development.households \[199\] are not among the household seeds"):
         va.load_validation_settings(path)
+    path.write_text(text.replace("tariff: household", "tariff: flat"), encoding="utf-8")
+    with pytest.raises(ConfigError, match=r"v.yaml: parameter 'tariff': Input should be 'paper' or 'household'"):
+        va.load_validation_settings(path)
 
 
 def test_radiation_statistics_by_local_month():
