@@ -187,14 +187,15 @@ class RCBuilding:
     """
 
     name = "rc"
-    __slots__ = ("params", "Ad", "Bd", "_ad", "_bd", "_bg")
+    __slots__ = ("params", "Ad", "Bd", "_coef", "_gains")
 
     def __init__(self, b: BuildingParams, dt_h: float) -> None:
         self.params = b
         self.Ad, self.Bd = discretize(b, dt_h)
-        self._ad = [[float(v) for v in row] for row in self.Ad]
-        self._bd = [[float(v) for v in row[:3]] for row in self.Bd]
-        self._bg = [float(v) for v in self.Bd[:, 3]] if self.Bd.shape[1] > 3 else None
+        #: row by row: A_d[i, 0..2], B_d[i, 0..2] as floats
+        self._coef = tuple(float(v) for i in range(3) for v in (*self.Ad[i], *self.Bd[i, :3]))
+        #: B_d[:, 3] of the internal gains, or None without them
+        self._gains = tuple(float(v) for v in self.Bd[:, 3]) if self.Bd.shape[1] > 3 else None
 
     def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
         """The walls on the steady-state profile between the air at ``t_air_c`` and ``t_amb_c`` without sun [degC]."""
@@ -211,19 +212,15 @@ class RCBuilding:
         """
         x0, x1, x2 = temps
         t_amb, q_s = exo.t_amb_c, exo.ghi_w_m2
-        a0, a1, a2 = self._ad
-        b0, b1, b2 = self._bd
-        if self._bg is not None:
-            g = exo.p_load_w
-            return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s
-                    + self._bg[0] * g,
-                    a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s
-                    + self._bg[1] * g,
-                    a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s
-                    + self._bg[2] * g)
-        return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s,
-                a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s,
-                a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s)
+        a00, a01, a02, b00, b01, b02, a10, a11, a12, b10, b11, b12, a20, a21, a22, b20, b21, b22 = self._coef
+        t_air = a00 * x0 + a01 * x1 + a02 * x2 + b00 * q_floor_w + b01 * t_amb + b02 * q_s
+        t_wi = a10 * x0 + a11 * x1 + a12 * x2 + b10 * q_floor_w + b11 * t_amb + b12 * q_s
+        t_wo = a20 * x0 + a21 * x1 + a22 * x2 + b20 * q_floor_w + b21 * t_amb + b22 * q_s
+        if self._gains is None:
+            return t_air, t_wi, t_wo
+        g = exo.p_load_w
+        g0, g1, g2 = self._gains
+        return t_air + g0 * g, t_wi + g1 * g, t_wo + g2 * g
 
     def close(self) -> None:
         """Nothing to end: the 4R3C is plain arithmetic."""
