@@ -30,8 +30,10 @@ Without an electrolyser (``electrolyser.n_modules = 0``) and with cooling disabl
 paper's plant), every added term is an exact 0.0 and the step is the paper's.
 
 :meth:`Plant.step` calls one function per device of :mod:`comems4build_ros.core.models`
-in that order; each is plain float arithmetic on precomputed coefficients (no numpy), for
-speed (``comems4build bench plant``). The building's thermal model is any
+in that order; each is plain float arithmetic on coefficients computed once (no numpy, no
+validated-parameter reads in the step). An action of finite floats and an ``int`` circuit
+of {off, SH, DHW} skips the sanitising of step 1, whose result would be the same.
+The building's thermal model is any
 :class:`~comems4build_ros.core.models.building.BuildingModel` (the paper's 4R3C by default).
 """
 
@@ -45,7 +47,7 @@ from comems4build_ros.core.models import battery, grid
 from comems4build_ros.core.models.building import BuildingModel, RCBuilding
 from comems4build_ros.core.models.dhw import Tank
 from comems4build_ros.core.models.electrolyser import ElectrolyserTable
-from comems4build_ros.core.models.fuel_cell import FuelCell
+from comems4build_ros.core.models.fuel_cell import FuelCell, FuelCellTable
 from comems4build_ros.core.models.heat_pump import HeatPump
 from comems4build_ros.core.types import (
     CLIP_BESS_POWER,
@@ -71,7 +73,7 @@ _MODES = {0.0: HP_OFF, 1.0: HP_SH, 2.0: HP_DHW}
 
 
 def _as_float(value) -> float:
-    """``float(value)``, or NaN for anything that is not a number."""
+    """Return ``float(value)``, or NaN for anything that is not a number."""
     try:
         return float(value)
     except (TypeError, ValueError, OverflowError):
@@ -79,7 +81,7 @@ def _as_float(value) -> float:
 
 
 def _finite_or_zero(value) -> tuple[float, int]:
-    """A set-point as a finite float (NaN, inf and non-numbers count as 0) and its clip bit."""
+    """Return a set-point as a finite float (NaN, inf and non-numbers count as 0) and its clip bit."""
     x = _as_float(value)
     return (x, 0) if math.isfinite(x) else (0.0, CLIP_NONFINITE)
 
@@ -93,6 +95,25 @@ class Plant:
         Validated plant parameters (:func:`comems4build_ros.core.config.load_plant_params`).
     building : BuildingModel, optional
         The thermal model of the rooms; default the paper's 4R3C of ``params.building``.
+
+    Attributes
+    ----------
+    params : PlantParams
+        The parameters it was built from.
+    dt_h : float
+        Step t_s [h].
+    battery : Battery
+        The battery's parameters as plain attributes (:mod:`~comems4build_ros.core.models.battery`).
+    fuel_cell : FuelCell
+        Fuel cell and H2 store (:mod:`~comems4build_ros.core.models.fuel_cell`).
+    heat_pump : HeatPump
+        Heat pump (:mod:`~comems4build_ros.core.models.heat_pump`).
+    el_table : ElectrolyserTable
+        Electrolyser modules (:mod:`~comems4build_ros.core.models.electrolyser`), none by default.
+    tank : Tank
+        DHW tank (:mod:`~comems4build_ros.core.models.dhw`).
+    building : BuildingModel
+        Thermal model of the rooms.
 
     Raises
     ------
@@ -118,18 +139,33 @@ class Plant:
         self._loh_max, self._e_h2_wh = fc.loh_max, fc.e_h2_wh
 
     @property
-    def fc_table(self):
+    def fc_table(self) -> FuelCellTable:
         """The fuel cell's P_H2(P_el) table (:class:`~comems4build_ros.core.models.fuel_cell.FuelCellTable`)."""
         return self.fuel_cell.table
 
     # ------------------------------------------------------------------ state
     def initial_state(self, t_amb_c: float | None = None) -> PlantState:
-        """State at the start of a run (``simulation`` section of the parameters).
+        """Return the state at the start of a run (``simulation`` section of the parameters).
 
         The building model gives the node temperatures for the air at T_air,init and the
-        ambient temperature ``t_amb_c`` (default ``building.t_amb_init_c``); the 4R3C's walls
-        start on the steady-state profile between the two, as if the house had been held at
-        T_air,init without sun.
+        ambient temperature ``t_amb_c``; the 4R3C's walls start on the steady-state profile
+        between the two, as if the house had been held at T_air,init without sun.
+
+        Parameters
+        ----------
+        t_amb_c : float, optional
+            Ambient temperature before the run [degC] (default ``building.t_amb_init_c``).
+
+        Returns
+        -------
+        PlantState
+            SOC, LOH and DHW volume of the ``simulation`` section, node temperatures [degC],
+            heat pump, fuel cell and electrolyser off.
+
+        Raises
+        ------
+        ValueError
+            If the initial SOC, LOH or volume lies outside its bounds.
         """
         sim = self.params.simulation
         t_amb = self.params.building.t_amb_init_c if t_amb_c is None else float(t_amb_c)
@@ -140,7 +176,20 @@ class Plant:
         return state
 
     def check_state(self, state: PlantState) -> None:
-        """Raise ValueError if a state is not finite or outside the storage bounds."""
+        """Raise ValueError if a state is not finite or outside the storage bounds.
+
+        Parameters
+        ----------
+        state : PlantState
+            SOC within [SOC_min, SOC_max] (``eq:SOC_const``), LOH within [LOH_min, LOH_max],
+            DHW volume within [V_min, V_max] [l] (``eq:DHW_model``), each up to
+            :data:`STATE_TOL`; finite node temperatures [degC].
+
+        Raises
+        ------
+        ValueError
+            Naming the first field out of bounds or not finite.
+        """
         b, fc, tank = self._b, self.fuel_cell, self.tank
         checks = (
             ("soc", state.soc, b.soc_min, b.soc_max),
@@ -169,8 +218,10 @@ class Plant:
 
         Returns
         -------
-        (PlantState, Flows)
-            State at the end of the step and everything that flowed in it.
+        state : PlantState
+            State at the end of the step.
+        flows : Flows
+            Everything that flowed in it (powers [W], heat flows [W], the clip bits).
 
         Raises
         ------
@@ -238,7 +289,7 @@ class Plant:
                       el_on and not el_was_on, p_h2_el, q_el_in, q_el_dump, q_cool))
 
     def _command(self, action: Action) -> tuple[float, int, float, float, float, int]:
-        """The action's set-points as finite floats and a known circuit, with their clip bits.
+        """Return the action's set-points as finite floats and a known circuit, with their clip bits.
 
         Non-finite or non-numeric values count as 0 (``CLIP_NONFINITE``); an unknown circuit
         (cooling where the plant cannot cool) switches the heat pump off (``CLIP_HP_MODE``).
@@ -262,6 +313,7 @@ class Plant:
 
     @staticmethod
     def _raise_exo(exo: Exogenous) -> None:
+        """Raise ValueError naming the first non-finite or negative field of ``exo``."""
         for name in EXOGENOUS_FIELDS:
             value = getattr(exo, name)
             if not isinstance(value, (int, float)) or not math.isfinite(value):

@@ -44,19 +44,20 @@ class Battery:
 
 
 def power_limits_w(soc: float, b: BatteryParams, dt_h: float) -> tuple[float, float]:
-    """Largest charging and discharging power [W] the SOC bounds and power limits allow.
+    """Return the largest charging and discharging power the SOC bounds and power limits allow.
 
     Parameters
     ----------
     soc : float
         SOC[k-1] [-].
     b : BatteryParams
+        The battery's parameters (``e_max_kwh`` [kWh], ratings [W], efficiencies and SOC bounds [-]).
     dt_h : float
-        Step [h].
+        Step t_s [h].
 
     Returns
     -------
-    (p_ch_max_w, p_d_max_w) : tuple of float
+    p_ch_max_w, p_d_max_w : float
         Upper limits of P_ch and P_d in this step [W] (``eq:SOC_const`` and
         ``eq:bat_ch_dis_const`` together).
     """
