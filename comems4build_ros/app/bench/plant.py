@@ -2,8 +2,9 @@
 
 ``comems4build bench plant`` times :meth:`comems4build_ros.core.plant.Plant.step` on the default
 scenario (2016 hourly steps for 12 weeks, repeated) with random but valid actions, and
-prints the steps per second and the time one 12-week run of the plant takes. Target:
-at least 20,000 steps/s.
+prints the steps per second (wall clock and the process's CPU time) and the time one
+12-week run of the plant takes. Target: at least 200,000 steps/s on a quiet machine.
+``tools/bench_plant_against.py`` runs the same workload side by side with other revisions.
 
 It then prints the paper's sizing rule for the default house (``sec:parameters``):
 the full H2 store at the FC's mean electrical efficiency should cover about half of the
@@ -15,13 +16,14 @@ at COP(T_amb, 45 degC)), and a run of the thermostat baseline through the plant.
 from __future__ import annotations
 
 import argparse
+import os
 from typing import Any
 
 from comems4build_ros.app.bench.plant_workload import time_plant, workload
 from comems4build_ros.app.commands.options import COUNT, SEED
 
-#: Speed target of the project [steps/s] (reported, not enforced).
-TARGET_STEPS_PER_S = 20_000.0
+#: Speed target of the project on a quiet machine [steps/s] (reported, not enforced).
+TARGET_STEPS_PER_S = 200_000.0
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -115,11 +117,13 @@ def run(args: argparse.Namespace) -> int:
     weeks = len(exo) * plant.dt_h / (7 * 24)
     ok = "meets" if r["steps_per_s"] >= TARGET_STEPS_PER_S else "MISSES"
     print(f"plant step: {len(exo)} steps ({weeks:g} weeks) x {args.repeats} repeats, random valid actions")
-    print(f"  steps per second      : {r['steps_per_s']:,.0f}  ({ok} the target of {TARGET_STEPS_PER_S:,.0f})")
+    print(f"  steps per second      : {r['steps_per_s']:,.0f}  "
+          f"({ok} the target of {TARGET_STEPS_PER_S:,.0f} on a quiet machine)")
     print(f"  steps per CPU second  : {r['steps_per_cpu_s']:,.0f}")
     print(f"  time per step         : {1e6 / r['steps_per_s']:.2f} us")
     print(f"  one {weeks:g}-week run     : {r['run_s_mean'] * 1e3:.1f} ms mean, {r['run_s_best'] * 1e3:.1f} ms best")
     print(f"  max |balance residual|: {r['max_residual_w']:.2e} W")
+    print(f"  load average          : {' '.join(f'{x:.2f}' for x in os.getloadavg())} (1, 5, 15 min) after the run")
     if not args.no_sizing:
         s = sizing_check(params, scenario, exo)
         print(
