@@ -39,12 +39,22 @@ Temperatures = tuple[float, float, float]
 
 
 def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
-    """Continuous-time matrices A [1/s] and B of dx/dt = A x + B u.
+    """Build the continuous-time matrices of dx/dt = A x + B u (``eq:dT_i`` .. ``eq:dT_wout``).
+
+    Parameters
+    ----------
+    b : BuildingParams
+        Capacities ``c_air_j_per_k``, ``c_wall_j_per_k`` [J/K], resistances ``r_*_k_per_w``
+        [K/W], ``f_conv`` [-], ``g_s_m2`` [m2], ``a_sol_k_m2_per_w`` [K m2/W] and
+        ``f_gains_air`` [-].
 
     Returns
     -------
-    (A, B) : numpy.ndarray of shape (3, 3) and (3, 3), or (3, 4) with ``f_gains_air`` > 0 (the
-        appliance load P_el,load [W] as a fourth input into the air node)
+    A : numpy.ndarray, shape (3, 3)
+        State matrix [1/s] for x = [T_air, T_w,in, T_w,out].
+    B : numpy.ndarray, shape (3, 3), or (3, 4) with ``f_gains_air`` > 0
+        Input matrix for u = [Q_h,SH [W], T_amb [degC], q_s [W/m2]] (and the appliance load
+        P_el,load [W] as a fourth input into the air node).
     """
     ca, cw = b.c_air_j_per_k, b.c_wall_j_per_k
     g_wa = 1.0 / b.r_w_air_k_per_w
@@ -71,19 +81,27 @@ def continuous(b: BuildingParams) -> tuple[np.ndarray, np.ndarray]:
 
 
 def discretize(b: BuildingParams, dt_h: float) -> tuple[np.ndarray, np.ndarray]:
-    """Zero-order-hold discretisation, ``eq:state_update_bldgs``.
+    """Discretise the model with a zero-order hold, ``eq:state_update_bldgs``.
 
     Parameters
     ----------
     b : BuildingParams
+        The 4R3C's parameters (:func:`continuous`).
     dt_h : float
         Step t_s [h] (> 0).
 
     Returns
     -------
-    (Ad, Bd) : numpy.ndarray of shape (3, 3) each
-        x[k+1] = Ad x[k] + Bd u[k] for x = [T_air, T_w,in, T_w,out] [degC] and
-        u = [Q_h,SH [W], T_amb [degC], q_s [W/m2]].
+    Ad : numpy.ndarray, shape (3, 3)
+        State transition over one step [-].
+    Bd : numpy.ndarray, shape (3, 3) or (3, 4)
+        Input matrix over one step: x[k+1] = Ad x[k] + Bd u[k] for x = [T_air, T_w,in,
+        T_w,out] [degC] and u = [Q_h,SH [W], T_amb [degC], q_s [W/m2]] (and P_el,load [W]).
+
+    Raises
+    ------
+    ValueError
+        If ``dt_h`` is not positive.
     """
     if not dt_h > 0:
         raise ValueError(f"building: dt_h must be > 0 h, got {dt_h}")
@@ -108,7 +126,7 @@ EXPM_DIGITS = 12
 
 
 def _expm(m: np.ndarray) -> np.ndarray:
-    """Matrix exponential of ``m`` (SciPy's Pade approximation with scaling and squaring)."""
+    """Return the matrix exponential of ``m`` (SciPy's Pade approximation), rounded to :data:`EXPM_DIGITS`."""
     from scipy.linalg import expm  # here, not at the top: a process that finds it cached skips SciPy
 
     phi = expm(m)
@@ -116,7 +134,24 @@ def _expm(m: np.ndarray) -> np.ndarray:
 
 
 def steady_state_c(q_sh_w: float, t_amb_c: float, q_s_w_m2: float, b: BuildingParams) -> np.ndarray:
-    """Equilibrium node temperatures [degC] for constant inputs (solves A x + B u = 0; no internal gains)."""
+    """Solve for the equilibrium node temperatures under constant inputs (A x + B u = 0, no internal gains).
+
+    Parameters
+    ----------
+    q_sh_w : float
+        Space-heating heat Q_h,SH [W].
+    t_amb_c : float
+        Ambient temperature [degC].
+    q_s_w_m2 : float
+        Global horizontal irradiance q_s [W/m2].
+    b : BuildingParams
+        The 4R3C's parameters.
+
+    Returns
+    -------
+    numpy.ndarray, shape (3,)
+        [T_air, T_w,in, T_w,out] [degC].
+    """
     a, bm = continuous(b)
     u = [q_sh_w, t_amb_c, q_s_w_m2] + [0.0] * (bm.shape[1] - 3)
     return np.linalg.solve(a, -bm @ np.array(u, dtype=float))
@@ -127,10 +162,12 @@ def simulate(x0, u, Ad: np.ndarray, Bd: np.ndarray) -> np.ndarray:
 
     Parameters
     ----------
-    x0 : array-like, shape (3,)
+    x0 : array_like, shape (3,)
         Initial state [degC].
-    u : array-like, shape (n, 3)
-        Inputs per step.
+    u : array_like, shape (n, 3)
+        Inputs per step: Q_h,SH [W], T_amb [degC], q_s [W/m2].
+    Ad, Bd : numpy.ndarray
+        The discrete model (:func:`discretize`).
 
     Returns
     -------
@@ -149,26 +186,51 @@ def simulate(x0, u, Ad: np.ndarray, Bd: np.ndarray) -> np.ndarray:
 class BuildingModel(Protocol):
     """The thermal model of the house's rooms as the plant uses it.
 
-    ``name`` names the model (``rc`` for the paper's 4R3C). A model that keeps a state of
-    its own (a simulator in co-simulation) advances it at each :meth:`step` call; the plant
-    calls it once per step, in order.
+    A model that keeps a state of its own (a simulator in co-simulation) advances it at each
+    :meth:`step` call; the plant calls it once per step, in order.
+
+    Attributes
+    ----------
+    name : str
+        The model's name (``rc`` for the paper's 4R3C).
     """
 
     name: str
 
     def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
-        """Node temperatures at the start of a run [degC] for the air at ``t_air_c`` and ambient ``t_amb_c``."""
-        ...
-
-    def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
-        """Node temperatures at the end of a step [degC].
+        """Return the node temperatures at the start of a run.
 
         Parameters
         ----------
-        temps : node temperatures at its start [degC]
-        q_floor_w : heat into the floor from the emission system [W] (negative: cooling)
-        exo : the step's weather and loads (``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], the appliance
-            load ``p_load_w`` [W] whose heat a detailed model releases in the rooms, ...)
+        t_air_c : float
+            Indoor air temperature at the start [degC].
+        t_amb_c : float
+            Ambient temperature before the run [degC].
+
+        Returns
+        -------
+        Temperatures
+            (T_air, T_w,in, T_w,out) [degC].
+        """
+        ...
+
+    def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
+        """Advance the model by one step.
+
+        Parameters
+        ----------
+        temps : Temperatures
+            Node temperatures at the step's start [degC].
+        q_floor_w : float
+            Heat into the floor from the emission system [W] (negative: cooling).
+        exo : Exogenous
+            The step's weather and loads (``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], the
+            appliance load ``p_load_w`` [W] whose heat a detailed model releases in the rooms).
+
+        Returns
+        -------
+        Temperatures
+            Node temperatures at the step's end [degC].
         """
         ...
 
@@ -180,24 +242,47 @@ class BuildingModel(Protocol):
 class RCBuilding:
     """The paper's 4R3C building model (``eq:state_update_bldgs``) for steps of ``dt_h`` hours.
 
+    The model structure is Langner et al. (2024), the one the paper cites in ``sec:bldg``.
+
     Parameters
     ----------
     b : BuildingParams
-    dt_h : step t_s [h]
+        The 4R3C's parameters (:func:`continuous`).
+    dt_h : float
+        Step t_s [h].
+
+    Attributes
+    ----------
+    Ad, Bd : numpy.ndarray
+        The discrete model (:func:`discretize`).
     """
 
     name = "rc"
-    __slots__ = ("params", "Ad", "Bd", "_ad", "_bd", "_bg")
+    __slots__ = ("params", "Ad", "Bd", "_coef", "_gains")
 
     def __init__(self, b: BuildingParams, dt_h: float) -> None:
         self.params = b
         self.Ad, self.Bd = discretize(b, dt_h)
-        self._ad = [[float(v) for v in row] for row in self.Ad]
-        self._bd = [[float(v) for v in row[:3]] for row in self.Bd]
-        self._bg = [float(v) for v in self.Bd[:, 3]] if self.Bd.shape[1] > 3 else None
+        #: row by row: A_d[i, 0..2], B_d[i, 0..2] as floats
+        self._coef = tuple(float(v) for i in range(3) for v in (*self.Ad[i], *self.Bd[i, :3]))
+        #: B_d[:, 3] of the internal gains, or None without them
+        self._gains = tuple(float(v) for v in self.Bd[:, 3]) if self.Bd.shape[1] > 3 else None
 
     def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
-        """The walls on the steady-state profile between the air at ``t_air_c`` and ``t_amb_c`` without sun [degC]."""
+        """Return the walls on the steady-state profile between the air and the ambient, without sun.
+
+        Parameters
+        ----------
+        t_air_c : float
+            Indoor air temperature [degC].
+        t_amb_c : float
+            Ambient temperature [degC].
+
+        Returns
+        -------
+        Temperatures
+            (T_air, T_w,in, T_w,out) [degC] along the resistance chain R_w,air, R_w, R_w,amb.
+        """
         b = self.params
         r_chain = b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w
         dt = t_air_c - t_amb_c
@@ -205,25 +290,35 @@ class RCBuilding:
                 t_air_c - dt * (b.r_w_air_k_per_w + b.r_w_k_per_w) / r_chain)
 
     def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
-        """x[k+1] = A_d x[k] + B_d u[k] with u = [Q_h,SH, T_amb, q_s] (plain float arithmetic).
+        """Advance by one step, x[k+1] = A_d x[k] + B_d u[k] with u = [Q_h,SH, T_amb, q_s] (``eq:state_update_bldgs``).
 
         With ``f_gains_air`` > 0 the appliance load ``exo.p_load_w`` is a fourth input.
+
+        Parameters
+        ----------
+        temps : Temperatures
+            x[k] [degC].
+        q_floor_w : float
+            Q_h,SH [W] (negative: cooling).
+        exo : Exogenous
+            T_amb [degC], q_s [W/m2] (and P_el,load [W]).
+
+        Returns
+        -------
+        Temperatures
+            x[k+1] [degC].
         """
         x0, x1, x2 = temps
         t_amb, q_s = exo.t_amb_c, exo.ghi_w_m2
-        a0, a1, a2 = self._ad
-        b0, b1, b2 = self._bd
-        if self._bg is not None:
-            g = exo.p_load_w
-            return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s
-                    + self._bg[0] * g,
-                    a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s
-                    + self._bg[1] * g,
-                    a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s
-                    + self._bg[2] * g)
-        return (a0[0] * x0 + a0[1] * x1 + a0[2] * x2 + b0[0] * q_floor_w + b0[1] * t_amb + b0[2] * q_s,
-                a1[0] * x0 + a1[1] * x1 + a1[2] * x2 + b1[0] * q_floor_w + b1[1] * t_amb + b1[2] * q_s,
-                a2[0] * x0 + a2[1] * x1 + a2[2] * x2 + b2[0] * q_floor_w + b2[1] * t_amb + b2[2] * q_s)
+        a00, a01, a02, b00, b01, b02, a10, a11, a12, b10, b11, b12, a20, a21, a22, b20, b21, b22 = self._coef
+        t_air = a00 * x0 + a01 * x1 + a02 * x2 + b00 * q_floor_w + b01 * t_amb + b02 * q_s
+        t_wi = a10 * x0 + a11 * x1 + a12 * x2 + b10 * q_floor_w + b11 * t_amb + b12 * q_s
+        t_wo = a20 * x0 + a21 * x1 + a22 * x2 + b20 * q_floor_w + b21 * t_amb + b22 * q_s
+        if self._gains is None:
+            return t_air, t_wi, t_wo
+        g = exo.p_load_w
+        g0, g1, g2 = self._gains
+        return t_air + g0 * g, t_wi + g1 * g, t_wo + g2 * g
 
     def close(self) -> None:
-        """Nothing to end: the 4R3C is plain arithmetic."""
+        """Do nothing: the 4R3C is plain arithmetic, with no simulator to end."""

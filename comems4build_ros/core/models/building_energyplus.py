@@ -86,7 +86,27 @@ class IDFError(ValueError):
 
 @dataclass
 class IDFInterface:
-    """What the co-simulation found in an IDF: the zones, heated floors and appliance objects."""
+    """What the co-simulation found in an IDF: the zones, heated floors and appliance objects.
+
+    Attributes
+    ----------
+    zones : list of str
+        ``Zone`` names.
+    floors : list of str
+        Surfaces whose ``SurfaceProperty:HeatBalanceSourceTerm`` takes the floor heat.
+    appliances : list of str
+        ``ElectricEquipment`` objects (the appliance load's heat).
+    exterior_walls : list of str
+        Walls facing outdoors.
+    timesteps_per_hour : int
+        EnergyPlus zone time steps per hour.
+    floor_areas_m2 : list of float
+        Areas of the heated floors [m2].
+    people : list of str
+        ``People`` objects.
+    radiant : list of Radiant
+        Electric radiant systems driven through their set point.
+    """
 
     zones: list[str]
     floors: list[str]
@@ -104,11 +124,20 @@ class Radiant:
 
     Attributes
     ----------
-    name : the ``ZoneHVAC:LowTemperatureRadiant:Electric`` object
-    zone : its zone; surface : the heated surface
-    setpoint : its set-point schedule (``Schedule:Constant``)
-    capacity_w : heating design capacity [W]; throttling_k : heating throttling range [K]
-    area_m2 : area of the heated surface [m2] (the plant's heat is split by it)
+    name : str
+        The ``ZoneHVAC:LowTemperatureRadiant:Electric`` object.
+    zone : str
+        Its zone.
+    surface : str
+        The heated surface.
+    setpoint : str
+        Its set-point schedule (``Schedule:Constant``).
+    capacity_w : float
+        Heating design capacity [W].
+    throttling_k : float
+        Heating throttling range [K].
+    area_m2 : float
+        Area of the heated surface [m2] (the plant's heat is split by it).
     """
 
     name: str
@@ -134,7 +163,18 @@ def _surface_area_m2(surf: list[str]) -> float:
 
 
 def polygon_area_m2(coords: list[float]) -> float:
-    """Area [m2] of a planar polygon given as x1, y1, z1, x2, ... (Newell's method)."""
+    """Compute the area of a planar polygon by Newell's method.
+
+    Parameters
+    ----------
+    coords : list of float
+        Vertex coordinates x1, y1, z1, x2, ... [m].
+
+    Returns
+    -------
+    float
+        Area [m2].
+    """
     pts = np.asarray(coords, dtype=float).reshape(-1, 3)
     nxt = np.roll(pts, -1, axis=0)
     normal = np.cross(pts, nxt).sum(axis=0)
@@ -142,7 +182,7 @@ def polygon_area_m2(coords: list[float]) -> float:
 
 
 def _objects(text: str) -> list[list[str]]:
-    """The IDF's objects as lists of fields (comments removed, whitespace stripped)."""
+    """Split the IDF into objects, each a list of fields (comments removed, whitespace stripped)."""
     body = "\n".join(line.split("!", 1)[0] for line in text_lines(text))
     out = []
     for chunk in body.split(";"):
@@ -154,6 +194,16 @@ def _objects(text: str) -> list[list[str]]:
 
 def check_idf(path: str | Path) -> IDFInterface:
     """Read an IDF and check that it has what the co-simulation actuates and reads.
+
+    Parameters
+    ----------
+    path : str or Path
+        The IDF (EnergyPlus 25.x input file).
+
+    Returns
+    -------
+    IDFInterface
+        The objects the co-simulation uses.
 
     Raises
     ------
@@ -226,7 +276,7 @@ def check_idf(path: str | Path) -> IDFInterface:
 
 
 def _radiant(path: Path, o: list[str], surfaces: dict[str, list[str]], constants: set[str]) -> Radiant:
-    """A ``ZoneHVAC:LowTemperatureRadiant:Electric`` the co-simulation can drive exactly, or :class:`IDFError`."""
+    """Read a ``ZoneHVAC:LowTemperatureRadiant:Electric`` the co-simulation can drive exactly (else IDFError)."""
     where = f"{path}: object ZoneHVAC:LowTemperatureRadiant:Electric '{o[1] if len(o) > 1 else ''}'"
     f = o + [""] * (13 - len(o))
     if f[5].lower() != "heatingdesigncapacity":
@@ -259,7 +309,26 @@ _DROP = ("runperiod", "site:location", "sizingperiod:designday", "sizingperiod:w
 
 
 def run_idf_text(idf_text: str, site: SiteParams, offset_h: float, first_std: pd.Timestamp, days: int) -> str:
-    """The IDF with its own run period and location replaced by the run's (``first_std`` naive standard time)."""
+    """Replace the IDF's own run period and location by the run's.
+
+    Parameters
+    ----------
+    idf_text : str
+        The IDF.
+    site : SiteParams
+        Latitude, longitude [deg] and altitude [m].
+    offset_h : float
+        Standard-time offset from UTC [h].
+    first_std : pandas.Timestamp
+        Start of the run's first hour, naive local standard time.
+    days : int
+        Whole days EnergyPlus simulates.
+
+    Returns
+    -------
+    str
+        The IDF without its ``RunPeriod``, ``Site:Location`` and sizing periods, with the run's.
+    """
     kept = []
     body = "\n".join(line.split("!", 1)[0] for line in text_lines(idf_text))
     for chunk in body.split(";"):
@@ -277,7 +346,21 @@ def run_idf_text(idf_text: str, site: SiteParams, offset_h: float, first_std: pd
 
 @dataclass
 class StepRecord:
-    """What EnergyPlus received and reported in one step (hourly means over its zone time steps)."""
+    """What EnergyPlus received and reported in one step (hourly means over its zone time steps).
+
+    Attributes
+    ----------
+    q_floor_set_w : float
+        Floor heat the plant asked for [W].
+    q_floor_received_w : float
+        Floor heat EnergyPlus applied [W].
+    gains_w : float
+        Appliance heat released in the zones [W].
+    t_air_c : float
+        Floor-area weighted mean air temperature [degC].
+    t_zones_c : list of float
+        Air temperature of each zone [degC].
+    """
 
     q_floor_set_w: float = 0.0
     q_floor_received_w: float = 0.0
@@ -295,14 +378,29 @@ class EnergyPlusBuilding:
 
     Parameters
     ----------
-    idf : IDF file (default: the shipped German single-family house)
-    weather : the run's hourly weather (at least ``n_steps`` hours; later rows fill the last day)
-    site : the site (location, time zone)
-    n_steps : steps of the run (1 h each)
-    t_air_init_c : the air temperature the warm-up holds [degC]
-    workdir : where EnergyPlus writes its files (default: a temporary folder removed by :meth:`close`)
-    epw : an EPW file to use instead of writing one from ``weather`` (checked to cover the run)
-    occupants : False switches the IDF's ``People`` off (steady-state tests without gains)
+    idf : str or Path or None
+        IDF file (None: the shipped German single-family house).
+    weather : Weather
+        The run's hourly weather (at least ``n_steps`` hours; later rows fill the last day).
+    site : SiteParams
+        The site (location, time zone).
+    n_steps : int
+        Steps of the run (1 h each).
+    t_air_init_c : float
+        The air temperature the warm-up holds [degC].
+    workdir : str or Path, optional
+        Where EnergyPlus writes its files (default: a temporary folder removed by :meth:`close`).
+    epw : str or Path, optional
+        An EPW file to use instead of writing one from ``weather`` (checked to cover the run).
+    occupants : bool
+        False switches the IDF's ``People`` off (steady-state tests without gains).
+
+    Raises
+    ------
+    IDFError
+        If the IDF lacks what the co-simulation needs (:func:`check_idf`).
+    EPWError
+        If the EPW does not cover the run.
     """
 
     name = "energyplus"
@@ -357,10 +455,25 @@ class EnergyPlusBuilding:
 
     # ----------------------------------------------------------------- protocol
     def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
-        """Start EnergyPlus and return the node temperatures after its warm-up [degC].
+        """Start EnergyPlus and return the node temperatures after its warm-up.
 
-        ``t_air_c`` is the air temperature the warm-up thermostat holds (``t_amb_c`` is not
-        used: the EPW's weather of the first day drives the warm-up).
+        Parameters
+        ----------
+        t_air_c : float
+            The air temperature the warm-up thermostat holds [degC].
+        t_amb_c : float
+            Not used: the EPW's weather of the first day drives the warm-up [degC].
+
+        Returns
+        -------
+        Temperatures
+            Floor-area weighted zone air temperature, the heated floors' and the exterior walls'
+            inside-face temperatures [degC].
+
+        Raises
+        ------
+        EnergyPlusError
+            If EnergyPlus does not start the run.
         """
         self.t_air_init_c = float(t_air_c)
         if self._thread is None:
@@ -371,7 +484,27 @@ class EnergyPlusBuilding:
         return payload
 
     def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
-        """Advance EnergyPlus by one hour with the floor heat ``q_floor_w`` [W] and the appliance load of ``exo``."""
+        """Advance EnergyPlus by one hour with the floor heat and the appliance load of the step.
+
+        Parameters
+        ----------
+        temps : Temperatures
+            Ignored: EnergyPlus keeps its own state [degC].
+        q_floor_w : float
+            Heat into the floors [W] (negative: cooling).
+        exo : Exogenous
+            The step's appliance load ``p_load_w`` [W] (the weather is the EPW's).
+
+        Returns
+        -------
+        Temperatures
+            Node temperatures at the hour's end [degC]; :attr:`last` holds the step's record.
+
+        Raises
+        ------
+        EnergyPlusError
+            If EnergyPlus was not started or ended before the step.
+        """
         if self._thread is None:
             raise EnergyPlusError("EnergyPlusBuilding.step before initial_temperatures (EnergyPlus not started)")
         self._cmd.put((float(q_floor_w), float(exo.p_load_w)))
@@ -399,9 +532,11 @@ class EnergyPlusBuilding:
             shutil.rmtree(self.workdir, ignore_errors=True)
 
     def __enter__(self) -> EnergyPlusBuilding:
+        """Return the model itself (``with`` closes it)."""
         return self
 
     def __exit__(self, *exc: object) -> None:
+        """Close the model (:meth:`close`)."""
         self.close()
 
     # ----------------------------------------------------------------- thread
@@ -598,7 +733,7 @@ class EnergyPlusBuilding:
 
 
 def _full_days(weather: Weather, hours: int) -> Weather:
-    """The first ``hours`` rows of ``weather``, the last row repeated where it is shorter."""
+    """Return the first ``hours`` rows of ``weather``, the last row repeated where it is shorter."""
     n = len(weather.time)
     idx = np.minimum(np.arange(hours), n - 1)
     time = pd.date_range(weather.time[0], periods=hours, freq="h")
@@ -607,7 +742,22 @@ def _full_days(weather: Weather, hours: int) -> Weather:
 
 
 def weather_of(time: pd.DatetimeIndex, t_amb_c: np.ndarray, ghi_w_m2: np.ndarray, dhi_w_m2: np.ndarray) -> Weather:
-    """A :class:`~comems4build_ros.core.models.epw.Weather` of a scenario's series."""
+    """Build the :class:`~comems4build_ros.core.models.epw.Weather` of a scenario's series.
+
+    Parameters
+    ----------
+    time : pandas.DatetimeIndex
+        Step starts, tz-aware.
+    t_amb_c : numpy.ndarray
+        Ambient temperature [degC].
+    ghi_w_m2, dhi_w_m2 : numpy.ndarray
+        Global and diffuse horizontal irradiance [W/m2].
+
+    Returns
+    -------
+    Weather
+        The series as floats.
+    """
     return Weather(pd.DatetimeIndex(time), np.asarray(t_amb_c, float), np.asarray(ghi_w_m2, float),
                    np.asarray(dhi_w_m2, float))
 

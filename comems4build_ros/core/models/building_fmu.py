@@ -50,7 +50,21 @@ class FMUError(ValueError):
 
 @dataclass
 class VariableMap:
-    """The FMU's variable names for the interface (see the module docstring)."""
+    """The FMU's variable names for the interface (see the module docstring).
+
+    Attributes
+    ----------
+    path : Path
+        The map file.
+    inputs : dict of str to str
+        ``q_floor_w`` [W], ``t_amb_c`` [degC], ``ghi_w_m2`` [W/m2], ``p_load_w`` [W] -> FMU input.
+    outputs : dict of str to str
+        ``t_air_c`` (and ``t_wall_in_c``, ``t_wall_out_c``) [degC] -> FMU output.
+    start : dict of str to str
+        ``t_air_c``, ``t_amb_c`` [degC] -> FMU parameter set at initialisation.
+    parameters : dict of str to float
+        FMU parameter -> value, set at initialisation (units of the FMU).
+    """
 
     path: Path
     inputs: dict[str, str]
@@ -60,13 +74,41 @@ class VariableMap:
 
 
 def default_map_path(fmu: str | Path) -> Path:
-    """The map beside an FMU: ``house.fmu`` -> ``house.map.yaml``."""
+    """Return the map beside an FMU: ``house.fmu`` -> ``house.map.yaml``.
+
+    Parameters
+    ----------
+    fmu : str or Path
+        The FMU file.
+
+    Returns
+    -------
+    Path
+        The map's path (not checked to exist).
+    """
     fmu = Path(fmu)
     return fmu.with_name(fmu.stem + ".map.yaml")
 
 
 def load_map(path: str | Path) -> VariableMap:
-    """Read and check the structure of a variable map (names are checked against the FMU by :func:`check_fmu`)."""
+    """Read and check the structure of a variable map (names are checked against the FMU by :func:`check_fmu`).
+
+    Parameters
+    ----------
+    path : str or Path
+        The map (YAML with ``inputs``, ``outputs``, ``start``, ``parameters``).
+
+    Returns
+    -------
+    VariableMap
+        The map's sections.
+
+    Raises
+    ------
+    FMUError
+        If the file is missing, not YAML, or a section or field is unknown, missing or of the
+        wrong type, naming the file and field.
+    """
     import yaml
 
     path = Path(path)
@@ -108,7 +150,19 @@ def load_map(path: str | Path) -> VariableMap:
 
 
 def check_fmu(fmu: str | Path, vmap: VariableMap) -> Any:
-    """Read the FMU's model description and check it against the map; returns the description.
+    """Read the FMU's model description and check it against the map.
+
+    Parameters
+    ----------
+    fmu : str or Path
+        The FMU file.
+    vmap : VariableMap
+        Its variable map.
+
+    Returns
+    -------
+    fmpy.model_description.ModelDescription
+        The FMU's model description.
 
     Raises
     ------
@@ -150,9 +204,17 @@ class FMUBuilding:
 
     Parameters
     ----------
-    fmu : the FMU file
-    vmap : its variable map (:func:`load_map`)
-    dt_h : the plant's step [h], the communication step
+    fmu : str or Path
+        The FMU file (FMI 2.0 co-simulation, the FMI standard of the Modelica Association).
+    vmap : VariableMap
+        Its variable map (:func:`load_map`).
+    dt_h : float
+        The plant's step, the communication step [h].
+
+    Raises
+    ------
+    FMUError
+        If the FMU does not fit the map (:func:`check_fmu`).
     """
 
     name = "fmu"
@@ -174,7 +236,20 @@ class FMUBuilding:
                           self._vr[out.get("t_wall_out_c", out["t_air_c"])]]
 
     def initial_temperatures(self, t_air_c: float, t_amb_c: float) -> Temperatures:
-        """Instantiate and initialise the FMU (start values from the map) and read its outputs [degC]."""
+        """Instantiate and initialise the FMU (start values from the map) and read its outputs.
+
+        Parameters
+        ----------
+        t_air_c : float
+            Indoor air temperature at the start [degC].
+        t_amb_c : float
+            Ambient temperature before the run [degC].
+
+        Returns
+        -------
+        Temperatures
+            The FMU's (T_air, T_w,in, T_w,out) [degC] (T_air where it gives no wall node).
+        """
         from fmpy import extract
         from fmpy.fmi2 import FMU2Slave
 
@@ -198,7 +273,22 @@ class FMUBuilding:
         return (float(a), float(b), float(c))
 
     def step(self, temps: Temperatures, q_floor_w: float, exo: Exogenous) -> Temperatures:
-        """One communication step of the plant's length with the step's inputs."""
+        """Advance the FMU by one communication step of the plant's length with the step's inputs.
+
+        Parameters
+        ----------
+        temps : Temperatures
+            Ignored: the FMU keeps its own state [degC].
+        q_floor_w : float
+            Heat into the floor [W] (negative: cooling).
+        exo : Exogenous
+            T_amb [degC], GHI [W/m2] and the appliance load [W] of the step.
+
+        Returns
+        -------
+        Temperatures
+            The FMU's outputs at the step's end [degC].
+        """
         values = {"q_floor_w": q_floor_w, "t_amb_c": exo.t_amb_c, "ghi_w_m2": exo.ghi_w_m2, "p_load_w": exo.p_load_w}
         s = self._slave
         s.setReal(self._in_refs, [float(values[k]) for k in self._in_keys])
@@ -236,13 +326,24 @@ def export_rc_fmu(building: Any, out: str | Path, t_air_init_c: float) -> tuple[
 
     Parameters
     ----------
-    building : :class:`~comems4build_ros.core.config.BuildingParams`
-    out : the FMU file to write (``.fmu``)
-    t_air_init_c : start value of ``T_air_start`` [degC]
+    building : BuildingParams
+        The 4R3C's parameters (:mod:`~comems4build_ros.core.models.building`).
+    out : str or Path
+        The FMU file to write (``.fmu``).
+    t_air_init_c : float
+        Start value of ``T_air_start`` [degC].
 
     Returns
     -------
-    (fmu, map) : the FMU and its variable map ``NAME.map.yaml`` beside it
+    fmu : Path
+        The FMU written.
+    map : Path
+        Its variable map ``NAME.map.yaml`` beside it.
+
+    Raises
+    ------
+    FMUError
+        If ``out`` does not end in ``.fmu``.
     """
     import json
     import shutil

@@ -38,10 +38,14 @@ class BuildingChoice:
 
     Attributes
     ----------
-    kind : ``rc``, ``energyplus`` or ``fmu``
-    path : the IDF or FMU (None: the shipped house, or none for ``rc``)
-    map_path : the FMU's variable map (``fmu`` only)
-    epw : an EPW file to use instead of the one written from the scenario (``energyplus`` only)
+    kind : str
+        ``rc``, ``energyplus`` or ``fmu``.
+    path : Path or None
+        The IDF or FMU (None: the shipped house, or none for ``rc``).
+    map_path : Path or None
+        The FMU's variable map (``fmu`` only).
+    epw : Path or None
+        An EPW file to use instead of the one written from the scenario (``energyplus`` only).
     """
 
     kind: str = "rc"
@@ -51,13 +55,33 @@ class BuildingChoice:
 
     @property
     def text(self) -> str:
-        """The option's text (``rc``, ``energyplus``, ``energyplus:house.idf``, ``fmu:x.fmu``)."""
+        """The option's text: ``rc``, ``energyplus``, ``energyplus:house.idf`` or ``fmu:x.fmu``."""
         return self.kind if self.path is None else f"{self.kind}:{self.path}"
 
 
 def parse_building(text: str | None, map_path: str | Path | None = None,
                    epw: str | Path | None = None) -> BuildingChoice:
-    """``rc``, ``energyplus[:IDF]`` or ``fmu:PATH`` as a :class:`BuildingChoice` (or :class:`BuildingChoiceError`)."""
+    """Parse ``rc``, ``energyplus[:IDF]`` or ``fmu:PATH`` into a :class:`BuildingChoice`.
+
+    Parameters
+    ----------
+    text : str or None
+        The ``--building`` value (None: ``rc``).
+    map_path : str or Path, optional
+        ``--building-map`` (``fmu`` only; default the map beside the FMU).
+    epw : str or Path, optional
+        ``--epw`` (``energyplus`` only).
+
+    Returns
+    -------
+    BuildingChoice
+        The parsed choice (files not yet read: :func:`check_building`).
+
+    Raises
+    ------
+    BuildingChoiceError
+        For an unknown kind, a file where none belongs or a missing one, naming the option.
+    """
     text = (text or "rc").strip()
     kind, _, path = text.partition(":")
     if kind not in KINDS:
@@ -82,7 +106,18 @@ def parse_building(text: str | None, map_path: str | Path | None = None,
 
 
 def check_building(choice: BuildingChoice) -> None:
-    """Check the choice's files before a run (raises :class:`BuildingChoiceError` naming the file and field)."""
+    """Check the choice's files before a run.
+
+    Parameters
+    ----------
+    choice : BuildingChoice
+        The parsed ``--building`` value.
+
+    Raises
+    ------
+    BuildingChoiceError
+        If the IDF, EPW, FMU or its map cannot serve a run, naming the file and field.
+    """
     if choice.kind == "energyplus":
         from comems4build_ros.core.models.building_energyplus import IDFError, check_idf
         from comems4build_ros.core.models.epw import EPWError, epw_hours
@@ -103,7 +138,24 @@ def check_building(choice: BuildingChoice) -> None:
 
 
 def check_covers(choice: BuildingChoice, weather: Weather, site: object, n_steps: int) -> None:
-    """For ``energyplus`` with an EPW given: refuse one that does not cover the run (names the file and field)."""
+    """Refuse, for ``energyplus`` with an EPW given, one that does not cover the run.
+
+    Parameters
+    ----------
+    choice : BuildingChoice
+        The parsed ``--building`` value (nothing to check without ``epw``).
+    weather : Weather
+        The run's weather (its first step and time zone).
+    site : SiteParams
+        The site (its time zone).
+    n_steps : int
+        Hours of the run.
+
+    Raises
+    ------
+    BuildingChoiceError
+        Naming the file and the first missing hour.
+    """
     if choice.kind != "energyplus" or choice.epw is None:
         return
     from comems4build_ros.core.models.epw import EPWError, check_epw_covers, standard_offset_h, standard_times
@@ -117,15 +169,30 @@ def check_covers(choice: BuildingChoice, weather: Weather, site: object, n_steps
 
 def make_building(choice: BuildingChoice | str | None, params: PlantParams, weather: Weather | None = None,
                   n_steps: int = 0, workdir: str | Path | None = None) -> BuildingModel:
-    """The building model of ``choice`` for a run of ``n_steps`` steps over ``weather``.
+    """Build the building model of ``choice`` for a run of ``n_steps`` steps over ``weather``.
 
     Parameters
     ----------
-    choice : a :class:`BuildingChoice` or the option's text (None: ``rc``)
-    params : plant parameters (the 4R3C's, the step, the site, T_air,init)
-    weather : the run's weather (``energyplus`` only: the EPW is written from it)
-    n_steps : steps of the run (``energyplus`` only: its run period)
-    workdir : EnergyPlus's output folder (default: a temporary one, removed at ``close``)
+    choice : BuildingChoice, str or None
+        The choice or the option's text (None: ``rc``).
+    params : PlantParams
+        Plant parameters (the 4R3C's, the step [h], the site, T_air,init [degC]).
+    weather : Weather, optional
+        The run's weather (``energyplus`` only: the EPW is written from it).
+    n_steps : int
+        Steps of the run (``energyplus`` only: its run period).
+    workdir : str or Path, optional
+        EnergyPlus's output folder (default: a temporary one, removed at ``close``).
+
+    Returns
+    -------
+    BuildingModel
+        :class:`~comems4build_ros.core.models.building.RCBuilding`, an FMU or an EnergyPlus model.
+
+    Raises
+    ------
+    BuildingChoiceError
+        If EnergyPlus is asked for with a step other than 1 h or without the run's weather.
     """
     if not isinstance(choice, BuildingChoice):
         choice = parse_building(choice)

@@ -23,12 +23,38 @@ __all__ = ["dew_point_c", "eer", "p_el_max_cool_w"]
 
 
 def eer(t_amb_c, cooling: CoolingParams):
-    """Energy efficiency ratio EER(T_amb) [-] (vectorised, piecewise linear)."""
+    """Compute the energy efficiency ratio EER(T_amb) (vectorised, piecewise linear).
+
+    Parameters
+    ----------
+    t_amb_c : float or array_like
+        Ambient temperature [degC].
+    cooling : CoolingParams
+        ``eer_t_amb_c`` [degC] and ``eer`` [-] (sources in ``config/plant.yaml``).
+
+    Returns
+    -------
+    float or numpy.ndarray
+        EER [-], held constant outside the table.
+    """
     out = np.interp(np.asarray(t_amb_c, dtype=float), cooling.eer_t_amb_c, cooling.eer)
     return float(out) if np.ndim(out) == 0 else out
 
 
 def p_el_max_cool_w(t_amb_c, cooling: CoolingParams):
-    """Electrical intake at full cooling modulation, Q_cool,max / EER(T_amb) [W] (vectorised)."""
+    """Compute the electrical intake at full cooling modulation, Q_cool,max / EER(T_amb) (vectorised).
+
+    Parameters
+    ----------
+    t_amb_c : float or array_like
+        Ambient temperature [degC].
+    cooling : CoolingParams
+        EER table and the floor's cooling capacity ``q_cool_max_w`` [W].
+
+    Returns
+    -------
+    float or numpy.ndarray
+        P_el,HP at eta_HP = 1 in cooling mode [W].
+    """
     return cooling.q_cool_max_w / np.asarray(eer(t_amb_c, cooling)) if np.ndim(t_amb_c) else \
         cooling.q_cool_max_w / eer(t_amb_c, cooling)

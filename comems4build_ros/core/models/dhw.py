@@ -18,27 +18,62 @@ from comems4build_ros.core.config import SECONDS_PER_HOUR, DHWParams
 
 
 def heat_per_litre_j(dhw: DHWParams) -> float:
-    """Heat to raise one litre from T_cold to T_DHW, rho * c * Delta T_DHW [J/l]."""
-    return dhw.rho_kg_per_l * dhw.c_j_per_kg_k * (dhw.t_dhw_c - dhw.t_cold_c)
-
-
-def heat_w_from_l_per_h(l_per_h, dhw: DHWParams):
-    """Heat flow [W] of a hot-water draw at T_DHW given in l/h (vectorised).
-
-    Q_dm,DHW = V_dot * rho * c * Delta T_DHW, with V_dot [l/s] = l_per_h / 3600.
-    """
-    return np.asarray(l_per_h, dtype=float) / SECONDS_PER_HOUR * heat_per_litre_j(dhw)
-
-
-
-
-class Tank:
-    """The DHW tank of the plant step: its bounds and conversions for a step of ``dt_h`` hours.
+    """Compute the heat that raises one litre from T_cold to T_DHW (``eq:DHW_model``).
 
     Parameters
     ----------
     dhw : DHWParams
-    dt_h : step t_s [h]
+        ``rho_kg_per_l`` [kg/l], ``c_j_per_kg_k`` [J/(kg K)], ``t_dhw_c`` and ``t_cold_c`` [degC].
+
+    Returns
+    -------
+    float
+        rho * c * Delta T_DHW [J/l].
+    """
+    return dhw.rho_kg_per_l * dhw.c_j_per_kg_k * (dhw.t_dhw_c - dhw.t_cold_c)
+
+
+def heat_w_from_l_per_h(l_per_h, dhw: DHWParams):
+    """Compute the heat flow of a hot-water draw at T_DHW (vectorised, ``eq:DHW_model``).
+
+    Q_dm,DHW = V_dot * rho * c * Delta T_DHW, with V_dot [l/s] = l_per_h / 3600.
+
+    Parameters
+    ----------
+    l_per_h : float or array_like
+        Draw at T_DHW [l/h].
+    dhw : DHWParams
+        The tank's water properties and temperatures.
+
+    Returns
+    -------
+    numpy.ndarray
+        Q_dm,DHW [W].
+    """
+    return np.asarray(l_per_h, dtype=float) / SECONDS_PER_HOUR * heat_per_litre_j(dhw)
+
+
+class Tank:
+    """The DHW tank of the plant step: its bounds and conversions for a step of ``dt_h`` hours (``sec:dhw``).
+
+    Parameters
+    ----------
+    dhw : DHWParams
+        Water properties and temperatures, ``v_min_l`` and ``v_max_l`` [l], standing loss
+        ``q_loss_w`` [W].
+    dt_h : float
+        Step t_s [h].
+
+    Attributes
+    ----------
+    l_per_w : float
+        Litres at T_DHW that one watt held over the step heats [l/W].
+    w_per_l_per_h : float
+        Heat flow of a draw of 1 l/h [W/(l/h)].
+    v_min_l, v_max_l : float
+        Volume bounds [l].
+    q_loss_w : float
+        Standing loss Q_l,DHW [W].
     """
 
     __slots__ = ("l_per_w", "w_per_l_per_h", "v_min_l", "v_max_l", "q_loss_w")
@@ -52,16 +87,40 @@ class Tank:
         self.q_loss_w = float(dhw.q_loss_w)
 
     def demand_w(self, dhw_l_per_h: float) -> float:
-        """Heat flow of a draw Q_dm,DHW [W] (``eq:DHW_model``)."""
+        """Return the heat flow of a draw, Q_dm,DHW (``eq:DHW_model``).
+
+        Parameters
+        ----------
+        dhw_l_per_h : float
+            Draw at T_DHW [l/h].
+
+        Returns
+        -------
+        float
+            Q_dm,DHW [W].
+        """
         return dhw_l_per_h * self.w_per_l_per_h
 
     def room_w(self, v_l: float, q_demand_w: float) -> float:
-        """Largest net heat inflow [W] that fits: what fills the tank from ``v_l`` over the step."""
+        """Return the largest net heat inflow that fits: what fills the tank from ``v_l`` over the step.
+
+        Parameters
+        ----------
+        v_l : float
+            V_DHW[k-1] [l].
+        q_demand_w : float
+            Heat of the step's draws [W].
+
+        Returns
+        -------
+        float
+            Heat inflow that brings the volume to V_max, draws and standing loss included [W].
+        """
         return (self.v_max_l - v_l) / self.l_per_w + q_demand_w + self.q_loss_w
 
     def step(self, v_l: float, q_hp_w: float, q_fc_w: float, q_el_w: float, q_demand_w: float,
              room_w: float) -> tuple[float, float, float, float, float, float]:
-        """One step of ``eq:DHW_model`` with the heat of ``eq:DHW_heat``.
+        """Advance the tank by one step of ``eq:DHW_model`` with the heat of ``eq:DHW_heat``.
 
         Recovered FC heat goes in first, then recovered EL heat; what no longer fits beside
         the heat pump's is dumped. Draws and standing losses that would take the volume
@@ -69,16 +128,27 @@ class Tank:
 
         Parameters
         ----------
-        v_l : V_DHW[k-1] [l]
-        q_hp_w : heat-pump heat into the tank [W] (already fitted to ``room_w``)
-        q_fc_w, q_el_w : recoverable fuel-cell and electrolyser heat [W]
-        q_demand_w : heat of the draws [W]
-        room_w : :meth:`room_w` of this step [W]
+        v_l : float
+            V_DHW[k-1] [l].
+        q_hp_w : float
+            Heat-pump heat into the tank Q_h,DHW [W] (already fitted to ``room_w``).
+        q_fc_w, q_el_w : float
+            Recoverable fuel-cell heat Q_hr,FC and electrolyser heat [W].
+        q_demand_w : float
+            Heat of the draws Q_dm,DHW [W].
+        room_w : float
+            :meth:`room_w` of this step [W].
 
         Returns
         -------
-        (V_DHW[k] [l], FC heat taken [W], FC heat dumped [W], EL heat taken [W],
-         EL heat dumped [W], unmet demand [W])
+        v_l : float
+            V_DHW[k] [l].
+        q_fc_in_w, q_fc_dump_w : float
+            FC heat taken into and dumped beside the tank [W].
+        q_el_in_w, q_el_dump_w : float
+            EL heat taken and dumped [W].
+        q_unmet_w : float
+            Draws and losses the tank could not serve [W].
         """
         q_fc_in, q_fc_dump, q_el_in, q_el_dump = q_fc_w, 0.0, q_el_w, 0.0
         if q_fc_w + q_el_w + q_hp_w > room_w:

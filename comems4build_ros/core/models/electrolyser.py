@@ -38,10 +38,20 @@ L_PER_M3 = 1000.0
 
 
 def compression_wh_per_kg(el: ElectrolyserParams) -> float:
-    """Electrical work of compressing 1 kg of H2 from ``p_out_bar`` to ``p_store_bar`` [Wh/kg].
+    """Compute the electrical work of compressing 1 kg of H2 from ``p_out_bar`` to ``p_store_bar``.
 
-    Isothermal ideal-gas work at ``t_compression_c`` divided by ``eta_compressor``; zero
-    when the store's pressure is not above the EL's output pressure.
+    Isothermal ideal-gas work R T ln(p_store / p_out) / M_H2 at ``t_compression_c`` divided
+    by ``eta_compressor``; zero when the store's pressure is not above the EL's output pressure.
+
+    Parameters
+    ----------
+    el : ElectrolyserParams
+        ``p_out_bar`` and ``p_store_bar`` [bar], ``t_compression_c`` [degC], ``eta_compressor`` [-].
+
+    Returns
+    -------
+    float
+        Compression work [Wh/kg].
     """
     if el.p_store_bar <= el.p_out_bar:
         return 0.0
@@ -53,9 +63,24 @@ def compression_wh_per_kg(el: ElectrolyserParams) -> float:
 class ElectrolyserTable:
     """Operating curve of the installed electrolyser modules (all running at one load).
 
+    The default module is the Enapter EL 2.1 (AEM) of its datasheet (``config/plant.yaml``).
+
     Parameters
     ----------
     el : ElectrolyserParams
+        ``n_modules``; per module the rated H2 output ``h2_rated_nl_per_h`` [Nl/h], the load
+        points [-] and their stack power ``p_el_points_w`` [W], ``p_standby_w`` [W],
+        ``start_lost_h`` [h], ``heat_recovery`` [-] and the compression parameters.
+
+    Attributes
+    ----------
+    n : int
+        Installed modules.
+    p_min_w, p_max_w : float
+        Intake of all modules at the minimal and at full load, compression included [W]
+        (0 without modules).
+    p_standby_w : float
+        Standby draw of all modules [W].
     """
 
     def __init__(self, el: ElectrolyserParams) -> None:
@@ -76,7 +101,18 @@ class ElectrolyserTable:
         self.start_lost_h = float(el.start_lost_h)
 
     def p_stack_w(self, x: float) -> float:
-        """Stack and balance-of-plant power of all modules at load ``x`` [W] (x in [x_min, 1])."""
+        """Return the stack and balance-of-plant power of all modules at a load.
+
+        Parameters
+        ----------
+        x : float
+            Load, H2 output over the rated output [-], in [x_min, 1].
+
+        Returns
+        -------
+        float
+            Power [W], piecewise linear over the datasheet's load points.
+        """
         xs, ps = self.x_points, self.p_stack_points
         if x <= xs[0]:
             return self.n * ps[0]
@@ -84,11 +120,33 @@ class ElectrolyserTable:
         return self.n * (ps[j] + (x - xs[j]) * (ps[j + 1] - ps[j]) / (xs[j + 1] - xs[j]))
 
     def p_total_w(self, x: float) -> float:
-        """Electrical intake of all modules at load ``x``, compression included [W]."""
+        """Return the electrical intake of all modules at a load, compression included.
+
+        Parameters
+        ----------
+        x : float
+            Load [-].
+
+        Returns
+        -------
+        float
+            P_EL = P_stack + P_comp [W].
+        """
         return self.p_stack_w(x) + self.n * x * self.p_comp_rated_w
 
     def load_of_power(self, p_w: float) -> float:
-        """Load x at which the modules draw ``p_w`` [W] (``p_w`` in [p_min_w, p_max_w])."""
+        """Return the load at which the modules draw a given intake (inverse of :meth:`p_total_w`).
+
+        Parameters
+        ----------
+        p_w : float
+            Intake [W], in [p_min_w, p_max_w].
+
+        Returns
+        -------
+        float
+            Load x [-].
+        """
         ps, xs = self.p_total_points, self.x_points
         if p_w <= ps[0]:
             return xs[0]
@@ -98,35 +156,74 @@ class ElectrolyserTable:
         return xs[j] + (p_w - ps[j]) * (xs[j + 1] - xs[j]) / (ps[j + 1] - ps[j])
 
     def h2_w(self, x: float) -> float:
-        """H2 output of all modules at load ``x`` in steady operation, LHV power [W]."""
+        """Return the H2 output of all modules at a load in steady operation, as LHV power.
+
+        Parameters
+        ----------
+        x : float
+            Load [-].
+
+        Returns
+        -------
+        float
+            P_H2 = x * m_rated * LHV per module, times the modules [W].
+        """
         return self.n * x * self.h2_rated_w
 
     def efficiency(self, x: float) -> float:
-        """LHV efficiency P_H2 / P_EL at load ``x``, compression included [-]."""
+        """Return the LHV efficiency at a load, compression included.
+
+        Parameters
+        ----------
+        x : float
+            Load [-].
+
+        Returns
+        -------
+        float
+            P_H2 / P_EL [-].
+        """
         return self.h2_w(x) / self.p_total_w(x)
 
     def run(self, p_req_w: float, loh: float, was_on: bool, dt_h: float, loh_max: float,
             e_h2_wh: float) -> tuple[float, float, bool, float, float, int]:
-        """One step of the modules for a requested intake.
+        """Run the modules for one step of a requested intake.
 
         The request goes onto {0} U [P_EL,min, P_EL,max] (from half of P_EL,min on it is
         raised to it), then down to what fits into the store below LOH_max (off below the
         minimal load). Off, the modules draw their standby power; a start loses
-        ``start_lost_h`` of the step's H2.
+        ``start_lost_h`` of the step's H2. The H2 made enters the store (``eq:LOH`` with the
+        sign of a filling).
 
         Parameters
         ----------
-        p_req_w : requested intake [W] (finite)
-        loh : LOH after the fuel cell's draw of this step [-]
-        was_on : the modules produced in the previous step
-        dt_h : step t_s [h]
-        loh_max : upper bound of the store [-]
-        e_h2_wh : the store's LHV energy content [Wh]
+        p_req_w : float
+            Requested intake [W] (finite).
+        loh : float
+            LOH after the fuel cell's draw of this step [-].
+        was_on : bool
+            The modules produced in the previous step.
+        dt_h : float
+            Step t_s [h].
+        loh_max : float
+            Upper bound of the store [-].
+        e_h2_wh : float
+            The store's LHV energy content E_H2,max [Wh].
 
         Returns
         -------
-        (intake [W], H2 made as LHV power [W], producing, recoverable heat [W], LOH after
-         the step [-], clip bits)
+        p_el_w : float
+            Intake, compression and standby included [W].
+        p_h2_w : float
+            H2 made as LHV power [W].
+        on : bool
+            The modules produced.
+        q_rec_w : float
+            Recoverable heat [W].
+        loh : float
+            LOH after the step [-].
+        clip : int
+            ``CLIP_EL_RANGE`` and ``CLIP_EL_H2`` bits.
         """
         clip = 0
         if self.n == 0:
@@ -165,7 +262,20 @@ class ElectrolyserTable:
         return p_el, h2, True, q_rec, loh, clip
 
     def specific_kwh_per_nm3(self, x: float, compression: bool = False) -> float:
-        """Electricity per normal cubic metre of H2 at load ``x`` [kWh/Nm3] (datasheet figure: without compression)."""
+        """Return the electricity per normal cubic metre of H2 at a load (the datasheet's figure).
+
+        Parameters
+        ----------
+        x : float
+            Load [-].
+        compression : bool
+            Include the compressor's work (the datasheet's figure does not).
+
+        Returns
+        -------
+        float
+            Specific consumption [kWh/Nm3].
+        """
         nm3_per_h = self.n * x * self.m_rated_kg_per_h / RHO_N_KG_PER_M3
         p = self.p_total_w(x) if compression else self.p_stack_w(x)
         return p / 1000.0 / nm3_per_h

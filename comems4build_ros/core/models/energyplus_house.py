@@ -74,7 +74,21 @@ GROUND_C = (10.0, 9.5, 9.5, 10.0, 11.0, 12.0, 13.0, 13.5, 13.5, 13.0, 12.0, 11.0
 
 @dataclass(frozen=True)
 class Layer:
-    """One material layer: thickness [m], conductivity [W/(m K)], density [kg/m3], heat capacity [J/(kg K)]."""
+    """One material layer of a construction.
+
+    Attributes
+    ----------
+    name : str
+        The material's name in the IDF.
+    thickness_m : float
+        Thickness [m].
+    k_w_mk : float
+        Thermal conductivity [W/(m K)].
+    rho_kg_m3 : float
+        Density [kg/m3].
+    c_j_kgk : float
+        Specific heat capacity [J/(kg K)].
+    """
 
     name: str
     thickness_m: float
@@ -90,7 +104,37 @@ class Layer:
 
 @dataclass(frozen=True)
 class HouseSpec:
-    """Geometry and envelope of the house (all figures in SI units)."""
+    """Geometry and envelope of the house (TABULA DE.N.SFH.09.Gen, advanced refurbishment; SI units).
+
+    Attributes
+    ----------
+    width_m, depth_m, storey_m : float
+        Outer width (east-west), depth (north-south) and floor-to-floor height [m].
+    window_ratio : float
+        Window area over the heated floor area [-] (TABULA).
+    window_share : tuple of float
+        Shares of the window area facing south, east, north, west [-].
+    window_height_m, sill_m : float
+        Window height and sill height [m].
+    u_window : float
+        Window U-value [W/(m2 K)].
+    g_window : float
+        Window solar heat gain coefficient [-].
+    u_wall_target, u_roof_target, u_floor_target : float
+        U-value targets of wall, roof and ground slab [W/(m2 K)].
+    du_thermal_bridge : float
+        Thermal-bridge surcharge over the envelope [W/(m2 K)].
+    infiltration_ach, ventilation_ach : float
+        Infiltration and balanced ventilation air change [1/h].
+    heat_recovery : float
+        Share of the ventilation's heat recovered [-].
+    b_ground : float
+        TABULA's adjustment factor of a floor on the ground [-].
+    occupants : int
+        Occupants.
+    timesteps_per_hour : int
+        EnergyPlus zone time steps per hour.
+    """
 
     width_m: float = 7.81           # east-west
     depth_m: float = 7.81           # north-south: 2 x 7.81^2 = 121.99 m2 = TABULA A_C,ref 121.9 m2
@@ -165,7 +209,19 @@ def _insulation(name: str, r_needed: float) -> Layer:
 
 
 def constructions(spec: HouseSpec) -> dict[str, list[Layer]]:
-    """Layers of each construction, outside to inside, sized to the U-value targets."""
+    """Build the layers of each construction, outside to inside, sized to the U-value targets.
+
+    Parameters
+    ----------
+    spec : HouseSpec
+        The house.
+
+    Returns
+    -------
+    dict of str to list of Layer
+        Construction name -> layers (insulation thickness from the U-value target, film
+        resistances of EN ISO 6946).
+    """
     area_env = spec.wall_gross_m2 + 2 * spec.floor_m2
     wall_net = spec.wall_gross_m2 - spec.window_m2
     u_wall = spec.u_wall_target + spec.du_thermal_bridge * area_env / wall_net
@@ -187,20 +243,39 @@ def constructions(spec: HouseSpec) -> dict[str, list[Layer]]:
 
 
 def u_value(layers: list[Layer], r_films: float) -> float:
-    """U-value [W/(m2 K)] of a construction with the given sum of film resistances."""
+    """Compute the U-value of a construction (EN ISO 6946: 1 / (R_films + sum of layer resistances)).
+
+    Parameters
+    ----------
+    layers : list of Layer
+        The construction's layers.
+    r_films : float
+        Sum of the surface film resistances [m2 K/W].
+
+    Returns
+    -------
+    float
+        U-value [W/(m2 K)].
+    """
     return 1.0 / (r_films + sum(x.r_m2k_w for x in layers))
 
 
 def heat_loss_coefficient(spec: HouseSpec | None = None) -> dict[str, float]:
-    """The house's steady-state heat loss coefficient by the typology's method [W/K].
+    """Compute the house's steady-state heat loss coefficient by the typology's method.
 
     H = sum(U A b) + H_ve with b = 1 towards the outdoor air and ``b_ground`` towards the
     ground (TABULA), H_ve = rho c_p n V = 0.34 Wh/(m3 K) * n * V.
 
+    Parameters
+    ----------
+    spec : HouseSpec, optional
+        The house (default :class:`HouseSpec`).
+
     Returns
     -------
-    dict with ``h_tr_w_per_k``, ``h_ve_w_per_k``, ``h_w_per_k`` and the parts
-    ``wall``, ``window``, ``roof``, ``floor`` [W/K].
+    dict of str to float
+        ``h_tr_w_per_k``, ``h_ve_w_per_k``, ``h_w_per_k`` and the parts ``wall``,
+        ``window``, ``roof``, ``floor`` [W/K].
     """
     spec = spec or HouseSpec()
     c = constructions(spec)
@@ -253,7 +328,7 @@ def _wall_points(side: str, w: float, d: float, z0: float, z1: float) -> list[tu
 
 
 def _window_points(side: str, spec: HouseSpec, z0: float, area: float) -> list[tuple[float, float, float]]:
-    """A window centred in the wall ``side`` of the storey starting at ``z0``."""
+    """Return a window centred in the wall ``side`` of the storey starting at ``z0``."""
     length = spec.width_m if side in ("South", "North") else spec.depth_m
     width = area / spec.window_height_m
     a = (length - width) / 2.0
@@ -275,7 +350,18 @@ HEADER = """! ComEMS4Build co-simulation house: German single-family house, TABU
 
 
 def idf_text(spec: HouseSpec | None = None) -> str:
-    """The house as IDF text for EnergyPlus 25.2 (without RunPeriod and Site:Location)."""
+    """Write the house as IDF text for EnergyPlus 25.2 (without RunPeriod and Site:Location).
+
+    Parameters
+    ----------
+    spec : HouseSpec, optional
+        The house (default :class:`HouseSpec`).
+
+    Returns
+    -------
+    str
+        The IDF.
+    """
     spec = spec or HouseSpec()
     h = heat_loss_coefficient(spec)
     out = [HEADER.format(h_tr=h["h_tr_w_per_k"], h_ve=h["h_ve_w_per_k"], h=h["h_w_per_k"])]
@@ -384,19 +470,43 @@ def _zone_objects(spec: HouseSpec, i: int, zone: str) -> list[str]:
 
 
 def shipped_idf() -> Path:
-    """The IDF the package ships (``comems4build_ros/data/energyplus_house_sfh.idf``)."""
+    """Return the path of the IDF the package ships (``comems4build_ros/data/energyplus_house_sfh.idf``)."""
     return Path(__file__).resolve().parents[2] / "data" / "energyplus_house_sfh.idf"
 
 
 def write_idf(path: str | Path, spec: HouseSpec | None = None) -> Path:
-    """Write the house's IDF to ``path``."""
+    """Write the house's IDF to ``path``.
+
+    Parameters
+    ----------
+    path : str or Path
+        Output file.
+    spec : HouseSpec, optional
+        The house (default :class:`HouseSpec`).
+
+    Returns
+    -------
+    Path
+        The file written.
+    """
     path = Path(path)
     path.write_text(idf_text(spec), encoding="utf-8")
     return path
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m comems4build_ros.core.models.energyplus_house [--write] [--print-h]``."""
+    """Run ``python -m comems4build_ros.core.models.energyplus_house [--write]``: print the heat loss coefficient.
+
+    Parameters
+    ----------
+    argv : list of str, optional
+        Arguments (default ``sys.argv[1:]``); ``--write`` regenerates the shipped IDF.
+
+    Returns
+    -------
+    int
+        Exit code 0.
+    """
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--write", action="store_true", help="regenerate the shipped IDF")
     args = parser.parse_args(argv)

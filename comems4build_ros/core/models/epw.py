@@ -54,9 +54,12 @@ class Weather:
 
     Attributes
     ----------
-    time : tz-aware hourly index
-    t_amb_c : ambient temperature [degC]
-    ghi_w_m2, dhi_w_m2 : global and diffuse horizontal irradiance [W/m2]
+    time : pandas.DatetimeIndex
+        Start of each hourly step, tz-aware.
+    t_amb_c : numpy.ndarray
+        Ambient temperature [degC].
+    ghi_w_m2, dhi_w_m2 : numpy.ndarray
+        Global and diffuse horizontal irradiance [W/m2].
     """
 
     time: pd.DatetimeIndex
@@ -66,7 +69,20 @@ class Weather:
 
 
 def standard_offset_h(site: SiteParams, time: pd.DatetimeIndex) -> float:
-    """The site's standard-time offset from UTC [h] (its offset outside daylight saving)."""
+    """Return the site's standard-time offset from UTC (its offset outside daylight saving).
+
+    Parameters
+    ----------
+    site : SiteParams
+        ``timezone`` (IANA name).
+    time : pandas.DatetimeIndex
+        The run's steps (the year of the first one is used).
+
+    Returns
+    -------
+    float
+        Offset [h], the smaller of the January and July offsets.
+    """
     import zoneinfo
 
     tz = zoneinfo.ZoneInfo(site.timezone)
@@ -76,12 +92,38 @@ def standard_offset_h(site: SiteParams, time: pd.DatetimeIndex) -> float:
 
 
 def standard_times(time: pd.DatetimeIndex, offset_h: float) -> pd.DatetimeIndex:
-    """The steps' starts in the site's standard time, naive."""
+    """Convert the steps' starts to the site's standard time, naive (as EPW records count hours).
+
+    Parameters
+    ----------
+    time : pandas.DatetimeIndex
+        Step starts, tz-aware.
+    offset_h : float
+        Standard-time offset from UTC [h] (:func:`standard_offset_h`).
+
+    Returns
+    -------
+    pandas.DatetimeIndex
+        Naive local standard times.
+    """
     return (time.tz_convert("UTC") + pd.Timedelta(hours=offset_h)).tz_localize(None)
 
 
 def direct_normal_w_m2(weather: Weather, site: SiteParams) -> np.ndarray:
-    """DNI = (GHI - DHI) / cos(zenith) at the middle of each hour [W/m2] (0 with the sun below 3 deg)."""
+    """Compute DNI = (GHI - DHI) / cos(zenith) at the middle of each hour (0 with the sun below 3 deg).
+
+    Parameters
+    ----------
+    weather : Weather
+        Hourly GHI and DHI [W/m2].
+    site : SiteParams
+        Latitude, longitude [deg] and altitude [m] (solar position by pvlib).
+
+    Returns
+    -------
+    numpy.ndarray
+        Direct normal irradiance [W/m2].
+    """
     import pvlib
 
     mid = weather.time + pd.Timedelta(minutes=30)
@@ -95,16 +137,25 @@ def direct_normal_w_m2(weather: Weather, site: SiteParams) -> np.ndarray:
 def write_epw(path: str | Path, weather: Weather, site: SiteParams, source: str = "comems4build scenario") -> Path:
     """Write ``weather`` as an EPW file (one record per step, local standard time).
 
+    The format is EnergyPlus's EPW (EnergyPlus "Auxiliary Programs", Weather Converter:
+    8 header lines, then 35 fields per hourly record); fields the scenario does not hold are
+    the format's "missing" values or the documented choices of :data:`CHOICES`.
+
     Parameters
     ----------
-    path : output file
-    weather : hourly series of the run (steps of 1 h, consecutive)
-    site : location (latitude, longitude, altitude, time zone)
-    source : text of the LOCATION line's source field
+    path : str or Path
+        Output file.
+    weather : Weather
+        Hourly series of the run (steps of 1 h, consecutive).
+    site : SiteParams
+        Location (latitude, longitude, altitude, time zone).
+    source : str
+        Text of the LOCATION line's source field.
 
     Returns
     -------
-    Path of the file written.
+    Path
+        The file written.
     """
     path = Path(path)
     offset = standard_offset_h(site, weather.time)
@@ -143,7 +194,20 @@ def write_epw(path: str | Path, weather: Weather, site: SiteParams, source: str 
 
 
 def dew_point_c(t_c: float, rh_pct: float) -> float:
-    """Dew point [degC] by the Magnus formula (a = 17.62, b = 243.12 degC, WMO over water)."""
+    """Compute the dew point by the Magnus formula (a = 17.62, b = 243.12 degC; WMO, over water).
+
+    Parameters
+    ----------
+    t_c : float
+        Air temperature [degC].
+    rh_pct : float
+        Relative humidity [%].
+
+    Returns
+    -------
+    float
+        Dew point [degC].
+    """
     a, b = 17.62, 243.12
     g = np.log(rh_pct / 100.0) + a * t_c / (b + t_c)
     return float(b * g / (a - g))
@@ -154,7 +218,17 @@ class EPWError(ValueError):
 
 
 def epw_hours(path: str | Path) -> pd.DatetimeIndex:
-    """Start of each record's hour (naive standard time) of an EPW file.
+    """Read the start of each record's hour of an EPW file.
+
+    Parameters
+    ----------
+    path : str or Path
+        EPW file.
+
+    Returns
+    -------
+    pandas.DatetimeIndex
+        Naive local standard time of each record's start (EPW hour h covers h-1 .. h).
 
     Raises
     ------
@@ -188,9 +262,17 @@ def check_epw_covers(path: str | Path, first_std: pd.Timestamp, hours: int) -> N
 
     Parameters
     ----------
-    path : EPW file
-    first_std : start of the run's first hour (naive local standard time)
-    hours : hours of the run (whole days are simulated: rounded up to a day)
+    path : str or Path
+        EPW file.
+    first_std : pandas.Timestamp
+        Start of the run's first hour (naive local standard time).
+    hours : int
+        Hours of the run (whole days are simulated: rounded up to a day).
+
+    Raises
+    ------
+    EPWError
+        Naming the file, the hours missing and the first of them.
     """
     have = epw_hours(path)
     need = pd.date_range(first_std.normalize(), periods=int(np.ceil((hours + first_std.hour) / 24.0)) * 24,

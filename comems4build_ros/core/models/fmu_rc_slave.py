@@ -36,7 +36,14 @@ EXPM_DIGITS = 12
 
 
 class RCBuildingFMU(Fmi2Slave):
-    """4R3C building (ComEMS4Build paper, eq:state_update_bldgs) as an FMI 2.0 co-simulation slave."""
+    """4R3C building (ComEMS4Build paper, eq:state_update_bldgs) as an FMI 2.0 co-simulation slave.
+
+    Parameters
+    ----------
+    **kwargs
+        pythonfmu's instance arguments; ``resources`` is the folder holding ``rc_parameters.json``
+        (the ten 4R3C parameters in SI units, T_air,init and T_amb,init [degC]).
+    """
 
     author = "comems4build_ros"
     description = "4R3C building model of the ComEMS4Build paper (eq:dT_i .. eq:dT_wout), zero-order hold per step"
@@ -73,7 +80,7 @@ class RCBuildingFMU(Fmi2Slave):
         self._bg = None
 
     def exit_initialization_mode(self) -> None:
-        """The walls on the steady profile between T_air_start and T_amb_start (as the in-process model)."""
+        """Put the walls on the steady profile between T_air_start and T_amb_start (as the in-process model)."""
         r_chain = self.r_w_air_k_per_w + self.r_w_k_per_w + self.r_w_amb_k_per_w
         dt = self.T_air_start - self.T_amb_start
         self.T_air = self.T_air_start
@@ -107,7 +114,20 @@ class RCBuildingFMU(Fmi2Slave):
         self._h = h
 
     def do_step(self, current_time: float, step_size: float) -> bool:
-        """x[k+1] = A_d x[k] + B_d u[k] over the step (plain float arithmetic, the in-process order)."""
+        """Advance x[k+1] = A_d x[k] + B_d u[k] over the step (plain float arithmetic, the in-process order).
+
+        Parameters
+        ----------
+        current_time : float
+            The master's time at the step's start [s].
+        step_size : float
+            Communication step h [s] (A_d and B_d are computed again when it changes).
+
+        Returns
+        -------
+        bool
+            True (the step always succeeds).
+        """
         if self._h != step_size:
             self._discretize(step_size)
         x0, x1, x2 = self.T_air, self.T_w_in, self.T_w_out

@@ -45,33 +45,70 @@ _NEWTON_TOL_W = 1e-9
 
 
 def cell_voltage_v(i_a, fc: FuelCellParams):
-    """Cell voltage V_cell(i) [V] of the polarization model (vectorised).
+    """Compute the cell voltage V_cell(i) of the polarization model (vectorised).
 
     Parameters
     ----------
-    i_a : numeric
+    i_a : float or array_like
         Stack current [A] (>= 0).
     fc : FuelCellParams
-        ``e_ocv_v`` [V], ``a_tafel_v`` [V], ``i_tafel_a`` [A], ``r_ohm_ohm`` [Ohm].
+        ``e_ocv_v`` [V], ``a_tafel_v`` [V], ``i_tafel_a`` [A], ``r_ohm_ohm`` [Ohm] (fitted to
+        the Horizon H-2000 datasheet).
+
+    Returns
+    -------
+    numpy.ndarray
+        V_cell = E_ocv - A ln(1 + i / i_T) - R_ohm i [V].
     """
     i = np.asarray(i_a, dtype=float)
     return fc.e_ocv_v - fc.a_tafel_v * np.log1p(i / fc.i_tafel_a) - fc.r_ohm_ohm * i
 
 
 def stack_power_w(i_a, fc: FuelCellParams):
-    """Stack electrical output P = N_cells * V_cell(i) * i [W] (vectorised)."""
+    """Compute the stack's electrical output P = N_cells * V_cell(i) * i (vectorised).
+
+    Parameters
+    ----------
+    i_a : float or array_like
+        Stack current [A].
+    fc : FuelCellParams
+        Polarization parameters and ``n_cells``.
+
+    Returns
+    -------
+    numpy.ndarray
+        P_el,FC [W].
+    """
     i = np.asarray(i_a, dtype=float)
     return fc.n_cells * cell_voltage_v(i, fc) * i
 
 
 def _dpower_di(i, fc: FuelCellParams):
-    """dP/di [W/A]."""
+    """Return dP/di of the stack [W/A]."""
     dv = -fc.a_tafel_v / (fc.i_tafel_a + i) - fc.r_ohm_ohm
     return fc.n_cells * (cell_voltage_v(i, fc) + i * dv)
 
 
 def max_power_point(fc: FuelCellParams) -> tuple[float, float]:
-    """Current [A] and output [W] at the maximum of P(i) (end of the monotone branch)."""
+    """Find the maximum of P(i), the end of the monotone branch (bisection on dP/di).
+
+    Parameters
+    ----------
+    fc : FuelCellParams
+        Polarization parameters and ``n_cells``.
+
+    Returns
+    -------
+    i_mpp_a : float
+        Current at the maximum [A].
+    p_mpp_w : float
+        Output at the maximum [W].
+
+    Raises
+    ------
+    ValueError
+        If P(i) has no maximum below 1e7 A.
+    """
     lo, hi = 0.0, 1.0
     while _dpower_di(hi, fc) > 0.0:
         lo, hi = hi, 2.0 * hi
@@ -88,10 +125,22 @@ def max_power_point(fc: FuelCellParams) -> tuple[float, float]:
 
 
 def current_for_power_a(p_el_w, fc: FuelCellParams):
-    """Stack current [A] that delivers ``p_el_w`` on the monotone branch (vectorised).
+    """Solve for the stack current that delivers ``p_el_w`` on the monotone branch (vectorised).
 
     Newton's method from i = 0: P(i) is increasing and concave on the branch, so the
     iterates approach the root from below and never overshoot.
+
+    Parameters
+    ----------
+    p_el_w : float or array_like
+        Electrical output [W] (0 .. the maximum power point).
+    fc : FuelCellParams
+        Polarization parameters and ``n_cells``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Stack current [A].
 
     Raises
     ------
@@ -114,24 +163,39 @@ def current_for_power_a(p_el_w, fc: FuelCellParams):
 
 
 def h2_molar_flow_mol_s(i_a, fc: FuelCellParams):
-    """Hydrogen consumption n_FC = N_cells * i / (2F) [mol/s], ``eq:molar_flows`` (Faraday)."""
+    """Compute the hydrogen consumption n_FC = N_cells * i / (2F), ``eq:molar_flows`` (Faraday's law).
+
+    Parameters
+    ----------
+    i_a : float or array_like
+        Stack current [A].
+    fc : FuelCellParams
+        ``n_cells``.
+
+    Returns
+    -------
+    numpy.ndarray
+        Molar H2 flow n_FC [mol/s].
+    """
     return fc.n_cells * np.asarray(i_a, dtype=float) / (ELECTRONS_PER_H2 * FARADAY_C_PER_MOL)
 
 
 def operating_point(p_el_w, fc: FuelCellParams):
-    """Hydrogen LHV power and electrical efficiency for an electrical output (vectorised).
+    """Compute the hydrogen LHV power and electrical efficiency of an electrical output (vectorised).
 
     Parameters
     ----------
-    p_el_w : numeric
+    p_el_w : float or array_like
         Electrical output P_el,FC [W] (0 = off).
     fc : FuelCellParams
+        Polarization parameters and ``n_cells``.
 
     Returns
     -------
-    (p_h2_w, eta_el)
-        Hydrogen consumed as LHV power n_FC * LHV [W] and eta_el,FC [-]
-        (``eq:efficiency_FC``; 0 where the cell is off).
+    p_h2_w : float or numpy.ndarray
+        Hydrogen consumed as LHV power n_FC * LHV [W].
+    eta_el : float or numpy.ndarray
+        eta_el,FC [-] (``eq:efficiency_FC``; 0 where the cell is off).
     """
     p = np.asarray(p_el_w, dtype=float)
     i = current_for_power_a(p, fc)
@@ -149,6 +213,7 @@ class FuelCellTable:
     Parameters
     ----------
     fc : FuelCellParams
+        Polarization parameters, ``n_cells`` and ``p_max_w`` [W].
     n_points : int
         Grid points between 0 W and ``fc.p_max_w`` (the interpolation error of the
         default 4097 points is below 1e-6 relative over [P_min, P_max]).
@@ -177,7 +242,18 @@ class FuelCellTable:
         self._h2: list[float] = h2.tolist()
 
     def h2_power_w(self, p_el_w: float) -> float:
-        """Hydrogen LHV power [W] for an output 0 <= p_el_w <= p_max_w [W] (linear interpolation)."""
+        """Look up the hydrogen LHV power of an output (linear interpolation, ``eq:molar_flows``).
+
+        Parameters
+        ----------
+        p_el_w : float
+            Electrical output, 0 <= p_el_w <= p_max_w [W].
+
+        Returns
+        -------
+        float
+            n_FC * LHV [W].
+        """
         x = p_el_w * self._inv_step
         j = int(x)
         if j >= self._n - 1:
@@ -186,7 +262,18 @@ class FuelCellTable:
         return h[j] + (x - j) * (h[j + 1] - h[j])
 
     def el_power_w(self, p_h2_w: float) -> float:
-        """Electrical output [W] that consumes ``p_h2_w`` of hydrogen (inverse lookup)."""
+        """Look up the electrical output that consumes a hydrogen LHV power (inverse of :meth:`h2_power_w`).
+
+        Parameters
+        ----------
+        p_h2_w : float
+            Hydrogen LHV power [W].
+
+        Returns
+        -------
+        float
+            P_el,FC [W], at most ``p_max_w``.
+        """
         h = self._h2
         if p_h2_w <= 0.0:
             return 0.0
@@ -203,7 +290,22 @@ class FuelCell:
     Parameters
     ----------
     fc : FuelCellParams
+        Polarization parameters, ``p_min_w`` and ``p_max_w`` [W], ``zeta`` and ``eta_sys`` [-].
     h2 : HydrogenParams
+        The store's LHV content ``e_max_kwh`` [kWh] and ``loh_min``, ``loh_max`` [-].
+
+    Attributes
+    ----------
+    table : FuelCellTable
+        P_H2(P_el) of the stack.
+    p_min_w, p_top_w : float
+        Operating range [P_min, zeta P_max] [W].
+    eta_sys : float
+        System efficiency eta_sys,FC [-] (``eq:FC_sys_efficiency``).
+    e_h2_wh : float
+        The store's LHV energy E_H2,max [Wh].
+    loh_min, loh_max : float
+        Bounds of the store's level [-].
 
     Raises
     ------
@@ -223,7 +325,7 @@ class FuelCell:
         self.loh_max = float(h2.loh_max)
 
     def run(self, p_req_w: float, loh: float, dt_h: float) -> tuple[float, float, float, float, float, int]:
-        """One step for a requested output.
+        """Run the fuel cell for one step of a requested output.
 
         The request goes onto {0} U [P_min, zeta P_max] (from half of P_min on it is raised
         to P_min, below it the cell stays off), then down to what the store holds above
@@ -231,14 +333,27 @@ class FuelCell:
 
         Parameters
         ----------
-        p_req_w : requested electrical output [W] (finite)
-        loh : LOH[k-1] [-]
-        dt_h : step t_s [h]
+        p_req_w : float
+            Requested electrical output [W] (finite).
+        loh : float
+            LOH[k-1] [-].
+        dt_h : float
+            Step t_s [h].
 
         Returns
         -------
-        (P_el,FC [W], hydrogen drawn as LHV power [W], eta_el,FC [-], recoverable heat
-         Q_hr,FC [W], LOH after the draw [-], clip bits)
+        p_el_w : float
+            P_el,FC [W].
+        p_h2_w : float
+            Hydrogen drawn as LHV power n_FC * LHV [W].
+        eta_el : float
+            eta_el,FC [-] (``eq:efficiency_FC``), 0 when off.
+        q_rec_w : float
+            Recoverable heat Q_hr,FC = n_FC LHV (eta_sys - eta_el) [W] (``eq:FC_sys_efficiency``).
+        loh : float
+            LOH after the draw [-] (``eq:LOH``).
+        clip : int
+            ``CLIP_FC_RANGE`` and ``CLIP_FC_H2`` bits.
         """
         clip = 0
         p_min = self.p_min_w
@@ -281,7 +396,19 @@ class FuelCell:
 
 
 def efficiency_summary(fc: FuelCellParams) -> dict[str, float]:
-    """eta_el at P_min, at the datasheet point (70 A), at P_nom and at zeta * P_max [-]."""
+    """Summarise the electrical efficiency over the operating range (``eq:efficiency_FC``).
+
+    Parameters
+    ----------
+    fc : FuelCellParams
+        Polarization parameters and operating points.
+
+    Returns
+    -------
+    dict of str to float
+        eta_el [-] at P_min, P_nom, zeta * P_max and P_max, at the Horizon H-2000 datasheet
+        point (70 A), and its mean over [P_min, zeta P_max].
+    """
     points = {
         "p_min": fc.p_min_w,
         "p_nom": fc.p_nom_w,

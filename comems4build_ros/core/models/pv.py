@@ -37,7 +37,7 @@ MID_STEP_MINUTES = 30
 
 
 def power_from_irradiance_w(g_poa_w_m2, t_amb_c, pv: PVParams) -> np.ndarray:
-    """``eq:power_pv`` for a given plane-of-array irradiance.
+    """Compute the PV output ``eq:power_pv`` for a given plane-of-array irradiance.
 
     Parameters
     ----------
@@ -63,7 +63,11 @@ def power_from_irradiance_w(g_poa_w_m2, t_amb_c, pv: PVParams) -> np.ndarray:
 
 
 def poa_irradiance_w_m2(time, ghi_w_m2, dhi_w_m2, pv: PVParams, site: SiteParams) -> np.ndarray:
-    """Irradiance on the module plane G [W/m2] from horizontal global and diffuse irradiance.
+    """Transpose horizontal global and diffuse irradiance onto the module plane, G of ``eq:power_pv``.
+
+    Solar position, DNI = (GHI - DHI) / cos(zenith) limited by the Ineichen clear sky
+    (``pvlib.irradiance.dni``) and the sky-diffuse transposition are pvlib's, at the middle of
+    each hour.
 
     Parameters
     ----------
@@ -123,7 +127,7 @@ def _poa_from_horizontal_quiet(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.n
 
 
 def _poa_from_horizontal(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.ndarray, pv: PVParams, site: SiteParams):
-    """pvlib steps of :func:`poa_irradiance_w_m2` for validated inputs at mid-step times."""
+    """Run the pvlib steps of :func:`poa_irradiance_w_m2` for validated inputs at mid-step times."""
     import pvlib  # here, not at the top: node processes that build no scenario skip its ~1 s import
 
     solpos = pvlib.solarposition.get_solarposition(mid, site.latitude_deg, site.longitude_deg, site.altitude_m)
@@ -157,22 +161,30 @@ def _poa_from_horizontal(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.ndarray
 
 
 def pv_power_w(time, ghi_w_m2, dhi_w_m2, t_amb_c, pv: PVParams, site: SiteParams) -> np.ndarray:
-    """PV AC output per hourly step, ``eq:power_pv`` with G from pvlib transposition.
+    """Compute the PV AC output per hourly step, ``eq:power_pv`` with G from pvlib's transposition.
 
     Parameters
     ----------
     time : pandas.DatetimeIndex (tz-aware)
         Start of each hourly step.
-    ghi_w_m2, dhi_w_m2 : array-like
+    ghi_w_m2, dhi_w_m2 : array_like
         Global and diffuse horizontal irradiance [W/m2].
-    t_amb_c : array-like
+    t_amb_c : array_like
         Ambient temperature [degC].
-    pv, site : PVParams, SiteParams
+    pv : PVParams
+        The array (:func:`power_from_irradiance_w`, :func:`poa_irradiance_w_m2`).
+    site : SiteParams
+        Latitude, longitude [deg], altitude [m].
 
     Returns
     -------
     numpy.ndarray
         P_PV [W] per step.
+
+    Raises
+    ------
+    ValueError
+        If the inputs differ in length or hold NaN, inf or negative irradiance.
     """
     g = poa_irradiance_w_m2(time, ghi_w_m2, dhi_w_m2, pv, site)
     t_amb = np.asarray(t_amb_c, dtype=float)
