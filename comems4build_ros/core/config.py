@@ -699,7 +699,7 @@ OTHER_SECTIONS = {
     "flc_flex": "fuzzy options: --ems-option flex.KEY=VALUE or flex_file=FILE (config/fuzzy/flex.yaml)",
     "flc_fc": "fuzzy options: --ems-option fc.KEY=VALUE or fc_file=FILE (config/fuzzy/fc.yaml)",
     "flc_b": "fuzzy options: --ems-option battery.KEY=VALUE or battery_file=FILE (config/fuzzy/battery.yaml)",
-    "forecast": "forecast mode: --forecast perfect|imperfect (settings in config/forecast.yaml)",
+    "forecast": "forecast mode: --forecast perfect|imperfect|realistic (settings in config/forecast.yaml)",
     "scenario": "scenario generator settings: config/scenario.yaml",
 }
 
