@@ -10,10 +10,12 @@ forecasts.
 
 from __future__ import annotations
 
+from datetime import datetime
+
 import numpy as np
 import pandas as pd
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from comems4build_ros.core.config import ConfigError
@@ -60,9 +62,12 @@ def make_series(n: int, rng: np.random.Generator | None = None) -> dict[str, lis
     }
 
 
-def make_model(start: str, days: int, params: RealisticParams | None = None, seed: int = 7,
+def make_model(start: str | pd.Timestamp, days: int, params: RealisticParams | None = None, seed: int = 7,
                tz: str = TZ) -> tuple[RealisticForecast, dict[str, list[float]]]:
-    times = pd.date_range(pd.Timestamp(start, tz=tz), periods=days * 24, freq="h")
+    """Hourly steps from ``start`` (local time of ``tz``, or an aware time converted to it)."""
+    t0 = pd.Timestamp(start)
+    t0 = t0.tz_convert(tz) if t0.tzinfo is not None else t0.tz_localize(tz)
+    times = pd.date_range(t0, periods=days * 24, freq="h")
     series = make_series(len(times) + PRICE_WINDOW)
     return RealisticForecast(series, params or realistic(), seed, times, 24, PRICE_WINDOW), series
 
@@ -99,12 +104,15 @@ def test_naive_forecast_takes_last_week_for_saturday_to_monday() -> None:
        hh=st.integers(0, 23), mm=st.integers(0, 59), k=st.integers(0, 24 * 9 - 1),
        tz=st.sampled_from(["Europe/Berlin", "UTC", "America/New_York"]),
        method=st.sampled_from(["naive", "previous_day", "previous_week"]))
+@example(start=datetime(2023, 3, 25, 11), hh=12, mm=55, k=14, tz="Europe/Berlin", method="naive")  # spring DST
+@example(start=datetime(2022, 10, 29, 11), hh=12, mm=55, k=14, tz="Europe/Berlin", method="naive")  # autumn DST
+@example(start=datetime(2022, 10, 29, 11), hh=0, mm=0, k=37, tz="UTC", method="previous_week")
 def test_no_price_after_the_cutoff_is_the_true_one_unless_published(start, hh, mm, k, tz, method) -> None:
-    """Any start (across DST changes), publication time, market zone and issuing step."""
-    start = pd.Timestamp(start).floor("h")
+    """Any start (any hour, also in the days of the DST changes), publication time, market zone and step."""
+    start = pd.Timestamp(start).floor("h").tz_localize("UTC")  # an instant: no local time is skipped or doubled
     params = realistic(price_publication_time=f"{hh:02d}:{mm:02d}", price_market_timezone=tz,
                        price_forecast=method)
-    model, series = make_model(str(start), 10, params, tz="Europe/Berlin")
+    model, series = make_model(start, 10, params, tz="Europe/Berlin")
     true = np.asarray(series["price_buy_eur_per_kwh"])
     w = np.asarray(model.window(k)["price_buy_eur_per_kwh"])
     known = int(model.known_until[k])
@@ -122,14 +130,16 @@ def test_no_price_after_the_cutoff_is_the_true_one_unless_published(start, hh, m
             assert value != true[k + i] and int(value) < known
 
 
-def test_published_until_at_the_clock_change() -> None:
-    """2023-03-26 has 23 hours in Berlin: the next day's prices still come at 12:55 wall time."""
-    times = pd.date_range(pd.Timestamp("2023-03-25 00:00", tz=TZ), periods=96, freq="h")
+@pytest.mark.parametrize("day", ["2023-03-26", "2022-10-30"])
+def test_published_until_at_the_clock_change(day: str) -> None:
+    """Days of 23 and 25 hours in Berlin: the next day's prices still come at 12:55 wall time."""
+    times = pd.date_range(pd.Timestamp(day, tz=TZ) - pd.Timedelta(days=1), periods=96, freq="h")
     known = published_until(times, "12:55", TZ)
-    wall = times.tz_localize(None)
-    k12, k13 = list(wall).index(pd.Timestamp("2023-03-26 12:00")), list(wall).index(pd.Timestamp("2023-03-26 13:00"))
-    assert wall[known[k12]] == pd.Timestamp("2023-03-27 00:00")
-    assert wall[known[k13]] == pd.Timestamp("2023-03-28 00:00")
+    wall = list(times.tz_localize(None))
+    d = pd.Timestamp(day)
+    k12, k13 = wall.index(d + pd.Timedelta(hours=12)), wall.index(d + pd.Timedelta(hours=13))
+    assert wall[known[k12]] == d + pd.Timedelta(days=1)
+    assert wall[known[k13]] == d + pd.Timedelta(days=2)
 
 
 # --- weather errors ----------------------------------------------------------------------------------------
