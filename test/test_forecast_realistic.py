@@ -252,9 +252,12 @@ def test_bad_settings_are_named(field: str, value, match: str) -> None:
         load_forecast_settings(mode="realistic", realistic=raw)
 
 
-def test_unknown_market_timezone_is_named() -> None:
-    with pytest.raises(ValueError, match="price_market_timezone.*Mars/Olympus"):
-        make_model("2022-12-01 00:00", 3, realistic(price_market_timezone="Mars/Olympus"))
+@pytest.mark.parametrize("zone", ["Mars/Olympus", "Europe/Karlsruhe", "../etc/passwd"])
+def test_unknown_market_timezone_is_named(zone: str) -> None:
+    raw = load_forecast_settings(mode="realistic").realistic.model_dump()
+    raw["price_market_timezone"] = zone
+    with pytest.raises(ConfigError, match="forecast.yaml.*price_market_timezone"):
+        load_forecast_settings(mode="realistic", realistic=raw)
 
 
 def test_shipped_settings_give_their_documented_skill_on_the_paper_winter() -> None:

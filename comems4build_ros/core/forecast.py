@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from pydantic import Field
+from pydantic import Field, field_validator
 
 from comems4build_ros.core.config import Section
 
@@ -83,6 +83,18 @@ class RealisticParams(Section):
     ghi_miss_window_days: int = Field(ge=1, le=366)
     ghi_sd_rel: float = Field(ge=0, le=5)
     ghi_phi: float = Field(ge=0, lt=1)
+
+    @field_validator("price_market_timezone")
+    @classmethod
+    def _known_zone(cls, value: str) -> str:
+        """An IANA time zone name the zone database knows."""
+        import zoneinfo
+
+        try:
+            zoneinfo.ZoneInfo(value)
+        except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+            raise ValueError(f"unknown time zone '{value}' (an IANA name such as Europe/Berlin)") from None
+        return value
 
 
 def t_amb_error_moments(p: RealisticParams, leads: int) -> tuple[np.ndarray, np.ndarray]:
