@@ -331,6 +331,23 @@ class SimulationParams(Section):
         return self
 
 
+def known_timezone(value: str) -> str:
+    """``value`` if the tz database knows it as an IANA time zone name (e.g. ``Europe/Berlin``).
+
+    Raises
+    ------
+    ValueError
+        For any other name (a pydantic validator turns it into the field's error).
+    """
+    import zoneinfo
+
+    try:
+        zoneinfo.ZoneInfo(value)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise ValueError(f"unknown IANA time zone '{value}' (e.g. Europe/Berlin)") from None
+    return value
+
+
 class SiteParams(Section):
     """Location of the house (degrees, metres, IANA time zone)."""
 
@@ -342,14 +359,7 @@ class SiteParams(Section):
     @field_validator("timezone")
     @classmethod
     def _known_zone(cls, value: str) -> str:
-        """An IANA time zone name the tz database knows (e.g. ``Europe/Berlin``)."""
-        import zoneinfo
-
-        try:
-            zoneinfo.ZoneInfo(value)
-        except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-            raise ValueError(f"unknown IANA time zone '{value}' (e.g. Europe/Berlin)") from None
-        return value
+        return known_timezone(value)
 
 
 class PVParams(Section):

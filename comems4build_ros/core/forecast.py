@@ -42,7 +42,7 @@ import numpy as np
 import pandas as pd
 from pydantic import Field, field_validator
 
-from comems4build_ros.core.config import Section
+from comems4build_ros.core.config import Section, known_timezone
 
 #: Forecast modes of ``--forecast`` (``config/forecast.yaml`` ``mode``).
 FORECAST_MODES = ("perfect", "imperfect", "realistic")
@@ -87,14 +87,7 @@ class RealisticParams(Section):
     @field_validator("price_market_timezone")
     @classmethod
     def _known_zone(cls, value: str) -> str:
-        """An IANA time zone name the zone database knows."""
-        import zoneinfo
-
-        try:
-            zoneinfo.ZoneInfo(value)
-        except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-            raise ValueError(f"unknown time zone '{value}' (an IANA name such as Europe/Berlin)") from None
-        return value
+        return known_timezone(value)
 
 
 def t_amb_error_moments(p: RealisticParams, leads: int) -> tuple[np.ndarray, np.ndarray]:
