@@ -288,6 +288,7 @@ def evaluate(plan: Plan, runs_dir: Path, out: Path, runs_made: int, wall_s: floa
     report = {
         "weeks": plan.weeks,
         "ems": list(plan.ems),
+        "forecast": plan.forecast,
         "seeds": list(plan.study.seeds),
         "criteria": {"share": vs.criteria.share, "discomfort_weeks_per_12": vs.criteria.discomfort_weeks_per_12,
                      "h2_left": list(vs.criteria.h2_left)},

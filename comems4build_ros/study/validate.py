@@ -169,6 +169,7 @@ class Plan:
     weeks : run length [weeks]
     ems : the EMS run
     study : the reproduction study file (seeds, targets, ambiguities)
+    forecast : the MPC's forecasts (``--forecast``; None = ``config/forecast.yaml``)
     """
 
     cases: list[StudyCase]
@@ -178,6 +179,7 @@ class Plan:
     weeks: float
     ems: tuple[str, ...]
     study: Study
+    forecast: str | None = None
 
 
 def plan(
@@ -188,6 +190,7 @@ def plan(
     seeds: Sequence[int] | None = None,
     study_path: str | Path | None = None,
     validation_path: str | Path | None = None,
+    forecast: str | None = None,
 ) -> Plan:
     """Plan the study: every case with every EMS at the defaults, and each reading of ``study_keys`` on top.
 
@@ -199,6 +202,8 @@ def plan(
     ems : the EMS to run (default the paper's three)
     seeds : seeds of the calibration cases (default: the reproduction's)
     study_path, validation_path : the study files (default ``config/``)
+    forecast : the MPC's forecasts (``perfect``, ``imperfect``, ``realistic``; None = ``config/forecast.yaml``),
+        part of the MPC runs' specification (the other EMS read no forecast)
 
     Raises
     ------
@@ -206,6 +211,7 @@ def plan(
         For an unknown case, EMS or ambiguity, a default reading that is not what
         ``config/`` holds, or an option that does not build.
     """
+    from comems4build_ros.core.ems import ems_table
     from comems4build_ros.core.scenario.validation import load_validation_settings
     from comems4build_ros.study.reproduce import check_defaults
 
@@ -220,6 +226,11 @@ def plan(
     n_weeks = float(vs.weeks if weeks is None else weeks)
     the_cases = study_cases(study.seeds if seeds is None else seeds, vs, cases)
     variants = study_variants(study, study_keys)
+
+    def forecast_of(e: str) -> str | None:
+        entry = ems_table().get(e)
+        return forecast if entry is not None and entry.info_level == "mpc" else None
+
     tasks: dict[str, RunTask] = {}
     runs: dict[tuple[str, str], dict[str, str]] = {}
     for c in the_cases:
@@ -227,7 +238,7 @@ def plan(
         for e in ems:
             name = run_name(c, e)
             tasks[name] = RunTask(ems=e, out_dir="", scenario=c.scenario, weeks=n_weeks, seed=c.seed,
-                                  overrides=dict(c.overrides))
+                                  overrides=dict(c.overrides), forecast=forecast_of(e))
             base[e] = name
         runs[(c.id, BASE)] = base
         for v in variants:
@@ -238,8 +249,9 @@ def plan(
                         continue
                     name = run_name(c, e, v)
                     tasks[name] = RunTask(ems=e, out_dir="", scenario=c.scenario, weeks=n_weeks, seed=c.seed,
-                                          overrides=dict(c.overrides), ems_options=dict(v.ems_options.get(e, {})))
+                                          overrides=dict(c.overrides), ems_options=dict(v.ems_options.get(e, {})),
+                                          forecast=forecast_of(e))
                     per[e] = name
             runs[(c.id, v.key)] = per
     check_tasks(tasks.values())
-    return Plan(the_cases, variants, tasks, runs, n_weeks, tuple(ems), study)
+    return Plan(the_cases, variants, tasks, runs, n_weeks, tuple(ems), study, forecast)
