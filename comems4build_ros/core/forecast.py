@@ -44,8 +44,6 @@ from pydantic import Field, field_validator
 
 from comems4build_ros.core.config import Section, known_timezone
 
-#: Forecast modes of ``--forecast`` (``config/forecast.yaml`` ``mode``).
-FORECAST_MODES = ("perfect", "imperfect", "realistic")
 #: Price forecast methods beyond the published horizon.
 PRICE_METHODS = ("naive", "previous_day", "previous_week")
 #: Weekdays (Monday = 0) whose naive price forecast is the same weekday a week earlier.

@@ -32,12 +32,21 @@ from comems4build_ros.core.ems.base import (
     Observation,
     check_mpc_horizon,
 )
-from comems4build_ros.core.forecast import FORECAST_MODES, RealisticForecast, RealisticParams, error_statistics
+from comems4build_ros.core.forecast import RealisticForecast, RealisticParams, error_statistics
 from comems4build_ros.core.models.pv import pv_power_w
 from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.scenario.base import Scenario
 from comems4build_ros.core.scenario.comfort import heating_season_days, holiday_dates
-from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, Flows, PlantState
+from comems4build_ros.core.types import (
+    ACTION_FIELDS,
+    FLOW_FIELDS,
+    FORECAST_MODES,
+    STATE_COLUMNS,
+    Action,
+    Exogenous,
+    Flows,
+    PlantState,
+)
 from comems4build_ros.files.outputs import atomic_dir
 
 #: Hours of a day and of a week [h].

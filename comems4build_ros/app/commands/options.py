@@ -262,8 +262,8 @@ def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = 
 
 
 def add_forecast_option(parser: argparse.ArgumentParser) -> None:
-    """``--forecast MODE``: the MPC's forecasts (:data:`comems4build_ros.core.forecast.FORECAST_MODES`)."""
-    from comems4build_ros.core.forecast import FORECAST_MODES
+    """``--forecast MODE``: the MPC's forecasts (:data:`comems4build_ros.core.types.FORECAST_MODES`)."""
+    from comems4build_ros.core.types import FORECAST_MODES
 
     parser.add_argument("--forecast", choices=FORECAST_MODES, default=None,
                         help="forecasts given to the MPC: perfect (the paper's), imperfect or realistic (prices as "
