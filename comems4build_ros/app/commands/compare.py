@@ -17,8 +17,8 @@ from comems4build_ros.app.commands.options import (
     ems_help,
     output_dir,
     scenario_of,
-    study_executor,
     study_inputs,
+    study_pool,
 )
 
 if TYPE_CHECKING:
@@ -147,11 +147,11 @@ def run(args: argparse.Namespace) -> int:
     output.check()
     out = output.path
     jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
-    with output, study_executor(args, out, jobs) as executor:  # finished runs kept in OUT/.runstore until the end
+    with output, study_pool(args, out, jobs) as pool:  # finished runs kept in OUT/.runstore until the end
         stage = output.stage
         rep = _compare(args, emss, etas, levels, overrides, stage)
         output.commit()  # runs/, manifest, report, figures replace an older comparison's when all are written
-        executor.complete()
+        pool.complete()
     _print_report(rep, stage, out)
     return 0
 
