@@ -1,4 +1,4 @@
-"""Parameter files: loading, merging and validation.
+"""Parameter files: loading, merging and checking.
 
 All parameters live in ``config/*.yaml`` in the ROS 2 parameter-file form::
 
@@ -9,11 +9,11 @@ All parameters live in ``config/*.yaml`` in the ROS 2 parameter-file form::
 
 The same files are passed to the ROS nodes with ``--ros-args --params-file``. This
 module reads them without rclpy, merges several files (later ones win, key by key) and
-validates the plant sections against :class:`PlantParams`. An invalid file raises
+checks the plant sections against :class:`PlantParams`. An invalid file raises
 :class:`ConfigError` naming the file, the parameter path and the rule broken.
 
 Other packages of the project (scenario generator, controllers) read their own sections
-with :func:`read_ros_params` and validate them with :func:`validate`.
+with :func:`read_ros_params` and check them with :func:`parse_model`.
 """
 
 from __future__ import annotations
@@ -219,7 +219,7 @@ def finite_number(value: Any, where: str) -> float:
     return float(value)
 
 
-def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
+def parse_model(model: type[M], data: Mapping[str, Any], source: str) -> M:
     """Validate ``data`` against a pydantic model; errors name source and parameter."""
     try:
         return model.model_validate(data)
@@ -237,7 +237,7 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
 def load_section(model: type[M], path: str | Path | None, default_file: str, section: str,
                  overrides: Mapping[str, Any] | None = None) -> M:
     """Section ``section`` of the parameter file ``path`` (``None``: ``config/<default_file>``)
-    with ``overrides`` (top-level keys) applied, validated as ``model``.
+    with ``overrides`` (top-level keys) applied, checked as ``model``.
 
     Raises
     ------
@@ -247,13 +247,13 @@ def load_section(model: type[M], path: str | Path | None, default_file: str, sec
     path = Path(path) if path else config_dir() / default_file
     data = read_param_section(path, section)
     data.update(overrides or {})
-    return validate(model, data, str(path))
+    return parse_model(model, data, str(path))
 
 
 class Section(BaseModel):
     """A parameter section: unknown keys, booleans as numbers and inf/NaN are refused.
 
-    The one rule for every validated parameter set: the plant sections here and the
+    The one rule for every checked parameter set: the plant sections here and the
     controllers' options (``config/rbc.yaml``, ``config/mpc.yaml``), from files, ``--set``,
     ``--config`` and ``--ems-option`` alike.
     """
@@ -628,7 +628,7 @@ def check_holiday_calendar(country: str, subdivision: str) -> None:
     subdivisions (``BW``) or empty (the national holidays only). A calendar found once is
     remembered on disk for the installed ``holidays`` version
     (:mod:`comems4build_ros.core.result_cache`): ``holidays`` imports every country's calendar to
-    look one up (0.1 s), in every process that validates the plant parameters.
+    look one up (0.1 s), in every process that checks the plant parameters.
     """
     from comems4build_ros.core.result_cache import cached
 
@@ -719,7 +719,7 @@ def load_plant_params(
     paths: Iterable[str | Path] | None = None,
     overrides: Mapping[str, Any] | None = None,
 ) -> PlantParams:
-    """Load and validate the plant parameters.
+    """Load and check the plant parameters.
 
     Parameters
     ----------
@@ -751,4 +751,4 @@ def load_plant_params(
                 raise ConfigError(f"overrides: parameter '{key}': {unknown_section_text(key.split('.')[0])}")
             set_dotted(merged, key, value)
         source += " + overrides"
-    return validate(PlantParams, merged, source)
+    return parse_model(PlantParams, merged, source)

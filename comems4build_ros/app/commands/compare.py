@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
     if args.scenario == "year" and args.fc_efficiency is None:
         etas = etas[:1]  # the year's report compares the EMS at the plant's FC efficiency
-    for eta in etas:  # validate every parameter set before starting any run
+    for eta in etas:  # check every parameter set before starting any run
         params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
     if args.extend and args.via == "ros":
         raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")

@@ -44,7 +44,7 @@ def run(args: argparse.Namespace) -> int:
         params[path] = values
     emss = opt.study_inputs(args)
     cases = grid(params, emss)
-    for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
+    for case in cases[: len(cases) // len(emss)]:  # check every parameter set before running
         plant = load_plant_params(args.config, case.values)
     opt.scenario_of(args, plant)  # the scenario and the run length, checked once before any run
     output = opt.output_dir(args, "sweep", writes=SWEEP_FILES, replaces=SWEEP_FILES)

@@ -157,7 +157,7 @@ class Controller(Protocol):
     """An EMS: observation in, action out.
 
     Implementations set ``name`` and ``info_level`` as class attributes and are built
-    as ``Cls(params, options)`` with the validated :class:`~..config.PlantParams` and
+    as ``Cls(params, options)`` with the checked :class:`~..config.PlantParams` and
     their own options mapping (from their config file section, may be empty).
     """
 

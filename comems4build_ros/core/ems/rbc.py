@@ -36,9 +36,9 @@ from comems4build_ros.core.config import (
     Section,
     config_dir,
     deep_merge,
+    parse_model,
     read_ros_params,
     set_dotted,
-    validate,
 )
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.features import chi_cool, chi_dhw, chi_sh, edf_price, hp_p_el_ref_w
@@ -85,7 +85,7 @@ def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCParams:
     for key, value in (options or {}).items():
         set_dotted(extra, str(key), value)
     deep_merge(data, extra)
-    return validate(RBCParams, data, f"{path} + options" if extra else str(path))
+    return parse_model(RBCParams, data, f"{path} + options" if extra else str(path))
 
 
 def loh_floor(params: PlantParams, options: Mapping[str, Any] | None = None) -> float:

@@ -41,7 +41,7 @@ STATUS_OPTIMAL, STATUS_FEASIBLE, STATUS_NONE = 1, 2, 0
 
 
 def penalties_from(opts: Any) -> Penalties:
-    """Soft-bound penalties from validated options."""
+    """Soft-bound penalties from checked options."""
     return Penalties(opts.penalty_comfort_eur_per_kh, opts.penalty_dhw_eur_per_lh, opts.penalty_soc_eur_per_h,
                      opts.penalty_loh_eur_per_h)
 

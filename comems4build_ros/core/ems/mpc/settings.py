@@ -2,7 +2,7 @@
 
 The options are read from the ``mpc`` (MILP) or ``mpc_qp`` (OSQP) section of
 ``config/mpc.yaml`` merged over its ``/**`` section, then overridden by the mapping passed
-to the controller constructor, and validated; a bad value raises
+to the controller constructor, and checked; a bad value raises
 :class:`~comems4build_ros.core.config.ConfigError` naming the source and the option.
 """
 
@@ -21,8 +21,8 @@ from comems4build_ros.core.config import (
     PlantParams,
     Section,
     config_dir,
+    parse_model,
     read_ros_params,
-    validate,
 )
 
 
@@ -83,7 +83,7 @@ def default_mpc_file() -> Path:
 def load_options(
     model: type[_MPCParams], section: str, options: Mapping[str, Any] | None, path: str | Path | None = None
 ) -> _MPCParams:
-    """Read ``section`` of ``config/mpc.yaml`` (or ``path``), apply ``options``, validate.
+    """Read ``section`` of ``config/mpc.yaml`` (or ``path``), apply ``options``, check.
 
     ``options`` may hold a ``config`` key naming another parameter file to read instead.
     """
@@ -92,7 +92,7 @@ def load_options(
     data = read_ros_params(path, node=section)
     data.update(opts)
     source = f"{path} [{section}]" + (" + options" if opts else "")
-    return validate(model, data, source)
+    return parse_model(model, data, source)
 
 
 @dataclass(frozen=True)
