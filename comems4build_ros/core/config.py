@@ -210,26 +210,40 @@ def check_known_keys(data: Mapping[str, Any], known: Iterable[str], where: str) 
             raise ConfigError(f"{where}: unknown parameter '{key}' ({hint}known: {', '.join(known)})")
 
 
-def finite_number(value: Any, where: str) -> float:
-    """``value`` as a float; :class:`ConfigError` naming ``where`` for a boolean, text, inf or NaN."""
-    import math
+def _known_keys(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
+    """`` (did you mean 'x'? known: a, b)``: the keys of the model that ``loc[:-1]`` leads to."""
+    import difflib
+    import typing
 
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ConfigError(f"{where}: expected a finite number, got {value!r}")
-    return float(value)
+    for part in loc[:-1]:
+        field = model.model_fields.get(str(part))
+        if field is None:
+            return ""
+        inner = [t for t in (field.annotation, *typing.get_args(field.annotation))
+                 if isinstance(t, type) and issubclass(t, BaseModel)]
+        if not inner:
+            return ""
+        model = inner[0]
+    known = list(model.model_fields)
+    close = difflib.get_close_matches(str(loc[-1]), known, n=1)
+    return f" ({f'did you mean {close[0]!r}? ' if close else ''}known: {', '.join(known)})"
 
 
-def parse_model(model: type[M], data: Mapping[str, Any], source: str) -> M:
-    """Validate ``data`` against a pydantic model; errors name source and parameter."""
+def parse_model(model: type[M], data: Mapping[str, Any], source: str, prefix: str = "") -> M:
+    """Check ``data`` against a pydantic model; errors name the source and the parameter.
+
+    An unknown parameter's message lists the known ones of its section (and the closest);
+    ``prefix`` is put before each parameter's name (the key of ``data`` in a larger set).
+    """
     try:
         return model.model_validate(data)
     except ValidationError as exc:
         lines = []
         for err in exc.errors():
-            loc = ".".join(str(p) for p in err["loc"])
+            loc = prefix + ".".join(str(p) for p in err["loc"]) if err["loc"] else ""
             msg = err["msg"].removeprefix("Value error, ")
             if err["type"] == "extra_forbidden":
-                msg = "unknown parameter"
+                msg = "unknown parameter" + _known_keys(model, tuple(err["loc"]))
             lines.append(f"{source}: parameter '{loc}': {msg}" if loc else f"{source}: {msg}")
         raise ConfigError("\n".join(lines)) from None
 
@@ -251,7 +265,7 @@ def load_section(model: type[M], path: str | Path | None, default_file: str, sec
 
 
 class Section(BaseModel):
-    """A parameter section: unknown keys, booleans as numbers and inf/NaN are refused.
+    """A parameter section: unknown keys, booleans as numbers, numbers as booleans and inf/NaN are refused.
 
     The one rule for every checked parameter set: the plant sections here and the
     controllers' options (``config/rbc.yaml``, ``config/mpc.yaml``), from files, ``--set``,
@@ -269,7 +283,11 @@ class Section(BaseModel):
         text); text that is not a number is refused by the field's type.
         """
         field = cls.model_fields.get(info.field_name or "")
-        if field is None or field.annotation is bool:
+        if field is None or field.annotation is Any:  # checked by its reader (a fuzzy rule base)
+            return value
+        if field.annotation is bool:
+            if not isinstance(value, bool):
+                raise ValueError(f"expected true or false, got {value!r}")
             return value
         items = value if isinstance(value, list | tuple) else [value]
         if any(isinstance(v, bool) for v in items):

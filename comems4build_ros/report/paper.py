@@ -308,9 +308,9 @@ def h2_floor(ems: str, loh_min: float) -> float:
     """
     if ems != "rbc":
         return loh_min
-    from comems4build_ros.core.ems.rbc import load_rbc_options
+    from comems4build_ros.core.ems.settings import RBCSettings, load_settings
 
-    return max(loh_min, load_rbc_options().loh_reserve)
+    return max(loh_min, load_settings(RBCSettings).loh_reserve)
 
 
 #: The H2 store counts as empty within this fraction of the store above its floor [-]

@@ -17,6 +17,7 @@ from typing import Any
 
 from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_yaml
 from comems4build_ros.core.ems.base import INFO_LEVELS, Controller
+from comems4build_ros.core.ems.settings import ControllerSettings, load_settings
 
 #: The EMS table's file in ``config/``.
 EMS_TABLE_FILE = "ems.yaml"
@@ -144,5 +145,39 @@ def controller_class(name: str) -> type:
 
 
 def make_controller(name: str, params: PlantParams, options: Mapping[str, Any] | None = None) -> Controller:
-    """Build the EMS ``name`` for the plant ``params`` with its ``options``."""
+    """Build the EMS ``name`` for the plant ``params`` with its ``options``.
+
+    Parameters
+    ----------
+    name : str
+        EMS name (a key of ``config/ems.yaml``).
+    params : PlantParams
+        The checked plant parameters.
+    options : Mapping[str, Any], optional
+        The controller's options (``--ems-option KEY=VALUE`` as parsed), applied over its
+        settings file by :func:`~comems4build_ros.core.ems.settings.load_settings`.
+
+    Returns
+    -------
+    Controller
+        The controller, its options checked.
+    """
     return controller_class(name)(params, dict(options or {}))
+
+
+def ems_settings(name: str, options: Mapping[str, Any] | None = None) -> ControllerSettings:
+    """The settings the EMS ``name`` is built with: its settings file with ``options`` applied.
+
+    Parameters
+    ----------
+    name : str
+        EMS name (a key of ``config/ems.yaml``).
+    options : Mapping[str, Any], optional
+        The controller's options (``--ems-option KEY=VALUE`` as parsed).
+
+    Returns
+    -------
+    ControllerSettings
+        The checked settings (the class is the controller's ``settings_class``).
+    """
+    return load_settings(controller_class(name).settings_class, options)

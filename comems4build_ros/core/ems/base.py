@@ -156,13 +156,16 @@ class Observation:
 class Controller(Protocol):
     """An EMS: observation in, action out.
 
-    Implementations set ``name`` and ``info_level`` as class attributes and are built
-    as ``Cls(params, options)`` with the checked :class:`~..config.PlantParams` and
-    their own options mapping (from their config file section, may be empty).
+    Implementations set ``name``, ``info_level`` and ``settings_class`` (their
+    :class:`~comems4build_ros.core.ems.settings.ControllerSettings`) as class attributes and
+    are built as ``Cls(params, options)`` with the checked :class:`~..config.PlantParams` and
+    their options mapping (``--ems-option KEY=VALUE`` as parsed, may be empty), which they
+    apply over their settings file with :func:`~comems4build_ros.core.ems.settings.load_settings`.
     """
 
     name: str
     info_level: str
+    settings_class: type
 
     def reset(self) -> None:
         """Forget internal memory before a new run."""

@@ -39,18 +39,15 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from comems4build_ros.core.config import ConfigError, PlantParams, check_known_keys, finite_number
+from comems4build_ros.core.config import ConfigError, PlantParams, check_known_keys
 from comems4build_ros.core.numerics import rowdot
 
 #: Rule base sections in a file: the paper's snapshot rules and ours.
 RULE_SECTIONS = ("rules_paper", "rules_design")
-#: Keys of a controller section the engine reads (the controller's own option group comes on top).
-SECTION_KEYS = ("load_scale_w", "inputs", "output", *RULE_SECTIONS)
 #: Keys of an input variable; the output variable has ``name`` and ``points`` besides.
 VARIABLE_KEYS = ("universe", "terms")
 
@@ -91,10 +88,11 @@ class QuantityError(ConfigError):
         self.plant_params = plant_params
 
 
-def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, float]:
+def device_quantities(params: PlantParams, load_scale_w: float | None) -> dict[str, float]:
     """Named device quantities that membership points may refer to.
 
-    Loads are normalised on ``load_scale_w`` (the paper's 10 kW scale, ``sec:appendix``).
+    Loads are normalised on ``load_scale_w`` [W] (the paper's 10 kW scale, ``sec:appendix``);
+    None: a controller without a power input (FLC_flex), whose points name no load.
 
     Returns
     -------
@@ -113,30 +111,36 @@ def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, flo
         dp_el_min, dp_el_max : the electrolyser's minimal and maximal intake / scale [-]
             (compression included; 0 without an electrolyser)
         alpha_el_min : P_EL,min / P_EL,max [-] (0 without an electrolyser)
+
+        The loads (``dp_*``, ``p_ch``, ``p_d``) only with a ``load_scale_w``.
     """
-    if load_scale_w <= 0:
+    if load_scale_w is not None and load_scale_w <= 0:
         raise ConfigError(f"load_scale_w must be positive, got {load_scale_w}")
     from comems4build_ros.core.models.electrolyser import ElectrolyserTable
 
     b, fc, h2 = params.battery, params.fuel_cell, params.hydrogen
     p_fc = fc.zeta * fc.p_max_w
     el = ElectrolyserTable(params.electrolyser)
-    return {
+    out = {
         "soc_min": b.soc_min,
         "soc_mid": 0.5 * (b.soc_min + b.soc_max),
         "soc_max": b.soc_max,
         "loh_min": h2.loh_min,
         "loh_mid": 0.5 * (h2.loh_min + h2.loh_max),
         "loh_max": h2.loh_max,
-        "dp_fc": p_fc / load_scale_w,
-        "dp_fc_bess": (p_fc + b.p_d_max_w) / load_scale_w,
-        "p_ch": b.p_ch_max_w / load_scale_w,
-        "p_d": b.p_d_max_w / load_scale_w,
         "alpha_fc_min": fc.p_min_w / p_fc,
-        "dp_el_min": el.p_min_w / load_scale_w,
-        "dp_el_max": el.p_max_w / load_scale_w,
         "alpha_el_min": el.p_min_w / el.p_max_w if el.n else 0.0,
     }
+    if load_scale_w is not None:
+        out.update({
+            "dp_fc": p_fc / load_scale_w,
+            "dp_fc_bess": (p_fc + b.p_d_max_w) / load_scale_w,
+            "p_ch": b.p_ch_max_w / load_scale_w,
+            "p_d": b.p_d_max_w / load_scale_w,
+            "dp_el_min": el.p_min_w / load_scale_w,
+            "dp_el_max": el.p_max_w / load_scale_w,
+        })
+    return out
 
 
 @dataclass(frozen=True)
@@ -213,6 +217,8 @@ class FuzzySystem:
         if not rules:
             raise ConfigError(f"{source}: {name}: empty rule base")
         self.name = name
+        #: Power the load inputs are divided by [W] (set by :func:`flc_system`; 0: not set).
+        self.load_scale_w = 0.0
         self.n_points = n_points
         self.inputs = tuple(inputs)
         self.output = output
@@ -543,23 +549,37 @@ def check_consistency(system: FuzzySystem) -> None:
             raise ConfigError(f"{where}: conflicting rules for {names}: {texts}")
 
 
-def load_system(path: str | Path, name: str, params: PlantParams, overrides: Mapping[str, Any] | None = None) -> Any:
-    """Read ``path`` (ROS parameter file) and build controller section ``name``.
+def flc_system(name: str, spec: Mapping[str, Any], params: PlantParams, source: str) -> FuzzySystem:
+    """Build the fuzzy controller of one rule-file section for the plant ``params``.
+
+    Parameters
+    ----------
+    name : str
+        Section name (``flc_flex``, ``flc_fc``, ``flc_b``, ``flc_el``).
+    spec : Mapping[str, Any]
+        The section as checked by :class:`~comems4build_ros.core.ems.settings.FLCSection`:
+        ``inputs``, ``output``, the rule lists and, for a controller with a power input,
+        ``load_scale_w`` [W].
+    params : PlantParams
+        Plant parameters: the device quantities the membership functions name
+        (:func:`device_quantities`).
+    source : str
+        The rule file (for messages).
 
     Returns
     -------
-    (FuzzySystem, dict) : the system and the whole section (including the controller's
-        post-processing options), with ``overrides`` merged over it.
-    """
-    from comems4build_ros.core.config import deep_merge, read_ros_params
+    FuzzySystem
+        The controller; its ``load_scale_w`` [W] is the section's (0 without a power input).
 
-    data = read_ros_params(path)
-    if name not in data:
-        raise ConfigError(f"{path}: no section '{name}'")
-    section = deep_merge(deep_merge({}, data[name]), overrides or {})
-    scale = finite_number(section.get("load_scale_w", 10_000.0), f"{path}: {name}.load_scale_w")
+    Raises
+    ------
+    ConfigError
+        Naming the file and the variable, term or rule at fault, or the plant parameters
+        that make a membership function degenerate.
+    """
+    scale = spec.get("load_scale_w")  # FLC_flex has no power input
     try:
-        system = build_system(name, section, device_quantities(params, scale), str(path))
+        system = build_system(name, spec, device_quantities(params, scale), source)
     except QuantityError as exc:
         values = {p: _param_value(params, p) for p in exc.plant_params}
         zero = [p for p, v in values.items() if v == 0.0]
@@ -571,7 +591,8 @@ def load_system(path: str | Path, name: str, params: PlantParams, overrides: Map
             f"{'this value' if len(blamed) == 1 else 'these values'}: it makes a membership function degenerate "
             f"({exc}{'; also from ' + others if others else ''})"
         ) from None
-    return system, section
+    system.load_scale_w = float(scale or 0.0)
+    return system
 
 
 def _param_value(params: PlantParams, dotted: str) -> float | list[float]:

@@ -24,8 +24,8 @@ from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon, season_schedules
 from comems4build_ros.core.ems.mpc.milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
-from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
 from comems4build_ros.core.ems.mpc.solvers import make_backend
+from comems4build_ros.core.ems.settings import MILPSettings, load_settings
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
 #: Values below this are treated as zero when turning a plan into an action [W] / [-].
@@ -41,7 +41,7 @@ STATUS_OPTIMAL, STATUS_FEASIBLE, STATUS_NONE = 1, 2, 0
 
 
 def penalties_from(opts: Any) -> Penalties:
-    """Soft-bound penalties from checked options."""
+    """Soft-bound penalties of the MPC settings."""
     return Penalties(opts.penalty_comfort_eur_per_kh, opts.penalty_dhw_eur_per_lh, opts.penalty_soc_eur_per_h,
                      opts.penalty_loh_eur_per_h)
 
@@ -96,17 +96,21 @@ class MPCController:
 
     Parameters
     ----------
-    params : plant parameters (the MPC's forecasting models)
-    options : overrides of ``config/mpc.yaml`` section ``mpc`` (see :class:`.settings.MILPParams`)
+    params : PlantParams
+        Plant parameters (the MPC's forecasting models).
+    options : Mapping[str, Any], optional
+        Overrides of ``config/mpc.yaml`` section ``mpc``
+        (:class:`~comems4build_ros.core.ems.settings.MILPSettings`).
     """
 
     name = "mpc"
     info_level = "mpc"
+    settings_class = MILPSettings
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
         self.params = params
-        self.options: MILPParams = load_options(MILPParams, "mpc", options)  # type: ignore[assignment]
-        o = self.options
+        self.settings = load_settings(MILPSettings, options)
+        o = self.settings
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
         self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
                                o.relax_battery_binary,
@@ -137,7 +141,7 @@ class MPCController:
 
     def plan(self, obs: Observation) -> SolveResult:
         """Update and solve the horizon problem for ``obs`` (no action, no counters)."""
-        h = build_horizon(obs, self.const, self.options.loh_min_mode)
+        h = build_horizon(obs, self.const, self.settings.loh_min_mode)
         if self.const.year_round:  # seasonal schedules (memory: the LOH at the season's start)
             left = float(obs.heating_season_days_left)
             if left <= 0.0:
@@ -145,11 +149,11 @@ class MPCController:
             elif self._season_loh0 is None:
                 self._season_loh0 = float(obs.loh)
             bound, target = season_schedules(float(obs.days_to_heating_season), left, self._season_loh0,
-                                             self.const, self.options.loh_season_target)
+                                             self.const, self.settings.loh_season_target)
             h = dataclasses.replace(h, loh_min=bound, loh_season=target)
         self.last_horizon = h
         self.model.update(h)
-        self.model.set_start(shift_plan(self._prev_plan) if self.options.warm_start and self._prev_plan else None)
+        self.model.set_start(shift_plan(self._prev_plan) if self.settings.warm_start and self._prev_plan else None)
         return self.model.solve(self.backend)
 
     def act(self, obs: Observation) -> Action:
@@ -163,7 +167,7 @@ class MPCController:
         h = self.last_horizon
         self.last_result = res
         self.n_solves += 1
-        tol = self.options.slack_report_tol
+        tol = self.settings.slack_report_tol
         if res.has_solution:
             action = action_from_plan(res.plan, h, self.const)
             self._prev_plan = res.plan
@@ -173,7 +177,7 @@ class MPCController:
             self._prev_plan = None
             self.n_fallback += 1
             status = STATUS_NONE
-            if self.options.log_fallback:
+            if self.settings.log_fallback:
                 print(f"mpc: step {obs.step}: no solution ({res.status}, {res.solve_s:.3f} s); "
                       f"safe fallback {action} (fallback #{self.n_fallback})", file=sys.stderr)
         info = slack_info(res.plan if res.has_solution else None, tol)

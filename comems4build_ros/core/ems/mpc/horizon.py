@@ -19,7 +19,7 @@ import numpy as np
 
 from comems4build_ros.core.config import W_PER_KW, PlantParams
 from comems4build_ros.core.ems.base import Observation
-from comems4build_ros.core.ems.mpc.settings import LifecycleCosts, lifecycle_costs
+from comems4build_ros.core.ems.mpc.costs import LifecycleCosts, lifecycle_costs
 from comems4build_ros.core.models import building, dhw, heat_pump
 
 

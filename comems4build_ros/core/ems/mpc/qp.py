@@ -39,7 +39,7 @@ from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc.controller import STATUS_FEASIBLE, STATUS_NONE, STATUS_OPTIMAL
 from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon
-from comems4build_ros.core.ems.mpc.settings import QPParams, load_options
+from comems4build_ros.core.ems.settings import QPSettings, load_settings
 from comems4build_ros.core.numerics import rowdot
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH, Action
 
@@ -58,7 +58,7 @@ INF = np.inf
 class QPModel:
     """The relaxed horizon problem in OSQP form ``min 1/2 z'Pz + q'z, l <= Az <= u``."""
 
-    def __init__(self, const: PlantConstants, opts: QPParams) -> None:
+    def __init__(self, const: PlantConstants, opts: QPSettings) -> None:
         self.k, self.o = const, opts
         self.n = const.n
         self.nv = len(QP_VARS)
@@ -293,30 +293,34 @@ class QPController:
 
     Parameters
     ----------
-    params : plant parameters
-    options : overrides of ``config/mpc.yaml`` section ``mpc_qp`` (see :class:`.settings.QPParams`)
+    params : PlantParams
+        Plant parameters (the MPC's forecasting models).
+    options : Mapping[str, Any], optional
+        Overrides of ``config/mpc.yaml`` section ``mpc_qp``
+        (:class:`~comems4build_ros.core.ems.settings.QPSettings`).
     """
 
     name = "mpc-qp"
     info_level = "mpc"
+    settings_class = QPSettings
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
         self.params = params
-        self.options: QPParams = load_options(QPParams, "mpc_qp", options)  # type: ignore[assignment]
-        self.const = PlantConstants.from_params(params, self.options.fc_lifecycle_eta)
+        self.settings = load_settings(QPSettings, options)
+        self.const = PlantConstants.from_params(params, self.settings.fc_lifecycle_eta)
         self.step_info: dict[str, float] = {}
         self.reset()
 
     def reset(self) -> None:
         """New OSQP problem, no warm start, counters zero."""
-        self.model = QPModel(self.const, self.options)
+        self.model = QPModel(self.const, self.settings)
         self.n_fallback = 0
         self.last_plan: dict[str, np.ndarray] | None = None
         self.step_info = {}
 
     def act(self, obs: Observation) -> Action:
         """Solve the relaxed horizon problem and apply its rounded first step."""
-        h = build_horizon(obs, self.const, self.options.loh_min_mode)
+        h = build_horizon(obs, self.const, self.settings.loh_min_mode)
         code, x, solve_s, status = self.model.solve(h)
         k = self.const
         slack = dict.fromkeys(SLACK_VARS, 0.0)
@@ -337,7 +341,7 @@ class QPController:
             p_bess = float(plan["p_ch"][0] - plan["p_dis"][0])
             action = Action(hp_mod=mod, hp_mode=mode if mod > 0 else HP_OFF, p_fc_w=p_fc,
                             p_bess_w=p_bess if abs(p_bess) > 1e-3 else 0.0)
-        tol = max(self.options.slack_report_tol, 100.0 * self.options.eps_abs)  # above OSQP's tolerance
+        tol = max(self.settings.slack_report_tol, 100.0 * self.settings.eps_abs)  # above OSQP's tolerance
         self.step_info = {
             "solve_s": solve_s,
             "status": float(code),
