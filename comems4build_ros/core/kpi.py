@@ -487,22 +487,6 @@ def monthly_table(ts: pd.DataFrame, dt_h: float = 1.0, t_comfort: np.ndarray | N
     return pd.DataFrame(rows)
 
 
-def loh_at(ts: pd.DataFrame, when: str) -> float | None:
-    """LOH at the local time ``when`` (ISO, naive = the run's offset): the end state of the step before it [-].
-
-    None if the run does not reach ``when``; the first row's start is the run's initial LOH,
-    which the timeseries does not hold, so a ``when`` at or before the first step gives None.
-    """
-    times = pd.to_datetime(ts["time"].astype(str), utc=True)
-    target = pd.Timestamp(when)
-    if target.tzinfo is None:
-        target = target.tz_localize(pd.Timestamp(str(ts["time"].iloc[0])).tzinfo)
-    idx = int(np.searchsorted(times.to_numpy(), target.tz_convert("UTC").to_datetime64()))
-    if idx <= 0 or idx >= len(ts) + 1 or (idx == len(ts) and times.iloc[-1] + pd.Timedelta(hours=1) < target):
-        return None
-    return float(ts["loh"].iloc[idx - 1])
-
-
 def year_kpis(
     ts: pd.DataFrame, weekly: pd.DataFrame, dt_h: float, season_start: str, season_end: str,
     t_comfort: np.ndarray | None = None,

@@ -110,11 +110,6 @@ class Plant:
         self.building = building if building is not None else RCBuilding(params.building, self.dt_h)
         self._cool_on = bool(params.cooling.enabled)
 
-    @property
-    def fc_table(self):
-        """The fuel cell's P_H2(P_el) table (:class:`~comems4build_ros.core.models.fuel_cell.FuelCellTable`)."""
-        return self.fuel_cell.table
-
     # ------------------------------------------------------------------ state
     def initial_state(self, t_amb_c: float | None = None) -> PlantState:
         """State at the start of a run (``simulation`` section of the parameters).

@@ -539,15 +539,6 @@ def evaluate_statements(ev: Evidence, statements: Statements | None = None) -> l
     return out
 
 
-def numeric_errors(figures: Sequence[Figure], table_only: bool = False,
-                   statements: Statements | None = None) -> list[float]:
-    """Relative errors of the ``value`` figures (of the headline table only, if asked) [-]."""
-    keys = None
-    if table_only:
-        keys = {s.key for s in (statements or load_paper_results()).statements if s.table}
-    return [f.rel_error for f in figures if f.rel_error is not None and (keys is None or f.key in keys)]
-
-
 @dataclass
 class Aggregate:
     """One figure over several runs of a study (e.g. seeds): median and range.

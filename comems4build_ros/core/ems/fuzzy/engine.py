@@ -338,10 +338,6 @@ class FuzzySystem:
         mf = self._out_mf[self.output.term_names.index(term)]
         return float(rowdot(mf, self._w_moment) / rowdot(mf, self._w_area))
 
-    def rule_text(self, index: int) -> str:
-        """The rule as written in the file."""
-        return self.rules[index].text
-
     def to_skfuzzy(self, n_grid: int = 201) -> Any:
         """The same controller as a ``skfuzzy.control.ControlSystem`` (for tests and benchmarks).
 

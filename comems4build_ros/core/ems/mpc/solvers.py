@@ -141,13 +141,6 @@ class MatrixForm:
         """Right-hand side of every row (``expr <sense> rhs``)."""
         return np.array([-con.constant for con in self.constraints], dtype=float)
 
-    def row_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Row lower and upper bounds from the sense and the right-hand side."""
-        rhs = self.rhs()
-        lo = np.where(self.sense == pulp.LpConstraintLE, -math.inf, rhs)
-        up = np.where(self.sense == pulp.LpConstraintGE, math.inf, rhs)
-        return lo, up
-
     def integrality(self) -> np.ndarray:
         """True for integer (binary) columns."""
         return np.array([v.cat in _INTEGER for v in self.variables], dtype=bool)
