@@ -99,7 +99,18 @@ class RuleBasedController:
         self.step_info = {}
 
     def act(self, obs: Observation) -> Action:
-        """Set-points of the step."""
+        """Decide the step by the rules of ``sec:RBC`` (``fig:flc_rbc_flowchart`` right).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (basic level, ``tab:level_of_information``).
+
+        Returns
+        -------
+        Action
+            The set-points; the features go to :attr:`step_info`.
+        """
         o, p = self.settings, self.params
         c_sh = chi_sh(obs.t_air_c, obs.t_min_c, obs.t_max_c)
         c_dhw = chi_dhw(obs.v_dhw_l, p.dhw.v_min_l, p.dhw.v_max_l)

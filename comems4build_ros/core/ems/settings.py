@@ -52,10 +52,13 @@ class SettingsFile:
 
     Parameters
     ----------
-    name : file name below ``config/``
-    node : ROS node whose section is merged over the file's ``/**`` section (None: every
-        section of the file, in file order)
-    section : mapping below ``ros__parameters`` that holds the settings (None: all of it)
+    name : str
+        File name below ``config/``.
+    node : str or None
+        ROS node whose section is merged over the file's ``/**`` section (None: every
+        section of the file, in file order).
+    section : str or None
+        Mapping below ``ros__parameters`` that holds the settings (None: all of it).
     """
 
     name: str
@@ -64,8 +67,10 @@ class SettingsFile:
 
 
 class Settings(Section):
-    """A group of controller options: the :class:`~comems4build_ros.core.config.Section` rules,
-    each field documented by the docstring below it (also its pydantic description)."""
+    """A group of controller options under the :class:`~comems4build_ros.core.config.Section` rules.
+
+    Each field is documented by the docstring below it (also its pydantic description).
+    """
 
     model_config = ConfigDict(use_attribute_docstrings=True)
 
@@ -87,7 +92,7 @@ S = TypeVar("S", bound=ControllerSettings)
 
 
 def _read(path: Path, where: SettingsFile) -> dict[str, Any]:
-    """The values of ``where`` in the parameter file ``path`` (a new dict)."""
+    """Read the values of ``where`` in the parameter file ``path`` (a new dict)."""
     data = read_ros_params(path, node=where.node)
     if where.section is None:
         return data
@@ -102,12 +107,14 @@ def _label(path: Path, where: SettingsFile, changed: bool) -> str:
 
 
 def load_settings(cls: type[S], options: Mapping[str, Any] | None = None) -> S:
-    """The settings ``cls`` of a controller: its files' values with ``options`` applied, checked once.
+    """Read the settings ``cls`` of a controller: its files' values with ``options`` applied, checked once.
 
     Parameters
     ----------
-    cls : the settings class (e.g. :class:`RBCSettings`)
-    options : option -> value (``--ems-option KEY=VALUE`` as parsed). A controller read
+    cls : type[ControllerSettings]
+        The settings class (e.g. :class:`RBCSettings`).
+    options : Mapping[str, Any], optional
+        Option -> value (``--ems-option KEY=VALUE`` as parsed). A controller read
         from one file takes ``config`` (another parameter file read instead of the shipped
         one) and its fields: a value replaces the file's, a dotted key reaches into a
         mapping (``highs_options.presolve``). The fuzzy EMS takes ``<flc>_file`` (another
@@ -116,7 +123,8 @@ def load_settings(cls: type[S], options: Mapping[str, Any] | None = None) -> S:
 
     Returns
     -------
-    The checked settings.
+    S
+        The checked settings, an instance of ``cls``.
 
     Raises
     ------

@@ -2,7 +2,8 @@
 
 Not a controller of the paper: a reference that exercises the loop. Hot water first
 (on below half of the usable tank, off when full), then space heating as an on/off
-thermostat around the lower comfort bound; no battery, no fuel cell.
+thermostat around the lower comfort bound; no battery, no fuel cell. The switch points
+are :class:`~comems4build_ros.core.ems.settings.ThermostatSettings` (``config/thermostat.yaml``).
 """
 
 from __future__ import annotations
@@ -43,7 +44,18 @@ class Thermostat:
         self._sh_on = False
 
     def act(self, obs: Observation) -> Action:
-        """On/off heating decision for the step."""
+        """Decide the step: hot water first, then the room, each by its hysteresis.
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (basic level: T_air [degC], V_DHW [l], T_air,min [degC]).
+
+        Returns
+        -------
+        Action
+            Full heat pump power on the tank or the room, or off.
+        """
         s = self.settings
         fill = (obs.v_dhw_l - self._v_min) / (self._v_max - self._v_min)
         if fill < s.dhw_on_fill:

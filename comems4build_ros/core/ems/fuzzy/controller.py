@@ -63,7 +63,7 @@ EL_FLCS = ("el",)
 
 
 def fuzzy_systems(settings: FuzzySettings, params: PlantParams) -> dict[str, FuzzySystem]:
-    """The fuzzy controllers of ``settings`` for the plant ``params``.
+    """Build the fuzzy controllers of ``settings`` for the plant ``params``.
 
     Parameters
     ----------
@@ -184,7 +184,26 @@ class FuzzyEMS:
 
     # ------------------------------------------------------------------ stages
     def heating(self, obs: Observation, edf: float) -> tuple[float, int, float, float, float]:
-        """FLC_flex: (eta_HP, mode, alpha_HP, chi_SH, chi_DHW)."""
+        """Decide the heat pump's heating with FLC_flex (``tab:FLCflex_rules``) and the DHW priority.
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (fuzzy level, ``tab:level_of_information``).
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        eta : float
+            Modulation eta_HP[k] [-], in {0} U [mod_min, 1].
+        mode : int
+            ``HP_OFF``, ``HP_SH`` or ``HP_DHW`` (the circuit).
+        alpha : float
+            FLC_flex output alpha_HP [-].
+        chi_sh, chi_dhw : float
+            Thermal states ``eq:s_sh`` (bounds 5 h ahead) and ``eq:s_dhw`` [-].
+        """
         dhw = self.params.dhw
         c_sh = chi_sh(obs.t_air_c, obs.t_min_5h_c, obs.t_max_c)
         c_dhw = chi_dhw(obs.v_dhw_l, dhw.v_min_l, dhw.v_max_l)
@@ -199,7 +218,29 @@ class FuzzyEMS:
         return eta, mode, alpha, c_sh, c_dhw
 
     def cooling(self, obs: Observation, edf: float, eta: float, mode: int) -> tuple[float, int, float, float]:
-        """FLC_flex for cooling: (eta_HP, mode, alpha_cool, chi_cool); the heating decision when it does not cool."""
+        """Decide cooling with FLC_flex on the mirrored thermal state (year-round plant; not in the paper).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs.
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+        eta, mode : float, int
+            The heating decision of :meth:`heating`: kept when the room does not need
+            cooling or the tank takes the heat pump (DHW priority).
+
+        Returns
+        -------
+        eta : float
+            Modulation [-].
+        mode : int
+            ``HP_COOL``, or the heating decision's mode.
+        alpha : float
+            FLC_flex output for cooling [-] (0 when not evaluated).
+        chi_cool : float
+            Thermal state towards the upper bound [-] (:func:`~..features.chi_cool`).
+        """
         c_cool = chi_cool(obs.t_air_c, obs.t_min_c, obs.t_max_c)
         if mode == HP_DHW or c_cool >= self._cool_chi:
             return eta, mode, 0.0, c_cool
@@ -212,7 +253,21 @@ class FuzzyEMS:
         return eta_c, HP_COOL, alpha, c_cool
 
     def season_dloh(self, obs: Observation) -> float:
-        """Daily H2 budget of a plant with an electrolyser: ``eq:deltaLOH`` over the heating season [-/day]."""
+        """Compute the daily H2 budget of a plant with an electrolyser: ``eq:deltaLOH`` over the heating season.
+
+        On the season's first step the budget becomes (LOH - ``simulation.loh_season_end``)
+        / days left in the season; outside the season it is 0 (not in the paper).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (``heating_season_days_left`` [d], ``loh`` [-]).
+
+        Returns
+        -------
+        float
+            The budget [fraction of the store per day].
+        """
         left = obs.heating_season_days_left
         if left <= 0.0:
             self._season_loh0 = None
@@ -223,7 +278,24 @@ class FuzzyEMS:
         return self._season_dloh
 
     def electrolyser(self, obs: Observation, dp_w: float, edf: float) -> tuple[float, float]:
-        """FLC_EL: (P_EL [W], alpha_EL); zero without surplus (dP <= 0)."""
+        """Decide the electrolyser's power with FLC_EL (year-round plant; not in the paper).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs.
+        dp_w : float
+            dP = P_PV - P_el,HP - P_el,load [W] (> 0: surplus).
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        p_el : float
+            Electrolyser intake P_EL [W]; 0 without surplus, with a full store or below P_EL,min.
+        alpha : float
+            FLC_EL output alpha_EL [-].
+        """
         if self.el is None or dp_w <= 0.0 or obs.loh >= self.params.hydrogen.loh_max:
             return 0.0, 0.0
         alpha = self.el(dp_w / self._scale_el, obs.soc, obs.loh, edf, obs.days_to_heating_season)
@@ -235,7 +307,27 @@ class FuzzyEMS:
         return p_el, alpha
 
     def fuel_cell(self, obs: Observation, dp_w: float, share: float, edf: float) -> tuple[float, float]:
-        """FLC_FC: (P_el,FC [W], alpha_FC); zero when there is no demand (dP >= 0)."""
+        """Decide the fuel cell's power with FLC_FC (``tab:FLCfc_rules``, ``sec:appendix``).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs.
+        dp_w : float
+            dP = P_PV - P_el,HP - P_el,load [W] (< 0: demand).
+        share : float
+            Remaining share of today's H2 allowance ``eq:deltaLOH`` [-].
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        p_fc : float
+            P_el,FC = alpha_FC * zeta * P_FC,max [W]; 0 without demand, below P_FC,min, with
+            the day's allowance used up or the store at LOH_min.
+        alpha : float
+            FLC_FC output alpha_FC [-].
+        """
         if dp_w >= 0.0 or (self._stop_fc and share <= 0.0) or obs.loh <= self.params.hydrogen.loh_min:
             return 0.0, 0.0
         alpha = self.fc(dp_w / self._scale_fc, share, obs.soc, edf, 1.0 if obs.fc_on_prev else 0.0)
@@ -247,7 +339,25 @@ class FuzzyEMS:
         return p_fc, alpha
 
     def battery_power(self, soc: float, dp_new_w: float, edf: float) -> tuple[float, float]:
-        """FLC_B: (P_bess [W], > 0 charging; alpha_B)."""
+        """Decide the battery's power with FLC_B (``tab:FLCb_rules``, ``sec:appendix``).
+
+        Parameters
+        ----------
+        soc : float
+            Battery state of charge SOC[k-1] [-].
+        dp_new_w : float
+            dP_new = dP + P_el,FC - P_EL [W].
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        p_bess : float
+            Battery power [W], > 0 charging: alpha_B * P_ch,max, or alpha_B * dP_new when
+            discharging, within the SOC room (``eq:batt_soc``) and 0 below the minimum powers.
+        alpha : float
+            FLC_B output alpha_B [-], in [-1, 1].
+        """
         b = self.params.battery
         alpha = self.battery(dp_new_w / self._scale_b, soc, edf)
         if alpha > 0.0:
@@ -265,7 +375,18 @@ class FuzzyEMS:
         return p, alpha
 
     def act(self, obs: Observation) -> Action:
-        """Set-points of the step (hierarchy of ``sec:FLC``)."""
+        """Decide the step by the hierarchy of ``sec:FLC`` (``fig:flc_rbc_flowchart``).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (fuzzy level, ``tab:level_of_information``).
+
+        Returns
+        -------
+        Action
+            The set-points; the features and controller outputs go to :attr:`step_info`.
+        """
         edf = edf_price(obs.price_buy_eur_per_kwh, obs.prices_buy_24h)
         eta, mode, alpha_hp, c_sh, c_dhw = self.heating(obs, edf)
         year: dict[str, float] = {}

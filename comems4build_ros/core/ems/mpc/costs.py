@@ -13,14 +13,18 @@ from comems4build_ros.core.config import W_PER_KW, ConfigError, PlantParams
 
 @dataclass(frozen=True)
 class LifecycleCosts:
-    """Utilisation costs of eq:batt_andFC_operation_degradation (tab:degradation_HESS).
+    """Utilisation costs of ``eq:batt_andFC_operation_degradation`` (``tab:degradation_HESS``).
 
     Attributes
     ----------
-    sigma_b_ch_eur_per_kwh, sigma_b_d_eur_per_kwh : battery cost per kWh charged / discharged [EUR/kWh]
-    sigma_fc_eur_per_h : FC cost per operating hour [EUR/h]
-    sigma_fc_on_eur, sigma_fc_off_eur : cost of one FC start / stop [EUR]
-    l_b_ch_h, l_b_d_h : battery lifespans of eq:batt_lifecycle [h]
+    sigma_b_ch_eur_per_kwh, sigma_b_d_eur_per_kwh : float
+        Battery cost per kWh charged / discharged [EUR/kWh].
+    sigma_fc_eur_per_h : float
+        FC cost per operating hour [EUR/h].
+    sigma_fc_on_eur, sigma_fc_off_eur : float
+        Cost of one FC start / stop [EUR].
+    l_b_ch_h, l_b_d_h : float
+        Battery lifespans of ``eq:batt_lifecycle`` [h].
     """
 
     sigma_b_ch_eur_per_kwh: float
@@ -33,13 +37,30 @@ class LifecycleCosts:
 
 
 def lifecycle_costs(params: PlantParams, fc_eta: str = "eta_el_mpc") -> LifecycleCosts:
-    """Lifecycle costs from eq:batt_andFC_operation_degradation and eq:batt_lifecycle.
+    """Compute the lifecycle costs of ``eq:batt_andFC_operation_degradation`` and ``eq:batt_lifecycle``.
 
     ``sigma_i = (sigma_in,i / L_i + sigma_om,i) / eta_i`` [EUR/h at rated power]; for the
     battery ``L_B = E_max / P_i * N_B`` [h], so per kWh moved
     ``sigma_B,i = (sigma_in,B / (E_max N_B) + sigma_om,B / P_i) / eta_i`` [EUR/kWh].
-    For the FC ``sigma_FC = (sigma_in,FC / L_FC + sigma_om,FC) / eta_FC`` [EUR/h] with
-    ``eta_FC`` chosen by ``fc_eta`` (``eta_el_mpc``, ``eta_sys`` or ``one``).
+    For the FC ``sigma_FC = (sigma_in,FC / L_FC + sigma_om,FC) / eta_FC`` [EUR/h].
+
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (battery, fuel cell and the ``degradation`` section,
+        ``tab:degradation_HESS``).
+    fc_eta : {"eta_el_mpc", "eta_sys", "one"}
+        The FC efficiency eta_FC dividing its cost.
+
+    Returns
+    -------
+    LifecycleCosts
+        The costs.
+
+    Raises
+    ------
+    ConfigError
+        For an unknown ``fc_eta``.
     """
     b, d, fc = params.battery, params.degradation, params.fuel_cell
     if fc_eta not in ("eta_el_mpc", "eta_sys", "one"):
