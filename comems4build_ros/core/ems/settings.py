@@ -3,16 +3,16 @@
 Each controller of the EMS table (``config/ems.yaml``) is built from one frozen settings
 object, read by one function, :func:`load_settings`:
 
-=========================  ==============================================================
-settings                   read from (its values are the defaults; the file gives sources)
-=========================  ==============================================================
-:class:`ThermostatSettings` ``config/thermostat.yaml``, section ``thermostat``
-:class:`RBCSettings`        ``config/rbc.yaml``, section ``rbc`` (``sec:RBC``)
-:class:`FuzzySettings`      ``config/fuzzy/{flex,fc,battery,el}.yaml``, sections ``flc_flex``,
-                            ``flc_fc``, ``flc_b``, ``flc_el`` (``sec:FLC``, ``sec:appendix``)
-:class:`MILPSettings`       ``config/mpc.yaml``, section ``mpc`` over ``/**`` (``sec:MPC``)
-:class:`QPSettings`         ``config/mpc.yaml``, section ``mpc_qp`` over ``/**``
-=========================  ==============================================================
+============================  ===========================================================
+settings                      read from (its values are the defaults; the file gives sources)
+============================  ===========================================================
+:class:`ThermostatSettings`   ``config/thermostat.yaml``, section ``thermostat``
+:class:`RBCSettings`          ``config/rbc.yaml``, section ``rbc`` (``sec:RBC``)
+:class:`FuzzySettings`        ``config/fuzzy/{flex,fc,battery,el}.yaml``, sections ``flc_flex``,
+                              ``flc_fc``, ``flc_b``, ``flc_el`` (``sec:FLC``, ``sec:appendix``)
+:class:`MILPSettings`         ``config/mpc.yaml``, section ``mpc`` over ``/**`` (``sec:MPC``)
+:class:`QPSettings`           ``config/mpc.yaml``, section ``mpc_qp`` over ``/**``
+============================  ===========================================================
 
 Options (``--ems-option KEY=VALUE``, a study's ``ems_options``, the EMS node's parameter
 ``ems_options``) are applied over the file's values and the result is checked once by the
@@ -20,7 +20,8 @@ rules of :class:`~comems4build_ros.core.config.Section`: unknown keys are named,
 is no number and a number no boolean, inf and NaN are refused, and each field's range
 holds. A bad value raises :class:`~comems4build_ros.core.config.ConfigError` naming the
 file, the section and the option. The defaults live in the files only (each value there
-carries its source), so a field here has no default of its own.
+carries its source), so a field here has no default of its own (only a fuzzy section
+without a rule list has none).
 """
 
 from __future__ import annotations
