@@ -104,10 +104,10 @@ def test_plant_parameters_take_kind_and_unit_from_the_model(name: str, kind: str
 @settings(max_examples=25, deadline=None)
 @given(e_max=st.floats(min_value=0.5, max_value=50.0), modules=st.integers(min_value=1, max_value=60),
        soc=st.floats(min_value=0.11, max_value=0.89), year=st.booleans())
-def test_the_plan_file_gives_the_validated_parameters_back_exactly(tmp_path_factory: pytest.TempPathFactory,
+def test_the_plan_file_gives_the_checked_parameters_back_exactly(tmp_path_factory: pytest.TempPathFactory,
                                                                    e_max: float, modules: int, soc: float,
                                                                    year: bool) -> None:
-    """What the launcher validated is what every node parses: one file, the same object."""
+    """What the launcher checked is what every node parses: one file, the same object."""
     files = scenario_config_files("year" if year else "default")
     params = load_plant_params(files, {"battery.e_max_kwh": e_max, "pv.n_modules": modules,
                                        "simulation.soc_init": soc})

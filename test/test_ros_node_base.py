@@ -1,4 +1,4 @@
-"""In-process tests of the node helpers: contract enforcement, command validation, parameters.
+"""In-process tests of the node helpers: contract enforcement, command checks, parameters.
 
 These create rclpy nodes in the test process (no DDS peers needed); the closed-loop and
 fault tests with real processes are in test_ros_nodes.py.

@@ -64,14 +64,14 @@ identified from the house's data, as it would on a real house.
 | figure | value | source / command |
 |---|---|---|
 | typology | TABULA DE.N.SFH.09.Gen (single-family house 1995-2001), advanced refurbishment DE.N.SFH.09.Gen.ReEx.001.003 | IWU, TABULA/EPISCOPE German residential typology |
-| heated floor area | {_f(house['heated_floor_m2'])} m2 (TABULA reference area 121.9 m2) in two storeys | `energyplus_house.HouseSpec` |
+| heated floor area | {_f(house['heated_floor_m2'])} m2 (TABULA reference area 121.9 m2) in two storeys | `house_idf.HouseSpec` |
 | transmission H_tr, typology method | {_f(house['h_tr_typology_w_per_k'])} W/K (TABULA's variant: {_f(house['h_tr_tabula_w_per_k'], 0)} W/K) | `{commands['house']}` |
 | ventilation H_ve (infiltration 0.1 1/h, ventilation 0.4 1/h with 80 % heat recovery) | {_f(house['h_ve_typology_w_per_k'])} W/K | `{commands['house']}` |
 | heat loss coefficient to the outdoor air, EnergyPlus steady states (-10 and +10 degC) | {_f(house['h_energyplus_w_per_k'])} W/K; the default 4R3C's: {_f(house['h_rc_w_per_k'])} W/K (ratio {_f(house['h_ratio_to_rc'], 3)}, the design rule asks for +-25 %) | `{commands['house']}` |
 | design heat load at {_f(house['design_t_amb_c'], 0)} degC, 20 degC inside | EnergyPlus {_f(house['design_load_energyplus_w'], 0)} W; typology H x dT {_f(house['design_load_typology_w'], 0)} W | `{commands['house']}` |
 | space heat over the 12 weeks with the thermostat | {_f(house['heating_kwh_thermostat'], 0)} kWh; the typology's quasi-steady method on the same weather, gains and indoor temperature: {_f(lo, 0)} .. {_f(hi, 0)} kWh | `{commands['house']}` |
 
-Geometry and envelope (`comems4build_ros/core/models/energyplus_house.py`, which writes the
+Geometry and envelope (`comems4build_ros/core/models/house_idf.py`, which writes the
 shipped `comems4build_ros/data/energyplus_house_sfh.idf`): a compact box of 7.81 m x 7.81 m,
 two storeys of 2.7 m, a flat insulated roof; window area 0.266 of the reference area (the
 TABULA ratio of the age band, as tabulated in the TEASER archetype of the TABULA DE

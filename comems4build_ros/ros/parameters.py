@@ -373,7 +373,7 @@ def nearest(name: str, known: list[str]) -> str:
 
 
 def flat_plant_params(params: Any) -> dict[str, Any]:
-    """``{"battery.e_max_kwh": 6.5, ...}``: every plant parameter of a validated ``PlantParams``."""
+    """``{"battery.e_max_kwh": 6.5, ...}``: every plant parameter of a checked ``PlantParams``."""
     from comems4build_ros.core.config import PLANT_SECTIONS
 
     dumped = params.model_dump()
@@ -381,7 +381,7 @@ def flat_plant_params(params: Any) -> dict[str, Any]:
 
 
 def plant_params_file_text(params: Any) -> str:
-    """A ROS 2 parameter file (``/**: ros__parameters:``) holding every value of the validated
+    """A ROS 2 parameter file (``/**: ros__parameters:``) holding every value of the checked
     ``params``: what the run plan hands its nodes (``config_files``), parsed once by each.
     ``load_plant_params([file])`` gives ``params`` back exactly."""
     import yaml
@@ -390,6 +390,6 @@ def plant_params_file_text(params: Any) -> str:
 
     dumped = params.model_dump()
     doc = {"/**": {"ros__parameters": {section: dumped[section] for section in PLANT_SECTIONS}}}
-    head = ("# The validated plant parameters of this run, written by the run plan (comems4build launch);\n"
+    head = ("# The checked plant parameters of this run, written by the run plan (comems4build launch);\n"
             "# each value's source: config/plant.yaml and the files and overrides named in bag/run_info.json.\n")
     return head + yaml.safe_dump(doc, sort_keys=False, default_flow_style=None, width=120)

@@ -127,7 +127,7 @@ STALL_MARGIN_S = 10.0
 STALL_BACKSTOP_MIN_S = 90.0
 #: Directory of the run's token files under the output directory (mode 0700, removed after the run).
 SECRETS_DIR = ".secrets"
-#: The run's validated plant parameters, one ROS 2 parameter file every node reads
+#: The run's checked plant parameters, one ROS 2 parameter file every node reads
 #: (``config_files``), under the output directory.
 PLANT_PARAMS_FILE = Path("params") / "plant.yaml"
 
@@ -161,8 +161,8 @@ class LaunchOptions:
         in layout ``node``; never in the container layouts). It hides the graph from a
         plain ``ros2 node list``: the plan names the server's address and the super-client
         setting that shows it (:meth:`RunPlan.describe`)
-    params : the plant parameters of ``config_files`` and ``overrides``, validated once by the
-        command (None = validated by :func:`plan_run`); the plan hands them to every node as
+    params : the plant parameters of ``config_files`` and ``overrides``, checked once by the
+        command (None = checked by :func:`plan_run`); the plan hands them to every node as
         one parameter file (:data:`PLANT_PARAMS_FILE`)
     layout : process layout (:data:`LAYOUTS`, see :func:`effective_layout`): ``node`` (one
         process per node), ``house`` (container processes, each running every node of
@@ -857,7 +857,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     ----------
     opts : launch options
     domain_id : ROS domain id of the run (the launcher locks a free one first)
-    params : validated plant parameters (default ``opts.params``, else loaded from
+    params : checked plant parameters (default ``opts.params``, else loaded from
         ``opts.config_files`` and ``opts.overrides``): written once into the run's plant
         parameter file (:data:`PLANT_PARAMS_FILE`), the one thing every node parses
 

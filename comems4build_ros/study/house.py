@@ -3,7 +3,7 @@
 Three figures of the EnergyPlus house (``comems4build house`` prints them):
 
 1. **Heat loss coefficient.** By the typology's method (sum of U A b plus ventilation,
-   :func:`~comems4build_ros.core.models.energyplus_house.heat_loss_coefficient`), and measured
+   :func:`~comems4build_ros.core.models.house_idf.heat_loss_coefficient`), and measured
    in EnergyPlus: two steady states with the air held at 20 degC, no sun, no internal gains,
    at constant outdoor temperatures of -10 and +10 degC; H_amb = (Q(-10) - Q(+10)) / 20 K is the
    coefficient towards the outdoor air (the ground under the slab keeps its own temperature).
@@ -29,7 +29,7 @@ import numpy as np
 import pandas as pd
 
 from comems4build_ros.core.config import PlantParams
-from comems4build_ros.core.models import energyplus_house as house
+from comems4build_ros.core.models import house_idf as house
 from comems4build_ros.core.models.epw import Weather
 
 #: Design outdoor temperature for Karlsruhe [degC] (DIN/TS 12831-1 lists about -12 degC for the

@@ -3,9 +3,9 @@
 A :class:`RunTask` is a plain picklable record (EMS, scenario spec, overrides, output
 directory); :func:`run_task` executes it (in-process simulation or the ROS 2 node set
 through the launcher) and returns the summary. :func:`run_tasks` hands a study's tasks to
-an executor (:mod:`comems4build_ros.study.executor`): local worker processes, longest
+a study pool (:mod:`comems4build_ros.study.pool`): local worker processes, longest
 first, or a Dask cluster; each finished run is stored as it finishes, so a study resumes.
-A task is a job of that executor: :meth:`RunTask.spec` is its full specification (hashed
+A task is a job of that pool: :meth:`RunTask.spec` is its full specification (hashed
 to recognise a stored run), :meth:`RunTask.portable` carries the files it reads from
 outside the package (``--config`` files, a scenario CSV) to a worker on another host.
 """
@@ -23,10 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 from comems4build_ros.files.inputs import load_json_file
 from comems4build_ros.run.progress import ProgressCallback
-from comems4build_ros.study.executor import RunFailedError
+from comems4build_ros.study.pool import RunFailedError
 
 if TYPE_CHECKING:
-    from comems4build_ros.study.executor import StudyExecutor
+    from comems4build_ros.study.pool import StudyPool
 
 __all__ = ["RunFailedError", "RunTask", "run_task", "run_tasks"]
 
@@ -222,9 +222,9 @@ def run_tasks(
     jobs: int | None = None,
     on_done: Callable[[RunTask, dict[str, Any]], None] | None = None,
     progress: bool | None = None,
-    executor: StudyExecutor | None = None,
+    pool: StudyPool | None = None,
 ) -> list[dict[str, Any]]:
-    """Run ``tasks`` with ``executor``: default the enclosing study's, else ``jobs`` local processes.
+    """Run ``tasks`` with ``pool``: default the enclosing study's, else ``jobs`` local processes.
 
     Tasks start longest first (:attr:`RunTask.weight`); summaries come back in task order
     (as written to each run's ``summary.json``, with ``task_wall_s``), ``on_done`` is
@@ -232,11 +232,11 @@ def run_tasks(
     raised once the running ones ended. ``progress``: one bar per run on stderr while it
     runs (None = when stderr is a terminal, False = never); print from ``on_done`` with
     :func:`comems4build_ros.run.progress.echo` to keep the bars intact. ``jobs`` applies only
-    when no executor is given or current (:func:`comems4build_ros.study.executor.current`).
+    when no pool is given or current (:func:`comems4build_ros.study.pool.current`).
     """
-    from comems4build_ros.study.executor import LocalBackend, StudyExecutor, current, run_jobs
+    from comems4build_ros.study.pool import LocalBackend, StudyPool, current, run_jobs
 
-    ex = executor or current() or StudyExecutor(LocalBackend(jobs))
+    ex = pool or current() or StudyPool(LocalBackend(jobs))
     return run_jobs(tasks, ex, on_done=on_done, progress=progress)
 
 

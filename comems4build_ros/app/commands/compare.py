@@ -18,8 +18,8 @@ from comems4build_ros.app.commands.options import (
     ems_help,
     output_dir,
     scenario_of,
-    study_executor,
     study_inputs,
+    study_pool,
 )
 
 if TYPE_CHECKING:
@@ -138,7 +138,7 @@ def run(args: argparse.Namespace) -> int:
     etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
     if args.scenario == "year" and args.fc_efficiency is None:
         etas = etas[:1]  # the year's report compares the EMS at the plant's FC efficiency
-    for eta in etas:  # validate every parameter set before starting any run
+    for eta in etas:  # check every parameter set before starting any run
         params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
     if args.extend and args.via == "ros":
         raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")
@@ -147,11 +147,11 @@ def run(args: argparse.Namespace) -> int:
     output.check()
     out = output.path
     jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
-    with output, study_executor(args, out, jobs) as executor:  # finished runs kept in OUT/.runstore until the end
+    with output, study_pool(args, out, jobs) as pool:  # finished runs kept in OUT/.runstore until the end
         stage = output.stage
         rep = _compare(args, emss, etas, levels, overrides, stage)
         output.commit()  # runs/, manifest, report, figures replace an older comparison's when all are written
-        executor.complete()
+        pool.complete()
     _print_report(rep, stage, out)
     return 0
 

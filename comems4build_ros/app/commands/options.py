@@ -231,7 +231,7 @@ def scheduler_address(text: str) -> str:
     return f"{url.scheme}://{url.netloc}"
 
 
-def add_executor_options(parser: argparse.ArgumentParser, jobs_default: str = "CPU count") -> None:
+def add_pool_options(parser: argparse.ArgumentParser, jobs_default: str = "CPU count") -> None:
     """``--jobs``, ``--scheduler``, ``--resume``: where a study's runs execute and whether it resumes."""
     parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
                         help=f"parallel runs in local worker processes, integer >= 1 (default: {jobs_default}; "
@@ -244,21 +244,21 @@ def add_executor_options(parser: argparse.ArgumentParser, jobs_default: str = "C
                              "of running them again; a stored run of another specification is refused")
 
 
-def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = None) -> Any:
-    """The :class:`~comems4build_ros.study.executor.StudyExecutor` of ``--jobs``/``--scheduler``/``--resume``.
+def study_pool(args: argparse.Namespace, out: str | Any, jobs: int | None = None) -> Any:
+    """The :class:`~comems4build_ros.study.pool.StudyPool` of ``--jobs``/``--scheduler``/``--resume``.
 
     Its store is ``out/.runstore``; ``jobs`` replaces ``--jobs`` when given (a command's own
     default). Enter it before any run: it connects and checks the cluster, and refuses a
     store of an unfinished study without ``--resume``.
     """
-    from comems4build_ros.study.executor import DaskBackend, LocalBackend, StudyExecutor
+    from comems4build_ros.study.pool import DaskBackend, LocalBackend, StudyPool
     from comems4build_ros.study.store import RunStore
 
     if args.scheduler and args.jobs is not None:
         raise UsageError("--jobs and --scheduler exclude each other (with --scheduler the cluster's workers run "
                          "the runs, as many at once as they have threads)")
     backend = DaskBackend(args.scheduler) if args.scheduler else LocalBackend(jobs if jobs is not None else args.jobs)
-    return StudyExecutor(backend, RunStore.of(out), resume=args.resume)
+    return StudyPool(backend, RunStore.of(out), resume=args.resume)
 
 
 def add_forecast_option(parser: argparse.ArgumentParser) -> None:
@@ -304,11 +304,11 @@ def building_choice(args: argparse.Namespace) -> Any:
 def add_study_options(parser: argparse.ArgumentParser, config_help: str = "config/plant.yaml",
                       jobs_default: str = "CPU count") -> None:
     """What every study command (compare, sweep, size) offers: ``--config``, where its runs
-    execute (:func:`add_executor_options`), the building model (:func:`add_building_options`)
+    execute (:func:`add_pool_options`), the building model (:func:`add_building_options`)
     and ``--no-progress``."""
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help=f"parameter file merged over {config_help} (repeatable)")
-    add_executor_options(parser, jobs_default)
+    add_pool_options(parser, jobs_default)
     add_building_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 

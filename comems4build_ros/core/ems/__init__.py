@@ -17,6 +17,7 @@ from typing import Any
 
 from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_yaml
 from comems4build_ros.core.ems.base import INFO_LEVELS, Controller
+from comems4build_ros.core.ems.settings import ControllerSettings, load_settings
 
 #: The EMS table's file in ``config/``.
 EMS_TABLE_FILE = "ems.yaml"
@@ -34,14 +35,23 @@ class EMSEntry:
 
     Attributes
     ----------
-    name : EMS name (``--ems``)
-    controller : ``module:Class`` of the controller
-    node : ROS node name and ``ros2 run`` executable
-    info_level : information level, a key of :data:`~comems4build_ros.core.ems.base.INFO_LEVELS`
-    label : display name
-    colour : figure colour (``#RRGGBB``)
-    weight : relative cost of one step [-]
-    summary : one-line description
+    name : str
+        EMS name (``--ems``).
+    controller : str
+        ``module:Class`` of the controller.
+    node : str
+        ROS node name and ``ros2 run`` executable.
+    info_level : str
+        Information level, a key of :data:`~comems4build_ros.core.ems.base.INFO_LEVELS`
+        (``tab:level_of_information``).
+    label : str
+        Display name.
+    colour : str
+        Figure colour (``#RRGGBB``).
+    weight : float
+        Relative cost of one step [-] (how a study orders its runs).
+    summary : str
+        One-line description.
     """
 
     name: str
@@ -55,7 +65,19 @@ class EMSEntry:
 
 
 def parse_ems_table(doc: Any, source: str) -> dict[str, EMSEntry]:
-    """The rows of an EMS table document (``{"ems": {name: row}}``), checked.
+    """Check an EMS table document (``{"ems": {name: row}}``) and return its rows.
+
+    Parameters
+    ----------
+    doc : Any
+        The parsed YAML document.
+    source : str
+        Its file (for messages).
+
+    Returns
+    -------
+    dict[str, EMSEntry]
+        EMS name -> row, in the document's order.
 
     Raises
     ------
@@ -92,18 +114,40 @@ def parse_ems_table(doc: Any, source: str) -> dict[str, EMSEntry]:
 
 @functools.cache
 def ems_table() -> dict[str, EMSEntry]:
-    """Every EMS of ``config/ems.yaml`` by name, in the file's order."""
+    """Read every EMS of ``config/ems.yaml`` (once per process).
+
+    Returns
+    -------
+    dict[str, EMSEntry]
+        EMS name -> row, in the file's order.
+    """
     path = config_dir() / EMS_TABLE_FILE
     return parse_ems_table(load_yaml(path, "the EMS table"), str(path))
 
 
 def ems_names() -> tuple[str, ...]:
-    """The names of every EMS (``--ems`` choices)."""
+    """Return the names of every EMS.
+
+    Returns
+    -------
+    tuple[str, ...]
+        The ``--ems`` choices, in the table's order.
+    """
     return tuple(ems_table())
 
 
 def ems_entry(name: str) -> EMSEntry:
-    """The table row of the EMS ``name``.
+    """Return the table row of the EMS ``name``.
+
+    Parameters
+    ----------
+    name : str
+        EMS name (``--ems``).
+
+    Returns
+    -------
+    EMSEntry
+        Its row of ``config/ems.yaml``.
 
     Raises
     ------
@@ -117,7 +161,17 @@ def ems_entry(name: str) -> EMSEntry:
 
 
 def controller_class(name: str) -> type:
-    """Class of the EMS called ``name``.
+    """Import the controller class of the EMS called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        EMS name.
+
+    Returns
+    -------
+    type
+        The class (``Cls(params, options)`` builds the controller).
 
     Raises
     ------
@@ -144,5 +198,39 @@ def controller_class(name: str) -> type:
 
 
 def make_controller(name: str, params: PlantParams, options: Mapping[str, Any] | None = None) -> Controller:
-    """Build the EMS ``name`` for the plant ``params`` with its ``options``."""
+    """Build the EMS ``name`` for the plant ``params`` with its ``options``.
+
+    Parameters
+    ----------
+    name : str
+        EMS name (a key of ``config/ems.yaml``).
+    params : PlantParams
+        The checked plant parameters.
+    options : Mapping[str, Any], optional
+        The controller's options (``--ems-option KEY=VALUE`` as parsed), applied over its
+        settings file by :func:`~comems4build_ros.core.ems.settings.load_settings`.
+
+    Returns
+    -------
+    Controller
+        The controller, its options checked.
+    """
     return controller_class(name)(params, dict(options or {}))
+
+
+def ems_settings(name: str, options: Mapping[str, Any] | None = None) -> ControllerSettings:
+    """Read the settings the EMS ``name`` is built with: its settings file with ``options`` applied.
+
+    Parameters
+    ----------
+    name : str
+        EMS name.
+    options : Mapping[str, Any], optional
+        Its options, as for :func:`make_controller`.
+
+    Returns
+    -------
+    ControllerSettings
+        The checked settings (the class is the controller's ``settings_class``).
+    """
+    return load_settings(controller_class(name).settings_class, options)

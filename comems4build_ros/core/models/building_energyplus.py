@@ -34,11 +34,11 @@ temperatures, not the 4R3C's nodes; an MPC plans with its own model's states). P
 record :attr:`EnergyPlusBuilding.last` keeps what EnergyPlus received and reported.
 
 The IDF must define what the co-simulation actuates (:func:`check_idf`): the schedule
-:data:`~comems4build_ros.core.models.energyplus_house.HEAT_SCHEDULE`, a heat balance source
+:data:`~comems4build_ros.core.models.house_idf.HEAT_SCHEDULE`, a heat balance source
 term on each heated floor, ``ElectricEquipment`` in each zone, and, for heat into the floor's
 mass, ``ZoneHVAC:LowTemperatureRadiant:Electric`` systems controlled on the mean air
 temperature with ``HalfFlowPower`` and a ``Schedule:Constant`` set point; the shipped house
-(:mod:`~comems4build_ros.core.models.energyplus_house`) has them all.
+(:mod:`~comems4build_ros.core.models.house_idf`) has them all.
 """
 
 from __future__ import annotations
@@ -56,7 +56,7 @@ import numpy as np
 import pandas as pd
 
 from comems4build_ros.core.config import SiteParams
-from comems4build_ros.core.models import energyplus_house as house
+from comems4build_ros.core.models import house_idf as house
 from comems4build_ros.core.models.building import Temperatures
 from comems4build_ros.core.models.epw import Weather, check_epw_covers, standard_offset_h, standard_times, write_epw
 from comems4build_ros.core.types import Exogenous

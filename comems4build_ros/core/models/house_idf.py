@@ -37,7 +37,7 @@ home on weekday evenings and nights and all weekend).
 
 :func:`write_idf` writes the file; the package ships its output as
 ``comems4build_ros/data/energyplus_house_sfh.idf`` (``python -m
-comems4build_ros.core.models.energyplus_house --write`` regenerates it; a test checks the two
+comems4build_ros.core.models.house_idf --write`` regenerates it; a test checks the two
 agree).
 """
 
@@ -343,7 +343,7 @@ def _window_points(side: str, spec: HouseSpec, z0: float, area: float) -> list[t
 HEADER = """! ComEMS4Build co-simulation house: German single-family house, TABULA DE.N.SFH.09.Gen
 ! (built 1995-2001), advanced refurbishment (DE.N.SFH.09.Gen.ReEx.001.003), two heated storeys,
 ! underfloor heating into the screed (electric radiant system, internal heat source). Written by
-! comems4build_ros.core.models.energyplus_house (sources and choices in its docstring and in
+! comems4build_ros.core.models.house_idf (sources and choices in its docstring and in
 ! docs/cosimulation.md). The co-simulation adds RunPeriod, Site:Location and the weather file.
 ! Heat loss coefficient (typology method): H_tr = {h_tr:.1f} W/K, H_ve = {h_ve:.1f} W/K, H = {h:.1f} W/K.
 """
@@ -495,7 +495,7 @@ def write_idf(path: str | Path, spec: HouseSpec | None = None) -> Path:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run ``python -m comems4build_ros.core.models.energyplus_house [--write]``: print the heat loss coefficient.
+    """Run ``python -m comems4build_ros.core.models.house_idf [--write]``: print the heat loss coefficient.
 
     Parameters
     ----------
