@@ -15,7 +15,6 @@ import pandas as pd
 import pytest
 
 from comems4build_ros.core.config import load_plant_params
-from comems4build_ros.core.scenario import _tariff  # the buy tariff of eq:costs, as the scenario builds it
 from comems4build_ros.core.scenario.live import (
     FetchError,
     PriceSource,
@@ -24,6 +23,7 @@ from comems4build_ros.core.scenario.live import (
     live_scenario,
     load_live_settings,
 )
+from comems4build_ros.core.scenario.tariff import PaperTariff  # the buy tariff of eq:costs, as the scenario builds it
 from comems4build_ros.ros.interfaces import qos_profile
 
 TZ = "Europe/Berlin"
@@ -185,7 +185,8 @@ def test_weather_forecast_and_live_scenario(server, tmp_path):
     live = live_scenario(base, params, DAY0 + pd.Timedelta(minutes=20), prices, weather)
     assert live.time[0] == DAY0 and live.n_steps == base.n_steps and len(live.time) == len(base.time)
     assert live.spot_eur_per_mwh[:48].tolist() == prices.values(live.time[:48]).tolist()
-    assert np.array_equal(live.price_buy_eur_per_kwh, _tariff(live.spot_eur_per_mwh, params)[0])  # eq:costs
+    tariff = PaperTariff(params).prices(live.time, live.spot_eur_per_mwh)[0]
+    assert np.array_equal(live.price_buy_eur_per_kwh, tariff)  # eq:costs
     assert live.t_amb_c[:24].tolist() == answer["hourly"]["temperature_2m"]
     assert live.t_amb_c[24:30].tolist() == base.t_amb_c[24:30].tolist()  # beyond the forecast: the scenario
     assert np.all(live.dhi_w_m2 <= live.ghi_w_m2)
@@ -264,4 +265,4 @@ def test_feed_node_live_inputs_publishes_warning_and_uses_last_valid_prices(serv
                for e in events), events
     # step 0 is the current hour; its buy price comes from the cached spot price
     spot0 = src.values(pd.DatetimeIndex([now]))[0]
-    assert prices[0][1] == _tariff(np.array([spot0]), params)[0][0]
+    assert prices[0][1] == PaperTariff(params).prices(pd.DatetimeIndex([]), np.array([spot0]))[0][0]

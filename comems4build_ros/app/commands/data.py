@@ -5,6 +5,10 @@
 - ``data build --prices X.json --temperature Y.txt --solar Z.txt [--dhw D.txt] [--load L.csv]
   --out scenario.csv`` combines the sources into a scenario CSV (hourly, local time with UTC
   offset); DHW and load come from the default generator when not given, which it says.
+- ``data tariffs [--update-doc FILE]`` prints the tariff of each validation winter
+  (``config/tariffs.yaml``): its mean buy price beside the published household averages, its
+  feed-in rate, the components of every year and their sources; with ``--update-doc`` it
+  rewrites that section of a Markdown file (``docs/validation.md``).
 """
 
 from __future__ import annotations
@@ -47,10 +51,19 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                        help="extra plant parameter file (site, holidays)")
     build.add_argument("--out", metavar="FILE.csv", required=True, help="scenario CSV to write")
 
+    tariffs = sub.add_parser("tariffs", help="the tariff of each validation winter (config/tariffs.yaml): mean buy "
+                                             "price beside the published household averages, feed-in rate, "
+                                             "components and sources")
+    tariffs.add_argument("--update-doc", metavar="FILE.md",
+                         help="rewrite the section between the tariffs markers of FILE.md (docs/validation.md)")
+
 
 def run(args: argparse.Namespace) -> int:
-    """Run ``fetch-prices`` or ``build``."""
+    """Run ``fetch-prices``, ``build`` or ``tariffs``."""
     from comems4build_ros.app.commands.options import UsageError, load_params, output_file
+
+    if args.data_command == "tariffs":
+        return _tariffs(args)
     from comems4build_ros.core.config import check_input_file
     from comems4build_ros.core.scenario import loaders
 
@@ -101,4 +114,24 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {out}: {len(frame)} hours {first.isoformat()} .. {last.isoformat()}")
     for col, source in provenance.items():
         print(f"  {col:18s} <- {source}")
+    return 0
+
+
+def _tariffs(args: argparse.Namespace) -> int:
+    """Print the tariff section (:mod:`comems4build_ros.report.tariffs`); rewrite it in ``--update-doc``."""
+    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.scenario.tariff import load_tariffs
+    from comems4build_ros.core.scenario.validation import winter_prices
+    from comems4build_ros.report.reproduce_doc import replace_doc_section
+    from comems4build_ros.report.tariffs import DOC_BEGIN, DOC_END, tariff_section
+
+    section = tariff_section(winter_prices(load_plant_params()), load_tariffs())
+    print(section)
+    if args.update_doc:
+        try:
+            replace_doc_section(args.update_doc, {}, None, (DOC_BEGIN, DOC_END), "", lambda _report, _fig: section)
+        except ValueError as exc:  # the markers are missing
+            raise UsageError(str(exc)) from None
+        print(f"updated {args.update_doc}")
     return 0

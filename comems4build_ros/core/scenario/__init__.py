@@ -27,7 +27,6 @@ from comems4build_ros.core.scenario.comfort import comfort_bounds, is_off_day
 from comems4build_ros.core.scenario.csvio import (
     ScenarioError,
     ScenarioWarning,
-    check_values,
     local_time,
     read_scenario_frame,
     write_scenario_csv,
@@ -39,6 +38,7 @@ from comems4build_ros.core.scenario.settings import (
     load_scenario_settings,
     split_overrides,
 )
+from comems4build_ros.core.scenario.tariff import PaperTariff, Tariff
 
 __all__ = [
     "CSV_COLUMNS",
@@ -106,35 +106,23 @@ def steps_of_weeks(weeks: float, name: str) -> int:
 _CACHE_MAX = 16
 
 
-def _tariff(spot_eur_per_mwh: np.ndarray, params: PlantParams) -> tuple[np.ndarray, np.ndarray]:
-    """Buy price ``a + b * spot / 1000`` and the constant sell price [EUR/kWh] (paper ``eq:costs``).
-
-    ``a`` = ``grid.buy_offset_eur_per_kwh``, ``b`` = ``grid.buy_spot_factor`` (derivation in
-    ``config/plant.yaml``).
-    """
-    g = params.grid
-    with np.errstate(over="ignore"):
-        buy = g.buy_offset_eur_per_kwh + g.buy_spot_factor * spot_eur_per_mwh / KWH_PER_MWH
-    check_values(f"plant parameters grid.buy_offset_eur_per_kwh = {g.buy_offset_eur_per_kwh:g}, "
-                 f"grid.buy_spot_factor = {g.buy_spot_factor:g}", "price_buy_eur_per_kwh", buy,
-                 lambda i: f"spot price {spot_eur_per_mwh[i]:g} EUR/MWh (row {i})", "buy price")
-    sell = np.full(len(spot_eur_per_mwh), params.grid.price_sell_eur_per_kwh)
-    return buy, sell
-
-
 def scenario_from_frame(
-    name: str, frame: pd.DataFrame, params: PlantParams, n_steps: int, meta: dict | None = None
+    name: str, frame: pd.DataFrame, params: PlantParams, n_steps: int, meta: dict | None = None,
+    tariff: Tariff | None = None,
 ) -> Scenario:
     """Build a :class:`Scenario` from a frame with the CSV columns (index: tz-aware hourly time).
 
-    The time is converted to the site's zone; the tariff comes from ``price_buy_eur_per_kwh``
-    when present, else ``a + b * spot / 1000`` (``grid``); comfort bounds from
-    ``params.comfort`` (``eq:T_min``).
+    The time is converted to the site's zone; the buy price comes from ``price_buy_eur_per_kwh``
+    when present, else from ``tariff`` (default: the paper's ``a + b * spot / 1000``,
+    ``grid``), as does the sell price (:mod:`.tariff`); comfort bounds from ``params.comfort``
+    (``eq:T_min``).
     """
     time = pd.DatetimeIndex(frame.index).tz_convert(params.site.timezone)
     time.name = "time"
     spot = np.array(frame["spot_eur_per_mwh"], dtype=float)
-    buy, sell = _tariff(spot, params)
+    tariff = tariff or PaperTariff(params)
+    buy, sell = tariff.prices(time, spot)
+    meta = {**(meta or {}), **tariff.meta()}
     if "price_buy_eur_per_kwh" in frame:
         buy = np.array(frame["price_buy_eur_per_kwh"], dtype=float)
     t_min, t_max = comfort_bounds(time, params.comfort)
@@ -152,7 +140,7 @@ def scenario_from_frame(
         t_min_c=t_min,
         t_max_c=t_max,
         n_steps=n_steps,
-        meta=dict(meta or {}),
+        meta=meta,
     )
 
 
@@ -347,7 +335,7 @@ def _synthetic_extension(
 def _window(
     name: str, frame: pd.DataFrame, params: PlantParams, start: str | None, n_steps: int | None, lookahead_h: int,
     meta: dict, extend: str | None = None, seed: int | None = None, length_text: str = "",
-    keep_lookahead: bool = False, generator: ScenarioParams | None = None,
+    keep_lookahead: bool = False, generator: ScenarioParams | None = None, tariff: Tariff | None = None,
 ) -> Scenario:
     """Cut ``frame`` to start at ``start`` and run ``n_steps`` steps (plus the available look-ahead).
 
@@ -357,7 +345,8 @@ def _window(
     is refused unless ``extend="synthetic"``: then rows of the synthetic generator
     (``generator`` settings, seed ``seed``) follow the data's last row, for the run and its
     look-ahead, and ``meta["extended"]`` says from when and how many (a CSV's own buy-price
-    column continues with the configured tariff, ``eq:costs``).
+    column continues with the configured tariff, ``eq:costs``). ``tariff`` prices the rows
+    (default: the paper's, :mod:`.tariff`), the extension's as the data's.
     """
     tz = params.site.timezone
     if extend is not None and extend not in EXTEND_METHODS:
@@ -388,7 +377,8 @@ def _window(
             )
         ext, used_seed = _synthetic_extension(params, last, n_steps + lookahead_h - len(frame), seed, generator)
         if "price_buy_eur_per_kwh" in frame:  # a CSV's own tariff column: the configured tariff after its end
-            ext["price_buy_eur_per_kwh"] = _tariff(ext["spot_eur_per_mwh"].to_numpy(dtype=float), params)[0]
+            ext["price_buy_eur_per_kwh"] = (tariff or PaperTariff(params)).prices(
+                pd.DatetimeIndex(ext.index), ext["spot_eur_per_mwh"].to_numpy(dtype=float))[0]
         frame = pd.concat([frame, ext[list(frame.columns)]])
         meta["extended"] = {
             "method": extend,
@@ -398,7 +388,7 @@ def _window(
             "seed": used_seed,
         }
     frame = frame.iloc[: n_steps + lookahead_h]
-    return scenario_from_frame(name, frame, params, n_steps, meta)
+    return scenario_from_frame(name, frame, params, n_steps, meta, tariff)
 
 
 def load_scenario_csv(
@@ -563,7 +553,8 @@ def _validation_scenario(
     name: str, params: PlantParams, start: str | None, n_steps: int | None, length: str, seed: int | None,
     extend: str | None, settings_overrides: Mapping[str, Any] | None,
 ) -> Scenario:
-    """A case of the validation set (:mod:`.validation`), cut to its window.
+    """A case of the validation set (:mod:`.validation`), cut to its window and priced by the
+    tariff the case names (:func:`~comems4build_ros.core.scenario.validation.case_tariff`).
 
     Raises
     ------
@@ -574,6 +565,7 @@ def _validation_scenario(
     from comems4build_ros.core.scenario.validation import (
         WEATHER,
         case_of,
+        case_tariff,
         check_site,
         load_validation_settings,
         validation_frame,
@@ -592,4 +584,4 @@ def _validation_scenario(
     if n_steps is None and start is None:
         n_steps = steps_of_weeks(settings.weeks, f"scenario '{name}'")
     return _window(name, frame, params, start, n_steps, settings.lookahead_h, meta, extend, seed, length,
-                   keep_lookahead=True, generator=load_scenario_settings())
+                   keep_lookahead=True, generator=load_scenario_settings(), tariff=case_tariff(case, params))
