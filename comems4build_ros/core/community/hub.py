@@ -227,7 +227,7 @@ class Hub:
 
     # --------------------------------------------------------------- transfers
     def transfer(self, houses: Sequence[PlantState], hub: HubState,
-                 transfers_wh: Sequence[float]) -> tuple[float, int]:
+                 transfers_wh: Sequence[float]) -> tuple[list[float], int]:
         """Move H2 between the pool and the accounts at the start of a step (in place).
 
         Moves back to the pool (negative) go first, limited to what an account holds above
@@ -236,7 +236,7 @@ class Hub:
 
         Returns
         -------
-        (net H2 moved into the accounts [Wh LHV], clip bits)
+        (H2 moved into each account [Wh LHV], clip bits)
 
         Raises
         ------
@@ -245,7 +245,8 @@ class Hub:
         """
         if len(transfers_wh) != len(houses):
             raise ValueError(f"hub: {len(transfers_wh)} transfers for {len(houses)} houses")
-        clip, net = 0, 0.0
+        clip = 0
+        moved = [0.0] * len(houses)
         order = sorted(range(len(houses)), key=lambda i: transfers_wh[i] >= 0.0)
         for i in order:
             t = float(transfers_wh[i])
@@ -268,12 +269,13 @@ class Hub:
             hub.pool_wh -= cut
             if hub.pool_wh < 0.0:
                 hub.pool_wh = 0.0
-            net += cut
-        return net, clip
+            moved[i] = cut
+        return moved, clip
 
     # -------------------------------------------------------------------- step
     def step(self, houses: Sequence[PlantState], hub: HubState, p_set_w: float, split: Sequence[float],
-             p_h2_fc_w: Sequence[float], transfer: tuple[float, int] = (0.0, 0)) -> tuple[HubState, HubFlows]:
+             p_h2_fc_w: Sequence[float], transfer: tuple[Sequence[float], int] = ((), 0),
+             ) -> tuple[HubState, HubFlows, list[float]]:
         """The hub's step after the houses' plants stepped (the accounts hold their FC draws).
 
         Parameters
@@ -287,7 +289,7 @@ class Hub:
 
         Returns
         -------
-        (HubState, HubFlows)
+        (HubState, HubFlows, the production credited to each account [Wh LHV])
         """
         dt_h, e_wh = self.dt_h, self.e_wh
         p_fc = 0.0
@@ -307,21 +309,24 @@ class Hub:
         p_set = float(p_set_w) if math.isfinite(float(p_set_w)) else 0.0
         p_el, h2, modules, q_rec, loh, clip, started = self.bank.run(p_set, loh, hub.modules_on, dt_h, self.loh_max,
                                                                     e_wh)
-        credited = 0.0
+        credits = [0.0] * len(houses)
         h2_wh = h2 * dt_h
         if h2_wh > 0.0:
-            credited = self._credit(houses, h2_wh, split)
-            pool += h2_wh - credited
+            credits = self._credit(houses, h2_wh, split)
+        credited = math.fsum(credits)
+        pool += h2_wh - credited
+        if pool < 0.0:  # the shares of a production summed a rounding above it
+            pool = 0.0
         new = HubState(loh=loh, pool_wh=pool, modules_on=modules)
         flows = HubFlows(p_set, p_el, modules > 0, started, modules, h2, q_rec, p_fc, loss_wh / dt_h, credited,
-                         h2_wh - credited, transfer[0], clip | transfer[1])
-        return new, flows
+                         h2_wh - credited, math.fsum(transfer[0]), clip | transfer[1])
+        return new, flows, credits
 
-    def _credit(self, houses: Sequence[PlantState], h2_wh: float, split: Sequence[float]) -> float:
-        """Credit ``h2_wh`` to the accounts by ``split`` (each within its room); the H2 credited [Wh LHV]."""
+    def _credit(self, houses: Sequence[PlantState], h2_wh: float, split: Sequence[float]) -> list[float]:
+        """Credit ``h2_wh`` to the accounts by ``split`` (each within its room); the H2 credited to each [Wh LHV]."""
         if len(split) != len(houses):
             raise ValueError(f"hub: a production split of {len(split)} shares for {len(houses)} houses")
-        credited = 0.0
+        credited = [0.0] * len(houses)
         for i, f in enumerate(split):
             f = float(f)
             if not (math.isfinite(f) and f > 0.0):
@@ -334,7 +339,7 @@ class Hub:
             s.loh = s.loh + part / share
             if s.loh > self.account_max[i]:
                 s.loh = self.account_max[i]
-            credited += part
+            credited[i] = part
         return credited
 
     def _standing_loss(self, houses: Sequence[PlantState], pool: float, fraction: float) -> tuple[float, float]:

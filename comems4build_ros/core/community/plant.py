@@ -54,6 +54,28 @@ class ConnectionFlows:
     p_el_w: float
 
 
+@dataclass(slots=True)
+class CommunityStep:
+    """What one step of the community plant gives.
+
+    Attributes
+    ----------
+    states : every house's state at the end of the step
+    hub : the hub's state
+    flows : every house's flows
+    hub_flows : the hub's flows
+    connection : the connection point's exchange
+    credited_wh : the production credited to each house's account [Wh LHV]
+    """
+
+    states: list[PlantState]
+    hub: HubState
+    flows: list[Flows]
+    hub_flows: HubFlows
+    connection: ConnectionFlows
+    credited_wh: list[float]
+
+
 def _total(values: Sequence[float]) -> float:
     """Sum in order, starting from the first value (one value is returned as it is)."""
     total = values[0]
@@ -97,25 +119,21 @@ class CommunityPlant:
         return states, self.hub.initial_state(states)
 
     def begin_step(self, states: list[PlantState], hub: HubState,
-                   transfers_wh: Sequence[float]) -> tuple[float, int]:
+                   transfers_wh: Sequence[float]) -> tuple[list[float], int]:
         """The coordinator's transfers at the start of a step (the states change in place; see :meth:`Hub.transfer`)."""
         return self.hub.transfer(states, hub, transfers_wh)
 
     def step(self, states: Sequence[PlantState], hub: HubState, actions: Sequence[Action],
              exos: Sequence[Exogenous], p_el_set_w: float, split: Sequence[float],
-             transfer: tuple[float, int] = (0.0, 0),
-             ) -> tuple[list[PlantState], HubState, list[Flows], HubFlows, ConnectionFlows]:
-        """Advance every house and the hub by one step (module docstring).
-
-        Returns
-        -------
-        (the houses' states, the hub's state, the houses' flows, the hub's flows, the connection point's)
-        """
+             transfer: tuple[Sequence[float], int] = ((), 0)) -> CommunityStep:
+        """Advance every house and the hub by one step (module docstring)."""
         new_states, flows = [], []
         for plant, state, action, exo in zip(self.plants, states, actions, exos):
             own = Action(action.hp_mod, action.hp_mode, action.p_fc_w, action.p_bess_w, 0.0)
             s, f = plant.step(state, own, exo)
             new_states.append(s)
             flows.append(f)
-        hub_new, hub_flows = self.hub.step(new_states, hub, p_el_set_w, split, [f.p_h2_w for f in flows], transfer)
-        return new_states, hub_new, flows, hub_flows, connection_exchange(flows, hub_flows.p_el_w)
+        hub_new, hub_flows, credits = self.hub.step(new_states, hub, p_el_set_w, split, [f.p_h2_w for f in flows],
+                                                    transfer)
+        return CommunityStep(new_states, hub_new, flows, hub_flows, connection_exchange(flows, hub_flows.p_el_w),
+                             credits)

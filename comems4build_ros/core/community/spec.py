@@ -38,7 +38,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
-from pydantic import Field, model_validator
+from pydantic import Field, field_validator, model_validator
 
 from comems4build_ros.core.config import (
     W_PER_KW,
@@ -83,13 +83,14 @@ class HouseSpec(Section):
     h2_weight: float = Field(default=1.0, gt=0, le=1000)
     set: dict[str, Any] = Field(default_factory=dict)
 
-    @model_validator(mode="after")
-    def _check_set(self) -> HouseSpec:
-        for key in self.set:
+    @field_validator("set")
+    @classmethod
+    def _check_set(cls, value: dict[str, Any]) -> dict[str, Any]:
+        for key in value:
             if key.split(".")[0] in HUB_SECTIONS:
-                raise ValueError(f"set: '{key}' is owned by the hub or the run ({', '.join(HUB_SECTIONS)}); "
+                raise ValueError(f"'{key}' is owned by the hub or the run ({', '.join(HUB_SECTIONS)}); "
                                  "size the hub under 'hub' and the run with its options")
-        return self
+        return value
 
 
 class HubSpec(Section):
@@ -303,7 +304,7 @@ def build_community(
                  else sum(p.electrolyser.n_modules for p in own))
     total_weight = sum(h.h2_weight for h in spec.houses)
     houses = []
-    for h, p in zip(spec.houses, own):
+    for h in spec.houses:
         share_kwh = store_wh * h.h2_weight / total_weight / W_PER_KW
         where = f"{source}: house '{h.name}' (its H2 share {share_kwh:g} kWh)"
         params = _house_params(files, overrides, {**house_overrides(h, base), "hydrogen.e_max_kwh": share_kwh}, where)
