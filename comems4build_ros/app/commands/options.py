@@ -326,7 +326,7 @@ def check_building_covers(choice: Any, scenario: Any, params: Any) -> None:
         raise UsageError(str(exc)) from None
 #: Options of the commands that name input files or directories (what an output must not overwrite).
 INPUT_OPTIONS = ("config", "costs", "scenario", "topic_map", "live_config", "bag", "prices", "temperature", "solar",
-                 "dhw", "load", "from_json", "from_runs", "building", "building_map", "epw")
+                 "dhw", "load", "from_json", "from_runs", "building", "building_map", "epw", "community")
 
 
 def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:

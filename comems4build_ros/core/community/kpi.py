@@ -23,7 +23,7 @@ sharing rule set (:mod:`.sharing`). For the community (:func:`community_kpis`):
 from __future__ import annotations
 
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 import numpy as np
 import pandas as pd
@@ -33,9 +33,6 @@ from comems4build_ros.core.community.spec import Community
 from comems4build_ros.core.config import W_PER_KW
 from comems4build_ros.core.kpi import DISCOMFORT_TOL_KH, at_resolution, cost_eur
 from comems4build_ros.core.loop import RunResult
-
-if TYPE_CHECKING:
-    from comems4build_ros.core.community.loop import CommunityResult
 
 #: The per-house KPIs of the houses' table, from each house's summary.
 HOUSE_KPIS = ("discomfort_kh_total", "cost_eur_total", "reimbursement_eur_total", "buy_kwh_total", "sell_kwh_total",
@@ -165,10 +162,8 @@ def house_table(houses: dict[str, RunResult], settled: dict[str, Settlement]) ->
 
 def evaluate_community(community: Community, coordinator: str, ems: str, houses: dict[str, RunResult],
                        hub: pd.DataFrame, timing: dict[str, float], sharing_file: str | Path | None = None,
-                       tariff_file: str | Path | None = None) -> CommunityResult:
-    """The houses' runs, the hub's timeseries and the community's KPIs as one result."""
-    from comems4build_ros.core.community.loop import CommunityResult
-
+                       tariff_file: str | Path | None = None) -> tuple[pd.DataFrame, dict[str, Any]]:
+    """The houses' table (:func:`house_table`) and the community's summary (:func:`community_kpis`, the run's facts)."""
     settled = settlements(community, houses, hub, sharing_file, tariff_file)
     summary: dict[str, Any] = {"community": community.name, "community_file": community.source,
                                "coordinator": coordinator, "ems": ems, "scenario": community.scenario.name,
@@ -176,4 +171,4 @@ def evaluate_community(community: Community, coordinator: str, ems: str, houses:
     summary.update(community_kpis(community, houses, hub, settled))
     summary["rule_sets"] = {name: load_sharing_rules(sharing_file).rule_sets[name].label for name in settled}
     summary.update(timing)
-    return CommunityResult(houses, hub, house_table(houses, settled), summary)
+    return house_table(houses, settled), summary

@@ -45,6 +45,7 @@ from comems4build_ros.core.community.coordinator import (
     make_coordinator,
 )
 from comems4build_ros.core.community.hub import HubFlows, HubState
+from comems4build_ros.core.community.kpi import evaluate_community
 from comems4build_ros.core.community.plant import CommunityPlant, ConnectionFlows
 from comems4build_ros.core.community.spec import Community
 from comems4build_ros.core.config import W_PER_KW
@@ -138,8 +139,6 @@ def simulate_community(
     forecast : forecast settings of an MPC (default ``config/forecast.yaml``)
     sharing_file, tariff_file : the sharing rule sets and the tariff data (default: ``config/``)
     """
-    from comems4build_ros.core.community.kpi import evaluate_community
-
     t_start = _time.perf_counter()
     plant = CommunityPlant(community)
     info = community_info(community, plant)
@@ -226,8 +225,9 @@ def simulate_community(
     if coord_infos and any(coord_infos):
         hub_ts = pd.concat([hub_ts, pd.DataFrame(coord_infos).add_prefix("coord_")], axis=1)
     timing = {"wall_s": _time.perf_counter() - t_start, "ems_s": ems_s, "coordinator_s": coord_s}
-    return evaluate_community(community, coord.name, ctrls[0].name, results, hub_ts, timing, sharing_file,
-                              tariff_file)
+    table, summary = evaluate_community(community, coord.name, ctrls[0].name, results, hub_ts, timing, sharing_file,
+                                        tariff_file)
+    return CommunityResult(results, hub_ts, table, summary)
 
 
 def _check_lengths(coord: Coordinator, what: str, n: int, **values: tuple[float, ...]) -> None:
