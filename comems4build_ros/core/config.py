@@ -19,7 +19,7 @@ with :func:`read_ros_params` and validate them with :func:`validate`.
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
@@ -752,3 +752,57 @@ def load_plant_params(
             set_dotted(merged, key, value)
         source += " + overrides"
     return validate(PlantParams, merged, source)
+
+
+def table_rows(doc: Any, key: str, row_keys: Sequence[str], class_key: str, source: str,
+               what: str) -> Iterator[tuple[str, dict[str, Any], str]]:
+    """The rows of a table of classes (``config/ems.yaml``, ``config/coordinators.yaml``), checked.
+
+    ``doc`` is ``{key: {name: row}}``; every row must hold exactly ``row_keys``, its
+    ``class_key`` as ``module:Class``. Yields ``(name, row, where)`` with ``where`` naming the
+    file and the row for further checks.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the row (``what 'name'``) and the key that is missing, unknown or invalid.
+    """
+    rows = doc.get(key) if isinstance(doc, dict) else None
+    if not isinstance(rows, dict) or not rows:
+        raise ConfigError(f"{source}: needs a mapping '{key}' of {what} name -> row")
+    for name, row in rows.items():
+        where = f"{source}: {what} '{name}'"
+        if not isinstance(name, str) or not isinstance(row, dict):
+            raise ConfigError(f"{where}: a name and a mapping of {', '.join(row_keys)}")
+        missing = [k for k in row_keys if k not in row]
+        extra = sorted(set(row) - set(row_keys))
+        if missing or extra:
+            problems = ([f"missing {', '.join(missing)}"] if missing else []) + (
+                [f"unknown {', '.join(extra)}"] if extra else [])
+            raise ConfigError(f"{where}: " + "; ".join(problems))
+        if not isinstance(row[class_key], str) or row[class_key].count(":") != 1:
+            raise ConfigError(f"{where}: {class_key} must be 'module:Class', got {row[class_key]!r}")
+        yield name, row, where
+
+
+def table_class(spec: str, methods: Sequence[str], kind: str, what: str, error: type[Exception]) -> type:
+    """The class ``module:Class`` of a table's row, with the ``methods`` a ``kind`` class has.
+
+    Raises
+    ------
+    error
+        Naming ``what`` (the row, e.g. ``EMS 'rbc'``) when its module or class is missing.
+    """
+    import importlib
+
+    module_name, _, class_name = spec.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name and module_name.startswith(exc.name):
+            raise error(f"{what} is in the table but its module {module_name} is missing") from None
+        raise
+    cls = getattr(module, class_name, None)
+    if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in methods):
+        raise error(f"module {module_name} defines no {kind} class {class_name} ({what})")
+    return cls

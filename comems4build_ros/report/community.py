@@ -38,7 +38,7 @@ from comems4build_ros.files.inputs import InputFileError, load_json_file  # noqa
 from comems4build_ros.report import style  # noqa: E402
 from comems4build_ros.report.build import Report  # noqa: E402
 from comems4build_ros.report.document import Document  # noqa: E402
-from comems4build_ros.report.figures import _date_axis, _local_naive  # noqa: E402
+from comems4build_ros.report.figures import _local_naive, run_time_axis  # noqa: E402
 from comems4build_ros.report.runs import RUNS_DIR, RunDirError  # noqa: E402
 from comems4build_ros.report.style import axis_label, figsize, save_figure, styled  # noqa: E402
 
@@ -153,9 +153,7 @@ def hub_loh_figure(runs: Mapping[str, CommunityRun], tz: str) -> Figure:
         ax.plot(t, PERCENT * r.hub["loh"], color=coordinator_colour(name, i), label=coordinator_label(name), lw=1.2)
     ax.set_ylabel(axis_label("hub LOH", "%"))
     ax.set_ylim(0, 102)
-    t0 = _local_naive(next(iter(runs.values())).hub["time"], tz)
-    _date_axis(ax, float((t0[-1] - t0[0]) / np.timedelta64(1, "D")) if len(t0) > 1 else 1.0)
-    ax.set_xlabel(f"local time ({tz})")
+    run_time_axis(ax, next(iter(runs.values())).hub["time"], tz)
     style.outside_legend(ax)
     return fig
 

@@ -15,7 +15,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.app.commands.options import UsageError, output_dir, study_executor
+from comems4build_ros.app.commands.options import UsageError, output_dir, study_executor, table_names
 
 #: The EMS of every house when ``--ems`` is not given: ComEMS4Build.
 DEFAULT_COMMUNITY_EMS = "fuzzy"
@@ -43,17 +43,8 @@ def coordinator_names(text: str | None) -> list[str]:
         coordinator_table,
     )
 
-    names = list(coordinator_table()) if text is None else [c.strip() for c in text.split(",") if c.strip()]
-    if not names:
-        raise UsageError(f"--coordinator '{text}': no coordinator given")
-    for i, name in enumerate(names):
-        if name in names[:i]:
-            raise UsageError(f"--coordinator {text}: '{name}' given twice")
-        try:
-            coordinator_class(name)
-        except UnknownCoordinatorError as exc:
-            raise UsageError(f"--coordinator {name}: {exc}") from None
-    return names
+    text = ",".join(coordinator_table()) if text is None else text
+    return table_names(text, "--coordinator", "coordinator", coordinator_class, UnknownCoordinatorError)
 
 
 def coordinator_options(items: list[str], names: list[str]) -> dict[str, dict[str, Any]]:

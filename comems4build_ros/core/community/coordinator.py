@@ -29,12 +29,11 @@ builds one. To add one: write a class with the attributes and methods of
 from __future__ import annotations
 
 import functools
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-from comems4build_ros.core.config import ConfigError, config_dir, load_yaml
+from comems4build_ros.core.config import ConfigError, config_dir, load_yaml, table_class, table_rows
 
 #: The coordinator table's file in ``config/``.
 COORDINATOR_TABLE_FILE = "coordinators.yaml"
@@ -247,22 +246,8 @@ def parse_coordinator_table(doc: Any, source: str) -> dict[str, CoordinatorEntry
     ConfigError
         Naming the file, the coordinator and the key that is missing or invalid.
     """
-    rows = doc.get("coordinators") if isinstance(doc, dict) else None
-    if not isinstance(rows, dict) or not rows:
-        raise ConfigError(f"{source}: needs a mapping 'coordinators' of coordinator name -> row")
     table: dict[str, CoordinatorEntry] = {}
-    for name, row in rows.items():
-        where = f"{source}: coordinator '{name}'"
-        if not isinstance(name, str) or not isinstance(row, dict):
-            raise ConfigError(f"{where}: a name and a mapping of {', '.join(_ROW_KEYS)}")
-        missing = [k for k in _ROW_KEYS if k not in row]
-        extra = sorted(set(row) - set(_ROW_KEYS))
-        if missing or extra:
-            problems = ([f"missing {', '.join(missing)}"] if missing else []) + (
-                [f"unknown {', '.join(extra)}"] if extra else [])
-            raise ConfigError(f"{where}: " + "; ".join(problems))
-        if not isinstance(row["coordinator"], str) or row["coordinator"].count(":") != 1:
-            raise ConfigError(f"{where}: coordinator must be 'module:Class', got {row['coordinator']!r}")
+    for name, row, where in table_rows(doc, "coordinators", _ROW_KEYS, "coordinator", source, "coordinator"):
         if not isinstance(row["options"], dict):
             raise ConfigError(f"{where}: options must be a mapping (may be empty), got {row['options']!r}")
         for key in ("label", "colour", "summary"):
@@ -310,18 +295,8 @@ def coordinator_class(name: str) -> type:
         ``name`` differs from its row.
     """
     entry = coordinator_entry(name)
-    module_name, _, class_name = entry.coordinator.partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name and module_name.startswith(exc.name):
-            raise UnknownCoordinatorError(f"coordinator '{name}' is in the table but its module {module_name} is "
-                                          "missing") from None
-        raise
-    cls = getattr(module, class_name, None)
-    if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in ("allot", "dispatch", "reset")):
-        raise UnknownCoordinatorError(f"module {module_name} defines no coordinator class {class_name} "
-                                      f"(coordinator '{name}')")
+    cls = table_class(entry.coordinator, ("allot", "dispatch", "reset"), "coordinator", f"coordinator '{name}'",
+                      UnknownCoordinatorError)
     if getattr(cls, "name", None) != name:
         raise UnknownCoordinatorError(f"{entry.coordinator}: name '{getattr(cls, 'name', None)}' differs from the "
                                       f"coordinator table's '{name}'")
