@@ -19,7 +19,7 @@ with :func:`read_ros_params` and check them with :func:`parse_model`.
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
@@ -1282,3 +1282,91 @@ def load_plant_params(
             set_dotted(merged, key, value)
         source += " + overrides"
     return parse_model(PlantParams, merged, source)
+
+
+def table_rows(doc: Any, key: str, row_keys: Sequence[str], class_key: str, source: str,
+               what: str) -> Iterator[tuple[str, dict[str, Any], str]]:
+    """Yield the checked rows of a table of classes (``config/ems.yaml``, ``config/coordinators.yaml``).
+
+    Parameters
+    ----------
+    doc : object
+        The file's content, ``{key: {name: row}}``.
+    key : str
+        The table's top-level key.
+    row_keys : sequence of str
+        The keys every row holds, exactly.
+    class_key : str
+        The key of the row's ``module:Class``.
+    source : str
+        The file, for the messages.
+    what : str
+        What a row is (``EMS``, ``coordinator``), for the messages.
+
+    Yields
+    ------
+    tuple of (str, dict, str)
+        ``(name, row, where)``, ``where`` naming the file and the row for further checks.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the row (``what 'name'``) and the key that is missing, unknown or invalid.
+    """
+    rows = doc.get(key) if isinstance(doc, dict) else None
+    if not isinstance(rows, dict) or not rows:
+        raise ConfigError(f"{source}: needs a mapping '{key}' of {what} name -> row")
+    for name, row in rows.items():
+        where = f"{source}: {what} '{name}'"
+        if not isinstance(name, str) or not isinstance(row, dict):
+            raise ConfigError(f"{where}: a name and a mapping of {', '.join(row_keys)}")
+        missing = [k for k in row_keys if k not in row]
+        extra = sorted(set(row) - set(row_keys))
+        if missing or extra:
+            problems = ([f"missing {', '.join(missing)}"] if missing else []) + (
+                [f"unknown {', '.join(extra)}"] if extra else [])
+            raise ConfigError(f"{where}: " + "; ".join(problems))
+        if not isinstance(row[class_key], str) or row[class_key].count(":") != 1:
+            raise ConfigError(f"{where}: {class_key} must be 'module:Class', got {row[class_key]!r}")
+        yield name, row, where
+
+
+def table_class(spec: str, methods: Sequence[str], kind: str, what: str, error: type[Exception]) -> type:
+    """Import the class ``module:Class`` of a table's row, with the ``methods`` a ``kind`` class has.
+
+    Parameters
+    ----------
+    spec : str
+        ``module:Class``.
+    methods : sequence of str
+        Methods the class must have.
+    kind : str
+        What the class is (``controller``, ``coordinator``), for the message.
+    what : str
+        The row, e.g. ``EMS 'rbc'``, for the message.
+    error : type of Exception
+        The exception raised.
+
+    Returns
+    -------
+    type
+        The class.
+
+    Raises
+    ------
+    error
+        Naming ``what`` (the row, e.g. ``EMS 'rbc'``) when its module or class is missing.
+    """
+    import importlib
+
+    module_name, _, class_name = spec.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name and module_name.startswith(exc.name):
+            raise error(f"{what} is in the table but its module {module_name} is missing") from None
+        raise
+    cls = getattr(module, class_name, None)
+    if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in methods):
+        raise error(f"module {module_name} defines no {kind} class {class_name} ({what})")
+    return cls

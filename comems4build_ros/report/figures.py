@@ -95,6 +95,13 @@ def _date_axis(ax: plt.Axes, days: float) -> None:
         t.set_rotation(0)
 
 
+def run_time_axis(ax: plt.Axes, time: pd.Series, tz: str) -> None:
+    """The date axis of a run over its span (:func:`_date_axis`) with the local-time label (UTC ``time``)."""
+    t = _local_naive(time, tz)
+    _date_axis(ax, float((t[-1] - t[0]) / np.timedelta64(1, "D")) if len(t) > 1 else 1.0)
+    ax.set_xlabel(f"local time ({tz})")
+
+
 def _boxes(ax: plt.Axes, runs: Mapping[str, RunData], column: str, ylabel: str, title: str) -> None:
     """Weekly box plot of one KPI, one box per EMS, weekly values as dots."""
     names = list(runs)

@@ -125,18 +125,24 @@ class RunTask:
         read from there, so the run needs no file of the machine that made the task.
         """
         with tempfile.TemporaryDirectory(prefix="comems4build-inputs-") as tmp:
-            paths: dict[str, str] = {}
-            for k, (name, data) in enumerate(self.inputs.items()):
-                local = Path(tmp) / str(k) / Path(name).name
-                local.parent.mkdir(parents=True)
-                local.write_bytes(data)
-                paths[name] = str(local)
+            paths = local_inputs(self.inputs, Path(tmp))
             task = dataclasses.replace(self, out_dir=str(out_dir), inputs={},
                                        config=[paths.get(c, c) for c in self.config],
                                        scenario=paths.get(str(self.scenario), self.scenario))
             summary = run_task(task, progress)
         written = load_json_file(Path(out_dir) / "summary.json", "a run's summary")
         return {**written, "task_wall_s": summary["task_wall_s"]}
+
+
+def local_inputs(inputs: Mapping[str, bytes], folder: Path) -> dict[str, str]:
+    """Write carried input files into ``folder`` under their own names; the name given -> the local path."""
+    paths: dict[str, str] = {}
+    for k, (name, data) in enumerate(inputs.items()):
+        local = folder / str(k) / Path(name).name
+        local.parent.mkdir(parents=True)
+        local.write_bytes(data)
+        paths[name] = str(local)
+    return paths
 
 
 def run_task(task: RunTask, progress: ProgressCallback | None = None) -> dict[str, Any]:

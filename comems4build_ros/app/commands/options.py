@@ -153,21 +153,30 @@ def ems_help(many: bool = False) -> str:
     return f"comma-separated EMS names, of {names}" if many else f"EMS name: {names}"
 
 
+def table_names(text: str, option: str, what: str, check: Callable[[str], Any], unknown: type[Exception]) -> list[str]:
+    """A comma-separated option of names of a table (``--ems``, ``--coordinator``): each once, each known, at least one.
+
+    ``check(name)`` raises ``unknown`` for a name the table does not hold; every refusal is a
+    usage error naming ``option``.
+    """
+    names = [e.strip() for e in text.split(",") if e.strip()]
+    if not names:
+        raise UsageError(f"{option} '{text}': no {what} given")
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise UsageError(f"{option} {text}: '{name}' given twice (its runs would overwrite each other)")
+        try:
+            check(name)
+        except unknown as exc:
+            raise UsageError(f"{option} {name}: {exc}") from None
+    return names
+
+
 def ems_names(text: str) -> list[str]:
     """``--ems rbc,fuzzy,mpc`` of ``compare`` and ``sweep``: registered names, each once, at least one."""
     from comems4build_ros.core.ems import UnknownEMSError, controller_class
 
-    names = [e.strip() for e in text.split(",") if e.strip()]
-    if not names:
-        raise UsageError(f"--ems '{text}': no EMS given")
-    for i, name in enumerate(names):
-        if name in names[:i]:
-            raise UsageError(f"--ems {text}: '{name}' given twice (its runs would overwrite each other)")
-        try:
-            controller_class(name)
-        except UnknownEMSError as exc:
-            raise UsageError(f"--ems {name}: {exc}") from None
-    return names
+    return table_names(text, "--ems", "EMS", controller_class, UnknownEMSError)
 
 
 def ems_controller(name: str, params: Any, items: Sequence[str]) -> Any:
@@ -336,7 +345,7 @@ def check_building_covers(choice: Any, scenario: Any, params: Any) -> None:
         raise UsageError(str(exc)) from None
 #: Options of the commands that name input files or directories (what an output must not overwrite).
 INPUT_OPTIONS = ("config", "costs", "scenario", "topic_map", "live_config", "bag", "prices", "temperature", "solar",
-                 "dhw", "load", "from_json", "from_runs", "building", "building_map", "epw")
+                 "dhw", "load", "from_json", "from_runs", "building", "building_map", "epw", "community")
 
 
 def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:

@@ -10,12 +10,11 @@ to ``config/ems.yaml`` (docs/architecture.md, "How to add an EMS").
 from __future__ import annotations
 
 import functools
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_yaml
+from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_yaml, table_class, table_rows
 from comems4build_ros.core.ems.base import INFO_LEVELS, Controller
 from comems4build_ros.core.ems.settings import ControllerSettings, load_settings
 
@@ -84,25 +83,11 @@ def parse_ems_table(doc: Any, source: str) -> dict[str, EMSEntry]:
     ConfigError
         Naming the file, the EMS and the key that is missing or invalid.
     """
-    rows = doc.get("ems") if isinstance(doc, dict) else None
-    if not isinstance(rows, dict) or not rows:
-        raise ConfigError(f"{source}: needs a mapping 'ems' of EMS name -> row")
     table: dict[str, EMSEntry] = {}
     nodes: set[str] = set()
-    for name, row in rows.items():
-        where = f"{source}: ems '{name}'"
-        if not isinstance(name, str) or not isinstance(row, dict):
-            raise ConfigError(f"{where}: a name and a mapping of {', '.join(_ROW_KEYS)}")
-        missing = [k for k in _ROW_KEYS if k not in row]
-        extra = sorted(set(row) - set(_ROW_KEYS))
-        if missing or extra:
-            problems = ([f"missing {', '.join(missing)}"] if missing else []) + (
-                [f"unknown {', '.join(extra)}"] if extra else [])
-            raise ConfigError(f"{where}: " + "; ".join(problems))
+    for name, row, where in table_rows(doc, "ems", _ROW_KEYS, "controller", source, "ems"):
         if row["info_level"] not in INFO_LEVELS:
             raise ConfigError(f"{where}: info_level '{row['info_level']}' is not one of {', '.join(INFO_LEVELS)}")
-        if not isinstance(row["controller"], str) or row["controller"].count(":") != 1:
-            raise ConfigError(f"{where}: controller must be 'module:Class', got {row['controller']!r}")
         if not isinstance(row["weight"], int | float) or isinstance(row["weight"], bool) or row["weight"] <= 0:
             raise ConfigError(f"{where}: weight must be a number > 0, got {row['weight']!r}")
         if not isinstance(row["node"], str) or not row["node"].isidentifier() or row["node"] in nodes:
@@ -180,16 +165,7 @@ def controller_class(name: str) -> type:
         ``name`` or ``info_level`` differs from its row.
     """
     entry = ems_entry(name)
-    module_name, _, class_name = entry.controller.partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name and module_name.startswith(exc.name):
-            raise UnknownEMSError(f"EMS '{name}' is in the table but its module {module_name} is missing") from None
-        raise
-    cls = getattr(module, class_name, None)
-    if not isinstance(cls, type) or not callable(getattr(cls, "act", None)):
-        raise UnknownEMSError(f"module {module_name} defines no controller class {class_name} (EMS '{name}')")
+    cls = table_class(entry.controller, ("act",), "controller", f"EMS '{name}'", UnknownEMSError)
     if getattr(cls, "name", None) != name or getattr(cls, "info_level", None) != entry.info_level:
         raise UnknownEMSError(f"{entry.controller}: name '{getattr(cls, 'name', None)}' and info_level "
                               f"'{getattr(cls, 'info_level', None)}' differ from the EMS table's '{name}' and "
