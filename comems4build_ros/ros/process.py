@@ -85,12 +85,27 @@ def init_rclpy(args: list[str] | None) -> None:
 
 #: The stop signal (SIGINT or SIGTERM) this process received, None before one came.
 _stop_signal: int | None = None
+#: When it came (``time.monotonic()``) [s].
+_stop_at = 0.0
+#: A stop signal this soon after the first is the same stop delivered twice (Ctrl-C reaches the
+#: terminal's whole process group, and ``ros2 launch`` passes it on): ignored [s].
+REPEATED_SIGNAL_S = 1.0
 
 
 def _stop_on_signal(signum: int, frame: Any) -> None:
-    """SIGINT and SIGTERM handler: note the signal (:func:`stop_signalled`), stop like Ctrl-C."""
-    global _stop_signal
+    """SIGINT and SIGTERM handler: note the signal (:func:`stop_signalled`), stop like Ctrl-C.
+
+    A second stop signal within :data:`REPEATED_SIGNAL_S` is ignored: a KeyboardInterrupt
+    raised again while the first is being handled would cut the orderly end short.
+    """
+    import time
+
+    global _stop_signal, _stop_at
+    now = time.monotonic()
+    if _stop_signal is not None and now - _stop_at < REPEATED_SIGNAL_S:
+        return
     _stop_signal = signum
+    _stop_at = now
     raise KeyboardInterrupt(f"signal {signum}")
 
 
