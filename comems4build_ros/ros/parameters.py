@@ -205,8 +205,10 @@ PARAMETERS: dict[str, ParamSpec] = {
     "measure_delay_s": ParamSpec("float", "wall clocks: announce a step this long after it starts "
                                  "(-1 = 0.2 of the period, at most 5 s)", "s", -1.0, None, source=_MQTT),
     "client_id": ParamSpec("str", "MQTT client id", allowed="a string", source=_MQTT),
-    "run_id": ParamSpec("str", "the run's id on its retained MQTT messages (empty = a new random one)",
-                        allowed="1 to 64 of A-Z a-z 0-9 _ . - or empty", source=_MQTT),
+    "run_id": ParamSpec("str", "the run's id: the feed names it on feed/info and the recorder in the bag's "
+                        "run_info.json (evaluate refuses records of another run), mqtt_bridge on its retained MQTT "
+                        "messages (empty: none, for the bridge a new random one)",
+                        allowed="1 to 64 of A-Z a-z 0-9 _ . - or empty", source=_PLAN),
     "mqtt_secret_file": ParamSpec("str", "per-run secret (mode 0600): key of the authentication codes of the "
                                   "messages between bridge and house, and broker_username's password (empty = none)",
                                   allowed="a file path or empty", source=_MQTT),

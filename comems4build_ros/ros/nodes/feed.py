@@ -10,7 +10,9 @@ For each step ``k`` the feed publishes (topics of ``msg_defs/topics.yaml``, elem
   ``feed/comfort_ahead``, ``feed/solar``, ``feed/h2_allowance`` (fuzzy and MPC);
   ``feed/t_amb`` and ``forecast/*`` (MPC only);
 * once at start-up ``feed/info`` (transient local): scenario name, start, steps, forecast
-  mode and seed as JSON, so that a bag recorded without the launcher knows its scenario.
+  mode, seed, the run's id (parameter ``run_id``) and the EMS node served (``for_ems``, None:
+  every EMS) as JSON, so that a bag recorded without the launcher knows its scenario and which
+  inputs were published, and a bag holding another run's records is told apart.
 
 The values are those of :class:`comems4build_ros.core.loop.ObservationBuilder` (MPC level,
 which contains every other level), so an EMS node rebuilds exactly the observation of
@@ -32,7 +34,7 @@ first N steps, 0 = all), ``start`` (ISO time, empty = from the beginning), ``see
 (empty = ``config/forecast.yaml``), ``lookahead_steps`` (may change during a run),
 ``allow_gap_fill`` (default false), ``for_ems`` (empty = every EMS topic), ``inputs``,
 ``live_config``, ``live_cache_dir``, ``wait_for_recorder``, ``recorder_node``,
-``exit_when_done`` and the plant parameters (see
+``exit_when_done``, ``run_id`` (the run's id, named on ``feed/info``) and the plant parameters (see
 :meth:`comems4build_ros.ros.package_node.PackageNode.plant_params`). A scenario with a time gap,
 a non-finite value, or missing values the core loader would interpolate makes the feed
 refuse to start (exit code 2, the message names file, line and column); with
@@ -250,7 +252,8 @@ class Feed(EndsWithRun, ContractNode):
         self._blank = PlantState(soc=0.0, loh=0.0, t_air_c=0.0, t_wall_in_c=0.0, t_wall_out_c=0.0, v_dhw_l=0.0)
         self._check_payload_lengths()
         self.info = {"scenario": scenario.name, "start": scenario.time[0].isoformat(), "n_steps": self.n_steps,
-                     "forecast": self._forecast.mode, "seed": None if seed < 0 else seed}
+                     "forecast": self._forecast.mode, "seed": None if seed < 0 else seed,
+                     "run_id": self.run_id or None, "for_ems": self.for_ems or None}
         self._info_pub.publish(String(data=json.dumps(self.info)))
         self._next = 0  # first step not yet published
         self._last_request = -1
@@ -280,6 +283,8 @@ class Feed(EndsWithRun, ContractNode):
         # level, tab:level_of_information); without, every EMS input (any EMS, or a bag
         # that can later drive any EMS with replay --inputs-only).
         self.for_ems = self.param("for_ems", "")
+        # the run's id, named on feed/info: evaluate tells this run's records from another's by it
+        self.run_id = self.param("run_id", "")
         self.exit_when_done = self.param("exit_when_done", True)
         self.wait_for_recorder = self.param("wait_for_recorder", False)
         self.recorder_node = self.param("recorder_node", self.recorder_node)

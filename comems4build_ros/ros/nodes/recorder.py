@@ -50,7 +50,9 @@ no channel.
 
 Other parameters: ``tick_s`` (housekeeping timer period, default 0.05 s), ``bag_path``
 (directory to create, required), ``run_info`` (JSON string, stored as ``run_info.json`` in
-the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``).
+the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``)
+and ``run_id`` (the run's id, added to it as ``run_id``: the feed names it on ``feed/info``, and
+evaluate refuses a bag whose records name another run).
 ``settle_s``, ``ready_timeout_s``, ``optional_wait_s``, ``done_grace_s``,
 ``done_timeout_s``, ``progress_period_s`` and ``tick_s`` may change during a run (``ros2
 param set``); the others are read-only.
@@ -256,6 +258,11 @@ class Recorder(PackageNode):
                 info_obj = json.loads(run_info)
             except json.JSONDecodeError as exc:
                 raise ValueError(f"node '{NODE_NAME}': parameter 'run_info' is not JSON: {exc}") from None
+        run_id = self.param("run_id", "")
+        if run_id:  # the run's id beside its description: evaluate refuses records of another run by it
+            if info_obj is not None and not isinstance(info_obj, dict):
+                raise ValueError(f"node '{NODE_NAME}': parameter 'run_info' is not a JSON object (with 'run_id')")
+            info_obj = {**(info_obj or {}), "run_id": run_id}
         chunks = (self.param("chunk_period_s", 1.0), self.param("chunk_max_bytes", 256 * 1024))
         return bag_path, wait, info_obj, chunks
 
