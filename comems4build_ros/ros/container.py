@@ -179,7 +179,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
     roles = [entry_role(e, role) for e in spec["nodes"]]
     makers = {r: node_factory(r, spec) for r in dict.fromkeys(roles)}
     prepared = prepare_feed_scenarios(spec, role)
-    init_rclpy(args)
+    init_rclpy(args, label)
     executor = make_executor()
     nodes: list[Any] = []
     code = 0

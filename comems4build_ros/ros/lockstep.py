@@ -15,7 +15,8 @@ owns what does not depend on what is stepped:
 * the start gate (:meth:`recorder_ready`): with ``wait_for_recorder``, the recorder's
   ``recorder/ready`` and this node's writers matched to the recorder's readers;
 * back-pressure (:meth:`behind`): no step announced more than ``record_window_steps``
-  beyond ``recorder/progress``, the time held counted;
+  beyond ``recorder/progress``, the time held counted; a warning when the recorder leaves
+  before the end of the run (:meth:`_check_recorder_stays`);
 * the run's fault counters and statistics (:meth:`stats`), fault events on
   ``plant/events`` (:meth:`event`), ``/clock`` (:meth:`publish_clock`: one clock per run,
   parameter ``publish_clock``);
@@ -94,6 +95,8 @@ STATE_TOPICS: dict[str, tuple[str, ...]] = {
 #: loaded machine a reliable writer's retransmission waits for its next heartbeat (seconds),
 #: so a live recorder can be still for a while (measured: 6 s at a load average of 9 on 2 cores).
 RECORDER_STALL_MIN_S = 60.0
+#: Period of the check that the recorder is still in the run (with ``wait_for_recorder``) [s].
+RECORDER_CHECK_S = 1.0
 #: Names of the fault counters, in the order of ``plant/record`` and of the statistics.
 FAULT_COUNTERS = ("fallback_steps", "rejected_commands", "wrong_step_commands", "duplicate_commands",
                   "foreign_commands")
@@ -157,6 +160,9 @@ class LockStepMaster(ContractNode):
         self._events_pub = self.contract_publisher("plant/events")
         self.contract_subscription("recorder/ready", self._on_recorder_ready)
         self.contract_subscription("recorder/progress", self._on_recorder_progress)
+        self._recorder_left = False
+        if self.wait_for_recorder:
+            self.create_timer(RECORDER_CHECK_S, self._check_recorder_stays)
 
     def _timing_setter(self, name: str) -> Any:
         """``on_change`` of a timing parameter: the new value is used from the next watchdog tick."""
@@ -184,6 +190,25 @@ class LockStepMaster(ContractNode):
 
     def on_recorder_progress(self) -> None:
         """Called when ``recorder/progress`` grew: a held announcement may go out now."""
+
+    def _check_recorder_stays(self) -> None:
+        """With ``wait_for_recorder``: warn once (a ``recorder_left`` event on ``plant/events`` and
+        in the log) when the recorder has left the graph while the run is in progress.
+
+        The run goes on: the recording of its remaining steps is lost, and back-pressure holds
+        the run ``record_window_steps`` beyond the last step recorded (with ``stall_steps`` the
+        run then ends as stalled, naming the recorder). A recorder killed outright leaves the
+        graph when DDS notices (the participant's lease), a stopped one at once."""
+        if not self.started or self.done or self._recorder_left:
+            return
+        infos = self.get_subscriptions_info_by_topic(self._record.publisher.topic_name)
+        if any(i.node_name == self.recorder_node for i in infos):
+            return
+        self._recorder_left = True
+        self.event("recorder_left", f"the recorder '{self.recorder_node}' left the run before its end (step "
+                                    f"{self.k}, recorded: {self._recorded}): the steps from here on are not "
+                                    f"recorded, and the run holds {self.record_window_steps} steps beyond the "
+                                    "last one recorded")
 
     def recorder_ready(self) -> bool:
         """Whether the run may start as far as the recorder is concerned: without

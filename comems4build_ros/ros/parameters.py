@@ -196,6 +196,9 @@ PARAMETERS: dict[str, ParamSpec] = {
     "source_namespace": ParamSpec("str", "namespace of the bag to replay (empty = own or the only one)",
                                   allowed="a namespace or empty"),
     "wait_for_subscribers_s": ParamSpec("float", "wait for a subscriber on every replayed topic", "s", 0.0, None),
+    "topic_interval_s": ParamSpec("float", "full replay: shortest interval between two messages of one topic (0 = "
+                                  "none): a default subscriber (ros2 topic echo, depth 5) keeps up with 0.02 s", "s",
+                                  0.0, None, source="docs/ros_tools.md 'replay node'"),
     # mqtt_bridge
     "topic_map": ParamSpec("str", "MQTT topic map (empty = config/mqtt.yaml)", allowed="a file path or empty",
                            source=_MQTT),

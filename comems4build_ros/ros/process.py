@@ -65,22 +65,49 @@ def make_executor() -> Any:
 SIGNAL_POLL_S = 0.25
 
 
-def init_rclpy(args: list[str] | None) -> None:
+def init_rclpy(args: list[str] | None, name: str = "") -> None:
     """``rclpy.init`` without rclpy's signal handlers; SIGINT and SIGTERM raise
     ``KeyboardInterrupt`` in the main thread instead (see the module's docstring).
 
     Both are installed even when the process started with SIGINT ignored (a background job of
     a shell script), as rclpy does: a node must stop on the signal ``ros2 launch`` sends.
+    The log file under ``ROS_LOG_DIR`` is named after the node (:func:`with_log_file_name`;
+    ``name``: the node's or the process's own name).
     """
     import signal
     import threading
 
     from rclpy.signals import SignalHandlerOptions
 
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=with_log_file_name(list(sys.argv if args is None else args), name),
+               signal_handler_options=SignalHandlerOptions.NO)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, _stop_on_signal)
         signal.signal(signal.SIGTERM, _stop_on_signal)
+
+
+def with_log_file_name(argv: list[str], name: str) -> list[str]:
+    """``argv`` with ``--log-file-name`` after the node: ``<namespace>_<node>`` of its remapping
+    (``-r __ns:=/house_0 -r __node:=plant_sim``: ``house_0_plant_sim``), ``name`` without one.
+
+    rcl names a process's log file after its executable, which is the Python interpreter for
+    every node of the package (``python_<pid>_<time>.log``); rcl appends ``_<pid>_<time>.log`` to
+    the name given. An argument list that names the file itself is left as it is.
+    """
+    if "--log-file-name" in argv or not name:
+        return argv
+    ns, node = "", name
+    for flag, value in zip(argv, argv[1:]):
+        if flag not in ("-r", "--remap"):
+            continue
+        target, _, new = value.rpartition(":=")
+        target = target.rpartition(":")[2]  # node-specific remapping: 'node:__ns'
+        if target == "__node" and new:
+            node = new
+        elif target == "__ns":
+            ns = new.strip("/")
+    label = "_".join(p for p in (ns.replace("/", "_"), node) if p)
+    return [*argv, "--ros-args", "--log-file-name", label]
 
 
 #: The stop signal (SIGINT or SIGTERM) this process received, None before one came.
@@ -142,7 +169,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     The clean-up (:func:`clean_up`) ends the process with the exit code (``end_process``;
     False returns it, for a caller that goes on).
     """
-    init_rclpy(args)
+    init_rclpy(args, name)
     executor = make_executor()
     node: Node | None = None
     code = 0

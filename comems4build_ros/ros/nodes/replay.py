@@ -2,7 +2,7 @@
 
 Usage: ``replay BAG [--rate R] [--inputs-only] [--source-namespace NS] [--ros-args ...]``
 (or the parameters ``bag_path``, ``rate``, ``inputs_only``, ``source_namespace``,
-``lookahead_steps``). The bag may be complete or cut short by a SIGKILL of the recorder.
+``lookahead_steps``, ``topic_interval_s``). The bag may be complete or cut short by a SIGKILL of the recorder.
 
 Which messages: those recorded under ``source_namespace`` (default: the node's own
 namespace, or the only namespace of the bag), published under the same contract names
@@ -11,11 +11,16 @@ recorder's own ``recorder/ready`` is never replayed.
 
 Pacing, full replay (default): the recorded receive times are replayed scaled by
 ``1 / rate``: ``rate = 1`` is real time, ``rate = 10`` ten times faster, ``rate <= 0`` as
-fast as possible (at most :data:`BURST` messages per 1 ms timer tick, so that the
-executor and the transport keep up; a subscriber slower than that with a shallow queue
-can still lose messages, the recorder cannot: its queues are deep). The replay
-starts once every replayed topic has a subscriber (at most ``wait_for_subscribers_s``,
-default 5 s, then it starts anyway and names the topics nobody listens to).
+fast as possible (at most :data:`BURST` messages per 1 ms timer tick), in every case with
+no topic faster than one message per ``topic_interval_s`` (default :data:`TOPIC_INTERVAL_S`,
+0.02 s): a simulated run records its steps in milliseconds, and a default subscriber
+(``ros2 topic echo``: best effort, or reliable when publishers exist as it starts, keep-last
+depth 5) loses messages that come faster than it prints them (measured: 27 of 48 arrived at
+full speed); ``topic_interval_s:=0`` takes the limit off (the recorder keeps up with any
+pace: its queues are deep). The node says its pace when it starts. The replay
+starts once every topic it has messages of has a subscriber (at most
+``wait_for_subscribers_s``, default 5 s, then it starts anyway and names the topics nobody
+listens to).
 
 Pacing, ``--inputs-only``: only the feed's topics (``feed/*``, ``forecast/*``) are
 replayed, so that a plant and another EMS can run against the recorded inputs. Time is
@@ -59,6 +64,10 @@ LOOKAHEAD_STEPS = 4
 WAIT_FOR_SUBSCRIBERS_S = 5.0
 #: Wait after every topic has a subscriber, for the subscribers' side of discovery [s].
 SETTLE_S = 0.3
+#: Default shortest interval between two messages of one topic in a full replay [s]: what a
+#: default subscriber (``ros2 topic echo``, keep-last depth 5) keeps up with on a loaded
+#: 2-core machine (docs/ros_tools.md "replay node").
+TOPIC_INTERVAL_S = 0.02
 #: Contract node whose topics --inputs-only replays.
 INPUT_ROLE = "feed"
 #: Topics never replayed.
@@ -98,6 +107,8 @@ class Replay(ContractNode):
         self.wait_for_recorder = self.param("wait_for_recorder", False)
         self.recorder_node = self.param("recorder_node", self.recorder_node)
         self.settle_s = self.param("settle_s", SETTLE_S)
+        self.topic_interval_s = self.param("topic_interval_s", TOPIC_INTERVAL_S)
+        self._last_out: dict[str, float] = {}  # topic -> when its last message went out [s, monotonic]
         self._t_created = time.monotonic()
         self._matched_at: float | None = None
 
@@ -125,12 +136,15 @@ class Replay(ContractNode):
             )
         else:
             self._messages = messages
+            self._replayed = {name for name, _t, _raw in messages}
             self._i = 0
             self._t_first = messages[0][1]
             self._t0: float | None = None
             self.create_timer(TICK_S, self._tick)
             pace = "as fast as possible" if self.rate <= 0 else f"at {self.rate:g}x the recorded pace"
-            self.get_logger().info(f"replaying {len(messages)} messages of {bag} ({ns}) {pace}")
+            limit = (f", at most one message per topic every {self.topic_interval_s:g} s (what a default "
+                     "subscriber keeps up with; topic_interval_s:=0 lifts it)" if self.topic_interval_s > 0 else "")
+            self.get_logger().info(f"replaying {len(messages)} messages of {bag} ({ns}) {pace}{limit}")
 
     def _read_bag(self, bag: str, names: set[str], wanted_ns: str) -> tuple[str, list[tuple[str, int, bytes]]]:
         """The namespace to replay and its messages ``(contract name, receive time [ns], raw)`` in
@@ -188,6 +202,9 @@ class Replay(ContractNode):
             name, t_ns, raw = self._messages[self._i]
             if self.rate > 0 and self._t0 + (t_ns - self._t_first) / 1e9 / self.rate > now:
                 break
+            if now - self._last_out.get(name, -1e9) < self.topic_interval_s:
+                break  # the recorded order is kept: the next message waits for its topic's interval
+            self._last_out[name] = now
             self._pubs[name].publish(raw)
             self._i += 1
             self.published += 1
@@ -201,13 +218,15 @@ class Replay(ContractNode):
             self.finish_when_recorded(next(iter(self._pubs)))
 
     def _subscribers_ready(self, now: float) -> bool:
-        """Every topic has a subscriber (plus ``settle_s``), or ``wait_for_subscribers_s`` passed."""
+        """Every topic with messages to replay has a subscriber (plus ``settle_s``), or
+        ``wait_for_subscribers_s`` passed."""
+        pubs = [(n, p) for n, p in self._pubs.items() if n in self._replayed]
         if now - self._t_created > self.wait_s:
-            missing = [n for n, p in self._pubs.items() if p.get_subscription_count() == 0]
+            missing = [n for n, p in pubs if p.get_subscription_count() == 0]
             if missing:
                 self.get_logger().warning(f"no subscriber after {self.wait_s} s on: {', '.join(missing)}")
             return True
-        if any(p.get_subscription_count() == 0 for p in self._pubs.values()):
+        if any(p.get_subscription_count() == 0 for _n, p in pubs):
             self._matched_at = None
             return False
         if self._matched_at is None:
@@ -256,7 +275,7 @@ def main(args: list[str] | None = None) -> int:
 
     argv = list(sys.argv if args is None else args)
     cli = parse_cli(remove_ros_args(argv)[1:])
-    return run_node(lambda: Replay(cli), argv)
+    return run_node(lambda: Replay(cli), argv, NODE_NAME)
 
 
 if __name__ == "__main__":
