@@ -17,19 +17,22 @@ parameter of an including launch file on its command line, since ``launch_ros`` 
 to ``Node`` actions only. Errors speak of ``name:=value`` and end the launch with exit
 code 2 before anything starts.
 
-The exit rule is the supervisor's (:mod:`comems4build_ros.run.supervisor`): the run is
-done when every recorder process has exited 0 (the bags are closed), and then the launch
-shuts down; any other exit while the run is in progress (a node that fails, is stopped
-by a signal before the end of its run, ends a stalled run naming the silent node, or a
-process that may not end by itself), or the plan's time limit, ends the launch at once
-with an error naming the process, its exit code and what it means
-(:mod:`comems4build_ros.wire.exits`), so ``ros2 launch`` exits non-zero. As with the
-supervisor, a process whose run was complete (its ``cleaning up: exit code 0`` line on
-stderr) and whose clean-up then hung until its C-level watchdog ended it with code 1 is a
-completed process, with a warning. The run tokens
-are written as the supervisor writes them (mode 0600 in ``<out>/.secrets``, mode 0700)
-and removed, with their directory, when the launch shuts down. Evaluate the bag afterwards with ``comems4build
-evaluate BAG --out DIR``.
+The file composes into a user's own launch (:class:`LaunchedRun`): it honours the
+namespace an including file pushed (:func:`placed`), and each inclusion is a run of its own
+(its plan, run id, tokens, bag) that ends its own processes only. The exit rule of each run is
+the supervisor's (:mod:`comems4build_ros.run.supervisor`): the run is complete when every
+recorder process has exited 0 (the bags are closed); any other exit while the run is in
+progress (a node that fails, is stopped by a signal before the end of its run, ends a stalled
+run naming the silent node, or a process that may not end by itself), the plan's time limit,
+or the launch shutting down first, cuts it, with an error naming the process, its exit code
+and what it means (:mod:`comems4build_ros.wire.exits`); ``ros2 launch`` then exits 1 when it
+ends (:func:`fail_launch`). As with the supervisor, a process whose run was complete (its
+``cleaning up: exit code 0`` line on stderr) and whose clean-up then hung until its C-level
+watchdog ended it with code 1 is a completed process, with a warning. The run tokens are
+written as the supervisor writes them (mode 0600 in ``<out>/.secrets``, mode 0700) and
+removed, with their directory, when the run ends, the launch shuts down or ``ros2 launch``
+exits (also after SIGTERM, :func:`watch_stop_signals`). Evaluate the bag afterwards with
+``comems4build evaluate BAG --out DIR``.
 
 ``launch`` and ``launch_ros`` are imported inside the functions: the package itself does
 not need them (they come with a ROS 2 install).
