@@ -45,7 +45,7 @@ def _plan_text(stdout: str) -> str:
     """The plan printed (launch's own log lines dropped), run tokens and the run's id masked (drawn per launch)."""
     lines = stdout[stdout.index("run plan:"):].splitlines()
     text = "\n".join(line for line in lines if not line.startswith("[INFO]"))
-    return re.sub(r"run_id:=[0-9a-f]+", "run_id:=ID", re.sub(r"(run|ems)_token:=\d+", r"\1_token:=T", text))
+    return re.sub(r"run_id:=(\\?\"?)[0-9a-f]+", r"run_id:=\1ID", re.sub(r"(run|ems)_token:=\d+", r"\1_token:=T", text))
 
 
 @pytest.mark.parametrize("launch_args, cli_args", [

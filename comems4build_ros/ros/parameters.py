@@ -3,7 +3,7 @@
 Every parameter a node of the package reads is in :data:`PARAMETERS` (or is a plant
 parameter ``<section>.<key>`` of :class:`comems4build_ros.core.config.PlantParams`, whose
 field gives its type, bounds and, through its name's suffix, its unit) and is declared by
-:class:`comems4build_ros.ros.package_node.PackageNode` with a ``ParameterDescriptor`` built
+:class:`comems4build_ros.ros.package_node.NodeParameters` with a ``ParameterDescriptor`` built
 here: its type (static: ``dynamic_typing`` false), a description ending with its source and
 unit, a ``floating_point_range`` or ``integer_range`` for numbers, the allowed values as
 ``additional_constraints`` for the others, and ``read_only`` unless the node lets it change

@@ -28,7 +28,7 @@ from rclpy.task import Future
 
 from comems4build_ros.core.config import ConfigError
 from comems4build_ros.ros.log import process_logger
-from comems4build_ros.ros.package_node import PackageNode
+from comems4build_ros.ros.package_node import refuse_undeclared
 from comems4build_ros.wire.contract import ContractError
 from comems4build_ros.wire.exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_WRITE_FAILED
 
@@ -163,7 +163,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     context shut down from elsewhere) end the spin with exit code 0 if the node's part of the
     run is complete (:func:`run_complete`), else :data:`EXIT_INTERRUPTED`. A
     :class:`ConfigError`, :class:`ContractError`, ``ValueError`` (a bad parameter, also one the
-    node does not have: :meth:`~comems4build_ros.ros.package_node.PackageNode.refuse_undeclared`)
+    node does not have: :meth:`~comems4build_ros.ros.package_node.NodeParameters.refuse_undeclared`)
     or a missing or existing file raised while the node is created is logged as an error
     (``refused to start: ...``) with exit code :data:`EXIT_BAD_INPUT`.
     The clean-up (:func:`clean_up`) ends the process with the exit code (``end_process``;
@@ -175,8 +175,7 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     code = 0
     try:
         node = make_node()
-        if isinstance(node, PackageNode):
-            node.refuse_undeclared()
+        refuse_undeclared(node)
         executor.add_node(node)
         finished: Future | None = getattr(node, "finished", None)
         if finished is None:
@@ -262,17 +261,29 @@ def clean_up(executor: Any, nodes: list[Any], label: str, code: int, end_process
         os._exit(code)
 
 
+def run_over(node: Any) -> bool:
+    """Whether ``node``'s run is over (a master's last step done, ``plant/done`` seen by the feed
+    or the EMS) though the node may still wait for the recorder to leave: its ``run_end``
+    helper's ``over`` (:class:`~comems4build_ros.ros.lockstep.LockStep`,
+    :class:`~comems4build_ros.ros.node.RunEnd`), else a ``run_over`` attribute."""
+    end = getattr(node, "run_end", None)
+    return bool(end.over) if end is not None else bool(getattr(node, "run_over", False))
+
+
 def run_complete(node: Any) -> bool:
     """Whether ``node``'s part of the run is complete, so that a signal now is a normal end.
 
-    A node says so with a ``run_complete`` attribute (the lock-step master after its last
-    step, the EMS and the feed once they saw ``plant/done``, the recorder once every
-    plant is done); a node with neither that nor a ``finished`` future has no run (always
-    complete); otherwise its ``finished`` future must be done. A node that was never
-    created (None) has not run.
+    A node says so with its ``run_end`` helper's ``complete`` (the lock-step master after its
+    last step, the EMS and the feed once they saw ``plant/done``, each once the recorder has
+    left) or a ``run_complete`` attribute (the recorder once every plant is done); a node with
+    none of these nor a ``finished`` future has no run (always complete); otherwise its
+    ``finished`` future must be done. A node that was never created (None) has not run.
     """
     if node is None:
         return False
+    end = getattr(node, "run_end", None)
+    if end is not None:
+        return bool(end.complete)
     flag = getattr(node, "run_complete", None)
     if flag is not None:
         return bool(flag)
@@ -287,7 +298,7 @@ def interrupted_code(nodes: list[Any], label: str) -> int:
     if nodes and all(run_complete(n) for n in nodes):
         return 0
     logger = nodes[0].get_logger() if len(nodes) == 1 and nodes[0] is not None else None
-    if nodes and all(run_complete(n) or getattr(n, "run_over", False) for n in nodes):
+    if nodes and all(run_complete(n) or run_over(n) for n in nodes):
         # plant/done came, the node was waiting for the recorder to leave: after a complete
         # run that is the supervisor's clean-up; otherwise its last messages may be unrecorded
         report_cause(label, "stopped by a signal after the end of the run, before the recorder had left", logger)
