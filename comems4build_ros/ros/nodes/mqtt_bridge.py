@@ -158,7 +158,7 @@ class MqttBridge(Node):
         self.parameters = NodeParameters(self)
         self.endpoints = ContractEndpoints(self, NODE_NAME)
         self.loop = LockStep(self, self.parameters, self.endpoints, on_progress=self.on_recorder_progress,
-                                 waiting_for=self.waiting_for, extra_timing={"house_timeout_s": HOUSE_TIMEOUT_S})
+                             waiting_for=self.waiting_for, extra_timing={"house_timeout_s": HOUSE_TIMEOUT_S})
         self.run_end = self.loop  # how the run ends (comems4build_ros.ros.process.run_complete)
         self.finished = self.loop.finished
         client_id = self._read_parameters()
@@ -626,7 +626,7 @@ class MqttBridge(Node):
             k = self.next_record
             rec = self._records.pop(k)
             fb = self.fallback_for.pop(k, False)
-            extra = {f: float(getattr(self, f)) for f in BRIDGE_RECORD_FIELDS if f != "fallback"}
+            extra = {f: float(getattr(self.loop, f)) for f in BRIDGE_RECORD_FIELDS if f != "fallback"}  # counters
             extra["fallback"] = 1.0 if fb else 0.0
             try:
                 row = array("d", [float(extra[lab]) if lab in extra else float(rec[lab])

@@ -69,7 +69,7 @@ class PlantSimNode(Node):
         self.parameters = NodeParameters(self)
         self.endpoints = ContractEndpoints(self, NODE_NAME)
         self.loop = LockStep(self, self.parameters, self.endpoints, on_progress=self.on_recorder_progress,
-                                 waiting_for=self.waiting_for, silent_ems_cause=self.silent_ems_cause)
+                             waiting_for=self.waiting_for, silent_ems_cause=self.silent_ems_cause)
         self.run_end = self.loop  # how the run ends (comems4build_ros.ros.process.run_complete)
         self.finished = self.loop.finished
         self.plant = Plant(self.loop.params, self._building_model())
