@@ -16,16 +16,17 @@ import sys
 import tempfile
 from pathlib import Path
 
-import numpy as np
 import pandas as pd
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from test_bad_input import step_messages
 
 from comems4build_ros.bags.evaluation import MixedRunsError, read_bag_set
 from comems4build_ros.core.config import load_plant_params
-from comems4build_ros.core.loop import TIMESERIES_COLUMNS, simulate
+from comems4build_ros.core.loop import simulate
 from comems4build_ros.core.scenario import resolve_scenario
+from comems4build_ros.wire.cdr import string_cdr
 
 CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
 STEPS = 12
@@ -40,37 +41,7 @@ def _timeseries(ems: str, seed: int | None = None) -> pd.DataFrame:
 TS = {"rbc": _timeseries("rbc"), "fuzzy": _timeseries("fuzzy"), "rbc7": _timeseries("rbc", seed=7)}
 
 
-def _cdr(values: object, msgtype: str = "std_msgs/msg/Float64MultiArray") -> bytes:
-    from comems4build_ros.bags.bag import typestore
-
-    store = typestore()
-    if msgtype == "std_msgs/msg/String":
-        return bytes(store.serialize_cdr(store.types[msgtype](data=str(values)), msgtype))
-    layout = store.types["std_msgs/msg/MultiArrayLayout"](dim=[], data_offset=0)
-    msg = store.types[msgtype](layout=layout, data=np.asarray(values, dtype=float))
-    return bytes(store.serialize_cdr(msg, msgtype))
-
-
-def _step_messages(ts: pd.DataFrame) -> list[tuple[bytes, bytes]]:
-    """``(feed/truth, plant/record)`` of each step of an in-process run, as the nodes publish them."""
-    from comems4build_ros.wire.contract import load_contract
-
-    contract = load_contract()
-    record, truth = contract.topic("plant/record").layout({}), contract.topic("feed/truth").layout({})
-    out = []
-    for k in range(STEPS):
-        row = ts.iloc[k]
-        time_s = pd.Timestamp(row["time"]).timestamp()
-        values = {c: row[c] for c in TIMESERIES_COLUMNS[1:]}
-        values.update(time_unix_s=time_s, fallback_steps=0, rejected_commands=0, wrong_step_commands=0,
-                      foreign_commands=0)
-        exo = dict.fromkeys(truth.index, 0.0)
-        exo.update(step=k, n_steps=STEPS, time_unix_s=time_s)
-        out.append((_cdr(truth.pack(exo)), _cdr(record.pack(values))))
-    return out
-
-
-MESSAGES = {name: _step_messages(ts) for name, ts in TS.items()}
+MESSAGES = {name: step_messages(ts, STEPS) for name, ts in TS.items()}  # (feed/truth, plant/record)
 
 
 def write_bag(path: Path, runs: list[dict], run_id: str | None = "run-a", silent: tuple[str, ...] = ()) -> Path:
@@ -91,7 +62,7 @@ def write_bag(path: Path, runs: list[dict], run_id: str | None = "run-a", silent
         for run in runs:
             ns = run["ns"].rstrip("/")
             if run.get("feed_info") is not None:
-                w.write(f"{ns}/feed/info", t, _cdr(json.dumps(run["feed_info"]), "std_msgs/msg/String"))
+                w.write(f"{ns}/feed/info", t, string_cdr(json.dumps(run["feed_info"])))
             for k in run.get("steps", range(STEPS)):
                 t += 2
                 w.write(f"{ns}/feed/truth", t, MESSAGES[run["run"]][k][0])

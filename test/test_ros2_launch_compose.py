@@ -130,7 +130,8 @@ def _plant_of(tmp_path: Path, namespace: str) -> list[int]:
 def test_two_inclusions_under_pushed_namespaces_beside_a_node_of_the_user(ros2, domain_id, tmp_path) -> None:
     """Both runs complete in their own namespaces with their own bags, each bag evaluates to its own
     in-process run bit for bit, and the user's node still runs when they have ended; the launch,
-    stopped then, exits 0 and leaves no process and no token file."""
+    stopped then, exits 0 and leaves no process and no token file. Each node's log file is named
+    after the node and its namespace."""
     steps = 12
     launch_file = _user_launch(tmp_path, {"ems": "rbc", "weeks": "1", "steps": str(steps)},
                                {"ems": "fuzzy", "weeks": "1", "steps": str(steps), "seed": "7"}, bystander=True)
@@ -152,6 +153,8 @@ def test_two_inclusions_under_pushed_namespaces_beside_a_node_of_the_user(ros2, 
         wait_for(lambda: not _ours(tmp_path), 10, "no process of the launch left")
     finally:
         _clean_up(proc, tmp_path)
+    logs = {p.name.rsplit("_", 2)[0] for p in (tmp_path / "ros_log").rglob("*.log")}  # <name>_<pid>_<time>.log
+    assert {"house_a_plant_sim", "house_b_fuzzy_ems", "house_b_recorder"} <= logs, sorted(logs)
     from comems4build_ros.core.scenario.settings import load_scenario_settings
 
     for ns, ems, seed in (("house_a", "rbc", load_scenario_settings().seed), ("house_b", "fuzzy", 7)):
