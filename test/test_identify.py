@@ -106,6 +106,7 @@ def test_bounds_come_from_the_house():
     assert b["g_s_m2"].hi == pytest.approx(spec.window_m2 * spec.g_window)
     heavy = {x.name: x for x in ident.physical_bounds(dataclasses.replace(spec, construction="masonry"))}
     assert heavy["c_wall_j_per_k"].hi > 1.5 * b["c_wall_j_per_k"].hi  # derived from the layers, not fixed
+    assert heavy["air_share"].hi < b["air_share"].hi  # masonry walls buffer their loss, timber frame hardly
     assert all(x.reason for x in b.values())
 
 

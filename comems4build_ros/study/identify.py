@@ -91,11 +91,14 @@ def physical_bounds(spec: Any = None) -> tuple[Bound, ...]:
     cap = house.heat_capacity(spec)
     h = typ["h_w_per_k"]
     air_share = (typ["window"] + typ["h_ve_w_per_k"]) / h
+    buffered = typ["floor"] + (typ["wall"] if spec.construction == "masonry" else 0.0)
     return (
         Bound("h_w_per_k", (1 - H_BOUND) * h, (1 + H_BOUND) * h, False,
               f"the typology's H = {h:.1f} W/K (TABULA method) +-{H_BOUND:.0%}"),
-        Bound("air_share", 0.5 * air_share, min(1.5 * air_share, 0.95), False,
-              f"the typology's share of windows and ventilation in H, {air_share:.2f}, +-50 %"),
+        Bound("air_share", 0.5 * air_share, 1.0 - buffered / h, False,
+              f"at least half the typology's share of windows and ventilation in H ({air_share:.2f}), at most all "
+              f"but the {'masonry walls and ' if spec.construction == 'masonry' else ''}floor slab, whose mass "
+              "buffers its loss"),
         Bound("inner_share", 1e-3, 0.5, False, "R_w,air / (R_w,air + R_w + R_w,amb): the inner surfaces at most half "
               "the wall chain"),
         Bound("wall_share", 0.05, 0.95, False, "R_w / (R_w + R_w,amb): the insulation between the two wall nodes"),
