@@ -103,9 +103,10 @@ How each line is measured: the heat loss coefficient from two steady states (air
 heat capacity from a day's free cool-down after the +10 degC steady state (C_eff = H_total
 tau); the solar aperture of the windows as the heat the sun through the windows saves over the
 winter weeks, per kWh/m2 of horizontal irradiation (runs with and without the sun, and with
-the sun on the windows only); the heat demand of the paper's twelve weeks under the same
-hourly PI on both, holding T_air at T_air,min (`eq:T_min`) with the heat pump's capacity as
-its limit; the summer over the year scenario under the same PI without cooling. The
+the sun on the windows only); the heat demand of the {_f(house['winter_weeks'], 0)} winter weeks
+from 2022-12-01 under the same hourly PI on both, holding T_air at T_air,min (`eq:T_min`) with the heat pump's capacity as
+its limit; the summer over the year scenario (2022-03-01 to 2023-02-28) under the same PI
+without cooling. The
 tolerances: H +-10 % (alone it moves the demand by as much), the capacity +-25 % (within one
 mass class of EN ISO 13790), the solar aperture +-25 % (the sun is 5-15 % of the winter's
 losses), the winter demand +-10 %; DIN 4108-2:2013-02 limits the overtemperature degree hours
@@ -130,15 +131,16 @@ by the typology's H x dT. Toward the 4R3C's house:
   load's heat, which EN ISO 13790 and DIN V 18599 count as a gain, is already lumped into its
   parameters. The EnergyPlus house receives the appliance load's electricity with all of its
   heat lost, and no occupants.
-- *Windows*: 32.4 m2 as before, but facing as the windows of TABULA's example building of the
-  type (south 5.0, east 3.6, north 20.3, west 3.6 m2; before: 40 % south), with TABULA's solar
-  conventions (g_gl,n = 0.5, frame area fraction 0.3, reduction factor for external shading
+- *Windows*: 32.4 m2 (TABULA's window ratio of the age band), facing as the windows of
+  TABULA's example building of the type (south 5.0, east 3.6, north 20.3, west 3.6 m2), with
+  TABULA's solar conventions (g_gl,n = 0.5, frame area fraction 0.3, reduction factor for external shading
   0.6 in the heating season) as the whole window's solar heat gain coefficient 0.21.
 - *Thermal mass*: a timber-frame construction (sheathed timber-frame walls, a timber joist
   storey floor, drywall partitions; the floors keep their 6.5 cm screed for the underfloor
-  heating) instead of sand-lime masonry and a concrete storey slab, whose effective capacity
-  is about twice the 4R3C's (whose capacities come from the identified house of Sperber, Frey
-  and Bertsch 2020).
+  heating), chosen for the 4R3C's effective capacity (whose capacities come from the
+  identified house of Sperber, Frey and Bertsch 2020); the masonry variant of the same house
+  (sand-lime walls, a concrete storey slab, masonry partitions; `HouseSpec.construction`) has
+  about twice that capacity.
 - *Summer*: from May to September exterior sun protection closes on a window receiving more
   than 300 W/m2 (200 W/m2 facing north; DIN 4108-2's thresholds for residential buildings),
   and the windows open (3 1/h by day, 2 1/h at night) while the room is above 23 degC and
@@ -162,7 +164,7 @@ the heat pump's space heat (split by the floors' areas). Cooling (the year-round
 as a negative source term at the floors' face. Every step the study checks that the heat the
 plant gave equals the heat EnergyPlus reports it received (`Zone Radiant HVAC Heating Rate`,
 `Surface Inside Face Heat Source Gain Rate per Area`): the largest relative difference over
-the twelve winter weeks of `{commands['house']}` was {house['heat_balance_max_rel']:.1e}.
+the {_f(house['winter_weeks'], 0)} winter weeks of `{commands['house']}` was {house['heat_balance_max_rel']:.1e}.
 
 Weather (`comems4build_ros/core/models/epw.py`): the scenario's own series written as an EPW
 in local standard time: the DWD temperature of Rheinstetten, the modelled global and diffuse
