@@ -1,11 +1,20 @@
 """Probes of a running ``comems4build launch`` for the fault and interruption tests: which
-process runs a node, and whether steps are on disk yet (not a test module)."""
+process runs a node, whether steps are on disk yet, and a run held in progress (not a test module)."""
 
 from __future__ import annotations
 
+import contextlib
+import os
+import signal
+from collections.abc import Iterator
 from pathlib import Path
 
+from waits import log_has, wait_until
+
 from comems4build_ros.run.supervisor import processes_with_env
+
+#: What the lock-step master logs when its last step is done (ros/lockstep.py), before plant/done.
+RUN_DONE_LINE = "run done:"
 
 
 def pid_of(out: Path, name: str) -> int:
@@ -32,3 +41,38 @@ def records_on_disk(bag: Path) -> bool:
         return any(topic.endswith("plant/record") for topic, *_ in iter_messages(bag))
     except (OSError, ValueError):
         return False
+
+
+def process_state(pid: int) -> str | None:
+    """The state letter of process ``pid`` (``/proc/<pid>/stat``: R, S, T for stopped ...), None once it is gone."""
+    try:
+        stat = Path(f"/proc/{pid}/stat").read_text()
+    except OSError:
+        return None
+    return stat.rsplit(")", 1)[1].split()[0]
+
+
+@contextlib.contextmanager
+def run_held(out: Path, master: str = "plant_sim") -> Iterator[int]:
+    """The run of the launch in ``out`` held in progress while the block runs: its lock-step
+    master paused (SIGSTOP) before its last step, so the run cannot end by itself (nothing
+    steps); continued (SIGCONT) afterwards, as a launcher that stops its nodes also does.
+
+    Yields the master's process id.
+
+    Raises
+    ------
+    AssertionError
+        When the master had already done its last step (``run done:`` in its log) or exited:
+        then the run could end anyway and the caller's test would prove nothing.
+    """
+    pid = pid_of(out, master)
+    os.kill(pid, signal.SIGSTOP)
+    try:
+        wait_until(lambda: process_state(pid) in ("T", "t", None), f"{master} paused (SIGSTOP)")
+        assert process_state(pid) in ("T", "t"), f"{master} exited before it was paused"
+        assert not log_has(out / "log" / f"{master}.log", RUN_DONE_LINE), f"{master} had done its last step"
+        yield pid
+    finally:
+        with contextlib.suppress(ProcessLookupError):
+            os.kill(pid, signal.SIGCONT)

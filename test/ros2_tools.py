@@ -17,12 +17,12 @@ import shutil
 import signal
 import subprocess
 import sys
-import time
 import warnings
 from collections.abc import Callable
 from pathlib import Path
 
 import pytest
+from waits import BUDGET_S, Deadline, wait_until
 
 REPO = Path(__file__).resolve().parents[1]
 #: Folder of the ROS 2 CLI wheels (README, install.sh, wheels/); overridable by this variable.
@@ -69,11 +69,11 @@ def ros2_env(ros2: dict, domain: int, tmp_path: Path, **extra: str) -> dict[str,
                 ROS_AUTOMATIC_DISCOVERY_RANGE="LOCALHOST", **extra)
 
 
-def run_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, timeout: float = 300,
-             env: dict[str, str] | None = None, **kw: object) -> subprocess.CompletedProcess:
-    """``ros2 <args>`` to its end: exit code, stdout and stderr."""
+def run_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, env: dict[str, str] | None = None,
+             **kw: object) -> subprocess.CompletedProcess:
+    """``ros2 <args>`` to its end (within the budget, test/waits.py): exit code, stdout and stderr."""
     return subprocess.run([*ros2["argv"], *args], env=env or ros2_env(ros2, domain, tmp_path), capture_output=True,
-                          text=True, timeout=timeout, cwd=tmp_path, **kw)
+                          text=True, timeout=BUDGET_S, cwd=tmp_path, **kw)
 
 
 def start_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, log: Path,
@@ -84,48 +84,47 @@ def start_ros2(ros2: dict, args: list[str], domain: int, tmp_path: Path, log: Pa
                                 stdout=out, stderr=subprocess.STDOUT, start_new_session=True)
 
 
-def stop(procs: list[subprocess.Popen], timeout: float = 30) -> list[int]:
-    """SIGINT to each still running process group (``ros2 run`` and its node), then their exit codes."""
+def stop(procs: list[subprocess.Popen]) -> list[int]:
+    """SIGINT to each still running process group (``ros2 run`` and its node), then their exit codes
+    (SIGKILL to a group still running after the budget)."""
     for p in procs:
         if p.poll() is None:
             os.killpg(p.pid, signal.SIGINT)
     codes = []
+    deadline = Deadline("the processes to exit after SIGINT")
     for p in procs:
         try:
-            codes.append(p.wait(timeout=timeout))
+            codes.append(p.wait(timeout=deadline.left()))
         except subprocess.TimeoutExpired:
             os.killpg(p.pid, signal.SIGKILL)
             codes.append(p.wait())
     return codes
 
 
-def wait_for(check: Callable[[], bool], timeout: float, what: str, period: float = 0.5) -> None:
-    """Wait until ``check()`` holds (AssertionError naming ``what`` after ``timeout`` s)."""
-    end = time.monotonic() + timeout
-    while time.monotonic() < end:
-        if check():
-            return
-        time.sleep(period)
-    raise AssertionError(f"not within {timeout:g} s: {what}")
-
-
 def node_names(ros2: dict, domain: int, tmp_path: Path, env: dict[str, str] | None = None) -> set[str]:
-    """``ros2 node list --no-daemon`` (no daemon to stop afterwards)."""
-    res = run_ros2(ros2, ["node", "list", "--no-daemon", "--spin-time", "3"], domain, tmp_path, timeout=60, env=env)
+    """``ros2 node list --no-daemon`` (no daemon to stop afterwards; the tool listens 3 s, then
+    prints what it discovered: callers ask again until their node is listed)."""
+    res = run_ros2(ros2, ["node", "list", "--no-daemon", "--spin-time", "3"], domain, tmp_path, env=env)
     return set(res.stdout.split())
 
 
 def run_until(ros2: dict, args: list[str], domain: int, tmp_path: Path,
-              ok: Callable[[subprocess.CompletedProcess], bool], tries: int = 6,
+              ok: Callable[[subprocess.CompletedProcess], bool],
               env: dict[str, str] | None = None) -> subprocess.CompletedProcess:
-    """``ros2 <args>`` until ``ok(result)`` (at most ``tries`` times, 1 s apart): a query of a node
-    just discovered can miss it once on a loaded machine. Returns the last result."""
-    for _ in range(tries):
-        res = run_ros2(ros2, args, domain, tmp_path, timeout=90, env=env)
-        if ok(res):
-            return res
-        time.sleep(1.0)
-    return res
+    """``ros2 <args>`` until ``ok(result)``, within the budget (test/waits.py): a query of a node
+    just discovered, or of a topic whose endpoints are not all discovered yet, can miss them on a
+    loaded machine. Returns the last result (the caller's assertion shows it)."""
+    last: list[subprocess.CompletedProcess] = []
+
+    def done() -> bool:
+        last[:] = [run_ros2(ros2, args, domain, tmp_path, env=env)]
+        return ok(last[0])
+
+    try:
+        wait_until(done, f"ros2 {' '.join(args)}: the answer looked for")
+    except AssertionError:
+        pass
+    return last[0]
 
 
 #: ``comems4build`` in this interpreter (the installed package's command line).
@@ -157,6 +156,7 @@ def same_kpis(got: dict, want: dict) -> None:
 
 def evaluate(bag: Path, out: Path) -> dict:
     """``comems4build evaluate BAG --out OUT``; its summary."""
-    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True, timeout=180)
+    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True,
+                         timeout=BUDGET_S)
     assert res.returncode == 0, res.stderr
     return json.loads((out / "summary.json").read_text())

@@ -5,10 +5,10 @@ from __future__ import annotations
 import os
 import signal
 import sys
-import time
 from pathlib import Path
 
 import pytest
+from waits import log_has, wait_exit, wait_until
 
 from comems4build_ros.run.supervisor import ProcessGroup, acquire_domain_id, child_env
 
@@ -55,13 +55,11 @@ def test_installed_recorder_smoke_run(ament_prefix: str, tmp_path: Path) -> None
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
         rec = group.start("recorder", "recorder", [str(exe), "--ros-args", "-p", f"bag_path:={bag}",
                                                    "-p", "wait_for_topics:=['']", "-p", "stop_when_done:=false"])
-        t0 = time.monotonic()
         log = tmp_path / "log" / "recorder.log"
-        while time.monotonic() - t0 < 60 and not (log.exists() and "ready" in log.read_text()):
-            assert rec.proc.poll() is None, rec.tail()
-            time.sleep(0.1)
+        wait_until(lambda: rec.proc.poll() is not None or log_has(log, "ready"), "the recorder ready")
+        assert rec.proc.poll() is None, rec.tail()
         rec.proc.send_signal(signal.SIGINT)
-        assert rec.proc.wait(timeout=20) == 0, rec.tail()
+        assert wait_exit(rec.proc, "the recorder closing its bag on SIGINT") == 0, rec.tail()
     assert (bag / "metadata.yaml").is_file() and (bag / "bag.mcap").is_file()
 
 

@@ -16,6 +16,7 @@ import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
+from waits import BUDGET_S
 
 from comems4build_ros.run.plan import (
     FASTDDS_PROFILE,
@@ -28,12 +29,11 @@ from comems4build_ros.run.supervisor import acquire_domain_id, child_env
 
 #: Prints the sizes [bytes] of the Fast DDS shared-memory segments (not ports) this process maps.
 PROBE = """
-import re, time, rclpy
+import re, rclpy
 from std_msgs.msg import String
 rclpy.init()
-node = rclpy.create_node("profile_probe")
+node = rclpy.create_node("profile_probe")  # its participant maps its segments while it is created
 node.create_publisher(String, "probe", 10)
-time.sleep(0.3)
 sizes = {}
 for line in open("/proc/self/maps"):
     name = line.split()[-1]
@@ -46,7 +46,7 @@ rclpy.shutdown()
 
 
 def _segment_bytes(env: dict[str, str]) -> int:
-    res = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=60)
+    res = subprocess.run([sys.executable, "-c", PROBE], env=env, capture_output=True, text=True, timeout=BUDGET_S)
     assert res.returncode == 0, res.stderr
     return int(res.stdout.strip().splitlines()[-1])
 

@@ -21,8 +21,9 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
-from launch_probe import pid_of
-from test_run_faults import CLI, STEP_TIMEOUT, Run, _wait_for
+from launch_probe import pid_of, run_held
+from test_run_faults import CLI, STEP_TIMEOUT, Run
+from waits import BUDGET_S, wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -31,10 +32,10 @@ def test_a_paused_plant_is_named_paused_not_a_late_ems_command(tmp_path: Path) -
     out = tmp_path / "run"
     run = Run(out, "--ems", "rbc", "--weeks", "12", "--step-timeout", STEP_TIMEOUT)
     run.wait_running("plant_sim")
-    plant = pid_of(out, "plant_sim")
-    os.kill(plant, signal.SIGSTOP)
-    time.sleep(3 * float(STEP_TIMEOUT) + 1)  # longer than the step time-out, shorter than the launcher's stall limit
-    os.kill(plant, signal.SIGCONT)
+    with run_held(out):  # the fault itself: paused mid-run (not after its last step), continued afterwards
+        # how long it lasts is the fault, not a wait for anything: longer than the step time-out,
+        # shorter than the launcher's stall limit
+        time.sleep(3 * float(STEP_TIMEOUT) + 1)
     code, err = run.finish()
     assert code == 0, err
     summary = json.loads((out / "summary.json").read_text())
@@ -48,7 +49,8 @@ def test_a_paused_ems_is_named_while_it_is_and_when_the_run_stalls(tmp_path: Pat
     out = tmp_path / "run"
     run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", STEP_TIMEOUT)
     run.wait_running("plant_sim")
-    os.kill(pid_of(out, "fuzzy_ems"), signal.SIGSTOP)
+    with run_held(out):  # the run cannot end before the EMS is paused
+        os.kill(pid_of(out, "fuzzy_ems"), signal.SIGSTOP)
     code, err = run.finish()
     assert code == 1, err
     assert "launcher: warning: process 'fuzzy_ems' is paused (SIGSTOP" in err, err
@@ -77,7 +79,7 @@ def test_a_bag_that_cannot_be_written_is_refused_before_any_node(tiny_fs: Path, 
             subprocess.run(["mount", "-o", "remount,ro", str(tiny_fs)], check=True)
         out = tmp_path / f"out_{len(args[1])}"
         res = subprocess.run([*CLI, "launch", "--ems", "rbc", *args, "--bag", str(tiny_fs / "bag"), "--out", str(out),
-                              "--no-progress"], capture_output=True, text=True, timeout=300)
+                              "--no-progress"], capture_output=True, text=True, timeout=BUDGET_S)
         assert res.returncode == 2 and f"--bag {tiny_fs / 'bag'}" in res.stderr and named in res.stderr, res.stderr
         assert not out.exists() and not (tiny_fs / "bag").exists()  # no node started, nothing written
 
@@ -85,7 +87,7 @@ def test_a_bag_that_cannot_be_written_is_refused_before_any_node(tiny_fs: Path, 
 def test_a_disk_that_fills_during_the_run_is_named(tiny_fs: Path, tmp_path: Path) -> None:
     out = tmp_path / "run"
     run = Run(out, "--ems", "fuzzy", "--weeks", "4", "--step-timeout", STEP_TIMEOUT, "--bag", str(tiny_fs / "bag"))
-    _wait_for(lambda: (tiny_fs / "bag").is_dir() or run.proc.poll() is not None, what="the bag")
+    wait_until(lambda: (tiny_fs / "bag").is_dir() or run.proc.poll() is not None, "the bag")
     filler = tiny_fs / "filler"
     try:  # the rest of the file system, while the recorder writes
         with open(filler, "wb") as fh:

@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from waits import Deadline, wait_exit
 
 from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.scenario.live import (
@@ -250,14 +251,14 @@ def test_feed_node_live_inputs_publishes_warning_and_uses_last_valid_prices(serv
                                  list(m.data)), qos_profile(contract.topic("feed/prices")))
         step_pub = node.create_publisher(UInt32, "plant/step", qos_profile(contract.topic("plant/step")))
         try:
-            deadline = time.monotonic() + 120
-            while time.monotonic() < deadline and not (0 in prices and events):
+            deadline = Deadline("the feed's prices of step 0 and its events")
+            while not deadline.passed() and not (0 in prices and events):
                 ex.spin_once(timeout_sec=0.05)
                 step_pub.publish(UInt32(data=0))
             assert 0 in prices and events, (tmp_path / "feed.log").read_text()[-2000:]
         finally:
             proc.send_signal(signal.SIGINT)
-            proc.wait(15)
+            wait_exit(proc, "the feed to stop on SIGINT")
             ex.shutdown()
             node.destroy_node()
             rclpy.try_shutdown(context=ctx)

@@ -21,7 +21,9 @@ from pathlib import Path
 import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
+from launch_probe import records_on_disk, run_held
 from test_bad_input import PRICES, SOLAR, TEMPERATURE, recorded_bag, run_cli  # noqa: F401 (a fixture)
+from waits import log_has, wait_exit, wait_until
 
 from comems4build_ros.files import outputs
 from comems4build_ros.files.outputs import (
@@ -336,36 +338,46 @@ def _launch(out: Path, *args: str) -> subprocess.Popen:
                             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
 
 
+def _under_way(run: subprocess.Popen, out: Path) -> bool:
+    """The launch writing into ``out`` has recorded steps (or has ended: the caller's assertion says so)."""
+    return run.poll() is not None or records_on_disk(out / "bag")
+
+
 def test_two_launches_on_one_out_the_second_is_refused_at_once(tmp_path: Path) -> None:
+    """The second launch is refused while the first runs (held in progress: its plant paused),
+    without waiting for it; the first then ends as if nothing had happened."""
     out = tmp_path / "run"
-    first = _launch(out, "--ems", "rbc", "--weeks", "1")
-    deadline = time.monotonic() + 60
-    while not (out / LOCK_FILE).exists() and first.poll() is None and time.monotonic() < deadline:
-        time.sleep(0.05)
-    time.sleep(0.3)
-    t0 = time.monotonic()
-    second = _launch(out, "--ems", "rbc", "--weeks", "1")
-    err2 = second.communicate(timeout=120)[1]
+    first = _launch(out, "--ems", "rbc", "--weeks", "12")  # long enough to be held before its last step
+    wait_until(lambda: _under_way(first, out), "the first launch recording")
+    assert log_has(out / LOCK_FILE, f"comems4build launch (pid {first.pid})"), "the first launch holds no lock"
+    with run_held(out):  # the first run cannot end meanwhile
+        second = _launch(out, "--ems", "rbc", "--weeks", "1")
+        wait_exit(second, "the second launch refused")
+        assert first.poll() is None  # refused at once: it did not wait for the first to end
+    err2 = second.communicate()[1]
     assert second.returncode == 2 and f"--out {out}: in use by comems4build launch" in err2, err2
-    assert time.monotonic() - t0 < 30  # at once: no node of its own was started
-    err1 = first.communicate(timeout=300)[1]
+    wait_exit(first, "the first launch to its end")
+    err1 = first.communicate()[1]
     assert first.returncode == 0, err1  # the first run is not cut
-    assert json.loads((out / "summary.json").read_text())["steps"] == 168
+    assert json.loads((out / "summary.json").read_text())["steps"] == 2016
 
 
 def test_launch_interrupted_keeps_the_earlier_run(tmp_path: Path) -> None:
+    """Ctrl-C while a run writes in place over an earlier one (the run held in progress: its plant
+    paused, so the interrupt provably comes before its end): exit 130, the earlier run byte for byte."""
     out = tmp_path / "run"
     done = _launch(out, "--ems", "rbc", "--steps", "24")
-    assert done.wait(300) == 0, done.communicate()[1]
+    assert wait_exit(done, "the earlier run") == 0, done.communicate()[1]
     before = snapshot(out)
     run = _launch(out, "--ems", "fuzzy", "--weeks", "12")
-    deadline = time.monotonic() + 120
-    while not (any(out.glob(".previous.*")) and (out / "bag" / "bag.mcap").exists()) and run.poll() is None \
-            and time.monotonic() < deadline:
-        time.sleep(0.1)  # the new run writes in place (its bag is there while it runs), the earlier one aside
-    assert run.poll() is None, run.communicate()[1]
-    run.send_signal(signal.SIGINT)
-    err = run.communicate(timeout=120)[1]
+    # the new run writes in place (its bag is there while it runs), the earlier one aside
+    wait_until(lambda: run.poll() is not None or (any(out.glob(".previous.*")) and records_on_disk(out / "bag")),
+               "the new run recording in place, the earlier one aside")
+    with run_held(out):
+        assert run.poll() is None, run.communicate()[1]
+        run.send_signal(signal.SIGINT)
+        wait_exit(run, "the interrupted launch")  # it continues (SIGCONT) the nodes it stops
+    err = run.communicate()[1]
     assert run.returncode == 130, err
     assert snapshot(out) == before
     assert not [p for p in out.iterdir() if p.name.startswith((".previous", ".partial", ".secrets"))]

@@ -17,6 +17,7 @@ from mcap.records import Message
 from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 from rosbags.highlevel import AnyReader
+from waits import BUDGET_S, log_has, wait_exit, wait_until
 
 from comems4build_ros.bags.bag import BagInfo, BagWriter, decode, iter_messages, typestore
 from comems4build_ros.run.plan import node_command, ros_args
@@ -81,7 +82,7 @@ def test_bag_writer_refuses_existing_directory(tmp_path: Path) -> None:
 
 WRITER_SCRIPT = textwrap.dedent(
     """
-    import sys, time
+    import signal, sys, time
     import numpy as np
     from comems4build_ros.bags.bag import BagWriter, typestore
     ts = typestore()
@@ -92,14 +93,14 @@ WRITER_SCRIPT = textwrap.dedent(
         raw = ts.serialize_cdr(cls(layout=lay(dim=[], data_offset=0), data=np.array([k, k / 100.0])),
                                "std_msgs/msg/Float64MultiArray")
         w.write("/state/soc", 1000 + k, raw)
-    time.sleep(0.3)
+    time.sleep(0.3)  # the chunk's age passes its period (0.1 s): the rule under test is one of time
     w.tick()  # the 40 messages are now a closed chunk on disk
     for k in range(40, 45):
         raw = ts.serialize_cdr(cls(layout=lay(dim=[], data_offset=0), data=np.array([k, k / 100.0])),
                                "std_msgs/msg/Float64MultiArray")
         w.write("/state/soc", 1000 + k, raw)  # pending chunk, lost with the process
     print("written", flush=True)
-    time.sleep(60)
+    signal.pause()  # alive until the test kills it
     """
 )
 
@@ -111,7 +112,7 @@ def test_sigkilled_writer_leaves_readable_mcap(tmp_path: Path) -> None:
         assert proc.stdout is not None and proc.stdout.readline().strip() == "written"
     finally:
         proc.send_signal(signal.SIGKILL)
-        proc.wait(timeout=10)
+        wait_exit(proc, "the writer killed")
     assert not (bag / "metadata.yaml").exists()
     # the mcap library reads the file sequentially up to the cut
     msgs = []
@@ -130,28 +131,35 @@ def test_sigkilled_writer_leaves_readable_mcap(tmp_path: Path) -> None:
 
 
 # ---------------------------------------------------------------------- recorder node
+#: Publishes ``n`` messages on /state/soc once the recorder said ready (its readers matched this
+#: writer) and this writer matched the recorder's reader; waits until the recorder acknowledged
+#: them; with ``stay`` it stays until stopped. Each wait within the budget given (test/waits.py).
 PUBLISHER_SCRIPT = textwrap.dedent(
     """
-    import sys, time
+    import signal, sys, time
     import rclpy
     from rclpy.duration import Duration
-    from std_msgs.msg import Float64MultiArray
+    from std_msgs.msg import Bool, Float64MultiArray
     from comems4build_ros.ros.interfaces import qos_profile
     from comems4build_ros.wire.contract import load_contract
-    n, pause = int(sys.argv[1]), float(sys.argv[2])
+    n, stay, budget = int(sys.argv[1]), sys.argv[2] == "stay", float(sys.argv[3])
     rclpy.init()
     node = rclpy.create_node("test_publisher")
-    spec = load_contract().topic("state/soc")
-    pub = node.create_publisher(Float64MultiArray, "/state/soc", qos_profile(spec))
-    t0 = time.monotonic()
-    while pub.get_subscription_count() == 0 and time.monotonic() - t0 < 30:
-        time.sleep(0.05)
-    time.sleep(0.5)
+    contract = load_contract()
+    pub = node.create_publisher(Float64MultiArray, "/state/soc", qos_profile(contract.topic("state/soc")))
+    ready = []
+    node.create_subscription(Bool, "/recorder/ready", lambda m: ready.append(m.data),
+                             qos_profile(contract.topic("recorder/ready")))
+    end = time.monotonic() + budget
+    while not (ready and pub.get_subscription_count() > 0):
+        assert time.monotonic() < end, "the recorder not ready within the budget"
+        rclpy.spin_once(node, timeout_sec=0.05)
     for k in range(n):
         pub.publish(Float64MultiArray(data=[float(k), k / 10.0]))
-    pub.wait_for_all_acked(Duration(seconds=5))
+    assert pub.wait_for_all_acked(Duration(seconds=budget)), "not acknowledged within the budget"
     print("published", flush=True)
-    time.sleep(pause)
+    if stay:
+        signal.pause()  # until the test stops it
     node.destroy_node()
     rclpy.shutdown()
     """
@@ -163,19 +171,11 @@ def _start_recorder(group: ProcessGroup, bag: Path, **params: object) -> subproc
     return group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", p)]).proc
 
 
-def _publish(group: ProcessGroup, n: int, pause: float = 0.0) -> subprocess.Popen:
-    proc = group.start("publisher", "test", [sys.executable, "-c", PUBLISHER_SCRIPT, str(n), str(pause)],
+def _publish(group: ProcessGroup, n: int, stay: bool = False) -> subprocess.Popen:
+    proc = group.start("publisher", "test", [sys.executable, "-c", PUBLISHER_SCRIPT, str(n),
+                                             "stay" if stay else "go", str(BUDGET_S)],
                        on_stdout_line=lambda line: None).proc
     return proc
-
-
-def _wait_log(path: Path, text: str, timeout_s: float = 60.0) -> None:
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout_s:
-        if path.exists() and text in path.read_text(errors="replace"):
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"'{text}' not in {path} after {timeout_s} s")
 
 
 @pytest.mark.ros
@@ -183,12 +183,13 @@ def _wait_log(path: Path, text: str, timeout_s: float = 60.0) -> None:
 def test_recorder_records_and_closes_on_signal(tmp_path: Path, sig: signal.Signals) -> None:
     bag = tmp_path / "bag"
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
-        rec = _start_recorder(group, bag)
+        rec = _start_recorder(group, bag, chunk_period_s=0.1)
         pub = _publish(group, 25)
-        assert pub.wait(timeout=60) == 0
-        time.sleep(0.3)
+        assert wait_exit(pub, "the 25 messages published and acknowledged") == 0
+        wait_until(lambda: len(iter_messages_safe(bag)) == 25, "the 25 messages in the bag's closed chunks")
         rec.send_signal(sig)
-        assert rec.wait(timeout=20) == 0  # stop_when_done false: it records until stopped, a signal is its end
+        # stop_when_done false: it records until stopped, a signal is its end
+        assert wait_exit(rec, "the recorder closing its bag") == 0
     assert (bag / "metadata.yaml").is_file()
     with AnyReader([bag]) as reader:
         conns = [c for c in reader.connections if c.topic == "/state/soc"]
@@ -203,13 +204,10 @@ def test_recorder_sigkill_keeps_closed_chunks(tmp_path: Path) -> None:
     bag = tmp_path / "bag"
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
         rec = _start_recorder(group, bag, chunk_period_s=0.2)
-        pub = _publish(group, 30, pause=30.0)
-        t0 = time.monotonic()
-        while not list(iter_messages_safe(bag)) and time.monotonic() - t0 < 60:
-            time.sleep(0.1)
-        time.sleep(1.0)  # > chunk_period_s: the 30 messages are in a closed chunk
+        pub = _publish(group, 30, stay=True)
+        wait_until(lambda: len(iter_messages_safe(bag)) == 30, "the 30 messages in the bag's closed chunks")
         rec.send_signal(signal.SIGKILL)
-        rec.wait(timeout=10)
+        wait_exit(rec, "the recorder killed")
         pub.send_signal(signal.SIGINT)
     assert not (bag / "metadata.yaml").exists()
     expected = [[float(k), k / 10.0] for k in range(30)]
@@ -239,10 +237,11 @@ def test_recorder_waits_only_briefly_for_optional_ems_info(tmp_path: Path) -> No
     bag = tmp_path / "bag"
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
         _start_recorder(group, bag, wait_for_topics=["state/soc", "ems/info"], ready_timeout_s=60.0)
-        _publish(group, 1, pause=30.0)
+        _publish(group, 1, stay=True)
         log = tmp_path / "log" / "recorder.log"
-        _wait_log(log, "optional topics without a publisher after 1 s, recorded if they appear: /ems/info", 30.0)
-        _wait_log(log, "ready: subscribed to every topic", 5.0)
+        wait_until(lambda: log_has(log, "optional topics without a publisher after 1 s, recorded if they appear: "
+                                        "/ems/info"), "the recorder naming the optional topic")
+        wait_until(lambda: log_has(log, "ready: subscribed to every topic"), "the recorder ready")
         assert "no publisher after 60" not in log.read_text()
 
 

@@ -20,6 +20,7 @@ from pathlib import Path
 
 import pytest
 from ros2_tools import run_ros2
+from waits import BUDGET_S
 
 from comems4build_ros.core.config import load_plant_params
 from comems4build_ros.core.loop import simulate
@@ -75,7 +76,8 @@ def shadow_decisions(main: str, shadow: str, steps: int) -> list[list[float]]:
 
 
 def evaluate(bag: Path, out: Path) -> dict:
-    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True, timeout=180)
+    res = subprocess.run([*CLI, "evaluate", str(bag), "--out", str(out)], capture_output=True, text=True,
+                         timeout=BUDGET_S)
     assert res.returncode == 0, res.stderr
     return json.loads((out / "summary.json").read_text())
 

@@ -9,6 +9,7 @@ from collections import Counter
 from pathlib import Path
 
 import pytest
+from waits import BUDGET_S, Deadline, wait_exit, wait_until
 
 from comems4build_ros.bags.bag import decode, iter_messages
 from comems4build_ros.bags.evaluation import evaluate_bag
@@ -29,15 +30,15 @@ RECORDER_OWN = ("/recorder/ready", "/recorder/progress")
 def recorded(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A 24-step fuzzy run recorded by the launcher."""
     out = tmp_path_factory.mktemp("recorded") / "run"
-    return launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=STEPS, timeout_s=150)).bag
+    return launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=STEPS, timeout_s=BUDGET_S)).bag
 
 
-def _wait_exit(child, timeout_s: float = 90.0) -> int:
-    t0 = time.monotonic()
-    while child.proc.poll() is None:
-        assert time.monotonic() - t0 < timeout_s, child.tail()
-        time.sleep(0.05)
-    return child.proc.returncode
+def _wait_exit(child) -> int:
+    """The exit code of a process of a :class:`ProcessGroup` (within the budget; its log's tail if not)."""
+    try:
+        return wait_exit(child.proc, f"{child.name} to exit")
+    except AssertionError as exc:
+        raise AssertionError(f"{exc}\n{child.tail()}") from None
 
 
 def test_full_replay_as_fast_as_possible_is_recorded_again(recorded: Path, tmp_path: Path) -> None:
@@ -53,8 +54,7 @@ def test_full_replay_as_fast_as_possible_is_recorded_again(recorded: Path, tmp_p
     assert again == original
 
 
-def _drive_with_recorded_inputs(ems: str, inputs: Path, tmp_path: Path,
-                                timeout_s: float = 90.0) -> tuple[dict, dict]:
+def _drive_with_recorded_inputs(ems: str, inputs: Path, tmp_path: Path) -> tuple[dict, dict]:
     """Recorder, ``ems``, an inputs-only replay of the bag ``inputs`` and a plant: the summary of the
     new bag, and that of the in-process run of ``ems`` on the same scenario."""
     from comems4build_ros.core.loop import simulate
@@ -68,9 +68,11 @@ def _drive_with_recorded_inputs(ems: str, inputs: Path, tmp_path: Path,
         gate = ros_args("", {"wait_for_recorder": True})
         group.start(f"{ems}_ems", "ems", [*node_command("ems", ems), *gate])
         group.start("replay", "replay", [*node_command("replay"), str(inputs), "--inputs-only", *gate])
-        plant = group.start("plant_sim", "plant", [*node_command("plant_sim"),
-                                                   *ros_args("", {"wait_for_recorder": True})])
-        assert _wait_exit(plant, timeout_s) == 0, plant.tail()
+        # the plant waits for every command (the budget as its step time-out): this compares runs, a
+        # fallback on a slow step of a loaded machine would be the machine's
+        plant = group.start("plant_sim", "plant", [*node_command("plant_sim"), *ros_args(
+            "", {"wait_for_recorder": True, "step_timeout_s": BUDGET_S, "startup_timeout_s": BUDGET_S})])
+        assert _wait_exit(plant) == 0, plant.tail()
         assert _wait_exit(rec) == 0, rec.tail()
     params = load_plant_params()
     summary = evaluate_bag(bag, tmp_path / "eval", params=params)["/"]
@@ -103,11 +105,11 @@ def test_a_run_records_the_inputs_of_its_ems_and_all_inputs_drive_the_mpc(record
     # at least one answer per step: the feed answers every announcement, and the plant repeats
     # one every republish_period_s while its answer is late (a loaded machine)
     assert not unread & set(topics) and topics["/feed/solar"] >= STEPS
-    full = launch(LaunchOptions(ems="fuzzy", out=tmp_path / "all", weeks=1, steps=STEPS, timeout_s=150,
+    full = launch(LaunchOptions(ems="fuzzy", out=tmp_path / "all", weeks=1, steps=STEPS, timeout_s=BUDGET_S,
                                 all_inputs=True)).bag
     topics = Counter(t for t, *_ in iter_messages(full))
     assert all(topics[t] >= STEPS for t in unread)
-    summary, ref = _drive_with_recorded_inputs("mpc", full, tmp_path, timeout_s=240.0)
+    summary, ref = _drive_with_recorded_inputs("mpc", full, tmp_path)
     for key in set(ref) - {"wall_s", "ems_s"}:
         assert summary[key] == ref[key], key
     assert summary["ems"] == "mpc" and summary["lost_messages"] == {}
@@ -133,12 +135,12 @@ def test_evaluate_refuses_a_bag_with_gaps_unless_accepted(recorded: Path, tmp_pa
     (gappy / "run_info.json").write_text((recorded / "run_info.json").read_text())
     cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())", "evaluate"]
     res = subprocess.run([*cli, str(gappy), "--out", str(tmp_path / "e1")], capture_output=True, text=True,
-                         timeout=120)
+                         timeout=BUDGET_S)
     assert res.returncode == 2, res.stderr
     assert "/state/soc: 3 step(s) missing (3-4, 9)" in res.stderr and "--accept-gaps" in res.stderr
     assert not (tmp_path / "e1" / "summary.json").exists()
     res = subprocess.run([*cli, str(gappy), "--out", str(tmp_path / "e2"), "--accept-gaps"], capture_output=True,
-                         text=True, timeout=120)
+                         text=True, timeout=BUDGET_S)
     assert res.returncode == 0, res.stderr
     summary = json.loads((tmp_path / "e2" / "summary.json").read_text())
     assert summary["lost_messages"] == {"/state/soc": 3}
@@ -170,9 +172,12 @@ def test_inputs_only_replay_holds_its_inputs_until_the_recorder_has_matched(reco
                                      qos_profile(cal_spec))
             announce = message_class(step_spec)(data=0)
 
-            def spin_for(seconds: float, until=lambda: False) -> None:
-                t_end, t_pub = time.monotonic() + seconds, 0.0
-                while time.monotonic() < t_end and not until():
+            def spin_for(seconds: float | None, until=lambda: False) -> None:
+                """Announce step 0 and spin for ``seconds`` (None: the budget), or until ``until()``."""
+                deadline = Deadline("the condition")
+                end = deadline.end if seconds is None else min(deadline.end, time.monotonic() + seconds)
+                t_pub = 0.0
+                while time.monotonic() < end and not until():
                     if time.monotonic() - t_pub > 0.2:  # repeated, as the plant repeats a late step
                         step_pub.publish(announce)
                         t_pub = time.monotonic()
@@ -180,21 +185,29 @@ def test_inputs_only_replay_holds_its_inputs_until_the_recorder_has_matched(reco
 
             rep = group.start("replay", "replay", [*node_command("replay"), str(recorded), "--inputs-only",
                                                    *ros_args("", {"wait_for_recorder": True})])
-            spin_for(60.0, lambda: step_pub.get_subscription_count() > 0 and node.count_publishers("feed/calendar") > 0)
+            spin_for(None, lambda: step_pub.get_subscription_count() > 0 and node.count_publishers("feed/calendar") > 0)
             assert step_pub.get_subscription_count() > 0, rep.tail()
-            spin_for(3.0)  # announced for 3 s: the gate is closed, nothing is published
+            # announced for 3 s (a window for what must not come): the gate is closed, nothing is published
+            spin_for(3.0)
             assert got == [], f"published before a recorder listened: steps {got}"
             rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {
-                "bag_path": str(bag), "stop_when_done": False})])
-            spin_for(60.0, lambda: 0 in got)
+                "bag_path": str(bag), "stop_when_done": False, "chunk_period_s": 0.1})])
+            spin_for(None, lambda: 0 in got)
             assert 0 in got, rep.tail()
-            time.sleep(1.5)  # the recorder writes its chunk (chunk_period_s 1 s), then closes on SIGINT
+            wait_until(lambda: 0 in _calendar_steps(bag), "step 0's feed/calendar in the bag's closed chunks")
             rec.proc.send_signal(2)
             assert _wait_exit(rec) == 0, rec.tail()
         finally:
             executor.shutdown()
             node.destroy_node()
             rclpy.try_shutdown(context=ctx)
-    steps = {int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
-             for t, _, _, raw in iter_messages(bag) if t == "/feed/calendar"}
-    assert 0 in steps
+    assert 0 in _calendar_steps(bag)
+
+
+def _calendar_steps(bag: Path) -> set[int]:
+    """Steps of the /feed/calendar messages on disk in ``bag`` so far (closed chunks of a bag being written)."""
+    try:
+        return {int(decode("std_msgs/msg/Float64MultiArray", raw).data[0])
+                for t, _, _, raw in iter_messages(bag) if t == "/feed/calendar"}
+    except (FileNotFoundError, ValueError):
+        return set()

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from waits import BUDGET_S
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -249,7 +250,8 @@ def test_installed_executable_runs_with_the_venv_python(tmp_path, domain_id):
     }
     missing = tmp_path / "missing.csv"
     proc = subprocess.run(
-        [str(exe), "--ros-args", "-p", f"scenario:={missing}"], env=env, capture_output=True, text=True, timeout=120
+        [str(exe), "--ros-args", "-p", f"scenario:={missing}"], env=env, capture_output=True, text=True,
+        timeout=BUDGET_S,
     )
     assert proc.returncode == 2, proc.stderr
     assert "[feed]: refused to start: scenario" in proc.stderr and "missing.csv" in proc.stderr
@@ -450,6 +452,6 @@ def test_signals_during_the_clean_up_do_not_cut_it_short():
             "os.kill(os.getpid(), signal.SIGINT)\n"
             "rclpy.try_shutdown()\n"
             "print('clean-up went on')\n")
-    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=60)
+    res = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=BUDGET_S)
     assert res.returncode == 0, res.stderr
     assert res.stdout.splitlines() == ["SIGTERM raised KeyboardInterrupt", "clean-up went on"], res.stdout

@@ -19,7 +19,6 @@ import os
 import signal
 import subprocess
 import sys
-import time
 from array import array
 from collections.abc import Callable, Iterator
 from pathlib import Path
@@ -28,6 +27,7 @@ from typing import Any
 import numpy as np
 import pandas as pd
 import pytest
+from waits import BUDGET_S, Deadline, log_has, wait_exit
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -44,13 +44,12 @@ from comems4build_ros.wire.contract import load_contract, relative  # noqa: E402
 pytestmark = pytest.mark.ros
 
 STEPS = 48  # 2 days
-#: Wall-clock limit of one closed-loop run including process start-up [s].
-RUN_TIMEOUT_S = 150.0
-#: Wait between "the observer's readers matched" and saying ready (see Graph.ready) [s].
-OBSERVER_SETTLE_S = 1.0
-#: Node name of the observer. It plays the recorder's part (collect() reads every topic):
-#: plant_sim with wait_for_recorder gets it as ``recorder_node``.
+#: Node name of the observer. It plays the recorder's part (collect() reads every topic): a node
+#: started with wait_for_recorder gets it as ``recorder_node`` and publishes its first message only
+#: once its writers matched the observer's readers.
 OBSERVER = "test_observer"
+#: What such a node logs when its writers matched the recorder's readers (ros/node.py).
+GATE_OPEN_LINE = "every writer matched the recorder's readers"
 IGNORED_SUMMARY_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")
 #: Controller step_info columns that hold wall-clock measurements (differ run to run).
 TIMING_COLUMNS = ("ems_solve_s",)
@@ -95,6 +94,7 @@ class Graph:
         self.subs: dict[str, Any] = {}
         self._extra: list[Any] = []
         self.may_fail: set[str] = set()  # processes a test kills or expects to fail
+        self.gated: set[str] = set()  # processes started with wait_for_recorder, the observer as recorder
 
     # -- processes
     def start(self, name: str, argv: list[str]) -> subprocess.Popen:
@@ -109,31 +109,38 @@ class Graph:
         self.procs[name] = proc
         return proc
 
+    def _gate(self, name: str, params: dict[str, Any]) -> dict[str, Any]:
+        """With wait_for_recorder while the observer collects: the observer is the recorder."""
+        if params.get("wait_for_recorder") and self.subs:
+            self.gated.add(name)
+            return {"recorder_node": OBSERVER, **params}
+        return params
+
     def start_plant(self, **params: Any) -> subprocess.Popen:
-        if params.get("wait_for_recorder") and self.subs:  # the observer is the recorder
-            params = {"recorder_node": OBSERVER, **params}
+        params = self._gate("plant_sim", params)
         return self.start("plant_sim", ["-m", "comems4build_ros.ros.nodes.plant_sim", *_ros_args(params)])
 
     def start_feed(self, **params: Any) -> subprocess.Popen:
-        params = {"weeks": 1, "steps": STEPS, **params}
+        params = self._gate("feed", {"weeks": 1, "steps": STEPS, **params})
         return self.start("feed", ["-m", "comems4build_ros.ros.nodes.feed", *_ros_args(params)])
 
     def start_ems(self, ems: str, **params: Any) -> subprocess.Popen:
+        params = self._gate("ems", params)
         return self.start("ems", ["-m", "comems4build_ros.ros.nodes.ems_node", "--ems", ems, *_ros_args(params)])
 
     def log(self, name: str) -> str:
         return self.logs[name].read_text(errors="replace")
 
-    def stop(self, name: str, sig: int = signal.SIGINT, timeout: float = 15.0) -> int:
-        """Signal a process and wait; SIGKILL after ``timeout``. Returns its exit code."""
+    def stop(self, name: str, sig: int = signal.SIGINT) -> int:
+        """Signal a process and wait for its exit; SIGKILL after the budget. Returns its exit code."""
         proc = self.procs[name]
         if proc.poll() is None:
             proc.send_signal(sig)
             try:
-                proc.wait(timeout)
+                proc.wait(BUDGET_S)
             except subprocess.TimeoutExpired:
                 proc.kill()
-                proc.wait(10)
+                proc.wait()
         return proc.returncode
 
     def close(self) -> None:
@@ -176,9 +183,9 @@ class Graph:
             ("state/t_air_c", Float64MultiArray, on_state),
         ):
             self.subs[topic] = self.node.create_subscription(typ, topic, cb, qos_profile(c.topic(topic)))
-        # The rest, as the recorder reads them, until the run has started (the plant's
-        # writers have matched them then); dropped at the first state so that the
-        # observer keeps up with the plant.
+        # The rest, as the recorder reads them, until every node started with wait_for_recorder
+        # has matched them (:meth:`gates_open`; its first message waits for that); dropped then,
+        # once the run has started, so that the observer keeps up with the plant.
         self._extra = [self.node.create_subscription(message_class(spec), spec.name, lambda _raw: None,
                                                      qos_profile(spec), raw=True)
                        for spec in c.topics.values() if spec.name not in self.subs and spec.publishers]
@@ -190,34 +197,36 @@ class Graph:
         self.node.destroy_subscription(self.subs.pop("plant/record"))
         self.executor.spin_once(timeout_sec=0.1)
 
-    def ready(self, topics: tuple[str, ...] = ("plant/record", "plant/done", "state/t_air_c"), timeout: float = 60.0):
+    def gates_open(self) -> bool:
+        """Whether every node started with wait_for_recorder has said that its writers matched
+        the observer's readers (it publishes from then on, and no message of it is lost to us)."""
+        return all(log_has(self.logs[name], GATE_OPEN_LINE) for name in self.gated)
+
+    def ready(self, topics: tuple[str, ...] = ("plant/record", "plant/done", "state/t_air_c")) -> None:
         """Wait until the observer is matched with the publishers of ``topics``, then say
-        ``recorder/ready`` (the plant runs with ``wait_for_recorder``, as under the launcher)."""
+        ``recorder/ready`` (the plant runs with ``wait_for_recorder``, as under the launcher).
+
+        Our readers seeing the writers does not mean the writers see our readers (a message
+        published before that is not sent to us): the nodes started with wait_for_recorder
+        wait for that side themselves before their first message (:meth:`gates_open`)."""
         from std_msgs.msg import Bool
 
-        self.spin_until(
-            lambda: all(self.subs[t].get_publisher_count() > 0 for t in topics), timeout, f"publishers of {topics}"
-        )
-        # Our readers see the writers; the writers' side of discovery (which decides whether
-        # the first messages reach us) can lag on a loaded machine: settle like the recorder.
-        t_settle = time.monotonic() + OBSERVER_SETTLE_S
-        while time.monotonic() < t_settle:
-            self.executor.spin_once(timeout_sec=0.05)
+        self.spin_until(lambda: all(self.subs[t].get_publisher_count() > 0 for t in topics), f"publishers of {topics}")
         self._ready_pub.publish(Bool(data=True))
 
-    def spin_until(self, cond: Callable[[], bool], timeout: float, what: str) -> None:
-        """Spin the observer until ``cond()`` or fail after ``timeout`` with the logs."""
-        t_end = time.monotonic() + timeout
+    def spin_until(self, cond: Callable[[], bool], what: str) -> None:
+        """Spin the observer until ``cond()``; fail with the logs when the budget (test/waits.py) passes."""
+        deadline = Deadline(what)
         while not cond():
-            if time.monotonic() > t_end:
+            if deadline.passed():
                 logs = "\n".join(f"--- {n}\n{self.log(n)[-3000:]}" for n in self.logs)
                 got = f"got {len(self.records)} records, {len(self.infos)} step infos, done={self.done}"
-                pytest.fail(f"timeout waiting for {what} ({got})\n{logs}")
+                pytest.fail(f"{deadline.fail(got)}\n{logs}")
             for name, proc in self.procs.items():
                 if name not in self.may_fail and proc.poll() not in (None, 0):
                     pytest.fail(f"{name} exited with {proc.returncode} while waiting for {what}:\n{self.log(name)}")
             self.executor.spin_once(timeout_sec=0.05)
-            if self._extra and self.states:
+            if self._extra and self.states and self.gates_open():
                 for sub in self._extra:
                     self.node.destroy_subscription(sub)
                 self._extra = []
@@ -321,7 +330,9 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
     except UnknownEMSError as exc:
         pytest.skip(str(exc))
     graph.collect()
-    graph.start_ems(ems, exit_when_done=False)  # kept alive to check their endpoints after the run
+    # the EMS and the plant kept alive to check their endpoints after the run; both publish
+    # what the observer must get from the first step on (ems/info, plant/record)
+    graph.start_ems(ems, exit_when_done=False, wait_for_recorder=True)
     graph.start_feed(exit_when_done=False)
     graph.start_plant(exit_when_done=False, wait_for_recorder=True)
     graph.ready(("plant/record", "plant/done", "ems/info"))
@@ -329,20 +340,22 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
     n_info = STEPS if any(c.startswith("ems_") for c in ref.timeseries.columns) else 0
     graph.spin_until(
         lambda: graph.done and len(graph.records) == STEPS and len(graph.infos) >= n_info,
-        RUN_TIMEOUT_S,
         f"{STEPS} records and {n_info} step infos",
     )
 
-    # The real DDS endpoints of every node are exactly what the contract declares.
+    # The real DDS endpoints of every node are exactly what the contract declares. Discovery
+    # is asynchronous: wait for the node, then for its endpoints (each within the budget).
     c = graph.contract
     ems_node = c.ems_node_name(ems)
     for node in ("plant_sim", "feed", ems_node):
         want_pub = {t.name for t in c.published_by(node)}
         # /clock: the contract lets ROS 2's time source read it; it does with use_sim_time only
         want_sub = {t.name for t in c.subscribed_by(node)} - {"/clock"}
-        t_end = time.monotonic() + 10.0  # endpoint discovery is asynchronous: give it time under load
-        while graph.graph_topics(node) != (want_pub, want_sub) and time.monotonic() < t_end:
-            graph.executor.spin_once(timeout_sec=0.1)
+        graph.spin_until(lambda n=node: (n, "/") in graph.node.get_node_names_and_namespaces(), f"node {node} "
+                         "in the observer's graph")
+        deadline = Deadline(f"every endpoint of {node} in the observer's graph")
+        while graph.graph_topics(node) != (want_pub, want_sub) and not deadline.passed():
+            graph.executor.spin_once(timeout_sec=0.05)
         got_pub, got_sub = graph.graph_topics(node)
         assert got_pub == want_pub, f"{node} publishes {got_pub ^ want_pub} against the contract"
         assert got_sub == want_sub, f"{node} subscribes {got_sub ^ want_sub} against the contract"
@@ -387,14 +400,15 @@ def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Gr
             killed_at.append(step)
             graph.may_fail.add("ems")
             os.kill(graph.procs["ems"].pid, signal.SIGKILL)
-            graph.procs["ems"].wait(10)
+            wait_exit(graph.procs["ems"], "the EMS to die of SIGKILL")
             progress.publish(UInt32(data=STEPS))  # the plant may go on
 
     graph.on_state = kill_on_step
     graph.start_ems("thermostat", exit_when_done=False)
     graph.start_feed(exit_when_done=False)
-    # 2 s: long enough that a loaded machine does not trigger a fallback before the kill
-    graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=2.0, republish_period_s=0.2,
+    # the step time-out is what the test is about: 5 s, far longer than an EMS on a loaded machine
+    # takes to answer (a fallback before the kill would be the machine's, not the EMS's death)
+    graph.start_plant(exit_when_done=False, wait_for_recorder=True, step_timeout_s=5.0, republish_period_s=0.2,
                       record_window_steps=12)
     graph.ready()
 
@@ -402,12 +416,11 @@ def test_ems_killed_mid_run_plant_falls_back_and_resumes_after_restart(graph: Gr
         lay = graph.contract.topic("plant/record").layout(graph.sizes)
         return sum(1 for r in graph.records.values() if r[lay.index["fallback"]] > 0.5)
 
-    graph.spin_until(lambda: n_fallback() >= 2, 60.0, "2 fallback steps after the EMS was killed")
-    graph.procs["ems"].wait(10)
+    graph.spin_until(lambda: n_fallback() >= 2, "2 fallback steps after the EMS was killed")
     assert graph.procs["ems"].returncode == -signal.SIGKILL
     graph.start_ems("thermostat")  # restart: the plant must hand control back to it
     graph.may_fail.discard("ems")
-    graph.spin_until(lambda: graph.done and len(graph.records) == STEPS, RUN_TIMEOUT_S, "the end of the run")
+    graph.spin_until(lambda: graph.done and len(graph.records) == STEPS, "the end of the run")
 
     ts = graph.timeseries()
     fb = ts["fallback"].to_numpy(dtype=bool)
@@ -442,9 +455,11 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
         Float64MultiArray, "ems/command", qos_profile(graph.contract.topic("ems/command"))
     )
     graph.start_feed(steps=3)
-    graph.start_plant(wait_for_recorder=True, step_timeout_s=2.0, startup_timeout_s=2.0)
+    # step 0 falls back after the start-up time-out (every command of it is invalid); the
+    # valid answers to steps 1 and 2 must never be late, however slow this process is
+    graph.start_plant(wait_for_recorder=True, step_timeout_s=BUDGET_S, startup_timeout_s=2.0)
     graph.ready()
-    graph.spin_until(lambda: cmd_pub.get_subscription_count() > 0 and 0 in graph.states, 60.0, "step 0")
+    graph.spin_until(lambda: cmd_pub.get_subscription_count() > 0 and 0 in graph.states, "step 0")
 
     def send(*values: float, token: float = 5.0) -> None:
         cmd_pub.publish(Float64MultiArray(data=[*values, token]))
@@ -456,25 +471,25 @@ def test_invalid_and_wrong_step_commands_are_rejected_counted_and_logged(graph: 
     send(0.0, 1.0, 1.0, 0.0, 5.0e5, 0.0)  # battery power far beyond its 1 kW
     send(0.0, 1.0, 7.0, 0.0, 0.0, 0.0)  # unknown circuit
     send(5.0, 1.0, 1.0, 0.0, 0.0, 0.0)  # valid, but for step 5 while the plant waits for step 0
-    graph.spin_until(lambda: 0 in graph.records, 30.0, "step 0 (after the timeout)")
+    graph.spin_until(lambda: 0 in graph.records, "step 0 (after the timeout)")
     lay = graph.contract.topic("plant/record").layout(graph.sizes)
     r0 = lay.unpack(graph.records[0])
     assert r0["fallback"] is True, "invalid commands count as missing: the plant fell back"
     assert (r0["rejected_commands"], r0["wrong_step_commands"]) == (5, 1)
 
-    graph.spin_until(lambda: 1 in graph.states, 10.0, "step 1")
+    graph.spin_until(lambda: 1 in graph.states, "step 1")
     send(1.0, 0.0, 2.0, 0.0, 0.0, 0.0, token=99.0)  # in range, right step, but another EMS's token: foreign
     send(1.0, 1.0, 1.0, 0.0, 0.0, 0.0)  # valid: space heating at full power
-    graph.spin_until(lambda: 2 in graph.states, 10.0, "step 2")
+    graph.spin_until(lambda: 2 in graph.states, "step 2")
     send(2.0, 0.0, 0.0, 0.0, 0.0, 0.0)
-    graph.spin_until(lambda: len(graph.records) == 3, 10.0, "the end of the run")
+    graph.spin_until(lambda: len(graph.records) == 3, "the end of the run")
     r1, r2 = lay.unpack(graph.records[1]), lay.unpack(graph.records[2])
     assert r1["fallback"] is False and (r1["cmd_hp_mode"], r1["cmd_hp_mod"]) == (1, 1.0)
     assert r1["hp_mode"] == 1 and r1["q_hp_sh_w"] > 0
     assert r2["fallback"] is False and r2["cmd_hp_mode"] == 0
     assert r2["foreign_commands"] == 1 and r2["rejected_commands"] == 5
     graph.leave()  # the recorder's stand-in leaves: the plant, waiting for that, ends
-    assert graph.procs["plant_sim"].wait(30) == 0
+    assert wait_exit(graph.procs["plant_sim"], "the plant's exit after the observer left") == 0
     log = graph.log("plant_sim")
     for expected in (
         "rejected topic 'ems/command' field '(length)': 6 elements",
@@ -514,8 +529,8 @@ def test_feed_refuses_a_scenario_with_nan_or_gap(graph: Graph, scenario_csv: Pat
     graph.may_fail.update({"feed_nan", "feed_gap"})
     graph.start("feed_nan", ["-m", "comems4build_ros.ros.nodes.feed", *_ros_args({"scenario": str(with_nan)})])
     graph.start("feed_gap", ["-m", "comems4build_ros.ros.nodes.feed", *_ros_args({"scenario": str(with_gap)})])
-    assert graph.procs["feed_nan"].wait(120) == 2
-    assert graph.procs["feed_gap"].wait(120) == 2
+    assert wait_exit(graph.procs["feed_nan"], "the feed refusing the NaN") == 2
+    assert wait_exit(graph.procs["feed_gap"], "the feed refusing the gap") == 2
     nan_log, gap_log = graph.log("feed_nan"), graph.log("feed_gap")
     assert "[feed]: refused to start:" in nan_log and "with_nan.csv" in nan_log and "line 12" in nan_log
     assert "column 't_amb_c'" in nan_log and "refuses a scenario with missing values" in nan_log
@@ -561,7 +576,7 @@ def test_nodes_started_by_hand_exit_at_the_end_and_the_bag_knows_ems_and_scenari
     graph.start_feed(steps=24)
     graph.start_plant(wait_for_recorder=True)
     for name in ("plant_sim", "recorder", "feed", "ems"):
-        assert graph.procs[name].wait(RUN_TIMEOUT_S) == 0, graph.log(name)
+        assert wait_exit(graph.procs[name], f"{name} to exit by itself after the run") == 0, graph.log(name)
     assert "run done: exiting once the recorder has left" in graph.log("feed")
     summary = evaluate_bag(bag, graph.tmp / "eval")["/"]
     assert summary["ems"] == "rbc" and summary["scenario"] == in_process_scenario_name()
