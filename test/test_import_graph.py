@@ -33,7 +33,7 @@ CORE_LAYERS = (
     ("types", "numerics", "result_cache", "psychrometrics"),
     ("config",),
     ("models",),
-    ("plant", "scenario", "kpi", "economics", "ems"),
+    ("plant", "scenario", "kpi", "economics", "ems", "forecast"),
     ("loop",),
 )
 #: Top-level distributions of the ROS client libraries and message packages.

@@ -30,15 +30,17 @@ TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # not in i
 CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
 
 
-def _reference(ems: str, steps: int, seed: int | None = None) -> dict:
+def _reference(ems: str, steps: int, seed: int | None = None, forecast: str | None = None) -> dict:
     """In-process summary over the same scenario window as the feed builds it."""
+    from comems4build_ros.core.loop import load_forecast_settings
     from comems4build_ros.core.scenario.run import load_scenario
 
     params = load_plant_params()
     scenario = load_scenario("default", params, None, 1, seed, steps)
+    fs = load_forecast_settings(mode=forecast) if forecast else None
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        return simulate(ems, scenario, params).summary
+        return simulate(ems, scenario, params, forecast=fs).summary
 
 
 def _same(a: dict, b: dict) -> None:
@@ -73,6 +75,20 @@ def test_launch_fuzzy_equals_in_process_and_bag_opens(tmp_path: Path) -> None:
     assert stats.message_count > 36 * 20
     assert lost_messages(res.bag) == {}
     assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []
+
+
+def test_launch_mpc_with_realistic_forecasts_equals_in_process(tmp_path: Path) -> None:
+    """The feed node builds the realistic forecasts (published prices, correlated weather errors,
+    misplaced days) the in-process loop builds: the MPC's run over DDS is the in-process one, and it
+    is not the perfect-forecast run."""
+    out = tmp_path / "run"
+    launch(LaunchOptions(ems="mpc", out=out, weeks=1, steps=36, forecast="realistic", timeout_s=300))
+    summary = json.loads((out / "summary.json").read_text())
+    ref = _reference("mpc", 36, forecast="realistic")
+    assert ref.pop("forecast_errors")["price_unpublished_share"] > 0  # in-process only: the errors it met
+    _same(summary, ref)
+    assert summary["forecast"] == "realistic"
+    assert summary["cost_eur_total"] != _reference("mpc", 36)["cost_eur_total"]
 
 
 def test_two_houses_under_namespaces_with_seeds(tmp_path: Path) -> None:

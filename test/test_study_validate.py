@@ -57,6 +57,22 @@ def test_plan_reuses_the_base_runs_for_defaults_and_evaluation_only_readings():
     assert task.portable().inputs == {}  # built from package data by its name: nothing to carry to a worker
 
 
+@pytest.mark.parametrize("forecast", ["realistic", "imperfect", "perfect"])
+def test_forecast_is_part_of_the_mpc_runs_spec_only(forecast):
+    """``validate --forecast``: the MPC runs carry the mode in their specification (a stored run of
+    another mode is not taken for it); the fuzzy EMS and the RBC read no forecast and keep theirs."""
+    base = sv.plan(None, weeks=1, cases=["paper-s57", "hamburg-2015-16"])
+    p = sv.plan(None, weeks=1, cases=["paper-s57", "hamburg-2015-16"], forecast=forecast)
+    assert p.forecast == forecast and base.forecast is None
+    for name, task in p.tasks.items():
+        other = base.tasks[name]
+        if task.ems == "mpc":
+            assert task.forecast == forecast and task.spec()["forecast"] == forecast
+            assert task.spec() != other.spec()
+        else:
+            assert task.forecast is None and task.spec() == other.spec()
+
+
 def test_plan_refuses_unknown_ems():
     with pytest.raises(ConfigError, match="--ems: thermostat"):
         sv.plan(None, weeks=1, cases=["paper-s57"], ems=("thermostat",))

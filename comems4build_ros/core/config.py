@@ -556,6 +556,33 @@ class SimulationParams(Section):
         return self
 
 
+def known_timezone(value: str) -> str:
+    """Return ``value`` if the tz database knows it as an IANA time zone name (``Europe/Berlin``).
+
+    Parameters
+    ----------
+    value : str
+        A time zone name.
+
+    Returns
+    -------
+    str
+        ``value`` unchanged.
+
+    Raises
+    ------
+    ValueError
+        For any other name (a pydantic validator turns it into the field's error).
+    """
+    import zoneinfo
+
+    try:
+        zoneinfo.ZoneInfo(value)
+    except (zoneinfo.ZoneInfoNotFoundError, ValueError):
+        raise ValueError(f"unknown IANA time zone '{value}' (e.g. Europe/Berlin)") from None
+    return value
+
+
 class SiteParams(Section):
     """Location of the house (degrees, metres, IANA time zone).
 
@@ -578,13 +605,7 @@ class SiteParams(Section):
     @classmethod
     def _known_zone(cls, value: str) -> str:
         """Accept an IANA time zone name the tz database knows (e.g. ``Europe/Berlin``)."""
-        import zoneinfo
-
-        try:
-            zoneinfo.ZoneInfo(value)
-        except (zoneinfo.ZoneInfoNotFoundError, ValueError):
-            raise ValueError(f"unknown IANA time zone '{value}' (e.g. Europe/Berlin)") from None
-        return value
+        return known_timezone(value)
 
 
 class PVParams(Section):
@@ -1190,7 +1211,7 @@ OTHER_SECTIONS = {
     "flc_flex": "fuzzy options: --ems-option flex.KEY=VALUE or flex_file=FILE (config/fuzzy/flex.yaml)",
     "flc_fc": "fuzzy options: --ems-option fc.KEY=VALUE or fc_file=FILE (config/fuzzy/fc.yaml)",
     "flc_b": "fuzzy options: --ems-option battery.KEY=VALUE or battery_file=FILE (config/fuzzy/battery.yaml)",
-    "forecast": "forecast mode: --forecast perfect|imperfect (settings in config/forecast.yaml)",
+    "forecast": "forecast mode: --forecast perfect|imperfect|realistic (settings in config/forecast.yaml)",
     "scenario": "scenario generator settings: config/scenario.yaml",
 }
 

@@ -32,11 +32,21 @@ from comems4build_ros.core.ems.base import (
     Observation,
     check_mpc_horizon,
 )
+from comems4build_ros.core.forecast import RealisticForecast, RealisticParams, error_statistics
 from comems4build_ros.core.models.pv import pv_power_w
 from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.scenario.base import Scenario
 from comems4build_ros.core.scenario.comfort import heating_season_days, holiday_dates
-from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, Flows, PlantState
+from comems4build_ros.core.types import (
+    ACTION_FIELDS,
+    FLOW_FIELDS,
+    FORECAST_MODES,
+    STATE_COLUMNS,
+    Action,
+    Exogenous,
+    Flows,
+    PlantState,
+)
 from comems4build_ros.files.outputs import atomic_dir
 
 #: Hours of a day and of a week [h].
@@ -122,10 +132,11 @@ class ForecastParams(Section):
         Relative standard deviation of the irradiance and PV error at 24 h lead [-].
     """
 
-    mode: str = Field(pattern="^(perfect|imperfect)$")
+    mode: str = Field(pattern="^(" + "|".join(FORECAST_MODES) + ")$")
     seed: int
     sigma_t_amb_k_24h: float = Field(ge=0)
     sigma_ghi_rel_24h: float = Field(ge=0)
+    realistic: RealisticParams
 
 
 def load_forecast_settings(path: str | Path | None = None, **overrides: Any) -> ForecastParams:
@@ -168,12 +179,24 @@ class ForecastModel:
         Steps per day (24 at 1 h steps).
     """
 
-    def __init__(self, series: Mapping[str, list[float]], settings: ForecastParams, steps_per_day: int) -> None:
+    def __init__(self, series: Mapping[str, list[float]], settings: ForecastParams, steps_per_day: int,
+                 times: pd.DatetimeIndex | None = None) -> None:
         self._series = series
         self._s = settings
         self._day = steps_per_day
         lead = np.arange(PRICE_WINDOW, dtype=float)
         self._scale = np.sqrt(lead / steps_per_day)
+        self._realistic: RealisticForecast | None = None
+        if settings.mode == "realistic":  # comems4build_ros.core.forecast; needs the steps' times
+            if times is None:
+                raise ValueError("forecast mode 'realistic' needs the scenario's times")
+            self._realistic = RealisticForecast(series, settings.realistic, settings.seed, times, steps_per_day,
+                                                PRICE_WINDOW)
+
+    def errors(self, steps: int) -> dict[str, float]:
+        """Return what the forecasts of steps ``0 .. steps-1`` got wrong (:func:`.forecast.error_statistics`)."""
+        known = self._realistic.known_until if self._realistic is not None else None
+        return error_statistics(self.window, self._series, steps, self._day, PRICE_WINDOW, known)
 
     def window(self, k: int) -> dict[str, tuple[float, ...]]:
         """Return the forecast of every key in :data:`FORECAST_KEYS` for steps ``k .. k+23``.
@@ -189,6 +212,8 @@ class ForecastModel:
             Key -> :data:`PRICE_WINDOW` values, in the key's unit (``t_amb_c`` [degC],
             ``ghi_w_m2`` [W/m2], ``p_pv_w`` and ``p_load_w`` [W], ``dhw_l_per_h`` [l/h]...).
         """
+        if self._realistic is not None:
+            return self._realistic.window(k)
         s = self._series
         out = {key: s[key][k : k + PRICE_WINDOW] for key in FORECAST_KEYS}
         if self._s.mode == "imperfect":
@@ -279,6 +304,7 @@ class ObservationBuilder:
             self._series,
             forecast or load_forecast_settings(),
             int(round(24.0 / params.simulation.time_step_h)),
+            scenario.time,
         )
 
     def data(self, k: int, state: PlantState) -> dict[str, Any]:
@@ -346,6 +372,13 @@ class ObservationBuilder:
             The level's fields (:meth:`data`).
         """
         return Observation(self.level, self.data(k, state))
+
+    def forecast_errors(self, steps: int) -> dict[str, float]:
+        """Return the error statistics of the MPC's forecasts of steps ``0 .. steps-1``.
+
+        See :meth:`ForecastModel.errors`.
+        """
+        return self._forecast.errors(steps)
 
 
 def record_row(
@@ -603,6 +636,8 @@ def _simulate(ctrl: Controller, scenario: Scenario, params: PlantParams, progres
         "ems_s": ems_s,
         "forecast": forecast.mode if ctrl.info_level == "mpc" else None,
     }
+    if ctrl.info_level == "mpc" and forecast.mode != "perfect":
+        extra["forecast_errors"] = builder.forecast_errors(n_steps)
     if model.name != "rc":
         extra["building"] = model.name
         if record and brows:

@@ -11,6 +11,10 @@ from __future__ import annotations
 
 from dataclasses import asdict, dataclass, fields
 
+#: Forecast modes of ``--forecast`` (``config/forecast.yaml`` ``mode``): the paper's perfect
+#: forecasts, and the forecasts with errors of :mod:`comems4build_ros.core.forecast`.
+FORECAST_MODES = ("perfect", "imperfect", "realistic")
+
 #: Heat-pump circuits (``eq:zetas``): off, space heating, domestic hot water; and cooling of
 #: the rooms through the underfloor system (reversible heat pump, only where
 #: ``cooling.enabled``).

@@ -319,6 +319,7 @@ def evaluate(plan: Plan, runs_dir: Path, out: Path, runs_made: int, wall_s: floa
     report = {
         "weeks": plan.weeks,
         "ems": list(plan.ems),
+        "forecast": plan.forecast,
         "seeds": list(plan.study.seeds),
         "criteria": {"share": vs.criteria.share, "discomfort_weeks_per_12": DISCOMFORT_WEEKS_PER_12,
                      "h2_left": list(H2_LEFT_BAND), "h2_even_max": h2_even_tolerance(load_plant_params()),

@@ -73,7 +73,8 @@ def _intro(doc: Document, report: Mapping[str, Any]) -> None:
           f"({', '.join(str(s) for s in report['seeds'])}), on which the defaults were chosen. Development and "
           "held-out: the validation set of config/validation.yaml (other winters at other stations with their own "
           "prices, other households on the paper's winter), split before any run; choices may look at the "
-          "development cases, never at the held-out ones.")
+          "development cases, never at the held-out ones."
+          + (f" The MPC ran with `--forecast {report['forecast']}` (docs/mpc.md)." if report.get("forecast") else ""))
 
 
 def _checks(doc: Document, report: Mapping[str, Any]) -> None:

@@ -136,7 +136,7 @@ PARAMETERS: dict[str, ParamSpec] = {
     "allow_gap_fill": ParamSpec("bool", "accept missing values the scenario loader fills by interpolation",
                                 allowed="true or false", source="docs/scenario.md"),
     "forecast_mode": ParamSpec("str", "forecasts of the MPC (empty = config/forecast.yaml)",
-                               allowed="perfect, imperfect or empty", source="config/forecast.yaml"),
+                               allowed="perfect, imperfect, realistic or empty", source="config/forecast.yaml"),
     "lookahead_steps": ParamSpec("int", "steps published ahead of the step the plant waits for", "steps", 0, 1000,
                                  source="design choice, docs/ros_nodes.md 'Feed'"),
     "publish_measured": ParamSpec("bool", "publish feed/measured (false when mqtt_bridge publishes the house's "

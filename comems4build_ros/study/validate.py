@@ -186,6 +186,7 @@ class Plan:
     ems : the EMS run
     study : the reproduction study file (seeds, targets, ambiguities)
     step : the step planned (:data:`STEPS`)
+    forecast : the MPC's forecasts (``--forecast``; None = ``config/forecast.yaml``)
     """
 
     cases: list[StudyCase]
@@ -196,6 +197,7 @@ class Plan:
     ems: tuple[str, ...]
     study: Study
     step: str = "all"
+    forecast: str | None = None
 
 
 def plan(
@@ -207,6 +209,7 @@ def plan(
     study_path: str | Path | None = None,
     validation_path: str | Path | None = None,
     step: str = "all",
+    forecast: str | None = None,
 ) -> Plan:
     """Plan the study: every case with every EMS at the defaults, and each reading of ``study_keys`` on top.
 
@@ -220,6 +223,8 @@ def plan(
     study_path, validation_path : the study files (default ``config/``)
     step : which subsets to run (:data:`STEPS`): ``choose`` never plans a held-out case, ``judge``
         plans only those
+    forecast : the MPC's forecasts (``perfect``, ``imperfect``, ``realistic``; None = ``config/forecast.yaml``),
+        part of the MPC runs' specification (the other EMS read no forecast)
 
     Raises
     ------
@@ -227,6 +232,7 @@ def plan(
         For an unknown case, EMS or ambiguity, a default reading that is not what
         ``config/`` holds, or an option that does not build.
     """
+    from comems4build_ros.core.ems import ems_table
     from comems4build_ros.core.scenario.validation import load_validation_settings
     from comems4build_ros.study.reproduce import check_defaults
 
@@ -241,6 +247,11 @@ def plan(
     n_weeks = float(vs.weeks if weeks is None else weeks)
     the_cases = study_cases(study.seeds if seeds is None else seeds, vs, cases, step)
     variants = study_variants(study, study_keys)
+
+    def forecast_of(e: str) -> str | None:
+        entry = ems_table().get(e)
+        return forecast if entry is not None and entry.info_level == "mpc" else None
+
     tasks: dict[str, RunTask] = {}
     runs: dict[tuple[str, str], dict[str, str]] = {}
     for c in the_cases:
@@ -248,7 +259,7 @@ def plan(
         for e in ems:
             name = run_name(c, e)
             tasks[name] = RunTask(ems=e, out_dir="", scenario=c.scenario, weeks=n_weeks, seed=c.seed,
-                                  overrides=dict(c.overrides))
+                                  overrides=dict(c.overrides), forecast=forecast_of(e))
             base[e] = name
         runs[(c.id, BASE)] = base
         for v in variants:
@@ -259,8 +270,9 @@ def plan(
                         continue
                     name = run_name(c, e, v)
                     tasks[name] = RunTask(ems=e, out_dir="", scenario=c.scenario, weeks=n_weeks, seed=c.seed,
-                                          overrides=dict(c.overrides), ems_options=dict(v.ems_options.get(e, {})))
+                                          overrides=dict(c.overrides), ems_options=dict(v.ems_options.get(e, {})),
+                                          forecast=forecast_of(e))
                     per[e] = name
             runs[(c.id, v.key)] = per
     check_tasks(tasks.values())
-    return Plan(the_cases, variants, tasks, runs, n_weeks, tuple(ems), study, step)
+    return Plan(the_cases, variants, tasks, runs, n_weeks, tuple(ems), study, step, forecast)

@@ -12,6 +12,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from comems4build_ros.app.commands.options import (
+    add_forecast_option,
     add_scenario_options,
     add_study_options,
     ems_help,
@@ -49,8 +50,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run, e.g. --set battery.e_max_kwh=10")
     add_study_options(parser, jobs_default="CPU count in-process, 1 with --via ros")
-    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
-                        help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
+    add_forecast_option(parser)
     parser.add_argument("--from-runs", default=None, metavar="DIR",
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
     parser.add_argument("--out", metavar="DIR", default=None,

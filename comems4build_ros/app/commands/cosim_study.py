@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import argparse
 
-from comems4build_ros.app.commands.options import COUNT, WEEKS
+from comems4build_ros.app.commands.options import COUNT, WEEKS, add_forecast_option
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -15,8 +15,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--identified", metavar="FILE.yaml", default=None,
                         help="an identified building file of comems4build identify (default: identify the house "
                              "into DIR/identified.yaml first)")
-    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
-                        help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
+    add_forecast_option(parser)
     parser.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
                         help="run length in weeks, > 0 (default: the paper's 12; shorter for a quick try)")
     parser.add_argument("--jobs", type=COUNT, default=None, metavar="N",

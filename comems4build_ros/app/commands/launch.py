@@ -17,6 +17,7 @@ from comems4build_ros.app.commands.options import (
     SECONDS,
     SEED,
     add_building_options,
+    add_forecast_option,
     add_scenario_options,
     ems_help,
 )
@@ -40,8 +41,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="override one plant parameter, e.g. --set battery.e_max_kwh=10 (repeatable)")
     parser.add_argument("--ems-option", action="append", default=[], metavar="KEY=VALUE",
                         help="option passed to the EMS (repeatable)")
-    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
-                        help="forecasts given to the MPC (default: config/forecast.yaml)")
+    add_forecast_option(parser)
     add_building_options(parser)
     parser.add_argument("--all-inputs", action="store_true",
                         help="the feed publishes every EMS input (tab:level_of_information), also what this EMS does "

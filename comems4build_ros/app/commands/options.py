@@ -261,6 +261,16 @@ def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = 
     return StudyExecutor(backend, RunStore.of(out), resume=args.resume)
 
 
+def add_forecast_option(parser: argparse.ArgumentParser) -> None:
+    """``--forecast MODE``: the MPC's forecasts (:data:`comems4build_ros.core.types.FORECAST_MODES`)."""
+    from comems4build_ros.core.types import FORECAST_MODES
+
+    parser.add_argument("--forecast", choices=FORECAST_MODES, default=None,
+                        help="forecasts given to the MPC: perfect (the paper's), imperfect or realistic (prices as "
+                             "published, correlated weather errors; docs/mpc.md) (default: config/forecast.yaml, "
+                             "perfect)")
+
+
 def add_building_options(parser: argparse.ArgumentParser) -> None:
     """``--building MODEL``, ``--building-map FILE`` and ``--epw FILE``: the building model of a run."""
     parser.add_argument("--building", metavar="MODEL", default="rc",

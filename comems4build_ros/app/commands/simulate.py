@@ -6,7 +6,12 @@ import argparse
 import json
 import sys
 
-from comems4build_ros.app.commands.options import add_building_options, add_scenario_options, ems_help
+from comems4build_ros.app.commands.options import (
+    add_building_options,
+    add_forecast_option,
+    add_scenario_options,
+    ems_help,
+)
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -23,8 +28,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     )
     parser.add_argument("--ems-option", action="append", default=[], metavar="KEY=VALUE",
                         help="option passed to the EMS, e.g. --ems-option solver=CBC (repeatable)")
-    parser.add_argument("--forecast", choices=("perfect", "imperfect"), default=None,
-                        help="forecasts given to the MPC (default: config/forecast.yaml, perfect)")
+    add_forecast_option(parser)
     add_building_options(parser)
     parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bar")

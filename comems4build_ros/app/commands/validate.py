@@ -6,7 +6,7 @@ import argparse
 import os
 from pathlib import Path
 
-from comems4build_ros.app.commands.options import add_executor_options, real
+from comems4build_ros.app.commands.options import add_executor_options, add_forecast_option, real
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -38,6 +38,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_executor_options(parser)
     parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
                         help="run length in weeks, in (0, 12] (default 12; shorter runs are quick checks)")
+    add_forecast_option(parser)
     parser.add_argument("--no-figures", action="store_true", help="do not draw the figures")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
     parser.add_argument("--update-doc", action="append", default=None, metavar="FILE",
@@ -103,7 +104,8 @@ def run(args: argparse.Namespace) -> int:
     ems = _names(args.ems, "--ems") or list(EMS)
     load = os.getloadavg()[0]
     t0 = time.perf_counter()
-    p = plan(_names(args.study, "--study"), args.weeks, _names(args.cases, "--cases"), tuple(ems), step=step)
+    p = plan(_names(args.study, "--study"), args.weeks, _names(args.cases, "--cases"), tuple(ems), step=step,
+             forecast=args.forecast)
     writes = DOCUMENT_FILES if args.from_runs else VALIDATE_FILES
     output = output_dir(args, "validate", writes=writes, replaces=writes)
     output.check()
