@@ -18,6 +18,7 @@ format     value                                       shown
 ``distpct1`` the same, shares                          ``18.9 % [17.7..21.7]``
 ``range2`` the same                                    ``1.42 to 1.51``
 ``rangepct1`` the same, shares                         ``17.7 to 21.7 %``
+``signeddist0/1`` the same, changes in per cent        ``+83 % [+77..+85]``
 ========== =========================================== =====================
 
 The validation writes its stored results next to the document it updates
@@ -103,6 +104,10 @@ def render(value: Any, fmt: str, key: str) -> str:
     if fmt == "distpct1":
         m, lo, hi = _dist(value, key)
         return f"{100 * m:.1f} % [{100 * lo:.1f}..{100 * hi:.1f}]"
+    if fmt in ("signeddist0", "signeddist1"):
+        m, lo, hi = _dist(value, key)
+        d = fmt[-1]
+        return f"{m:+.{d}f} % [{lo:+.{d}f}..{hi:+.{d}f}]"
     if fmt == "range2":
         _, lo, hi = _dist(value, key)
         return f"{lo:.2f} to {hi:.2f}"

@@ -154,11 +154,20 @@ def _findings(doc: Document, report: Mapping[str, Any]) -> None:
     doc.table(["finding", *_subsets(report)], rows)
 
 
+def _band(report: Mapping[str, Any]) -> str:
+    band = report["criteria"].get("fc_hours_band_pct")
+    return f"{band[0]:+.0f}..{band[1]:+.0f} %" if band else "-"
+
+
 def _fit(fit: Mapping[str, Any] | None) -> str:
     if not fit:
         return "-"
+    fc = fit.get("fc") or {}
+    hours, toggles = fc.get("fuzzy_hours"), fc.get("fuzzy_toggles")
+    fc_text = (f"; FC hours {hours['median']:+.0f} %, toggles {toggles['median']:+.0f} %"
+               if hours and toggles else "")
     return (f"{_pct(fit['median_rel_error'], 1)} / {_pct(fit['table_rel_error'], 1)}; "
-            f"{fit['findings_held']} of {fit['findings_total']} findings")
+            f"{fit['findings_held']} of {fit['findings_total']} findings{fc_text}")
 
 
 def _study(doc: Document, report: Mapping[str, Any]) -> None:
@@ -167,10 +176,11 @@ def _study(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "Every reading: calibration and validation")
     doc.p("Each reading of the reproduction's ambiguities (config/reproduce.yaml) run on every case with every other "
           "ambiguity at its default; (default) marks the shipped reading. Calibration fit: the reproduction's "
-          "seed-median error over every stated figure / over the headline table and the findings holding on its "
-          "seeds. Then per subset the share of cases holding each check (comfort, cost order, H2 left, FC longer "
-          "at lower load, RBC sells most) and the medians of ComEMS4Build's H2 left and of the cost ratio "
-          "RBC / ComEMS4Build.")
+          "seed-median error over every stated figure / over the headline table, the findings holding on its "
+          "seeds, and ComEMS4Build's FC working hours and toggles against the MPC's (seed medians; the reproduction's "
+          "band for the hours " + _band(report) + "). Then per subset the share of cases holding each check "
+          "(comfort, cost order, H2 left and spent evenly, FC longer at lower load, RBC sells most) and the "
+          "medians of ComEMS4Build's H2 left and of the cost ratio RBC / ComEMS4Build.")
     by_amb: dict[str, list[Mapping[str, Any]]] = {}
     for r in report["study"]:
         by_amb.setdefault(r["ambiguity"], []).append(r)
@@ -191,12 +201,7 @@ def _study(doc: Document, report: Mapping[str, Any]) -> None:
 
 
 def _fit_short(fit: Mapping[str, Any] | None) -> str:
-    if not fit:
-        return "-"
-    fc = fit.get("fc") or {}
-    hours = f"; FC hours {fc['fuzzy_hours']:+.0f} %" if fc.get("fuzzy_hours") is not None else ""
-    return (f"{_pct(fit.get('median_rel_error'), 1)} / {_pct(fit.get('table_rel_error'), 1)}; "
-            f"{fit.get('findings_held')} of {fit.get('findings_total')} findings{hours}")
+    return _fit(fit) if fit and fit.get("findings_held") is not None else "-"
 
 
 def _identity(ident: Mapping[str, Any] | None) -> str:
@@ -362,7 +367,7 @@ def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path |
         replace_doc_section(path, report, figures_from, (DOC_BEGIN, DOC_END), DOC_FIGURES, doc_section)
         stored = path.parent / STORED["validation"]
         stored.parent.mkdir(parents=True, exist_ok=True)
-        write_text_atomic(stored, json.dumps(report, indent=1, sort_keys=True) + "\n")
+        write_text_atomic(stored, json.dumps(report, indent=1) + "\n")
     write_text_atomic(path, fill_quotes(path, {"validation": report}))
     return path
 

@@ -159,11 +159,12 @@ def run(args: argparse.Namespace) -> int:
                                           + ", ".join(c["differ"])))
     print(f"{len(rep['cases'])} cases; {done}; wrote {out / res.markdown.name}, {out / res.html.name}, "
           f"{out / res.json.name}" + (f", {out / 'choice.json'}" if "choice" in rep else ""))
+    stored = load_json_file(out / res.json.name, "validation.json") if args.update_doc else None
     for doc in args.update_doc or ():
         from comems4build_ros.report.validation_doc import update_doc
 
         try:
-            print(f"updated {update_doc(doc, rep, out)}")
+            print(f"updated {update_doc(doc, stored, out)}")
         except ValueError as err:
             raise UsageError(f"--update-doc {doc}: {err}") from None
     return 0
