@@ -65,8 +65,8 @@ HYSTERESIS_BAND_K = 0.5
 #: The MPC spends H2 "when (absolute) prices are high" while ComEMS4Build uses it "with no
 #: external impact of electricity tariffs" (sec:results): the MPC's mean H2 use in the run's top
 #: price quartile over that in its bottom quartile at least this many times ComEMS4Build's [-].
-#: The RBC, which also follows the day's relative price (sec:RBC), has 1.3 to 1.5 times
-#: ComEMS4Build's on the paper's winter; ComEMS4Build in the MPC's place has 1.
+#: The RBC, which also follows the day's relative price (sec:RBC), stays well below it on the
+#: paper's winter (docs/validation.md gives its figure); ComEMS4Build in the MPC's place has 1.
 PRICE_FOLLOW_FACTOR = 2.0
 #: "Keeps the tank above half": share of V_max [-].
 DHW_HALF = 0.5

@@ -114,6 +114,7 @@ def case_metrics(runs: Mapping[str, RunData], params: PlantParams, heat_eta: flo
         allowed_discomfort_weeks,
         evaluate_findings,
         h2_chord_deviation,
+        h2_price_contrast,
         less,
     )
     from comems4build_ros.report.reproduce import at_efficiency
@@ -132,6 +133,7 @@ def case_metrics(runs: Mapping[str, RunData], params: PlantParams, heat_eta: flo
         "discomfort_kh": {e: float(r.weekly["discomfort_kh"].sum()) for e, r in runs.items()},
         "loh_end": {e: float(v["loh_end"]) for e, v in s.items()},
         "h2_even": {e: h2_chord_deviation(r, params.simulation.loh_init) for e, r in runs.items()},
+        "h2_contrast": {e: h2_price_contrast(r.timeseries) for e, r in runs.items()},
         "fc_hours": {e: float(v["fc_working_hours"]) for e, v in s.items()},
         "fc_toggles": {e: float(v["fc_toggles"]) for e, v in s.items()},
         "fc_load_w": {e: float(v["fc_mean_load_w"]) for e, v in s.items()},
@@ -209,6 +211,8 @@ def subset_summary(metrics: Sequence[Mapping[str, Any]], share: float) -> dict[s
                                  if "mpc" in m["fc_load_w"] and "fuzzy" in m["fc_load_w"]
                                  and m["fc_load_w"]["mpc"] > 0]),
         "cost": {e: _dist(per("cost", e)) for e in ("mpc", "fuzzy", "rbc")},
+        "h2_contrast_vs_fuzzy": {e: _dist([c[e] / c["fuzzy"] for c in (m.get("h2_contrast", {}) for m in metrics)
+                                           if e in c and c.get("fuzzy")]) for e in ("mpc", "rbc")},
         "fc_load_w": {e: _dist([m["fc_load_w"][e] for m in metrics if e in m.get("fc_load_w", {})])
                       for e in ("mpc", "fuzzy", "rbc")},
         "fc_eta": {e: _dist([m["fc_eta"][e] for m in metrics if e in m.get("fc_eta", {})])
@@ -476,16 +480,18 @@ def judged(plan: Plan, report: Mapping[str, Any], choice: Mapping[str, Any] | No
 
     ``choice``: the choosing step's :data:`CHOICE_FILE` (or, in one command of both steps, its
     own choice); the record says whether each chosen reading is the shipped one and whether the
-    choice was made on the same simulation code and default parameters as the judged runs.
+    choice was made on the same simulation code and default parameters as the judged runs
+    (False when either identity was not recorded: runs made before the record existed).
     """
     from comems4build_ros.study.identity import same_defaults
 
     choice = choice if choice is not None else report.get("choice")
-    runs = report["defaults"]["runs"] or report["defaults"]["evaluated"]
-    rec: dict[str, Any] = {"cases": [c.id for c in plan.cases if c.subset == HELD_OUT], "defaults": runs}
+    runs = report["defaults"]["runs"]
+    rec: dict[str, Any] = {"cases": [c.id for c in plan.cases if c.subset == HELD_OUT], "defaults": runs,
+                           "evaluated": report["defaults"]["evaluated"]}
     if choice is not None:
         differ = {k: (v["shipped"], v["chosen"]) for k, v in choice["ambiguities"].items() if not v["agrees"]}
-        made = choice["defaults"]["runs"] or choice["defaults"]["evaluated"]
+        made = choice["defaults"]["runs"]
         rec["choice"] = {"defaults": made, "same_defaults": same_defaults(made, runs),
                          "differ": {k: list(v) for k, v in differ.items()}}
     return rec

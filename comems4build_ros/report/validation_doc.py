@@ -206,7 +206,7 @@ def _fit_short(fit: Mapping[str, Any] | None) -> str:
 
 def _identity(ident: Mapping[str, Any] | None) -> str:
     if not ident:
-        return "not recorded"
+        return "not recorded (runs made before validate recorded it)"
     commit = ident.get("git_commit")
     git = (f"commit {commit[:12]}" + (" with uncommitted changes" if ident.get("git_dirty") else "")
            if commit else "no git checkout")
@@ -223,8 +223,7 @@ def _choice(doc: Document, report: Mapping[str, Any]) -> None:
           f"holding in at least {_pct(choice['share'])} of the subset's cases. Calibration fit: the reproduction's "
           "seed-median error over every stated figure / the headline table, the findings holding on its seeds and "
           "ComEMS4Build's FC hours against the MPC's. Defaults of the runs: "
-          + _identity((choice.get("defaults") or {}).get("runs") or (choice.get("defaults") or {}).get("evaluated"))
-          + ".")
+          + _identity((choice.get("defaults") or {}).get("runs")) + ".")
     rows = []
     for amb, a in choice["ambiguities"].items():
         for r in a["readings"]:
@@ -247,7 +246,7 @@ def _judged(doc: Document, report: Mapping[str, Any]) -> None:
         return
     doc.h(2, "What the held-out cases judged")
     text = (f"The judging step (validate --judge) ran the {len(rec['cases'])} held-out cases with the defaults of "
-            + _identity(rec.get("defaults")) + ".")
+            + _identity(rec.get("defaults")) + "; evaluated at " + _identity(rec.get("evaluated")) + ".")
     c = rec.get("choice")
     if c is not None:
         text += (" The choice it judges was made " + ("on the same simulation code and default parameters"
