@@ -51,11 +51,11 @@ EMS_OPTIONS = [
     ("mpc", "foo=1", "parameter 'foo': unknown parameter"),
     ("mpc-qp", "eps_abs=0", "parameter 'eps_abs'"),
     ("fuzzy", "foo=1", "unknown option(s) foo"),
-    ("fuzzy", "flex.hp.foo=1", "flc_flex.hp: unknown parameter 'foo'"),
+    ("fuzzy", "flex.hp.foo=1", "[flc_flex] + options: parameter 'flex.hp.foo': unknown parameter (known: update"),
     ("fuzzy", "flex.inputs.chi.foo=1", "variable 'chi': unknown parameter 'foo'"),
-    ("fuzzy", "fc.fc.cap_to_demand=3", "option 'fc.cap_to_demand' must be true or false"),
-    ("fuzzy", "flex.hp.dhw_priority_chi=true", "option 'hp.dhw_priority_chi': expected a finite number"),
-    ("thermostat", "foo=1", "thermostat EMS: unknown option(s) foo (it takes none)"),
+    ("fuzzy", "fc.fc.cap_to_demand=3", "parameter 'fc.fc.cap_to_demand': expected true or false, got 3"),
+    ("fuzzy", "flex.hp.dhw_priority_chi=true", "parameter 'flex.hp.dhw_priority_chi': expected a number, got"),
+    ("thermostat", "foo=1", "[thermostat] + options: parameter 'foo': unknown parameter (known: sh_on_k"),
     ("mpc", "solver=[", "--ems-option 'solver=[': the value is not valid YAML"),
 ]
 

@@ -1,4 +1,4 @@
-"""Parameter files: loading, merging, overrides and validation messages."""
+"""Parameter files: loading, merging, overrides and the messages of a bad file."""
 
 from __future__ import annotations
 

@@ -20,7 +20,7 @@ def study(params, tmp_path_factory) -> Path:
     b = params.building.model_copy(update={"f_gains_air": 0.5})
     report = {"building": "energyplus", "train": {"start": ident.TRAIN_START, "weeks": 3.0},
               "excitation": {"q_excite_w": ident.Q_EXCITE_W}, "fit": {"fit_rmse_k": 0.1},
-              "identified": {n: float(getattr(b, n)) for n, *_ in ident.FIT_PARAMETERS},
+              "identified": {n: float(getattr(b, n)) for n in ident.REPORTED},
               "heat_loss_coefficient_w_per_k": ident.heat_loss_coefficient(b),
               "validation": {"start": ident.VALID_START, "rmse_k": 0.1, "max_abs_k": 0.3, "predictions": 121},
               "evaluation_weeks_thermostat": {"rmse_k": 0.2, "max_abs_k": 1.0, "predictions": 10}}

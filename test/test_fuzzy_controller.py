@@ -144,7 +144,7 @@ def test_options_override_and_errors(params):
     assert b.p_fc_w > 600.0  # the default: alpha_FC * zeta * P_max, above the demand
     with pytest.raises(ConfigError, match="unknown option"):
         FuzzyEMS(params, {"fcc": {}})
-    with pytest.raises(ConfigError, match="must be true or false"):
+    with pytest.raises(ConfigError, match="parameter .fc.fc.cap_to_demand.: expected true or false, got .maybe."):
         FuzzyEMS(params, {"fc.fc.cap_to_demand": "maybe"})
 
 

@@ -4,6 +4,8 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
 
 from comems4build_ros.core.ems.mpc.observer import KalmanObserver, wall_split
 from comems4build_ros.core.models.building import RCBuilding
@@ -81,3 +83,59 @@ def test_kalman_observer_finds_the_walls_from_the_air_temperature(truth):
         x = rc.step(x, q, exo)
         est = obs.update(x[0], exo.t_amb_c)
     assert np.allclose(est, x, atol=0.01)
+
+
+# ---------------------------------------------------------------- physical bounds of the fit
+
+def test_bounds_come_from_the_house():
+    """H within 20 % of the typology's, capacities from the constructions' layers, shares in their ranges."""
+    import dataclasses
+
+    from comems4build_ros.core.models import house_idf as house
+
+    spec = house.HouseSpec()
+    b = {x.name: x for x in ident.physical_bounds(spec)}
+    h = house.heat_loss_coefficient(spec)["h_w_per_k"]
+    assert (b["h_w_per_k"].lo, b["h_w_per_k"].hi) == pytest.approx((0.8 * h, 1.2 * h))
+    cap = house.heat_capacity(spec)
+    assert cap["total"] == pytest.approx(sum(v for k, v in cap.items() if k != "total"))
+    assert b["c_air_j_per_k"].lo == pytest.approx(cap["air"]) and b["c_wall_j_per_k"].hi == pytest.approx(
+        cap["total"] / 2)
+    assert (b["f_gains_air"].lo, b["f_gains_air"].hi) == (0.0, ident.F_GAINS_MAX)
+    assert (b["f_conv"].lo, b["f_conv"].hi) == (0.0, 1.0)
+    assert b["g_s_m2"].hi == pytest.approx(spec.window_m2 * spec.g_window)
+    heavy = {x.name: x for x in ident.physical_bounds(dataclasses.replace(spec, construction="masonry"))}
+    assert heavy["c_wall_j_per_k"].hi > 1.5 * b["c_wall_j_per_k"].hi  # derived from the layers, not fixed
+    assert heavy["air_share"].hi < b["air_share"].hi  # masonry walls buffer their loss, timber frame hardly
+    assert all(x.reason for x in b.values())
+
+
+@settings(max_examples=60, deadline=None)
+@given(st.lists(st.floats(0.0, 1.0), min_size=10, max_size=10))
+def test_fitted_quantities_and_building_parameters_are_inverse(params, u):
+    """Any point of the bounded box maps to building parameters and back (the reparametrised resistances)."""
+    bounds = ident.physical_bounds()
+    theta = np.array([np.log(b.lo) + x * (np.log(b.hi) - np.log(b.lo)) if b.log else b.lo + x * (b.hi - b.lo)
+                      for b, x in zip(bounds, u)])
+    b = ident.params_of(theta, params.building, bounds)
+    assert min(b.r_air_amb_k_per_w, b.r_w_air_k_per_w, b.r_w_k_per_w, b.r_w_amb_k_per_w) > 0
+    back = ident.fitted_of(b)
+    for bound, x in zip(bounds, theta):
+        assert back[bound.name] == pytest.approx(np.exp(x) if bound.log else x, rel=1e-9, abs=1e-12)
+
+
+@pytest.mark.parametrize(("update", "hits"), [
+    ({"r_air_amb_k_per_w": 0.0275 / 1.8, "r_w_air_k_per_w": 0.00066 / 1.8, "r_w_k_per_w": 0.00825 / 1.8,
+      "r_w_amb_k_per_w": 0.00695 / 1.8}, "h_w_per_k"),  # H = 179 W/K, above the typology's + 20 %
+    ({"g_s_m2": 30.0}, "g_s_m2"),  # more sun than the windows' area times their g-value
+    ({"f_gains_air": 2.0}, "f_gains_air"),  # twice the appliance load as heat
+])
+def test_fit_stays_within_the_physical_bounds_and_names_the_bound_it_hits(params, update, hits):
+    """A house outside the bounds gives a fit on its bounds, named in at_bounds, never an unphysical value."""
+    truth = params.building.model_copy(update={"f_gains_air": 0.5, **update})
+    bounds = ident.physical_bounds()
+    b, _ = ident.fit(_data(truth, 2 * 168, 3), params.building, bounds)
+    fitted = ident.fitted_of(b)
+    for bound in bounds:
+        assert bound.lo * (1 - 1e-9) <= fitted[bound.name] <= bound.hi * (1 + 1e-9), bound.name
+    assert hits in ident.at_bounds(fitted, bounds, rel=1e-3)

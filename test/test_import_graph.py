@@ -28,13 +28,15 @@ ROOT = Path(__file__).resolve().parents[1] / PACKAGE
 #: The layers, bottom up: a module may import its own layer and the layers before it.
 LAYERS = ("files", "core", "wire", "bags", "mqtt", "ros", "run", "study", "report", "app")
 #: The core's own order, bottom up: records and arithmetic, the parameters, the device models,
-#: what is built from them (plant, scenarios, KPIs, economics, EMS), and the in-process loop.
+#: what is built from them (plant, scenarios, KPIs, economics, EMS), the in-process loop, and the
+#: community, which composes houses of the loop.
 CORE_LAYERS = (
     ("types", "numerics", "result_cache", "psychrometrics"),
     ("config",),
     ("models",),
     ("plant", "scenario", "kpi", "economics", "ems", "forecast"),
     ("loop",),
+    ("community",),
 )
 #: Top-level distributions of the ROS client libraries and message packages.
 ROS_CLIENT = frozenset({"rclpy", "launch", "launch_ros", "ros2launch", "std_msgs", "rosgraph_msgs",

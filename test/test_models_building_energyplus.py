@@ -8,7 +8,7 @@ import pytest
 
 from comems4build_ros.app.cli import main
 from comems4build_ros.core.loop import simulate
-from comems4build_ros.core.models import energyplus_house as house
+from comems4build_ros.core.models import house_idf as house
 from comems4build_ros.core.models.building_energyplus import IDFError, check_idf, polygon_area_m2
 from comems4build_ros.core.models.epw import (
     EPWError,

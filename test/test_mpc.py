@@ -14,8 +14,8 @@ from comems4build_ros.core.config import W_PER_KW, load_plant_params
 from comems4build_ros.core.ems.base import FORECAST_KEYS, InformationError, Observation
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc import MPCController
+from comems4build_ros.core.ems.mpc.costs import lifecycle_costs
 from comems4build_ros.core.ems.mpc.horizon import loh_min_schedule
-from comems4build_ros.core.ems.mpc.settings import lifecycle_costs
 from comems4build_ros.core.types import HP_OFF
 
 SELL = 0.0794
@@ -128,7 +128,7 @@ def test_full_tank_and_fc_heat(params3, dump):
     """eq:DHW_heat as printed (``fc_heat_dump: false``, the default): recovered FC heat must enter the
     tank, so with the tank at V_max and no draw the plan keeps the FC off at a high price; with the
     dump allowed it runs the FC and dumps its heat."""
-    assert MPCController(params3, {}).options.fc_heat_dump is False
+    assert MPCController(params3, {}).settings.fc_heat_dump is False
     ctrl = MPCController(params3, {"mip_rel_gap": 0.0, "warm_start": False, "fc_heat_dump": dump})
     v_max = params3.dhw.v_max_l
     action = ctrl.act(mpc_obs(3, prices=(0.6, 0.6, 0.6), load_w=2500.0, v_dhw=v_max))

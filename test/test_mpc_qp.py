@@ -68,7 +68,7 @@ def test_full_tank_and_fc_heat(params3, dump):  # noqa: F811 (fixture)
     """As the MILP: with eq:DHW_heat as printed (``fc_heat_dump: false``, the default) the recovered
     FC heat must enter the tank, so with the tank at V_max and no draw the relaxed plan keeps the FC
     off at a high price, up to the heat the tank loses; with the dump allowed it runs the FC and dumps its heat."""
-    assert QPController(params3, {}).options.fc_heat_dump is False
+    assert QPController(params3, {}).settings.fc_heat_dump is False
     ctrl = QPController(params3, {"fc_heat_dump": dump, "eps_abs": 1e-5, "eps_rel": 1e-5, "max_iter": 200000})
     v_max = params3.dhw.v_max_l
     action = ctrl.act(mpc_obs(3, prices=(0.6, 0.6, 0.6), load_w=2500.0, v_dhw=v_max))

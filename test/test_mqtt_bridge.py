@@ -10,7 +10,7 @@
   fallback set-points and an alarm (MQTT and ROS) in the same step, a command beyond the
   device limits is clamped and counted, a measurement that stops updating is flagged
   stale and gets the fallback within one step; the retained Home Assistant discovery
-  messages on the broker validate against the documented schema.
+  messages on the broker match the documented schema.
 """
 
 from __future__ import annotations
@@ -40,7 +40,7 @@ from comems4build_ros.core.config import load_plant_params  # noqa: E402
 from comems4build_ros.core.loop import simulate  # noqa: E402
 from comems4build_ros.mqtt.broker import free_port  # noqa: E402
 from comems4build_ros.mqtt.client import MqttLink  # noqa: E402
-from comems4build_ros.mqtt.discovery import DISCOVERY_SCHEMA, discovery_messages, validate_discovery  # noqa: E402
+from comems4build_ros.mqtt.discovery import DISCOVERY_SCHEMA, check_discovery, discovery_messages  # noqa: E402
 from comems4build_ros.mqtt.topicmap import SETPOINTS, load_topic_map  # noqa: E402
 from comems4build_ros.ros.interfaces import qos_profile  # noqa: E402
 from comems4build_ros.run.launcher import launch  # noqa: E402
@@ -358,7 +358,7 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
         assert [s["in_charge"] for s in rig.ha_states if s["step"] == 4][-1] == "fallback_switch"
         # Home Assistant discovery: retained configs on the broker, valid against the schema;
         # a real building (no record topic) has no run totals: those are not announced
-        comps = {validate_discovery(t, p) for t, p in rig.discovery.items()}
+        comps = {check_discovery(t, p) for t, p in rig.discovery.items()}
         limits = rig.map.device_limits(load_plant_params())
         wanted = {t for t, p in discovery_messages(rig.map, limits) if p is not None}
         assert comps == set(DISCOVERY_SCHEMA) and set(rig.discovery) == wanted

@@ -17,8 +17,8 @@ from comems4build_ros.mqtt.discovery import (
     SENSORS,
     TOTAL_KEYS,
     DiscoveryError,
+    check_discovery,
     discovery_messages,
-    validate_discovery,
 )
 from comems4build_ros.mqtt.peer import (
     ForeignMessageError,
@@ -196,7 +196,7 @@ def test_discovery_for_the_simulated_house_and_for_a_real_building(tmp_path: Pat
     for msgs in (sim, real):
         for topic, payload in msgs.items():
             if payload is not None:
-                validate_discovery(topic, payload)
+                check_discovery(topic, payload)
     prefix = "homeassistant/sensor/comems4build/"
     # the simulated house: every sensor; the run totals with last_reset, lasting after the run
     assert all(sim[f"{prefix}{s.key}/config"] is not None for s in SENSORS)
@@ -225,12 +225,12 @@ def test_discovery_for_the_simulated_house_and_for_a_real_building(tmp_path: Pat
     (lambda p: p["device"].pop("sw_version"), "field 'device' needs"),
     (lambda p: p.update(state_class="measurement"), "does not fit device class"),
 ])
-def test_discovery_validation_names_the_field(change, message: str) -> None:
+def test_discovery_check_names_the_field(change, message: str) -> None:
     topic, payload = next((t, p) for t, p in discovery_messages(load_topic_map()) if t.endswith("grid_cost_eur/config"))
     payload = json.loads(json.dumps(payload))
     change(payload)
     with pytest.raises(DiscoveryError, match=message):
-        validate_discovery(topic, payload)
+        check_discovery(topic, payload)
 
 
 @settings(max_examples=300, **LOADED)
@@ -260,5 +260,5 @@ def test_the_battery_power_limit_narrows_the_device_limits() -> None:
     assert limiter.set_power_limit("p_bess_w", 5000.0) == limiter.device_limits["p_bess_w"]  # never beyond the device
     sim = dict(discovery_messages(MAP, MAP.device_limits(load_plant_params())))
     number = sim["homeassistant/number/comems4build/battery_power_limit/config"]
-    assert validate_discovery("homeassistant/number/comems4build/battery_power_limit/config", number) == "number"
+    assert check_discovery("homeassistant/number/comems4build/battery_power_limit/config", number) == "number"
     assert number["max"] == 1000.0 and number["retain"] is True and number["device_class"] == "power"

@@ -16,8 +16,8 @@ from comems4build_ros.mqtt.clock import ClockError, parse_clock
 from comems4build_ros.mqtt.discovery import (
     DISCOVERY_SCHEMA,
     DiscoveryError,
+    check_discovery,
     discovery_messages,
-    validate_discovery,
 )
 from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog
 from comems4build_ros.mqtt.topicmap import MeasurementSpec, PayloadError, SetpointSpec, load_topic_map
@@ -136,10 +136,10 @@ def test_limiter_clamps_counts_ramps_and_rate_limits():
 
 
 # ---------------------------------------------------------------------- Home Assistant discovery
-def test_every_discovery_payload_validates_against_the_documented_schema(tmap):
+def test_every_discovery_payload_matches_the_documented_schema(tmap):
     limits = tmap.device_limits(load_plant_params())
     msgs = [(t, p) for t, p in discovery_messages(tmap, limits) if p is not None]  # None: deleted (not this map's)
-    components = {validate_discovery(t, json.dumps(p)) for t, p in msgs}
+    components = {check_discovery(t, json.dumps(p)) for t, p in msgs}
     assert components == set(DISCOVERY_SCHEMA)
     ids = [p["unique_id"] for _, p in msgs]
     assert len(ids) == len(set(ids)) and len({p["object_id"] for _, p in msgs}) == len(ids)
@@ -172,9 +172,9 @@ def test_broken_discovery_payloads_are_refused(tmap, topic, edit, message):
     payload = json.loads(json.dumps(dict(discovery_messages(tmap))[topic]))
     edit(payload)
     with pytest.raises(DiscoveryError, match=message):
-        validate_discovery(topic, payload)
+        check_discovery(topic, payload)
     with pytest.raises(DiscoveryError, match="unknown component 'light'"):
-        validate_discovery("homeassistant/light/comems4build/x/config", payload)
+        check_discovery("homeassistant/light/comems4build/x/config", payload)
 
 
 # ---------------------------------------------------------------------- clock

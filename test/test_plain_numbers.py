@@ -184,7 +184,7 @@ def test_epw_names_the_line(tmp_path: Path, params, text: str, record: int, fiel
 @given(text=lenient_only(latin1=False), where=st.sampled_from(["timestep", "vertex", "capacity"]))
 @settings(**QUICK)
 def test_idf_numbers_name_the_object(tmp_path: Path, text: str, where: str) -> None:
-    from comems4build_ros.core.models import energyplus_house as house
+    from comems4build_ros.core.models import house_idf as house
     from comems4build_ros.core.models.building_energyplus import IDFError, check_idf
 
     idf = house.idf_text()
@@ -210,7 +210,7 @@ def test_idf_numbers_name_the_object(tmp_path: Path, text: str, where: str) -> N
 
 def test_idf_comment_after_a_line_separator_stays_a_comment(tmp_path: Path) -> None:
     """``str.splitlines`` would end the comment at U+2028 and read ``Timestep, 1;`` as an object."""
-    from comems4build_ros.core.models import energyplus_house as house
+    from comems4build_ros.core.models import house_idf as house
     from comems4build_ros.core.models.building_energyplus import check_idf
 
     idf = house.idf_text().replace("Timestep,\n  4;", "Timestep,\n  4;  ! four steps\u2028Timestep, 1;", 1)

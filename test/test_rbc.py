@@ -89,9 +89,9 @@ def test_battery_rules(params):
 
 
 def test_bad_option_named(params):
-    with pytest.raises(ConfigError, match="rbc.yaml \\+ options: parameter 'hp_mod_on'"):
+    with pytest.raises(ConfigError, match=r"rbc.yaml \[rbc\] \+ options: parameter 'hp_mod_on'"):
         RuleBasedController(params, {"hp_mod_on": 1.5})
-    with pytest.raises(ConfigError, match="unknown parameter"):
+    with pytest.raises(ConfigError, match="parameter 'hp_power': unknown parameter .known: sh_on_chi, .*hp_mod_on"):
         RuleBasedController(params, {"hp_power": 1.0})
 
 

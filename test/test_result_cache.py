@@ -192,7 +192,7 @@ def test_holiday_calendar_found_once_is_remembered_and_an_unknown_one_always_ref
 
 
 def test_warm_cache_plant_without_scipy_and_holiday_calendars(cache: Path) -> None:
-    """A second process validating the plant parameters and house the plant (as plant_sim
+    """A second process checking the plant parameters and house the plant (as plant_sim
     does) imports neither SciPy's linalg nor holidays' calendars."""
     code = ("import sys; from comems4build_ros.core.config import load_plant_params;"
             "from comems4build_ros.core.plant import Plant; Plant(load_plant_params());"

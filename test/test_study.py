@@ -27,7 +27,7 @@ import pytest
 
 from comems4build_ros.app.cli import main
 from comems4build_ros.study.cluster import LocalDaskCluster, _alive, free_port
-from comems4build_ros.study.executor import ExecutorError, check_environment
+from comems4build_ros.study.pool import PoolError, check_environment
 from comems4build_ros.study.spec import environment
 
 REPO = Path(__file__).resolve().parents[1]
@@ -233,7 +233,7 @@ def test_an_interrupted_study_resumes_without_running_its_finished_runs_again(
 
 # --------------------------------------------------------------------------- refused before any run
 
-def test_executor_options_checked_before_any_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+def test_study_pool_options_checked_before_any_run(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     base = ["sweep", "--param", "battery.e_max_kwh=5", "--ems", "rbc", "--weeks", "1", "--no-progress"]
     for url, message in (("http://127.0.0.1:8786", "tcp://HOST:PORT"), ("tcp://127.0.0.1", "tcp://HOST:PORT"),
                          ("tcp://127.0.0.1:0", "outside 1..65535"), ("tcp://u:p@127.0.0.1:8786", "tcp://HOST:PORT")):
@@ -256,7 +256,7 @@ def test_a_worker_of_another_environment_is_named() -> None:
     mine = environment()
     check_environment({"tcp://a:1": dict(mine)}, "tcp://s:1")
     other = {**mine, "numpy": "0.0.1"}
-    with pytest.raises(ExecutorError, match=r"worker tcp://b:2: numpy: \"[^\"]+\" -> \"0.0.1\""):
+    with pytest.raises(PoolError, match=r"worker tcp://b:2: numpy: \"[^\"]+\" -> \"0.0.1\""):
         check_environment({"tcp://a:1": dict(mine), "tcp://b:2": other}, "tcp://s:1")
 
 

@@ -35,7 +35,8 @@ COMMANDS: dict[str, tuple[str, str]] = {
                          "isolated domain; writes DIR/bag/ (MCAP), DIR/weekly.csv and DIR/summary.json from the bag"),
     "evaluate": ("evaluate", "weekly KPIs and summary from any recorded bag (a damaged bag is salvaged and marked "
                              "incomplete)"),
-    "compare": ("compare", "RBC, fuzzy and MPC on one scenario; DIR/report.md, DIR/report.html (contents, figures "
+    "compare": ("compare", "RBC, fuzzy and MPC on one scenario (or, with --community FILE, the coordinators on a "
+                           "community of houses sharing one H2 hub); DIR/report.md, DIR/report.html (contents, figures "
                            "linked to their vector versions) and the paper-style figures as PDF, SVG and 300 dpi PNG; "
                            "a progress bar per run on a terminal"),
     "sweep": ("sweep", "sensitivity grid on local processes or a Dask cluster; one table and one plot per KPI "
@@ -43,8 +44,9 @@ COMMANDS: dict[str, tuple[str, str]] = {
     "reproduce": ("reproduce", "the paper's table beside ours, its findings and the interpretation study"),
     "export-fmu": ("export_fmu", "the paper's 4R3C building model as an FMI 2.0 co-simulation FMU (pythonfmu) with its "
                                  "variable map, for --building fmu:FILE.fmu"),
-    "house": ("house", "the EnergyPlus house against its typology: heat loss coefficient (typology method and "
-                       "EnergyPlus steady states), design heat load, heating demand with the thermostat"),
+    "house": ("house", "the EnergyPlus house and the 4R3C side by side, measured the same way: heat loss, internal "
+                       "gains, effective heat capacity, solar aperture, winter heat demand, summer overheating "
+                       "(DIN 4108-2), each with its tolerance; the typology's figures"),
     "identify": ("identify", "the MPC's 4R3C fitted to a detailed building's response under a documented excitation "
                              "(outside the evaluation weeks); its 24-h open-loop T_air error on held-out weeks; "
                              "writes the parameter file the MPC reads"),

@@ -125,11 +125,6 @@ class BagWriter:
         self.chunks_written = 0
         self.closed = False
 
-    @property
-    def mcap_path(self) -> Path:
-        """The ``.mcap`` file inside the bag directory."""
-        return Path(self._storage.path)
-
     def add_topic(self, topic: str, msgtype: str, qos: Qos | None = None) -> None:
         """Register ``topic`` of type ``msgtype`` (e.g. ``std_msgs/msg/Float64``)."""
         if topic in self._connections:

@@ -1,4 +1,4 @@
-"""Parameter files: loading, merging and validation.
+"""Parameter files: loading, merging and checking.
 
 All parameters live in ``config/*.yaml`` in the ROS 2 parameter-file form::
 
@@ -9,17 +9,17 @@ All parameters live in ``config/*.yaml`` in the ROS 2 parameter-file form::
 
 The same files are passed to the ROS nodes with ``--ros-args --params-file``. This
 module reads them without rclpy, merges several files (later ones win, key by key) and
-validates the plant sections against :class:`PlantParams`. An invalid file raises
+checks the plant sections against :class:`PlantParams`. An invalid file raises
 :class:`ConfigError` naming the file, the parameter path and the rule broken.
 
 Other packages of the project (scenario generator, controllers) read their own sections
-with :func:`read_ros_params` and validate them with :func:`validate`.
+with :func:`read_ros_params` and check them with :func:`parse_model`.
 """
 
 from __future__ import annotations
 
 import sys
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from pathlib import Path
 from typing import Any, Literal, TypeVar
 
@@ -342,35 +342,29 @@ def check_known_keys(data: Mapping[str, Any], known: Iterable[str], where: str) 
             raise ConfigError(f"{where}: unknown parameter '{key}' ({hint}known: {', '.join(known)})")
 
 
-def finite_number(value: Any, where: str) -> float:
-    """Return a parameter value as a finite float.
+def _known_keys(model: type[BaseModel], loc: tuple[Any, ...]) -> str:
+    """Return `` (did you mean 'x'? known: a, b)``: the keys of the model that ``loc[:-1]`` leads to."""
+    import difflib
+    import typing
 
-    Parameters
-    ----------
-    value : object
-        The value read.
-    where : str
-        The file and parameter, for the message.
-
-    Returns
-    -------
-    float
-        ``float(value)``.
-
-    Raises
-    ------
-    ConfigError
-        Naming ``where`` for a boolean, text, inf or NaN.
-    """
-    import math
-
-    if isinstance(value, bool) or not isinstance(value, int | float) or not math.isfinite(value):
-        raise ConfigError(f"{where}: expected a finite number, got {value!r}")
-    return float(value)
+    for part in loc[:-1]:
+        field = model.model_fields.get(str(part))
+        if field is None:
+            return ""
+        inner = [t for t in (field.annotation, *typing.get_args(field.annotation))
+                 if isinstance(t, type) and issubclass(t, BaseModel)]
+        if not inner:
+            return ""
+        model = inner[0]
+    known = list(model.model_fields)
+    close = difflib.get_close_matches(str(loc[-1]), known, n=1)
+    return f" ({f'did you mean {close[0]!r}? ' if close else ''}known: {', '.join(known)})"
 
 
-def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
-    """Validate parameters against a pydantic model.
+def parse_model(model: type[M], data: Mapping[str, Any], source: str, prefix: str = "") -> M:
+    """Check ``data`` against a pydantic model; errors name the source and the parameter.
+
+    An unknown parameter's message lists the known ones of its section (and the closest).
 
     Parameters
     ----------
@@ -380,11 +374,13 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
         The parameters.
     source : str
         The file(s) they came from, for the messages.
+    prefix : str, optional
+        Put before each parameter's name (the key of ``data`` in a larger set).
 
     Returns
     -------
     pydantic.BaseModel
-        The validated ``model`` instance.
+        The checked ``model`` instance.
 
     Raises
     ------
@@ -396,17 +392,17 @@ def validate(model: type[M], data: Mapping[str, Any], source: str) -> M:
     except ValidationError as exc:
         lines = []
         for err in exc.errors():
-            loc = ".".join(str(p) for p in err["loc"])
+            loc = prefix + ".".join(str(p) for p in err["loc"]) if err["loc"] else ""
             msg = err["msg"].removeprefix("Value error, ")
             if err["type"] == "extra_forbidden":
-                msg = "unknown parameter"
+                msg = "unknown parameter" + _known_keys(model, tuple(err["loc"]))
             lines.append(f"{source}: parameter '{loc}': {msg}" if loc else f"{source}: {msg}")
         raise ConfigError("\n".join(lines)) from None
 
 
 def load_section(model: type[M], path: str | Path | None, default_file: str, section: str,
                  overrides: Mapping[str, Any] | None = None) -> M:
-    """Read one section of a parameter file, apply overrides, and validate it.
+    """Read one section of a parameter file, apply overrides, and check it.
 
     Parameters
     ----------
@@ -419,7 +415,7 @@ def load_section(model: type[M], path: str | Path | None, default_file: str, sec
     section : str
         The section under ``ros__parameters``.
     overrides : mapping, optional
-        Top-level keys of the section replaced before validation.
+        Top-level keys of the section replaced before the check.
 
     Returns
     -------
@@ -434,13 +430,13 @@ def load_section(model: type[M], path: str | Path | None, default_file: str, sec
     path = Path(path) if path else config_dir() / default_file
     data = read_param_section(path, section)
     data.update(overrides or {})
-    return validate(model, data, str(path))
+    return parse_model(model, data, str(path))
 
 
 class Section(BaseModel):
-    """A parameter section: unknown keys, booleans as numbers and inf/NaN are refused.
+    """A parameter section: unknown keys, booleans as numbers, numbers as booleans and inf/NaN are refused.
 
-    The one rule for every validated parameter set: the plant sections here and the
+    The one rule for every checked parameter set: the plant sections here and the
     controllers' options (``config/rbc.yaml``, ``config/mpc.yaml``), from files, ``--set``,
     ``--config`` and ``--ems-option`` alike.
     """
@@ -458,7 +454,11 @@ class Section(BaseModel):
         text); text that is not a number is refused by the field's type.
         """
         field = cls.model_fields.get(info.field_name or "")
-        if field is None or field.annotation is bool:
+        if field is None or field.annotation is Any:  # checked by its reader (a fuzzy rule base)
+            return value
+        if field.annotation is bool:
+            if not isinstance(value, bool):
+                raise ValueError(f"expected true or false, got {value!r}")
             return value
         items = value if isinstance(value, list | tuple) else [value]
         if any(isinstance(v, bool) for v in items):
@@ -1089,7 +1089,7 @@ def check_holiday_calendar(country: str, subdivision: str) -> None:
     subdivisions (``BW``) or empty (the national holidays only). A calendar found once is
     remembered on disk for the installed ``holidays`` version
     (:mod:`comems4build_ros.core.result_cache`): ``holidays`` imports every country's calendar to
-    look one up, in every process that validates the plant parameters.
+    look one up, in every process that checks the plant parameters.
 
     Parameters
     ----------
@@ -1242,7 +1242,7 @@ def load_plant_params(
     paths: Iterable[str | Path] | None = None,
     overrides: Mapping[str, Any] | None = None,
 ) -> PlantParams:
-    """Load and validate the plant parameters.
+    """Load and check the plant parameters.
 
     Parameters
     ----------
@@ -1281,4 +1281,92 @@ def load_plant_params(
                 raise ConfigError(f"overrides: parameter '{key}': {unknown_section_text(key.split('.')[0])}")
             set_dotted(merged, key, value)
         source += " + overrides"
-    return validate(PlantParams, merged, source)
+    return parse_model(PlantParams, merged, source)
+
+
+def table_rows(doc: Any, key: str, row_keys: Sequence[str], class_key: str, source: str,
+               what: str) -> Iterator[tuple[str, dict[str, Any], str]]:
+    """Yield the checked rows of a table of classes (``config/ems.yaml``, ``config/coordinators.yaml``).
+
+    Parameters
+    ----------
+    doc : object
+        The file's content, ``{key: {name: row}}``.
+    key : str
+        The table's top-level key.
+    row_keys : sequence of str
+        The keys every row holds, exactly.
+    class_key : str
+        The key of the row's ``module:Class``.
+    source : str
+        The file, for the messages.
+    what : str
+        What a row is (``EMS``, ``coordinator``), for the messages.
+
+    Yields
+    ------
+    tuple of (str, dict, str)
+        ``(name, row, where)``, ``where`` naming the file and the row for further checks.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file, the row (``what 'name'``) and the key that is missing, unknown or invalid.
+    """
+    rows = doc.get(key) if isinstance(doc, dict) else None
+    if not isinstance(rows, dict) or not rows:
+        raise ConfigError(f"{source}: needs a mapping '{key}' of {what} name -> row")
+    for name, row in rows.items():
+        where = f"{source}: {what} '{name}'"
+        if not isinstance(name, str) or not isinstance(row, dict):
+            raise ConfigError(f"{where}: a name and a mapping of {', '.join(row_keys)}")
+        missing = [k for k in row_keys if k not in row]
+        extra = sorted(set(row) - set(row_keys))
+        if missing or extra:
+            problems = ([f"missing {', '.join(missing)}"] if missing else []) + (
+                [f"unknown {', '.join(extra)}"] if extra else [])
+            raise ConfigError(f"{where}: " + "; ".join(problems))
+        if not isinstance(row[class_key], str) or row[class_key].count(":") != 1:
+            raise ConfigError(f"{where}: {class_key} must be 'module:Class', got {row[class_key]!r}")
+        yield name, row, where
+
+
+def table_class(spec: str, methods: Sequence[str], kind: str, what: str, error: type[Exception]) -> type:
+    """Import the class ``module:Class`` of a table's row, with the ``methods`` a ``kind`` class has.
+
+    Parameters
+    ----------
+    spec : str
+        ``module:Class``.
+    methods : sequence of str
+        Methods the class must have.
+    kind : str
+        What the class is (``controller``, ``coordinator``), for the message.
+    what : str
+        The row, e.g. ``EMS 'rbc'``, for the message.
+    error : type of Exception
+        The exception raised.
+
+    Returns
+    -------
+    type
+        The class.
+
+    Raises
+    ------
+    error
+        Naming ``what`` (the row, e.g. ``EMS 'rbc'``) when its module or class is missing.
+    """
+    import importlib
+
+    module_name, _, class_name = spec.partition(":")
+    try:
+        module = importlib.import_module(module_name)
+    except ModuleNotFoundError as exc:
+        if exc.name and module_name.startswith(exc.name):
+            raise error(f"{what} is in the table but its module {module_name} is missing") from None
+        raise
+    cls = getattr(module, class_name, None)
+    if not isinstance(cls, type) or not all(callable(getattr(cls, m, None)) for m in methods):
+        raise error(f"module {module_name} defines no {kind} class {class_name} ({what})")
+    return cls

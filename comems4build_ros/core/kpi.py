@@ -713,34 +713,6 @@ def monthly_table(ts: pd.DataFrame, dt_h: float = 1.0, t_comfort: np.ndarray | N
     return pd.DataFrame(rows)
 
 
-def loh_at(ts: pd.DataFrame, when: str) -> float | None:
-    """Return the LOH at a local time: the end state of the step before it.
-
-    The first row's start is the run's initial LOH, which the timeseries does not hold, so
-    a ``when`` at or before the first step gives None.
-
-    Parameters
-    ----------
-    ts : pandas.DataFrame
-        Timeseries with ``time`` (ISO with offset) and ``loh`` [-].
-    when : str
-        ISO time; naive means the run's UTC offset.
-
-    Returns
-    -------
-    float or None
-        LOH [-], or None if the run does not reach ``when``.
-    """
-    times = pd.to_datetime(ts["time"].astype(str), utc=True)
-    target = pd.Timestamp(when)
-    if target.tzinfo is None:
-        target = target.tz_localize(pd.Timestamp(str(ts["time"].iloc[0])).tzinfo)
-    idx = int(np.searchsorted(times.to_numpy(), target.tz_convert("UTC").to_datetime64()))
-    if idx <= 0 or idx >= len(ts) + 1 or (idx == len(ts) and times.iloc[-1] + pd.Timedelta(hours=1) < target):
-        return None
-    return float(ts["loh"].iloc[idx - 1])
-
-
 def year_kpis(
     ts: pd.DataFrame, weekly: pd.DataFrame, dt_h: float, season_start: str, season_end: str,
     t_comfort: np.ndarray | None = None,

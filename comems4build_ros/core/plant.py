@@ -47,7 +47,7 @@ from comems4build_ros.core.models import battery, grid
 from comems4build_ros.core.models.building import BuildingModel, RCBuilding
 from comems4build_ros.core.models.dhw import Tank
 from comems4build_ros.core.models.electrolyser import ElectrolyserTable
-from comems4build_ros.core.models.fuel_cell import FuelCell, FuelCellTable
+from comems4build_ros.core.models.fuel_cell import FuelCell
 from comems4build_ros.core.models.heat_pump import HeatPump
 from comems4build_ros.core.types import (
     CLIP_BESS_POWER,
@@ -137,11 +137,6 @@ class Plant:
                         tank.v_min_l - STATE_TOL, tank.v_max_l + STATE_TOL)
         self._el_n = self.el_table.n
         self._loh_max, self._e_h2_wh = fc.loh_max, fc.e_h2_wh
-
-    @property
-    def fc_table(self) -> FuelCellTable:
-        """The fuel cell's P_H2(P_el) table (:class:`~comems4build_ros.core.models.fuel_cell.FuelCellTable`)."""
-        return self.fuel_cell.table
 
     # ------------------------------------------------------------------ state
     def initial_state(self, t_amb_c: float | None = None) -> PlantState:

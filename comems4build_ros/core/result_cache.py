@@ -13,7 +13,7 @@ import again:
   ``eq:state_update_bldgs``): SciPy's ``linalg`` takes about 0.1 s to import, in ``plant_sim``;
 * the check that the ``holidays`` library knows the comfort calendar
   (:func:`comems4build_ros.core.config.check_holiday_calendar`): ``holidays`` imports every
-  country's calendar to find one (0.1 s), in every process that validates the plant
+  country's calendar to find one (0.1 s), in every process that checks the plant
   parameters.
 
 :func:`cached` stores a result under a key that covers everything it depends on: the input

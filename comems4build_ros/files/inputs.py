@@ -339,13 +339,6 @@ def load_json_file(path: str | Path, what: str) -> Any:
     return load_json_text(read_text(path, what), str(path))
 
 
-def expect_mapping(data: Any, source: str, what: str) -> dict[str, Any]:
-    """``data`` if it is a mapping with string keys, else :class:`InputFileError` naming ``source``."""
-    if not isinstance(data, dict):
-        raise InputFileError(f"{source}: expected {what} (a mapping), got {type(data).__name__}")
-    return data
-
-
 
 #: A plain decimal number as the text sources write it (DWD and DHWCalc files, MQTT
 #: ``number`` commands, command-line lists): ASCII digits, an optional sign, point and

@@ -34,7 +34,7 @@ topic (``<base>/state``, read with a ``value_template``) and at the availability
 Every config has ``object_id`` (entity ids such as ``switch.comems4build_ems_control``),
 ``origin`` and a ``device`` block with ``sw_version`` (and ``configuration_url`` when the
 topic map gives one). :data:`DISCOVERY_SCHEMA` lists the fields each component's payload
-must have, and :func:`validate_discovery` checks a payload against it.
+must have, and :func:`check_discovery` checks a payload against it.
 """
 
 from __future__ import annotations
@@ -285,7 +285,7 @@ class DiscoveryError(ValueError):
     """A discovery message breaks :data:`DISCOVERY_SCHEMA`; the message names topic and field."""
 
 
-def validate_discovery(
+def check_discovery(
     topic: str, payload: dict[str, Any] | bytes | str, discovery_prefix: str = "homeassistant"
 ) -> str:
     """Check one discovery message; returns its component.

@@ -79,11 +79,6 @@ def read_peer_key(path: str | Path) -> bytes:
     return b"mqtt:" + str(read_token_file(path)).encode("ascii")
 
 
-def read_secret_text(path: str | Path) -> str:
-    """The run secret of ``path`` as text (the embedded broker's password for the run's peers)."""
-    return str(read_token_file(path))
-
-
 def _code(key: bytes, topic: str, body: bytes) -> str:
     return hmac.new(key, topic.encode("utf-8") + b"\n" + body, "sha256").hexdigest()[:MAC_HEX]
 

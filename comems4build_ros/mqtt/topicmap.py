@@ -23,7 +23,7 @@ from urllib.parse import urlsplit
 
 from pydantic import Field, field_validator, model_validator
 
-from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, read_ros_params, validate
+from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, parse_model, read_ros_params
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
 from comems4build_ros.files.inputs import ASCII_SPACE, parse_decimal, parse_integer
 
@@ -392,7 +392,7 @@ def default_map_file() -> Path:
 
 def load_topic_map(path: str | Path | None = None, broker_url: str | None = None, username: str | None = None,
                    password_file: str | None = None) -> TopicMap:
-    """Read and validate the ``mqtt`` section of ``config/mqtt.yaml`` (or ``path``).
+    """Read and check the ``mqtt`` section of ``config/mqtt.yaml`` (or ``path``).
 
     ``broker_url`` replaces ``broker.url``; ``username`` and ``password_file`` replace the
     broker login (the launcher's embedded broker and its per-run login).
@@ -412,6 +412,6 @@ def load_topic_map(path: str | Path | None = None, broker_url: str | None = None
     if username:
         data["broker"] = dict(data.get("broker", {}), username=username, password_file=password_file or "",
                               password_env="")
-    return validate(TopicMap, data, str(path))
+    return parse_model(TopicMap, data, str(path))
 
 

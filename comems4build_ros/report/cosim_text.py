@@ -13,21 +13,50 @@ def _f(x: Any, digits: int = 1) -> str:
         return "-"
 
 
-def at_bounds(identified: dict[str, float]) -> str:
-    """The identified parameters that ended on a bound of the fit (text), or ``none``."""
-    from comems4build_ros.study.identify import FIT_PARAMETERS
-
-    hits = []
-    for name, lo, hi, _ in FIT_PARAMETERS:
-        value = identified.get(name)
-        if value is None:
-            continue
-        for bound in (lo, hi):
-            if abs(value - bound) <= 1e-6 * max(abs(bound), 1e-9):
-                hits.append(f"{name} = {value:.3g} (the bound {bound:g})")
-    if not hits:
+def at_bounds(ident: dict[str, Any]) -> str:
+    """The fitted quantities that ended on a physical bound of the fit (text), or ``none``."""
+    names = ident.get("at_bounds", [])
+    if not names:
         return "none"
-    return "; ".join(hits) + ": the data do not pin it down, the model's other node carries the heat storage"
+    bounds = {b["name"]: b for b in ident.get("bounds", [])}
+    fitted = ident.get("fitted", {})
+    return "; ".join(f"{n} = {fitted.get(n, float('nan')):.3g} (bounds {bounds[n]['lo']:.3g} .. {bounds[n]['hi']:.3g}: "
+                     f"{bounds[n]['reason']})" if n in bounds else n for n in names)
+
+
+def bounds_table(ident: dict[str, Any]) -> str:
+    """The fit's physical bounds and where each fitted quantity ended, as markdown rows."""
+    fitted = ident.get("fitted", {})
+    rows = ["| fitted quantity | identified | lower bound | upper bound | bounds from |", "|---|---|---|---|---|"]
+    for b in ident.get("bounds", []):
+        rows.append(f"| {b['name']} | {fitted.get(b['name'], float('nan')):.3g} | {b['lo']:.3g} | {b['hi']:.3g} | "
+                    f"{b['reason']} |")
+    return "\n".join(rows) + "\n"
+
+
+def side_by_side(house: dict[str, Any]) -> str:
+    """The ``comems4build house`` lines as a markdown table."""
+    rows = ["| line | unit | EnergyPlus house | 4R3C | tolerance | result |", "|---|---|---|---|---|---|"]
+    for line in house.get("lines", []):
+        result = {True: "pass", False: "**fail**", None: "-"}[line["pass"]]
+        rows.append(f"| {line['name']} | {line['unit']} | {_f(line['energyplus'], 2)} | {_f(line['rc'], 2)} | "
+                    f"{line['tolerance']} | {result} |")
+    return "\n".join(rows) + "\n"
+
+
+def side_by_side_notes(house: dict[str, Any]) -> str:
+    """The notes of the ``comems4build house`` lines as a markdown list."""
+    return "\n".join(f"- {line['name']}: {line['note']}." for line in house.get("lines", []) if line["note"]) + "\n"
+
+
+def _differences(house: dict[str, Any]) -> str:
+    """The lines outside their tolerance, with both figures, as a sentence."""
+    failed = [line for line in house.get("lines", []) if line["pass"] is False]
+    if not failed:
+        return "every line lies within its tolerance."
+    return "; ".join(f"{line['name']}: {_f(line['energyplus'], 2)} {line['unit']} in EnergyPlus against "
+                     f"{_f(line['rc'], 2)} {line['unit']} in the 4R3C (tolerance {line['tolerance']})"
+                     for line in failed) + "."
 
 
 def document(*, table: str, findings: str, notes: str, held: dict[str, int], evaluated: dict[str, int],
@@ -41,9 +70,8 @@ def document(*, table: str, findings: str, notes: str, held: dict[str, int], eva
 
 
 def _house_part(house: dict[str, Any], commands: dict[str, str]) -> str:
-    """Why the study, and the house against its typology."""
-    lo, hi = house["heating_kwh_typology_range"]
-    return f"""# Co-simulation: the paper's claims on a building the code did not shape
+    """Why the study, and the house beside the 4R3C."""
+    return f"""# Co-simulation: the paper's claims on a detailed model of the same house
 
 *Written by `{commands['study']}`; every number below comes from that command's runs (the
 house's figures also from `{commands['house']}`, the identification also from
@@ -55,33 +83,74 @@ for real-world deployment (abstract), and its last item of future work asks for 
 MPC does not have a perfect forecast" (`sec:conclusion`). In every other run of this project
 the plant's building is the 4R3C of `eq:state_update_bldgs`, the very model the MPC plans
 with, and the reproduction was calibrated on it. Here the building is a detailed EnergyPlus
-model of a German single-family house; the devices (PV, battery, H2 store, fuel cell with
-heat recovery, heat pump, hot-water tank) stay as they are, and the MPC plans with a 4R3C
-identified from the house's data, as it would on a real house.
+model of a German single-family house, built to be the house the 4R3C describes; the devices
+(PV, battery, H2 store, fuel cell with heat recovery, heat pump, hot-water tank) stay as they
+are, and the MPC plans with a 4R3C identified from the house's data, as it would on a real
+house: the house's multi-zone dynamics, its floor heating in the screed and its sun are what
+the paper's model and the MPC's do not see.
 
 ## The house
 
-| figure | value | source / command |
-|---|---|---|
-| typology | TABULA DE.N.SFH.09.Gen (single-family house 1995-2001), advanced refurbishment DE.N.SFH.09.Gen.ReEx.001.003 | IWU, TABULA/EPISCOPE German residential typology |
-| heated floor area | {_f(house['heated_floor_m2'])} m2 (TABULA reference area 121.9 m2) in two storeys | `energyplus_house.HouseSpec` |
-| transmission H_tr, typology method | {_f(house['h_tr_typology_w_per_k'])} W/K (TABULA's variant: {_f(house['h_tr_tabula_w_per_k'], 0)} W/K) | `{commands['house']}` |
-| ventilation H_ve (infiltration 0.1 1/h, ventilation 0.4 1/h with 80 % heat recovery) | {_f(house['h_ve_typology_w_per_k'])} W/K | `{commands['house']}` |
-| heat loss coefficient to the outdoor air, EnergyPlus steady states (-10 and +10 degC) | {_f(house['h_energyplus_w_per_k'])} W/K; the default 4R3C's: {_f(house['h_rc_w_per_k'])} W/K (ratio {_f(house['h_ratio_to_rc'], 3)}, the design rule asks for +-25 %) | `{commands['house']}` |
-| design heat load at {_f(house['design_t_amb_c'], 0)} degC, 20 degC inside | EnergyPlus {_f(house['design_load_energyplus_w'], 0)} W; typology H x dT {_f(house['design_load_typology_w'], 0)} W | `{commands['house']}` |
-| space heat over the 12 weeks with the thermostat | {_f(house['heating_kwh_thermostat'], 0)} kWh; the typology's quasi-steady method on the same weather, gains and indoor temperature: {_f(lo, 0)} .. {_f(hi, 0)} kWh | `{commands['house']}` |
+The EnergyPlus house is built to be the house the 4R3C describes, so that the two runs
+compare one house in two models. `{commands['house']}` measures both the same way, each
+through the plant's building-model interface (per hour the floor heat and the weather in,
+T_air out), and sets them side by side with a tolerance per line:
 
-Geometry and envelope (`comems4build_ros/core/models/energyplus_house.py`, which writes the
-shipped `comems4build_ros/data/energyplus_house_sfh.idf`): a compact box of 7.81 m x 7.81 m,
-two storeys of 2.7 m, a flat insulated roof; window area 0.266 of the reference area (the
-TABULA ratio of the age band, as tabulated in the TEASER archetype of the TABULA DE
-single-family house), 40 % of it facing south; U-values typical of an advanced
-refurbishment (wall 0.20 W/m2K plus thermal bridges of 0.05 W/m2K over the envelope, roof
-0.14, slab on ground 0.25, triple glazing 0.95 with g = 0.5). They sum to the variant's H_tr
-within a few per cent. The ground under the slab follows a monthly temperature of 9.5 to
-13.5 degC (choice). Internal gains: the scenario's appliance load, all of it released in the
-zones (30 % radiant), and four occupants at home on weekday evenings and nights and all
-weekend. Zone time step 15 min.
+{side_by_side(house)}
+{side_by_side_notes(house)}
+How each line is measured: the heat loss coefficient from two steady states (air held at
+20 degC by an hourly PI thermostat, no sun, no gains, outdoor -10 and +10 degC); the effective
+heat capacity from a day's free cool-down after the +10 degC steady state (C_eff = H_total
+tau); the solar aperture of the windows as the heat the sun through the windows saves over the
+winter weeks, per kWh/m2 of horizontal irradiation (runs with and without the sun, and with
+the sun on the windows only); the heat demand of the {_f(house['winter_weeks'], 0)} winter weeks
+from 2022-12-01 under the same hourly PI on both, holding T_air at T_air,min (`eq:T_min`) with the heat pump's capacity as
+its limit; the summer over the year scenario (2022-03-01 to 2023-02-28) under the same PI
+without cooling. The
+tolerances: H +-10 % (alone it moves the demand by as much), the capacity +-25 % (within one
+mass class of EN ISO 13790), the solar aperture +-25 % (the sun is 5-15 % of the winter's
+losses), the winter demand +-10 %; DIN 4108-2:2013-02 limits the overtemperature degree hours
+of residential buildings to 1200 Kh/a above 27 degC in summer climate region C (the Upper
+Rhine valley; 25 and 26 degC in regions A and B).
+
+What was moved, and why (`comems4build_ros/core/models/house_idf.py`, which writes
+the shipped `comems4build_ros/data/energyplus_house_sfh.idf`): the house keeps its typology,
+TABULA DE.N.SFH.09.Gen (single-family house 1995-2001) in the advanced refurbishment
+DE.N.SFH.09.Gen.ReEx.001.003 (IWU, TABULA/EPISCOPE German residential typology): heated
+floor area {_f(house['heated_floor_m2'])} m2 (TABULA reference area 121.9 m2) in two storeys,
+H_tr {_f(house['h_tr_typology_w_per_k'])} W/K by the typology's method (TABULA's variant:
+{_f(house['h_tr_tabula_w_per_k'], 0)} W/K), H_ve {_f(house['h_ve_typology_w_per_k'])} W/K
+(infiltration 0.1 1/h, ventilation 0.4 1/h with 80 % heat recovery, over TABULA's room height
+of 2.5 m); the design heat load at {_f(house['design_t_amb_c'], 0)} degC and 20 degC inside is
+{_f(house['design_load_energyplus_w'], 0)} W in EnergyPlus, {_f(house['design_load_typology_w'], 0)} W
+by the typology's H x dT. Toward the 4R3C's house:
+
+- *Internal gains*: none in either model. The paper's building model has no internal-gain
+  input (`eq:dT_i`), and the 4R3C's heat loss coefficient is calibrated to the paper's energy
+  flows with that model (`docs/calibration.md`, `building_envelope`), so the appliance
+  load's heat, which EN ISO 13790 and DIN V 18599 count as a gain, is already lumped into its
+  parameters. The EnergyPlus house receives the appliance load's electricity with all of its
+  heat lost, and no occupants.
+- *Windows*: 32.4 m2 (TABULA's window ratio of the age band), facing as the windows of
+  TABULA's example building of the type (south 5.0, east 3.6, north 20.3, west 3.6 m2), with
+  TABULA's solar conventions (g_gl,n = 0.5, frame area fraction 0.3, reduction factor for external shading
+  0.6 in the heating season) as the whole window's solar heat gain coefficient 0.21.
+- *Thermal mass*: a timber-frame construction (sheathed timber-frame walls, a timber joist
+  storey floor, drywall partitions; the floors keep their 6.5 cm screed for the underfloor
+  heating), chosen for the 4R3C's effective capacity (whose capacities come from the
+  identified house of Sperber, Frey and Bertsch 2020); the masonry variant of the same house
+  (sand-lime walls, a concrete storey slab, masonry partitions; `HouseSpec.construction`) has
+  about twice that capacity.
+- *Summer*: from May to September exterior sun protection closes on a window receiving more
+  than 300 W/m2 (200 W/m2 facing north; DIN 4108-2's thresholds for residential buildings),
+  and the windows open (3 1/h by day, 2 1/h at night) while the room is above 23 degC and
+  warmer than outside (choice after that standard's increased day and night ventilation).
+
+What is not the same house: {_differences(house)} The EnergyPlus house loses heat to the
+ground under its slab as well, which the 4R3C does not have (the first line's note).
+
+The ground under the slab follows a monthly temperature of 9.5 to 13.5 degC (choice). Zone
+time step 15 min.
 
 Underfloor heating: each storey has an electric low-temperature radiant system
 (`ZoneHVAC:LowTemperatureRadiant:Electric`) whose heat enters the floor construction at the
@@ -95,7 +164,7 @@ the heat pump's space heat (split by the floors' areas). Cooling (the year-round
 as a negative source term at the floors' face. Every step the study checks that the heat the
 plant gave equals the heat EnergyPlus reports it received (`Zone Radiant HVAC Heating Rate`,
 `Surface Inside Face Heat Source Gain Rate per Area`): the largest relative difference over
-the thermostat's twelve weeks was {house['heat_balance_max_rel']:.1e}.
+the {_f(house['winter_weeks'], 0)} winter weeks of `{commands['house']}` was {house['heat_balance_max_rel']:.1e}.
 
 Weather (`comems4build_ros/core/models/epw.py`): the scenario's own series written as an EPW
 in local standard time: the DWD temperature of Rheinstetten, the modelled global and diffuse
@@ -130,7 +199,7 @@ ROS runs share one code path.
 def _identified_part(ident: dict[str, Any], commands: dict[str, str]) -> str:
     """The MPC's 4R3C identified from the house: excitation, fit and held-out prediction errors."""
     v = ident["validation"]
-    bounds = at_bounds(ident["identified"])
+    bounds = at_bounds(ident)
     e = ident.get("evaluation_weeks_thermostat", {})
     idp = ident["identified"]
     return f"""## The MPC's model, identified
@@ -139,12 +208,15 @@ def _identified_part(ident: dict[str, Any], commands: dict[str, str]) -> str:
 {ident['train']['start'][:10]} (outside the twelve evaluation weeks) under a multi-level
 pseudo-random excitation (a heat level of 0, 1/4, ... 1 x {_f(ident['excitation']['q_excite_w'], 0)} W
 held for 3 to 12 h, overridden below 18 and above 24.5 degC) and fits the 4R3C's nine
-parameters plus `f_gains_air`, the share of the appliance load that heats the air node: the
-house has internal gains, the paper's model has no input for them (with 0 it is the paper's
-model, and the MPC takes the appliance-load forecast as a fourth input of its building
-equations otherwise). The MPC estimates the model's wall nodes from the measured T_air with a
-stationary Kalman filter (`--ems-option observer=kalman`).
+parameters plus `f_gains_air`, the share of the appliance load that heats the air node (with
+0 it is the paper's model; otherwise the MPC takes the appliance-load forecast as a fourth
+input of its building equations). The resistances are fitted as the heat loss coefficient H,
+the air path's share of it and the split of the wall chain, so that each fitted quantity has
+a physical bound taken from the house; a quantity that ends on a bound is named below. The MPC
+estimates the model's wall nodes from the measured T_air with a stationary Kalman filter
+(`--ems-option observer=kalman`).
 
+{bounds_table(ident)}
 | figure | value |
 |---|---|
 | fit RMSE of T_air over the training window | {_f(ident['fit']['fit_rmse_k'], 3)} K |
@@ -153,7 +225,7 @@ stationary Kalman filter (`--ems-option observer=kalman`).
 | identified heat loss coefficient | {_f(ident['heat_loss_coefficient_w_per_k'])} W/K |
 | identified C_air, C_w | {idp['c_air_j_per_k']:.3g} J/K, {idp['c_wall_j_per_k']:.3g} J/K |
 | identified g_s, f_conv, a_sol, f_gains_air | {_f(idp['g_s_m2'], 2)} m2, {_f(idp['f_conv'], 2)}, {_f(idp['a_sol_k_m2_per_w'], 3)} K m2/W, {_f(idp['f_gains_air'], 2)} |
-| parameters at a bound of the fit | {bounds} |
+| fitted quantities at a bound | {bounds} |
 
 """
 

@@ -1,8 +1,8 @@
 """Figures of a comparison, after the figures of the paper's ``sec:results``.
 
-Each figure has a builder ``<name>_figure(...) -> Figure`` and a writer ``<name>(..., path)``
-that saves it with :func:`~comems4build_ros.report.style.save_figure` (PDF, SVG and a
-300 dpi PNG) and returns the PNG path. :data:`FIGURES` lists the figures of a report
+Each figure has a builder ``<name>_figure(...) -> Figure``; the figures are saved with
+:func:`~comems4build_ros.report.style.save_figure` (PDF, SVG and a 300 dpi PNG).
+:data:`FIGURES` lists the figures of a report
 (built from :class:`FigureInputs`), :func:`iter_figures` yields them and
 :func:`all_figures` writes them, in parallel processes. The style (sizes of a two-column paper,
 colour-blind-safe colours, one colour per EMS, mathtext labels with units, legends outside
@@ -93,6 +93,13 @@ def _date_axis(ax: plt.Axes, days: float) -> None:
         ax.xaxis.set_major_formatter(mdates.ConciseDateFormatter(locator, show_offset=False))
     for t in ax.get_xticklabels(which="both"):
         t.set_rotation(0)
+
+
+def run_time_axis(ax: plt.Axes, time: pd.Series, tz: str) -> None:
+    """The date axis of a run over its span (:func:`_date_axis`) with the local-time label (UTC ``time``)."""
+    t = _local_naive(time, tz)
+    _date_axis(ax, float((t[-1] - t[0]) / np.timedelta64(1, "D")) if len(t) > 1 else 1.0)
+    ax.set_xlabel(f"local time ({tz})")
 
 
 def _boxes(ax: plt.Axes, runs: Mapping[str, RunData], column: str, ylabel: str, title: str) -> None:
@@ -199,11 +206,6 @@ def hydrogen_timeseries_figure(runs: Mapping[str, RunData], tz: str) -> Figure:
     return fig
 
 
-def hydrogen_timeseries(runs: Mapping[str, RunData], path: Path, tz: str) -> Path:
-    """Write :func:`hydrogen_timeseries_figure`; returns the PNG path."""
-    return save_figure(hydrogen_timeseries_figure(runs, tz), path)
-
-
 @styled
 def heat_recovery_figure(variants: Mapping[tuple[str, float], RunData], base_eta: float) -> Figure:
     """Weekly recovered FC heat per EMS at each FC system efficiency (after ``fig:heat_recovery``).
@@ -243,11 +245,6 @@ def heat_recovery_figure(variants: Mapping[tuple[str, float], RunData], base_eta
     ax.set_ylabel(f"recovered heat {axis_label('Q_fc_hr')} [kWh/week]")
     ax.grid(axis="x", visible=False)
     return fig
-
-
-def heat_recovery(variants: Mapping[tuple[str, float], RunData], path: Path, base_eta: float) -> Path:
-    """Write :func:`heat_recovery_figure`; returns the PNG path."""
-    return save_figure(heat_recovery_figure(variants, base_eta), path)
 
 
 #: Fixed layout of the window figure [mm]: margins, gaps, the space for the twin axes'
@@ -389,13 +386,6 @@ def performance_comparison_figure(
     return fig
 
 
-def performance_comparison(
-    runs: Mapping[str, RunData], window: tuple[int, int], path: Path, tz: str, v_max_l: float
-) -> Path:
-    """Write :func:`performance_comparison_figure`; returns the PNG path."""
-    return save_figure(performance_comparison_figure(runs, window, tz, v_max_l), path)
-
-
 #: Paper's column groups of tab:level_of_information -> observation fields that carry them.
 INFO_COLUMNS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("forecasts (models and profiles)", ("forecast",)),
@@ -462,11 +452,6 @@ def level_of_information_figure(levels: Mapping[str, str]) -> Figure:
         table[i, 0].get_text().set_color(colour(ems))
         table[i, 0].get_text().set_fontweight("bold")
     return fig
-
-
-def level_of_information(levels: Mapping[str, str], path: Path) -> Path:
-    """Write :func:`level_of_information_figure`; returns the PNG path."""
-    return save_figure(level_of_information_figure(levels), path)
 
 
 #: Criteria of the qualitative comparison (after ``fig:heatmap_comparison``): label, summary

@@ -308,9 +308,9 @@ def h2_floor(ems: str, loh_min: float) -> float:
     """
     if ems != "rbc":
         return loh_min
-    from comems4build_ros.core.ems.rbc import load_rbc_options
+    from comems4build_ros.core.ems.settings import RBCSettings, load_settings
 
-    return max(loh_min, load_rbc_options().loh_reserve)
+    return max(loh_min, load_settings(RBCSettings).loh_reserve)
 
 
 #: The H2 store counts as empty within this fraction of the store above its floor [-]
@@ -537,15 +537,6 @@ def evaluate_statements(ev: Evidence, statements: Statements | None = None) -> l
             ours = None if run is None else fn(ev, source, run, s.measure)
             out.append(compare(s, ems, ours, statements.zero_tol))
     return out
-
-
-def numeric_errors(figures: Sequence[Figure], table_only: bool = False,
-                   statements: Statements | None = None) -> list[float]:
-    """Relative errors of the ``value`` figures (of the headline table only, if asked) [-]."""
-    keys = None
-    if table_only:
-        keys = {s.key for s in (statements or load_paper_results()).statements if s.table}
-    return [f.rel_error for f in figures if f.rel_error is not None and (keys is None or f.key in keys)]
 
 
 @dataclass

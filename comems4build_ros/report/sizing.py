@@ -127,7 +127,7 @@ def report(df: pd.DataFrame, meta: Mapping[str, Any], costs: economics.Costs, fi
     weeks = meta["weeks"]
     doc.p(f"Scenario: year (config/year.yaml over config/plant.yaml) from {meta['start'] or '2022-03-01'}, "
           f"{weeks} weeks; EMS: {', '.join(style.ems_label(e) for e in meta['ems'])}; design: {meta['design']} "
-          f"of {meta['points']} size points; {len(df)} runs in {meta['wall_s']:.1f} s wall on {meta['executor']}.")
+          f"of {meta['points']} size points; {len(df)} runs in {meta['wall_s']:.1f} s wall on {meta['workers']}.")
     if float(weeks) < economics.WEEKS_PER_YEAR:
         doc.p(f"The run is {weeks} weeks, not the year: the annual figures are the run's scaled to 52 weeks, "
               "and the seasonal cycle is tested only over the run (n/a when it has no heating-season week).")

@@ -583,9 +583,10 @@ def mpc_fc_break_even_eur_per_kwh(params: PlantParams) -> float:
     an hour of FC output replaces that many kWh of purchase, so a cheaper grid makes the FC a loss
     (starts and the H2 itself aside).
     """
-    from comems4build_ros.core.ems.mpc.settings import MILPParams, lifecycle_costs, load_options
+    from comems4build_ros.core.ems.mpc.costs import lifecycle_costs
+    from comems4build_ros.core.ems.settings import MILPSettings, load_settings
 
-    lc = lifecycle_costs(params, load_options(MILPParams, "mpc", None).fc_lifecycle_eta)
+    lc = lifecycle_costs(params, load_settings(MILPSettings).fc_lifecycle_eta)
     fc = params.fuel_cell
     return lc.sigma_fc_eur_per_h / (fc.zeta * fc.p_max_w / 1000.0)
 

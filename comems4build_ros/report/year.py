@@ -34,7 +34,7 @@ from comems4build_ros.core.config import load_plant_params  # noqa: E402
 from comems4build_ros.report import style  # noqa: E402
 from comems4build_ros.report.build import Report  # noqa: E402
 from comems4build_ros.report.document import Document  # noqa: E402
-from comems4build_ros.report.figures import _date_axis, _local_naive, colour, label, ordered  # noqa: E402
+from comems4build_ros.report.figures import _local_naive, colour, label, ordered, run_time_axis  # noqa: E402
 from comems4build_ros.report.runs import RunData, RunDirError, read_comparison  # noqa: E402
 from comems4build_ros.report.style import axis_label, figsize, save_figure, styled  # noqa: E402
 
@@ -101,9 +101,7 @@ def loh_year_figure(runs: Mapping[str, RunData], tz: str, loh_init: float, seaso
                    label="heating season starts")
     ax.set_ylabel(axis_label("loh", "%"))
     ax.set_ylim(0, 102)
-    t0 = _local_naive(next(iter(runs.values())).timeseries["time"], tz)
-    _date_axis(ax, float((t0[-1] - t0[0]) / np.timedelta64(1, "D")) if len(t0) > 1 else 1.0)
-    ax.set_xlabel(f"local time ({tz})")
+    run_time_axis(ax, next(iter(runs.values())).timeseries["time"], tz)
     style.outside_legend(ax)
     return fig
 

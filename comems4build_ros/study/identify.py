@@ -11,10 +11,15 @@
    scenario's of those weeks (DWD temperature, modelled radiation and load).
 2. **Fit.** The 4R3C's parameters (``eq:dT_i`` .. ``eq:dT_wout``: C_air, C_w, the four
    resistances, g_s, f_conv, a_sol) plus ``f_gains_air`` (the share of the appliance load that
-   heats the air node: the detailed house has internal gains, the paper's model has none) and
-   the two initial wall temperatures minimise the simulation (output) error of T_air over the
-   training window (SciPy ``least_squares``, positive parameters on a log scale, ZOH of each
-   candidate as ``eq:state_update_bldgs``).
+   heats the air node; with 0 it is the paper's model) and the two initial wall temperatures
+   minimise the simulation (output) error of T_air over the training window (SciPy
+   ``least_squares``, ZOH of each candidate as ``eq:state_update_bldgs``). The resistances are
+   fitted as the heat loss coefficient H, the share of H through the air path (windows and
+   ventilation, 1/R_air,amb) and the split of the wall chain, so that every fitted quantity has
+   a physical bound taken from the house (:func:`physical_bounds`: H within 20 % of the
+   typology's, capacities between the air's and half the constructions' total, the sun at most
+   the windows' area times their g-value, gain and convective shares in [0, 1.2] and [0, 1]);
+   the report names any that ends on a bound.
 3. **Validation.** On held-out data (a validation window with another excitation seed, and
    the twelve evaluation weeks under the thermostat): every hour a stationary Kalman filter of
    the identified model (:mod:`comems4build_ros.core.ems.mpc.observer`) gives the state from
@@ -51,19 +56,64 @@ TRAIN_START, TRAIN_WEEKS = "2022-11-01T00:00:00", 3.0
 VALID_START, VALID_WEEKS = "2022-11-22T00:00:00", 1.0
 #: Prediction horizon of the validation [h] (the MPC's).
 HORIZON_H = 24
-#: Fitted parameters: name, lower bound, upper bound, log scale.
-FIT_PARAMETERS: tuple[tuple[str, float, float, bool], ...] = (
-    ("c_air_j_per_k", 1e5, 1e9, True),
-    ("c_wall_j_per_k", 1e5, 1e10, True),
-    ("r_w_air_k_per_w", 1e-5, 1.0, True),
-    ("r_air_amb_k_per_w", 1e-4, 1.0, True),
-    ("r_w_k_per_w", 1e-5, 1.0, True),
-    ("r_w_amb_k_per_w", 1e-5, 1.0, True),
-    ("g_s_m2", 0.0, 50.0, False),
-    ("f_conv", 0.0, 1.0, False),
-    ("a_sol_k_m2_per_w", 0.0, 0.2, False),
-    ("f_gains_air", 0.0, 2.0, False),
-)
+#: Fraction of the typology's heat loss coefficient the identified H may deviate by.
+H_BOUND = 0.20
+#: Largest share of the appliance load that may heat the air node [-]: all of the appliances'
+#: electricity ends as heat in the house (1), plus the occupants' sensible heat, which comes with
+#: the load (four occupants at 65 W while at home, about a fifth of the mean appliance load).
+F_GAINS_MAX = 1.2
+#: Largest sol-air factor a_sol = alpha / h_e [K m2/W] times the facades' irradiance over the
+#: horizontal's: absorptance 1, h_e = 25 W/(m2 K) (EN ISO 6946: R_se = 0.04 m2 K/W), a winter
+#: facade at 1.5 times the horizontal irradiance.
+A_SOL_MAX = 1.5 / 25.0
+#: The 4R3C parameters the report lists (fields of ``building``).
+REPORTED = ("c_air_j_per_k", "c_wall_j_per_k", "r_w_air_k_per_w", "r_air_amb_k_per_w", "r_w_k_per_w",
+            "r_w_amb_k_per_w", "g_s_m2", "f_conv", "a_sol_k_m2_per_w", "f_gains_air")
+
+
+@dataclass(frozen=True)
+class Bound:
+    """A fitted quantity: name, physical lower and upper bound, fitted on a log scale, and why the bounds."""
+
+    name: str
+    lo: float
+    hi: float
+    log: bool
+    reason: str
+
+
+def physical_bounds(spec: Any = None) -> tuple[Bound, ...]:
+    """The fitted quantities and their bounds from the house (default: the shipped EnergyPlus house's spec)."""
+    from comems4build_ros.core.models import house_idf as house
+
+    spec = spec or house.HouseSpec()
+    typ = house.heat_loss_coefficient(spec)
+    cap = house.heat_capacity(spec)
+    h = typ["h_w_per_k"]
+    air_share = (typ["window"] + typ["h_ve_w_per_k"]) / h
+    buffered = typ["floor"] + (typ["wall"] if spec.construction == "masonry" else 0.0)
+    return (
+        Bound("h_w_per_k", (1 - H_BOUND) * h, (1 + H_BOUND) * h, False,
+              f"the typology's H = {h:.1f} W/K (TABULA method) +-{H_BOUND:.0%}"),
+        Bound("air_share", 0.5 * air_share, 1.0 - buffered / h, False,
+              f"at least half the typology's share of windows and ventilation in H ({air_share:.2f}), at most all "
+              f"but the {'masonry walls and ' if spec.construction == 'masonry' else ''}floor slab, whose mass "
+              "buffers its loss"),
+        Bound("inner_share", 1e-3, 0.5, False, "R_w,air / (R_w,air + R_w + R_w,amb): the inner surfaces at most half "
+              "the wall chain"),
+        Bound("wall_share", 0.05, 0.95, False, "R_w / (R_w + R_w,amb): the insulation between the two wall nodes"),
+        Bound("c_air_j_per_k", cap["air"], cap["total"] / 2, True,
+              f"from the air's {cap['air']:.3g} J/K to half the constructions' total {cap['total']:.3g} J/K"),
+        Bound("c_wall_j_per_k", cap["air"], cap["total"] / 2, True,
+              "each wall node at most half the constructions' total"),
+        Bound("g_s_m2", 0.0, spec.window_m2 * spec.g_window, False,
+              f"at most the window area {spec.window_m2:.1f} m2 times its g-value {spec.g_window:g}"),
+        Bound("f_conv", 0.0, 1.0, False, "a share of the floor heat"),
+        Bound("a_sol_k_m2_per_w", 0.0, A_SOL_MAX, False, "absorptance <= 1 over h_e = 25 W/(m2 K), facade at 1.5 x "
+              "the horizontal irradiance"),
+        Bound("f_gains_air", 0.0, F_GAINS_MAX, False,
+              "the appliance load's heat plus the occupants' that comes with it"),
+    )
 
 
 @dataclass
@@ -138,12 +188,45 @@ def data_of_run(ts: pd.DataFrame, t_air0_c: float) -> Data:
                 ts["t_air_c"].to_numpy(float), float(t_air0_c))
 
 
-def params_of(theta: np.ndarray, base: BuildingParams) -> BuildingParams:
-    """Building parameters of a parameter vector (log-scaled entries exponentiated)."""
-    values = {}
-    for (name, _, _, log), v in zip(FIT_PARAMETERS, theta):
-        values[name] = float(math.exp(v) if log else v)
+def params_of(theta: np.ndarray, base: BuildingParams, bounds: tuple[Bound, ...] | None = None) -> BuildingParams:
+    """Building parameters of a vector of fitted quantities (log-scaled entries exponentiated).
+
+    H, the air path's share s and the wall chain's shares f_in, f_w give R_air,amb = 1/(s H),
+    R_chain = 1/((1 - s) H), R_w,air = f_in R_chain, R_w = f_w (1 - f_in) R_chain and
+    R_w,amb = (1 - f_w)(1 - f_in) R_chain.
+    """
+    v = {b.name: float(math.exp(x) if b.log else x) for b, x in zip(bounds or physical_bounds(), theta)}
+    chain = 1.0 / ((1.0 - v["air_share"]) * v["h_w_per_k"])
+    values = {
+        "r_air_amb_k_per_w": 1.0 / (v["air_share"] * v["h_w_per_k"]),
+        "r_w_air_k_per_w": v["inner_share"] * chain,
+        "r_w_k_per_w": v["wall_share"] * (1.0 - v["inner_share"]) * chain,
+        "r_w_amb_k_per_w": (1.0 - v["wall_share"]) * (1.0 - v["inner_share"]) * chain,
+        **{k: v[k] for k in ("c_air_j_per_k", "c_wall_j_per_k", "g_s_m2", "f_conv", "a_sol_k_m2_per_w",
+                             "f_gains_air")},
+    }
     return base.model_copy(update=values)
+
+
+def fitted_of(b: BuildingParams) -> dict[str, float]:
+    """The fitted quantities of building parameters (the inverse of :func:`params_of`)."""
+    chain = b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w
+    h = heat_loss_coefficient(b)
+    return {"h_w_per_k": h, "air_share": 1.0 / (b.r_air_amb_k_per_w * h), "inner_share": b.r_w_air_k_per_w / chain,
+            "wall_share": b.r_w_k_per_w / (b.r_w_k_per_w + b.r_w_amb_k_per_w),
+            **{k: float(getattr(b, k)) for k in ("c_air_j_per_k", "c_wall_j_per_k", "g_s_m2", "f_conv",
+                                                 "a_sol_k_m2_per_w", "f_gains_air")}}
+
+
+def at_bounds(fitted: dict[str, float], bounds: tuple[Bound, ...], rel: float = 1e-4) -> list[str]:
+    """Names of the fitted quantities within ``rel`` of the width of their range from a bound."""
+    out = []
+    for b in bounds:
+        x = fitted[b.name]
+        lo, hi, x = (math.log(b.lo), math.log(b.hi), math.log(x)) if b.log else (b.lo, b.hi, x)
+        if min(x - lo, hi - x) <= rel * (hi - lo):
+            out.append(b.name)
+    return out
 
 
 def zoh(b: BuildingParams, dt_h: float = 1.0) -> tuple[np.ndarray, np.ndarray]:
@@ -171,26 +254,32 @@ def simulate(ad: np.ndarray, bd: np.ndarray, x0: np.ndarray, u: np.ndarray) -> n
     return out
 
 
-def fit(data: Data, base: BuildingParams) -> tuple[BuildingParams, dict[str, float]]:
-    """Least-squares fit of the 4R3C and ``f_gains_air`` to ``data`` (output error of T_air)."""
+def fit(data: Data, base: BuildingParams,
+        bounds: tuple[Bound, ...] | None = None) -> tuple[BuildingParams, dict[str, float]]:
+    """Least-squares fit of the 4R3C and ``f_gains_air`` to ``data`` (output error of T_air) within ``bounds``.
+
+    Starts from ``base`` (the plant's 4R3C) clipped into the bounds, ``f_gains_air`` at half its range.
+    """
     from scipy.optimize import least_squares
 
-    start = np.array([math.log(getattr(base, n)) if log else getattr(base, n) for n, _, _, log in FIT_PARAMETERS])
-    start[-1] = 0.5  # f_gains_air: half of the appliance load into the air as a neutral start
-    lo = np.array([math.log(a) if log else a for _, a, _, log in FIT_PARAMETERS] + [0.0, -10.0])
-    hi = np.array([math.log(b) if log else b for _, _, b, log in FIT_PARAMETERS] + [40.0, 40.0])
+    bounds = bounds or physical_bounds()
+    start_v = fitted_of(base)
+    start_v["f_gains_air"] = 0.5
+    start = np.array([math.log(start_v[b.name]) if b.log else start_v[b.name] for b in bounds])
+    lo = np.array([math.log(b.lo) if b.log else b.lo for b in bounds] + [0.0, -10.0])
+    hi = np.array([math.log(b.hi) if b.log else b.hi for b in bounds] + [40.0, 40.0])
     x0 = np.concatenate([start, [data.t_air0_c - 1.0, 0.5 * (data.t_air0_c + data.t_amb_c[0])]])
-    x0 = np.clip(x0, lo + 1e-9, hi - 1e-9)
+    x0 = np.clip(x0, lo + 1e-6 * (hi - lo), hi - 1e-6 * (hi - lo))
     u = data.u
 
     def residuals(theta: np.ndarray) -> np.ndarray:
-        b = params_of(theta[: len(FIT_PARAMETERS)], base)
+        b = params_of(theta[: len(bounds)], base, bounds)
         ad, bd = zoh(b)
         xs = simulate(ad, bd, np.array([data.t_air0_c, theta[-2], theta[-1]]), u)
         return xs[:, 0] - data.t_air_c
 
     res = least_squares(residuals, x0, bounds=(lo, hi), x_scale="jac", max_nfev=3000)
-    b = params_of(res.x[: len(FIT_PARAMETERS)], base)
+    b = params_of(res.x[: len(bounds)], base, bounds)
     rmse = float(np.sqrt(np.mean(res.fun**2)))
     return b, {"fit_rmse_k": rmse, "nfev": int(res.nfev), "status": int(res.status)}
 
@@ -237,15 +326,20 @@ def identify(params: PlantParams, building: Any = "energyplus", seed: int = 1,
     train = collect(params, building, TRAIN_START, TRAIN_WEEKS, seed)
     say(f"collecting the validation window ({VALID_WEEKS:g} week from {VALID_START})")
     valid = collect(params, building, VALID_START, VALID_WEEKS, seed + 1000)
-    say("fitting the 4R3C")
-    b, info = fit(train, params.building)
+    say("fitting the 4R3C within the house's physical bounds")
+    bounds = physical_bounds()
+    b, info = fit(train, params.building, bounds)
+    fitted = fitted_of(b)
     report: dict[str, Any] = {
         "building": str(building),
         "excitation": {"q_excite_w": Q_EXCITE_W, "band_c": [T_LOW_C, T_HIGH_C], "hold_h": [HOLD_MIN_H, HOLD_MAX_H],
                        "seed": seed},
         "train": {"start": TRAIN_START, "weeks": TRAIN_WEEKS},
         "fit": info,
-        "identified": {name: float(getattr(b, name)) for name, *_ in FIT_PARAMETERS},
+        "identified": {name: float(getattr(b, name)) for name in REPORTED},
+        "fitted": fitted,
+        "bounds": [{"name": x.name, "lo": x.lo, "hi": x.hi, "reason": x.reason} for x in bounds],
+        "at_bounds": at_bounds(fitted, bounds),
         "heat_loss_coefficient_w_per_k": heat_loss_coefficient(b),
         "validation": {"start": VALID_START, "weeks": VALID_WEEKS, **rmse_report(predictions_24h(b, valid))},
         "training_24h": rmse_report(predictions_24h(b, train)),

@@ -272,22 +272,11 @@ def _same(a: Any, b: Any) -> bool:
     return a == b
 
 
-def current_ems_option(ems: str, dotted: str, params: PlantParams) -> Any:
+def current_ems_option(ems: str, dotted: str) -> Any:
     """The value the shipped configuration gives an EMS option (``--ems-option`` key)."""
-    if ems == "rbc":
-        from comems4build_ros.core.ems.rbc import load_rbc_options
+    from comems4build_ros.core.ems import ems_settings
 
-        return _dotted(load_rbc_options().model_dump(), dotted)
-    if ems == "mpc":
-        from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
-
-        return _dotted(load_options(MILPParams, "mpc", None).model_dump(), dotted)
-    if ems == "fuzzy":
-        from comems4build_ros.core.ems.fuzzy.controller import load_flcs
-
-        flc, _, rest = dotted.partition(".")
-        return _dotted(load_flcs(params)[flc][1], rest)
-    raise ValueError(f"unknown EMS '{ems}'")
+    return _dotted(ems_settings(ems).model_dump(), dotted)
 
 
 def check_defaults(study: Study, params: PlantParams | None = None) -> list[str]:
@@ -318,7 +307,7 @@ def check_defaults(study: Study, params: PlantParams | None = None) -> list[str]
                 problems.append(f"{a.key}/{r.name}: scenario setting {key} is {have!r} in config/, not {want!r}")
         for ems, opts in r.ems_options.items():
             for key, want in opts.items():
-                have = current_ems_option(ems, key, params)
+                have = current_ems_option(ems, key)
                 if not _same(have, want):
                     problems.append(f"{a.key}/{r.name}: {ems} option {key} is {have!r} in config/, not {want!r}")
     return problems

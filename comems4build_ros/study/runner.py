@@ -3,9 +3,9 @@
 A :class:`RunTask` is a plain picklable record (EMS, scenario spec, overrides, output
 directory); :func:`run_task` executes it (in-process simulation or the ROS 2 node set
 through the launcher) and returns the summary. :func:`run_tasks` hands a study's tasks to
-an executor (:mod:`comems4build_ros.study.executor`): local worker processes, longest
+a study pool (:mod:`comems4build_ros.study.pool`): local worker processes, longest
 first, or a Dask cluster; each finished run is stored as it finishes, so a study resumes.
-A task is a job of that executor: :meth:`RunTask.spec` is its full specification (hashed
+A task is a job of that pool: :meth:`RunTask.spec` is its full specification (hashed
 to recognise a stored run), :meth:`RunTask.portable` carries the files it reads from
 outside the package (``--config`` files, a scenario CSV) to a worker on another host.
 """
@@ -23,10 +23,10 @@ from typing import TYPE_CHECKING, Any
 
 from comems4build_ros.files.inputs import load_json_file
 from comems4build_ros.run.progress import ProgressCallback
-from comems4build_ros.study.executor import RunFailedError
+from comems4build_ros.study.pool import RunFailedError
 
 if TYPE_CHECKING:
-    from comems4build_ros.study.executor import StudyExecutor
+    from comems4build_ros.study.pool import StudyPool
 
 __all__ = ["RunFailedError", "RunTask", "run_task", "run_tasks"]
 
@@ -125,18 +125,24 @@ class RunTask:
         read from there, so the run needs no file of the machine that made the task.
         """
         with tempfile.TemporaryDirectory(prefix="comems4build-inputs-") as tmp:
-            paths: dict[str, str] = {}
-            for k, (name, data) in enumerate(self.inputs.items()):
-                local = Path(tmp) / str(k) / Path(name).name
-                local.parent.mkdir(parents=True)
-                local.write_bytes(data)
-                paths[name] = str(local)
+            paths = local_inputs(self.inputs, Path(tmp))
             task = dataclasses.replace(self, out_dir=str(out_dir), inputs={},
                                        config=[paths.get(c, c) for c in self.config],
                                        scenario=paths.get(str(self.scenario), self.scenario))
             summary = run_task(task, progress)
         written = load_json_file(Path(out_dir) / "summary.json", "a run's summary")
         return {**written, "task_wall_s": summary["task_wall_s"]}
+
+
+def local_inputs(inputs: Mapping[str, bytes], folder: Path) -> dict[str, str]:
+    """Write carried input files into ``folder`` under their own names; the name given -> the local path."""
+    paths: dict[str, str] = {}
+    for k, (name, data) in enumerate(inputs.items()):
+        local = folder / str(k) / Path(name).name
+        local.parent.mkdir(parents=True)
+        local.write_bytes(data)
+        paths[name] = str(local)
+    return paths
 
 
 def run_task(task: RunTask, progress: ProgressCallback | None = None) -> dict[str, Any]:
@@ -222,9 +228,9 @@ def run_tasks(
     jobs: int | None = None,
     on_done: Callable[[RunTask, dict[str, Any]], None] | None = None,
     progress: bool | None = None,
-    executor: StudyExecutor | None = None,
+    pool: StudyPool | None = None,
 ) -> list[dict[str, Any]]:
-    """Run ``tasks`` with ``executor``: default the enclosing study's, else ``jobs`` local processes.
+    """Run ``tasks`` with ``pool``: default the enclosing study's, else ``jobs`` local processes.
 
     Tasks start longest first (:attr:`RunTask.weight`); summaries come back in task order
     (as written to each run's ``summary.json``, with ``task_wall_s``), ``on_done`` is
@@ -232,11 +238,11 @@ def run_tasks(
     raised once the running ones ended. ``progress``: one bar per run on stderr while it
     runs (None = when stderr is a terminal, False = never); print from ``on_done`` with
     :func:`comems4build_ros.run.progress.echo` to keep the bars intact. ``jobs`` applies only
-    when no executor is given or current (:func:`comems4build_ros.study.executor.current`).
+    when no pool is given or current (:func:`comems4build_ros.study.pool.current`).
     """
-    from comems4build_ros.study.executor import LocalBackend, StudyExecutor, current, run_jobs
+    from comems4build_ros.study.pool import LocalBackend, StudyPool, current, run_jobs
 
-    ex = executor or current() or StudyExecutor(LocalBackend(jobs))
+    ex = pool or current() or StudyPool(LocalBackend(jobs))
     return run_jobs(tasks, ex, on_done=on_done, progress=progress)
 
 

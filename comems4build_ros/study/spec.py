@@ -11,7 +11,7 @@ stored runs another study's, and :func:`differences` says which part changed.
 
 The same record decides whether a Dask worker may run a study's runs: a worker whose
 environment differs from the client's would give other results
-(:func:`comems4build_ros.study.executor.check_environment`).
+(:func:`comems4build_ros.study.pool.check_environment`).
 """
 
 from __future__ import annotations

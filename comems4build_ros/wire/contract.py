@@ -1,4 +1,4 @@
-"""The topic contract (``msg_defs/topics.yaml``): loading, validation and queries.
+"""The topic contract (``msg_defs/topics.yaml``): loading, checks and queries.
 
 The YAML file is the single source of truth for every topic of the node set: name
 (relative, so namespaces such as ``/house_3/`` work), interface type, unit, the nodes

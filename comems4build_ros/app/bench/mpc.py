@@ -318,8 +318,8 @@ def _run(args: argparse.Namespace) -> int:
     """Run the benchmark's stages and print their tables: closed loops side by side, a full run, the
     solver configurations on fixed problems, the KPIs of the default settings against the exact MILP."""
     from comems4build_ros.core.config import load_plant_params
-    from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
     from comems4build_ros.core.ems.mpc.solvers import available_solvers
+    from comems4build_ros.core.ems.settings import MILPSettings, load_settings
     from comems4build_ros.core.scenario import default_scenario
     from comems4build_ros.files.outputs import check_out_dir
 
@@ -327,7 +327,7 @@ def _run(args: argparse.Namespace) -> int:
     if args.out:
         check_out_dir(args.out)
     params = load_plant_params()
-    defaults = load_options(MILPParams, "mpc", {})
+    defaults = load_settings(MILPSettings)
     print(f"bench mpc: default settings {defaults.model_dump()}")
     solvers = available_solvers()
     print(f"solvers available: {', '.join(solvers)}" + ("" if "gurobi" in solvers else " (gurobipy not installed)"))

@@ -2,7 +2,7 @@
 
 ``comems4build bench study`` makes the same runs (``--runs`` of them: the EMS of ``--ems``
 in turn, each on the seeds from ``--seed`` on, ``--weeks`` of ``--scenario``) through the
-study executor (:mod:`comems4build_ros.study.executor`), with each run stored as it
+study pool (:mod:`comems4build_ros.study.pool`), with each run stored as it
 finishes as a study does, three ways: in this process (t1), on 2 local worker processes
 (t2) and on a Dask cluster of a scheduler and 2 single-threaded workers started by the
 command as separate processes (``dask scheduler``, ``dask worker``; t2 Dask, measured
@@ -10,7 +10,7 @@ after the cluster is up and has imported the simulation). It prints the wall tim
 parallel efficiencies t1 / (2 t2) (target of the project: at least 80 % on 2 workers),
 the load average before and after each measurement (other jobs on the cores lower the
 figures), the runs' own times summed and the share of the workers' time spent in runs
-(what the executor itself leaves idle, hardly touched by other jobs), and whether the
+(what the pool itself leaves idle, hardly touched by other jobs), and whether the
 three ways gave the same summaries (timing entries aside).
 """
 
@@ -74,7 +74,7 @@ def _measure(label: str, tasks_of: Any, backend: Any, repeats: int,
              work: Path) -> tuple[list[float], list[Any], list[float]]:
     """Wall times of ``repeats`` studies of the run set on ``backend``, the last one's summaries, and per
     study the runs' own times summed (``task_wall_s``: how long each run took where it ran)."""
-    from comems4build_ros.study.executor import StudyExecutor, run_jobs
+    from comems4build_ros.study.pool import StudyPool, run_jobs
     from comems4build_ros.study.store import RunStore
 
     walls, summaries, busy = [], [], []
@@ -82,7 +82,7 @@ def _measure(label: str, tasks_of: Any, backend: Any, repeats: int,
         where = work / f"{label.replace(' ', '_')}_{r}"
         tasks = tasks_of(where / "runs")
         before = load_text()
-        with StudyExecutor(backend, RunStore.of(where)) as ex:
+        with StudyPool(backend, RunStore.of(where)) as ex:
             t0 = time.perf_counter()
             summaries = run_jobs(tasks, ex, progress=False, quiet=True)
             walls.append(time.perf_counter() - t0)
@@ -105,7 +105,7 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import check_config_files, ems_names, load_params, scenario_of
     from comems4build_ros.core.scenario import EMBEDDED
     from comems4build_ros.study.cluster import LocalDaskCluster
-    from comems4build_ros.study.executor import DaskBackend, LocalBackend
+    from comems4build_ros.study.pool import DaskBackend, LocalBackend
 
     emss = ems_names(args.ems)
     check_config_files(args.config)
@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
               f"{statistics.median(busy):>17.2f}{f'{100 * share:.0f} %':>14}")
     print("(runs summed: each run's own time where it ran, above the 1-worker figure when runs at once slow each "
           "other, e.g. with other jobs on the cores; workers busy: runs summed / (workers x wall), what the "
-          "executor leaves idle is the rest)")
+          "pool leaves idle is the rest)")
     ref = results["1 local worker"][1]
     same = all(_same(ref, s) for _, s, _ in results.values())
     for label, (walls, _, _) in results.items():

@@ -18,8 +18,8 @@ from comems4build_ros.app.commands.options import (
     ems_help,
     output_dir,
     scenario_of,
-    study_executor,
     study_inputs,
+    study_pool,
 )
 
 if TYPE_CHECKING:
@@ -37,8 +37,8 @@ COMPARE_FILES = ("runs", "compare.json", *REPORT_FILES)
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``compare``."""
-    parser.add_argument("--ems", metavar="NAME[,NAME...]", default=DEFAULT_EMS,
-                        help=f"{ems_help(many=True)} (default {DEFAULT_EMS})")
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", default=None,
+                        help=f"{ems_help(many=True)} (default {DEFAULT_EMS}; with --community one, default fuzzy)")
     add_scenario_options(parser, hours=False)
     parser.add_argument("--via", choices=("inprocess", "ros"), default="inprocess",
                         help="run in-process or through the ROS 2 node set (bags evaluated)")
@@ -55,6 +55,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only build the report from DIR/compare.json and DIR/runs/ (no simulation)")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="output directory (default with --from-runs: that DIR)")
+    from comems4build_ros.app.commands import compare_community
+
+    compare_community.add_arguments(parser)
 
 
 def parse_etas(text: str) -> list[float]:
@@ -128,8 +131,15 @@ def run(args: argparse.Namespace) -> int:
             raise UsageError(str(exc)) from None
         _print_report(rep, stage, output.path)
         return 0
+    if args.community is not None:
+        from comems4build_ros.app.commands.compare_community import run_community
+
+        return run_community(args)
+    if args.coordinator is not None or args.coordinator_option:
+        raise UsageError("--coordinator and --coordinator-option apply with --community")
     if args.out is None:
         raise UsageError("--out is required (unless --from-runs)")
+    args.ems = args.ems or DEFAULT_EMS
     emss = study_inputs(args)
     if args.building_choice.kind != "rc" and args.via == "ros":
         raise UsageError("--building with --via ros: use comems4build launch --building (compare runs it in-process)")
@@ -138,7 +148,7 @@ def run(args: argparse.Namespace) -> int:
     etas = fc_efficiencies(args.fc_efficiency, args.config, overrides)
     if args.scenario == "year" and args.fc_efficiency is None:
         etas = etas[:1]  # the year's report compares the EMS at the plant's FC efficiency
-    for eta in etas:  # validate every parameter set before starting any run
+    for eta in etas:  # check every parameter set before starting any run
         params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
     if args.extend and args.via == "ros":
         raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")
@@ -147,11 +157,11 @@ def run(args: argparse.Namespace) -> int:
     output.check()
     out = output.path
     jobs = args.jobs if args.jobs is not None else (1 if args.via == "ros" else None)
-    with output, study_executor(args, out, jobs) as executor:  # finished runs kept in OUT/.runstore until the end
+    with output, study_pool(args, out, jobs) as pool:  # finished runs kept in OUT/.runstore until the end
         stage = output.stage
         rep = _compare(args, emss, etas, levels, overrides, stage)
         output.commit()  # runs/, manifest, report, figures replace an older comparison's when all are written
-        executor.complete()
+        pool.complete()
     _print_report(rep, stage, out)
     return 0
 
@@ -209,13 +219,17 @@ def building_task_options(ems: str, args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _report_builder(compare_dir: str | Path) -> Any:
-    """The report of a comparison: the year-round one (``report/year.py``) for ``--scenario year``,
-    else the paper's (``report/build.py``)."""
+    """The report of a comparison: a community's (``report/community.py``) for ``--community``, the
+    year-round one (``report/year.py``) for ``--scenario year``, else the paper's (``report/build.py``)."""
     import json
 
+    from comems4build_ros.report import community
     from comems4build_ros.report.build import build_report
     from comems4build_ros.report.runs import MANIFEST
     from comems4build_ros.report.year import build_year_report
+
+    if (Path(compare_dir) / community.MANIFEST).is_file() and not (Path(compare_dir) / MANIFEST).is_file():
+        return community.build_community_report
 
     try:
         scenario = json.loads((Path(compare_dir) / MANIFEST).read_text(encoding="utf-8")).get("scenario")

@@ -122,8 +122,8 @@ def _study(args: argparse.Namespace, stage, params, say) -> tuple[dict, dict]:
         report = identify(params, "energyplus", held_out_run=held, progress=say)
         write_parameter_file(ident_yaml, report.pop("_params"), report)
         write_report(ident_yaml.with_suffix(".json"), report)
-    say("the house's figures (steady states and the thermostat's 12 weeks)")
-    house = house_figures(params, weeks=args.weeks or 12.0)
+    say("the house beside the 4R3C (steady states, cool-down, the winter weeks; the year's summer unless --weeks)")
+    house = house_figures(params, weeks=args.weeks or 12.0, year=args.weeks is None, progress=say)
     (stage / "house.json").write_text(json.dumps(house, indent=1) + "\n", encoding="utf-8")
     say("running RBC, ComEMS4Build, MPC and the thermostat on the 4R3C and on the EnergyPlus house")
     plan, walls = run_study(stage, ident_yaml, args.forecast, args.weeks, args.jobs,

@@ -140,10 +140,7 @@ def run(args: argparse.Namespace) -> int:
     output = output_dir(args, "fuzzy-surface", writes=SURFACE_FILES, replaces=SURFACE_FILES)
     output.check()
     params = load_params(args.config)
-    systems = {}
-    for key, (system, section) in load_flcs(params).items():
-        system.load_scale_w = float(section.get("load_scale_w", 10_000.0))
-        systems[key] = system
+    systems = {key: system for key, (system, _) in load_flcs(params).items()}
     maps = surfaces(systems, args.chi)
     with output:  # the figures replace an earlier drawing's only when all are drawn
         stage = output.stage

@@ -133,7 +133,7 @@ def check_plant_options(args: argparse.Namespace) -> None:
     """``--plant``, ``--clock``, ``--broker``, ``--topic-map``, ``--netem`` and their combinations.
 
     A bad combination raises :class:`UsageError` naming the options; with ``--plant mqtt``
-    the topic map is read and validated whole (:class:`~comems4build_ros.core.config.ConfigError`
+    the topic map is read and checked whole (:class:`~comems4build_ros.core.config.ConfigError`
     naming the file and the parameter).
     """
     from comems4build_ros.app.commands.options import UsageError
@@ -235,7 +235,7 @@ def launch_options(args: argparse.Namespace) -> Any:
         bag=Path(args.bag) if args.bag else None,
         all_inputs=bool(args.all_inputs),
         building=getattr(args, "building_text", "rc"),
-        params=params,  # validated once here; the plan hands them to every node as one file
+        params=params,  # checked once here; the plan hands them to every node as one file
     )
 
 

@@ -153,21 +153,30 @@ def ems_help(many: bool = False) -> str:
     return f"comma-separated EMS names, of {names}" if many else f"EMS name: {names}"
 
 
+def table_names(text: str, option: str, what: str, check: Callable[[str], Any], unknown: type[Exception]) -> list[str]:
+    """A comma-separated option of names of a table (``--ems``, ``--coordinator``): each once, each known, at least one.
+
+    ``check(name)`` raises ``unknown`` for a name the table does not hold; every refusal is a
+    usage error naming ``option``.
+    """
+    names = [e.strip() for e in text.split(",") if e.strip()]
+    if not names:
+        raise UsageError(f"{option} '{text}': no {what} given")
+    for i, name in enumerate(names):
+        if name in names[:i]:
+            raise UsageError(f"{option} {text}: '{name}' given twice (its runs would overwrite each other)")
+        try:
+            check(name)
+        except unknown as exc:
+            raise UsageError(f"{option} {name}: {exc}") from None
+    return names
+
+
 def ems_names(text: str) -> list[str]:
     """``--ems rbc,fuzzy,mpc`` of ``compare`` and ``sweep``: registered names, each once, at least one."""
     from comems4build_ros.core.ems import UnknownEMSError, controller_class
 
-    names = [e.strip() for e in text.split(",") if e.strip()]
-    if not names:
-        raise UsageError(f"--ems '{text}': no EMS given")
-    for i, name in enumerate(names):
-        if name in names[:i]:
-            raise UsageError(f"--ems {text}: '{name}' given twice (its runs would overwrite each other)")
-        try:
-            controller_class(name)
-        except UnknownEMSError as exc:
-            raise UsageError(f"--ems {name}: {exc}") from None
-    return names
+    return table_names(text, "--ems", "EMS", controller_class, UnknownEMSError)
 
 
 def ems_controller(name: str, params: Any, items: Sequence[str]) -> Any:
@@ -231,7 +240,7 @@ def scheduler_address(text: str) -> str:
     return f"{url.scheme}://{url.netloc}"
 
 
-def add_executor_options(parser: argparse.ArgumentParser, jobs_default: str = "CPU count") -> None:
+def add_pool_options(parser: argparse.ArgumentParser, jobs_default: str = "CPU count") -> None:
     """``--jobs``, ``--scheduler``, ``--resume``: where a study's runs execute and whether it resumes."""
     parser.add_argument("--jobs", metavar="N", type=COUNT, default=None,
                         help=f"parallel runs in local worker processes, integer >= 1 (default: {jobs_default}; "
@@ -244,21 +253,21 @@ def add_executor_options(parser: argparse.ArgumentParser, jobs_default: str = "C
                              "of running them again; a stored run of another specification is refused")
 
 
-def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = None) -> Any:
-    """The :class:`~comems4build_ros.study.executor.StudyExecutor` of ``--jobs``/``--scheduler``/``--resume``.
+def study_pool(args: argparse.Namespace, out: str | Any, jobs: int | None = None) -> Any:
+    """The :class:`~comems4build_ros.study.pool.StudyPool` of ``--jobs``/``--scheduler``/``--resume``.
 
     Its store is ``out/.runstore``; ``jobs`` replaces ``--jobs`` when given (a command's own
     default). Enter it before any run: it connects and checks the cluster, and refuses a
     store of an unfinished study without ``--resume``.
     """
-    from comems4build_ros.study.executor import DaskBackend, LocalBackend, StudyExecutor
+    from comems4build_ros.study.pool import DaskBackend, LocalBackend, StudyPool
     from comems4build_ros.study.store import RunStore
 
     if args.scheduler and args.jobs is not None:
         raise UsageError("--jobs and --scheduler exclude each other (with --scheduler the cluster's workers run "
                          "the runs, as many at once as they have threads)")
     backend = DaskBackend(args.scheduler) if args.scheduler else LocalBackend(jobs if jobs is not None else args.jobs)
-    return StudyExecutor(backend, RunStore.of(out), resume=args.resume)
+    return StudyPool(backend, RunStore.of(out), resume=args.resume)
 
 
 def add_forecast_option(parser: argparse.ArgumentParser) -> None:
@@ -304,11 +313,11 @@ def building_choice(args: argparse.Namespace) -> Any:
 def add_study_options(parser: argparse.ArgumentParser, config_help: str = "config/plant.yaml",
                       jobs_default: str = "CPU count") -> None:
     """What every study command (compare, sweep, size) offers: ``--config``, where its runs
-    execute (:func:`add_executor_options`), the building model (:func:`add_building_options`)
+    execute (:func:`add_pool_options`), the building model (:func:`add_building_options`)
     and ``--no-progress``."""
     parser.add_argument("--config", action="append", default=[], metavar="FILE",
                         help=f"parameter file merged over {config_help} (repeatable)")
-    add_executor_options(parser, jobs_default)
+    add_pool_options(parser, jobs_default)
     add_building_options(parser)
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
 
@@ -336,7 +345,7 @@ def check_building_covers(choice: Any, scenario: Any, params: Any) -> None:
         raise UsageError(str(exc)) from None
 #: Options of the commands that name input files or directories (what an output must not overwrite).
 INPUT_OPTIONS = ("config", "costs", "scenario", "topic_map", "live_config", "bag", "prices", "temperature", "solar",
-                 "dhw", "load", "from_json", "from_runs", "building", "building_map", "epw")
+                 "dhw", "load", "from_json", "from_runs", "building", "building_map", "epw", "community")
 
 
 def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:

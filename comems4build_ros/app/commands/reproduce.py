@@ -7,7 +7,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from comems4build_ros.app.commands.options import add_building_options, add_executor_options, real
+from comems4build_ros.app.commands.options import add_building_options, add_pool_options, real
 
 if TYPE_CHECKING:
     from comems4build_ros.report.reproduce import ReproduceResult
@@ -22,7 +22,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "(no interpretation study)")
     parser.add_argument("--only", default=None, metavar="KEY[,KEY...]",
                         help="study only these ambiguities of config/reproduce.yaml")
-    add_executor_options(parser)
+    add_pool_options(parser)
     add_building_options(parser)
     parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
                         help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
@@ -51,7 +51,7 @@ DOCUMENT_FILES = ("figures", "reproduce.md", "reproduce.html")
 def run(args: argparse.Namespace) -> int:
     """Run the reproduction and print where the report is."""
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import output_dir, study_executor
+    from comems4build_ros.app.commands.options import output_dir, study_pool
 
     if args.from_json and args.from_runs:
         raise UsageError("--from-json and --from-runs exclude each other")
@@ -83,12 +83,12 @@ def run(args: argparse.Namespace) -> int:
     writes = DOCUMENT_FILES + ("reproduce.json",) if args.from_runs else REPRODUCE_FILES
     output = output_dir(args, "reproduce", writes=writes, replaces=writes)
     output.check()
-    with output, study_executor(args, args.out) as executor:  # the runs' executor; finished runs kept in OUT/.runstore
+    with output, study_pool(args, args.out) as pool:  # the runs' pool; finished runs kept in OUT/.runstore
         res = reproduce(output.stage, with_study=not args.no_study, jobs=args.jobs, weeks=args.weeks, only=only,
                         seeds=seeds, show_progress=False if args.no_progress else None,
                         from_runs=args.from_runs, figures=not args.no_figures, building=building)
         output.commit()  # runs/, figures, documents and reproduce.json replace an earlier reproduction's whole
-        executor.complete()
+        pool.complete()
     out = output.path
 
     def pct(x: float | None) -> str:

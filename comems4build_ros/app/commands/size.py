@@ -81,8 +81,8 @@ def run(args: argparse.Namespace) -> int:
         check_config_files,
         output_dir,
         scenario_of,
-        study_executor,
         study_inputs,
+        study_pool,
     )
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.config import load_plant_params
@@ -106,13 +106,13 @@ def run(args: argparse.Namespace) -> int:
     meta: dict[str, Any] = {"ems": emss, "design": design, "points": len(sized), "start": args.start,
                             "weeks": args.weeks or 52, "values": values, "set": overrides,
                             "costs": [str(Path(c).resolve()) for c in args.costs],
-                            "executor": args.scheduler or f"local processes (--jobs {args.jobs or 'CPU count'})"}
+                            "workers": args.scheduler or f"local processes (--jobs {args.jobs or 'CPU count'})"}
     print(f"size: {len(sized) * len(emss)} runs ({len(emss)} EMS x {len(sized)} size points, {design})",
           file=sys.stderr)
-    with output, study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+    with output, study_pool(args, args.out) as pool:  # finished runs kept in OUT/.runstore until the end
         df = _size(args, emss, sized, costs, meta, output.stage)
         output.commit()  # runs/, tables, figures and report replace an older study's when all are written
-        executor.complete()
+        pool.complete()
     out = Path(args.out)
     for ems, sub in df.groupby("ems", sort=False):
         ok = sub[sub["closes"] == True]  # noqa: E712

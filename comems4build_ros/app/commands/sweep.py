@@ -44,15 +44,15 @@ def run(args: argparse.Namespace) -> int:
         params[path] = values
     emss = opt.study_inputs(args)
     cases = grid(params, emss)
-    for case in cases[: len(cases) // len(emss)]:  # validate every parameter set before running
+    for case in cases[: len(cases) // len(emss)]:  # check every parameter set before running
         plant = load_plant_params(args.config, case.values)
     opt.scenario_of(args, plant)  # the scenario and the run length, checked once before any run
     output = opt.output_dir(args, "sweep", writes=SWEEP_FILES, replaces=SWEEP_FILES)
     output.check()
-    with output, opt.study_executor(args, args.out) as executor:  # finished runs kept in OUT/.runstore until the end
+    with output, opt.study_pool(args, args.out) as pool:  # finished runs kept in OUT/.runstore until the end
         wall = _sweep(args, params, emss, cases, output.stage)
         output.commit()  # runs/, tables and figures replace an older sweep's when all are written
-        executor.complete()
+        pool.complete()
     out = Path(args.out)
     print(f"{len(cases)} runs in {wall:.1f} s; wrote {out / 'sweep.csv'}, {out / 'sweep.md'} and "
           f"{len(sweep_kpis(args.scenario))} plots in {out / 'figures'}")

@@ -6,7 +6,7 @@ import argparse
 import os
 from pathlib import Path
 
-from comems4build_ros.app.commands.options import add_executor_options, add_forecast_option, real
+from comems4build_ros.app.commands.options import add_forecast_option, add_pool_options, real
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -35,7 +35,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ems", default=None, metavar="NAME[,NAME...]",
                         help="only these of the paper's EMS: mpc, fuzzy, rbc (default: all three; the checks that "
                              "need a missing EMS are reported as not run)")
-    add_executor_options(parser)
+    add_pool_options(parser)
     parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
                         help="run length in weeks, in (0, 12] (default 12; shorter runs are quick checks)")
     add_forecast_option(parser)
@@ -75,7 +75,7 @@ def run(args: argparse.Namespace) -> int:
     import time
 
     from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.app.commands.options import output_dir, study_executor
+    from comems4build_ros.app.commands.options import output_dir, study_pool
     from comems4build_ros.files.inputs import load_json_file
     from comems4build_ros.report.validation import CRITERIA, evaluate
     from comems4build_ros.study.identity import defaults_identity
@@ -126,16 +126,16 @@ def run(args: argparse.Namespace) -> int:
                            runs_identity=(earlier.get("defaults") or {}).get("runs"), choice=choice)
             output.commit()
     else:
-        # the runs' executor; finished runs kept in OUT/.runstore (--resume takes them)
+        # the runs' pool; finished runs kept in OUT/.runstore (--resume takes them)
         identity = defaults_identity()
-        with output, study_executor(args, args.out) as executor:
+        with output, study_pool(args, args.out) as pool:
             planned = run_into(p.tasks, output.stage / "runs", jobs=args.jobs,
                                 show_progress=False if args.no_progress else None)
-            res = evaluate(p, output.stage / "runs", output.stage, planned - executor.resumed,
+            res = evaluate(p, output.stage / "runs", output.stage, planned - pool.resumed,
                            time.perf_counter() - t0, figures=not args.no_figures, load_at_start=load,
-                           runs_resumed=executor.resumed, runs_identity=identity, choice=choice)
+                           runs_resumed=pool.resumed, runs_identity=identity, choice=choice)
             output.commit()  # runs/, figures and documents replace an earlier validation's whole
-            executor.complete()
+            pool.complete()
     out = output.path
     rep = res.report
     for key, (label, _) in CRITERIA.items():

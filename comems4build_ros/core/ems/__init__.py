@@ -10,13 +10,13 @@ to ``config/ems.yaml`` (docs/architecture.md, "How to add an EMS").
 from __future__ import annotations
 
 import functools
-import importlib
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
-from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_yaml
+from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_yaml, table_class, table_rows
 from comems4build_ros.core.ems.base import INFO_LEVELS, Controller
+from comems4build_ros.core.ems.settings import ControllerSettings, load_settings
 
 #: The EMS table's file in ``config/``.
 EMS_TABLE_FILE = "ems.yaml"
@@ -34,14 +34,23 @@ class EMSEntry:
 
     Attributes
     ----------
-    name : EMS name (``--ems``)
-    controller : ``module:Class`` of the controller
-    node : ROS node name and ``ros2 run`` executable
-    info_level : information level, a key of :data:`~comems4build_ros.core.ems.base.INFO_LEVELS`
-    label : display name
-    colour : figure colour (``#RRGGBB``)
-    weight : relative cost of one step [-]
-    summary : one-line description
+    name : str
+        EMS name (``--ems``).
+    controller : str
+        ``module:Class`` of the controller.
+    node : str
+        ROS node name and ``ros2 run`` executable.
+    info_level : str
+        Information level, a key of :data:`~comems4build_ros.core.ems.base.INFO_LEVELS`
+        (``tab:level_of_information``).
+    label : str
+        Display name.
+    colour : str
+        Figure colour (``#RRGGBB``).
+    weight : float
+        Relative cost of one step [-] (how a study orders its runs).
+    summary : str
+        One-line description.
     """
 
     name: str
@@ -55,32 +64,30 @@ class EMSEntry:
 
 
 def parse_ems_table(doc: Any, source: str) -> dict[str, EMSEntry]:
-    """The rows of an EMS table document (``{"ems": {name: row}}``), checked.
+    """Check an EMS table document (``{"ems": {name: row}}``) and return its rows.
+
+    Parameters
+    ----------
+    doc : Any
+        The parsed YAML document.
+    source : str
+        Its file (for messages).
+
+    Returns
+    -------
+    dict[str, EMSEntry]
+        EMS name -> row, in the document's order.
 
     Raises
     ------
     ConfigError
         Naming the file, the EMS and the key that is missing or invalid.
     """
-    rows = doc.get("ems") if isinstance(doc, dict) else None
-    if not isinstance(rows, dict) or not rows:
-        raise ConfigError(f"{source}: needs a mapping 'ems' of EMS name -> row")
     table: dict[str, EMSEntry] = {}
     nodes: set[str] = set()
-    for name, row in rows.items():
-        where = f"{source}: ems '{name}'"
-        if not isinstance(name, str) or not isinstance(row, dict):
-            raise ConfigError(f"{where}: a name and a mapping of {', '.join(_ROW_KEYS)}")
-        missing = [k for k in _ROW_KEYS if k not in row]
-        extra = sorted(set(row) - set(_ROW_KEYS))
-        if missing or extra:
-            problems = ([f"missing {', '.join(missing)}"] if missing else []) + (
-                [f"unknown {', '.join(extra)}"] if extra else [])
-            raise ConfigError(f"{where}: " + "; ".join(problems))
+    for name, row, where in table_rows(doc, "ems", _ROW_KEYS, "controller", source, "ems"):
         if row["info_level"] not in INFO_LEVELS:
             raise ConfigError(f"{where}: info_level '{row['info_level']}' is not one of {', '.join(INFO_LEVELS)}")
-        if not isinstance(row["controller"], str) or row["controller"].count(":") != 1:
-            raise ConfigError(f"{where}: controller must be 'module:Class', got {row['controller']!r}")
         if not isinstance(row["weight"], int | float) or isinstance(row["weight"], bool) or row["weight"] <= 0:
             raise ConfigError(f"{where}: weight must be a number > 0, got {row['weight']!r}")
         if not isinstance(row["node"], str) or not row["node"].isidentifier() or row["node"] in nodes:
@@ -92,18 +99,40 @@ def parse_ems_table(doc: Any, source: str) -> dict[str, EMSEntry]:
 
 @functools.cache
 def ems_table() -> dict[str, EMSEntry]:
-    """Every EMS of ``config/ems.yaml`` by name, in the file's order."""
+    """Read every EMS of ``config/ems.yaml`` (once per process).
+
+    Returns
+    -------
+    dict[str, EMSEntry]
+        EMS name -> row, in the file's order.
+    """
     path = config_dir() / EMS_TABLE_FILE
     return parse_ems_table(load_yaml(path, "the EMS table"), str(path))
 
 
 def ems_names() -> tuple[str, ...]:
-    """The names of every EMS (``--ems`` choices)."""
+    """Return the names of every EMS.
+
+    Returns
+    -------
+    tuple[str, ...]
+        The ``--ems`` choices, in the table's order.
+    """
     return tuple(ems_table())
 
 
 def ems_entry(name: str) -> EMSEntry:
-    """The table row of the EMS ``name``.
+    """Return the table row of the EMS ``name``.
+
+    Parameters
+    ----------
+    name : str
+        EMS name (``--ems``).
+
+    Returns
+    -------
+    EMSEntry
+        Its row of ``config/ems.yaml``.
 
     Raises
     ------
@@ -117,7 +146,17 @@ def ems_entry(name: str) -> EMSEntry:
 
 
 def controller_class(name: str) -> type:
-    """Class of the EMS called ``name``.
+    """Import the controller class of the EMS called ``name``.
+
+    Parameters
+    ----------
+    name : str
+        EMS name.
+
+    Returns
+    -------
+    type
+        The class (``Cls(params, options)`` builds the controller).
 
     Raises
     ------
@@ -126,16 +165,7 @@ def controller_class(name: str) -> type:
         ``name`` or ``info_level`` differs from its row.
     """
     entry = ems_entry(name)
-    module_name, _, class_name = entry.controller.partition(":")
-    try:
-        module = importlib.import_module(module_name)
-    except ModuleNotFoundError as exc:
-        if exc.name and module_name.startswith(exc.name):
-            raise UnknownEMSError(f"EMS '{name}' is in the table but its module {module_name} is missing") from None
-        raise
-    cls = getattr(module, class_name, None)
-    if not isinstance(cls, type) or not callable(getattr(cls, "act", None)):
-        raise UnknownEMSError(f"module {module_name} defines no controller class {class_name} (EMS '{name}')")
+    cls = table_class(entry.controller, ("act",), "controller", f"EMS '{name}'", UnknownEMSError)
     if getattr(cls, "name", None) != name or getattr(cls, "info_level", None) != entry.info_level:
         raise UnknownEMSError(f"{entry.controller}: name '{getattr(cls, 'name', None)}' and info_level "
                               f"'{getattr(cls, 'info_level', None)}' differ from the EMS table's '{name}' and "
@@ -144,5 +174,39 @@ def controller_class(name: str) -> type:
 
 
 def make_controller(name: str, params: PlantParams, options: Mapping[str, Any] | None = None) -> Controller:
-    """Build the EMS ``name`` for the plant ``params`` with its ``options``."""
+    """Build the EMS ``name`` for the plant ``params`` with its ``options``.
+
+    Parameters
+    ----------
+    name : str
+        EMS name (a key of ``config/ems.yaml``).
+    params : PlantParams
+        The checked plant parameters.
+    options : Mapping[str, Any], optional
+        The controller's options (``--ems-option KEY=VALUE`` as parsed), applied over its
+        settings file by :func:`~comems4build_ros.core.ems.settings.load_settings`.
+
+    Returns
+    -------
+    Controller
+        The controller, its options checked.
+    """
     return controller_class(name)(params, dict(options or {}))
+
+
+def ems_settings(name: str, options: Mapping[str, Any] | None = None) -> ControllerSettings:
+    """Read the settings the EMS ``name`` is built with: its settings file with ``options`` applied.
+
+    Parameters
+    ----------
+    name : str
+        EMS name.
+    options : Mapping[str, Any], optional
+        Its options, as for :func:`make_controller`.
+
+    Returns
+    -------
+    ControllerSettings
+        The checked settings (the class is the controller's ``settings_class``).
+    """
+    return load_settings(controller_class(name).settings_class, options)

@@ -48,8 +48,19 @@ def check_mpc_horizon(horizon_h: float, time_step_h: float) -> None:
 
     The loop (in-process or the ROS feed) gives the MPC level :data:`PRICE_WINDOW` steps of
     day-ahead prices and forecasts, over which the MPC plans (``sec:MPC``: a 24 h horizon);
-    another horizon would stop the run at its first step. Raises ``ValueError`` naming the
-    parameter.
+    another horizon would stop the run at its first step.
+
+    Parameters
+    ----------
+    horizon_h : float
+        The plant's ``simulation.horizon_h`` [h].
+    time_step_h : float
+        The plant's ``simulation.time_step_h`` [h].
+
+    Raises
+    ------
+    ValueError
+        Naming the parameter and the horizon it must be.
     """
     if round(horizon_h / time_step_h) != PRICE_WINDOW:
         raise ValueError(f"plant parameter simulation.horizon_h = {horizon_h:g}: a run's observation carries "
@@ -110,9 +121,16 @@ class Observation:
 
     Parameters
     ----------
-    level : information level name (key of :data:`INFO_LEVELS`)
-    data : field -> value; must contain every field of the level and nothing else
-        outside it (extra fields are dropped, missing ones raise ``ValueError``).
+    level : str
+        Information level name (a key of :data:`INFO_LEVELS`, ``tab:level_of_information``).
+    data : Mapping[str, Any]
+        Field -> value (units in the field names, see the module docstring); must contain
+        every field of the level (extra fields are dropped, missing ones raise ``ValueError``).
+
+    Raises
+    ------
+    ValueError
+        For an unknown level or a missing field.
     """
 
     __slots__ = ("_level", "_data")
@@ -129,6 +147,7 @@ class Observation:
         object.__setattr__(self, "_data", {k: data[k] for k in allowed})
 
     def __getattr__(self, name: str) -> Any:
+        """Return the field ``name``; :class:`InformationError` if the level does not include it."""
         data = object.__getattribute__(self, "_data")
         try:
             return data[name]
@@ -140,6 +159,7 @@ class Observation:
             ) from None
 
     def __setattr__(self, name: str, value: Any) -> None:
+        """Refuse every assignment (an observation is read-only)."""
         raise AttributeError("Observation is read-only")
 
     @property
@@ -148,7 +168,13 @@ class Observation:
         return object.__getattribute__(self, "_level")
 
     def as_dict(self) -> dict[str, Any]:
-        """Copy of the fields."""
+        """Copy the fields.
+
+        Returns
+        -------
+        dict[str, Any]
+            Field -> value, a new dict.
+        """
         return dict(object.__getattribute__(self, "_data"))
 
 
@@ -156,16 +182,30 @@ class Observation:
 class Controller(Protocol):
     """An EMS: observation in, action out.
 
-    Implementations set ``name`` and ``info_level`` as class attributes and are built
-    as ``Cls(params, options)`` with the validated :class:`~..config.PlantParams` and
-    their own options mapping (from their config file section, may be empty).
+    Implementations set ``name``, ``info_level`` and ``settings_class`` (their
+    :class:`~comems4build_ros.core.ems.settings.ControllerSettings`) as class attributes and
+    are built as ``Cls(params, options)`` with the checked :class:`~..config.PlantParams` and
+    their options mapping (``--ems-option KEY=VALUE`` as parsed, may be empty), which they
+    apply over their settings file with :func:`~comems4build_ros.core.ems.settings.load_settings`.
     """
 
     name: str
     info_level: str
+    settings_class: type
 
     def reset(self) -> None:
         """Forget internal memory before a new run."""
 
     def act(self, obs: Observation) -> Action:
-        """Return the action for the step described by ``obs``."""
+        """Decide the step described by ``obs``.
+
+        Parameters
+        ----------
+        obs : Observation
+            The inputs of the controller's information level for step k.
+
+        Returns
+        -------
+        Action
+            The set-points of step k (the plant clips what its devices cannot do).
+        """

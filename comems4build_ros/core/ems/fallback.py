@@ -19,14 +19,18 @@ T_AIR_MARGIN_K = 0.5
 
 
 def safe_action(t_air_c: float, v_dhw_l: float, t_min_c: float, params: PlantParams) -> Action:
-    """Conservative action from measured temperature and tank volume.
+    """Decide a conservative action from the measured temperature and tank volume.
 
     Parameters
     ----------
-    t_air_c : indoor air temperature at the start of the step [degC]
-    v_dhw_l : usable hot-water volume [l]
-    t_min_c : lower comfort bound of the step (eq:T_min) [degC]
-    params : plant parameters (tank volumes)
+    t_air_c : float
+        Indoor air temperature at the start of the step [degC].
+    v_dhw_l : float
+        Usable hot-water volume [l].
+    t_min_c : float
+        Lower comfort bound of the step (``eq:T_min``) [degC].
+    params : PlantParams
+        Plant parameters (the tank's usable volume V_DHW,min .. V_DHW,max [l]).
 
     Returns
     -------

@@ -21,10 +21,23 @@ from comems4build_ros.core.config import HeatPumpParams
 
 
 def chi_cool(t_air_c: float, t_min_c: float, t_max_c: float) -> float:
-    """Thermal state towards the upper bound for cooling [-], in [0, 1]: ``eq:s_sh`` mirrored.
+    """Compute the thermal state towards the upper bound for cooling: ``eq:s_sh`` mirrored.
 
     ``chi_cool = sqrt((T_air,max[k] - T_air[k-1]) / (T_air,max[k] - T_air,min[k]))``, clipped to
     [0, 1] before the root: 0 at or above the upper bound (no reserve), 1 at the lower bound.
+    A year-round plant's feature (not in the paper).
+
+    Parameters
+    ----------
+    t_air_c : float
+        Indoor air temperature of the previous step T_air[k-1] [degC].
+    t_min_c, t_max_c : float
+        Comfort bounds T_air,min[k] and T_air,max[k] [degC].
+
+    Returns
+    -------
+    float
+        chi_cool [-], in [0, 1]; with coinciding bounds 0 at or above them, else 1.
     """
     span = float(t_max_c) - float(t_min_c)
     if span <= 0.0:
@@ -33,20 +46,28 @@ def chi_cool(t_air_c: float, t_min_c: float, t_max_c: float) -> float:
 
 
 def chi_sh(t_air_c: float, t_min_c: float | Sequence[float], t_max_c: float) -> float:
-    """Thermal state of space heating ``eq:s_sh`` [-], in [0, 1].
+    """Compute the thermal state of space heating ``eq:s_sh``.
 
     ``chi_SH = sqrt((T_air[k-1] - T_low) / (T_air,max[k] - T_low))`` with
     ``T_low = max(T_air,min[k], T_air,min[k+5])``.
 
     Parameters
     ----------
-    t_air_c : indoor air temperature of the previous step T_air[k-1] [degC]
-    t_min_c : lower comfort bound(s) [degC]: a scalar T_air,min[k] (RBC: no look-ahead,
+    t_air_c : float
+        Indoor air temperature of the previous step T_air[k-1] [degC].
+    t_min_c : float or Sequence[float]
+        Lower comfort bound(s) [degC]: a scalar T_air,min[k] (RBC: no look-ahead,
         ``sec:RBC``) or the bounds k .. k+5 of the fuzzy EMS; their maximum is used, so
         a home period starting anywhere within the next five hours triggers pre-heating
         (the paper calls T_air,min[k+5] "the minimal temperature bound in the next five
         hours").
-    t_max_c : upper comfort bound T_air,max[k] [degC]
+    t_max_c : float
+        Upper comfort bound T_air,max[k] [degC].
+
+    Returns
+    -------
+    float
+        chi_SH [-], in [0, 1].
 
     Notes
     -----
@@ -63,14 +84,21 @@ def chi_sh(t_air_c: float, t_min_c: float | Sequence[float], t_max_c: float) -> 
 
 
 def chi_dhw(v_dhw_l: float, v_min_l: float, v_max_l: float) -> float:
-    """Thermal state of the hot-water tank ``eq:s_dhw`` [-], in [0, 1].
+    """Compute the thermal state of the hot-water tank ``eq:s_dhw``.
 
     ``chi_DHW = ((V_DHW[k-1] - V_min) / (V_max - V_min))^2``, the fill ratio clipped to [0, 1].
 
     Parameters
     ----------
-    v_dhw_l : usable hot-water volume of the previous step [l]
-    v_min_l, v_max_l : usable volume bounds [l]
+    v_dhw_l : float
+        Usable hot-water volume of the previous step V_DHW[k-1] [l].
+    v_min_l, v_max_l : float
+        Usable volume bounds V_DHW,min and V_DHW,max [l].
+
+    Returns
+    -------
+    float
+        chi_DHW [-], in [0, 1].
     """
     ratio = (v_dhw_l - v_min_l) / (v_max_l - v_min_l)
     ratio = min(1.0, max(0.0, ratio))
@@ -78,18 +106,29 @@ def chi_dhw(v_dhw_l: float, v_min_l: float, v_max_l: float) -> float:
 
 
 def edf_price(price_now: float, prices_24h: Sequence[float]) -> float:
-    """Empirical distribution function of the day-ahead prices ``eq:EDF_prices`` [-].
+    """Compute the empirical distribution function of the day-ahead prices ``eq:EDF_prices``.
 
     ``p_hat[k] = (1/H) * sum_i I(X_i <= p_buy[k])`` over the H = 24 day-ahead prices.
 
     Parameters
     ----------
-    price_now : current buy price p_buy[k] [EUR/kWh]
-    prices_24h : day-ahead buy prices of steps k .. k+23 [EUR/kWh] (the observation's
+    price_now : float
+        Current buy price p_buy[k] [EUR/kWh].
+    prices_24h : Sequence[float]
+        Day-ahead buy prices of steps k .. k+23 [EUR/kWh] (the observation's
         ``prices_buy_24h``). The paper sums over i = k+1 .. k+H; the observation holds the
         24 prices known at step k, which start at k, so the window here is k .. k+H-1 and
-        always counts the current price itself: the result lies in [1/H, 1], 1 meaning
-        the current price is the day's highest.
+        always counts the current price itself.
+
+    Returns
+    -------
+    float
+        p_hat[k] [-], in [1/H, 1]; 1 means the current price is the day's highest.
+
+    Raises
+    ------
+    ValueError
+        Without any day-ahead price.
     """
     n = len(prices_24h)
     if n == 0:
@@ -119,9 +158,19 @@ class DailyH2Allowance:
 
     Parameters
     ----------
-    mode : "fixed" or "rolling"
-    loh_init : initial H2 level of the period [-] (``simulation.loh_init``)
-    loh_min : lower bound of the store [-] (``hydrogen.loh_min``)
+    mode : {"fixed", "rolling"}
+        The reading of ``eq:deltaLOH`` (above).
+    loh_init : float
+        Initial H2 level of the period [-] (``simulation.loh_init``).
+    loh_min : float
+        Lower bound of the store [-] (``hydrogen.loh_min``).
+
+    Attributes
+    ----------
+    today, remaining : float
+        Today's allowance and what is left of it [fraction of the store].
+    share : float
+        ``remaining / today`` [-], in [0, 1].
     """
 
     MODES = ("fixed", "rolling")
@@ -147,9 +196,17 @@ class DailyH2Allowance:
 
         Parameters
         ----------
-        day_index : index of the current step's day since the start of the period
-        loh : H2 level at the end of the previous step [-]
-        dloh_per_day : allowance of ``eq:deltaLOH``, fraction of the store [-/day]
+        day_index : int
+            Index of the current step's day since the start of the period [d].
+        loh : float
+            H2 level at the end of the previous step LOH[k-1] [-].
+        dloh_per_day : float
+            Allowance of ``eq:deltaLOH`` [fraction of the store per day].
+
+        Returns
+        -------
+        float
+            The remaining share of today's allowance [-], in [0, 1] (FLC_FC's input dLOH).
         """
         if day_index != self._day:
             self._day = day_index
@@ -166,7 +223,7 @@ class DailyH2Allowance:
 
 
 def update_modulation(eta_prev: float, alpha_hp: float, mod_min: float) -> float:
-    """HP modulation update of FLC_flex (``sec:appendix``, interpreted).
+    """Update the HP modulation with FLC_flex's output (``sec:appendix``, interpreted).
 
     The paper writes ``eta_HP[k] = alpha_HP * eta_HP[k-1]`` and calls alpha_HP "the
     increment or decrement of the HP modulation factor from the previous timestep". As
@@ -184,15 +241,23 @@ def update_modulation(eta_prev: float, alpha_hp: float, mod_min: float) -> float
 
     Parameters
     ----------
-    eta_prev : modulation of the previous step [-]
-    alpha_hp : FLC_flex output [-], in [-1, 1]
-    mod_min : smallest non-zero modulation (0.2 in the paper) [-]
+    eta_prev : float
+        Modulation of the previous step eta_HP[k-1] [-].
+    alpha_hp : float
+        FLC_flex output alpha_HP [-], in [-1, 1].
+    mod_min : float
+        Smallest non-zero modulation [-] (0.2 in the paper, ``sec:hp``).
+
+    Returns
+    -------
+    float
+        eta_HP[k] [-], in {0} U [mod_min, 1].
     """
     return _snap_modulation(eta_prev + alpha_hp, mod_min)
 
 
 def modulation_level(alpha_hp: float, mod_min: float) -> float:
-    """The other reading of the FLC_flex output: alpha_HP as the modulation level itself [-].
+    """Read the FLC_flex output alpha_HP as the modulation level itself (the other reading).
 
     ``eta_HP[k] = Q(clip(alpha_HP, 0, 1))`` with the snapping of :func:`update_modulation`:
     "zero" and every negative term switch the HP off, so the rules whose output is "Z"
@@ -201,8 +266,15 @@ def modulation_level(alpha_hp: float, mod_min: float) -> float:
 
     Parameters
     ----------
-    alpha_hp : FLC_flex output [-], in [-1, 1]
-    mod_min : smallest non-zero modulation [-]
+    alpha_hp : float
+        FLC_flex output alpha_HP [-], in [-1, 1].
+    mod_min : float
+        Smallest non-zero modulation [-].
+
+    Returns
+    -------
+    float
+        eta_HP[k] [-], in {0} U [mod_min, 1].
     """
     return _snap_modulation(alpha_hp, mod_min)
 
@@ -216,12 +288,24 @@ def _snap_modulation(eta_raw: float, mod_min: float) -> float:
 
 
 def hp_p_el_ref_w(hp: HeatPumpParams, t_ref_c: float) -> float:
-    """Rated electrical power P_el,max of the HP at a fixed reference temperature [W].
+    """Look up the HP's rated electrical power P_el,max at a fixed reference temperature.
 
     Neither the RBC nor ComEMS4Build observes the ambient temperature
     (``tab:level_of_information``), so their estimate of the HP's electrical power in
     ``dP = P_PV - P_el,HP - P_el,load`` is ``eta_HP * P_el,max(t_ref_c)``: a constant
     taken from the device data (``heat_pump.p_el_max_*`` of the plant file) at a
     configured rating temperature, not a measurement.
+
+    Parameters
+    ----------
+    hp : HeatPumpParams
+        The heat pump's parameters (its P_el,max(T_amb) table [degC] -> [W]).
+    t_ref_c : float
+        Reference ambient temperature [degC] (EN 14511 rating point A2: 2 degC).
+
+    Returns
+    -------
+    float
+        P_el,max(t_ref_c) [W], interpolated linearly in the table.
     """
     return float(np.interp(t_ref_c, hp.p_el_max_t_amb_c, hp.p_el_max_w))

@@ -29,72 +29,35 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from pydantic import Field, model_validator
-
-from comems4build_ros.core.config import (
-    PlantParams,
-    Section,
-    config_dir,
-    deep_merge,
-    read_ros_params,
-    set_dotted,
-    validate,
-)
+from comems4build_ros.core.config import PlantParams
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.features import chi_cool, chi_dhw, chi_sh, edf_price, hp_p_el_ref_w
+from comems4build_ros.core.ems.settings import RBCSettings, load_settings
 from comems4build_ros.core.models.battery import power_limits_w
 from comems4build_ros.core.models.cooling import p_el_max_cool_w
 from comems4build_ros.core.models.electrolyser import ElectrolyserTable
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
 
-class RBCParams(Section):
-    """Options of the RBC (``config/rbc.yaml``, section ``rbc``); see the file for sources.
-
-    Each hysteresis switches on at or below its ``*_on_chi`` and off at or above its
-    ``*_off_chi`` (``sec:RBC``), so ``on`` must lie below ``off``; the EDF quartile that
-    charges from the grid must lie below the one that runs the FC.
-    """
-
-    sh_on_chi: float = Field(ge=0, le=1)
-    sh_off_chi: float = Field(ge=0, le=1)
-    dhw_on_chi: float = Field(ge=0, le=1)
-    dhw_off_chi: float = Field(ge=0, le=1)
-    hp_mod_on: float = Field(gt=0, le=1)
-    p_el_ref_t_amb_c: float
-    edf_upper_quartile: float = Field(ge=0, le=1)
-    edf_lower_quartile: float = Field(ge=0, le=1)
-    loh_reserve: float = Field(ge=0, le=1)
-    cool_off_chi: float = Field(gt=0, le=1)
-    p_el_ref_cool_t_amb_c: float
-
-    @model_validator(mode="after")
-    def _check(self) -> RBCParams:
-        for low, high in (("sh_on_chi", "sh_off_chi"), ("dhw_on_chi", "dhw_off_chi"),
-                          ("edf_lower_quartile", "edf_upper_quartile")):
-            if not getattr(self, low) < getattr(self, high):
-                raise ValueError(f"{low} ({getattr(self, low)}) must be below {high} ({getattr(self, high)})")
-        return self
-
-
-def load_rbc_options(options: Mapping[str, Any] | None = None) -> RBCParams:
-    """Defaults from ``config/rbc.yaml`` with ``options`` (dotted keys allowed) merged over them."""
-    path = config_dir() / "rbc.yaml"
-    data = dict(read_ros_params(path).get("rbc", {}))
-    extra: dict[str, Any] = {}
-    for key, value in (options or {}).items():
-        set_dotted(extra, str(key), value)
-    deep_merge(data, extra)
-    return validate(RBCParams, data, f"{path} + options" if extra else str(path))
-
-
 def loh_floor(params: PlantParams, options: Mapping[str, Any] | None = None) -> float:
-    """Lowest H2 level the RBC runs its FC at [-]: the plant's LOH_min or its own ``loh_reserve``.
+    """Lowest H2 level the RBC runs its FC at: the plant's LOH_min or the RBC's own ``loh_reserve``.
 
     Reports count the RBC's store as empty when it reaches this level (``sec:results``:
     the RBC "has depleted the H2 storage to the LOH_min").
+
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (``hydrogen.loh_min`` [-]).
+    options : Mapping[str, Any], optional
+        The RBC's options (:class:`~comems4build_ros.core.ems.settings.RBCSettings`).
+
+    Returns
+    -------
+    float
+        The level [-] (fraction of the store's capacity).
     """
-    return max(params.hydrogen.loh_min, load_rbc_options(options).loh_reserve)
+    return max(params.hydrogen.loh_min, load_settings(RBCSettings, options).loh_reserve)
 
 
 class RuleBasedController:
@@ -102,22 +65,26 @@ class RuleBasedController:
 
     Parameters
     ----------
-    params : plant parameters (device sizes, tank volumes)
-    options : overrides of ``config/rbc.yaml`` section ``rbc`` (may be empty)
+    params : PlantParams
+        Plant parameters (device sizes, tank volumes).
+    options : Mapping[str, Any], optional
+        Overrides of ``config/rbc.yaml`` section ``rbc``
+        (:class:`~comems4build_ros.core.ems.settings.RBCSettings`).
     """
 
     name = "rbc"
     info_level = "basic"
+    settings_class = RBCSettings
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
         self.params = params
-        self.options = load_rbc_options(options)
-        if params.heat_pump.mod_min > self.options.hp_mod_on:
-            raise ValueError(f"rbc option hp_mod_on={self.options.hp_mod_on} is below the HP's minimal modulation")
-        self._p_hp_ref_w = hp_p_el_ref_w(params.heat_pump, self.options.p_el_ref_t_amb_c)
+        self.settings = load_settings(RBCSettings, options)
+        if params.heat_pump.mod_min > self.settings.hp_mod_on:
+            raise ValueError(f"rbc option hp_mod_on={self.settings.hp_mod_on} is below the HP's minimal modulation")
+        self._p_hp_ref_w = hp_p_el_ref_w(params.heat_pump, self.settings.p_el_ref_t_amb_c)
         self._p_fc_w = params.fuel_cell.zeta * params.fuel_cell.p_max_w
         self._cooling = bool(params.cooling.enabled)
-        self._p_cool_ref_w = float(p_el_max_cool_w(self.options.p_el_ref_cool_t_amb_c, params.cooling))
+        self._p_cool_ref_w = float(p_el_max_cool_w(self.settings.p_el_ref_cool_t_amb_c, params.cooling))
         table = ElectrolyserTable(params.electrolyser)
         self._el = table.n > 0
         self._p_el_min_w, self._p_el_max_w = table.p_min_w, table.p_max_w
@@ -132,8 +99,19 @@ class RuleBasedController:
         self.step_info = {}
 
     def act(self, obs: Observation) -> Action:
-        """Set-points of the step."""
-        o, p = self.options, self.params
+        """Decide the step by the rules of ``sec:RBC`` (``fig:flc_rbc_flowchart`` right).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (basic level, ``tab:level_of_information``).
+
+        Returns
+        -------
+        Action
+            The set-points; the features go to :attr:`step_info`.
+        """
+        o, p = self.settings, self.params
         c_sh = chi_sh(obs.t_air_c, obs.t_min_c, obs.t_max_c)
         c_dhw = chi_dhw(obs.v_dhw_l, p.dhw.v_min_l, p.dhw.v_max_l)
         if c_sh <= o.sh_on_chi:

@@ -31,14 +31,16 @@ What the plant reads: T_air = the floor-area-weighted mean of the zones' mean ai
 at the end of the hour; "T_w,in" = the mean inside face temperature of the heated floors and
 "T_w,out" = the mean inside face temperature of the exterior walls (measured surface
 temperatures, not the 4R3C's nodes; an MPC plans with its own model's states). Per step the
-record :attr:`EnergyPlusBuilding.last` keeps what EnergyPlus received and reported.
+record :attr:`EnergyPlusBuilding.last` keeps what EnergyPlus received and reported, with the sun
+the windows let in and the internal gains released in the zones (``comems4build house``
+compares them with the 4R3C's).
 
 The IDF must define what the co-simulation actuates (:func:`check_idf`): the schedule
-:data:`~comems4build_ros.core.models.energyplus_house.HEAT_SCHEDULE`, a heat balance source
+:data:`~comems4build_ros.core.models.house_idf.HEAT_SCHEDULE`, a heat balance source
 term on each heated floor, ``ElectricEquipment`` in each zone, and, for heat into the floor's
 mass, ``ZoneHVAC:LowTemperatureRadiant:Electric`` systems controlled on the mean air
 temperature with ``HalfFlowPower`` and a ``Schedule:Constant`` set point; the shipped house
-(:mod:`~comems4build_ros.core.models.energyplus_house`) has them all.
+(:mod:`~comems4build_ros.core.models.house_idf`) has them all.
 """
 
 from __future__ import annotations
@@ -56,7 +58,7 @@ import numpy as np
 import pandas as pd
 
 from comems4build_ros.core.config import SiteParams
-from comems4build_ros.core.models import energyplus_house as house
+from comems4build_ros.core.models import house_idf as house
 from comems4build_ros.core.models.building import Temperatures
 from comems4build_ros.core.models.epw import Weather, check_epw_covers, standard_offset_h, standard_times, write_epw
 from comems4build_ros.core.types import Exogenous
@@ -78,6 +80,10 @@ RADIANT_VARIABLE = "Zone Radiant HVAC Heating Rate"
 CONTROL_VARIABLE = "Zone Air Temperature"
 #: Set point that keeps an electric radiant system off [degC].
 RADIANT_OFF_C = -100.0
+#: Output variables of each zone the record keeps (hourly means, summed over the zones) [W]: the sun
+#: the windows let in, and the internal gains released in the zone (people, equipment, lights).
+SOLAR_VARIABLE = "Enclosure Windows Total Transmitted Solar Radiation Rate"
+INTERNAL_VARIABLE = "Zone Total Internal Total Heating Rate"
 
 
 class IDFError(ValueError):
@@ -353,9 +359,13 @@ class StepRecord:
     q_floor_set_w : float
         Floor heat the plant asked for [W].
     q_floor_received_w : float
-        Floor heat EnergyPlus applied [W].
+        Floor heat EnergyPlus reports the floors received [W].
     gains_w : float
-        Appliance heat released in the zones [W].
+        Appliance load given to the zones' equipment [W] (the IDF decides how much of it is heat).
+    solar_w : float
+        Sun the windows let into the zones [W].
+    internal_w : float
+        Internal gains released in the zones [W].
     t_air_c : float
         Floor-area weighted mean air temperature [degC].
     t_zones_c : list of float
@@ -365,6 +375,8 @@ class StepRecord:
     q_floor_set_w: float = 0.0
     q_floor_received_w: float = 0.0
     gains_w: float = 0.0
+    solar_w: float = 0.0
+    internal_w: float = 0.0
     t_air_c: float = math.nan
     t_zones_c: list[float] = field(default_factory=list)
 
@@ -448,6 +460,8 @@ class EnergyPlusBuilding:
         self._hour: tuple[int, int] | None = None
         self._started = False
         self._src_sum = 0.0
+        self._solar_sum = 0.0
+        self._internal_sum = 0.0
         self._ts_hour = 1
         self._q_flux = 0.0
         self._radiant_w: list[float] = [0.0] * len(self.spec.radiant)
@@ -561,6 +575,8 @@ class EnergyPlusBuilding:
             api.exchange.request_variable(state, SOURCE_VARIABLE, surf)
         for zone in self.spec.zones:
             api.exchange.request_variable(state, "Zone Mean Air Temperature", zone)
+            api.exchange.request_variable(state, SOLAR_VARIABLE, zone)
+            api.exchange.request_variable(state, INTERNAL_VARIABLE, zone)
         for surf in [*self.spec.floors, *self.spec.exterior_walls]:
             api.exchange.request_variable(state, "Surface Inside Face Temperature", surf)
         for r in self.spec.radiant:
@@ -602,6 +618,8 @@ class EnergyPlusBuilding:
             "people": [ex.get_actuator_handle(state, "People", "Number of People", p) for p in self.spec.people]
             if not self.occupants else [],
             "t_zone": [ex.get_variable_handle(state, "Zone Mean Air Temperature", z) for z in self.spec.zones],
+            "solar": [ex.get_variable_handle(state, SOLAR_VARIABLE, z) for z in self.spec.zones],
+            "internal": [ex.get_variable_handle(state, INTERNAL_VARIABLE, z) for z in self.spec.zones],
             "src": [ex.get_variable_handle(state, SOURCE_VARIABLE, f) for f in self.spec.floors],
             "t_floor": [ex.get_variable_handle(state, "Surface Inside Face Temperature", f) for f in self.spec.floors],
             "t_wall": [ex.get_variable_handle(state, "Surface Inside Face Temperature", w)
@@ -705,6 +723,8 @@ class EnergyPlusBuilding:
             self._acc = StepRecord(q_floor_set_w=cmd[0], gains_w=cmd[1])
             self._nacc = 0
             self._src_sum = 0.0
+            self._solar_sum = 0.0
+            self._internal_sum = 0.0
             self._ts_hour = ts_hour
         self._set(state, self._acc.q_floor_set_w, self._acc.gains_w)
 
@@ -724,10 +744,14 @@ class EnergyPlusBuilding:
         src = sum(ex.get_variable_value(state, hs) * a for hs, a in zip(self._h["src"], self._area["floor"]))
         src += sum(ex.get_variable_value(state, hq) for hq in self._h["radiant_q"])
         self._src_sum += src
+        self._solar_sum += sum(ex.get_variable_value(state, h) for h in self._h["solar"])
+        self._internal_sum += sum(ex.get_variable_value(state, h) for h in self._h["internal"])
         self._nacc += 1
         if self._nacc == self._ts_hour:
             rec = self._acc
             rec.q_floor_received_w = self._src_sum / self._nacc
+            rec.solar_w = self._solar_sum / self._nacc
+            rec.internal_w = self._internal_sum / self._nacc
             rec.t_air_c, rec.t_zones_c = self._t_air(state)
             self._res.put(("step", (rec, self._temps(state))))
 

@@ -127,7 +127,7 @@ def _poa_from_horizontal_quiet(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.n
 
 
 def _poa_from_horizontal(mid: pd.DatetimeIndex, ghi: np.ndarray, dhi: np.ndarray, pv: PVParams, site: SiteParams):
-    """Run the pvlib steps of :func:`poa_irradiance_w_m2` for validated inputs at mid-step times."""
+    """Run the pvlib steps of :func:`poa_irradiance_w_m2` for checked inputs at mid-step times."""
     import pvlib  # here, not at the top: node processes that build no scenario skip its ~1 s import
 
     solpos = pvlib.solarposition.get_solarposition(mid, site.latitude_deg, site.longitude_deg, site.altitude_m)

@@ -330,6 +330,17 @@ def _load(
     return base + activity + cycles
 
 
+def appliance_load_w(time: pd.DatetimeIndex, off_day: np.ndarray, settings: ScenarioParams, seed: int) -> np.ndarray:
+    """Return the appliance load model of step 5 with its own stream of ``seed``, on the hours ``time`` [W].
+
+    Another seed gives another household of the same model (a neighbour), with the same
+    calendar (``off_day``: weekends and public holidays per hour).
+    """
+    local_dates = time.normalize().tz_localize(None)
+    day = ((local_dates - local_dates[0]).days).to_numpy()
+    return _load(_streams(seed)["load"], time, day, np.asarray(off_day, dtype=bool), settings)
+
+
 def opendhw_offday_mass_ratio(step_s: int) -> float:
     """Return the daily probability mass of OpenDHW's off-day profile over its workday profile.
 

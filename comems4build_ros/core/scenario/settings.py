@@ -1,8 +1,8 @@
 """Settings of the default scenario generator (``config/scenario.yaml``, section ``scenario``).
 
 The file is a ROS 2 parameter file (``/**: ros__parameters: scenario: {...}``), read with
-:func:`comems4build_ros.core.config.read_ros_params` and validated with
-:func:`comems4build_ros.core.config.validate`, so an invalid value is reported with the file
+:func:`comems4build_ros.core.config.read_ros_params` and checked with
+:func:`comems4build_ros.core.config.parse_model`, so an invalid value is reported with the file
 and the parameter path.
 """
 
@@ -16,7 +16,7 @@ from typing import Annotated, Any
 
 from pydantic import AfterValidator, Field, model_validator
 
-from comems4build_ros.core.config import ConfigError, Section, config_dir, read_param_section, set_dotted, validate
+from comems4build_ros.core.config import ConfigError, Section, config_dir, parse_model, read_param_section, set_dotted
 
 HOURS_PER_DAY = 24
 
@@ -418,7 +418,7 @@ def _section(path: str | Path | None, name: str, overrides: Mapping[str, Any] | 
 def load_measured_settings(
     path: str | Path | None = None, overrides: Mapping[str, Any] | None = None, section: str = "measured"
 ) -> MeasuredParams:
-    """Read and validate a measured-data section of a parameter file (default ``config/scenario.yaml``).
+    """Read and check a measured-data section of a parameter file (default ``config/scenario.yaml``).
 
     ``section``: ``measured`` (the paper's winter, ``--scenario default``) or
     ``measured_year`` (the year around it, ``--scenario year``).
@@ -443,7 +443,7 @@ def load_measured_settings(
         Naming the file and the parameter if the section is missing or invalid.
     """
     data, label = _section(path, section, overrides)
-    return validate(MeasuredParams, data, label)
+    return parse_model(MeasuredParams, data, label)
 
 
 def default_scenario_file() -> Path:
@@ -454,7 +454,7 @@ def default_scenario_file() -> Path:
 def load_scenario_settings(
     path: str | Path | None = None, overrides: Mapping[str, Any] | None = None
 ) -> ScenarioParams:
-    """Read and validate the ``scenario`` section (the synthetic generator) of a parameter file.
+    """Read and check the ``scenario`` section (the synthetic generator) of a parameter file.
 
     Parameters
     ----------
@@ -474,7 +474,7 @@ def load_scenario_settings(
         Naming the file and the parameter if the section is missing or invalid.
     """
     section, label = _section(path, "scenario", overrides)
-    return validate(ScenarioParams, section, label)
+    return parse_model(ScenarioParams, section, label)
 
 
 def split_overrides(overrides: Mapping[str, Any] | None) -> dict[str, dict[str, Any]]:

@@ -39,17 +39,9 @@ The membership functions and rule bases are the data files ``config/fuzzy/flex.y
 from __future__ import annotations
 
 from collections.abc import Mapping
-from pathlib import Path
 from typing import Any
 
-from comems4build_ros.core.config import (
-    ConfigError,
-    PlantParams,
-    check_known_keys,
-    config_dir,
-    finite_number,
-    set_dotted,
-)
+from comems4build_ros.core.config import PlantParams
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.features import (
     DailyH2Allowance,
@@ -61,142 +53,105 @@ from comems4build_ros.core.ems.features import (
     modulation_level,
     update_modulation,
 )
-from comems4build_ros.core.ems.fuzzy.engine import SECTION_KEYS, FuzzySystem, load_system
+from comems4build_ros.core.ems.fuzzy.engine import FuzzySystem, flc_system
+from comems4build_ros.core.ems.settings import FuzzySettings, load_settings
 from comems4build_ros.core.models.battery import power_limits_w
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
-#: Controller section of each data file and the option key of its file / overrides.
-FLC_FILES: dict[str, tuple[str, str]] = {
-    "flex": ("flex.yaml", "flc_flex"),
-    "fc": ("fc.yaml", "flc_fc"),
-    "battery": ("battery.yaml", "flc_b"),
-    "el": ("el.yaml", "flc_el"),
-}
-#: Controllers only a year-round plant with an electrolyser reads (the paper's plant has none).
+#: Controllers only a year-round plant with an electrolyser builds (the paper's plant has none).
 EL_FLCS = ("el",)
 
 
-#: The controller's own option group of each section and its keys (read by :class:`FuzzyEMS`).
-FLC_OPTIONS: dict[str, tuple[str, tuple[str, ...]]] = {
-    "flex": ("hp", ("update", "p_el_ref_t_amb_c", "dhw_priority_chi", "cool_below_chi", "p_el_ref_cool_t_amb_c")),
-    "fc": ("fc", ("cap_to_demand", "stop_when_allowance_used", "h2_allowance")),
-    "battery": ("battery", ("absorb_surplus",)),
-    "el": ("el", ("cap_to_surplus",)),
-}
-
-#: Readings of the FLC_flex output (``hp.update`` in ``config/fuzzy/flex.yaml``).
-HP_UPDATES = ("increment", "level")
-
-
-def fuzzy_config_dir() -> Path:
-    """Directory of the default rule-base files (``config/fuzzy``)."""
-    return config_dir() / "fuzzy"
-
-
-def load_flcs(params: PlantParams, options: Mapping[str, Any] | None = None) -> dict[str, tuple[FuzzySystem, dict]]:
-    """Build the three controllers from their files.
+def fuzzy_systems(settings: FuzzySettings, params: PlantParams) -> dict[str, FuzzySystem]:
+    """Build the fuzzy controllers of ``settings`` for the plant ``params``.
 
     Parameters
     ----------
-    params : plant parameters (device sizes for the membership peaks)
-    options : ``{"flex_file": path, "fc": {"fc": {"cap_to_demand": False}}, ...}``;
-        keys ``<flc>_file`` choose a file, keys ``<flc>`` hold overrides merged over the
-        file's section. Dotted keys (``"fc.fc.cap_to_demand"``, as from
-        ``--ems-option``) are expanded.
+    settings : FuzzySettings
+        The rule files' sections, checked (:func:`~comems4build_ros.core.ems.settings.load_settings`).
+    params : PlantParams
+        Plant parameters (device sizes for the membership peaks); FLC_EL only for a plant
+        with an electrolyser (``electrolyser.n_modules > 0``).
 
     Returns
     -------
-    dict flc -> (FuzzySystem, section dict)
+    dict[str, FuzzySystem]
+        ``flex``, ``fc``, ``battery`` (and ``el``) -> the controller.
     """
-    opts: dict[str, Any] = {}
-    for key, value in (options or {}).items():
-        set_dotted(opts, str(key), value)
-    known = set(FLC_FILES) | {f"{k}_file" for k in FLC_FILES}
-    unknown = sorted(set(opts) - known)
-    if unknown:
-        raise ConfigError(
-            f"fuzzy EMS options: unknown option(s) {', '.join(unknown)} (known: {', '.join(sorted(known))})"
-        )
     out = {}
-    for key, (fname, section) in FLC_FILES.items():
+    for key, where in FuzzySettings.FILES.items():
         if key in EL_FLCS and params.electrolyser.n_modules == 0:
             continue
-        path = Path(opts.get(f"{key}_file") or fuzzy_config_dir() / fname)
-        overrides = opts.get(key) or {}
-        if not isinstance(overrides, Mapping):
-            raise ConfigError(f"fuzzy EMS options: '{key}' must be a mapping of overrides for {path}")
-        system, merged = load_system(path, section, params, overrides)
-        group, group_keys = FLC_OPTIONS[key]
-        where = f"{path}{' + options' if overrides else ''}: {section}"
-        check_known_keys(merged, (*SECTION_KEYS, group), where)
-        if isinstance(merged.get(group), Mapping):
-            check_known_keys(merged[group], group_keys, f"{where}.{group}")
-        out[key] = (system, merged)
+        section = getattr(settings, key)
+        out[key] = flc_system(str(where.section), section.model_dump(), params, getattr(settings, f"{key}_file"))
     return out
 
 
-def _option(section: Mapping[str, Any], group: str, key: str, source: str, kind: type) -> Any:
-    try:
-        value = section[group][key]
-    except (KeyError, TypeError):
-        raise ConfigError(f"{source}: missing option '{group}.{key}'") from None
-    if kind is bool:
-        if not isinstance(value, bool):
-            raise ConfigError(f"{source}: option '{group}.{key}' must be true or false, got {value!r}")
-        return value
-    if kind is float:
-        return finite_number(value, f"{source}: option '{group}.{key}'")
-    try:
-        return kind(value)
-    except (TypeError, ValueError):
-        raise ConfigError(f"{source}: option '{group}.{key}' must be a {kind.__name__}, got {value!r}") from None
-
-
-class FuzzyEMS:
-    """ComEMS4Build: FLC_flex -> FLC_FC (only when dP < 0) -> FLC_B.
+def load_flcs(params: PlantParams, options: Mapping[str, Any] | None = None) -> dict[str, tuple[FuzzySystem, dict]]:
+    """Build the fuzzy controllers from their rule files and ``options``.
 
     Parameters
     ----------
-    params : plant parameters
-    options : see :func:`load_flcs` (may be empty: the default files are read)
+    params : PlantParams
+        Plant parameters (device sizes for the membership peaks).
+    options : Mapping[str, Any], optional
+        The fuzzy EMS's options (:class:`~comems4build_ros.core.ems.settings.FuzzySettings`):
+        ``<flc>_file`` chooses a rule file, ``<flc>.<key>`` overrides a value of its section
+        (``"fc.fc.cap_to_demand"``, as from ``--ems-option``).
+
+    Returns
+    -------
+    dict[str, tuple[FuzzySystem, dict]]
+        ``flex``, ``fc``, ``battery`` (and ``el``) -> the controller and its section.
+    """
+    settings = load_settings(FuzzySettings, options)
+    return {key: (system, getattr(settings, key).model_dump())
+            for key, system in fuzzy_systems(settings, params).items()}
+
+
+class FuzzyEMS:
+    """ComEMS4Build: FLC_flex -> FLC_FC (only when dP < 0) -> FLC_B (``sec:FLC``).
+
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (device sizes, tank volumes, the H2 store's bounds).
+    options : Mapping[str, Any], optional
+        The fuzzy EMS's options (:class:`~comems4build_ros.core.ems.settings.FuzzySettings`;
+        may be empty: the shipped rule files are read).
 
     Attributes
     ----------
-    step_info : features and controller outputs of the last step (recorded as ``ems_*``)
+    settings : FuzzySettings
+        The rule files' sections and the post-processing options, checked.
+    step_info : dict[str, float]
+        Features and controller outputs of the last step (recorded as ``ems_*``).
     """
 
     name = "fuzzy"
     info_level = "fuzzy"
+    settings_class = FuzzySettings
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
-        flcs = load_flcs(params, options)
-        self.flex, flex_sec = flcs["flex"]
-        self.fc, fc_sec = flcs["fc"]
-        self.battery, bat_sec = flcs["battery"]
+        self.settings = s = load_settings(FuzzySettings, options)
+        flcs = fuzzy_systems(s, params)
+        self.flex, self.fc, self.battery = flcs["flex"], flcs["fc"], flcs["battery"]
         self.params = params
         self._mod_min = params.heat_pump.mod_min
-        self._p_hp_ref_w = hp_p_el_ref_w(
-            params.heat_pump, _option(flex_sec, "hp", "p_el_ref_t_amb_c", self.flex.source, float)
-        )
-        self._dhw_prio = _option(flex_sec, "hp", "dhw_priority_chi", self.flex.source, float)
-        update = _option(flex_sec, "hp", "update", self.flex.source, str)
-        if update not in HP_UPDATES:
-            raise ConfigError(f"{self.flex.source}: option 'hp.update' must be one of {', '.join(HP_UPDATES)}, "
-                              f"got {update!r}")
-        self._hp_level = update == "level"
-        self._cap_fc = _option(fc_sec, "fc", "cap_to_demand", self.fc.source, bool)
-        self._stop_fc = _option(fc_sec, "fc", "stop_when_allowance_used", self.fc.source, bool)
-        self._absorb = _option(bat_sec, "battery", "absorb_surplus", self.battery.source, bool)
-        self._scale_fc = float(fc_sec.get("load_scale_w", 10_000.0))
-        self._scale_b = float(bat_sec.get("load_scale_w", 10_000.0))
+        hp = s.flex.hp
+        self._p_hp_ref_w = hp_p_el_ref_w(params.heat_pump, hp.p_el_ref_t_amb_c)
+        self._dhw_prio = hp.dhw_priority_chi
+        self._hp_level = hp.update == "level"
+        self._cap_fc = s.fc.fc.cap_to_demand
+        self._stop_fc = s.fc.fc.stop_when_allowance_used
+        self._absorb = s.battery.battery.absorb_surplus
+        self._scale_fc = self.fc.load_scale_w
+        self._scale_b = self.battery.load_scale_w
         fc = params.fuel_cell
         self._p_fc_max_w = fc.zeta * fc.p_max_w
         self._p_fc_min_w = fc.p_min_w
         self._dt_h = params.simulation.time_step_h
-        allowance = str(_option(fc_sec, "fc", "h2_allowance", self.fc.source, str))
-        if allowance not in DailyH2Allowance.MODES:
-            raise ConfigError(f"{self.fc.source}: option 'fc.h2_allowance' must be one of "
-                              f"{', '.join(DailyH2Allowance.MODES)}, got {allowance!r}")
+        allowance = s.fc.fc.h2_allowance
         # A plant with an electrolyser spreads its budget over the heating season once, at the
         # season's start (season_dloh, docs/seasonal.md): eq:deltaLOH's period is not the run there,
         # so its daily budget is booked as given ("fixed").
@@ -206,17 +161,15 @@ class FuzzyEMS:
         self.step_info: dict[str, float] = {}
         # year-round plant: cooling and the electrolyser, each only where installed
         self._cooling = bool(params.cooling.enabled)
-        self._cool_chi = _option(flex_sec, "hp", "cool_below_chi", self.flex.source, float)
+        self._cool_chi = hp.cool_below_chi
         from comems4build_ros.core.models.cooling import p_el_max_cool_w
         from comems4build_ros.core.models.electrolyser import ElectrolyserTable
 
-        self._p_cool_ref_w = float(p_el_max_cool_w(
-            _option(flex_sec, "hp", "p_el_ref_cool_t_amb_c", self.flex.source, float), params.cooling))
-        self.el: FuzzySystem | None = None
-        if "el" in flcs:
-            self.el, el_sec = flcs["el"]
-            self._cap_el = _option(el_sec, "el", "cap_to_surplus", self.el.source, bool)
-            self._scale_el = float(el_sec.get("load_scale_w", 10_000.0))
+        self._p_cool_ref_w = float(p_el_max_cool_w(hp.p_el_ref_cool_t_amb_c, params.cooling))
+        self.el: FuzzySystem | None = flcs.get("el")
+        if self.el is not None:
+            self._cap_el = s.el.el.cap_to_surplus
+            self._scale_el = self.el.load_scale_w
             table = ElectrolyserTable(params.electrolyser)
             self._p_el_max_w, self._p_el_min_w = table.p_max_w, table.p_min_w
         self._season_loh0: float | None = None
@@ -231,7 +184,26 @@ class FuzzyEMS:
 
     # ------------------------------------------------------------------ stages
     def heating(self, obs: Observation, edf: float) -> tuple[float, int, float, float, float]:
-        """FLC_flex: (eta_HP, mode, alpha_HP, chi_SH, chi_DHW)."""
+        """Decide the heat pump's heating with FLC_flex (``tab:FLCflex_rules``) and the DHW priority.
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (fuzzy level, ``tab:level_of_information``).
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        eta : float
+            Modulation eta_HP[k] [-], in {0} U [mod_min, 1].
+        mode : int
+            ``HP_OFF``, ``HP_SH`` or ``HP_DHW`` (the circuit).
+        alpha : float
+            FLC_flex output alpha_HP [-].
+        chi_sh, chi_dhw : float
+            Thermal states ``eq:s_sh`` (bounds 5 h ahead) and ``eq:s_dhw`` [-].
+        """
         dhw = self.params.dhw
         c_sh = chi_sh(obs.t_air_c, obs.t_min_5h_c, obs.t_max_c)
         c_dhw = chi_dhw(obs.v_dhw_l, dhw.v_min_l, dhw.v_max_l)
@@ -246,7 +218,29 @@ class FuzzyEMS:
         return eta, mode, alpha, c_sh, c_dhw
 
     def cooling(self, obs: Observation, edf: float, eta: float, mode: int) -> tuple[float, int, float, float]:
-        """FLC_flex for cooling: (eta_HP, mode, alpha_cool, chi_cool); the heating decision when it does not cool."""
+        """Decide cooling with FLC_flex on the mirrored thermal state (year-round plant; not in the paper).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs.
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+        eta, mode : float, int
+            The heating decision of :meth:`heating`: kept when the room does not need
+            cooling or the tank takes the heat pump (DHW priority).
+
+        Returns
+        -------
+        eta : float
+            Modulation [-].
+        mode : int
+            ``HP_COOL``, or the heating decision's mode.
+        alpha : float
+            FLC_flex output for cooling [-] (0 when not evaluated).
+        chi_cool : float
+            Thermal state towards the upper bound [-] (:func:`~..features.chi_cool`).
+        """
         c_cool = chi_cool(obs.t_air_c, obs.t_min_c, obs.t_max_c)
         if mode == HP_DHW or c_cool >= self._cool_chi:
             return eta, mode, 0.0, c_cool
@@ -259,7 +253,21 @@ class FuzzyEMS:
         return eta_c, HP_COOL, alpha, c_cool
 
     def season_dloh(self, obs: Observation) -> float:
-        """Daily H2 budget of a plant with an electrolyser: ``eq:deltaLOH`` over the heating season [-/day]."""
+        """Compute the daily H2 budget of a plant with an electrolyser: ``eq:deltaLOH`` over the heating season.
+
+        On the season's first step the budget becomes (LOH - ``simulation.loh_season_end``)
+        / days left in the season; outside the season it is 0 (not in the paper).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (``heating_season_days_left`` [d], ``loh`` [-]).
+
+        Returns
+        -------
+        float
+            The budget [fraction of the store per day].
+        """
         left = obs.heating_season_days_left
         if left <= 0.0:
             self._season_loh0 = None
@@ -270,7 +278,24 @@ class FuzzyEMS:
         return self._season_dloh
 
     def electrolyser(self, obs: Observation, dp_w: float, edf: float) -> tuple[float, float]:
-        """FLC_EL: (P_EL [W], alpha_EL); zero without surplus (dP <= 0)."""
+        """Decide the electrolyser's power with FLC_EL (year-round plant; not in the paper).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs.
+        dp_w : float
+            dP = P_PV - P_el,HP - P_el,load [W] (> 0: surplus).
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        p_el : float
+            Electrolyser intake P_EL [W]; 0 without surplus, with a full store or below P_EL,min.
+        alpha : float
+            FLC_EL output alpha_EL [-].
+        """
         if self.el is None or dp_w <= 0.0 or obs.loh >= self.params.hydrogen.loh_max:
             return 0.0, 0.0
         alpha = self.el(dp_w / self._scale_el, obs.soc, obs.loh, edf, obs.days_to_heating_season)
@@ -282,7 +307,27 @@ class FuzzyEMS:
         return p_el, alpha
 
     def fuel_cell(self, obs: Observation, dp_w: float, share: float, edf: float) -> tuple[float, float]:
-        """FLC_FC: (P_el,FC [W], alpha_FC); zero when there is no demand (dP >= 0)."""
+        """Decide the fuel cell's power with FLC_FC (``tab:FLCfc_rules``, ``sec:appendix``).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs.
+        dp_w : float
+            dP = P_PV - P_el,HP - P_el,load [W] (< 0: demand).
+        share : float
+            Remaining share of today's H2 allowance ``eq:deltaLOH`` [-].
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        p_fc : float
+            P_el,FC = alpha_FC * zeta * P_FC,max [W]; 0 without demand, below P_FC,min, with
+            the day's allowance used up or the store at LOH_min.
+        alpha : float
+            FLC_FC output alpha_FC [-].
+        """
         if dp_w >= 0.0 or (self._stop_fc and share <= 0.0) or obs.loh <= self.params.hydrogen.loh_min:
             return 0.0, 0.0
         alpha = self.fc(dp_w / self._scale_fc, share, obs.soc, edf, 1.0 if obs.fc_on_prev else 0.0)
@@ -294,7 +339,25 @@ class FuzzyEMS:
         return p_fc, alpha
 
     def battery_power(self, soc: float, dp_new_w: float, edf: float) -> tuple[float, float]:
-        """FLC_B: (P_bess [W], > 0 charging; alpha_B)."""
+        """Decide the battery's power with FLC_B (``tab:FLCb_rules``, ``sec:appendix``).
+
+        Parameters
+        ----------
+        soc : float
+            Battery state of charge SOC[k-1] [-].
+        dp_new_w : float
+            dP_new = dP + P_el,FC - P_EL [W].
+        edf : float
+            EDF of the day-ahead prices ``eq:EDF_prices`` [-].
+
+        Returns
+        -------
+        p_bess : float
+            Battery power [W], > 0 charging: alpha_B * P_ch,max, or alpha_B * dP_new when
+            discharging, within the SOC room (``eq:batt_soc``) and 0 below the minimum powers.
+        alpha : float
+            FLC_B output alpha_B [-], in [-1, 1].
+        """
         b = self.params.battery
         alpha = self.battery(dp_new_w / self._scale_b, soc, edf)
         if alpha > 0.0:
@@ -312,7 +375,18 @@ class FuzzyEMS:
         return p, alpha
 
     def act(self, obs: Observation) -> Action:
-        """Set-points of the step (hierarchy of ``sec:FLC``)."""
+        """Decide the step by the hierarchy of ``sec:FLC`` (``fig:flc_rbc_flowchart``).
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (fuzzy level, ``tab:level_of_information``).
+
+        Returns
+        -------
+        Action
+            The set-points; the features and controller outputs go to :attr:`step_info`.
+        """
         edf = edf_price(obs.price_buy_eur_per_kwh, obs.prices_buy_24h)
         eta, mode, alpha_hp, c_sh, c_dhw = self.heating(obs, edf)
         year: dict[str, float] = {}

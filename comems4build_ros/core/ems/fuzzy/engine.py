@@ -39,18 +39,15 @@ from __future__ import annotations
 import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
-from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from comems4build_ros.core.config import ConfigError, PlantParams, check_known_keys, finite_number
+from comems4build_ros.core.config import ConfigError, PlantParams, check_known_keys
 from comems4build_ros.core.numerics import rowdot
 
 #: Rule base sections in a file: the paper's snapshot rules and ours.
 RULE_SECTIONS = ("rules_paper", "rules_design")
-#: Keys of a controller section the engine reads (the controller's own option group comes on top).
-SECTION_KEYS = ("load_scale_w", "inputs", "output", *RULE_SECTIONS)
 #: Keys of an input variable; the output variable has ``name`` and ``points`` besides.
 VARIABLE_KEYS = ("universe", "terms")
 
@@ -81,9 +78,12 @@ QUANTITY_PARAMS: dict[str, tuple[str, ...]] = {
 class QuantityError(ConfigError):
     """A membership function that is invalid because of the plant parameters its points come from.
 
-    Attributes
+    Parameters
     ----------
-    plant_params : the dotted plant parameters behind the device quantities of the points
+    message : str
+        What is wrong with the membership function.
+    plant_params : tuple[str, ...]
+        The dotted plant parameters behind the device quantities of its points.
     """
 
     def __init__(self, message: str, plant_params: tuple[str, ...]) -> None:
@@ -91,57 +91,88 @@ class QuantityError(ConfigError):
         self.plant_params = plant_params
 
 
-def device_quantities(params: PlantParams, load_scale_w: float) -> dict[str, float]:
-    """Named device quantities that membership points may refer to.
+def device_quantities(params: PlantParams, load_scale_w: float | None) -> dict[str, float]:
+    """Compute the named device quantities that membership points may refer to.
 
-    Loads are normalised on ``load_scale_w`` (the paper's 10 kW scale, ``sec:appendix``).
+    Parameters
+    ----------
+    params : PlantParams
+        Plant parameters (battery, fuel cell, H2 store, electrolyser).
+    load_scale_w : float or None
+        Power the loads are normalised on [W] (the paper's 10 kW scale, ``sec:appendix``);
+        None: a controller without a power input (FLC_flex), whose points name no load.
 
     Returns
     -------
-    dict with
-        soc_min, soc_mid, soc_max : battery SOC bounds and their mean [-]
-        loh_min, loh_mid, loh_max : H2 store bounds and their mean [-]
-        dp_fc : load the FC alone covers, zeta * P_FC,max / scale [-]
-            (peak of dP "medium negative")
-        dp_fc_bess : load FC and BESS cover together, (zeta * P_FC,max + P_d,max) / scale [-]
-            (peak of dP "big negative")
-        p_ch, p_d : full battery charging / discharging power / scale [-]
-            (peaks of dP_new "big positive" / "big negative"; half of them: "medium")
-        alpha_fc_min : the FC's minimum power as a share of zeta * P_FC,max [-]: below it
-            ``P_el,FC = alpha_FC * zeta * P_FC,max`` is under P_FC,min and the FC is off
-            (end of the alpha_FC "off" term)
-        dp_el_min, dp_el_max : the electrolyser's minimal and maximal intake / scale [-]
-            (compression included; 0 without an electrolyser)
-        alpha_el_min : P_EL,min / P_EL,max [-] (0 without an electrolyser)
+    dict[str, float]
+        Name -> value [-]:
+
+        - ``soc_min``, ``soc_mid``, ``soc_max``: battery SOC bounds and their mean;
+        - ``loh_min``, ``loh_mid``, ``loh_max``: H2 store bounds and their mean;
+        - ``dp_fc``: load the FC alone covers, zeta * P_FC,max / scale (peak of dP
+          "medium negative");
+        - ``dp_fc_bess``: load FC and BESS cover together, (zeta * P_FC,max + P_d,max) /
+          scale (peak of dP "big negative");
+        - ``p_ch``, ``p_d``: full battery charging / discharging power / scale (peaks of
+          dP_new "big positive" / "big negative"; half of them: "medium");
+        - ``alpha_fc_min``: the FC's minimum power as a share of zeta * P_FC,max: below it
+          ``P_el,FC = alpha_FC * zeta * P_FC,max`` is under P_FC,min and the FC is off (end
+          of the alpha_FC "off" term);
+        - ``dp_el_min``, ``dp_el_max``: the electrolyser's minimal and maximal intake /
+          scale (compression included; 0 without an electrolyser);
+        - ``alpha_el_min``: P_EL,min / P_EL,max (0 without an electrolyser).
+
+        The loads (``dp_*``, ``p_ch``, ``p_d``) only with a ``load_scale_w``.
+
+    Raises
+    ------
+    ConfigError
+        For a ``load_scale_w`` that is not positive.
     """
-    if load_scale_w <= 0:
+    if load_scale_w is not None and load_scale_w <= 0:
         raise ConfigError(f"load_scale_w must be positive, got {load_scale_w}")
     from comems4build_ros.core.models.electrolyser import ElectrolyserTable
 
     b, fc, h2 = params.battery, params.fuel_cell, params.hydrogen
     p_fc = fc.zeta * fc.p_max_w
     el = ElectrolyserTable(params.electrolyser)
-    return {
+    out = {
         "soc_min": b.soc_min,
         "soc_mid": 0.5 * (b.soc_min + b.soc_max),
         "soc_max": b.soc_max,
         "loh_min": h2.loh_min,
         "loh_mid": 0.5 * (h2.loh_min + h2.loh_max),
         "loh_max": h2.loh_max,
-        "dp_fc": p_fc / load_scale_w,
-        "dp_fc_bess": (p_fc + b.p_d_max_w) / load_scale_w,
-        "p_ch": b.p_ch_max_w / load_scale_w,
-        "p_d": b.p_d_max_w / load_scale_w,
         "alpha_fc_min": fc.p_min_w / p_fc,
-        "dp_el_min": el.p_min_w / load_scale_w,
-        "dp_el_max": el.p_max_w / load_scale_w,
         "alpha_el_min": el.p_min_w / el.p_max_w if el.n else 0.0,
     }
+    if load_scale_w is not None:
+        out.update({
+            "dp_fc": p_fc / load_scale_w,
+            "dp_fc_bess": (p_fc + b.p_d_max_w) / load_scale_w,
+            "p_ch": b.p_ch_max_w / load_scale_w,
+            "p_d": b.p_d_max_w / load_scale_w,
+            "dp_el_min": el.p_min_w / load_scale_w,
+            "dp_el_max": el.p_max_w / load_scale_w,
+        })
+    return out
 
 
 @dataclass(frozen=True)
 class Variable:
-    """A linguistic variable: universe and trapezoidal terms ``(a, b, c, d)``."""
+    """A linguistic variable: universe and trapezoidal terms ``(a, b, c, d)``.
+
+    Attributes
+    ----------
+    name : str
+        Variable name (``chi``, ``dp``, ``soc``, ...).
+    lo, hi : float
+        Universe [unit of the variable; loads in units of ``load_scale_w``].
+    term_names : tuple[str, ...]
+        Term names (``low``, ``average``, ...).
+    points : numpy.ndarray
+        Corner points of each term, shape (n_terms, 4); a triangle has b == c.
+    """
 
     name: str
     lo: float
@@ -150,14 +181,37 @@ class Variable:
     points: np.ndarray  # (n_terms, 4)
 
     def membership(self, x: np.ndarray) -> np.ndarray:
-        """Membership of every term at ``x`` (clipped to the universe), shape ``x.shape + (n_terms,)``."""
+        """Compute the membership of every term at ``x``.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            Values [unit of the variable], clipped to the universe.
+
+        Returns
+        -------
+        numpy.ndarray
+            Memberships [-] in [0, 1], shape ``x.shape + (n_terms,)``.
+        """
         xx = np.clip(np.asarray(x, dtype=float), self.lo, self.hi)[..., None]
         return _trap(xx, self.points)
 
 
 @dataclass(frozen=True)
 class Rule:
-    """One rule: per input a tuple of term indices (OR) or ``None`` (any), one output term."""
+    """One rule: per input a tuple of term indices (OR) or ``None`` (any), one output term.
+
+    Attributes
+    ----------
+    antecedent : tuple
+        Per input the indices of its terms (OR), or None (any value).
+    consequent : int
+        Index of the output term.
+    source : str
+        ``paper`` (``tab:FLC*_rules``) or ``design`` (ours).
+    text : str
+        The rule as written in the file.
+    """
 
     antecedent: tuple[tuple[int, ...] | None, ...]
     consequent: int
@@ -191,12 +245,23 @@ class FuzzySystem:
 
     Parameters
     ----------
-    name : controller name (e.g. ``flc_fc``)
-    inputs : input variables in evaluation order
-    output : output variable
-    rules : the rule base
-    n_points : points of the output grid used for the centroid
-    source : file the system came from (for messages)
+    name : str
+        Controller name (e.g. ``flc_fc``).
+    inputs : Sequence[Variable]
+        Input variables in evaluation order.
+    output : Variable
+        Output variable.
+    rules : Sequence[Rule]
+        The rule base.
+    n_points : int
+        Points of the output grid used for the centroid (at least 3).
+    source : str
+        File the system came from (for messages).
+
+    Raises
+    ------
+    ConfigError
+        For fewer than 3 output points or an empty rule base.
     """
 
     def __init__(
@@ -213,6 +278,8 @@ class FuzzySystem:
         if not rules:
             raise ConfigError(f"{source}: {name}: empty rule base")
         self.name = name
+        #: Power the load inputs are divided by [W] (set by :func:`flc_system`; 0: not set).
+        self.load_scale_w = 0.0
         self.n_points = n_points
         self.inputs = tuple(inputs)
         self.output = output
@@ -260,7 +327,18 @@ class FuzzySystem:
 
     # ------------------------------------------------------------------ inference
     def input_memberships(self, x: np.ndarray) -> np.ndarray:
-        """Memberships of all input terms, shape (batch, n_terms + 1); last column = 1 ("any")."""
+        """Compute the memberships of all input terms.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            Inputs, shape (batch, n_inputs), clipped to the universes.
+
+        Returns
+        -------
+        numpy.ndarray
+            Memberships [-], shape (batch, n_terms + 1); the last column is 1 ("any").
+        """
         x = np.clip(x, self._lo, self._hi)
         xt = x[:, self._term_input]
         mu = np.minimum(xt * self._sl + self._ol, xt * self._sr + self._or)
@@ -268,7 +346,23 @@ class FuzzySystem:
         return np.concatenate([mu, np.ones((x.shape[0], 1))], axis=1)
 
     def firing(self, x: np.ndarray) -> np.ndarray:
-        """Rule strengths (min over antecedents), shape (batch, n_rules)."""
+        """Compute the rule strengths (min over the antecedents, max over a rule's OR terms).
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            Inputs, shape (batch, n_inputs) or (n_inputs,).
+
+        Returns
+        -------
+        numpy.ndarray
+            Strengths [-], shape (batch, n_rules).
+
+        Raises
+        ------
+        ValueError
+            If ``x`` has another number of inputs.
+        """
         x = np.atleast_2d(np.asarray(x, dtype=float))
         if x.shape[1] != len(self.inputs):
             raise ValueError(f"{self.name}: expected {len(self.inputs)} inputs {self.input_names}, got {x.shape[1]}")
@@ -280,17 +374,29 @@ class FuzzySystem:
         return mu_sets[:, self._rule_idx].min(axis=2)
 
     def activation(self, x: np.ndarray) -> np.ndarray:
-        """Strength of every output term (max over its rules), shape (batch, n_out_terms)."""
+        """Compute the strength of every output term: the max of :meth:`firing` over its rules.
+
+        Returns
+        -------
+        numpy.ndarray
+            Strengths [-] of the inputs ``x`` (as for :meth:`firing`), shape (batch, n_out_terms).
+        """
         fire = self.firing(x)
         return (fire[:, None, :] * self._cons[None, :, :]).max(axis=2)
 
     def evaluate(self, x: np.ndarray) -> np.ndarray:
-        """Crisp outputs for a batch of inputs, shape (batch,).
+        """Compute the crisp outputs (centroid) for a batch of inputs.
 
         Parameters
         ----------
-        x : inputs, shape (batch, n_inputs) or (n_inputs,), in the order of ``input_names``;
+        x : numpy.ndarray
+            Inputs, shape (batch, n_inputs) or (n_inputs,), in the order of ``input_names``;
             values outside a universe are clipped to it.
+
+        Returns
+        -------
+        numpy.ndarray
+            Crisp outputs [unit of the output variable], shape (batch,).
 
         Raises
         ------
@@ -306,19 +412,46 @@ class FuzzySystem:
         return rowdot(agg, self._w_moment) / area
 
     def __call__(self, *values: float) -> float:
-        """Crisp output for one input vector given as positional values."""
+        """Compute the crisp output for one input vector given as positional values."""
         return float(self.evaluate(np.array([values], dtype=float))[0])
 
     # ------------------------------------------------------------------ helpers
     def variable(self, name: str) -> Variable:
-        """Input or output variable by name."""
+        """Find an input or output variable by name.
+
+        Parameters
+        ----------
+        name : str
+            Variable name.
+
+        Returns
+        -------
+        Variable
+            The variable.
+
+        Raises
+        ------
+        KeyError
+            If the system has no such variable.
+        """
         for v in (*self.inputs, self.output):
             if v.name == name:
                 return v
         raise KeyError(f"{self.name} has no variable '{name}'")
 
     def peak(self, var: str, term: str) -> float:
-        """Middle of the core of a term (its peak for a triangle)."""
+        """Return the middle of the core of a term (its peak for a triangle).
+
+        Parameters
+        ----------
+        var, term : str
+            Variable and term names.
+
+        Returns
+        -------
+        float
+            The point [unit of the variable]; a shoulder's universe edge.
+        """
         v = self.variable(var)
         a, b, c, d = v.points[v.term_names.index(term)]
         if b == v.lo and a == b:
@@ -328,19 +461,36 @@ class FuzzySystem:
         return float(0.5 * (b + c))
 
     def term_centroid(self, term: str) -> float:
-        """Centroid of one output term alone (the crisp output when only it fires fully)."""
+        """Return the centroid of one output term alone (the crisp output when only it fires fully).
+
+        Parameters
+        ----------
+        term : str
+            Output term name.
+
+        Returns
+        -------
+        float
+            The centroid [unit of the output variable].
+        """
         mf = self._out_mf[self.output.term_names.index(term)]
         return float(rowdot(mf, self._w_moment) / rowdot(mf, self._w_area))
 
-    def rule_text(self, index: int) -> str:
-        """The rule as written in the file."""
-        return self.rules[index].text
-
     def to_skfuzzy(self, n_grid: int = 201) -> Any:
-        """The same controller as a ``skfuzzy.control.ControlSystem`` (for tests and benchmarks).
+        """Build the same controller as a ``skfuzzy.control.ControlSystem`` (for tests and benchmarks).
 
         Universes are ``n_grid`` points plus every term vertex, so that skfuzzy's
         linear interpolation of the membership functions is exact.
+
+        Parameters
+        ----------
+        n_grid : int
+            Grid points of each input universe.
+
+        Returns
+        -------
+        skfuzzy.control.ControlSystem
+            The controller.
         """
         from skfuzzy import control as ctrl
         from skfuzzy import membership as mf
@@ -478,6 +628,23 @@ def _rule(text: Any, inputs: Sequence[Variable], output: Variable, source: str, 
 def build_system(name: str, spec: Mapping[str, Any], quantities: Mapping[str, float], source: str) -> FuzzySystem:
     """Build a :class:`FuzzySystem` from one controller section of a data file.
 
+    Parameters
+    ----------
+    name : str
+        Section name (``flc_fc``).
+    spec : Mapping[str, Any]
+        The section: ``inputs`` (``order`` and one variable per input), ``output`` and
+        the rule lists ``rules_paper`` / ``rules_design``.
+    quantities : Mapping[str, float]
+        Device quantities the term points may name (:func:`device_quantities`).
+    source : str
+        The file (for messages).
+
+    Returns
+    -------
+    FuzzySystem
+        The controller, its rule base complete and consistent (:func:`check_consistency`).
+
     Raises
     ------
     ConfigError
@@ -516,8 +683,14 @@ def build_system(name: str, spec: Mapping[str, Any], quantities: Mapping[str, fl
 
 
 def check_consistency(system: FuzzySystem) -> None:
-    """Every combination of input terms must be covered by at least one rule, and all
-    rules covering the same combination must agree on the output term.
+    """Check that every combination of input terms is covered by a rule, and by agreeing ones.
+
+    All rules covering the same combination must name the same output term.
+
+    Parameters
+    ----------
+    system : FuzzySystem
+        The controller to check.
 
     Raises
     ------
@@ -543,23 +716,37 @@ def check_consistency(system: FuzzySystem) -> None:
             raise ConfigError(f"{where}: conflicting rules for {names}: {texts}")
 
 
-def load_system(path: str | Path, name: str, params: PlantParams, overrides: Mapping[str, Any] | None = None) -> Any:
-    """Read ``path`` (ROS parameter file) and build controller section ``name``.
+def flc_system(name: str, spec: Mapping[str, Any], params: PlantParams, source: str) -> FuzzySystem:
+    """Build the fuzzy controller of one rule-file section for the plant ``params``.
+
+    Parameters
+    ----------
+    name : str
+        Section name (``flc_flex``, ``flc_fc``, ``flc_b``, ``flc_el``).
+    spec : Mapping[str, Any]
+        The section as checked by :class:`~comems4build_ros.core.ems.settings.FLCSection`:
+        ``inputs``, ``output``, the rule lists and, for a controller with a power input,
+        ``load_scale_w`` [W].
+    params : PlantParams
+        Plant parameters: the device quantities the membership functions name
+        (:func:`device_quantities`).
+    source : str
+        The rule file (for messages).
 
     Returns
     -------
-    (FuzzySystem, dict) : the system and the whole section (including the controller's
-        post-processing options), with ``overrides`` merged over it.
-    """
-    from comems4build_ros.core.config import deep_merge, read_ros_params
+    FuzzySystem
+        The controller; its ``load_scale_w`` [W] is the section's (0 without a power input).
 
-    data = read_ros_params(path)
-    if name not in data:
-        raise ConfigError(f"{path}: no section '{name}'")
-    section = deep_merge(deep_merge({}, data[name]), overrides or {})
-    scale = finite_number(section.get("load_scale_w", 10_000.0), f"{path}: {name}.load_scale_w")
+    Raises
+    ------
+    ConfigError
+        Naming the file and the variable, term or rule at fault, or the plant parameters
+        that make a membership function degenerate.
+    """
+    scale = spec.get("load_scale_w")  # FLC_flex has no power input
     try:
-        system = build_system(name, section, device_quantities(params, scale), str(path))
+        system = build_system(name, spec, device_quantities(params, scale), source)
     except QuantityError as exc:
         values = {p: _param_value(params, p) for p in exc.plant_params}
         zero = [p for p, v in values.items() if v == 0.0]
@@ -571,18 +758,19 @@ def load_system(path: str | Path, name: str, params: PlantParams, overrides: Map
             f"{'this value' if len(blamed) == 1 else 'these values'}: it makes a membership function degenerate "
             f"({exc}{'; also from ' + others if others else ''})"
         ) from None
-    return system, section
+    system.load_scale_w = float(scale or 0.0)
+    return system
 
 
 def _param_value(params: PlantParams, dotted: str) -> float | list[float]:
-    """The plant parameter ``section.key``: a number, or a table (the electrolyser's power points)."""
+    """Return the plant parameter ``section.key``: a number, or a table (the electrolyser's power points)."""
     section, key = dotted.split(".")
     value = getattr(getattr(params, section), key)
     return [float(v) for v in value] if isinstance(value, list | tuple) else float(value)
 
 
 def _shown(value: float | list[float]) -> str:
-    """A parameter's value in a message: ``2.5`` or ``[1, 2]``."""
+    """Format a parameter's value for a message: ``2.5`` or ``[1, 2]``."""
     if isinstance(value, list):
         return "[" + ", ".join(f"{v:g}" for v in value) + "]"
     return f"{value:g}"

@@ -24,8 +24,8 @@ from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon, season_schedules
 from comems4build_ros.core.ems.mpc.milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
-from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
 from comems4build_ros.core.ems.mpc.solvers import make_backend
+from comems4build_ros.core.ems.settings import MILPSettings, load_settings
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
 #: Values below this are treated as zero when turning a plan into an action [W] / [-].
@@ -41,13 +41,42 @@ STATUS_OPTIMAL, STATUS_FEASIBLE, STATUS_NONE = 1, 2, 0
 
 
 def penalties_from(opts: Any) -> Penalties:
-    """Soft-bound penalties from validated options."""
+    """Collect the soft-bound penalties of the MPC settings.
+
+    Parameters
+    ----------
+    opts : MILPSettings or QPSettings
+        The MPC's settings (``penalty_*`` [EUR per unit of the bound and hour]).
+
+    Returns
+    -------
+    Penalties
+        Comfort [EUR/(K h)], tank [EUR/(l h)], SOC and LOH [EUR/h per unit] penalties.
+    """
     return Penalties(opts.penalty_comfort_eur_per_kh, opts.penalty_dhw_eur_per_lh, opts.penalty_soc_eur_per_h,
                      opts.penalty_loh_eur_per_h)
 
 
 def action_from_plan(plan: Mapping[str, np.ndarray], h: HorizonData, const: PlantConstants) -> Action:
-    """First step of a plan as an :class:`Action` (the plant clips whatever remains off-limits)."""
+    """Turn the first step of a plan into an :class:`Action` (the plant clips whatever remains off-limits).
+
+    Parameters
+    ----------
+    plan : Mapping[str, numpy.ndarray]
+        The solved horizon: powers per step [W] (``p_hp_sh``, ``p_hp_dhw``, ``p_fc``,
+        ``p_ch``, ``p_dis``, and ``p_hp_cool``, ``p_el`` on a year-round plant).
+    h : HorizonData
+        The horizon's numbers (``p_hp_max_w``, ``p_cool_max_w`` [W]).
+    const : PlantConstants
+        The plant's constants.
+
+    Returns
+    -------
+    Action
+        The circuit with the larger heat pump power and its modulation (power / P_el,max),
+        FC, battery (> 0 charging) and electrolyser powers [W]; values below
+        :data:`POWER_EPS_W` are 0.
+    """
     p_sh = float(plan["p_hp_sh"][0])
     p_dhw = float(plan["p_hp_dhw"][0])
     pmax = float(h.p_hp_max_w[0])
@@ -75,7 +104,22 @@ def action_from_plan(plan: Mapping[str, np.ndarray], h: HorizonData, const: Plan
 
 
 def slack_info(plan: Mapping[str, np.ndarray] | None, tol: float) -> dict[str, float]:
-    """Slack of the applied step (t = 0) per bound, and the number of plan steps with any slack."""
+    """Report the slack of the applied step (t = 0) per bound and the plan steps with any slack.
+
+    Parameters
+    ----------
+    plan : Mapping[str, numpy.ndarray] or None
+        The solved horizon's slack variables (``sl_*``), or None without a solution.
+    tol : float
+        A slack above this counts as used [unit of its bound: K, l or -].
+
+    Returns
+    -------
+    dict[str, float]
+        ``slack_t_lo_k``, ``slack_t_hi_k`` [K], ``slack_v_lo_l``, ``slack_v_hi_l`` [l],
+        ``slack_soc``, ``slack_loh`` [-] of step 0, ``slack_used`` (0 or 1) and
+        ``slack_steps_plan`` (steps of the plan with any slack).
+    """
     keys = {"sl_t_lo": "slack_t_lo_k", "sl_t_hi": "slack_t_hi_k", "sl_v_lo": "slack_v_lo_l",
             "sl_v_hi": "slack_v_hi_l", "sl_soc_lo": "slack_soc", "sl_soc_hi": "slack_soc", "sl_loh": "slack_loh"}
     out = dict.fromkeys(keys.values(), 0.0)
@@ -96,17 +140,21 @@ class MPCController:
 
     Parameters
     ----------
-    params : plant parameters (the MPC's forecasting models)
-    options : overrides of ``config/mpc.yaml`` section ``mpc`` (see :class:`.settings.MILPParams`)
+    params : PlantParams
+        Plant parameters (the MPC's forecasting models).
+    options : Mapping[str, Any], optional
+        Overrides of ``config/mpc.yaml`` section ``mpc``
+        (:class:`~comems4build_ros.core.ems.settings.MILPSettings`).
     """
 
     name = "mpc"
     info_level = "mpc"
+    settings_class = MILPSettings
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
         self.params = params
-        self.options: MILPParams = load_options(MILPParams, "mpc", options)  # type: ignore[assignment]
-        o = self.options
+        self.settings = load_settings(MILPSettings, options)
+        o = self.settings
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
         self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
                                o.relax_battery_binary,
@@ -136,8 +184,19 @@ class MPCController:
         self._season_loh0: float | None = None
 
     def plan(self, obs: Observation) -> SolveResult:
-        """Update and solve the horizon problem for ``obs`` (no action, no counters)."""
-        h = build_horizon(obs, self.const, self.options.loh_min_mode)
+        """Update and solve the horizon problem for ``obs`` (no action, no counters).
+
+        Parameters
+        ----------
+        obs : Observation
+            States of step k-1 and 24-step forecasts (:func:`.horizon.build_horizon`).
+
+        Returns
+        -------
+        SolveResult
+            The solver's status, plan, objective [EUR] and solve time [s].
+        """
+        h = build_horizon(obs, self.const, self.settings.loh_min_mode)
         if self.const.year_round:  # seasonal schedules (memory: the LOH at the season's start)
             left = float(obs.heating_season_days_left)
             if left <= 0.0:
@@ -145,15 +204,28 @@ class MPCController:
             elif self._season_loh0 is None:
                 self._season_loh0 = float(obs.loh)
             bound, target = season_schedules(float(obs.days_to_heating_season), left, self._season_loh0,
-                                             self.const, self.options.loh_season_target)
+                                             self.const, self.settings.loh_season_target)
             h = dataclasses.replace(h, loh_min=bound, loh_season=target)
         self.last_horizon = h
         self.model.update(h)
-        self.model.set_start(shift_plan(self._prev_plan) if self.options.warm_start and self._prev_plan else None)
+        self.model.set_start(shift_plan(self._prev_plan) if self.settings.warm_start and self._prev_plan else None)
         return self.model.solve(self.backend)
 
     def act(self, obs: Observation) -> Action:
-        """Solve the horizon problem and return its first step (or the safe fallback)."""
+        """Solve the horizon problem (``eq:mpc_objective``) and return its first step.
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs (MPC level, ``tab:level_of_information``).
+
+        Returns
+        -------
+        Action
+            The plan's first step, or the safe fallback
+            (:func:`~comems4build_ros.core.ems.fallback.safe_action`) without a solution;
+            the solve's figures go to :attr:`step_info`.
+        """
         if self.observer is not None:  # the model's wall nodes estimated from the measured T_air
             x = self.observer.update(obs.t_air_c, obs.t_amb_c)
             data = obs.as_dict()
@@ -163,7 +235,7 @@ class MPCController:
         h = self.last_horizon
         self.last_result = res
         self.n_solves += 1
-        tol = self.options.slack_report_tol
+        tol = self.settings.slack_report_tol
         if res.has_solution:
             action = action_from_plan(res.plan, h, self.const)
             self._prev_plan = res.plan
@@ -173,7 +245,7 @@ class MPCController:
             self._prev_plan = None
             self.n_fallback += 1
             status = STATUS_NONE
-            if self.options.log_fallback:
+            if self.settings.log_fallback:
                 print(f"mpc: step {obs.step}: no solution ({res.status}, {res.solve_s:.3f} s); "
                       f"safe fallback {action} (fallback #{self.n_fallback})", file=sys.stderr)
         info = slack_info(res.plan if res.has_solution else None, tol)

@@ -19,7 +19,7 @@ import numpy as np
 
 from comems4build_ros.core.config import W_PER_KW, PlantParams
 from comems4build_ros.core.ems.base import Observation
-from comems4build_ros.core.ems.mpc.settings import LifecycleCosts, lifecycle_costs
+from comems4build_ros.core.ems.mpc.costs import LifecycleCosts, lifecycle_costs
 from comems4build_ros.core.models import building, dhw, heat_pump
 
 
@@ -29,18 +29,52 @@ class PlantConstants:
 
     Attributes
     ----------
-    n : horizon steps [-]; dt_h : step [h]
-    ad, bd : building model ZOH matrices, x = [T_air, T_w_in, T_w_out], u = [Q_h_SH W, T_amb degC, q_s W/m2]
-        (eq:state_update_bldgs)
-    l_per_wh : DHW volume change per Wh of heat at T_DHW [l/Wh] (eq:DHW_model)
-    q_dhw_loss_w : standing loss [W]; v_min_l, v_max_l : usable volume bounds [l]
-    soc_per_wh_ch, soc_per_wh_d : SOC change per Wh charged (eta_ch / E) and per Wh
-        discharged (1 / (eta_d E)) [1/Wh] (eq:batt_soc)
-    loh_per_wh_fc : LOH drop per Wh of FC electricity at constant eta_el_mpc [1/Wh] (eq:LOH)
-    k_fc_heat : recovered heat per W of FC electricity, (eta_sys - eta_el_mpc) / eta_el_mpc [-]
-        (eq:FC_sys_efficiency)
-    p_fc_min_w, p_fc_max_w : FC power range, max = zeta * P_max [W]
-    costs : lifecycle costs (eq:batt_andFC_operation_degradation)
+    n : int
+        Horizon steps [-].
+    dt_h : float
+        Step [h].
+    ad, bd : numpy.ndarray
+        Building model ZOH matrices (``eq:state_update_bldgs``): x = [T_air, T_w_in, T_w_out]
+        [degC], u = [Q_h,SH [W], T_amb [degC], q_s [W/m2]].
+    l_per_wh : float
+        DHW volume change per Wh of heat at T_DHW [l/Wh] (``eq:DHW_model``).
+    q_dhw_loss_w : float
+        Standing loss of the tank [W].
+    v_min_l, v_max_l : float
+        Usable volume bounds [l].
+    soc_min, soc_max : float
+        Battery SOC bounds [-].
+    soc_per_wh_ch, soc_per_wh_d : float
+        SOC change per Wh charged (eta_ch / E) and per Wh discharged (1 / (eta_d E)) [1/Wh]
+        (``eq:batt_soc``).
+    p_ch_max_w, p_d_max_w, p_ch_min_w, p_d_min_w : float
+        Battery power range [W].
+    loh_per_wh_fc : float
+        LOH drop per Wh of FC electricity at constant eta_el_mpc [1/Wh] (``eq:LOH``).
+    loh_init, loh_lower, loh_upper : float
+        Initial H2 level and the store's bounds [-].
+    k_fc_heat : float
+        Recovered heat per W of FC electricity, (eta_sys - eta_el_mpc) / eta_el_mpc [-]
+        (``eq:FC_sys_efficiency``).
+    p_fc_min_w, p_fc_max_w : float
+        FC power range, max = zeta * P_max [W].
+    hp_mod_min : float
+        Smallest non-zero heat pump modulation [-].
+    t_supply_sh_c, t_supply_dhw_c : float
+        Supply temperatures of the two circuits [degC] (their COPs).
+    costs : LifecycleCosts
+        Lifecycle costs (``eq:batt_andFC_operation_degradation``).
+    params : PlantParams
+        The plant parameters they come from.
+    el, cooling : bool
+        Year-round plant: an electrolyser / cooling is installed (not in the paper).
+    p_el_min_w, p_el_max_w : float
+        Electrolyser intake range [W] (0 without one).
+    loh_per_wh_el : float
+        LOH gain per Wh of electrolyser intake at its rated efficiency, compression
+        included [1/Wh].
+    q_cool_max_w : float
+        Cooling capacity [W] (0 without cooling).
     """
 
     n: int
@@ -87,7 +121,20 @@ class PlantConstants:
 
     @classmethod
     def from_params(cls, params: PlantParams, fc_lifecycle_eta: str = "eta_el_mpc") -> PlantConstants:
-        """Derive the constants; ``fc_lifecycle_eta`` as in :func:`.settings.lifecycle_costs`."""
+        """Derive the constants from the plant parameters.
+
+        Parameters
+        ----------
+        params : PlantParams
+            The plant parameters (the MPC's forecasting models, ``tab:level_of_information``).
+        fc_lifecycle_eta : {"eta_el_mpc", "eta_sys", "one"}
+            Efficiency dividing the FC's lifecycle cost (:func:`.costs.lifecycle_costs`).
+
+        Returns
+        -------
+        PlantConstants
+            The constants.
+        """
         sim, b, fc, h2, hp, tank = (params.simulation, params.battery, params.fuel_cell, params.hydrogen,
                                     params.heat_pump, params.dhw)
         dt_h = sim.time_step_h
@@ -133,15 +180,40 @@ class HorizonData:
 
     Attributes
     ----------
-    x0 : building model state at the end of step k-1 [degC] (T_air, T_w_in, T_w_out)
-    soc0, loh0 : battery and H2 levels [-]; v0_l : usable DHW volume [l]
-    fc_on_prev : FC on in step k-1 (eq:on_off_logic)
-    t_amb_c, ghi_w_m2, p_pv_w, p_load_w : weather, PV and appliance forecasts
-    q_dhw_dem_w : DHW demand as heat [W]; t_min_c, t_max_c : comfort bounds [degC]
-    price_buy_eur_per_kwh : buy tariff; price_sell_eur_per_kwh : sell tariff (scalar)
-    cop_sh, cop_dhw : COP at 55 / 45 degC supply and forecast T_amb [-]
-    p_hp_max_w : P_el,HP,max at forecast T_amb [W]
-    loh_min : lower LOH bound per step (eq:LOHmin_MPC) [-]
+    x0 : numpy.ndarray
+        Building model state at the end of step k-1 (T_air, T_w_in, T_w_out) [degC].
+    soc0, loh0 : float
+        Battery and H2 levels [-].
+    v0_l : float
+        Usable DHW volume [l].
+    fc_on_prev : bool
+        FC on in step k-1 (``eq:on_off_logic``).
+    t_amb_c : numpy.ndarray
+        Ambient temperature forecast [degC].
+    ghi_w_m2 : numpy.ndarray
+        Global horizontal irradiance forecast [W/m2].
+    p_pv_w, p_load_w : numpy.ndarray
+        PV and appliance forecasts [W].
+    q_dhw_dem_w : numpy.ndarray
+        DHW demand as heat [W].
+    t_min_c, t_max_c : numpy.ndarray
+        Comfort bounds [degC].
+    price_buy_eur_per_kwh : numpy.ndarray
+        Buy tariff [EUR/kWh].
+    price_sell_eur_per_kwh : float
+        Sell tariff [EUR/kWh].
+    cop_sh, cop_dhw : numpy.ndarray
+        COP at the two supply temperatures and the forecast T_amb [-].
+    p_hp_max_w : numpy.ndarray
+        P_el,HP,max at the forecast T_amb [W].
+    loh_min : numpy.ndarray
+        Lower LOH bound per step (``eq:LOHmin_MPC``) [-].
+    el_on_prev : bool
+        Year-round plant: electrolyser on in step k-1.
+    eer, p_cool_max_w : numpy.ndarray or None
+        Year-round plant: EER [-] and cooling intake limit [W] at the forecast T_amb.
+    loh_season : numpy.ndarray or None
+        Year-round plant: the soft seasonal LOH target per step [-].
     """
 
     x0: np.ndarray
@@ -193,14 +265,34 @@ def season_schedules(
     days_to_season: float, season_days_left: float, loh_season_start: float | None, const: PlantConstants,
     target: float,
 ) -> tuple[np.ndarray, np.ndarray]:
-    """Hard lower bound (eq:LOHmin_MPC over the heating season) and soft seasonal target per horizon step [-].
+    """Compute the hard lower LOH bound and the soft seasonal LOH target per horizon step (year-round plant).
 
     Inside the heating season: the bound falls linearly from ``loh_season_start`` (the LOH
     when the season began) to ``simulation.loh_season_end`` at its end, the bound of the
     current day over the whole horizon (the paper's ``day`` reading); no target. Outside it:
     the store's own LOH_min as bound, and a target rising linearly from ``loh_season_end``
     at the end of the last season to ``target`` at the start of the next (over the days
-    between two seasons).
+    between two seasons). Not in the paper (its winter has no electrolyser).
+
+    Parameters
+    ----------
+    days_to_season : float
+        Days from step k to the next heating season [d] (0 inside it).
+    season_days_left : float
+        Days left in the heating season [d] (0 outside it).
+    loh_season_start : float or None
+        LOH when the current season began [-] (None outside a season).
+    const : PlantConstants
+        The plant's constants (``simulation.loh_season_end``, the season's dates).
+    target : float
+        LOH the target rises to by the next season [-] (``loh_season_target``).
+
+    Returns
+    -------
+    bound : numpy.ndarray
+        Lower bound per step [-] (``eq:LOHmin_MPC`` over the heating season).
+    target : numpy.ndarray
+        Soft target per step [-] (0 inside the season).
     """
     sim = const.params.simulation
     end = sim.loh_season_end
@@ -230,12 +322,35 @@ def _season_length_days(sim) -> float:
 def loh_min_schedule(
     day_index: int, hour_of_day: int, dloh_per_day: float, const: PlantConstants, mode: str
 ) -> np.ndarray:
-    """Lower LOH bound of each horizon step, eq:deltaLOH / eq:LOHmin_MPC [-].
+    """Compute the lower LOH bound of each horizon step, ``eq:deltaLOH`` / ``eq:LOHmin_MPC``.
 
     ``LOH_min = LOH_init - dLOH * (number of the day)`` with the day counted from 1
     (LOH_init = LOH_max in the paper). Mode ``day`` (the paper's): the bound of the
     current day holds over the whole horizon; ``step``: each step gets the bound of the
     day it falls in. Never below the store's own ``loh_min``.
+
+    Parameters
+    ----------
+    day_index : int
+        Day of step k since the start of the period [d].
+    hour_of_day : int
+        Hour of step k [h].
+    dloh_per_day : float
+        Allowance of ``eq:deltaLOH`` [fraction of the store per day].
+    const : PlantConstants
+        The plant's constants.
+    mode : {"day", "step"}
+        The reading (above).
+
+    Returns
+    -------
+    numpy.ndarray
+        The bound per step [-].
+
+    Raises
+    ------
+    ValueError
+        For an unknown mode.
     """
     steps = np.arange(const.n)
     if mode == "day":
@@ -248,7 +363,27 @@ def loh_min_schedule(
 
 
 def build_horizon(obs: Observation, const: PlantConstants, loh_min_mode: str = "day") -> HorizonData:
-    """Horizon numbers from an observation of level "mpc" (and the plant constants)."""
+    """Build the horizon numbers from an observation of level "mpc" and the plant constants.
+
+    Parameters
+    ----------
+    obs : Observation
+        The step's inputs (MPC level: states of step k-1 and 24-step forecasts).
+    const : PlantConstants
+        The plant's constants.
+    loh_min_mode : {"day", "step"}
+        The reading of ``eq:LOHmin_MPC`` (:func:`loh_min_schedule`).
+
+    Returns
+    -------
+    HorizonData
+        The horizon problem's numbers.
+
+    Raises
+    ------
+    ValueError
+        For a forecast of another length than the horizon or holding NaN or inf.
+    """
     fc = obs.forecast
     n = const.n
 
@@ -288,7 +423,7 @@ def build_horizon(obs: Observation, const: PlantConstants, loh_min_mode: str = "
 
 
 def _year_horizon(obs: Observation, t_amb: np.ndarray, const: PlantConstants) -> dict:
-    """The year-round plant's horizon numbers (the seasonal schedules are set by the controller)."""
+    """Add the year-round plant's horizon numbers (the seasonal schedules are set by the controller)."""
     from comems4build_ros.core.models.cooling import eer
 
     out: dict = {"el_on_prev": bool(obs.el_on_prev)}

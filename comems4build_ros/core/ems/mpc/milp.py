@@ -87,7 +87,17 @@ SLACKS = {
 
 @dataclass
 class Penalties:
-    """Soft-bound penalties (config/mpc.yaml), per unit of slack and hour."""
+    """Soft-bound penalties (``config/mpc.yaml``), per unit of slack and hour.
+
+    Attributes
+    ----------
+    comfort_eur_per_kh : float
+        T_air outside its bounds [EUR per K and hour].
+    dhw_eur_per_lh : float
+        V_DHW outside its bounds [EUR per litre and hour].
+    soc_eur_per_h, loh_eur_per_h : float
+        SOC outside its bounds, LOH below LOH_min [EUR per unit and hour].
+    """
 
     comfort_eur_per_kh: float
     dhw_eur_per_lh: float
@@ -97,11 +107,21 @@ class Penalties:
 
 @dataclass
 class YearTerms:
-    """Costs of the year-round plant's terms (``config/mpc.yaml``; unused for the paper's plant)."""
+    """Costs of the year-round plant's terms (``config/mpc.yaml``; unused for the paper's plant).
 
-    penalty_loh_season_eur_per_h: float = 5.0
-    h2_value_eur_per_kwh: float = 0.15
-    sigma_el_on_eur: float = 0.04
+    Attributes
+    ----------
+    penalty_loh_season_eur_per_h : float
+        Deficit below the seasonal LOH target [EUR per unit LOH and hour].
+    h2_value_eur_per_kwh : float
+        Value of the H2 left at the horizon's end outside the heating season [EUR per kWh LHV].
+    sigma_el_on_eur : float
+        Start cost of the electrolyser [EUR].
+    """
+
+    penalty_loh_season_eur_per_h: float
+    h2_value_eur_per_kwh: float
+    sigma_el_on_eur: float
 
 
 @dataclass
@@ -110,14 +130,22 @@ class SolveResult:
 
     Attributes
     ----------
-    status : PuLP solution status text (``pulp.LpSolution[prob.sol_status]``)
-    has_solution : a (possibly non-optimal) feasible solution is available
-    optimal : the solver proved optimality within the gap
-    objective : objective value [EUR] (NaN without solution)
-    plan : variable prefix -> values per horizon step (empty without solution)
-    solve_s : wall time of the solve call: passing the changes to the solver, the solve, reading the
-        solution [s]
-    gap : relative MIP gap reported by the solver (NaN if unknown)
+    status : str
+        PuLP solution status text (``pulp.LpSolution[prob.sol_status]``).
+    has_solution : bool
+        A (possibly non-optimal) feasible solution is available.
+    optimal : bool
+        The solver proved optimality within the gap.
+    objective : float
+        Objective value [EUR] (NaN without solution).
+    plan : dict[str, numpy.ndarray]
+        Variable prefix -> values per horizon step [unit of the variable] (empty without
+        solution).
+    solve_s : float
+        Wall time of the solve call: passing the changes to the solver, the solve, reading
+        the solution [s].
+    gap : float
+        Relative MIP gap reported by the solver [-] (NaN if unknown).
     """
 
     status: str
@@ -134,17 +162,31 @@ class MILPModel:
 
     Parameters
     ----------
-    const : plant constants of the MPC
-    penalties : soft-bound penalties
-    formulation : ``tight`` or ``paper``
-    big_m_loose_w : big-M of the ``paper`` formulation [W]
-    integer_steps : steps (from t = 0) whose binaries stay binary; the binaries of later
-        steps are relaxed to [0, 1] ("relaxed tail"). ``None`` or ``>= n``: all binary.
-    relax_battery_binary : relax the single battery binary while the sell price is >= 0
-        (formulation ``tight``; see the module docstring)
-    year : terms of the year-round plant (electrolyser, seasonal H2 target)
-    fc_heat_dump : whether recovered FC heat the tank cannot take may be dumped (``q_dump``);
-        ``False`` (default) = eq:DHW_heat as printed (see the module docstring)
+    const : PlantConstants
+        Plant constants of the MPC.
+    penalties : Penalties
+        Soft-bound penalties.
+    formulation : {"tight", "paper"}
+        The formulation (see the module docstring).
+    big_m_loose_w : float
+        Big-M of the ``paper`` formulation [W].
+    integer_steps : int or None
+        Steps (from t = 0) whose binaries stay binary; the binaries of later steps are
+        relaxed to [0, 1] ("relaxed tail"). ``None`` or ``>= n``: all binary.
+    relax_battery_binary : bool
+        Relax the single battery binary while the sell price is >= 0 (formulation
+        ``tight``; see the module docstring).
+    year : YearTerms or None
+        Terms of the year-round plant (electrolyser, seasonal H2 target); required when
+        ``const.year_round``.
+    fc_heat_dump : bool
+        Whether recovered FC heat the tank cannot take may be dumped (``q_dump``);
+        ``False`` = ``eq:DHW_heat`` as printed (see the module docstring).
+
+    Raises
+    ------
+    ValueError
+        For an unknown formulation, or a year-round plant without ``year``.
     """
 
     def __init__(
@@ -160,6 +202,8 @@ class MILPModel:
     ) -> None:
         if formulation not in ("tight", "paper"):
             raise ValueError(f"formulation: unknown value '{formulation}' (tight, paper)")
+        if const.year_round and year is None:
+            raise ValueError("a year-round plant (electrolyser or cooling) needs the MPC's year terms")
         self.const = const
         self.pen = penalties
         self.formulation = formulation
@@ -167,7 +211,7 @@ class MILPModel:
         self.n = const.n
         self.integer_steps = self.n if integer_steps is None else max(0, min(int(integer_steps), self.n))
         self.relax_battery_binary = relax_battery_binary
-        self.year = year or YearTerms()
+        self.year = year
         self.fc_heat_dump = fc_heat_dump
         self.prob = pulp.LpProblem("mpc_horizon", pulp.LpMinimize)
         self.v: dict[str, list[pulp.LpVariable]] = {}
@@ -365,7 +409,18 @@ class MILPModel:
 
     # ----------------------------------------------------------------- updating
     def update(self, h: HorizonData) -> None:
-        """Set right-hand sides, price and COP / P_max coefficients for horizon ``h``."""
+        """Set right-hand sides, price and COP / P_max coefficients for horizon ``h``.
+
+        Parameters
+        ----------
+        h : HorizonData
+            The step's horizon numbers (its length must be the model's).
+
+        Raises
+        ------
+        ValueError
+            For a horizon of another length.
+        """
         k, V, C, n = self.const, self.v, self.c, self.n
         if h.n != n:
             raise ValueError(f"horizon has {h.n} steps, the model {n}")
@@ -446,14 +501,25 @@ class MILPModel:
                 var.cat = cat
 
     def binary_names(self) -> list[str]:
-        """Prefixes of the variables that are binary (at least in step 0).
+        """List the prefixes of the variables that are binary (at least in step 0).
 
         PuLP stores a binary as category ``LpInteger`` with bounds [0, 1].
+
+        Returns
+        -------
+        list[str]
+            Variable prefixes (``s_fc``, ``b_ch``, ...).
         """
         return [name for name, vars_ in self.v.items() if vars_[0].cat in (pulp.LpInteger, pulp.LpBinary)]
 
     def fix_first_step(self, values: Mapping[str, float] | None) -> None:
-        """Fix the step-0 binaries named in ``values`` (prefix -> 0/1); ``None`` frees them all again."""
+        """Fix the step-0 binaries named in ``values``; ``None`` frees them all again.
+
+        Parameters
+        ----------
+        values : Mapping[str, float] or None
+            Variable prefix -> 0 or 1 (rounded).
+        """
         for name in self.binary_names():
             var = self.v[name][0]
             if values is None:
@@ -463,7 +529,14 @@ class MILPModel:
                 var.lowBound, var.upBound = val, val
 
     def set_start(self, plan: Mapping[str, np.ndarray] | None) -> None:
-        """Initial values for a warm start (``None`` clears them)."""
+        """Set the initial values of a warm start.
+
+        Parameters
+        ----------
+        plan : Mapping[str, numpy.ndarray] or None
+            Variable prefix -> values per step (e.g. :func:`shift_plan` of the last plan);
+            None clears them.
+        """
         for name, vars_ in self.v.items():
             vals = None if plan is None else plan.get(name)
             for t, var in enumerate(vars_):
@@ -474,6 +547,16 @@ class MILPModel:
         """Solve with a backend of :mod:`.solvers`; read the plan if a solution exists.
 
         The solution is also written into the PuLP variables (``varValue``).
+
+        Parameters
+        ----------
+        backend : HighsBackend, GurobiBackend or PulpBackend
+            The solver backend (:func:`.solvers.make_backend`).
+
+        Returns
+        -------
+        SolveResult
+            Status, plan, objective [EUR], solve time [s] and gap [-].
         """
         t0 = time.perf_counter()
         raw = backend.solve()
@@ -493,7 +576,20 @@ class MILPModel:
 
 
 def shift_plan(plan: Mapping[str, np.ndarray], steps: int = 1) -> dict[str, np.ndarray]:
-    """The plan shifted ``steps`` ahead, last value repeated (warm start of the next solve)."""
+    """Shift a plan ``steps`` ahead, its last value repeated (the warm start of the next solve).
+
+    Parameters
+    ----------
+    plan : Mapping[str, numpy.ndarray]
+        Variable prefix -> values per horizon step.
+    steps : int
+        Steps to shift by.
+
+    Returns
+    -------
+    dict[str, numpy.ndarray]
+        The shifted plan (new arrays).
+    """
     out = {}
     for name, vals in plan.items():
         vals = np.asarray(vals, dtype=float)

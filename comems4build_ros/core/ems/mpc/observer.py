@@ -24,7 +24,22 @@ R_MEASURE_K2 = 0.01
 
 
 def kalman_gain(ad: np.ndarray, q: tuple[float, ...] = Q_PROCESS_K2, r: float = R_MEASURE_K2) -> np.ndarray:
-    """Stationary Kalman gain L (3,) of x[k+1] = A_d x[k] + ..., y = T_air = x[0] (filter form)."""
+    """Compute the stationary Kalman gain of x[k+1] = A_d x[k] + B_d u[k], y = T_air = x[0] (filter form).
+
+    Parameters
+    ----------
+    ad : numpy.ndarray
+        The model's ZOH state matrix (3, 3) (``eq:state_update_bldgs``).
+    q : tuple[float, ...]
+        Process noise variance per node and step [K^2].
+    r : float
+        Measurement noise variance of T_air [K^2].
+
+    Returns
+    -------
+    numpy.ndarray
+        The gain L, shape (3,) [-].
+    """
     from scipy.linalg import solve_discrete_are
 
     c = np.array([[1.0, 0.0, 0.0]])
@@ -33,7 +48,18 @@ def kalman_gain(ad: np.ndarray, q: tuple[float, ...] = Q_PROCESS_K2, r: float = 
 
 
 def wall_split(b) -> tuple[float, float]:
-    """The steady profile's shares of :class:`~comems4build_ros.core.config.BuildingParams` ``b`` [-]."""
+    """Compute where the walls lie in the steady temperature profile between room and ambient.
+
+    Parameters
+    ----------
+    b : BuildingParams
+        The 4R3C's resistances [K/W] (``sec:bldg``).
+
+    Returns
+    -------
+    tuple[float, float]
+        (r_w,air / R, (r_w,air + r_w) / R) [-] with R = r_w,air + r_w + r_w,amb.
+    """
     r = b.r_w_air_k_per_w + b.r_w_k_per_w + b.r_w_amb_k_per_w
     return b.r_w_air_k_per_w / r, (b.r_w_air_k_per_w + b.r_w_k_per_w) / r
 
@@ -43,10 +69,13 @@ class KalmanObserver:
 
     Parameters
     ----------
-    ad, bd : the MPC model's ZOH matrices (3, 3) and (3, 3 or 4)
-    wall_split : (r_w,air / R, (r_w,air + r_w) / R) with R = r_w,air + r_w + r_w,amb: where the
-        walls start between the measured air and the ambient temperature (the steady profile
-        without sun, as the plant's initial state); None: at the air temperature
+    ad, bd : numpy.ndarray
+        The MPC model's ZOH matrices, (3, 3) and (3, 3 or 4); x = [T_air, T_w_in, T_w_out]
+        [degC], u = [Q_h,SH [W], T_amb [degC], q_s [W/m2], P_load [W]].
+    wall_split : tuple[float, float] or None
+        (r_w,air / R, (r_w,air + r_w) / R) [-] (:func:`wall_split`): where the walls start
+        between the measured air and the ambient temperature (the steady profile without
+        sun, as the plant's initial state); None: at the air temperature.
     """
 
     def __init__(self, ad: np.ndarray, bd: np.ndarray, wall_split: tuple[float, float] | None = None) -> None:
@@ -62,9 +91,19 @@ class KalmanObserver:
         self._u: np.ndarray | None = None
 
     def update(self, t_air_c: float, t_amb_c: float | None = None) -> np.ndarray:
-        """The estimate after the measurement ``t_air_c`` [degC] of the step that just ended.
+        """Correct the estimate with the measurement of the step that just ended.
 
-        ``t_amb_c`` [degC] places the walls of the first estimate (:attr:`wall_split`).
+        Parameters
+        ----------
+        t_air_c : float
+            Measured T_air [degC].
+        t_amb_c : float, optional
+            Ambient temperature [degC]: places the walls of the first estimate (:attr:`wall_split`).
+
+        Returns
+        -------
+        numpy.ndarray
+            The estimate (T_air, T_w_in, T_w_out) [degC], a copy.
         """
         if self.x is None or self._u is None:
             t = float(t_air_c)
@@ -79,6 +118,18 @@ class KalmanObserver:
         return self.x.copy()
 
     def applied(self, q_floor_w: float, t_amb_c: float, ghi_w_m2: float, p_load_w: float) -> None:
-        """The inputs of the step now decided: commanded floor heat [W], weather, appliance load [W]."""
+        """Record the inputs of the step now decided (the next :meth:`update` predicts with them).
+
+        Parameters
+        ----------
+        q_floor_w : float
+            Commanded floor heat [W] (negative: cooling).
+        t_amb_c : float
+            Ambient temperature [degC].
+        ghi_w_m2 : float
+            Global horizontal irradiance [W/m2].
+        p_load_w : float
+            Appliance load [W] (its heat gain, where the model has that input).
+        """
         u = [q_floor_w, t_amb_c, ghi_w_m2, p_load_w][: self.bd.shape[1]]
         self._u = np.asarray(u, dtype=float)

@@ -39,7 +39,7 @@ from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc.controller import STATUS_FEASIBLE, STATUS_NONE, STATUS_OPTIMAL
 from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon
-from comems4build_ros.core.ems.mpc.settings import QPParams, load_options
+from comems4build_ros.core.ems.settings import QPSettings, load_settings
 from comems4build_ros.core.numerics import rowdot
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH, Action
 
@@ -56,9 +56,20 @@ INF = np.inf
 
 
 class QPModel:
-    """The relaxed horizon problem in OSQP form ``min 1/2 z'Pz + q'z, l <= Az <= u``."""
+    """The relaxed horizon problem in OSQP form ``min 1/2 z'Pz + q'z, l <= Az <= u``.
 
-    def __init__(self, const: PlantConstants, opts: QPParams) -> None:
+    Powers are in kW and the stores in kWh inside the problem (better scaled for OSQP);
+    :meth:`plan` turns them back into W and fractions.
+
+    Parameters
+    ----------
+    const : PlantConstants
+        Plant constants of the MPC.
+    opts : QPSettings
+        The QP's settings (weights, penalties, OSQP tolerances).
+    """
+
+    def __init__(self, const: PlantConstants, opts: QPSettings) -> None:
         self.k, self.o = const, opts
         self.n = const.n
         self.nv = len(QP_VARS)
@@ -72,7 +83,20 @@ class QPModel:
         self._x_prev: np.ndarray | None = None
 
     def idx(self, name: str, t: int) -> int:
-        """Column of variable ``name`` at step ``t``."""
+        """Return the column of variable ``name`` at step ``t``.
+
+        Parameters
+        ----------
+        name : str
+            Variable name (one of ``QP_VARS``).
+        t : int
+            Horizon step.
+
+        Returns
+        -------
+        int
+            Column index in z.
+        """
         return t * self.nv + _J[name]
 
     def _row(self, label: str, t: int, entries: list[tuple[str, int, str | float]]) -> int:
@@ -158,7 +182,22 @@ class QPModel:
         self.P = sp.triu(p.tocsc(), format="csc")
 
     def matrices(self, h: HorizonData) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(A data in CSC order, q, l, u) for horizon ``h``."""
+        """Compute the problem data that change with the horizon.
+
+        Parameters
+        ----------
+        h : HorizonData
+            The step's horizon numbers.
+
+        Returns
+        -------
+        a_data : numpy.ndarray
+            A's values in CSC order (the COPs change them).
+        q : numpy.ndarray
+            Linear cost [EUR per kW or kWh of each variable].
+        lo, up : numpy.ndarray
+            Row bounds.
+        """
         k, n, dt, o = self.k, self.n, self.k.dt_h, self.o
         cv = k.l_per_wh * W_PER_KW * dt
         vals = self._fixed.copy()
@@ -234,7 +273,24 @@ class QPModel:
         return a_data, q.ravel(), lo, up
 
     def solve(self, h: HorizonData) -> tuple[int, np.ndarray | None, float, str]:
-        """Solve for ``h``: (status code, solution or None, solve time [s], OSQP status text)."""
+        """Solve for ``h``, warm-started from the previous solution shifted by one step.
+
+        Parameters
+        ----------
+        h : HorizonData
+            The horizon (:meth:`matrices` turns it into the problem's data).
+
+        Returns
+        -------
+        code : int
+            ``STATUS_OPTIMAL``, ``STATUS_FEASIBLE`` (solved inaccurately) or ``STATUS_NONE``.
+        x : numpy.ndarray or None
+            The solution (None without one).
+        solve_s : float
+            Solve time [s].
+        status : str
+            OSQP's status text.
+        """
         a_data, q, lo, up = self.matrices(h)
         t0 = time.perf_counter()
         if self.solver is None:
@@ -269,7 +325,19 @@ class QPModel:
         return code, x, solve_s, status
 
     def plan(self, x: np.ndarray) -> dict[str, np.ndarray]:
-        """Solution vector -> variable name -> values per step (powers back in W)."""
+        """Split a solution vector into the variables' values per step.
+
+        Parameters
+        ----------
+        x : numpy.ndarray
+            The solution z.
+
+        Returns
+        -------
+        dict[str, numpy.ndarray]
+            Variable name -> values per step: powers [W], SOC and LOH (and their slacks) [-],
+            the rest in the problem's units.
+        """
         z = x.reshape(self.n, self.nv)
         out = {name: z[:, j].copy() for name, j in _J.items()}
         for name in POWER_VARS:
@@ -293,30 +361,46 @@ class QPController:
 
     Parameters
     ----------
-    params : plant parameters
-    options : overrides of ``config/mpc.yaml`` section ``mpc_qp`` (see :class:`.settings.QPParams`)
+    params : PlantParams
+        Plant parameters (the MPC's forecasting models).
+    options : Mapping[str, Any], optional
+        Overrides of ``config/mpc.yaml`` section ``mpc_qp``
+        (:class:`~comems4build_ros.core.ems.settings.QPSettings`).
     """
 
     name = "mpc-qp"
     info_level = "mpc"
+    settings_class = QPSettings
 
     def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
         self.params = params
-        self.options: QPParams = load_options(QPParams, "mpc_qp", options)  # type: ignore[assignment]
-        self.const = PlantConstants.from_params(params, self.options.fc_lifecycle_eta)
+        self.settings = load_settings(QPSettings, options)
+        self.const = PlantConstants.from_params(params, self.settings.fc_lifecycle_eta)
         self.step_info: dict[str, float] = {}
         self.reset()
 
     def reset(self) -> None:
-        """New OSQP problem, no warm start, counters zero."""
-        self.model = QPModel(self.const, self.options)
+        """Start a new OSQP problem: no warm start, counters zero."""
+        self.model = QPModel(self.const, self.settings)
         self.n_fallback = 0
         self.last_plan: dict[str, np.ndarray] | None = None
         self.step_info = {}
 
     def act(self, obs: Observation) -> Action:
-        """Solve the relaxed horizon problem and apply its rounded first step."""
-        h = build_horizon(obs, self.const, self.options.loh_min_mode)
+        """Solve the relaxed horizon problem and apply its rounded first step.
+
+        Parameters
+        ----------
+        obs : Observation
+            The step's inputs, as for the MILP (:meth:`.controller.MPCController.act`).
+
+        Returns
+        -------
+        Action
+            The plan's first step with the semicontinuous powers rounded to {0} U [min, max],
+            or the safe fallback without a solution.
+        """
+        h = build_horizon(obs, self.const, self.settings.loh_min_mode)
         code, x, solve_s, status = self.model.solve(h)
         k = self.const
         slack = dict.fromkeys(SLACK_VARS, 0.0)
@@ -337,7 +421,7 @@ class QPController:
             p_bess = float(plan["p_ch"][0] - plan["p_dis"][0])
             action = Action(hp_mod=mod, hp_mode=mode if mod > 0 else HP_OFF, p_fc_w=p_fc,
                             p_bess_w=p_bess if abs(p_bess) > 1e-3 else 0.0)
-        tol = max(self.options.slack_report_tol, 100.0 * self.options.eps_abs)  # above OSQP's tolerance
+        tol = max(self.settings.slack_report_tol, 100.0 * self.settings.eps_abs)  # above OSQP's tolerance
         self.step_info = {
             "solve_s": solve_s,
             "status": float(code),

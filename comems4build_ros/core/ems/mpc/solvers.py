@@ -43,12 +43,24 @@ SOLVER_NAMES = ("highs", "highs_pulp", "cbc", "gurobi")
 
 
 def gurobi_available() -> bool:
-    """True if gurobipy can be imported (an optional extra, never required)."""
+    """Tell whether gurobipy can be imported (an optional extra, never required).
+
+    Returns
+    -------
+    bool
+        True if it can.
+    """
     return importlib.util.find_spec("gurobipy") is not None
 
 
 def available_solvers() -> list[str]:
-    """Names accepted by :func:`make_backend` on this machine."""
+    """List the solver names :func:`make_backend` accepts on this machine.
+
+    Returns
+    -------
+    list[str]
+        Names of :data:`SOLVER_NAMES` (``gurobi`` only with gurobipy installed).
+    """
     return [name for name in SOLVER_NAMES if name != "gurobi" or gurobi_available()]
 
 
@@ -58,12 +70,17 @@ class RawSolution:
 
     Attributes
     ----------
-    sol_status : PuLP solution status code (``pulp.LpSolutionOptimal``,
-        ``pulp.LpSolutionIntegerFeasible``, ``pulp.LpSolutionNoSolutionFound``, ...)
-    x : column values in :class:`MatrixForm` order (``None`` without a solution)
-    objective : objective value incl. the constant [EUR] (NaN without a solution)
-    gap : relative MIP gap reported by the solver [-] (NaN if unknown)
-    error : solver error text ("" if none)
+    sol_status : int
+        PuLP solution status code (``pulp.LpSolutionOptimal``,
+        ``pulp.LpSolutionIntegerFeasible``, ``pulp.LpSolutionNoSolutionFound``, ...).
+    x : numpy.ndarray or None
+        Column values in :class:`MatrixForm` order (``None`` without a solution).
+    objective : float
+        Objective value incl. the constant [EUR] (NaN without a solution).
+    gap : float
+        Relative MIP gap reported by the solver [-] (NaN if unknown).
+    error : str
+        Solver error text ("" if none).
     """
 
     sol_status: int
@@ -78,8 +95,10 @@ class MatrixForm:
 
     Parameters
     ----------
-    prob : the PuLP problem (its variables and constraints never change after this)
-    mutable : (constraint, variable) pairs whose matrix coefficient may change between solves
+    prob : pulp.LpProblem
+        The PuLP problem (its variables and constraints never change after this).
+    mutable : Sequence[tuple[pulp.LpConstraint, pulp.LpVariable]]
+        (constraint, variable) pairs whose matrix coefficient may change between solves.
     """
 
     def __init__(self, prob: pulp.LpProblem, mutable: Sequence[tuple[pulp.LpConstraint, pulp.LpVariable]] = ()):
@@ -120,7 +139,13 @@ class MatrixForm:
         return len(self.constraints)
 
     def costs(self) -> np.ndarray:
-        """Objective coefficients per column (minimisation)."""
+        """Read the objective coefficients per column (minimisation).
+
+        Returns
+        -------
+        numpy.ndarray
+            Coefficients [EUR per unit of each variable].
+        """
         c = np.zeros(self.n_cols)
         idx = self.col_index
         for var, coef in self.prob.objective.items():
@@ -128,42 +153,79 @@ class MatrixForm:
         return c
 
     def offset(self) -> float:
-        """Constant of the objective."""
+        """Read the constant of the objective.
+
+        Returns
+        -------
+        float
+            The constant [EUR].
+        """
         return float(self.prob.objective.constant)
 
     def col_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Column lower and upper bounds (``-inf`` / ``inf`` where PuLP has none)."""
+        """Read the column bounds.
+
+        Returns
+        -------
+        lo, up : numpy.ndarray
+            Lower and upper bounds (``-inf`` / ``inf`` where PuLP has none).
+        """
         lo = np.array([-math.inf if v.lowBound is None else v.lowBound for v in self.variables], dtype=float)
         up = np.array([math.inf if v.upBound is None else v.upBound for v in self.variables], dtype=float)
         return lo, up
 
     def rhs(self) -> np.ndarray:
-        """Right-hand side of every row (``expr <sense> rhs``)."""
+        """Read the right-hand side of every row (``expr <sense> rhs``).
+
+        Returns
+        -------
+        numpy.ndarray
+            One value per row.
+        """
         return np.array([-con.constant for con in self.constraints], dtype=float)
 
-    def row_bounds(self) -> tuple[np.ndarray, np.ndarray]:
-        """Row lower and upper bounds from the sense and the right-hand side."""
-        rhs = self.rhs()
-        lo = np.where(self.sense == pulp.LpConstraintLE, -math.inf, rhs)
-        up = np.where(self.sense == pulp.LpConstraintGE, math.inf, rhs)
-        return lo, up
-
     def integrality(self) -> np.ndarray:
-        """True for integer (binary) columns."""
+        """Mark the integer (binary) columns.
+
+        Returns
+        -------
+        numpy.ndarray
+            True for an integer column.
+        """
         return np.array([v.cat in _INTEGER for v in self.variables], dtype=bool)
 
     def mutable_values(self) -> np.ndarray:
-        """Current values of the mutable matrix coefficients."""
+        """Read the current values of the mutable matrix coefficients.
+
+        Returns
+        -------
+        numpy.ndarray
+            One value per mutable (constraint, variable) pair.
+        """
         return np.array([con[var] for _, _, con, var in self.mutable], dtype=float)
 
     def start(self) -> tuple[np.ndarray, np.ndarray]:
-        """MIP start: integer columns with a ``varValue`` and their rounded values."""
+        """Collect the MIP start: the integer columns with a ``varValue``.
+
+        Returns
+        -------
+        idx : numpy.ndarray
+            Their column indices.
+        vals : numpy.ndarray
+            Their rounded values.
+        """
         idx = [j for j, v in enumerate(self.variables) if v.cat in _INTEGER and v.varValue is not None]
         vals = np.array([round(self.variables[j].varValue) for j in idx], dtype=float)
         return np.asarray(idx, dtype=np.int32), vals
 
     def set_values(self, x: np.ndarray | None) -> None:
-        """Write a solution into the PuLP variables (``None``: clear them)."""
+        """Write a solution into the PuLP variables.
+
+        Parameters
+        ----------
+        x : numpy.ndarray or None
+            Column values in this form's order; None clears them.
+        """
         for j, var in enumerate(self.variables):
             var.varValue = None if x is None else float(x[j])
 
@@ -184,7 +246,13 @@ class _Snapshot:
         self.diff()
 
     def diff(self) -> dict[str, np.ndarray]:
-        """Read the changing parts again and keep them; return the indices that changed, per kind."""
+        """Read the changing parts again and keep them.
+
+        Returns
+        -------
+        dict[str, numpy.ndarray]
+            Per kind (``cost``, ``bounds``, ``rhs``, ``integ``, ``coef``) the indices that changed.
+        """
         form = self.form
         cost = form.costs()
         lo, up = form.col_bounds()
@@ -202,7 +270,7 @@ class _Snapshot:
         return out
 
     def values(self) -> np.ndarray:
-        """Row-wise matrix values with the current mutable coefficients."""
+        """Return the row-wise matrix values with the current mutable coefficients."""
         vals = self.form.row_val.copy()
         vals[self.form.mutable_pos] = self.coef
         return vals
@@ -227,7 +295,7 @@ def _highs_scheduler(highspy: Any, threads: int) -> None:
 
 
 def _highs_lp(highspy: Any, form: MatrixForm, snap: _Snapshot, names: bool = True) -> Any:
-    """A ``HighsLp`` of the problem's current arrays (``snap``)."""
+    """Build a ``HighsLp`` of the problem's current arrays (``snap``)."""
     inf = highspy.kHighsInf
     lp = highspy.HighsLp()
     lp.num_col_ = form.n_cols
@@ -263,11 +331,25 @@ class HighsBackend:
 
     Parameters
     ----------
-    form : the problem's arrays
-    mip_rel_gap : relative MIP gap [-]; time_limit_s : per solve [s] (``None``: none)
-    threads : HiGHS threads; warm_start : pass the integer ``varValue`` s as a MIP start
-    options : further HiGHS options (name -> value)
-    msg : solver log on stdout
+    form : MatrixForm
+        The problem's arrays.
+    mip_rel_gap : float
+        Relative MIP gap [-].
+    time_limit_s : float or None
+        Time limit per solve [s] (``None``: none).
+    threads : int
+        HiGHS threads.
+    warm_start : bool
+        Pass the integer ``varValue`` s as a MIP start.
+    options : Mapping[str, Any], optional
+        Further HiGHS options (name -> value).
+    msg : bool
+        Solver log on stdout.
+
+    Raises
+    ------
+    ConfigError
+        For an option HiGHS rejects.
     """
 
     name = "highs"
@@ -295,7 +377,13 @@ class HighsBackend:
         self.h: Any = None
 
     def solve(self) -> RawSolution:
-        """Refresh the arrays, pass them to a new HiGHS instance with the MIP start, run, read the solution."""
+        """Refresh the arrays, pass them to a new HiGHS instance with the MIP start, run, read the solution.
+
+        Returns
+        -------
+        RawSolution
+            Status, solution, objective [EUR] and gap [-].
+        """
         hs = self._hs
         snap = self.snapshot
         snap.refresh()
@@ -332,7 +420,17 @@ class GurobiBackend:
     Gurobi starts from the previous solve's basis and, within the MIP gap, returns plans
     that depend on the solves before (tested); the MIP start is the only state carried over.
 
-    Parameters as :class:`HighsBackend`; ``options`` are Gurobi parameters (name -> value).
+    Parameters
+    ----------
+    form, mip_rel_gap, time_limit_s, threads, warm_start, msg
+        As :class:`HighsBackend`.
+    options : Mapping[str, Any], optional
+        Gurobi parameters (name -> value).
+
+    Raises
+    ------
+    ConfigError
+        For a parameter Gurobi rejects.
     """
 
     name = "gurobi"
@@ -391,7 +489,18 @@ class GurobiBackend:
             m.chgCoeff(self.constrs[row], self.vars[col], float(snap.coef[i]))
 
     def solve(self) -> RawSolution:
-        """Sync, reset, set the MIP start, optimise, read the solution."""
+        """Sync, reset, set the MIP start, optimise, read the solution.
+
+        Returns
+        -------
+        RawSolution
+            Status, solution, objective [EUR] and gap [-].
+
+        Raises
+        ------
+        ConfigError
+            If the model exceeds the Gurobi licence's size limit.
+        """
         gp, m = self._gp, self.model
         grb = gp.GRB
         self.sync()
@@ -423,6 +532,15 @@ class PulpHiGHS(pulp.HiGHS):
     PuLP adds the model column by column and row by row at every solve and has no MIP
     start for HiGHS; this passes the arrays in one ``passModel`` call and the integer
     variables' ``varValue`` s through ``setSolution``.
+
+    Parameters
+    ----------
+    warm_start : bool
+        Pass the integer ``varValue`` s as a MIP start.
+    threads : int
+        HiGHS threads.
+    **kwargs : Any
+        Further arguments of ``pulp.HiGHS`` (``msg``, ``timeLimit``, HiGHS options).
     """
 
     def __init__(self, warm_start: bool = False, threads: int = 1, **kwargs: Any) -> None:
@@ -431,6 +549,13 @@ class PulpHiGHS(pulp.HiGHS):
         self.n_threads = int(threads)
 
     def buildSolverModel(self, lp: pulp.LpProblem) -> None:  # noqa: N802 - PuLP's name
+        """Pass ``lp`` to PuLP's HiGHS instance in one call, with the MIP start (PuLP calls this).
+
+        Parameters
+        ----------
+        lp : pulp.LpProblem
+            The problem PuLP solves.
+        """
         import highspy
 
         form = MatrixForm(lp)
@@ -454,8 +579,12 @@ class PulpBackend:
 
     Parameters
     ----------
-    form : the problem's arrays (for the column order of the result)
-    solver : a configured ``pulp.LpSolver``
+    form : MatrixForm
+        The problem's arrays (for the column order of the result).
+    solver : pulp.LpSolver
+        A configured PuLP solver.
+    name : str
+        The solver's name (``highs_pulp``, ``cbc``).
     """
 
     def __init__(self, form: MatrixForm, solver: pulp.LpSolver, name: str) -> None:
@@ -464,7 +593,13 @@ class PulpBackend:
         self.name = name
 
     def solve(self) -> RawSolution:
-        """``prob.solve(solver)``; the solution is read from the PuLP variables."""
+        """Run ``prob.solve(solver)`` and read the solution from the PuLP variables.
+
+        Returns
+        -------
+        RawSolution
+            Status, solution, objective [EUR] and gap [-] (NaN unless PuLP's HiGHS reports it).
+        """
         prob = self.form.prob
         try:
             prob.solve(self.solver)
@@ -492,18 +627,34 @@ def make_backend(
     highs_options: Mapping[str, Any] | None = None,
     gurobi_options: Mapping[str, Any] | None = None,
 ) -> HighsBackend | GurobiBackend | PulpBackend:
-    """A solver backend for the problem in ``form``.
+    """Build a solver backend for the problem in ``form``.
 
     Parameters
     ----------
-    name : ``highs`` (highspy model kept in memory), ``highs_pulp`` (:class:`PulpHiGHS`, model
-        handed over per solve), ``cbc`` (PuLP's bundled CBC) or ``gurobi``
-    mip_rel_gap : relative MIP gap at which the solver stops [-]
-    time_limit_s : wall-clock limit per solve [s] (``None``: none)
-    threads : solver threads
-    warm_start : use the integer variables' current values as a MIP start
-    highs_options : further HiGHS options (``highs``, ``highs_pulp``)
-    gurobi_options : further Gurobi parameters (``gurobi``)
+    name : {"highs", "highs_pulp", "cbc", "gurobi"}
+        ``highs`` (highspy, arrays passed per solve), ``highs_pulp`` (:class:`PulpHiGHS`,
+        model handed over per solve), ``cbc`` (PuLP's bundled CBC) or ``gurobi``.
+    form : MatrixForm
+        The problem's arrays.
+    mip_rel_gap : float
+        Relative MIP gap at which the solver stops [-].
+    time_limit_s : float or None
+        Wall-clock limit per solve [s] (``None``: none).
+    threads : int
+        Solver threads.
+    warm_start : bool
+        Use the integer variables' current values as a MIP start.
+    msg : bool
+        Solver log on stdout.
+    highs_options : Mapping[str, Any], optional
+        Further HiGHS options (``highs``, ``highs_pulp``).
+    gurobi_options : Mapping[str, Any], optional
+        Further Gurobi parameters (``gurobi``).
+
+    Returns
+    -------
+    HighsBackend, GurobiBackend or PulpBackend
+        The backend; its ``solve()`` returns a :class:`RawSolution`.
 
     Raises
     ------

@@ -2,7 +2,7 @@
 
 A study (``compare``, ``sweep``, ``reproduce``, ``size``, and any command with a set of runs) hands
 its runs (:class:`Job` objects, e.g. :class:`comems4build_ros.study.runner.RunTask`) to
-:func:`run_jobs` with a :class:`StudyExecutor`, which says where they execute and where the
+:func:`run_jobs` with a :class:`StudyPool`, which says where they execute and where the
 finished ones are stored:
 
 - :class:`LocalBackend`: worker processes of this machine (``--jobs N``, default the CPU
@@ -66,12 +66,12 @@ class RunFailedError(RuntimeError):
     """A run ended without its outputs (message names the run directory and the cause)."""
 
 
-class ExecutorError(ValueError):
-    """The executor cannot be used (no scheduler, no worker, a worker's environment differs); names it."""
+class PoolError(ValueError):
+    """The study pool cannot be used (no scheduler, no worker, a worker's environment differs); names it."""
 
 
 class Job(Protocol):
-    """One run of a study, as an executor sees it (picklable).
+    """One run of a study, as the study pool sees it (picklable).
 
     ``out_dir``: where its results go (its name is the run's name); :meth:`spec`: everything
     that decides its outputs (JSON-ready; hashed to recognise a stored run); :meth:`portable`:
@@ -114,13 +114,13 @@ def execute(job: Job, progress: ProgressCallback | None = None, worker: str = "l
     """Run ``job`` in a temporary directory of this process; its summary, files and attempt record.
 
     ``expected_env``: the client's environment record; a worker whose own differs refuses
-    the run (:class:`ExecutorError` naming the worker and what differs).
+    the run (:class:`PoolError` naming the worker and what differs).
     """
     attempt = _where(worker)
     if expected_env is not None:
         diff = differences(dict(expected_env), environment())
         if diff:
-            raise ExecutorError(f"worker {worker} on {attempt['host']}: its environment differs from the "
+            raise PoolError(f"worker {worker} on {attempt['host']}: its environment differs from the "
                                 f"client's ({'; '.join(diff[:4])})")
     t0 = time.perf_counter()
     with tempfile.TemporaryDirectory(prefix="comems4build-run-") as tmp:
@@ -447,18 +447,18 @@ class DaskBackend:
         try:
             from distributed import Client
         except ImportError as exc:  # pragma: no cover - a dependency of requirements.txt
-            raise ExecutorError(f"--scheduler {self.address}: dask.distributed is not installed ({exc})") from None
+            raise PoolError(f"--scheduler {self.address}: dask.distributed is not installed ({exc})") from None
         try:
             self.client = Client(self.address, timeout=self.connect_timeout_s, set_as_default=False,
                                  security=self.security)
         except (OSError, TimeoutError) as exc:
-            raise ExecutorError(f"--scheduler {self.address}: no scheduler answered within "
+            raise PoolError(f"--scheduler {self.address}: no scheduler answered within "
                                 f"{self.connect_timeout_s:.0f} s ({exc})") from None
         try:
             self.client.wait_for_workers(1, timeout=self.worker_timeout_s)
         except (OSError, TimeoutError) as exc:
             self.close()
-            raise ExecutorError(f"--scheduler {self.address}: no worker connected within "
+            raise PoolError(f"--scheduler {self.address}: no worker connected within "
                                 f"{self.worker_timeout_s:.0f} s ({type(exc).__name__})") from None
         check_environment(self.client.run(prepare_worker), self.address)
         info = self.client.scheduler_info()
@@ -563,7 +563,7 @@ class DaskBackend:
 
 
 def check_environment(envs: Mapping[str, Mapping[str, Any]], where: str) -> None:
-    """Every worker's environment record equals this process's, else :class:`ExecutorError` naming them."""
+    """Every worker's environment record equals this process's, else :class:`PoolError` naming them."""
     mine = environment()
     bad = []
     for worker, env in sorted(envs.items()):
@@ -571,7 +571,7 @@ def check_environment(envs: Mapping[str, Mapping[str, Any]], where: str) -> None
         if diff:
             bad.append(f"worker {worker}: {'; '.join(diff[:4])}")
     if bad:
-        raise ExecutorError(f"--scheduler {where}: {len(bad)} worker(s) run another environment than this one "
+        raise PoolError(f"--scheduler {where}: {len(bad)} worker(s) run another environment than this one "
                             f"(install the same commit with tools/setup.sh there, stored as 'this -> worker'): "
                             + " | ".join(bad[:4]))
 
@@ -613,17 +613,17 @@ def _execute_on_worker(job: Job, env: Mapping[str, Any], topic: str, slot: int) 
 # ============================================================================ the study
 
 
-_CURRENT: contextvars.ContextVar[StudyExecutor | None] = contextvars.ContextVar("study_executor", default=None)
+_CURRENT: contextvars.ContextVar[StudyPool | None] = contextvars.ContextVar("study_pool", default=None)
 
 
-class StudyExecutor:
+class StudyPool:
     """Where a study's runs execute (a backend) and where its finished runs are kept (a store).
 
     Use it as a context manager: entering connects the backend (a Dask scheduler is asked
-    for a worker and every worker's environment checked: :class:`ExecutorError` before any
+    for a worker and every worker's environment checked: :class:`PoolError` before any
     run), turns SIGTERM into KeyboardInterrupt for the block, locks the store and checks it
     (a store with finished runs and no ``resume`` is refused:
-    :class:`~comems4build_ros.study.store.StoreError`), and makes the executor the one
+    :class:`~comems4build_ros.study.store.StoreError`), and makes the pool the one
     :func:`comems4build_ros.study.runner.run_tasks` uses when given none. Call
     :meth:`complete` once the study's results are in place: it removes the store.
 
@@ -645,7 +645,7 @@ class StudyExecutor:
         self._stack: contextlib.ExitStack | None = None
         self._made_parent = False
 
-    def __enter__(self) -> StudyExecutor:
+    def __enter__(self) -> StudyPool:
         stack = contextlib.ExitStack()
         try:
             if self.store is not None:
@@ -696,29 +696,29 @@ class StudyExecutor:
             self.store.remove()
 
 
-def current() -> StudyExecutor | None:
-    """The executor of the enclosing ``with StudyExecutor(...)`` block, if any."""
+def current() -> StudyPool | None:
+    """The pool of the enclosing ``with StudyPool(...)`` block, if any."""
     return _CURRENT.get()
 
 
 def run_jobs(
     jobs: Sequence[Job],
-    executor: StudyExecutor | None = None,
+    pool: StudyPool | None = None,
     on_done: Callable[[Any, dict[str, Any]], None] | None = None,
     progress: bool | None = None,
     quiet: bool = False,
 ) -> list[dict[str, Any]]:
-    """Run ``jobs`` with ``executor`` (default: the current one, else local processes, no store).
+    """Run ``jobs`` with ``pool`` (default: the current one, else local processes, no store).
 
     Returns the summaries in job order; ``on_done(job, summary)`` is called as each run
-    finishes (and for each run taken from the store). With ``executor.resume`` a stored run
+    finishes (and for each run taken from the store). With ``pool.resume`` a stored run
     of the same specification hash is taken as it is; one whose specification differs is
     refused before any run starts (:class:`~comems4build_ros.study.store.StoreError`
     naming the runs and what differs). The first run error is raised once the runs already
     running have finished and been stored. ``progress``: one bar per running run (None = on
     a terminal); ``quiet``: no progress lines.
     """
-    ex = executor or current() or StudyExecutor()
+    ex = pool or current() or StudyPool()
     names = [Path(j.out_dir).name for j in jobs]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
