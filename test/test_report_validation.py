@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 from comems4build_ros.app.cli import main
+from comems4build_ros.report import findings as fd
 from comems4build_ros.report import validation as rv
 from comems4build_ros.report import validation_doc as vd
 
@@ -34,7 +35,7 @@ def out(tmp_path_factory):
 @pytest.mark.parametrize("weeks, per_12, allowed", [(12, 2, 2), (6, 2, 1), (1, 2, 0), (24, 2, 4), (12, 0, 0),
                                                      (3, 2, 0), (12, 3, 3)])
 def test_weeks_with_discomfort_allowed_in_proportion(weeks, per_12, allowed):
-    assert rv.allowed_discomfort_weeks(weeks, per_12) == allowed
+    assert fd.allowed_discomfort_weeks(weeks, per_12) == allowed
 
 
 def test_daily_spread_is_the_median_of_each_local_days_max_minus_min():
@@ -69,8 +70,13 @@ def test_every_case_checked_and_the_missing_ems_reported_as_not_run(out):
         assert c["criteria"]["cost_order"] is None and c["criteria"]["fc_longer_lower"] is None
         assert c["criteria"]["net_cost_order"] is None
         assert c["criteria"]["comfort"] == (c["discomfort_weeks"]["fuzzy"] <= c["allowed_weeks"])
+        assert c["criteria"]["rbc_sells_most"] is None  # "the most of all EMS": needs the MPC too
         lo, hi = rep["criteria"]["h2_left"]
-        assert c["criteria"]["h2_left"] == (lo <= c["loh_end"]["fuzzy"] <= hi)
+        even = c["h2_even"]["fuzzy"] <= rep["criteria"]["h2_even_max"] and c["h2_even"]["fuzzy"] < c["h2_even"]["rbc"]
+        assert c["criteria"]["h2_left"] == (lo <= c["loh_end"]["fuzzy"] <= hi and even)
+        for key, findings in rv.CRITERIA_FINDINGS.items():  # each check is made of its findings
+            status = [c["findings"][k] for k in findings]
+            assert c["criteria"][key] == (None if "n/a" in status else all(v == "held" for v in status))
         assert c["findings"]["mpc_cheapest"] == "n/a" and c["weeks"] == 1  # half a week: one partial week row
         summary = json.loads((out / "runs" / f"{c['id']}__fuzzy" / "summary.json").read_text(encoding="utf-8"))
         assert c["cost"]["fuzzy"] == summary["cost_eur_week_median"]
@@ -131,6 +137,66 @@ def test_from_runs_gives_the_same_figures(out, tmp_path):
     assert a["cases"] == b["cases"] and a["subsets"] == b["subsets"] and b["runs_from"] == str(out)
 
 
+def test_choose_and_judge_steps_read_only_their_own_cases(out, tmp_path):
+    """The choosing step reads the calibration and development cases only and writes its choice with the
+    runs it read; the judging step reads the held-out cases and records the defaults it judged."""
+    from comems4build_ros.study.identity import defaults_identity
+
+    common = ["--weeks", "0.5", "--ems", "fuzzy,rbc", "--study", "rbc_h2_reserve,discomfort_sample",
+              "--from-runs", str(out), "--no-figures"]
+    choose, judge = tmp_path / "choose", tmp_path / "judge"
+    assert main(["validate", "--out", str(choose), "--choose", "--cases", "paper-s57,hamburg-2017-18", *common]) == 0
+    rep = json.loads((choose / "validation.json").read_text(encoding="utf-8"))
+    assert [c["id"] for c in rep["cases"]] == ["paper-s57", "hamburg-2017-18"] and "judged" not in rep
+    choice = json.loads((choose / "choice.json").read_text(encoding="utf-8"))
+    assert choice["cases"] == ["paper-s57", "hamburg-2017-18"]
+    assert set(choice["ambiguities"]) == {"rbc_h2_reserve", "discomfort_sample"}
+    for a in choice["ambiguities"].values():
+        assert a["decided_by"] == "paper" and a["chosen"] == a["shipped"] and a["agrees"]
+        for r in a["readings"]:
+            assert r["runs"] and not any(n.startswith("household-102") for n in r["runs"])
+    assert choice["defaults"]["runs"]["code_sha256"] == defaults_identity()["code_sha256"]
+    assert main(["validate", "--out", str(judge), "--judge", "--choice", str(choose / "choice.json"),
+                 "--cases", "household-102", *common]) == 0
+    rep = json.loads((judge / "validation.json").read_text(encoding="utf-8"))
+    assert [c["id"] for c in rep["cases"]] == ["household-102"] and "choice" not in rep
+    assert not (judge / "choice.json").exists()
+    judged = rep["judged"]
+    assert judged["cases"] == ["household-102"]
+    assert judged["defaults"]["parameters_sha256"] == defaults_identity()["parameters_sha256"]
+    assert judged["choice"]["same_defaults"] is True and judged["choice"]["differ"] == {}
+    assert "What the held-out cases judged" in (judge / "validation.md").read_text(encoding="utf-8")
+
+
+def _reading(name, default, dev_met, cal_met, findings, table):
+    crit = {k: {"held": 1, "cases": 1, "share": 1.0, "met": True} for k in rv.CRITERIA}
+
+    def subset(met):
+        return {"cases": 4, "criteria": {k: {**v, "met": i < met} for i, (k, v) in enumerate(crit.items())}}
+
+    return {"ambiguity": "fc_rules", "reading": name, "default": default,
+            "subsets": {"calibration": subset(cal_met), "development": subset(dev_met), "held-out": subset(0)},
+            "calibration_fit": {"median_rel_error": 0.1, "table_rel_error": table, "findings_held": findings,
+                                "findings_total": 33, "fc": {}}}
+
+
+@pytest.mark.parametrize("rows, chosen", [
+    ([("battery_supports", True, 4, 5, 30, 0.08), ("battery_first", False, 5, 4, 20, 0.20)], "battery_first"),
+    ([("battery_supports", True, 4, 5, 30, 0.08), ("battery_first", False, 4, 5, 31, 0.20)], "battery_first"),
+    ([("battery_supports", True, 4, 5, 30, 0.08), ("battery_first", False, 4, 5, 30, 0.09)], "battery_supports"),
+    ([("battery_supports", True, 3, 5, 30, 0.08), ("start_at_average", False, 3, 4, 33, 0.01)], "battery_supports"),
+])
+def test_choice_rule_in_its_order_and_blind_to_held_out(rows, chosen):
+    """Development checks first, then calibration checks, findings, the table's error; the held-out
+    subset (here: no check met) never enters."""
+    from comems4build_ros.study import validate as sv
+
+    p = sv.plan(["fc_rules"], weeks=1, cases=["paper-s57", "hamburg-2015-16"], step="choose")
+    report = {"study": [_reading(*r) for r in rows], "defaults": {"runs": None, "evaluated": None}}
+    c = rv.choose_defaults(p, report, 0.9)["ambiguities"]["fc_rules"]
+    assert c["decided_by"] == "figures" and c["chosen"] == chosen and c["agrees"] == (chosen == "battery_supports")
+
+
 @pytest.mark.parametrize("args, message", [
     (["--cases", "atlantis"], "--cases: no case atlantis"),
     (["--ems", "thermostat"], "--ems: thermostat"),
@@ -138,6 +204,11 @@ def test_from_runs_gives_the_same_figures(out, tmp_path):
     (["--weeks", "13"], "outside the allowed range"),
     (["--cases", "paper-s57,paper-s57"], "given twice"),
     (["--from-runs", "/nonexistent"], "no runs/ directory"),
+    (["--choose", "--cases", "household-102"], "never while choosing"),
+    (["--judge", "--cases", "paper-s57,muenchen-2015-16"], "not read by the judge step"),
+    (["--choose", "--judge"], "not allowed with"),
+    (["--choice", "choice.json"], "--judge"),
+    (["--judge", "--update-doc", "validation.md"], "needs both steps"),
 ])
 def test_bad_options_exit_2_naming_them(tmp_path, args, message):
     res = subprocess.run([*CLI, "validate", "--out", str(tmp_path / "o"), *args], capture_output=True, text=True,

@@ -89,3 +89,20 @@ def test_a_task_runs_from_its_name_alone(tmp_path):
     spec = task.spec()
     assert spec["scenario"] == "validation/muenchen-2023-24"
     assert json.loads(json.dumps(spec))["overrides"]["site.altitude_m"] == 453.0
+
+
+@pytest.mark.parametrize("step, subsets", [("choose", {"calibration", "development"}), ("judge", {"held-out"}),
+                                           ("all", {"calibration", "development", "held-out"})])
+def test_each_step_plans_only_its_subsets(step, subsets):
+    p = sv.plan(["rbc_h2_reserve"], weeks=1, step=step)
+    assert {c.subset for c in p.cases} == subsets and p.step == step
+    held_out = {c.id for c in sv.study_cases(load_study().seeds) if c.subset == "held-out"}
+    names = set(p.tasks) | {n for per in p.runs.values() for n in per.values()}
+    touched = {n.split(sv.SEP)[0] for n in names}
+    assert (touched & held_out) == (held_out if step != "choose" else set())
+
+
+@pytest.mark.parametrize("case", ["household-102", "muenchen-2016-17", "hamburg-2023-24"])
+def test_the_choosing_step_refuses_a_held_out_case(case):
+    with pytest.raises(ConfigError, match="never while choosing"):
+        sv.plan(None, weeks=1, cases=["paper-s57", case], step="choose")

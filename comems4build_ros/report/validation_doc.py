@@ -7,11 +7,14 @@ so they hold the same numbers; every number is read from the report mapping that
 
 from __future__ import annotations
 
+import json
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.quoted import fill_marks, quotes
 from comems4build_ros.report.document import Document
+from comems4build_ros.report.quoted import STORED, QuoteError, resolve
 
 #: Title of both documents.
 TITLE = "ComEMS4Build: validation on cases the defaults were not chosen on"
@@ -79,32 +82,40 @@ def _checks(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "The checks on every case")
     doc.p(f"Share of the cases of each subset where the check holds; a check is met on a subset when it holds in "
           f"at least {_pct(share)} of its cases.")
+    both = (report.get("combined") or {}).get("validation")
     rows = []
     for key, (_label, claim) in report["criteria_text"].items():
         row = [claim]
         for s in _subsets(report):
             c = report["subsets"][s]["criteria"][key]
             row.append(_share(c) + ("" if c["met"] is None else (" met" if c["met"] else " NOT MET")))
+        if both:
+            row.append(_share(both["criteria"][key]))
         rows.append(row)
     for key, (_label, claim) in report.get("supplementary_text", {}).items():
-        rows.append([claim, *(_share(report["subsets"][s]["criteria"].get(key)) for s in _subsets(report))])
-    doc.table(["check", *_subsets(report)], rows)
+        rows.append([claim, *(_share(report["subsets"][s]["criteria"].get(key)) for s in _subsets(report)),
+                     *([_share(both["criteria"].get(key))] if both else [])])
+    doc.table(["check", *_subsets(report), *(["development and held-out"] if both else [])], rows)
 
 
 def _distributions(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "Distributions over the cases")
     doc.p("Median over the subset's cases [lowest..highest]. Paper: cost ratios RBC / ComEMS4Build 1.72 and MPC / "
-          "ComEMS4Build 0.52, ComEMS4Build's H2 left 14.14 %, its weeks with discomfort 2, its FC +48.44 % hours "
-          "against the MPC's.")
+          "ComEMS4Build 0.52, ComEMS4Build's H2 left 14.14 %, used \"mostly linearly\", its weeks with discomfort "
+          "2, its FC +48.44 % hours and +6.09 % toggles against the MPC's. The largest distance of the LOH from the "
+          "straight line between the full store and the run's end level is in per cent of the store.")
     rows = []
     for s in _subsets(report):
         d = report["subsets"][s]
         rows.append([s, str(d["cases"]), _dist(d["ratio_rbc"]), _dist(d["ratio_mpc"]),
-                     _dist(d["loh_end"]["fuzzy"], 1, 100.0, " %"), _dist(d["discomfort_weeks"]["fuzzy"], 0),
+                     _dist(d["loh_end"]["fuzzy"], 1, 100.0, " %"), _dist((d.get("h2_even") or {}).get("fuzzy"), 1,
+                                                                           100.0, " %"),
+                     _dist(d["discomfort_weeks"]["fuzzy"], 0),
                      _dist(d["discomfort_weeks"]["rbc"], 0), _signed(d["fc_hours_vs_mpc"]),
-                     _signed(d["fc_load_vs_mpc"])])
+                     _signed(d.get("fc_toggles_vs_mpc")), _signed(d["fc_load_vs_mpc"])])
     doc.table(["subset", "cases", "RBC / ComEMS4Build", "MPC / ComEMS4Build", "ComEMS4Build H2 left",
-               "ComEMS4Build weeks with discomfort", "RBC weeks with discomfort", "ComEMS4Build FC hours vs MPC",
+               "its LOH's largest distance from linear use", "ComEMS4Build weeks with discomfort",
+               "RBC weeks with discomfort", "ComEMS4Build FC hours vs MPC", "its FC toggles vs MPC",
                "its mean FC load vs MPC"], rows)
 
 
@@ -143,11 +154,20 @@ def _findings(doc: Document, report: Mapping[str, Any]) -> None:
     doc.table(["finding", *_subsets(report)], rows)
 
 
+def _band(report: Mapping[str, Any]) -> str:
+    band = report["criteria"].get("fc_hours_band_pct")
+    return f"{band[0]:+.0f}..{band[1]:+.0f} %" if band else "-"
+
+
 def _fit(fit: Mapping[str, Any] | None) -> str:
     if not fit:
         return "-"
+    fc = fit.get("fc") or {}
+    hours, toggles = fc.get("fuzzy_hours"), fc.get("fuzzy_toggles")
+    fc_text = (f"; FC hours {hours['median']:+.0f} %, toggles {toggles['median']:+.0f} %"
+               if hours and toggles else "")
     return (f"{_pct(fit['median_rel_error'], 1)} / {_pct(fit['table_rel_error'], 1)}; "
-            f"{fit['findings_held']} of {fit['findings_total']} findings")
+            f"{fit['findings_held']} of {fit['findings_total']} findings{fc_text}")
 
 
 def _study(doc: Document, report: Mapping[str, Any]) -> None:
@@ -156,10 +176,11 @@ def _study(doc: Document, report: Mapping[str, Any]) -> None:
     doc.h(2, "Every reading: calibration and validation")
     doc.p("Each reading of the reproduction's ambiguities (config/reproduce.yaml) run on every case with every other "
           "ambiguity at its default; (default) marks the shipped reading. Calibration fit: the reproduction's "
-          "seed-median error over every stated figure / over the headline table and the findings holding on its "
-          "seeds. Then per subset the share of cases holding each check (comfort, cost order, H2 left, FC longer "
-          "at lower load, RBC sells most) and the medians of ComEMS4Build's H2 left and of the cost ratio "
-          "RBC / ComEMS4Build.")
+          "seed-median error over every stated figure / over the headline table, the findings holding on its "
+          "seeds, and ComEMS4Build's FC working hours and toggles against the MPC's (seed medians; the reproduction's "
+          "band for the hours " + _band(report) + "). Then per subset the share of cases holding each check "
+          "(comfort, cost order, H2 left and spent evenly, FC longer at lower load, RBC sells most) and the "
+          "medians of ComEMS4Build's H2 left and of the cost ratio RBC / ComEMS4Build.")
     by_amb: dict[str, list[Mapping[str, Any]]] = {}
     for r in report["study"]:
         by_amb.setdefault(r["ambiguity"], []).append(r)
@@ -177,6 +198,65 @@ def _study(doc: Document, report: Mapping[str, Any]) -> None:
                              checks, _dist(d["loh_end"]["fuzzy"], 1, 100.0, " %"), _dist(d["ratio_rbc"])])
         doc.table(["reading", "subset", "calibration fit", "checks held (shares)", "ComEMS4Build H2 left",
                    "RBC / ComEMS4Build"], rows)
+
+
+def _fit_short(fit: Mapping[str, Any] | None) -> str:
+    return _fit(fit) if fit and fit.get("findings_held") is not None else "-"
+
+
+def _identity(ident: Mapping[str, Any] | None) -> str:
+    if not ident:
+        return "not recorded (runs made before validate recorded it)"
+    commit = ident.get("git_commit")
+    git = (f"commit {commit[:12]}" + (" with uncommitted changes" if ident.get("git_dirty") else "")
+           if commit else "no git checkout")
+    return f"{git}; code {ident['code_sha256'][:12]}, parameters {ident['parameters_sha256'][:12]}"
+
+
+def _choice(doc: Document, report: Mapping[str, Any]) -> None:
+    choice = report.get("choice")
+    if not choice:
+        return
+    doc.h(2, "The choice of the defaults")
+    doc.p(f"The choosing step (validate --choose) reads only the calibration and development cases "
+          f"({len(choice['cases'])} cases); the rule: {choice['rule']}. Checks met: of the five checks, those "
+          f"holding in at least {_pct(choice['share'])} of the subset's cases. Calibration fit: the reproduction's "
+          "seed-median error over every stated figure / the headline table, the findings holding on its seeds and "
+          "ComEMS4Build's FC hours against the MPC's. Defaults of the runs: "
+          + _identity((choice.get("defaults") or {}).get("runs")) + ".")
+    rows = []
+    for amb, a in choice["ambiguities"].items():
+        for r in a["readings"]:
+            mark = " (shipped)" if r["shipped"] else ""
+            mark += " (chosen)" if r["reading"] == a["chosen"] else ""
+            rows.append([amb, a["decided_by"], r["reading"] + mark, "-" if r["development_met"] is None else
+                         str(r["development_met"]), "-" if r["calibration_met"] is None else str(r["calibration_met"]),
+                         _fit_short(r["calibration_fit"]), str(len(r["runs"]))])
+    doc.table(["ambiguity", "decided by", "reading", "checks met, development", "checks met, calibration",
+               "calibration fit", "runs read"], rows)
+    differ = [f"{k} (shipped {a['shipped']}, chosen {a['chosen']})" for k, a in choice["ambiguities"].items()
+              if not a["agrees"]]
+    doc.p("Every shipped default is the chosen reading." if not differ else
+          "The shipped default differs from the chosen reading: " + "; ".join(differ) + ".")
+
+
+def _judged(doc: Document, report: Mapping[str, Any]) -> None:
+    rec = report.get("judged")
+    if not rec:
+        return
+    doc.h(2, "What the held-out cases judged")
+    text = (f"The judging step (validate --judge) ran the {len(rec['cases'])} held-out cases with the defaults of "
+            + _identity(rec.get("defaults")) + "; evaluated at " + _identity(rec.get("evaluated")) + ".")
+    c = rec.get("choice")
+    if c is not None:
+        text += (" The choice it judges was made " + ("on the same simulation code and default parameters"
+                                                       if c["same_defaults"] else
+                                                       "on other simulation code or default parameters ("
+                                                       + _identity(c.get("defaults")) + ")") + "; "
+                 + ("every shipped default is the chosen reading." if not c["differ"] else
+                    "shipped and chosen readings differ for " + ", ".join(
+                        f"{k} ({v[0]} against {v[1]})" for k, v in c["differ"].items()) + "."))
+    doc.p(text)
 
 
 def _radiation(doc: Document, report: Mapping[str, Any]) -> None:
@@ -203,9 +283,9 @@ CAPTIONS = {
     "validation_cases": (
         "One point per case: filled black the calibration cases, filled blue the development cases, open orange "
         "the held-out cases; triangles winter cases, squares household cases. (a) Cost ratios (weekly medians) with "
-        "the paper's (star); (b) ComEMS4Build's H2 left at the end and its weeks with discomfort against the "
-        "checks' band and limit; (c) its FC working hours and mean FC load against the MPC's (the check: lower "
-        "right)."),
+        "the paper's (star); (b) ComEMS4Build's H2 left at the end and the largest distance of its LOH from the "
+        "straight line to that end level, against the check's band and limit; (c) its FC working hours and mean FC "
+        "load against the MPC's (the check: right of the reproduction's lower band end, below -5 %)."),
     "validation_prices": (
         "The same cases against their prices: (a) ComEMS4Build's advantage over the RBC against the median daily "
         "spread of the buy price; (b) the MPC's cost against ComEMS4Build's and (c) the MPC's H2 left at the end "
@@ -225,10 +305,14 @@ def _figures(doc: Document, report: Mapping[str, Any], out: Path, rel_dir: str |
         doc.figure(png, rel_dir if rel_dir is not None else str(Path(rel).parent), CAPTIONS[name])
 
 
+#: The parts of the documents in order.
+PARTS = (_intro, _checks, _distributions, _cases, _findings, _choice, _judged, _study, _radiation)
+
+
 def build_document(report: Mapping[str, Any], out: Path) -> Document:
     """The whole report as a :class:`Document`."""
     doc = Document(TITLE)
-    for part in (_intro, _checks, _distributions, _cases, _findings, _study, _radiation):
+    for part in PARTS:
         part(doc, report)
     _figures(doc, report, out)
     return doc
@@ -250,7 +334,7 @@ def doc_section(report: Mapping[str, Any], figures: tuple[Path, str] | None = No
     document; None leaves the figures out.
     """
     doc = Document(TITLE)
-    for part in (_intro, _checks, _distributions, _cases, _findings, _study, _radiation):
+    for part in PARTS:
         part(doc, report)
     if figures is not None:
         _figures(doc, report, figures[0], figures[1])
@@ -260,11 +344,48 @@ def doc_section(report: Mapping[str, Any], figures: tuple[Path, str] | None = No
 
 
 def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path | None = None) -> Path:
-    """Replace the text between the validation markers of ``path`` with :func:`doc_section`.
+    """Write the validation into ``path``: a Markdown document's generated part, and every file's quoted figures.
 
-    ``figures_from``: the command's output directory; its figures are copied (as PNG of the
-    docs' width) next to ``path`` under ``figures/validation``.
+    A Markdown file (``.md``) gets :func:`doc_section` between the validation markers (its
+    figures, from the command's output directory ``figures_from``, copied as PNG of the docs'
+    width under ``figures/validation``) and the report stored next to it
+    (``results/validation.json``, :data:`~comems4build_ros.report.quoted.STORED`); in every file the
+    quoted figures (:mod:`comems4build_ros.files.quoted`) are filled from the report.
+
+    Raises
+    ------
+    ValueError
+        For a Markdown file without the markers, or a quoted figure the report does not hold
+        (naming the file, its line and the key).
     """
+    from comems4build_ros.files.outputs import write_text_atomic
     from comems4build_ros.report.reproduce_doc import replace_doc_section
 
-    return replace_doc_section(path, report, figures_from, (DOC_BEGIN, DOC_END), DOC_FIGURES, doc_section)
+    path = Path(path)
+    if path.suffix == ".md":
+        replace_doc_section(path, report, figures_from, (DOC_BEGIN, DOC_END), DOC_FIGURES, doc_section)
+        stored = path.parent / STORED["validation"]
+        stored.parent.mkdir(parents=True, exist_ok=True)
+        write_text_atomic(stored, json.dumps(report, indent=1) + "\n")
+    write_text_atomic(path, fill_quotes(path, {"validation": report}))
+    return path
+
+
+def fill_quotes(path: Path, stored: Mapping[str, Mapping[str, Any]]) -> str:
+    """The text of ``path`` with its quoted figures filled from ``stored`` (study -> results).
+
+    Raises
+    ------
+    ValueError
+        Naming the file, the line and the key of a figure that cannot be resolved.
+    """
+    text = path.read_text(encoding="utf-8")
+    lines = {q.key: q.line for q in quotes(text)}
+
+    def value_of(key: str) -> str:
+        try:
+            return resolve(key, stored)
+        except QuoteError as err:
+            raise ValueError(f"{path}:{lines.get(key, '?')}: quoted figure {err}") from None
+
+    return fill_marks(text, value_of)

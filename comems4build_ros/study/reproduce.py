@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_plant_params, read_param_section
+from comems4build_ros.files.quoted import without_marks
 from comems4build_ros.study.runner import RunTask
 
 #: The paper's three EMS, in the order of its tables.
@@ -30,6 +31,8 @@ EMS = ("mpc", "fuzzy", "rbc")
 
 #: Study file.
 STUDY_FILE = "reproduce.yaml"
+#: How the default of an ambiguity is decided (:class:`Ambiguity`).
+DECIDED_BY = ("paper", "figures")
 
 
 #: Run directory prefix of the default runs.
@@ -59,7 +62,13 @@ class Reading:
 
 @dataclass(frozen=True)
 class Ambiguity:
-    """A place where the paper is silent or reads two ways, with its readings."""
+    """A place where the paper is silent or reads two ways, with its readings.
+
+    ``decided_by``: ``paper`` when the paper's text decides the default (the study's figures
+    are reported beside it), ``figures`` when the figures of the cases the defaults may be
+    chosen on decide it (``validate --choose``'s rule, :data:`DECIDED_BY`). ``reason`` is the
+    file's text with its quoted-figure marks removed (:func:`~comems4build_ros.report.quoted.plain`).
+    """
 
     key: str
     title: str
@@ -69,6 +78,7 @@ class Ambiguity:
     reason: str
     readings: tuple[Reading, ...]
     kpi_only: bool = False
+    decided_by: str = "paper"
 
     def reading(self, name: str) -> Reading:
         """The reading called ``name``."""
@@ -204,6 +214,9 @@ def load_study(path: str | Path | None = None) -> Study:
             raise ConfigError(f"{where}: default '{default}' is not one of its readings "
                               f"({', '.join(r.name for r in readings)})")
         kpi_only = bool(a.get("kpi_only", False))
+        decided_by = a.get("decided_by", "paper")
+        if decided_by not in DECIDED_BY:
+            raise ConfigError(f"{where}: decided_by must be one of {', '.join(DECIDED_BY)}, got {decided_by!r}")
         if kpi_only and any(r.scenario_overrides or r.ems_options for r in readings):
             raise ConfigError(f"{where}: a kpi_only ambiguity may only override plant (evaluation) parameters")
         ambiguities.append(Ambiguity(
@@ -212,9 +225,10 @@ def load_study(path: str | Path | None = None) -> Study:
             source=" ".join(_need(a, "source", where, str).split()),
             ems=ems,
             default=default,
-            reason=" ".join(_need(a, "reason", where, str).split()),
+            reason=" ".join(without_marks(_need(a, "reason", where, str)).split()),
             readings=readings,
             kpi_only=kpi_only,
+            decided_by=decided_by,
         ))
     if sum(any(r.heat for r in a.readings) for a in ambiguities) > 1:
         raise ConfigError(f"{path}: only one ambiguity may give 'heat' readings")

@@ -29,8 +29,13 @@ from comems4build_ros.study.runner import RunTask
 
 #: The subset of the cases the defaults were chosen on.
 CALIBRATION = "calibration"
+#: The subset that may be looked at while choosing, and the one that is only reported.
+DEVELOPMENT, HELD_OUT = "development", "held-out"
 #: Subsets in the order of every table.
-SUBSETS = (CALIBRATION, "development", "held-out")
+SUBSETS = (CALIBRATION, DEVELOPMENT, HELD_OUT)
+#: The steps of the validation and the subsets each runs: ``choose`` reads only the cases the
+#: defaults may be chosen on, ``judge`` only the held-out cases, ``all`` both in one command.
+STEPS: dict[str, tuple[str, ...]] = {"choose": (CALIBRATION, DEVELOPMENT), "judge": (HELD_OUT,), "all": SUBSETS}
 #: Separator of the parts of a run name.
 SEP = "__"
 #: Name of the default readings (every ambiguity at its default).
@@ -82,32 +87,43 @@ class Variant:
         return f"{self.ambiguity}{SEP}{self.reading}"
 
 
-def study_cases(seeds: Sequence[int], settings: Any = None, only: Sequence[str] | None = None) -> list[StudyCase]:
-    """The calibration cases (the default scenario on ``seeds``) and the validation cases.
+def study_cases(seeds: Sequence[int], settings: Any = None, only: Sequence[str] | None = None,
+                step: str = "all") -> list[StudyCase]:
+    """The calibration cases (the default scenario on ``seeds``) and the validation cases of a step.
 
     Parameters
     ----------
     seeds : seeds of the default scenario's modelled radiation and load (calibration set)
     settings : ``config/validation.yaml`` (default: read)
-    only : case ids to keep (None: all)
+    only : case ids to keep (None: all of the step)
+    step : ``choose`` (calibration and development cases), ``judge`` (held-out cases) or ``all``
 
     Raises
     ------
     ConfigError
-        For an id in ``only`` that is no case, naming the known ones.
+        For an id in ``only`` that is no case, naming the known ones, or a case of a subset the
+        step does not run (a held-out case in the choosing step).
     """
     from comems4build_ros.core.scenario.validation import load_validation_settings, validation_cases
 
     s = settings or load_validation_settings()
     cases = [StudyCase(f"paper-s{seed}", CALIBRATION, CALIBRATION, "default", int(seed)) for seed in seeds]
     cases += [StudyCase(c.id, c.subset, c.kind, c.scenario, None, c.plant_overrides(s)) for c in validation_cases(s)]
+    if step not in STEPS:
+        raise ConfigError(f"no validation step '{step}' (known: {', '.join(STEPS)})")
     if only is not None:
-        known = {c.id for c in cases}
+        known = {c.id: c for c in cases}
         unknown = [c for c in only if c not in known]
         if unknown:
             raise ConfigError(f"--cases: no case {', '.join(unknown)} (known: {', '.join(sorted(known))})")
+        other = [c for c in only if known[c].subset not in STEPS[step]]
+        if other:
+            raise ConfigError(f"--cases: {', '.join(other)} {'is' if len(other) == 1 else 'are'} not read by the "
+                              f"{step} step, which runs only the {' and '.join(STEPS[step])} cases"
+                              + (" (held-out cases are run by validate --judge, never while choosing)"
+                                 if step == "choose" else ""))
         cases = [c for c in cases if c.id in set(only)]
-    return cases
+    return [c for c in cases if c.subset in STEPS[step]]
 
 
 def eligible(ambiguity: Any) -> bool:
@@ -169,6 +185,7 @@ class Plan:
     weeks : run length [weeks]
     ems : the EMS run
     study : the reproduction study file (seeds, targets, ambiguities)
+    step : the step planned (:data:`STEPS`)
     forecast : the MPC's forecasts (``--forecast``; None = ``config/forecast.yaml``)
     """
 
@@ -179,6 +196,7 @@ class Plan:
     weeks: float
     ems: tuple[str, ...]
     study: Study
+    step: str = "all"
     forecast: str | None = None
 
 
@@ -190,6 +208,7 @@ def plan(
     seeds: Sequence[int] | None = None,
     study_path: str | Path | None = None,
     validation_path: str | Path | None = None,
+    step: str = "all",
     forecast: str | None = None,
 ) -> Plan:
     """Plan the study: every case with every EMS at the defaults, and each reading of ``study_keys`` on top.
@@ -202,6 +221,8 @@ def plan(
     ems : the EMS to run (default the paper's three)
     seeds : seeds of the calibration cases (default: the reproduction's)
     study_path, validation_path : the study files (default ``config/``)
+    step : which subsets to run (:data:`STEPS`): ``choose`` never plans a held-out case, ``judge``
+        plans only those
     forecast : the MPC's forecasts (``perfect``, ``imperfect``, ``realistic``; None = ``config/forecast.yaml``),
         part of the MPC runs' specification (the other EMS read no forecast)
 
@@ -224,7 +245,7 @@ def plan(
         raise ConfigError(f"--ems: {', '.join(bad) or 'none'}: the validation runs some of {', '.join(EMS)}")
     vs = load_validation_settings(validation_path)
     n_weeks = float(vs.weeks if weeks is None else weeks)
-    the_cases = study_cases(study.seeds if seeds is None else seeds, vs, cases)
+    the_cases = study_cases(study.seeds if seeds is None else seeds, vs, cases, step)
     variants = study_variants(study, study_keys)
 
     def forecast_of(e: str) -> str | None:
@@ -254,4 +275,4 @@ def plan(
                     per[e] = name
             runs[(c.id, v.key)] = per
     check_tasks(tasks.values())
-    return Plan(the_cases, variants, tasks, runs, n_weeks, tuple(ems), study, forecast)
+    return Plan(the_cases, variants, tasks, runs, n_weeks, tuple(ems), study, step, forecast)

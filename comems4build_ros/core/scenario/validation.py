@@ -157,28 +157,18 @@ class SplitSettings(_Section):
 
 
 class CriteriaSettings(_Section):
-    """What each case is checked for (``docs/validation.md``; ``sec:results``, ``sec:discussion``).
+    """How the checks of every case are summed up per subset (``docs/validation.md``).
+
+    The checks themselves, with their thresholds, are the paper's findings
+    (:mod:`comems4build_ros.report.findings`).
 
     Attributes
     ----------
     share : float
-        A finding holds when it holds in at least this share of a subset's cases [-].
-    discomfort_weeks_per_12 : float
-        Most weeks with discomfort per 12 weeks [-].
-    h2_left : tuple of (float, float)
-        Range of the share of the store left at the end [-].
+        A check is met on a subset when it holds in at least this share of its cases [-].
     """
 
     share: float = Field(gt=0, le=1)
-    discomfort_weeks_per_12: float = Field(ge=0, le=12)
-    h2_left: tuple[float, float]
-
-    @model_validator(mode="after")
-    def _check(self) -> CriteriaSettings:
-        lo, hi = self.h2_left
-        if not 0 <= lo <= hi <= 1:
-            raise ValueError(f"h2_left [{lo:g}, {hi:g}] must satisfy 0 <= low <= high <= 1")
-        return self
 
 
 class ValidationSettings(_Section):
