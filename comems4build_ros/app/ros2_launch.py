@@ -267,8 +267,10 @@ def plan_actions(plan: RunPlan, global_params: list[Any] | None = None, log_leve
         raise LaunchError("network:=netns needs 'comems4build launch --network netns' (root, ip netns); "
                           "ros2 launch runs network:=local")
     write_plan_files(plan)
-    if len(plan.houses) > 1:
-        plan.bag.mkdir(parents=True, exist_ok=True)
+    if len(plan.houses) > 1:  # the bags hold the run tokens (ems/command): this user's, never through a link
+        from comems4build_ros.files.outputs import open_dir
+
+        os.close(open_dir(plan.bag, create=True, private=True, what="the folder of the run's bags"))
     write_secrets(plan)
 
     state = {"over": False, "ended": set()}

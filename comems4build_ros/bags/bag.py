@@ -235,15 +235,13 @@ def _mcap_string(text: str) -> bytes:
 def set_ros_distro(metadata: Path, distro: str = ROS_DISTRO) -> None:
     """Write ``ros_distro: <distro>`` into a bag's ``metadata.yaml`` (rosbags writes its own
     name there); atomically (temporary file + rename)."""
-    import os
+    from comems4build_ros.files.outputs import write_text_atomic
 
     text = metadata.read_text(encoding="utf-8")
     new = re.sub(r"(?m)^(\s*ros_distro:\s*).*$", lambda m: m.group(1) + distro, text, count=1)
     if new == text:
         return
-    tmp = metadata.with_name(metadata.name + ".tmp")
-    tmp.write_text(new, encoding="utf-8")
-    os.replace(tmp, metadata)
+    write_text_atomic(metadata, new)  # never through a link
 
 
 @dataclass

@@ -632,7 +632,21 @@ class OutputDir:
                   or p.name.startswith((STAGE_PREFIX, PREVIOUS_PREFIX, ".replaced."))]
         for name in [*hidden, *names]:
             if (self.path / name).is_symlink():
-                raise _link_refused(self.path / name, "an entry of comems4build's output")
+                raise _link_refused(self.path / name, self._what(name))
+
+    def _what(self, name: str) -> str:
+        """What the entry ``name`` of the output folder is, for messages."""
+        if name == self.lock_name:
+            return "the lock of comems4build"
+        if name == OWNER_FILE:
+            return "comems4build's record of its outputs"
+        if name.startswith(STAGE_PREFIX):
+            return "a result comems4build is writing"
+        if name.startswith(PREVIOUS_PREFIX):
+            return "an earlier result comems4build kept aside"
+        if name.startswith(".replaced."):
+            return "an earlier result comems4build is removing"
+        return "a result of comems4build"
 
     # -- lock
     def _lock(self) -> None:

@@ -28,8 +28,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import time
 import urllib.error
 import urllib.parse
@@ -136,16 +134,12 @@ def http_get(url: str, timeout_s: float, retries: int, retry_delay_s: float,
 
 
 def write_json_atomic(path: Path, doc: Any) -> None:
-    """Write ``doc`` as JSON through a temporary file in the same directory and a rename."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    """Write ``doc`` as JSON through a temporary file in the same directory and a rename: mode 0600
+    (a later run reads the cache again), never through a link
+    (:func:`comems4build_ros.files.outputs.write_text_atomic`)."""
+    from comems4build_ros.files.outputs import write_text_atomic
+
+    write_text_atomic(path, json.dumps(doc), private=True)
 
 
 def _series_to_doc(series: pd.Series) -> dict[str, float]:

@@ -261,8 +261,9 @@ def update_doc(path: str, table: str) -> None:
     _, sep2, tail = rest.partition(DOC_END)
     if not sep or not sep2:
         raise ValueError(f"{path}: markers {DOC_BEGIN} / {DOC_END} not found")
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(f"{head}{DOC_BEGIN}\n{table}\n{DOC_END}{tail}")
+    from comems4build_ros.files.outputs import write_text_atomic
+
+    write_text_atomic(path, f"{head}{DOC_BEGIN}\n{table}\n{DOC_END}{tail}")
 
 
 def rank_seeds(n: int, params=None) -> list[tuple[int, float]]:
