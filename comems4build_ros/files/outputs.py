@@ -695,9 +695,9 @@ class OutputDir:
                 except BaseException:
                     os.close(fd)
                     raise
+                self._lock_fd = fd  # held: removed again by _unlock, even if the line below finds the disk full
                 os.ftruncate(fd, 0)
                 os.write(fd, f"comems4build {self.command} (pid {os.getpid()})\n".encode())
-                self._lock_fd = fd
                 return
             os.close(fd)
         raise OutputInUseError(f"{self.option} {self.path}: its lock {lock} keeps changing")
@@ -751,9 +751,19 @@ class OutputDir:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: Any) -> None:
         if exc_type is not None:
             self._abandon()
+            if isinstance(exc, OSError) and not isinstance(exc, OutputPathError):
+                raise self._named(exc) from exc  # a full disk while writing the stage: named as its destination
             return
         self.commit()
         self._unlock()
+
+    def _named(self, exc: OSError) -> OSError:
+        """``exc`` naming the file of the result it was writing (not the stage), or the output folder."""
+        name = str(exc.filename or "")
+        stage = str(self.stage)
+        if name and self.stage != Path() and not self.in_place and name.startswith(stage + os.sep):
+            return OSError(exc.errno, exc.strerror or str(exc), str(self.path / name[len(stage) + 1:]))
+        return _named(exc, self.path)
 
     def commit(self) -> None:
         """Put the stage's entries in place now (once; the lock is kept until the block ends)."""
