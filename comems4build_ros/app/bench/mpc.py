@@ -94,13 +94,13 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--loop-weeks", metavar="W", type=real(0), default=1.0,
                         help="length of the side-by-side closed loops, scenario of that length, >= 0 (0: skip)")
     parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12.0,
-                        help="length of the full run [weeks], > 0")
+                        help="length of the full run [weeks], one hour .. 30 years")
     parser.add_argument("--days-per-kind", metavar="N", type=COUNT, default=1,
                         help="days taken per kind (cold, mild, sunny); 24 problems each (default 1 -> 72)")
     parser.add_argument("--configs", metavar="LIST", default="all",
                         help="problem-set configurations: comma-separated label prefixes, 'all' or 'none'")
     parser.add_argument("--time-limit", metavar="S", type=SECONDS, default=30.0,
-                        help="time limit per benchmark solve [s], > 0")
+                        help="time limit per benchmark solve [s], 0.01 .. a year")
     parser.add_argument("--kpi-weeks", metavar="W", type=real(0), default=0.0,
                         help="also compare KPIs of W weeks at default settings with a gap-0 run, >= 0 (0: skip)")
     parser.add_argument("--skip-full-run", action="store_true",

@@ -109,7 +109,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the comparison (unless --from-runs) and write the report."""
     from comems4build_ros.app.cli import UsageError
     from comems4build_ros.app.commands.simulate import parse_assignments
-    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.config import ConfigError, load_plant_params
     from comems4build_ros.core.ems import ems_entry
     from comems4build_ros.report.runs import RunDirError
 
@@ -139,7 +139,12 @@ def run(args: argparse.Namespace) -> int:
     if args.scenario == "year" and args.fc_efficiency is None:
         etas = etas[:1]  # the year's report compares the EMS at the plant's FC efficiency
     for eta in etas:  # validate every parameter set before starting any run
-        params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
+        try:
+            params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
+        except ConfigError as exc:  # an efficiency the plant cannot have (below its electrical one)
+            if args.fc_efficiency is None:
+                raise
+            raise UsageError(f"--fc-efficiency {eta:g}: {exc}") from None
     if args.extend and args.via == "ros":
         raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")
     scenario_of(args, params)  # the scenario and the run length, checked once before any run

@@ -71,6 +71,4 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {len(written)} files: {', '.join(str(p) for p in written)}")
     from comems4build_ros.app.commands.simulate import warn_run
 
-    for s in summaries.values():
-        warn_run(s, "evaluate")
-    return 0
+    return max([warn_run(s, "evaluate") for s in summaries.values()], default=0)

@@ -73,14 +73,24 @@ def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int
     return _number(int, lo, hi, False, False)  # type: ignore[return-value]
 
 
-#: Run length in weeks: finite and > 0 (whole hours are checked with the scenario).
-WEEKS = real(0, lo_open=True)
-#: Run length in hours: an integer >= 1.
-HOURS = integer(1)
+#: Longest run [h]: 30 years, the service life of a house's PV, battery and heat pump (20..30 years in
+#: their datasheets' warranties); a longer run stands for no installation, and its end date would soon lie
+#: beyond what a calendar type holds (pandas: 2262).
+MAX_RUN_HOURS = 30 * 8766
+#: Shortest run [h]: one step of the scenario's hourly rows.
+MIN_RUN_HOURS = 1
+#: Run length in weeks: one hour .. 30 years (whole hours are checked with the scenario).
+WEEKS = real(MIN_RUN_HOURS / 168, MAX_RUN_HOURS / 168)
+#: Run length in hours: an integer in 1 .. 30 years.
+HOURS = integer(MIN_RUN_HOURS, MAX_RUN_HOURS)
 #: A count of runs, houses, steps or repeats: an integer >= 1.
 COUNT = integer(1)
-#: A duration in seconds: finite and > 0.
-SECONDS = real(0, lo_open=True)
+#: Shortest time limit or timeout [s]: 10 ms, below the time any node needs to answer one message.
+MIN_SECONDS = 0.01
+#: Longest time limit or timeout [s]: a year (any run or study of this package ends far sooner).
+MAX_SECONDS = 365 * 24 * 3600.0
+#: A duration in seconds: 10 ms .. a year.
+SECONDS = real(MIN_SECONDS, MAX_SECONDS)
 #: A seed: 0 .. 2**32-1.
 SEED = integer(0, SEED_MAX)
 #: A ROS 2 domain id: 0 .. 232.
@@ -105,11 +115,12 @@ def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, se
                         help="first step of the window (ISO date/time; naive = site time)")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
-                       help="run length in weeks, > 0 (fractions giving whole hours allowed; default: the "
-                            "scenario's whole weeks)")
+                       help="run length in weeks, one hour .. 30 years (fractions giving whole hours allowed; "
+                            "default: the scenario's whole weeks)")
     if hours:
         group.add_argument("--hours", type=HOURS, default=None, metavar="H",
-                           help="run length in hours, integer >= 1 (short tries; instead of --weeks)")
+                           help=f"run length in hours, integer in 1 .. {MAX_RUN_HOURS} (30 years; short tries; "
+                                "instead of --weeks)")
     if seed:
         parser.add_argument("--seed", metavar="N", type=SEED, default=None,
                             help="seed of the generated scenario data (default scenario, --extend synthetic; "

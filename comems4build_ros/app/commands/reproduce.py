@@ -24,9 +24,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="study only these ambiguities of config/reproduce.yaml")
     add_executor_options(parser)
     add_building_options(parser)
-    parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
-                        help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
-                             "checks that do not compare with the paper's table)")
+    parser.add_argument("--weeks", type=real(1 / 168, 12), default=None, metavar="N",
+                        help="run length in weeks, one hour (1/168) .. 12 (default 12, the paper's; shorter runs "
+                             "are quick checks that do not compare with the paper's table)")
     parser.add_argument("--seeds", default=None, metavar="N[,N...]",
                         help="seeds of the modelled radiation and appliance load, integers in 0..2^32-1 (default: "
                              "the study's, config/reproduce.yaml; the first is the default scenario's)")

@@ -41,8 +41,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start", metavar="ISO", default=None,
                         help="first step inside the year (ISO date/time; naive = site time; default 2022-03-01)")
     parser.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
-                        help="run length in weeks, > 0 (default: the year's 52; shorter runs are checks: their "
-                             "annual figures are scaled to 52 weeks)")
+                        help="run length in weeks, one hour .. 30 years (default: the year's 52; shorter runs are "
+                             "checks: their annual figures are scaled to 52 weeks)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run (not one of the sized ones)")
     add_study_options(parser, "config/plant.yaml and config/year.yaml")

@@ -24,8 +24,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only these of the paper's EMS: mpc, fuzzy, rbc (default: all three; the checks that "
                              "need a missing EMS are reported as not run)")
     add_executor_options(parser)
-    parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
-                        help="run length in weeks, in (0, 12] (default 12; shorter runs are quick checks)")
+    parser.add_argument("--weeks", type=real(1 / 168, 12), default=None, metavar="N",
+                        help="run length in weeks, one hour (1/168) .. 12 (default 12; shorter runs are quick checks)")
     parser.add_argument("--no-figures", action="store_true", help="do not draw the figures")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
     parser.add_argument("--update-doc", default=None, metavar="MD",
