@@ -43,6 +43,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.run.plan import (
     LaunchOptions,
     RunPlan,
@@ -108,7 +109,7 @@ LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
 BOOLEAN_WORDS = {"true": True, "false": False}
 
 
-class LaunchArgumentError(ValueError):
+class LaunchArgumentError(InputError):
     """A launch argument the launch refuses (the message speaks of ``name:=value``)."""
 
 
@@ -182,7 +183,6 @@ def options_of(values: dict[str, str]) -> tuple[LaunchOptions, int, bool]:
 
     from comems4build_ros.app.cli import UsageError
     from comems4build_ros.app.commands.launch import add_arguments, launch_options
-    from comems4build_ros.core.config import ConfigError
 
     class Parser(argparse.ArgumentParser):
         def error(self, message: str) -> Any:  # noqa: D102 (argparse's: raise instead of printing the usage)
@@ -193,7 +193,7 @@ def options_of(values: dict[str, str]) -> tuple[LaunchOptions, int, bool]:
     try:
         args = parser.parse_args(command_line(values))
         opts = launch_options(args)
-    except (LaunchArgumentError, UsageError, ConfigError, FileNotFoundError, ValueError) as exc:
+    except (InputError, UsageError, FileNotFoundError) as exc:  # only the checks' errors: a bug stays a bug
         raise LaunchArgumentError(in_launch_words(str(exc), values)) from None
     return opts, args.domain_id if args.domain_id is not None else 0, bool(args.print_plan)
 

@@ -25,6 +25,7 @@ from typing import Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import InputFileError, load_yaml_file, load_yaml_text, path_kind
 from comems4build_ros.files.paths import PACKAGE, SOURCE_ROOT, shared_path
 
@@ -35,7 +36,7 @@ SECONDS_PER_HOUR = 3600.0
 W_PER_KW = 1000.0
 
 
-class ConfigError(ValueError):
+class ConfigError(InputError):
     """A parameter file is unreadable or a parameter breaks a rule."""
 
 

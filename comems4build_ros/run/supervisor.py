@@ -57,6 +57,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.outputs import create_file, open_dir, write_new_file
 from comems4build_ros.files.paths import SOURCE_ROOT, installed_from_source
 from comems4build_ros.run.plan import (
@@ -127,7 +128,7 @@ def acquire_domain_id(preferred: int | None = None) -> Iterator[int]:
     ids: Sequence[int]
     if preferred is not None:
         if not 0 <= preferred <= 232:
-            raise ValueError(f"ROS domain id {preferred} outside 0..232")
+            raise InputError(f"ROS domain id {preferred} outside 0..232")
         ids = [preferred]
     else:
         n = len(DOMAIN_IDS)

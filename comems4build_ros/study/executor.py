@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.run.progress import ProgressCallback, RunProgress, echo
 from comems4build_ros.study.spec import differences, environment, spec_hash
 from comems4build_ros.study.store import RunStore, StoredRun, StoreError, materialize, place
@@ -66,7 +67,7 @@ class RunFailedError(RuntimeError):
     """A run ended without its outputs (message names the run directory and the cause)."""
 
 
-class ExecutorError(ValueError):
+class ExecutorError(InputError):
     """The executor cannot be used (no scheduler, no worker, a worker's environment differs); names it."""
 
 
@@ -722,7 +723,7 @@ def run_jobs(
     names = [Path(j.out_dir).name for j in jobs]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise ValueError(f"runs named twice in one study: {', '.join(dup)}")
+        raise ExecutorError(f"runs named twice in one study: {', '.join(dup)}")
     slots = []
     for job, name in zip(jobs, names):
         spec = job.spec()

@@ -273,7 +273,7 @@ def current_ems_option(ems: str, dotted: str, params: PlantParams) -> Any:
 
         flc, _, rest = dotted.partition(".")
         return _dotted(load_flcs(params)[flc][1], rest)
-    raise ValueError(f"unknown EMS '{ems}'")
+    raise ConfigError(f"unknown EMS '{ems}'")
 
 
 def check_defaults(study: Study, params: PlantParams | None = None) -> list[str]:

@@ -28,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import load_json_file
 
 #: Name of the store directory inside a study's output directory.
@@ -37,7 +38,7 @@ RECORD = "run.json"
 _LOCK = ".lock"
 
 
-class StoreError(ValueError):
+class StoreError(InputError):
     """The store cannot be used as asked (locked, another study's runs, not resumed); names the store."""
 
 

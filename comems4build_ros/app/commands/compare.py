@@ -20,6 +20,7 @@ from comems4build_ros.app.commands.options import (
     study_executor,
     study_inputs,
 )
+from comems4build_ros.files.errors import InputError
 
 if TYPE_CHECKING:
     from comems4build_ros.report.build import Report
@@ -66,7 +67,7 @@ def parse_etas(text: str) -> list[float]:
     for part in text.split(","):
         try:
             eta = parse_decimal(part)
-        except ValueError:
+        except InputError:
             raise UsageError(f"--fc-efficiency: '{part}' is not a number") from None
         if not 0.0 < eta <= 1.0:
             raise UsageError(f"--fc-efficiency: {eta} is outside (0, 1]")
@@ -216,16 +217,17 @@ def building_task_options(ems: str, args: argparse.Namespace) -> dict[str, Any]:
 def _report_builder(compare_dir: str | Path) -> Any:
     """The report of a comparison: the year-round one (``report/year.py``) for ``--scenario year``,
     else the paper's (``report/build.py``)."""
-    import json
 
+    from comems4build_ros.files.inputs import InputFileError, load_json_file
     from comems4build_ros.report.build import build_report
     from comems4build_ros.report.runs import MANIFEST
     from comems4build_ros.report.year import build_year_report
 
     try:
-        scenario = json.loads((Path(compare_dir) / MANIFEST).read_text(encoding="utf-8")).get("scenario")
-    except (OSError, ValueError):
-        scenario = None  # build_report names the missing or corrupt manifest
+        manifest = load_json_file(Path(compare_dir) / MANIFEST, "a comparison's manifest")
+    except InputFileError:
+        manifest = None  # build_report names the missing or corrupt manifest
+    scenario = manifest.get("scenario") if isinstance(manifest, dict) else None
     return build_year_report if scenario == "year" else build_report
 
 

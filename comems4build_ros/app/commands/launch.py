@@ -20,6 +20,7 @@ from comems4build_ros.app.commands.options import (
     add_scenario_options,
     ems_help,
 )
+from comems4build_ros.files.errors import InputError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -117,7 +118,7 @@ def _namespace(text: str) -> str:
 
     try:
         return namespaces(1, text)[0]
-    except ValueError as exc:
+    except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
@@ -137,7 +138,7 @@ def _broker_url(text: str) -> str:
 
     try:
         return check_broker_url(text)
-    except ValueError as exc:
+    except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 

@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from comems4build_ros.app.cli import UsageError
+from comems4build_ros.files.errors import InputError
 
 __all__ = ["UsageError"]  # re-exported for the commands
 
@@ -46,9 +48,11 @@ def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_op
     allowed = range_text(lo, hi, lo_open, hi_open)
 
     def parse(text: str) -> float:
-        try:
-            value = kind(text)
-        except (TypeError, ValueError):
+        from comems4build_ros.files.inputs import parse_decimal, parse_integer
+
+        try:  # a plain decimal, as every number the project reads (no 1_000, other scripts' digits, nan words)
+            value = parse_integer(text) if kind is int else parse_decimal(text)
+        except InputError:
             raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})") from None
         if kind is float and not math.isfinite(value):
             raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})")
@@ -229,11 +233,10 @@ def scheduler_address(text: str) -> str:
     from urllib.parse import urlsplit
 
     form = "tcp://HOST:PORT (or tls://HOST:PORT), e.g. tcp://10.0.0.5:8786"
-    try:
-        url = urlsplit(text)
-        port = url.port
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"'{text}' is not {form} ({exc})") from None
+    if re.fullmatch(r"[a-z]+://(\[[0-9A-Fa-f:.]+\]|[^\s/:@\[\]?#]+):[0-9]{1,5}/?", text) is None:
+        raise argparse.ArgumentTypeError(f"'{text}' is not {form}")
+    url = urlsplit(text)
+    port = url.port
     if url.scheme not in SCHEDULER_SCHEMES or not url.hostname or port is None or url.path not in ("", "/") \
             or url.query or url.username or url.password:
         raise argparse.ArgumentTypeError(f"'{text}' is not {form}")
@@ -268,6 +271,10 @@ def study_executor(args: argparse.Namespace, out: str | Any, jobs: int | None = 
     if args.scheduler and args.jobs is not None:
         raise UsageError("--jobs and --scheduler exclude each other (with --scheduler the cluster's workers run "
                          "the runs, as many at once as they have threads)")
+    if args.scheduler:  # a Dask scheduler there, proven by its handshake, before any work
+        from comems4build_ros.study.cluster import probe_scheduler
+
+        probe_scheduler(args.scheduler)
     backend = DaskBackend(args.scheduler) if args.scheduler else LocalBackend(jobs if jobs is not None else args.jobs)
     return StudyExecutor(backend, RunStore.of(out), resume=args.resume)
 

@@ -72,9 +72,12 @@ def run(args: argparse.Namespace) -> int:
     if args.from_runs and not (Path(args.from_runs) / "runs").is_dir():
         raise UsageError(f"--from-runs {args.from_runs}: no runs/ directory (the --out of an earlier validate)")
     if args.update_doc:
+        from comems4build_ros.files.inputs import check_markers
         from comems4build_ros.files.outputs import check_out_file, check_out_text
+        from comems4build_ros.report.validation_doc import DOC_BEGIN, DOC_END
 
         check_out_file(check_out_text(args.update_doc, "--update-doc"), "--update-doc")
+        check_markers(args.update_doc, DOC_BEGIN, DOC_END, "--update-doc")  # before the first run
     ems = _names(args.ems, "--ems") or list(EMS)
     load = os.getloadavg()[0]
     t0 = time.perf_counter()

@@ -32,6 +32,7 @@ from typing import Any
 from pydantic import Field, model_validator
 
 from comems4build_ros.core.config import (
+    ConfigError,
     PlantParams,
     Section,
     config_dir,
@@ -113,7 +114,7 @@ class RuleBasedController:
         self.params = params
         self.options = load_rbc_options(options)
         if params.heat_pump.mod_min > self.options.hp_mod_on:
-            raise ValueError(f"rbc option hp_mod_on={self.options.hp_mod_on} is below the HP's minimal modulation")
+            raise ConfigError(f"rbc option hp_mod_on={self.options.hp_mod_on} is below the HP's minimal modulation")
         self._p_hp_ref_w = hp_p_el_ref_w(params.heat_pump, self.options.p_el_ref_t_amb_c)
         self._p_fc_w = params.fuel_cell.zeta * params.fuel_cell.p_max_w
         self._cooling = bool(params.cooling.enabled)
