@@ -337,7 +337,7 @@ def test_compare_runs_the_efficiency_given_by_set(tmp_path: Path, capsys: pytest
     assert code == 0, err
     assert sorted(p.name for p in (out / "runs").iterdir()) == ["rbc"]
     assert json.loads((out / "runs" / "rbc" / "summary.json").read_text())["eta_sys"] == 0.8
-    assert json.loads((out / "compare.json").read_text())["base_eta"] == 0.5
+    assert json.loads((out / "compare.json").read_text())["base_eta"] == 0.8
 
 
 # ---------------------------------------------------------------------------- all or nothing

@@ -415,6 +415,29 @@ LOCK_FILE = ".comems4build.lock"
 STAGE_PREFIX = ".partial."
 #: Prefix of the directory that keeps an earlier result while an in-place command writes its own.
 PREVIOUS_PREFIX = ".previous."
+#: Prefix of the report of an internal error (a defect's traceback) a command leaves in its output folder;
+#: never a result, never an entry in the way of a later command.
+INTERNAL_ERROR_PREFIX = ".comems4build-internal-error."
+
+
+def write_internal_report(out: str | os.PathLike[str] | None, text: str) -> Path:
+    """Write ``text`` (a defect's traceback) to a new private file in the output folder ``out`` (if it is
+    an existing folder that takes it), else in the temporary folder; returns its path.
+
+    The name starts with :data:`INTERNAL_ERROR_PREFIX` and carries the time and the process id;
+    the file is created new (``O_EXCL``, never through a link), mode 0600 (it names paths).
+    """
+    stamp = f"{time.strftime('%Y%m%dT%H%M%S')}.{os.getpid()}"
+    if out is not None and str(out) and Path(out).is_dir() and not Path(out).is_symlink():
+        target = Path(out) / f"{INTERNAL_ERROR_PREFIX}{stamp}.txt"
+        try:
+            return write_new_file(target, text, private=True, what="the report of an internal error")
+        except (OSError, OutputPathError):
+            pass  # a read-only or full output folder: the temporary folder takes it
+    fd, name = tempfile.mkstemp(prefix=f"{INTERNAL_ERROR_PREFIX}{stamp}.", suffix=".txt")
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    return Path(name)
 
 
 class OutputInUseError(OutputPathError):
@@ -606,7 +629,7 @@ class OutputDir:
         if not self.path.is_dir():
             return []
         return sorted(p.name for p in self.path.iterdir() if p.name not in (OWNER_FILE, LOCK_FILE)
-                      and not p.name.startswith((STAGE_PREFIX, PREVIOUS_PREFIX, ".replaced."))
+                      and not p.name.startswith((STAGE_PREFIX, PREVIOUS_PREFIX, ".replaced.", INTERNAL_ERROR_PREFIX))
                       and not p.name.endswith(".comems4build.lock")
                       and any(fnmatch.fnmatchcase(p.name, pat) for pat in patterns))
 

@@ -214,10 +214,15 @@ class Monitor:
         summary = outcome.summary
         record = {"name": s.name, "spec_hash": s.hash, "study": self.study_id, "summary": summary,
                   "attempts": s.attempts, "spec": s.spec}
-        if self.store is not None:
-            materialize(self.store.save(s.name, outcome.files, record), s.job.out_dir)
-        else:
-            place(s.job.out_dir, outcome.files, record)
+        try:
+            if self.store is not None:
+                materialize(self.store.save(s.name, outcome.files, record), s.job.out_dir)
+            else:
+                place(s.job.out_dir, outcome.files, record)
+        except OSError as exc:  # the run store or the output became unwritable (EPERM, ENOSPC, EROFS, ...)
+            where = exc.filename or (self.store.root if self.store is not None else s.job.out_dir)
+            self.failed(i, f"finished, but its files could not be stored: {where}: {exc.strerror or exc}")
+            raise OSError(exc.errno, exc.strerror or str(exc), str(where)) from exc
         s.summary = summary
         s.status = "done"
         wall = attempt.get("wall_s")
@@ -392,22 +397,25 @@ class _LocalPool:
 
     def _handle(self, proc: _Proc, todo: deque) -> None:
         dead = False
-        try:
+        received = []
+        try:  # only the pipe's own failure means a dead worker (not an error of storing its run, below)
             while proc.slot is not None and proc.conn.poll():
                 kind, slot, payload = proc.conn.recv()
-                if kind == "start":
-                    self.monitor.started(slot, payload)
-                elif kind == "done":
+                if kind != "start":
                     proc.slot = proc.job = None
-                    self.monitor.finished(slot, payload)
-                else:
-                    proc.slot = proc.job = None
-                    error, text = payload
-                    self.monitor.failed(slot, _message(error))
-                    if self.failure is None:
-                        self.failure = error
+                received.append((kind, slot, payload))
         except (EOFError, OSError):
             dead = True
+        for kind, slot, payload in received:
+            if kind == "start":
+                self.monitor.started(slot, payload)
+            elif kind == "done":
+                self.monitor.finished(slot, payload)
+            else:
+                error, text = payload
+                self.monitor.failed(slot, _message(error))
+                if self.failure is None:
+                    self.failure = error
         if proc.slot is None and not dead:
             return
         if not dead and proc.proc.is_alive():
