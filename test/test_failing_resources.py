@@ -89,7 +89,7 @@ def _check_named(code: int, err: str, reason: str) -> None:
     assert failed and reason in failed[0] and ".runstore" in failed[0], err
     counts = [int(m) for m in re.findall(r"(\d+) failed\]", failed[0])]
     assert counts and counts[-1] >= 1, failed[0]  # the progress line of the failure counts it
-    assert f"error: " in err and reason in err.splitlines()[-1], err
+    assert "error: " in err and reason in err.splitlines()[-1], err
 
 
 @pytest.mark.parametrize("jobs", [1, 2])

@@ -190,7 +190,8 @@ def _set(path: str, value: object) -> Callable[[dict], None]:
 
 TOPIC_MAP_SAMPLES = [
     (_set("setpoints.hp_mode.values", {"0": "off", "1": "off", "2": "dhw"}), "modes 0 and 1 both map to 'off'"),
-    (_set("setpoints.hp_mode.values", {"0": "standby", "1": "off", "2": "dhw"}), "mode 1 (space heating) maps to 'off'"),
+    (_set("setpoints.hp_mode.values", {"0": "standby", "1": "off", "2": "dhw"}),
+     "mode 1 (space heating) maps to 'off'"),
     (_set("setpoints.hp_mod.limits", [1.0, 0.2]), "must be [low, high] with low < high"),
     (_set("broker.username", "ems"), "username 'ems' without password_file or password_env"),
     (_set("base_topic", "#"), "'#' is not a plain MQTT topic"),
