@@ -326,7 +326,8 @@ def _bound_reason(model: type[BaseModel], loc: tuple[Any, ...]) -> dict[str, Any
 
 def below_least_text(value: Any, least: float, why: str, off: bool = False) -> str:
     """The refusal of a value below a physical lower bound: the value, the smallest real value, why."""
-    first = f"{value!r} is neither 0 (none) nor at least {least:g}" if off else f"{value!r} is below {least:g}"
+    shown = value if isinstance(value, str) else repr(value)  # a number PyYAML read as text: as written
+    first = f"{shown} is neither 0 (none) nor at least {least:g}" if off else f"{shown} is below {least:g}"
     return f"{first}, the smallest real value" + (f": {why}" if why else "")
 
 

@@ -145,7 +145,7 @@ def run(args: argparse.Namespace) -> int:
         except ConfigError as exc:  # an efficiency the plant cannot have (below its electrical one)
             if args.fc_efficiency is None:
                 raise
-            raise UsageError(f"--fc-efficiency {eta:g}: {exc}") from None
+            raise UsageError(f"--fc-efficiency {eta!r}: {exc}") from None
     if args.extend and args.via == "ros":
         raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")
     scenario_of(args, params)  # the scenario and the run length, checked once before any run
