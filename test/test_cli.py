@@ -2,7 +2,12 @@
 
 from __future__ import annotations
 
+import argparse
 import json
+import re
+import subprocess
+import sys
+from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
@@ -74,3 +79,71 @@ def test_readme_command_table_is_generated_from_the_parsers() -> None:
         for opt in options:
             for flag in opt.strip("[]").split(" | "):
                 assert flag.split()[0] in line, f"{name}: {flag}"
+
+
+#: reST markup that argparse would print as is: inline literals and Sphinx roles.
+REST_MARKUP = re.compile(r"``|:[a-z]+:`|^\.\. [a-z]+::", re.MULTILINE)
+#: Libraries no ``--help`` may import (the parser is built without them).
+HEAVY = ("numpy", "pandas", "matplotlib", "rclpy", "pulp", "highspy", "scipy", "dask", "pvlib", "skfuzzy")
+
+
+def _helps(parser: argparse.ArgumentParser, name: str = "comems4build") -> Iterator[tuple[str, str]]:
+    """``(command, help text)`` of ``parser`` and of every subcommand under it."""
+    yield name, parser.format_help()
+    for action in parser._actions:  # noqa: SLF001 (argparse keeps the subparsers here)
+        if isinstance(action, argparse._SubParsersAction):  # noqa: SLF001
+            for sub, p in action.choices.items():
+                yield from _helps(p, f"{name} {sub}")
+
+
+def test_help_is_plain_text() -> None:
+    """``comems4build --help`` and every ``COMMAND --help`` print no reST markup (argparse shows it raw)."""
+    from comems4build_ros.app.cli import COMMANDS, build_parser
+
+    helps = dict(_helps(build_parser()))
+    assert {f"comems4build {c}" for c in COMMANDS} <= set(helps)
+    assert len(helps) > len(COMMANDS) + 2  # bench and data have their own subcommands
+    found = [f"{name}: {m.group(0)!r}" for name, text in helps.items() for m in REST_MARKUP.finditer(text)]
+    assert found == []
+    for bad in ("``comems4build``", ":mod:`x`", ":class:`~a.B`", ".. note::"):
+        assert REST_MARKUP.search(bad), bad
+
+
+def _modules_after(code: str) -> set[str]:
+    """The modules a fresh interpreter has imported after running ``code`` (from the repository root)."""
+    probe = f"import sys\n{code}\nprint('\\n'.join(sys.modules))"
+    out = subprocess.run([sys.executable, "-c", probe], cwd=Path(__file__).resolve().parents[1],
+                         capture_output=True, text=True, check=True).stdout
+    return set(out.split())
+
+
+def test_top_level_help_imports_no_command_module() -> None:
+    """``comems4build --help`` lists every command from cli.COMMANDS alone: no command module, no core."""
+    mods = _modules_after("import contextlib, io\nfrom comems4build_ros.app.cli import main\n"
+                          "with contextlib.redirect_stdout(io.StringIO()), contextlib.suppress(SystemExit):\n"
+                          "    main(['--help'])")
+    assert "comems4build_ros.app.cli" in mods
+    assert not [m for m in mods if m.startswith(("comems4build_ros.app.commands.", "comems4build_ros.core"))]
+    assert not [m for m in mods if m.split(".")[0] in HEAVY]
+
+
+def test_every_parser_is_built_without_numerical_or_ros_libraries() -> None:
+    """Building every command's options (what ``COMMAND --help`` does) imports none of :data:`HEAVY`."""
+    mods = _modules_after("from comems4build_ros.app.cli import build_parser\nbuild_parser().format_help()")
+    assert "comems4build_ros.app.commands.simulate" in mods and "comems4build_ros.app.bench.mpc" in mods
+    assert sorted({m.split(".")[0] for m in mods} & set(HEAVY)) == []
+
+
+def test_only_the_chosen_command_is_built(capsys: pytest.CaptureFixture[str]) -> None:
+    """The chosen command has its options; the others are listed by name and help; an unknown one is refused."""
+    from comems4build_ros.app.cli import build_parser, chosen_command
+
+    assert chosen_command(["simulate", "--help"]) == ["simulate"]
+    assert chosen_command(["--help", "simulate"]) == [] and chosen_command([]) == []
+    assert chosen_command(["simulat"]) == []
+    helps = dict(_helps(build_parser(chosen_command(["evaluate", "BAG"]))))
+    assert "--no-timeseries" in helps["comems4build evaluate"]
+    assert "--ems" not in helps["comems4build simulate"] and "simulate" in helps["comems4build"]
+    with pytest.raises(SystemExit) as exc:
+        main(["simulat", "--ems", "rbc"])
+    assert exc.value.code == 2 and "invalid choice: 'simulat'" in capsys.readouterr().err

@@ -4,7 +4,7 @@ Every ``import`` and ``from ... import`` statement of every module (module level
 functions, in branches) is an edge from the module to the module it names (a name that
 is a submodule, ``from comems4build_ros.run import plan``, is an edge to that submodule).
 
-The layers, bottom up (README "Architecture"): ``files`` (reading and writing the
+The layers, bottom up (docs/architecture.md): ``files`` (reading and writing the
 package's files), ``core`` (parameters, device models, plant, scenarios, EMS, KPIs, the
 in-process loop), ``wire`` (the topic contract, CDR, run tokens, exit codes), ``bags``,
 ``mqtt``, ``ros`` (the only layer that uses rclpy), ``run`` (the run plan, its supervisor,

@@ -117,11 +117,10 @@ def test_opendhw_weekend_factor_correction():
     assert opendhw_offday_mass_ratio(3600) == pytest.approx(2.545 / 2.09, rel=1e-9)
 
 
-@pytest.mark.parametrize("doc", [DOCS, DOCS.parents[1] / "README.md"], ids=["docs", "readme"])
-def test_docs_table_matches_the_scenarios(params, stats, doc):
-    text = doc.read_text(encoding="utf-8")
+def test_docs_table_matches_the_scenarios(params, stats):
+    text = DOCS.read_text(encoding="utf-8")
     m = re.search(r"<!-- stats:begin -->\n(.*?)\n<!-- stats:end -->", text, re.S)
-    assert m, f"{doc.name} lacks the stats markers"
+    assert m, f"{DOCS.name} lacks the stats markers"
     assert m.group(1).strip() == st.markdown_table(st.default_stats(params), stats).strip()
 
 

@@ -1,10 +1,11 @@
 """``comems4build`` command line.
 
 Each subcommand lives in ``comems4build_ros/app/commands/<module>.py`` exposing
-``add_arguments(parser)`` and ``run(args) -> int``; heavy imports happen inside ``run``
-so that ``comems4build --help`` stays fast. Exit codes: 0 success, 1 failure of the
-job, 2 invalid usage or input (unknown EMS, unreadable file, invalid option, an output
-that cannot be written).
+``add_arguments(parser)`` and ``run(args) -> int``. Only the chosen subcommand's module is
+imported and its options built (:func:`main`), and heavy imports happen inside ``run``, so
+``comems4build --help`` imports no command module and no numerical library. Exit codes:
+0 success, 1 failure of the job, 2 invalid usage or input (unknown EMS, unreadable file,
+invalid option, an output that cannot be written).
 """
 
 from __future__ import annotations
@@ -12,6 +13,14 @@ from __future__ import annotations
 import argparse
 import importlib
 import sys
+from collections.abc import Collection, Sequence
+
+#: What ``comems4build --help`` says above the command list (plain text: argparse prints it as is).
+DESCRIPTION = ("ComEMS4Build energy management: simulations in-process and over ROS 2, studies, reports and "
+               "benchmarks.")
+#: What it says below the list.
+EPILOG = "'comems4build COMMAND --help' explains a command's options. Exit codes: 0 done, 1 the job failed, " \
+         "2 invalid usage or input, 130 interrupted."
 
 #: subcommand -> (module under comems4build_ros.app.commands, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -55,33 +64,49 @@ class UsageError(Exception):
     """Invalid input or option; reported with exit code 2."""
 
 
-def build_parser() -> argparse.ArgumentParser:
-    """Parser with every available subcommand."""
-    parser = argparse.ArgumentParser(prog="comems4build", description=__doc__.splitlines()[0])
+def build_parser(commands: Collection[str] | None = None) -> argparse.ArgumentParser:
+    """Parser of ``comems4build`` with every subcommand.
+
+    Parameters
+    ----------
+    commands
+        The subcommands whose module is imported and whose options are added; the others are
+        listed with their one-line help only (enough for ``comems4build --help``). ``None``
+        (default): every subcommand, as the README's command table needs.
+
+    Returns
+    -------
+    argparse.ArgumentParser
+        The top-level parser; a built subcommand's parser carries its ``run`` as ``_run``.
+    """
+    parser = argparse.ArgumentParser(prog="comems4build", description=DESCRIPTION, epilog=EPILOG)
     sub = parser.add_subparsers(dest="command", metavar="COMMAND", required=True)
     for name, (module, help_text) in COMMANDS.items():
-        try:
-            mod = importlib.import_module(f"comems4build_ros.app.commands.{module}")
-        except ModuleNotFoundError as exc:
-            if exc.name != f"comems4build_ros.app.commands.{module}":
-                raise
-            continue  # subcommand not built yet
         p = sub.add_parser(name, help=help_text, description=help_text)
-        mod.add_arguments(p)
-        p.set_defaults(_run=mod.run)
+        if commands is None or name in commands:
+            mod = importlib.import_module(f"comems4build_ros.app.commands.{module}")
+            mod.add_arguments(p)
+            p.set_defaults(_run=mod.run)
     return parser
+
+
+def chosen_command(argv: Sequence[str]) -> list[str]:
+    """The subcommand ``argv`` names (its first word, as the top-level parser has no option but
+    ``--help``), as a list of at most one name for :func:`build_parser`."""
+    return [argv[0]] if argv and argv[0] in COMMANDS else []
 
 
 def main(argv: list[str] | None = None) -> int:
     """Entry point of ``comems4build``; returns the exit code."""
-    from comems4build_ros.core.config import ConfigError
-
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
-        parser = build_parser()
-    except KeyboardInterrupt:  # Ctrl-C while the commands are imported: nothing was started
+        parser = build_parser(chosen_command(argv))
+    except KeyboardInterrupt:  # Ctrl-C while the command is imported: nothing was started
         print("comems4build: interrupted", file=sys.stderr)
         return 130
     args = parser.parse_args(argv)
+    from comems4build_ros.core.config import ConfigError  # after parsing: --help imports no core module
+
     try:
         return int(args._run(args) or 0)
     except (UsageError, ConfigError, FileNotFoundError, ValueError) as exc:

@@ -32,13 +32,13 @@ import resource
 import time
 from collections.abc import Mapping, Sequence
 from pathlib import Path
-from typing import Any
-
-import numpy as np
-import pandas as pd
+from typing import TYPE_CHECKING, Any
 
 from comems4build_ros.app.commands.options import COUNT, SECONDS, WEEKS, real
 from comems4build_ros.run.progress import ProgressBar, ProgressCallback
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 #: Options of the exact reference solve (best known solution): full binaries, gap 0.
 REFERENCE = {"integer_steps": 24, "mip_rel_gap": 0.0, "warm_start": False, "time_limit_s": 120.0}
@@ -156,6 +156,8 @@ class ClosedLoop:
 
     def result(self) -> Any:
         """Timeseries with the ``ems_*`` columns, weekly KPIs and summary."""
+        import pandas as pd
+
         from comems4build_ros.core.loop import TIMESERIES_COLUMNS, evaluate_timeseries
 
         ts = pd.DataFrame(self.rows, columns=list(TIMESERIES_COLUMNS))
@@ -176,6 +178,9 @@ def _closed_loop(ctrl: Any, scenario: Any, params: Any, n_steps: int, progress: 
 def side_by_side(params: Any, scenario: Any, configs: Mapping[str, Mapping[str, Any]], n_steps: int,
                  solvers: Sequence[str], progress: ProgressCallback | None = None) -> pd.DataFrame:
     """Closed loops of ``configs`` stepped in turn; one row per configuration (solve times and KPIs)."""
+    import numpy as np
+    import pandas as pd
+
     from comems4build_ros.core.ems.mpc import MPCController
 
     loops: dict[str, ClosedLoop] = {}
@@ -208,6 +213,8 @@ def select_days(scenario: Any, n_steps: int, per_kind: int) -> dict[str, list[in
 
     Day 0 is skipped (the start state is arbitrary); days are distinct across kinds.
     """
+    import numpy as np
+
     n_days = n_steps // 24
     t = scenario.t_amb_c[: n_days * 24].reshape(n_days, 24).mean(axis=1)
     g = scenario.ghi_w_m2[: n_days * 24].reshape(n_days, 24).sum(axis=1)
@@ -386,6 +393,9 @@ def _full_run_stage(args: argparse.Namespace, params: Any, scenario: Any, solver
 def _fixed_problems_stage(args: argparse.Namespace, params: Any, scenario: Any, ts: pd.DataFrame,
                           configs: dict[str, Any], solvers: Sequence[str], out: Path | None) -> None:
     """Every configuration on the same horizon problems: solve time and gap to the best known objective."""
+    import numpy as np
+    import pandas as pd
+
     starts = select_days(scenario, scenario.n_steps, args.days_per_kind)
     problems = problems_from_run(ts, scenario, params, starts)
     print(f"\nproblem set: {len(problems)} horizon problems, days starting at steps "
@@ -431,6 +441,8 @@ def _fixed_problems_stage(args: argparse.Namespace, params: Any, scenario: Any, 
 
 def _kpi_stage(args: argparse.Namespace, params: Any, scenario: Any, out: Path | None) -> None:
     """KPIs over ``--kpi-weeks``: the default settings against the exact MILP at gap 0."""
+    import pandas as pd
+
     from comems4build_ros.core.ems.mpc import MPCController
 
     n = int(round(args.kpi_weeks * 168))

@@ -4,7 +4,7 @@
 (``tab:level_of_information``), label, colour and relative cost per step. :func:`ems_table`
 reads it; :func:`make_controller` builds a controller by name. To add an EMS: write a module
 with a class implementing :class:`~comems4build_ros.core.ems.base.Controller` and add a row
-to ``config/ems.yaml`` (README, "Adding an EMS").
+to ``config/ems.yaml`` (docs/architecture.md, "How to add an EMS").
 """
 
 from __future__ import annotations

@@ -7,7 +7,7 @@ from dataclasses import dataclass, field
 import numpy as np
 import pandas as pd
 
-#: Columns of a scenario CSV (see README "Scenario CSV"); order of the written file.
+#: Columns of a scenario CSV (see docs/scenario.md "Scenario CSV"); order of the written file.
 CSV_COLUMNS = (
     "time",
     "t_amb_c",

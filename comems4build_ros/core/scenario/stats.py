@@ -1,4 +1,4 @@
-"""Statistics of the embedded scenarios next to reference figures (for the README, docs/scenario.md and tests).
+"""Statistics of the embedded scenarios next to reference figures (for docs/scenario.md and tests).
 
 The reference figures are statistics of the measured data of the paper's winter: ENTSO-E
 day-ahead prices DE-LU (2022-12-01..2023-02-28; the 12-week mean 170 EUR/MWh), DWD hourly
