@@ -181,7 +181,6 @@ def options_of(values: dict[str, str]) -> tuple[LaunchOptions, int, bool]:
     """
     import argparse
 
-    from comems4build_ros.app.cli import UsageError
     from comems4build_ros.app.commands.launch import add_arguments, launch_options
 
     class Parser(argparse.ArgumentParser):
@@ -193,7 +192,7 @@ def options_of(values: dict[str, str]) -> tuple[LaunchOptions, int, bool]:
     try:
         args = parser.parse_args(command_line(values))
         opts = launch_options(args)
-    except (InputError, UsageError, FileNotFoundError) as exc:  # only the checks' errors: a bug stays a bug
+    except (InputError, FileNotFoundError) as exc:  # only the checks' errors: a bug stays a bug
         raise LaunchArgumentError(in_launch_words(str(exc), values)) from None
     return opts, args.domain_id if args.domain_id is not None else 0, bool(args.print_plan)
 
