@@ -88,7 +88,7 @@ def _check_named(code: int, err: str, reason: str) -> None:
 
 @pytest.mark.parametrize("jobs", [1, 2])
 def test_a_run_store_made_immutable_during_sweep_is_named(tmp_path: Path, jobs: int) -> None:
-    """The issue's sample: EPERM on the run store while the study runs."""
+    """Found by probing: EPERM on the run store while the study runs."""
     if not _root_can_chattr(tmp_path):
         pytest.skip("chattr +i is not available here (needs root and a file system with attributes)")
     code, err = _sweep_failing(tmp_path / "out", jobs,

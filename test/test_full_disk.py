@@ -91,7 +91,7 @@ def _check(code: int, err: str, before: dict, mount: Path, complete: callable, k
     assert after == before  # byte for byte, hidden entries included (no lock or stage left)
 
 
-# ------------------------------------------------------------------------------ the sample
+# ------------------------------------------------------------------------------ the sample found by probing
 @FEW
 @given(free_kib=st.integers(min_value=0, max_value=44))
 def test_simulate_over_an_earlier_result_on_a_full_disk(tmpfs: Path, capsys: pytest.CaptureFixture[str],

@@ -44,7 +44,7 @@ def _precious(tmp: Path) -> Path:
     return p
 
 
-# ------------------------------------------------------------------------------ the issue's sample
+# ------------------------------------------------------------------------------ the sample found by probing
 def test_a_lock_that_is_a_link_is_refused_and_the_file_it_names_kept(tmp_path: Path,
                                                                        capsys: pytest.CaptureFixture[str]) -> None:
     precious = _precious(tmp_path)
@@ -211,7 +211,7 @@ def test_what_is_read_again_is_private_and_results_follow_the_umask(tmp_path: Pa
 
 
 def test_launch_under_umask_000_keeps_params_and_logs_private(tmp_path: Path) -> None:
-    """The issue's sample: ``umask 000; comems4build launch ...`` made ``params/`` and ``log/`` 0777."""
+    """Found by probing: ``umask 000; comems4build launch ...`` made ``params/`` and ``log/`` 0777."""
     out = tmp_path / "run"
     res = subprocess.run([*CLI, "launch", "--ems", "rbc", "--steps", "3", "--no-progress", "--out", str(out)],
                          cwd=REPO, capture_output=True, text=True, timeout=600, preexec_fn=lambda: os.umask(0))

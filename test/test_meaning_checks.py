@@ -4,9 +4,9 @@ Physics that refuses the impossible (every range's lower bound is the smallest r
 named with its reason; relations between parameters), options whose derived quantity
 overflows (a clock factor's step period, a run's end), files and peers checked for what
 they mean (topic maps, live-input settings, a ``--scheduler`` that is no Dask scheduler,
-``--update-doc`` markers). Each class: the issue's samples, then hypothesis properties over
-cases it does not name. A refusal is exit code 2 naming the option, file or parameter;
-nothing is written and no node or run starts.
+``--update-doc`` markers). Each class: the samples found by probing, then hypothesis
+properties over further cases. A refusal is exit code 2 naming the option, file or
+parameter; nothing is written and no node or run starts.
 """
 
 from __future__ import annotations
