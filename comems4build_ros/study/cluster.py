@@ -84,9 +84,9 @@ def probe_scheduler(address: str, timeout_s: float = PROBE_TIMEOUT_S) -> None:
     try:
         sock = socket.create_connection((host, port), timeout=timeout_s)
     except TimeoutError:
-        raise NotASchedulerError(f"{what}: no answer within {timeout_s:g} s (no Dask scheduler there)") from None
+        raise NotASchedulerError(f"{what}: no scheduler answered within {timeout_s:g} s") from None
     except OSError as exc:
-        raise NotASchedulerError(f"{what}: cannot connect ({exc.strerror or exc})") from None
+        raise NotASchedulerError(f"{what}: no scheduler answered (cannot connect: {exc.strerror or exc})") from None
     try:
         sock.settimeout(timeout_s)
         if url.scheme == "tls":
