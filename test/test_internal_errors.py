@@ -231,3 +231,31 @@ def test_every_command_with_no_or_unknown_options_ends_in_usage_not_an_internal_
     for argv in ([command, "--no-such-option"], [command, "--out"]):
         code, _, err = run_cli(argv, capsys)
         assert code in (0, 2) and "internal error" not in err, (argv, err[-1000:])
+
+
+@FEW
+@given(weeks=NUMBERS, seed=st.integers(-1, 2**33), sets=SETS)
+def test_export_identify_house_cosim_random_inputs_never_end_in_an_internal_error(
+        blocked: Path, capsys: pytest.CaptureFixture[str], weeks: str, seed: int, sets: list[str]) -> None:
+    for argv in (["export-fmu", *_sets(sets), "--out", blocked / "rc.fmu"],
+                 ["identify", "--seed", seed, "--out", blocked / "id.yaml"],
+                 ["house", "--weeks", weeks, "--json", blocked / "house.json"],
+                 ["cosim-study", "--weeks", weeks, "--no-progress", "--out", blocked]):
+        _never_70(argv, capsys)
+
+
+#: Each benchmark's numeric options: parsed and checked, then ``--help`` (argparse checks the values given before it).
+BENCH_NUMERIC = {"plant": ("--weeks", "--repeats", "--seed"), "ems": ("--weeks", "--skfuzzy-steps"),
+                 "mpc": ("--loop-weeks", "--weeks", "--days-per-kind", "--time-limit", "--kpi-weeks"),
+                 "ros": ("--weeks", "--containers", "--timeout"), "cut": ("--runs",),
+                 "study": ("--runs", "--seed", "--repeats"), "year": ("--weeks", "--timeout"), "cosim": ("--weeks",)}
+
+
+@FEW
+@given(bench=st.sampled_from(sorted(BENCH_NUMERIC)), data=st.data())
+def test_bench_options_from_random_numbers_never_end_in_an_internal_error(capsys: pytest.CaptureFixture[str],
+                                                                         bench: str, data: st.DataObject) -> None:
+    argv: list[object] = ["bench", bench]
+    for option in BENCH_NUMERIC[bench]:
+        argv += [option, data.draw(NUMBERS)]
+    _never_70([*argv, "--help"], capsys)

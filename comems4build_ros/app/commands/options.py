@@ -43,9 +43,10 @@ def range_text(lo: float | None = None, hi: float | None = None, lo_open: bool =
     return "finite"
 
 
-def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> Callable[[str], float]:
+def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool,
+            zero: bool = False) -> Callable[[str], float]:
     what = "an integer" if kind is int else "a finite number"
-    allowed = range_text(lo, hi, lo_open, hi_open)
+    allowed = ("0 (off) or " if zero else "") + range_text(lo, hi, lo_open, hi_open)
 
     def parse(text: str) -> float:
         from comems4build_ros.files.inputs import parse_decimal, parse_integer
@@ -58,7 +59,7 @@ def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_op
             raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})")
         low_bad = lo is not None and (value <= lo if lo_open else value < lo)
         high_bad = hi is not None and (value >= hi if hi_open else value > hi)
-        if low_bad or high_bad:
+        if (low_bad or high_bad) and not (zero and value == 0):
             raise argparse.ArgumentTypeError(f"{text} is outside the allowed range: {what} {allowed}")
         return value
 
@@ -67,9 +68,10 @@ def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_op
 
 
 def real(lo: float | None = None, hi: float | None = None, lo_open: bool = False,
-         hi_open: bool = False) -> Callable[[str], float]:
-    """argparse type: a finite float within the interval (``lo_open``: ``lo`` itself excluded)."""
-    return _number(float, lo, hi, lo_open, hi_open)
+         hi_open: bool = False, zero: bool = False) -> Callable[[str], float]:
+    """argparse type: a finite float within the interval (``lo_open``: ``lo`` itself excluded; ``zero``: or 0,
+    meaning off, where the smallest real value lies above it)."""
+    return _number(float, lo, hi, lo_open, hi_open, zero)
 
 
 def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
@@ -87,6 +89,10 @@ MIN_RUN_HOURS = 1
 WEEKS = real(MIN_RUN_HOURS / 168, MAX_RUN_HOURS / 168)
 #: Run length in hours: an integer in 1 .. 30 years.
 HOURS = integer(MIN_RUN_HOURS, MAX_RUN_HOURS)
+#: Run length in whole weeks (the benchmarks' in-process runs): 1 .. 30 years.
+WHOLE_WEEKS = integer(1, MAX_RUN_HOURS // 168)
+#: An optional run length in weeks: 0 (off) or one hour .. 30 years.
+WEEKS_OR_OFF = real(MIN_RUN_HOURS / 168, MAX_RUN_HOURS / 168, zero=True)
 #: A count of runs, houses, steps or repeats: an integer >= 1.
 COUNT = integer(1)
 #: Shortest time limit or timeout [s]: 10 ms, below the time any node needs to answer one message.
