@@ -34,6 +34,7 @@ from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
 from comems4build_ros.core.config import ConfigError, config_dir, load_yaml, table_class, table_rows
+from comems4build_ros.files.errors import InputError
 
 #: The coordinator table's file in ``config/``.
 COORDINATOR_TABLE_FILE = "coordinators.yaml"
@@ -212,7 +213,7 @@ class Coordinator(Protocol):
         """Return the hub's dispatch of step ``view.step``."""
 
 
-class UnknownCoordinatorError(ValueError):
+class UnknownCoordinatorError(InputError):
     """The requested coordinator is not in the table (or its class is missing)."""
 
 
