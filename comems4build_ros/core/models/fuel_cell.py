@@ -85,7 +85,7 @@ def _dpower_di(i, fc: FuelCellParams):
 
 
 def max_power_point(fc: FuelCellParams) -> tuple[float, float]:
-    """Find the maximum of P(i), the end of the monotone branch (bisection on dP/di).
+    """Find the maximum of P(i): :meth:`FuelCellParams.max_power_point` of ``fc``.
 
     Parameters
     ----------
@@ -94,15 +94,8 @@ def max_power_point(fc: FuelCellParams) -> tuple[float, float]:
 
     Returns
     -------
-    i_mpp_a : float
-        Current at the maximum [A].
-    p_mpp_w : float
-        Output at the maximum [W].
-
-    Raises
-    ------
-    ValueError
-        If P(i) has no maximum below 1e7 A.
+    tuple of float
+        Current [A] and output [W] at the maximum (the end of the monotone branch).
     """
     return fc.max_power_point()
 
