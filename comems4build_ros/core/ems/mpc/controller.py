@@ -25,7 +25,7 @@ from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon, season_schedules
 from comems4build_ros.core.ems.mpc.milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
 from comems4build_ros.core.ems.mpc.settings import MILPParams, load_options
-from comems4build_ros.core.ems.mpc.solvers import make_backend
+from comems4build_ros.core.ems.mpc.solvers import MatrixForm, make_backend
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
 #: Values below this are treated as zero when turning a plan into an action [W] / [-].
@@ -91,6 +91,27 @@ def slack_info(plan: Mapping[str, np.ndarray] | None, tol: float) -> dict[str, f
     return out
 
 
+def milp_model(const: PlantConstants, o: MILPParams, **model_options: Any) -> MILPModel:
+    """The horizon MILP of the plant ``const`` with the options ``o``.
+
+    ``model_options`` (``prefix``, ``h2_exchange``, ``integer_steps``) go to :class:`.milp.MILPModel`:
+    a community's coordinators compose houses' models into one problem with them.
+    """
+    kwargs: dict[str, Any] = {"integer_steps": o.integer_steps, **model_options}
+    year = YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur)
+    return MILPModel(const, penalties_from(o), o.formulation, o.big_m_loose_w,
+                     relax_battery_binary=o.relax_battery_binary, year=year, fc_heat_dump=o.fc_heat_dump, **kwargs)
+
+
+def milp_backend(form: MatrixForm, o: MILPParams, time_limit_s: float | None = None,
+                 mip_rel_gap: float | None = None) -> Any:
+    """The solver backend of the options ``o`` for the problem ``form`` (``time_limit_s``, ``mip_rel_gap``:
+    instead of the options' own)."""
+    return make_backend(o.solver, form, o.mip_rel_gap if mip_rel_gap is None else mip_rel_gap,
+                        o.time_limit_s if time_limit_s is None else time_limit_s, o.threads, o.warm_start,
+                        highs_options=o.highs_options, gurobi_options=o.gurobi_options)
+
+
 class MPCController:
     """MILP MPC over a 24 h horizon (``eq:mpc_objective``).
 
@@ -98,22 +119,20 @@ class MPCController:
     ----------
     params : plant parameters (the MPC's forecasting models)
     options : overrides of ``config/mpc.yaml`` section ``mpc`` (see :class:`.settings.MILPParams`)
+    model_options : passed to :func:`milp_model` (a community's coordinators; none for a house's EMS)
     """
 
     name = "mpc"
     info_level = "mpc"
 
-    def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
+    def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None,
+                 model_options: Mapping[str, Any] | None = None) -> None:
         self.params = params
         self.options: MILPParams = load_options(MILPParams, "mpc", options)  # type: ignore[assignment]
         o = self.options
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
-        self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
-                               o.relax_battery_binary,
-                               YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur),
-                               o.fc_heat_dump)
-        self.backend = make_backend(o.solver, self.model.form, o.mip_rel_gap, o.time_limit_s, o.threads,
-                                    o.warm_start, highs_options=o.highs_options, gurobi_options=o.gurobi_options)
+        self.model = milp_model(self.const, o, **dict(model_options or {}))
+        self.backend = milp_backend(self.model.form, o)
         self.step_info: dict[str, float] = {}
         self.observer = None
         if o.observer == "kalman":
@@ -137,6 +156,11 @@ class MPCController:
 
     def plan(self, obs: Observation) -> SolveResult:
         """Update and solve the horizon problem for ``obs`` (no action, no counters)."""
+        self.prepare(obs)
+        return self.model.solve(self.backend)
+
+    def prepare(self, obs: Observation) -> HorizonData:
+        """Update the horizon problem for ``obs`` in place and set its warm start; return its numbers."""
         h = build_horizon(obs, self.const, self.options.loh_min_mode)
         if self.const.year_round:  # seasonal schedules (memory: the LOH at the season's start)
             left = float(obs.heating_season_days_left)
@@ -150,7 +174,7 @@ class MPCController:
         self.last_horizon = h
         self.model.update(h)
         self.model.set_start(shift_plan(self._prev_plan) if self.options.warm_start and self._prev_plan else None)
-        return self.model.solve(self.backend)
+        return h
 
     def act(self, obs: Observation) -> Action:
         """Solve the horizon problem and return its first step (or the safe fallback)."""
