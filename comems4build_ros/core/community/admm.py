@@ -10,27 +10,32 @@ direction method of multipliers in its exchange form (Boyd, Parikh, Chu, Peleato
 Multipliers", Foundations and Trends in Machine Learning 3(1), 2011, section 7.3.2). Each
 iteration ``k``:
 
-1. every agent solves its own problem with a price and a proximal term,
-   ``x_j <- argmin f_j(x_j) + rho/2 ||x_j - x_j^k + xbar^k + u^k||^2``: a house its own
-   horizon problem (its MPC's model, the LP relaxation of its MILP, as a convex QP; it reads
-   only its own observation), the hub its electrolysers, pool and connection point;
-2. the coordinator averages what they return, ``xbar = sum_j x_j / (N + 1)`` (the imbalance of
-   the two balances, per step), and updates the scaled price ``u <- u + xbar``
-   (``rho u`` is the price of electricity and of H2 at the hub in EUR per kWh, per step).
+1. every agent solves its own problem at the current prices ``rho u`` with a proximal term
+   around its balanced exchange ``z_j``: ``x_j <- argmin f_j(x_j) + rho u . x_j +
+   rho/2 ||x_j - z_j||^2``: a house its own horizon problem (its MPC's model, the LP relaxation
+   of its MILP; it reads only its own observation), the hub its electrolysers, pool and
+   connection point;
+2. the coordinator averages what they return (optionally over-relaxed, ``relaxation``),
+   ``xbar = sum_j x_j / (N + 1)`` (the imbalance of the two balances per step, over the
+   agents), projects every exchange onto the balances, ``z_j <- x_j - xbar``, and updates the
+   scaled prices ``u <- u + xbar`` (``rho u`` is the price of electricity and of H2 at the
+   hub in EUR per W and step).
 
-Only prices and totals cross between the coordinator and the houses: a house receives ``u``
-and ``xbar - x_j^k`` (2 x 24 numbers each) and returns its ``x_j`` (2 x 24 numbers); its
-states, forecasts and model stay at the house. The iterations stop when both balances close
-within ``tol_kw`` in every step and no agent's exchange moved by more than ``tol_kw`` since
-the last iteration, or after ``max_iterations``. ADMM converges for convex problems: the
-fixed point is the optimum of the LP relaxation of the community's MILP. The next decision
-starts from this one's prices and exchanges shifted by one step (warm start).
+Only prices and totals cross between the coordinator and the houses: a house receives the
+prices and its balanced exchange (2 x 24 numbers each) and returns its exchange (2 x 24
+numbers); its states, forecasts and model stay at the house. The iterations stop when both
+balances close within ``tol_kw`` in every step and no price would change by more than
+``tol_eur_per_kwh`` (``rho`` times the largest change of a balanced exchange, the dual
+residual), or after ``max_iterations``; ``rho`` may adapt by residual balancing
+(``rho_adapt_factor``). ADMM converges for convex problems: the fixed point is the optimum of
+the LP relaxation of the community's MILP. The first decision starts from the day-ahead buy
+prices (as if the community bought every kWh), every later one from the last decision's
+prices and balanced exchanges one step on (warm start).
 
 Applied, as the central coordinator: the hub's first-step electrolysis and, for every house,
-the H2 of its first step's balanced exchange ``x_i - xbar`` (all production to the pool).
-:meth:`DistributedCoordinator.recover` turns the converged prices into an integer plan (each
-house's MILP at the prices with its H2 exchange fixed, the hub's at its own) for comparing
-with the central optimum (``comems4build bench coordinators``).
+the H2 of its first step's balanced exchange ``z_i`` (all production to the pool).
+``comems4build bench coordinators`` compares its objective with the central optimum's on the
+same decisions.
 """
 
 from __future__ import annotations
@@ -74,8 +79,12 @@ class DistributedOptions(HorizonOptions):
     """Options of the distributed coordinator (row ``distributed`` of ``config/coordinators.yaml``)."""
 
     rho_eur_per_kw2: float = Field(gt=0)
+    rho_adapt_factor: float = Field(ge=1)
+    rho_adapt_ratio: float = Field(gt=1)
     max_iterations: int = Field(ge=1, le=100_000)
     tol_kw: float = Field(gt=0)
+    tol_eur_per_kwh: float = Field(gt=0)
+    relaxation: float = Field(gt=0, lt=2)
 
 
 def breakpoints(tol_w: float, largest_w: float) -> np.ndarray:
@@ -112,7 +121,7 @@ class _Agent:
                  q_neg: list | None, rho_w: float, options: DistributedOptions, mpc: Any, tag: str) -> None:
         self.prob = prob
         n = len(e_pos)
-        b = breakpoints(options.tol_kw * W_PER_KW, options.connection_kw_per_house * W_PER_KW)
+        b = breakpoints(options.tol_kw * W_PER_KW / 4.0, options.connection_kw_per_house * W_PER_KW)
         widths = [*np.diff(b).tolist(), None]
         slopes = [*(rho_w * (b[:-1] + b[1:]) / 2.0).tolist(), rho_w * (b[-2] + b[-1]) / 2.0]
         self.rows: list[list[pulp.LpConstraint]] = []
@@ -142,7 +151,8 @@ class _Agent:
         rix = {name: i for i, name in enumerate(self.form.row_names)}
         self.row_index = [np.array([rix[con.name] for con in rows], dtype=np.int32) for rows in self.rows]
         self.y_cols = np.array([idx[y.name] for y, _ in self.segments])
-        self.y_cost = np.array([slope for _, slope in self.segments])
+        self.y_cost0 = np.array([slope for _, slope in self.segments])
+        self.y_cost = self.y_cost0.copy()
         self.x = (np.zeros(n), np.zeros(n))
         self.cost = 0.0
         self.solution = np.zeros(self.form.n_cols)
@@ -152,8 +162,8 @@ class _Agent:
         """After the problem's update for a decision: keep its own costs of the exchange; the segments'
         costs into the objective."""
         obj = self.prob.objective
-        for y, slope in self.segments:
-            obj[y] = slope
+        for (y, _), cost in zip(self.segments, self.y_cost):
+            obj[y] = float(cost)
         self._own = [[np.array([float(obj.get(var, 0.0)) for var in vars_]) if vars_ is not None else None
                       for vars_ in pair] for pair in self.vars]
         raw = self.backend.solve()  # through the solver layer: its options, a new instance, a first basis
@@ -161,6 +171,11 @@ class _Agent:
         if raw.x is None:
             raise RuntimeError(f"coordinator 'distributed': an agent's problem has no solution "
                                f"({raw.error or raw.sol_status})")
+
+    def scale_proximal(self, factor: float) -> None:
+        """``rho`` times ``factor``: the segments' costs with it."""
+        self.y_cost = self.y_cost * factor
+        self.highs.changeColsCost(len(self.y_cols), self.y_cols.astype(np.int32), self.y_cost)
 
     def respond(self, price: tuple[np.ndarray, np.ndarray], centre: tuple[np.ndarray, np.ndarray]
                 ) -> tuple[np.ndarray, np.ndarray]:
@@ -223,11 +238,13 @@ class DistributedCoordinator:
         if len(info.house_params) != len(info.names):
             raise ConfigError("coordinator 'distributed': needs every house's parameters for its agents")
         self.rho_w = o.rho_eur_per_kw2 / _W2_PER_KW2
+        # residual balancing keeps rho within three orders of magnitude of the configured one
+        self.rho_min_w, self.rho_max_w = self.rho_w / 1e3, self.rho_w * 1e3
         # the houses' agents: each its own relaxed model and solver (at the house over ROS)
         self.houses = [HouseModel(p, i, o, integer_steps=0) for i, p in enumerate(info.house_params)]
         mpc = self.houses[0].mpc.options
         self.agents = [_Agent(h.model.prob, h.model.mutable, h.vars["p_buy"], h.vars["p_sell"], h.vars["h2_in"],
-                              h.vars["h2_out"], self.rho_w, o, mpc, f"h{i}_") for i, h in enumerate(self.houses)]
+                              h.vars["h2_out"], self.rho_w, o, mpc, f"n{i}_") for i, h in enumerate(self.houses)]
         n = self.houses[0].model.n
         self.n = n
         self.hub = HubModel(info, n, o, integer=False)
@@ -237,12 +254,15 @@ class DistributedCoordinator:
         self.reset()
 
     def reset(self) -> None:
-        """Forget the prices, the exchanges and the houses' seasonal memory."""
+        """Forget the prices, the exchanges, the adapted ``rho`` and the houses' seasonal memory."""
+        self.rho_w = self.options.rho_eur_per_kw2 / _W2_PER_KW2
+        for agent in (self.hub_agent, *self.agents):
+            agent.y_cost = agent.y_cost0.copy()
         for house in self.houses:
             house.mpc.reset()
             house.plan = None
         self.u = (np.zeros(self.n), np.zeros(self.n))
-        self.xs: list[tuple[np.ndarray, np.ndarray]] | None = None
+        self.zs: list[tuple[np.ndarray, np.ndarray]] | None = None
         self.last: dict[str, Any] = {}
         self.step_info = {}
 
@@ -264,7 +284,8 @@ class DistributedCoordinator:
         -------
         dict with ``objective`` (the sum of the agents' own costs at the last iterate [EUR]),
         ``iterations``, ``residual_kw`` (the largest imbalance of a balance in a step),
-        ``converged``, ``solve_s``, ``x`` (every agent's exchange, hub first), ``xbar``, ``u``
+        ``converged``, ``solve_s``, ``x`` (every agent's last exchange, hub first), ``z`` (the balanced
+        exchanges), ``u`` (the scaled prices), ``hub`` (the hub agent's plan)
         """
         check_mpc_view(self.name, view, len(self.houses))
         o = self.options
@@ -272,48 +293,73 @@ class DistributedCoordinator:
         self._prepare(view)
         agents = [self.hub_agent, *self.agents]
         n_agents = len(agents)
-        if self.xs is None:  # the first decision: electricity at the day-ahead buy prices, H2 free
-            xs = [(np.zeros(self.n), np.zeros(self.n)) for _ in agents]
+        if self.zs is None:  # the first decision: electricity at the day-ahead buy prices, H2 free
+            zs = [(np.zeros(self.n), np.zeros(self.n)) for _ in agents]
             prices = np.resize(np.asarray(view.prices_buy_24h or (view.price_buy_eur_per_kwh,), dtype=float), self.n)
             self.u = (self.info.dt_h * prices / W_PER_KW / self.rho_w, np.zeros(self.n))
-        else:  # warm start: the last decision's exchanges and prices, one step on
-            xs = [tuple(_shift(a) for a in x) for x in self.xs]
+        else:  # warm start: the last decision's balanced exchanges and prices, one step on
+            zs = [tuple(_shift(a) for a in z) for z in self.zs]
             self.u = tuple(_shift(a) for a in self.u)
-        xbar = tuple(sum(x[c] for x in xs) / n_agents for c in range(2))
         tol_w = o.tol_kw * W_PER_KW
+        alpha = o.relaxation
         residual = math.inf
         converged = False
         iterations = 0
+        xs = zs
         while iterations < o.max_iterations:
             iterations += 1
-            new = []
-            for agent, x in zip(agents, xs):
-                price = tuple(self.rho_w * self.u[c] for c in range(2))
-                new.append(agent.respond(price, tuple(x[c] - xbar[c] for c in range(2))))
-            new_bar = tuple(sum(x[c] for x in new) / n_agents for c in range(2))
-            self.u = tuple(self.u[c] + new_bar[c] for c in range(2))
-            residual = max(float(np.max(np.abs(new_bar[c]))) * n_agents for c in range(2))
-            moved = max(float(np.max(np.abs((nx[c] - new_bar[c]) - (x[c] - xbar[c]))))
-                        for nx, x in zip(new, xs) for c in range(2))
-            xs, xbar = new, new_bar
-            if residual <= tol_w and moved <= tol_w:
+            price = tuple(self.rho_w * self.u[c] for c in range(2))
+            xs = [agent.respond(price, z) for agent, z in zip(agents, zs)]
+            residual = max(float(np.max(np.abs(sum(x[c] for x in xs)))) for c in range(2))
+            # over-relaxation (Boyd et al. 2011, section 3.4.3), then the projection onto the balances
+            xh = [tuple(alpha * x[c] + (1.0 - alpha) * z[c] for c in range(2)) for x, z in zip(xs, zs)]
+            hbar = tuple(sum(x[c] for x in xh) / n_agents for c in range(2))
+            new_z = [tuple(x[c] - hbar[c] for c in range(2)) for x in xh]
+            self.u = tuple(self.u[c] + hbar[c] for c in range(2))
+            moved = max(float(np.max(np.abs(nz[c] - z[c]))) for nz, z in zip(new_z, zs) for c in range(2))
+            zs = new_z
+            # both residuals relative to their tolerances: the balances' in W, the prices' change
+            # rho * moved (the dual residual) in EUR/kWh
+            r_rel = residual / tol_w
+            s_rel = self.rho_w * moved * W_PER_KW / o.tol_eur_per_kwh
+            if r_rel <= 1.0 and s_rel <= 1.0:
                 converged = True
                 break
-        self.xs = xs
+            if o.rho_adapt_factor > 1.0:
+                self._adapt(r_rel, s_rel, agents)
+        self.zs = zs
         objective = sum(agent.cost for agent in agents)
         out = {"objective": objective, "iterations": iterations, "residual_kw": residual / W_PER_KW,
-               "converged": converged, "solve_s": time.perf_counter() - t0, "x": xs, "xbar": xbar, "u": self.u,
+               "converged": converged, "solve_s": time.perf_counter() - t0, "x": xs, "z": zs, "u": self.u,
                "hub": self.hub.plan(self.hub_agent.solution, self.hub_agent.form)}
         self.last = out
         return out
 
+    def _adapt(self, r_rel: float, s_rel: float, agents: list[_Agent]) -> None:
+        """Residual balancing (Boyd et al. 2011, section 3.4.1, each residual relative to its tolerance):
+        ``rho`` times ``rho_adapt_factor`` while the primal residual exceeds the dual one
+        ``rho_adapt_ratio`` times, divided by it in the opposite case, within 1e-3..1e3 of the
+        configured ``rho``; the scaled prices follow so that the prices ``rho u`` stay."""
+        o = self.options
+        if r_rel > o.rho_adapt_ratio * s_rel:
+            factor = o.rho_adapt_factor
+        elif s_rel > o.rho_adapt_ratio * r_rel:
+            factor = 1.0 / o.rho_adapt_factor
+        else:
+            return
+        rho = self.rho_w * factor
+        if not self.rho_min_w <= rho <= self.rho_max_w:
+            return
+        self.rho_w = rho
+        self.u = tuple(u / factor for u in self.u)
+        for agent in agents:
+            agent.scale_proximal(factor)
+
     def balanced(self) -> list[dict[str, np.ndarray]]:
-        """Every house's exchange of the last solve made to close the balances: ``x_i - xbar``, as
+        """Every house's balanced exchange of the last solve (the projection ``z`` onto the balances), as
         ``h2_in`` / ``h2_out`` and ``p_buy`` / ``p_sell`` [W]."""
         out = []
-        for x in self.last["x"][1:]:
-            e = x[0] - self.last["xbar"][0]
-            q = x[1] - self.last["xbar"][1]
+        for e, q in self.last["z"][1:]:
             out.append({"p_buy": np.maximum(e, 0.0), "p_sell": np.maximum(-e, 0.0), "h2_in": np.maximum(q, 0.0),
                         "h2_out": np.maximum(-q, 0.0)})
         return out

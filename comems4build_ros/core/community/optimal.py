@@ -90,13 +90,13 @@ class HouseModel:
     Parameters
     ----------
     params : the house's plant parameters (its share as its store, no electrolyser)
-    index : the house's position (its names' prefix ``h<index>_``)
+    index : the house's position (its names' prefix ``n<index>_``)
     options : the horizon options (``mpc``: overrides of ``config/mpc.yaml`` section ``mpc``)
     integer_steps : steps whose binaries stay binary (0: the LP relaxation)
     """
 
     def __init__(self, params: Any, index: int, options: HorizonOptions, integer_steps: int | None = None) -> None:
-        model_options: dict[str, Any] = {"prefix": f"h{index}_", "h2_exchange": True}
+        model_options: dict[str, Any] = {"prefix": f"n{index}_", "h2_exchange": True}
         if integer_steps is not None:
             model_options["integer_steps"] = integer_steps
         self.mpc = MPCController(params, {**options.mpc, "observer": "measured"}, model_options)
@@ -268,9 +268,9 @@ class CentralCoordinator:
             mutable += house.model.mutable
         for t in range(n):
             self.prob.addConstraint(self.hub.e0[t] + pulp.lpSum(h.vars["p_buy"][t] - h.vars["p_sell"][t]
-                                                                 for h in self.houses) == 0.0, f"cp_balance_{t}")
+                                                                 for h in self.houses) == 0.0, f"community_e_{t}")
             self.prob.addConstraint(self.hub.q0[t] + pulp.lpSum(h.vars["h2_in"][t] - h.vars["h2_out"][t]
-                                                                 for h in self.houses) == 0.0, f"h2_balance_{t}")
+                                                                 for h in self.houses) == 0.0, f"community_q_{t}")
         self.prob.setObjective(self._objective())
         self.form = MatrixForm(self.prob, mutable)
         self.backend = milp_backend(self.form, self.houses[0].mpc.options, o.time_limit_s, o.mip_rel_gap)
