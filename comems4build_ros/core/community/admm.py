@@ -61,6 +61,7 @@ from comems4build_ros.core.community.optimal import (
     HouseModel,
     HubModel,
     check_mpc_view,
+    plan_dispatch,
     pool_value_eur_per_kwh,
     transfers_from,
 )
@@ -381,8 +382,7 @@ class DistributedCoordinator:
 
     def dispatch(self, view: CommunityView, requests: tuple[Request, ...]) -> Dispatch:
         """The electrolysers at the hub agent's first step; all production to the pool."""
-        p_el = float(self.last["hub"]["p_el"][0]) if self.last.get("hub") else 0.0
-        return Dispatch(p_el if p_el > 1e-3 else 0.0, (0.0,) * len(requests))
+        return plan_dispatch(self.last.get("hub"), len(requests))
 
 
 def _shift(values: np.ndarray) -> np.ndarray:

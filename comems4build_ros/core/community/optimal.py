@@ -219,6 +219,13 @@ def transfers_from(plans: Sequence[Mapping[str, np.ndarray]], view: CommunityVie
     return tuple(m * scale if m > 0.0 else m for m in out)
 
 
+def plan_dispatch(hub_plan: Mapping[str, np.ndarray] | None, n_houses: int) -> Dispatch:
+    """The hub's dispatch of a plan: the electrolysers at its first step (off without a plan, and below
+    1 mW, a solver's zero); all production to the pool (the plan's moves share it out)."""
+    p_el = float(hub_plan["p_el"][0]) if hub_plan else 0.0
+    return Dispatch(p_el if p_el > 1e-3 else 0.0, (0.0,) * n_houses)
+
+
 def check_mpc_view(name: str, view: CommunityView, n_houses: int) -> None:
     """Refuse a view without the houses' MPC-level observations (a loop that does not give them)."""
     if len(view.observations) != n_houses:
@@ -341,5 +348,4 @@ class CentralCoordinator:
 
     def dispatch(self, view: CommunityView, requests: tuple[Request, ...]) -> Dispatch:
         """The electrolysers at the plan's first step (nothing without a plan); all production to the pool."""
-        p_el = float(self.last["hub"]["p_el"][0]) if self.last.get("hub") else 0.0
-        return Dispatch(p_el if p_el > 1e-3 else 0.0, (0.0,) * len(requests))
+        return plan_dispatch(self.last.get("hub"), len(requests))
