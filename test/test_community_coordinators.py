@@ -108,12 +108,20 @@ def test_distributed_reaches_the_central_optimum_on_three_houses(tmp_path: Path)
     view = _views(community)[0]
     central = make_coordinator("central", info, {"mip_rel_gap": 1e-4}).solve(view)
     relaxed = make_coordinator("central", info, {"relaxed": True}).solve(view)
-    admm = make_coordinator("distributed", info).solve(view)
+    distributed = make_coordinator("distributed", info)
+    admm = distributed.solve(view)
     assert central["optimal"] and admm["converged"] and admm["residual_kw"] <= 0.01
-    # the ADMM's fixed point is the LP relaxation's optimum; that is within 1 % of the MILP's
-    assert abs(admm["objective"] - relaxed["objective"]) <= 5e-3 * abs(relaxed["objective"])
-    assert abs(admm["objective"] - central["objective"]) <= 1e-2 * abs(central["objective"])
     assert relaxed["objective"] <= central["objective"] + 1e-6
+    # the ADMM's fixed point is the LP relaxation's optimum
+    assert abs(admm["objective"] - relaxed["objective"]) <= 5e-3 * abs(relaxed["objective"])
+    # the houses' integer plan at its prices costs within 1 % of the central MILP's optimum
+    prices = distributed.u
+    integer = distributed.recover(view)
+    assert integer["converged"] and integer["residual_kw"] <= 0.01
+    assert abs(integer["objective"] - central["objective"]) <= 1e-2 * abs(central["objective"])
+    # and leaves the agents relaxed and the decision's prices as they were
+    assert all(v.lowBound == 0 and v.upBound == 1 for h in distributed.houses for v in h.model.v["s_fc"])
+    assert all(np.array_equal(a, b) for a, b in zip(prices, distributed.u))
 
 
 def test_central_refuses_above_its_limit(tmp_path: Path, capsys) -> None:

@@ -264,6 +264,7 @@ class DistributedCoordinator:
             house.plan = None
         self.u = (np.zeros(self.n), np.zeros(self.n))
         self.zs: list[tuple[np.ndarray, np.ndarray]] | None = None
+        self._milps: list[tuple[HouseModel, Any]] | None = None
         self.last: dict[str, Any] = {}
         self.step_info = {}
 
@@ -289,11 +290,9 @@ class DistributedCoordinator:
         exchanges), ``u`` (the scaled prices), ``hub`` (the hub agent's plan)
         """
         check_mpc_view(self.name, view, len(self.houses))
-        o = self.options
         t0 = time.perf_counter()
         self._prepare(view)
         agents = [self.hub_agent, *self.agents]
-        n_agents = len(agents)
         if self.zs is None:  # the first decision: electricity at the day-ahead buy prices, H2 free
             zs = [(np.zeros(self.n), np.zeros(self.n)) for _ in agents]
             prices = np.resize(np.asarray(view.prices_buy_24h or (view.price_buy_eur_per_kwh,), dtype=float), self.n)
@@ -301,6 +300,15 @@ class DistributedCoordinator:
         else:  # warm start: the last decision's balanced exchanges and prices, one step on
             zs = [tuple(_shift(a) for a in z) for z in self.zs]
             self.u = tuple(_shift(a) for a in self.u)
+        out = self._iterate(agents, zs)
+        out["solve_s"] = time.perf_counter() - t0
+        self.last = out
+        return out
+
+    def _iterate(self, agents: list[_Agent], zs: list[tuple[np.ndarray, np.ndarray]]) -> dict[str, Any]:
+        """The ADMM's iterations from the balanced exchanges ``zs`` and the prices ``u`` (module docstring)."""
+        o = self.options
+        n_agents = len(agents)
         tol_w = o.tol_kw * W_PER_KW
         alpha = o.relaxation
         residual = math.inf
@@ -329,12 +337,9 @@ class DistributedCoordinator:
             if o.rho_adapt_factor > 1.0:
                 self._adapt(r_rel, s_rel, agents)
         self.zs = zs
-        objective = sum(agent.cost for agent in agents)
-        out = {"objective": objective, "iterations": iterations, "residual_kw": residual / W_PER_KW,
-               "converged": converged, "solve_s": time.perf_counter() - t0, "x": xs, "z": zs, "u": self.u,
-               "hub": self.hub.plan(self.hub_agent.solution, self.hub_agent.form)}
-        self.last = out
-        return out
+        return {"objective": sum(agent.cost for agent in agents), "iterations": iterations,
+                "residual_kw": residual / W_PER_KW, "converged": converged, "x": xs, "z": zs, "u": self.u,
+                "hub": self.hub.plan(self.hub_agent.solution, self.hub_agent.form)}
 
     def _adapt(self, r_rel: float, s_rel: float, agents: list[_Agent]) -> None:
         """Residual balancing (Boyd et al. 2011, section 3.4.1, each residual relative to its tolerance):
@@ -363,6 +368,72 @@ class DistributedCoordinator:
         for e, q in self.last["z"][1:]:
             out.append({"p_buy": np.maximum(e, 0.0), "p_sell": np.maximum(-e, 0.0), "h2_in": np.maximum(q, 0.0),
                         "h2_out": np.maximum(-q, 0.0)})
+        return out
+
+    def recover(self, view: CommunityView) -> dict[str, Any]:
+        """An integer plan from the last solve, for comparing with the central MILP's optimum on the same view.
+
+        Every house solves its own MILP (its MPC's, binaries kept where the MPC keeps them, its
+        relaxed tail relaxed) once at the converged prices of electricity and H2, the hub its
+        electrolysers as integer modules; each agent then fixes those binaries and its modules to
+        the answers, and the ADMM runs again from the converged
+        prices and exchanges. The result is a plan of the community's MILP (its integer variables
+        integral, its balances closed to the tolerance), found by the houses themselves; its
+        ``objective`` is the agents' costs at it [EUR]. The agents' binaries are freed again
+        afterwards. Call after :meth:`solve` on the same view.
+
+        Returns
+        -------
+        dict as :meth:`solve`'s, with ``solve_s`` of the MILPs and the second ADMM
+        """
+        t0 = time.perf_counter()
+        o = self.options
+        if self._milps is None:  # the houses' MILPs and the hub's, built once
+            mpc = self.houses[0].mpc.options
+            self._milps = [(h, milp_backend(h.model.form, mpc)) for h in
+                           (HouseModel(p, i, o) for i, p in enumerate(self.info.house_params))]
+            hub = HubModel(self.info, self.n, o, integer=True)
+            hub.prob.setObjective(hub.objective)
+            self._milps.append((hub, milp_backend(MatrixForm(hub.prob), mpc)))
+        price = [self.rho_w * u for u in self.u]
+        fixed: list[Any] = []
+        for (house, backend), agent_house, obs in zip(self._milps[:-1], self.houses, view.observations):
+            house.prepare(obs)
+            obj, v = house.model.prob.objective, house.vars
+            for t in range(self.n):
+                for var, sign, c in ((v["p_buy"][t], 1.0, 0), (v["p_sell"][t], -1.0, 0), (v["h2_in"][t], 1.0, 1),
+                                     (v["h2_out"][t], -1.0, 1)):
+                    obj[var] += sign * float(price[c][t])
+            raw = backend.solve()
+            if raw.x is None:
+                return {"objective": math.nan, "solve_s": time.perf_counter() - t0, "converged": False}
+            plan = house.values(raw.x, backend.form)
+            for name in house.model.binary_names():  # the steps the MPC keeps integral (its relaxed tail stays)
+                for var, milp_var, value in zip(agent_house.model.v[name], house.model.v[name], plan[name]):
+                    if milp_var.cat in (pulp.LpInteger, pulp.LpBinary):
+                        fixed.append((var, var.lowBound, var.upBound))
+                        var.lowBound = var.upBound = float(round(value))
+        hub, backend = self._milps[-1]
+        hub.update(view, pool_value_eur_per_kwh(view.observations[0], self.houses[0]))
+        for t in range(self.n):
+            hub.objective[hub.e0[t]] = float(price[0][t])
+            hub.objective[hub.q0[t]] = float(price[1][t])
+        raw = backend.solve()
+        if raw.x is None:
+            return {"objective": math.nan, "solve_s": time.perf_counter() - t0, "converged": False}
+        for var, value in zip(self.hub.m, hub.plan(raw.x, backend.form)["m"]):
+            fixed.append((var, var.lowBound, var.upBound))
+            var.lowBound = var.upBound = float(round(value))
+        state = (self.u, self.zs, self.rho_w)
+        try:
+            for agent in (self.hub_agent, *self.agents):
+                agent.base()
+            out = self._iterate([self.hub_agent, *self.agents], self.zs)
+        finally:  # the decision's own prices and exchanges stay the next decision's warm start
+            for var, low, up in fixed:
+                var.lowBound, var.upBound = low, up
+            self.u, self.zs, self.rho_w = state
+        out["solve_s"] = time.perf_counter() - t0
         return out
 
     def allot(self, view: CommunityView) -> Allotment:
