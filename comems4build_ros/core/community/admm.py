@@ -169,6 +169,7 @@ class _Agent:
                       for vars_ in pair] for pair in self.vars]
         raw = self.backend.solve()  # through the solver layer: its options, a new instance, a first basis
         self.highs = self.backend.h
+        self.time_limit_s = float(getattr(self.backend, "options", {}).get("time_limit", 0.0) or 0.0)
         if raw.x is None:
             raise RuntimeError(f"coordinator 'distributed': an agent's problem has no solution "
                                f"({raw.error or raw.sol_status})")
@@ -198,6 +199,8 @@ class _Agent:
         for rows, target in zip(self.row_index, centre):
             c = np.asarray(target, dtype=float)
             h.changeRowsBounds(len(rows), rows, c, c)
+        if self.time_limit_s:  # HiGHS counts an instance's time over all its runs: the limit per solve
+            h.setOptionValue("time_limit", h.getRunTime() + self.time_limit_s)
         h.run()
         info = h.getInfo()
         if int(info.primal_solution_status) != _FEASIBLE:  # a warm start that failed: once more from scratch
