@@ -50,7 +50,7 @@ from comems4build_ros.core.community.plant import CommunityPlant, ConnectionFlow
 from comems4build_ros.core.community.spec import Community
 from comems4build_ros.core.config import W_PER_KW
 from comems4build_ros.core.ems import make_controller
-from comems4build_ros.core.ems.base import Observation
+from comems4build_ros.core.ems.base import PRICE_WINDOW, Observation
 from comems4build_ros.core.loop import (
     HOURS_PER_DAY,
     TIMESERIES_COLUMNS,
@@ -64,6 +64,8 @@ from comems4build_ros.core.loop import (
     record_row,
     write_run,
 )
+from comems4build_ros.core.models.electrolyser import ElectrolyserTable
+from comems4build_ros.core.scenario.comfort import heating_season_days
 from comems4build_ros.core.types import Flows, PlantState
 from comems4build_ros.files.outputs import atomic_dir
 
@@ -109,10 +111,13 @@ def _hub_report(plant: CommunityPlant, hub: HubState) -> HubReport:
 def community_info(community: Community, plant: CommunityPlant) -> CommunityInfo:
     """Return the fixed figures a coordinator is built with."""
     bank = plant.hub.bank
-    dt_h = community.hub.dt_h
+    hub = community.hub
+    dt_h = hub.dt_h
+    el = ElectrolyserTable(hub.electrolyser.model_copy(update={"n_modules": 1}))
     return CommunityInfo(tuple(h.name for h in community.houses), community.shares_wh, dt_h,
                          int(round(HOURS_PER_DAY / dt_h)), plant.hub.e_wh, bank.n, bank.p_module_min_w,
-                         bank.p_module_max_w)
+                         bank.p_module_max_w, hub.loh_min, hub.loh_max, float(el.efficiency(1.0)),
+                         tuple(h.plant_params for h in community.houses))
 
 
 def simulate_community(
@@ -152,6 +157,9 @@ def simulate_community(
     exos = [exogenous_series(h.scenario, h.plant_params) for h in houses]
     builders = [ObservationBuilder(h.scenario, h.params, c.info_level, e, forecast) for h, c, e in
                 zip(houses, ctrls, exos)]
+    coord_builders = ([ObservationBuilder(h.scenario, h.params, "mpc", e, forecast) for h, e in zip(houses, exos)]
+                      if getattr(coord, "info_level", "hub") == "mpc" else [])
+    public = _public_series(community)
     n_steps = community.scenario.n_steps
     time = community.scenario.time[:n_steps]
     times = [t.isoformat() for t in time]
@@ -170,8 +178,11 @@ def simulate_community(
     ems_s = coord_s = 0.0
     n = len(houses)
     for k in range(n_steps):
+        observations = tuple(b.build(k, s) for b, s in zip(coord_builders, states))
         view = CommunityView(k, times[k], day[k], k == 0 or day[k] != day[k - 1], info.steps_per_day,
-                             _hub_report(plant, hub), _house_reports(houses, states, floors, own_dloh, prev))
+                             _hub_report(plant, hub), _house_reports(houses, states, floors, own_dloh, prev),
+                             public["buy"][k], tuple(public["buy"][k:k + PRICE_WINDOW]), public["sell"][k],
+                             public["to_season"][k], observations)
         t0 = _time.perf_counter()
         allot = coord.allot(view)
         coord_allot = _time.perf_counter() - t0
@@ -228,6 +239,21 @@ def simulate_community(
     table, summary = evaluate_community(community, coord.name, ctrls[0].name, results, hub_ts, timing, sharing_file,
                                         tariff_file)
     return CommunityResult(results, hub_ts, table, summary)
+
+
+def _public_series(community: Community) -> dict[str, list[float]]:
+    """Return the community's public figures per step.
+
+    These are the tariff (the buy prices padded by a day for the day-ahead window, as
+    :class:`~comems4build_ros.core.loop.ObservationBuilder` pads them) and the days to the next
+    heating season.
+    """
+    sc = community.scenario
+    sim = community.houses[0].params.simulation
+    buy = sc.price_buy_eur_per_kwh.tolist()
+    to_season, _ = heating_season_days(sc.time, sim.heating_season_start, sim.heating_season_end)
+    return {"buy": buy + [buy[-1]] * PRICE_WINDOW, "sell": sc.price_sell_eur_per_kwh.tolist(),
+            "to_season": np.asarray(to_season, dtype=float).tolist()}
 
 
 def _check_lengths(coord: Coordinator, what: str, n: int, **values: tuple[float, ...]) -> None:
