@@ -361,8 +361,8 @@ def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
         if name == "building":  # energyplus:FILE.idf, fmu:FILE.fmu name a file; rc and energyplus none
             values = [v.partition(":")[2] for v in values if v.partition(":")[2]]
         if name == "from_runs":
-            values = [str(Path(v) / sub) for v in values for sub in ("runs", "compare.json", "reproduce.json",
-                                                                        "validation.json")]
+            values = [str(Path(v) / sub) for v in values
+                      for sub in ("runs", "compare.json", "reproduce.json", "validation.json", "size_community.json")]
         if values:
             out["BAG" if name == "bag" else f"--{name.replace('_', '-')}"] = values
     return out
