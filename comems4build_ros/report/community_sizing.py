@@ -50,6 +50,7 @@ from comems4build_ros.study.community_sizing import (  # noqa: E402
     community_cycle,
     household_costs,
     hub_annual_costs,
+    run_weeks,
     smallest_closing,
 )
 
@@ -128,7 +129,7 @@ def hub_households(folder: Path, meta: Mapping[str, Any], costs: economics.Costs
         table = _csv(run / "houses.csv", "a community run's houses", index_col="house")
         table.index = table.index.astype(str)
         own = {name: _json(run / "houses" / name / "summary.json", "a house's summary") for name in houses}
-        weeks = float(next(iter(own.values()))["weeks"])
+        weeks = run_weeks(summary, float(meta["dt_h"]))
         capital = hub_annual_costs(size, float(summary["el_module_hours"]), weeks, costs)
         closes, why = community_cycle(summary, own)
         facts.append({"arm": "hub", "hub_kwh": size.store_kwh, "modules": size.modules, "closes": closes, "why": why,
@@ -142,7 +143,7 @@ def hub_households(folder: Path, meta: Mapping[str, Any], costs: economics.Costs
                 part = float(house["weight"]) / total_weight
                 sizes = {**house["sizes"], "el_modules": 0, "h2_kwh": 0.0}
                 c = household_costs(sizes, own[name], float(table.loc[name, f"cost_eur_{rule}"]), costs,
-                                    float(house["usable_battery_kwh"]), 0.0, capital, part)
+                                    float(house["usable_battery_kwh"]), weeks, 0.0, capital, part)
                 use = float(table.loc[name, "consumption_kwh"]) + float(table.loc[name, f"hub_kwh_{rule}"])
                 ss = float(table.loc[name, f"self_sufficiency_{rule}"])
                 h_closes, h_why = economics.cycle_closes(own[name])
@@ -207,7 +208,8 @@ def isolated_households(folder: Path, meta: Mapping[str, Any], costs: economics.
                 house = houses[name]
                 sizes = {**house["sizes"], "h2_kwh": float(iso["store_kwh"])}
                 c = household_costs(sizes, own[name], float(settled[rule].houses.loc[name, "cost_eur"]), costs,
-                                    float(house["usable_battery_kwh"]), float(alone[name]["el_working_hours"]))
+                                    float(house["usable_battery_kwh"]), run_weeks(alone[name], dt_h),
+                                    float(alone[name]["el_working_hours"]))
                 rows.append({**c, "arm": "isolated", "hub_kwh": float(hub_kwh), "modules": modules, "rule": rule,
                              "house": name, "h2_kwh": float(iso["store_kwh"]),
                              "el_modules": int(house["sizes"]["el_modules"]), "self_sufficiency": float(ss[name]),

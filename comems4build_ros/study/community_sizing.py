@@ -29,6 +29,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from comems4build_ros.core import economics
+from comems4build_ros.core.kpi import HOURS_PER_WEEK
 
 #: The two arms of the comparison.
 ARMS = ("isolated", "hub")
@@ -77,8 +78,17 @@ def hub_annual_costs(size: HubSize, module_hours: float, weeks: float, costs: ec
     return economics.annual_costs(sizes, summary, costs, 0.0)
 
 
+def run_weeks(community: Mapping[str, Any], dt_h: float) -> float:
+    """The length of a community run in weeks, from its ``community.json`` (``steps``) [-].
+
+    A house's ``summary.json`` counts its weekly rows (a partial week as one); the annual
+    figures scale the run by its length.
+    """
+    return float(community["steps"]) * dt_h / HOURS_PER_WEEK
+
+
 def household_costs(sizes: Mapping[str, float], summary: Mapping[str, Any], energy_eur: float,
-                    costs: economics.Costs, usable_battery_kwh: float, el_hours: float = 0.0,
+                    costs: economics.Costs, usable_battery_kwh: float, weeks: float, el_hours: float = 0.0,
                     hub: Mapping[str, float] | None = None, hub_part: float = 0.0) -> dict[str, float]:
     """One household's annual cost under one rule set [EUR/a].
 
@@ -86,11 +96,11 @@ def household_costs(sizes: Mapping[str, float], summary: Mapping[str, Any], ener
     ----------
     sizes : its components (``pv_kwp``, ``battery_kwh``, ``fc_kw``; ``el_modules`` and ``h2_kwh``
         of its own H2 system, 0 with a hub)
-    summary : its house's run summary (``weeks``, ``fc_working_hours``, ``fc_toggles``,
-        ``bess_charged_kwh_total``)
+    summary : its house's run summary (``fc_working_hours``, ``fc_toggles``, ``bess_charged_kwh_total``)
     energy_eur : its energy cost over the run under the rule set (meter and part of the hub) [EUR]
     costs : the cost figures (``config/costs.yaml``)
     usable_battery_kwh : its battery's usable capacity [kWh]
+    weeks : the run's length (:func:`run_weeks`) [-]
     el_hours : working hours of its own electrolyser over the run [h]
     hub : :func:`hub_annual_costs` of the hub it shares (None: isolated)
     hub_part : its part of the hub's annuity and O&M [-]
@@ -101,7 +111,7 @@ def household_costs(sizes: Mapping[str, float], summary: Mapping[str, Any], ener
     ``hub_annuity_eur_a`` and ``hub_om_eur_a`` (its part), ``total_eur_a``, ``invest_eur``
     (its own and its part of the hub's), the wear per year and the lives used.
     """
-    run = {**summary, "cost_net_eur": energy_eur, "el_working_hours": el_hours}
+    run = {**summary, "weeks": weeks, "cost_net_eur": energy_eur, "el_working_hours": el_hours}
     own = economics.annual_costs(sizes, run, costs, usable_battery_kwh)
     hub_annuity = hub_part * hub["annuity_eur_a"] if hub else 0.0
     hub_om = hub_part * hub["om_eur_a"] if hub else 0.0

@@ -98,6 +98,7 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.core.community.spec import build_community, load_community, resized
     from comems4build_ros.core.config import W_PER_KW, load_plant_params
     from comems4build_ros.core.economics import load_costs
+    from comems4build_ros.core.scenario.csvio import ScenarioError
     from comems4build_ros.report.community_sizing import FILES, MANIFEST, write_outputs
     from comems4build_ros.study.community import CommunityTask
     from comems4build_ros.study.community_sizing import HubSize, isolated_name, shares_kwh
@@ -128,7 +129,11 @@ def run(args: argparse.Namespace) -> int:
     check_start(args.start, load_plant_params(args.config, overrides))
     source = str(args.community)
     spec = load_community(args.community)
-    base = build_community(spec, "year", args.config, overrides, source=source, start=args.start, weeks=args.weeks)
+    try:
+        base = build_community(spec, "year", args.config, overrides, source=source, start=args.start,
+                               weeks=args.weeks)
+    except ScenarioError as exc:
+        raise UsageError(f"--start/--weeks: {exc}") from None
     kwhs, modules = _hub_values(args, base.hub.e_max_wh / W_PER_KW, int(base.hub.electrolyser.n_modules))
     sizes = [HubSize(k, m) for k in kwhs for m in modules]
     weights = {h.name: h.h2_weight for h in spec.houses}
