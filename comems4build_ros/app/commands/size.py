@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -16,6 +15,7 @@ from comems4build_ros.app.commands.options import (
     WEEKS,
     add_study_options,
     ems_help,
+    parse_values,
 )
 
 #: What ``size`` writes into its output directory.
@@ -50,31 +50,6 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     add_study_options(parser, "config/plant.yaml and config/year.yaml")
     size_community.add_arguments(parser)
     parser.add_argument("--out", metavar="DIR", default=None, help="output directory (required unless --from-runs)")
-
-
-def parse_values(text: str, option: str, integer: bool) -> list[float]:
-    """``"6,9.6,12"`` of a size option -> its values (positive; integers >= 0 for ``integer``), each once."""
-    from comems4build_ros.app.cli import UsageError
-
-    values: list[float] = []
-    for item in text.split(","):
-        item = item.strip()
-        try:
-            v = float(item)
-        except ValueError:
-            raise UsageError(f"{option} '{text}': '{item}' is not a number") from None
-        if not math.isfinite(v):
-            raise UsageError(f"{option} '{text}': '{item}' is not a finite number")
-        if integer:
-            if v != int(v) or v < 0:
-                raise UsageError(f"{option} '{text}': '{item}' is not an integer >= 0")
-            v = int(v)
-        elif v <= 0:
-            raise UsageError(f"{option} '{text}': '{item}' must be > 0")
-        if v in values:
-            raise UsageError(f"{option} '{text}': {item} is given twice")
-        values.append(v)
-    return values
 
 
 def run(args: argparse.Namespace) -> int:

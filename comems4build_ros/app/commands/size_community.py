@@ -19,7 +19,7 @@ import time
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.app.commands.options import UsageError, output_dir, study_executor
+from comems4build_ros.app.commands.options import UsageError, output_dir, parse_values, study_executor
 
 #: The coordinator of the hub when ``--coordinator`` is not given.
 DEFAULT_COORDINATOR = "rule"
@@ -73,8 +73,6 @@ def refuse_without_community(args: argparse.Namespace) -> None:
 
 
 def _hub_values(args: argparse.Namespace, default_kwh: float, default_modules: int) -> tuple[list[float], list[int]]:
-    from comems4build_ros.app.commands.size import parse_values
-
     kwh = parse_values(args.hub_kwh, "--hub-kwh", False) if args.hub_kwh is not None else [default_kwh]
     modules = parse_values(args.hub_modules, "--hub-modules", True) if args.hub_modules is not None \
         else [default_modules]
