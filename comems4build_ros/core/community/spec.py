@@ -138,6 +138,29 @@ def load_community(path: str | Path) -> CommunitySpec:
     return parse_model(CommunitySpec, doc["community"], str(p))
 
 
+def resized(spec: CommunitySpec, hub: Mapping[str, Any] | None = None, house: str | None = None,
+            source: str = "community file") -> CommunitySpec:
+    """Return the community of ``spec`` with the hub fields of ``hub`` replaced, or one of its houses alone.
+
+    ``house`` keeps only that house: with ``hub`` of ``store_kwh`` its own store and
+    ``electrolyser_modules`` None (its own modules) the house's H2 system is its own, and
+    the rule-based coordinator runs it as an isolated house (docs/community.md, "Checks").
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and the field: an unknown hub field, a value out of its range, a house
+        the file does not hold.
+    """
+    data = spec.model_dump()
+    data["hub"].update(dict(hub or {}))
+    if house is not None:
+        data["houses"] = [h for h in data["houses"] if h["name"] == house]
+        if not data["houses"]:
+            raise ConfigError(f"{source}: no house '{house}' (houses: {', '.join(h.name for h in spec.houses)})")
+    return parse_model(CommunitySpec, data, source)
+
+
 @dataclass(frozen=True)
 class HubParams:
     """The hub's figures (:mod:`.hub`).
