@@ -59,3 +59,25 @@ def rclpy_context(tmp_path, monkeypatch: pytest.MonkeyPatch, domain_id: int) -> 
     rclpy.init(context=ctx, domain_id=domain_id)
     yield ctx
     rclpy.try_shutdown(context=ctx)
+
+
+# ---------------------------------------------------------------------- the fast lane
+#: Tests measured at 3 s or more on the 2-core machine (``tools/test_durations.py`` writes
+#: the list from a full run's JUnit file); they are marked ``slow`` at collection, so
+#: ``tools/test.sh --quick`` (``-m "(not ros and not slow) or quick"``) leaves them out.
+SLOW_LIST = Path(__file__).with_name("slow_tests.txt")
+
+
+def _slow_ids() -> set[str]:
+    if not SLOW_LIST.is_file():
+        return set()
+    lines = SLOW_LIST.read_text(encoding="utf-8").splitlines()
+    return {line.split("#", 1)[0].strip() for line in lines if line.split("#", 1)[0].strip()}
+
+
+def pytest_collection_modifyitems(config: pytest.Config, items: list[pytest.Item]) -> None:
+    """Mark the tests named in ``slow_tests.txt`` as ``slow`` (the fast lane leaves them out)."""
+    slow = _slow_ids()
+    for item in items:
+        if item.nodeid in slow or item.nodeid.split("::", 1)[0] in slow:
+            item.add_marker(pytest.mark.slow)

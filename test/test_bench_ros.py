@@ -8,6 +8,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from waits import BUDGET_S
 
 pytestmark = pytest.mark.ros
 
@@ -16,7 +17,7 @@ CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import m
 
 def test_bench_ros_runs_both_layouts_and_reports_no_loss(tmp_path: Path) -> None:
     out = subprocess.run([*CLI, "bench", "ros", "--weeks", "0.1", "--houses", "1,2", "--out", str(tmp_path)],
-                         capture_output=True, text=True, timeout=600)
+                         capture_output=True, text=True, timeout=BUDGET_S)
     assert out.returncode == 0, out.stderr
     text = out.stdout
     # the one-house run in both layouts equals the in-process run and lost nothing

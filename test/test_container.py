@@ -84,7 +84,7 @@ def test_three_houses_in_the_role_layout_equal_in_process(tmp_path: Path) -> Non
 
     out = tmp_path / "run"
     launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, houses=3, layout="role",
-                         houses_per_recorder=2, timeout_s=BUDGET_S))
+                         houses_per_recorder=2, timeout_s=BUDGET_S, plant_node_params={"step_timeout_s": BUDGET_S}))
     logs = sorted(p.name for p in (out / "log").glob("*.log"))
     assert logs == ["role_ems.log", "role_feed.log", "role_plant.log", "role_recorder_0.log", "role_recorder_1.log"]
     assert_houses_equal_in_process(out, 3)
@@ -100,7 +100,8 @@ def test_three_houses_in_two_containers_equal_in_process(tmp_path: Path) -> None
     from comems4build_ros.run.plan import LaunchOptions
 
     out = tmp_path / "run"
-    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, houses=3, containers=2, timeout_s=BUDGET_S))
+    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, houses=3, containers=2, timeout_s=BUDGET_S,
+                               plant_node_params={"step_timeout_s": BUDGET_S}))
     assert sorted(p.name for p in (out / "log").glob("*.log")) == ["container_0.log", "container_1.log"]
     log0 = (out / "log" / "container_0.log").read_text()
     for ns in ("house_0", "house_2"):

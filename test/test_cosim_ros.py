@@ -6,6 +6,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from waits import BUDGET_S
 
 from comems4build_ros.app.ros2_launch import ARGUMENTS
 from comems4build_ros.core.config import load_plant_params
@@ -21,7 +22,7 @@ STEPS = 48
 
 def test_energyplus_house_over_ros_equals_in_process(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    launch(LaunchOptions(ems="fuzzy", out=out, steps=STEPS, timeout_s=300, building="energyplus"))
+    launch(LaunchOptions(ems="fuzzy", out=out, steps=STEPS, timeout_s=BUDGET_S, building="energyplus"))
     params = load_plant_params()
     ref = simulate("fuzzy", load_scenario("default", params, None, None, None, STEPS), params, building="energyplus")
     ros = pd.read_csv(out / "timeseries.csv")

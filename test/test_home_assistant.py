@@ -32,6 +32,7 @@ import time
 from pathlib import Path
 
 import pytest
+from waits import BUDGET_S
 
 ROOT = Path(__file__).resolve().parents[1]
 _spec = importlib.util.spec_from_file_location("home_assistant_check", ROOT / "tools" / "home_assistant_check.py")
@@ -47,8 +48,8 @@ def _launch(out: Path, broker: object, topic_map: Path, steps: int, clock: str =
     return subprocess.Popen(cmd, cwd=ROOT, stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True)
 
 
-def _finish(proc: subprocess.Popen[str], timeout_s: float = 600) -> str:
-    text, _ = proc.communicate(timeout=timeout_s)
+def _finish(proc: subprocess.Popen[str]) -> str:
+    text, _ = proc.communicate(timeout=BUDGET_S)
     assert proc.returncode == 0, text[-4000:]
     return text
 
@@ -77,7 +78,7 @@ def house(tmp_path_factory: pytest.TempPathFactory):
 def _publish(broker: object, pw: dict, topic: str, payload: str, retain: bool = True) -> None:
     port = str(broker.port)  # type: ignore[attr-defined]
     subprocess.run(["mosquitto_pub", "-p", port, "-u", hac.EMS_USER, "-P", pw[hac.EMS_USER], "-t", topic, "-m", payload,
-                    *(["-r"] if retain else [])], check=True, timeout=30)
+                    *(["-r"] if retain else [])], check=True, timeout=BUDGET_S)
 
 
 def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
@@ -92,7 +93,7 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
         t_start = time.time()
         proc = _launch(out, broker, topic_map, 24 if i == 0 else 48)
         if i == 1:
-            assert hac.wait_for(lambda: hac.live_step(ha) >= 3, 120.0, 0.1), "the run did not get going"
+            assert hac.wait_for(lambda: hac.live_step(ha) >= 3, BUDGET_S, 0.1), "the run did not get going"
             ha.post("/api/services/number/set_value", {"entity_id": "number.comems4build_battery_power_limit",
                                                        "value": 300})
         text = _finish(proc)
@@ -100,7 +101,7 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
         assert summary["steps"] == (24 if i == 0 else 48) and summary["fallback_steps"] == 0, text[-2000:]
         assert summary["mqtt"]["retained_cleared"] >= (2 if i == 0 else 1)  # the last run's step at least
         run_start = time.strftime("%Y-%m-%dT%H:%M", time.gmtime(t_start))
-        assert hac.wait_for(lambda s=summary: not hac.check_entities(ha.states(), s), 30.0), \
+        assert hac.wait_for(lambda s=summary: not hac.check_entities(ha.states(), s), BUDGET_S), \
             hac.check_entities(ha.states(), summary)
         states = ha.states()
         # the gross purchase cost, as summary.json's cost_eur_total (the net is not what it shows)
@@ -114,7 +115,7 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
     # 3. the user's switch, during a run, across a restart of the bridge, and while no bridge runs
     out = work / "switch_on"
     proc = _launch(out, broker, topic_map, 48)
-    assert hac.wait_for(lambda: hac.live_step(ha) >= 3, 120.0, 0.1), "the run did not get going"
+    assert hac.wait_for(lambda: hac.live_step(ha) >= 3, BUDGET_S, 0.1), "the run did not get going"
     ha.switch("comems4build_forced_fallback", True)
     text = _finish(proc)
     summary = json.loads((out / "summary.json").read_text())
@@ -138,14 +139,14 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
     assert json.loads((out / "summary.json").read_text())["fallback_steps"] == 0
     # 4. a wall-clock run cut, then one whose broker is killed for 1.4 s mid-run
     cut = _launch(work / "wall_cut", broker, topic_map, 48, "wall:3600")
-    assert hac.wait_for(lambda: hac.live_step(ha) >= 3, 120.0, 0.1), "the wall-clock run did not get going"
+    assert hac.wait_for(lambda: hac.live_step(ha) >= 3, BUDGET_S, 0.1), "the wall-clock run did not get going"
     cut.send_signal(signal.SIGINT)
-    cut.communicate(timeout=120)
+    cut.communicate(timeout=BUDGET_S)
     out = work / "wall_restart"
     proc = _launch(out, broker, topic_map, 36, "wall:3600")
-    assert hac.wait_for(lambda: hac.live_step(ha) >= 8, 120.0, 0.1), "the wall-clock run did not get going"
+    assert hac.wait_for(lambda: hac.live_step(ha) >= 8, BUDGET_S, 0.1), "the wall-clock run did not get going"
     broker.kill()
-    time.sleep(1.4)
+    time.sleep(1.4)  # the fault: the broker down for 1.4 s
     broker.start()
     text = _finish(proc)
     summary = json.loads((out / "summary.json").read_text())
@@ -156,7 +157,7 @@ def test_home_assistant_sees_every_run_as_the_summary_says(house) -> None:
     assert len(mqtt.get("setpoints_held_at", [])) == mqtt["setpoints_held"]
     assert len(mqtt.get("fallback_at", [])) == summary["fallback_steps"]
     print("broker restart:", {k: summary.get(k) for k in ("fallback_steps", "fallback_causes", "mqtt")})
-    assert hac.wait_for(lambda s=summary: not hac.check_entities(ha.states(), s), 60.0), \
+    assert hac.wait_for(lambda s=summary: not hac.check_entities(ha.states(), s), BUDGET_S), \
         hac.check_entities(ha.states(), summary)
     # 5. Home Assistant's own view: no warning about the EMS's entities (the lost connection is the test's)
     problems = [p for p in ha.problems_in_log() if "The connection was lost" not in p]

@@ -13,6 +13,7 @@ import sys
 from pathlib import Path
 
 import pytest
+from waits import BUDGET_S
 
 BIN = Path(sys.executable).parent
 WALL_KEYS = {"wall_s", "ems_s", "bag_duration_s", "lost_messages"}
@@ -30,7 +31,7 @@ def test_installed_launch_equals_installed_simulate(tmp_path: Path) -> None:
     if not exe.exists():
         pytest.skip("console script not installed (run tools/setup.sh)")
     env = _env(tmp_path)
-    run = dict(cwd=tmp_path, env=env, capture_output=True, text=True, timeout=300)
+    run = dict(cwd=tmp_path, env=env, capture_output=True, text=True, timeout=BUDGET_S)
     sim = subprocess.run([str(exe), "simulate", "--ems", "rbc", "--weeks", "1", "--out", "sim", "--no-progress"], **run)
     assert sim.returncode == 0, sim.stderr[-2000:]
     ros = subprocess.run([str(exe), "launch", "--ems", "rbc", "--weeks", "1", "--out", "ros", "--no-progress"], **run)

@@ -25,6 +25,9 @@ from comems4build_ros.run.plan import LaunchOptions
 from comems4build_ros.run.supervisor import processes_with_env
 
 pytestmark = pytest.mark.ros
+#: Runs compared with the in-process ones: the plant waits for every command within the budget (a
+#: fallback on a slow step of a loaded machine would be the machine's).
+WAIT = {"step_timeout_s": BUDGET_S}
 TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # not in in-process summaries
 #: ``comems4build`` of this tree (``-m comems4build_ros.app.cli`` would define a second UsageError class).
 CLI = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
@@ -57,7 +60,7 @@ def _same(a: dict, b: dict) -> None:
 def test_launch_fuzzy_equals_in_process_and_bag_opens(tmp_path: Path) -> None:
     out = tmp_path / "run"
     seen: list[tuple[int, int]] = []  # progress reports (recorded steps, total steps; 0 = not known yet)
-    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=36, timeout_s=BUDGET_S,
+    res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=36, timeout_s=BUDGET_S, plant_node_params=WAIT,
                                on_progress=lambda r, n: seen.append((r, n))))
     assert seen and all(n in (0, 36) and 0 <= r <= 36 for r, n in seen)
     assert [r for r, _ in seen] == sorted(r for r, _ in seen)
@@ -95,7 +98,7 @@ def test_two_houses_under_namespaces_with_seeds(tmp_path: Path) -> None:
     from comems4build_ros.core.scenario.settings import load_scenario_settings
 
     out = tmp_path / "run"
-    launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=24, houses=2, timeout_s=BUDGET_S))
+    launch(LaunchOptions(ems="rbc", out=out, weeks=1, steps=24, houses=2, timeout_s=BUDGET_S, plant_node_params=WAIT))
     # more than one house: container processes, one per core, at most one per house (docs/ros_tools.md)
     assert sorted(p.name for p in (out / "log").glob("*.log")) == [
         f"container_{j}.log" for j in range(min(2, os.cpu_count() or 1))]
@@ -275,7 +278,7 @@ def test_two_network_namespaces_give_the_in_process_kpis(tmp_path: Path, capfd: 
         pytest.skip(f"network namespaces unavailable: {reason}")
     out = tmp_path / "run"
     res = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=30, network="netns",
-                               netem="delay 5ms loss 1%", timeout_s=BUDGET_S))
+                               netem="delay 5ms loss 1%", timeout_s=BUDGET_S, plant_node_params=WAIT))
     summary = json.loads((out / "summary.json").read_text())
     _same(summary, _reference("fuzzy", 30))
     assert summary["lost_messages"] == {} and summary["fallback_steps"] == 0

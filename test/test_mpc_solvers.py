@@ -8,10 +8,12 @@ from __future__ import annotations
 import numpy as np
 import pytest
 import test_mpc
+from hypothesis import given, settings
+from hypothesis import strategies as st
 from test_mpc import fc_enumeration, mpc_obs
 
 from comems4build_ros.core.config import ConfigError
-from comems4build_ros.core.ems.mpc import MPCController
+from comems4build_ros.core.ems.mpc import MPCController, horizon
 from comems4build_ros.core.ems.mpc import solvers as solvers_mod
 from comems4build_ros.core.ems.mpc.solvers import gurobi_available
 
@@ -211,3 +213,86 @@ def test_solvers_agree_within_the_mip_gap(params, solver):
             assert ctrl.step_info["fallback"] == 0.0, s
             obj = ctrl.last_result.objective
             assert best - 1e-6 <= obj <= best + gap * abs(best) + 1e-6, (s, obj, best)
+
+
+# ---------------------------------------------------------------------- the same plans on every CPU
+@settings(max_examples=200, derandomize=True, database=None, deadline=None)
+@given(st.floats(min_value=-1e300, max_value=1e300, allow_subnormal=False).filter(lambda v: v != 0.0),
+       st.integers(min_value=8, max_value=40))
+def test_round_bits_rounds_to_bits(x: float, bits: int) -> None:
+    """Rounded to ``bits`` significant bits: within half a step, idempotent, sign kept, and numbers a
+    few ulp apart (another CPU's math library) the same unless they straddle a step's middle."""
+    q = float(horizon.round_bits(x, bits))
+    m, e = np.frexp(x)
+    assert abs(q - x) <= 2.0 ** (e - bits - 1)
+    assert float(horizon.round_bits(q, bits)) == q
+    assert np.sign(q) == np.sign(x) or q == 0.0
+    near = [x]
+    for _ in range(3):
+        near.append(float(np.nextafter(near[-1], np.inf)))
+    rounded = {float(v) for v in horizon.round_bits(np.array(near), bits)}
+    if len(rounded) > 1:  # only at the middle between two steps (round half to even)
+        mids = [(lo + hi) / 2 for lo, hi in zip(sorted(rounded), sorted(rounded)[1:], strict=False)]
+        assert all(min(near) <= mid <= max(near) for mid in mids)
+
+
+def test_round_bits_keeps_zeros_infinities_and_order() -> None:
+    x = np.array([-np.inf, -3.0e5, -1.0 / 3.0, 0.0, 1e-300, 0.1, 2.0 / 3.0, 1.0, 1e5, np.inf])
+    q = horizon.round_bits(x, 20)
+    assert q[0] == -np.inf and q[3] == 0.0 and q[-1] == np.inf
+    assert np.all(np.diff(q) >= 0)  # monotone: a bound below another stays below it
+    assert q[1] == -3.0e5 and q[7] == 1.0 and q[8] == 1e5  # representable in 20 bits: unchanged
+    assert q[2] != x[2] and abs(q[2] - x[2]) <= 2.0 ** -22  # 1/3 = 0.5 * 2**-1: step 2**-21
+    np.testing.assert_array_equal(horizon.round_bits(x, 53), x)  # 53 bits: every float as it is
+
+
+def _nudged_run(seed: int, steps: int) -> list[tuple[float, ...]]:
+    """The MPC's commands over the first ``steps`` of the default scenario, its modelled series
+    (radiation from pvlib's clear sky, the load model) nudged by up to 3 ulp per value (seed 0:
+    as they are), as another CPU's math library gives them."""
+    import dataclasses
+
+    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.loop import simulate
+    from comems4build_ros.core.scenario import resolve_scenario
+
+    params = load_plant_params()
+    scenario = dataclasses.replace(resolve_scenario("default", params, weeks=1), n_steps=steps)
+    if seed:
+        rng = np.random.default_rng(seed)
+        nudged = {}
+        for name in ("ghi_w_m2", "dhi_w_m2", "p_load_w"):
+            x = getattr(scenario, name).copy()
+            for j, k in enumerate(rng.integers(-3, 4, x.size)):
+                for _ in range(abs(int(k)) if x[j] != 0.0 else 0):  # zero stays zero (no negative irradiance)
+                    x[j] = np.nextafter(x[j], np.inf if k > 0 else -np.inf)
+            nudged[name] = x
+        scenario = dataclasses.replace(scenario, **nudged)
+    ts = simulate("mpc", scenario, params).timeseries
+    cmd = [c for c in ts.columns if c.startswith("cmd_")]
+    return [tuple(row) for row in ts[cmd].to_numpy(dtype=float)]
+
+
+#: Steps of the runs below: without the rounding, these nudges change the plan from step 4 on.
+NUDGED_STEPS = 12
+
+
+@pytest.fixture(scope="module")
+def unnudged_commands() -> list[tuple[float, ...]]:
+    return _nudged_run(0, NUDGED_STEPS)
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3])
+def test_the_plans_do_not_depend_on_the_last_bits_of_the_inputs(seed: int, unnudged_commands) -> None:
+    """The MIP search stops at the first plan within the gap, so without the rounding of the
+    horizon's numbers (``horizon.same_on_every_cpu``) last-bit differences of the inputs, as
+    between CPUs (numpy's AVX-512 code paths against glibc's), lead to another plan; with it,
+    the same."""
+    assert _nudged_run(seed, NUDGED_STEPS) == unnudged_commands
+
+
+def test_without_the_rounding_the_nudges_change_the_plans(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The control of the test above: every float as it is (53 bits), the same nudges give another plan."""
+    monkeypatch.setattr(horizon, "FORECAST_BITS", 53)
+    monkeypatch.setattr(horizon, "STATE_BITS", 53)
+    assert _nudged_run(1, NUDGED_STEPS) != _nudged_run(0, NUDGED_STEPS)

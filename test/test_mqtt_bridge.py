@@ -29,6 +29,7 @@ from pathlib import Path
 from typing import Any
 
 import pytest
+from waits import BUDGET_S, Deadline, wait_exit, wait_until
 
 rclpy = pytest.importorskip("rclpy")
 
@@ -98,13 +99,13 @@ class Broker:
     def kill(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
             self.proc.kill()
-            self.proc.wait(10)
+            wait_exit(self.proc, "the broker killed")
 
     def stop(self) -> None:
         if self.proc is not None and self.proc.poll() is None:
             self.proc.send_signal(signal.SIGINT)
             try:
-                self.proc.wait(10)
+                self.proc.wait(BUDGET_S)
             except subprocess.TimeoutExpired:
                 self.kill()
 
@@ -120,7 +121,7 @@ def broker(tmp_path: Path) -> Iterator[Broker]:
 # ---------------------------------------------------------------------- launcher runs
 def test_launch_mqtt_plant_two_weeks_equals_in_process(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    launch(LaunchOptions(ems="fuzzy", out=out, weeks=2, plant="mqtt", timeout_s=900))
+    launch(LaunchOptions(ems="fuzzy", out=out, weeks=2, plant="mqtt", timeout_s=BUDGET_S))
     summary = json.loads((out / "summary.json").read_text())
     _same(summary, _reference(2))
     assert summary["steps"] == 336 and summary["fallback_steps"] == 0 and summary["lost_messages"] == {}
@@ -130,7 +131,7 @@ def test_launch_mqtt_plant_two_weeks_equals_in_process(tmp_path: Path) -> None:
 
 def test_launch_wall_clock_one_week_within_one_percent(tmp_path: Path) -> None:
     out = tmp_path / "run"
-    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, plant="mqtt", clock="wall:3600", timeout_s=900))
+    launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, plant="mqtt", clock="wall:3600", timeout_s=BUDGET_S))
     summary = json.loads((out / "summary.json").read_text())
     ref = _reference(1)
     for name in ("mqtt_bridge", "mqtt_plant"):
@@ -145,29 +146,29 @@ def test_broker_restart_mid_run_loses_no_step(tmp_path: Path, broker: Broker) ->
     out = tmp_path / "run"
     steps_seen: list[int] = []
     watch = MqttLink(load_topic_map(broker_url=broker.url).broker, "test_watch", ["comems4build/step"])
-    watch.start(wait_s=10)
+    assert watch.start(wait_s=BUDGET_S)
     result: dict[str, Any] = {}
 
     def run() -> None:
         try:
             result["res"] = launch(LaunchOptions(ems="fuzzy", out=out, weeks=1, steps=96, plant="mqtt",
-                                                 broker_url=broker.url, timeout_s=600))
+                                                 broker_url=broker.url, timeout_s=BUDGET_S))
         except BaseException as exc:  # reported below
             result["error"] = exc
 
     th = threading.Thread(target=run)
     th.start()
     try:
-        deadline = time.monotonic() + 300
-        while time.monotonic() < deadline and not (steps_seen and steps_seen[-1] >= 30):
+        def thirty_steps() -> bool:
             steps_seen.extend(json.loads(m.payload)["step"] for m in watch.drain() if m.payload)
-            time.sleep(0.02)
-        assert steps_seen and steps_seen[-1] >= 30, "run did not get going"
+            return bool(steps_seen) and steps_seen[-1] >= 30
+
+        wait_until(thirty_steps, "the run at step 30")
         broker.kill()  # mid-run, no goodbye
-        time.sleep(1.0)
+        time.sleep(1.0)  # the fault: the broker down for a second
         broker.start()
     finally:
-        th.join(600)
+        wait_until(lambda: not th.is_alive(), "the launch to end")
         watch.stop()
     assert "error" not in result, result.get("error")
     summary = json.loads((out / "summary.json").read_text())
@@ -202,7 +203,10 @@ class Rig:
                "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST", "PYTHONUNBUFFERED": "1"}
         self.log = tmp / "bridge.log"
         with open(self.log, "w") as fh:
-            params = {"broker_url": broker.url, "clock": clock, "startup_timeout_s": 60.0, "step_timeout_s": 5.0,
+            # a step of simulated time waits for its command (the budget as its time-out): its
+            # fallbacks are the ones the test makes; on wall-clock time the period decides
+            wait_s = BUDGET_S if clock == "sim" else 5.0
+            params = {"broker_url": broker.url, "clock": clock, "startup_timeout_s": wait_s, "step_timeout_s": wait_s,
                       "topic_map": str(map_file)}
             self.proc = subprocess.Popen(
                 [sys.executable, "-m", "comems4build_ros.ros.nodes.mqtt_bridge", *ros_args("", params)],
@@ -243,7 +247,7 @@ class Rig:
                                                                  "homeassistant/#", self.map.state_topic,
                                                                  self.map.availability_topic])
         self.availability: list[bytes] = []
-        assert self.link.start(wait_s=10)
+        assert self.link.start(wait_s=BUDGET_S)
         self.setpoints: dict[int, dict[str, float]] = {}
         self.latest_setpoints: dict[str, float] = {}
         self.mqtt_alarms: list[dict] = []
@@ -280,10 +284,10 @@ class Rig:
     def close(self) -> None:
         self.proc.send_signal(signal.SIGINT)
         try:
-            self.proc.wait(15)
+            self.proc.wait(BUDGET_S)
         except subprocess.TimeoutExpired:
             self.proc.kill()
-            self.proc.wait(5)
+            self.proc.wait()
         self.link.stop()
         self.executor.shutdown()
         self.node.destroy_node()
@@ -304,26 +308,34 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
     rig = Rig(tmp_path, domain_id, broker, "sim", lambda k: [0.6, 1.0, 0.0, 5000.0, 0.0] if k == 1 else NORMAL)
     try:
         k, t_pub = 0, 0.0
-        deadline = time.monotonic() + 120
-        while k < 5 and time.monotonic() < deadline:
+
+        def said(text: str) -> bool:  # the bridge took a setting or a switch (its event)
+            rig.pump(0.01)
+            return any(text in e for e in rig.events)
+
+        deadline = Deadline("five steps")
+        while k < 5 and not deadline.passed():
             rig.pump()
             if len(rig.setpoints.get(k, {})) == len(SETPOINTS):
                 k += 1
                 t_pub = 0.0
                 if k == 3:  # Home Assistant's setting: at most 150 W of battery power, either way
                     rig.link.publish(rig.map.setting_topics("battery_power_limit")[0], "150")
-                    for _ in range(30):
-                        rig.pump(0.01)
+                    wait_until(lambda: said("setting battery_power_limit 150"), "the bridge taking the setting")
                 if k == 4:  # Home Assistant's switch: EMS off
                     rig.link.publish(rig.map.switch_topics("ems")[0], "OFF")
-                    for _ in range(30):
-                        rig.pump(0.01)
+                    wait_until(lambda: said("switch ems OFF"), "the bridge taking the switch")
             elif time.monotonic() - t_pub > 0.5:  # (re)send the measurements of step k
                 rig.measure(dict(GOOD, t_air_c=80.0) if k == 2 else GOOD, k)
                 t_pub = time.monotonic()
         assert k == 5, f"stuck at step {k}: {rig.proc.poll()} {(tmp_path / 'bridge.log').read_text()[-2000:]}"
-        for _ in range(50):
+
+        def step_4_reported() -> bool:  # what the bridge says about the last step, on MQTT and ROS
             rig.pump()
+            return (4, "forced") in [(a["step"], a["kind"]) for a in rig.mqtt_alarms] and any(
+                s["step"] == 4 and s["in_charge"] == "fallback_switch" for s in rig.ha_states)
+
+        wait_until(step_4_reported, "the alarm and the state of step 4")
         # step 0: the EMS's command as sent
         assert rig.setpoints[0] == {"hp_mod": 0.6, "hp_mode": 1.0, "p_fc_w": 0.0, "p_bess_w": 200.0}
         # step 1: 5 kW battery power clamped to the device limit (battery.p_ch_max_w), counted, logged
@@ -366,8 +378,8 @@ def test_out_of_range_gets_fallback_and_alarm_in_the_same_step_commands_clamped_
         # availability: online while running; the last will says offline when the bridge dies
         assert rig.availability[-1] == b"online"
         rig.proc.kill()
-        deadline = time.monotonic() + 30
-        while time.monotonic() < deadline and rig.availability[-1] != b"offline":
+        deadline = Deadline("the last will: offline")
+        while not deadline.passed() and rig.availability[-1] != b"offline":
             rig.pump(0.05)
         assert rig.availability[-1] == b"offline"
     finally:
@@ -381,8 +393,8 @@ def test_stale_measurement_gets_fallback_within_one_step_wall_clock(
         max_age_wall = rig.map.max_age("soc") / 3600.0  # 2 s at one simulated hour per second
         t_last_soc = None
         t_next = 0.0
-        deadline = time.monotonic() + 120
-        while time.monotonic() < deadline:
+        deadline = Deadline("12 s of the wall-clock run")
+        while not deadline.passed():
             rig.pump()
             now = time.time()
             if rig.run_msg is not None:
@@ -460,9 +472,9 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
         monkeypatch.setenv("TEST_MQTT_PW", secret)
         monkeypatch.setenv("TEST_MQTT_WRONG", "not-the-password")
         watch = MqttLink(env_settings, "test_watch", [tmap.availability_topic])
-        assert watch.start(wait_s=15), watch.last_error
+        assert watch.start(wait_s=BUDGET_S), watch.last_error
         wrong = MqttLink(env_settings.model_copy(update={"password_env": "TEST_MQTT_WRONG"}), "test_wrong")
-        assert not wrong.start(wait_s=3)
+        assert not wrong.start(wait_s=3)  # a window for what must not happen
         wrong.stop()
         with pytest.raises(BrokerConfigError, match="TEST_MQTT_UNSET is not set") as info:
             read_password(env_settings.model_copy(update={"password_env": "TEST_MQTT_UNSET"}), environ={})
@@ -474,9 +486,9 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
             bridge = subprocess.Popen([sys.executable, "-m", "comems4build_ros.ros.nodes.mqtt_bridge",
                                        *ros_args("", {"topic_map": str(map_file)})],
                                       env=env, stdout=fh, stderr=subprocess.STDOUT, start_new_session=True)
-        deadline = time.monotonic() + 60
+        deadline = Deadline("the bridge online")
         online = False
-        while time.monotonic() < deadline and not online:
+        while not deadline.passed() and not online:
             online = any(m.payload == b"online" for m in watch.drain())
             time.sleep(0.05)
         assert online, (tmp_path / "bridge.log").read_text()[-2000:]
@@ -484,9 +496,9 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
     finally:
         if bridge is not None:
             bridge.send_signal(signal.SIGINT)
-            bridge.wait(15)
+            wait_exit(bridge, "the bridge to stop")
         proc.send_signal(signal.SIGINT)
-        proc.wait(15)
+        wait_exit(proc, "the broker to stop")
     logs = [tmp_path / "bridge.log", *(tmp_path / "ros_log").rglob("*")]
     text = "".join(p.read_text(errors="replace") for p in logs if p.is_file())
     assert "user: ems, TLS: True" in text and secret not in text
@@ -504,7 +516,7 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
 def test_launch_refuses_bad_plant_options_with_exit_2(tmp_path: Path, args: list[str], message: str) -> None:
     cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
     proc = subprocess.run([*cli, "launch", "--ems", "fuzzy", *args, "--out", str(tmp_path / "x")],
-                          capture_output=True, text=True, timeout=120)
+                          capture_output=True, text=True, timeout=BUDGET_S)
     assert proc.returncode == 2 and message in proc.stderr, proc.stderr
     assert not (tmp_path / "x").exists()
 
@@ -559,15 +571,15 @@ def test_the_embedded_broker_lets_in_only_the_runs_two_users(tmp_path: Path) -> 
         for user, pw_file in ((None, None), (MQTT_HOUSE_USER, str(wrong)), ("intruder", str(login))):
             settings = BrokerParams(url=url, username=user or "", password_file=pw_file or "")
             link = MqttLink(settings, f"foreign_{user}")
-            assert not link.start(wait_s=3), f"{user} got in"
+            assert not link.start(wait_s=3), f"{user} got in"  # a window for what must not happen
             link.stop()
         for user in (MQTT_HOUSE_USER, MQTT_BRIDGE_USER):
             link = MqttLink(BrokerParams(url=url, username=user, password_file=str(login)), f"peer_{user}")
-            assert link.start(wait_s=15), link.last_error
+            assert link.start(wait_s=BUDGET_S), link.last_error
             link.stop()
     finally:
         proc.send_signal(signal.SIGINT)
-        proc.wait(15)
+        wait_exit(proc, "the broker to stop")
     plan = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path / "run", weeks=1, plant="mqtt"), 7)
     secret_file, token = next((f, t) for f, t in plan.secrets if f.endswith("mqtt.token"))
     argv = " ".join(" ".join(p.argv) for p in plan.processes)
@@ -589,16 +601,16 @@ def test_foreign_publishers_on_a_shared_broker_are_counted_and_not_applied(tmp_p
     tmap = load_topic_map(broker_url=broker.url)
     bess = tmap.setpoints["p_bess_w"].topic
     spy = MqttLink(tmap.broker, "test_spy", [bess, tmap.step_topic])
-    assert spy.start(wait_s=10)
-    _, text = _cli_launch(tmp_path / "first", broker.url, 12).communicate(timeout=600)
+    assert spy.start(wait_s=BUDGET_S)
+    _, text = _cli_launch(tmp_path / "first", broker.url, 12).communicate(timeout=BUDGET_S)
     recorded = [m.payload for m in spy.drain() if m.topic == bess and b'"mac"' in m.payload]
     assert recorded, text[-2000:]
     proc = _cli_launch(tmp_path / "second", broker.url, 48)
     sent = 0
     try:
-        deadline = time.monotonic() + 300
+        deadline = Deadline("the second run at step 40")
         steps: list[int] = []
-        while time.monotonic() < deadline and not (steps and steps[-1] >= 40):
+        while not deadline.passed() and not (steps and steps[-1] >= 40):
             for m in spy.drain():
                 if m.topic == tmap.step_topic and m.payload and not m.retain:
                     steps.append(json.loads(m.payload)["step"])
@@ -611,7 +623,7 @@ def test_foreign_publishers_on_a_shared_broker_are_counted_and_not_applied(tmp_p
                     spy.publish(topic, payload)
                     sent += 1
             time.sleep(0.05)
-        out, _ = proc.communicate(timeout=600)
+        out, _ = proc.communicate(timeout=BUDGET_S)
     finally:
         if proc.poll() is None:
             proc.kill()

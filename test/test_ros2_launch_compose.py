@@ -19,7 +19,8 @@ from pathlib import Path
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
-from ros2_tools import evaluate, reference, ros2_env, same_kpis, wait_for
+from ros2_tools import evaluate, reference, ros2_env, same_kpis
+from waits import BUDGET_S, wait_until
 
 from comems4build_ros.app.ros2_launch import DEFAULT_OUT, placed
 
@@ -58,8 +59,6 @@ def generate_launch_description():
           if {BYSTANDER_ON} else []),
     ])
 '''
-#: Wall-time budget of one launch in these tests [s] (generous: a loaded 2-core machine).
-LAUNCH_BUDGET_S = 150.0
 #: A stop signal must end every process of the run within this [s] (the requirement).
 STOP_WITHIN_S = 3.0
 
@@ -142,15 +141,15 @@ def test_two_inclusions_under_pushed_namespaces_beside_a_node_of_the_user(ros2, 
             text = log.read_text()
             return all(f"run in /house_{x} (bag comems4build_run/house_{x}/bag): complete" in text for x in "ab")
 
-        wait_for(both_complete, LAUNCH_BUDGET_S, "both runs complete")
+        wait_until(both_complete, "both runs complete")
         users = [p for p in _ours(tmp_path) if b"bystander" in Path(f"/proc/{p}/cmdline").read_bytes()]
-        wait_for(lambda: not [p for p in _ours(tmp_path) if p not in users], 30, "the runs' processes ended")
+        wait_until(lambda: not [p for p in _ours(tmp_path) if p not in users], "the runs' processes ended")
         assert proc.poll() is None and users and all(_alive(p) for p in users), "the user's node ended with the runs"
         text = log.read_text()
         assert "bystander up" in text and " foreign topic " not in text, text[-4000:]  # no cross-talk
         os.kill(proc.pid, signal.SIGINT)
-        assert proc.wait(timeout=60) == 0, log.read_text()[-4000:]
-        wait_for(lambda: not _ours(tmp_path), 10, "no process of the launch left")
+        assert proc.wait(timeout=BUDGET_S) == 0, log.read_text()[-4000:]
+        wait_until(lambda: not _ours(tmp_path), "no process of the launch left")
     finally:
         _clean_up(proc, tmp_path)
     logs = {p.name.rsplit("_", 2)[0] for p in (tmp_path / "ros_log").rglob("*.log")}  # <name>_<pid>_<time>.log
@@ -182,11 +181,11 @@ def test_a_killed_node_in_one_inclusion_fails_the_launch_and_not_the_other_run(r
             assert proc.poll() is None, log.read_text()[-4000:]
             return sum(f.stat().st_size for f in bag_b.glob("*.mcap")) > 50_000
 
-        wait_for(b_under_way, LAUNCH_BUDGET_S, "house_b's run under way", period=0.1)
+        wait_until(b_under_way, "house_b's run under way")
         plant = _plant_of(tmp_path, "/house_b")
         assert len(plant) == 1, plant
         os.kill(plant[0], signal.SIGKILL)
-        code = proc.wait(timeout=LAUNCH_BUDGET_S)
+        code = proc.wait(timeout=BUDGET_S)
     finally:
         _clean_up(proc, tmp_path)
     text = log.read_text()
@@ -216,7 +215,7 @@ def test_a_stop_signal_to_ros2_launch_ends_every_process_of_the_run(ros2, domain
             assert proc.poll() is None, log.read_text()[-4000:]
             return sum(f.stat().st_size for f in (out / "bag").glob("*.mcap")) > 50_000
 
-        wait_for(under_way, LAUNCH_BUDGET_S, "the run under way", period=0.1)
+        wait_until(under_way, "the run under way")
         nodes = _ours(tmp_path)
         assert len(nodes) == 4 and (out / ".secrets").is_dir(), nodes
         t0 = time.monotonic()
@@ -224,7 +223,7 @@ def test_a_stop_signal_to_ros2_launch_ends_every_process_of_the_run(ros2, domain
         while any(_alive(p) for p in nodes) and time.monotonic() - t0 < 30:
             time.sleep(0.02)
         took = time.monotonic() - t0
-        code = proc.wait(timeout=30)
+        code = proc.wait(timeout=BUDGET_S)
     finally:
         _clean_up(proc, tmp_path)
     print(f"{signal.Signals(sig).name}: every process of the run ended {took:.2f} s after the signal", file=sys.stderr)

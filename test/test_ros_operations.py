@@ -11,7 +11,9 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from ros2_tools import run_ros2, start_ros2, stop, wait_for
+from ros2_tools import run_ros2, start_ros2, stop
+from waits import BUDGET_S as WAIT_S
+from waits import wait_until
 
 pytestmark = pytest.mark.ros
 
@@ -41,10 +43,10 @@ def test_a_plant_whose_recorder_leaves_mid_run_warns(ros2, domain_id, tmp_path) 
                                                                    for n in procs}
             return _bag_bytes(bag) > 50_000
 
-        wait_for(recording, BUDGET_S, "the run under way, recorded", period=0.1)
+        wait_until(recording, "the run under way, recorded")
         os.killpg(procs["recorder"].pid, signal.SIGINT)
-        assert procs["recorder"].wait(timeout=60) == 3  # stopped before the end of its run
-        wait_for(lambda: "recorder_left" in plant_log.read_text(), 30, "the plant's recorder_left warning")
+        assert procs["recorder"].wait(timeout=WAIT_S) == 3  # stopped before the end of its run
+        wait_until(lambda: "recorder_left" in plant_log.read_text(), "the plant's recorder_left warning")
         assert procs["plant_sim"].poll() is None
     finally:
         stop(list(procs.values()))
@@ -72,19 +74,19 @@ def test_replay_paces_itself_for_a_default_ros2_topic_echo(ros2, domain_id, tmp_
                       echo_log)
     try:
         def echo_listens() -> bool:
-            res = run_ros2(ros2, ["topic", "info", "/state/soc", "--no-daemon"], domain_id, tmp_path, timeout=60)
+            res = run_ros2(ros2, ["topic", "info", "/state/soc", "--no-daemon"], domain_id, tmp_path)
             return "Subscription count: 1" in res.stdout
 
-        wait_for(echo_listens, BUDGET_S, "ros2 topic echo subscribed", period=1.0)
+        wait_until(echo_listens, "ros2 topic echo subscribed")
         res = run_ros2(ros2, ["run", "comems4build_ros", "replay", str(bag), "--rate", "0", "--ros-args", "-p",
-                              f"wait_for_subscribers_s:={BUDGET_S}"], domain_id, tmp_path, timeout=BUDGET_S + 60)
+                              f"wait_for_subscribers_s:={BUDGET_S}"], domain_id, tmp_path)
         assert res.returncode == 0, res.stderr[-3000:]
         assert "at most one message per topic every 0.02 s" in res.stderr, res.stderr[-3000:]
 
         def all_echoed() -> bool:
             return echo_log.read_text().count("---") >= n
 
-        wait_for(all_echoed, 30, f"ros2 topic echo printed {n} messages")
+        wait_until(all_echoed, f"ros2 topic echo printed {n} messages")
     finally:
         stop([echo])
     steps = [float(v) for v in re.findall(r"array\('d', \[([-0-9.e]+),", echo_log.read_text())]

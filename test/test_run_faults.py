@@ -36,12 +36,13 @@ import sys
 import threading
 import time
 from array import array
-from collections.abc import Callable, Iterator
+from collections.abc import Iterator
 from pathlib import Path
 
 import pandas as pd
 import pytest
-from launch_probe import pid_of, records_on_disk
+from launch_probe import pid_of, records_on_disk, run_held
+from waits import BUDGET_S, wait_exit, wait_until
 
 from comems4build_ros.mqtt.broker import free_port
 from comems4build_ros.ros.interfaces import qos_profile
@@ -92,38 +93,29 @@ class Run:
 
     def wait_running(self, master: str) -> None:
         """Until the run has started and steps are on disk (the EMS has answered)."""
-        _wait_for(lambda: (self.started(master) and self.recording()) or self.proc.poll() is not None,
-                  what="recorded steps")
+        wait_until(lambda: (self.started(master) and self.recording()) or self.proc.poll() is not None,
+                   "recorded steps")
         assert self.proc.poll() is None, "the run ended before the fault"
 
     def first(self, text: str) -> float | None:
         """Arrival time of the first stderr line containing ``text``."""
         return next((t for t, line in list(self.lines) if text in line), None)
 
-    def finish(self, timeout_s: float = 180.0) -> tuple[int, str]:
+    def finish(self) -> tuple[int, str]:
         """Exit code and stderr; nothing of the launch may be left running."""
         try:
-            self.proc.wait(timeout=timeout_s)
+            wait_exit(self.proc, "the launch to end")
         finally:
             if self.proc.poll() is None:
                 self.proc.kill()
-        for r in self._readers:
-            r.join(5)
-        time.sleep(0.2)
-        left = processes_with_env("ROS_LOG_DIR", str(self.out / "log" / "ros"))
-        for pid in left:
-            os.kill(pid, signal.SIGKILL)
-        assert left == [], f"processes left behind: {left}"
+        wait_until(lambda: not any(r.is_alive() for r in self._readers), "the launch's output read to its end")
+        marker = str(self.out / "log" / "ros")
+        try:  # the launcher's processes end with it; a /proc entry may outlive its exit for a moment
+            wait_until(lambda: not processes_with_env("ROS_LOG_DIR", marker), "no process of the launch left")
+        finally:
+            for pid in processes_with_env("ROS_LOG_DIR", marker):
+                os.kill(pid, signal.SIGKILL)
         return self.proc.returncode, "\n".join(line for _, line in self.lines)
-
-
-def _wait_for(cond: Callable[[], bool], timeout_s: float = 120.0, what: str = "condition") -> None:
-    t0 = time.monotonic()
-    while time.monotonic() - t0 < timeout_s:
-        if cond():
-            return
-        time.sleep(0.05)
-    raise AssertionError(f"{what} not met after {timeout_s} s")
 
 
 
@@ -145,7 +137,7 @@ class Broker:
     def close(self) -> None:
         if self.proc.poll() is None:
             self.proc.kill()
-        self.proc.wait(10)
+        wait_exit(self.proc, "the broker killed")
 
 
 @pytest.fixture()
@@ -187,10 +179,14 @@ FAULTS = {
 def test_a_node_that_leaves_or_falls_silent_fails_the_launch_naming_it(tmp_path: Path, case: str) -> None:
     args, master, target, sig, texts, limit_s = FAULTS[case]
     out = tmp_path / "run"
-    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", STEP_TIMEOUT, *args)
+    # a stall is named after three step time-outs: short ones where a stall is the fault, the budget
+    # where a node leaves (a stall on a slow step of a loaded machine would be the machine's)
+    step_timeout = STEP_TIMEOUT if sig == signal.SIGSTOP else f"{BUDGET_S:g}"
+    run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--step-timeout", step_timeout, *args)
     run.wait_running(master)
-    t_signal = time.monotonic()
-    os.kill(pid_of(out, target), sig)
+    with run_held(out, master):  # the run cannot end before the fault (its master paused)
+        t_signal = time.monotonic()
+        os.kill(pid_of(out, target), sig)
     code, err = run.finish()
     assert code == 1, err
     # said first, at once (after the supervisor's warning that a process is paused, SIGSTOP)
@@ -217,8 +213,9 @@ def test_an_external_broker_killed_and_not_restarted_is_named(tmp_path: Path, br
     run = Run(out, "--ems", "fuzzy", "--weeks", "2", "--step-timeout", STEP_TIMEOUT, "--plant", "mqtt",
               "--broker", broker.url)
     run.wait_running("mqtt_bridge")
-    t_kill = time.monotonic()
-    broker.close()  # SIGKILL, not restarted
+    with run_held(out, "mqtt_bridge"):  # the run cannot end before the fault
+        t_kill = time.monotonic()
+        broker.close()  # SIGKILL, not restarted
     code, err = run.finish()
     assert code == 1, err
     first = err.splitlines()[0]
@@ -251,9 +248,9 @@ def test_mqtt_fallback_steps_without_state_are_no_lost_messages(tmp_path: Path, 
         return any((n or 0) >= 1 for n in reported) or run.proc.poll() is not None
 
     try:
-        _wait_for(lambda: run.started("mqtt_bridge") or run.proc.poll() is not None, what="the start of the run")
+        wait_until(lambda: run.started("mqtt_bridge") or run.proc.poll() is not None, "the start of the run")
         link.publish(tmap.switch_topics("fallback")[0], "ON")
-        _wait_for(bridge_reports_fallback, what="a fallback step reported by the bridge")
+        wait_until(bridge_reports_fallback, "a fallback step reported by the bridge")
         link.publish(tmap.switch_topics("fallback")[0], "OFF")
         code, err = run.finish()
     finally:
@@ -264,7 +261,7 @@ def test_mqtt_fallback_steps_without_state_are_no_lost_messages(tmp_path: Path, 
     assert summary["steps"] == 336 and summary["fallback_steps"] >= 1, summary["fallback_steps"]
     assert summary["lost_messages"] == {} and "bag_incomplete" not in summary
     res = subprocess.run([*CLI, "evaluate", str(out / "bag"), "--out", str(tmp_path / "eval")],
-                         capture_output=True, text=True, timeout=120)
+                         capture_output=True, text=True, timeout=BUDGET_S)
     assert res.returncode == 0, res.stderr  # no --accept-gaps needed
     assert "complete" in res.stdout
     print(f"fallback steps without state (withheld): {summary['fallback_steps']}")
@@ -276,13 +273,14 @@ def test_container_killed_damage_attributed_to_its_own_house(tmp_path: Path) -> 
     # and the kill comes as soon as both bags have records in closed chunks on disk (1 s chunk
     # period; house_1's first step can come later than house_0's: once, it had none yet)
     run = Run(out, "--ems", "fuzzy", "--weeks", "12", "--houses", "2", "--containers", "2",
-              "--step-timeout", STEP_TIMEOUT)
+              "--step-timeout", f"{BUDGET_S:g}")
     run.wait_running("container_0")
-    _wait_for(lambda: all(records_on_disk(out / "bag" / b) for b in ("house_0", "house_1"))
-              or run.proc.poll() is not None, what="both houses' records on disk")
+    wait_until(lambda: all(records_on_disk(out / "bag" / b) for b in ("house_0", "house_1"))
+               or run.proc.poll() is not None, "both houses' records on disk")
     assert run.proc.poll() is None, "the run ended before the fault"
-    assert not (out / "bag" / "house_0" / "metadata.yaml").exists(), "house_0's run ended before the fault"
-    os.kill(pid_of(out, "container_0"), signal.SIGKILL)
+    with run_held(out, "container_0") as container:  # house_0's run cannot end before the fault
+        assert not (out / "bag" / "house_0" / "metadata.yaml").exists(), "house_0's run ended before the fault"
+        os.kill(container, signal.SIGKILL)
     code, err = run.finish()
     assert code == 1 and "node 'container_0' exited with code -9 (killed by SIGKILL)" in err, err
     first = err.splitlines()[0]  # the nodes that died with the container: house_0's, none of house_1's
@@ -320,7 +318,7 @@ def test_live_inputs_that_cannot_be_fetched_are_refused_naming_the_source(tmp_pa
     if where == "launch":
         res = subprocess.run([*CLI, "launch", "--ems", "rbc", "--weeks", "1", "--inputs", "live", "--live-config",
                               str(cfg), "--out", str(out), "--no-progress"],
-                             capture_output=True, text=True, timeout=120)
+                             capture_output=True, text=True, timeout=BUDGET_S)
         assert not out.exists()  # refused before anything started or was written
     else:
         from comems4build_ros.run.plan import node_command, ros_args
@@ -328,7 +326,7 @@ def test_live_inputs_that_cannot_be_fetched_are_refused_naming_the_source(tmp_pa
         env = {**os.environ, "ROS_LOG_DIR": str(tmp_path / "ros_log"), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
         res = subprocess.run([*node_command("feed"), *ros_args("", {"weeks": 1, "inputs": "live", "live_config":
                                                                     str(cfg), "live_cache_dir": str(tmp_path)})],
-                             capture_output=True, text=True, timeout=120, env=env)
+                             capture_output=True, text=True, timeout=BUDGET_S, env=env)
     assert res.returncode == 2, res.stderr
     assert url in res.stderr and "no day-ahead price for the run's first hour" in res.stderr, res.stderr
     assert "Traceback" not in res.stderr
@@ -349,7 +347,7 @@ def test_live_run_states_its_stand_in_prices_on_the_console_in_the_summary_and_t
         out = tmp_path / "run"
         res = subprocess.run([*CLI, "launch", "--ems", "rbc", "--weeks", "1", "--inputs", "live", "--live-config",
                               str(_live_config(tmp_path, server.url)), "--out", str(out), "--no-progress"],
-                             capture_output=True, text=True, timeout=300)
+                             capture_output=True, text=True, timeout=BUDGET_S)
     finally:
         server.close()
     assert res.returncode == 0, res.stderr
@@ -367,7 +365,7 @@ def test_live_run_states_its_stand_in_prices_on_the_console_in_the_summary_and_t
     assert [ln.split(":")[0] for ln in stated] == ["0 stand_in weather", f"{168 - beyond} stand_in prices+weather"]
     print(f"live run: {res.stderr.strip().splitlines()[-1]}")
     ev = subprocess.run([*CLI, "evaluate", str(out / "bag"), "--out", str(tmp_path / "eval")],
-                        capture_output=True, text=True, timeout=120)
+                        capture_output=True, text=True, timeout=BUDGET_S)
     assert ev.returncode == 0 and f'"stand_in_price_steps": {beyond}' in ev.stdout, ev.stdout + ev.stderr
 
 
@@ -463,14 +461,14 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
             assert run.proc.poll() is None, "the run ended before the spoofer had joined"
             return (bool(steps) and bool(sniffed) and cmd.get_subscription_count() >= 2) or spin(0.05)
 
-        _wait_for(joined, 90, "the plant's announcements, the EMS's commands and the readers of ems/command matched")
+        wait_until(joined, "the plant's announcements, the EMS's commands and the readers of ems/command matched")
         ems = pid_of(out, "fuzzy_ems")
         os.kill(ems, signal.SIGSTOP)  # the plant now waits for a command: the spoof has the field to itself
         # the step it waits for is the one it announces again (its republish period): a command the EMS
         # sent just before the stop can still move it on, so wait for a step announced twice after the stop
         after = len(steps)
-        _wait_for(lambda: (len(steps) - after >= 2 and steps[-1] == steps[-2]) or spin(0.05), 60,
-                  "the plant announcing the step it waits for again")
+        wait_until(lambda: (len(steps) - after >= 2 and steps[-1] == steps[-2]) or spin(0.05),
+                   "the plant announcing the step it waits for again")
         k = steps[-1]
         assert token not in sniffed  # the secret itself is never on the wire ...
         candidates |= {int(t) for t in sniffed}  # ... its codes are, and are tried as well
@@ -478,13 +476,13 @@ def test_a_command_spoofed_from_what_other_users_can_read_is_not_applied(tmp_pat
         for i in range(0, len(ordered), 100):  # every readable candidate, for the step the plant waits for
             for t in ordered[i:i + 100]:
                 cmd.publish(Float64MultiArray(data=[float(k), *spoof, float(t)]))
-            cmd.wait_for_all_acked(Duration(seconds=5))  # within the writer's history depth (1000)
+            assert cmd.wait_for_all_acked(Duration(seconds=BUDGET_S))  # within the writer's history depth (1000)
         # the plant falls back for k after its step time-out and announces k + 1
-        _wait_for(lambda: steps[-1] > k or spin(0.02), 60, "the announcement of the next step")
+        wait_until(lambda: steps[-1] > k or spin(0.02), "the announcement of the next step")
         k1 = steps[-1]
         values = array("d", [float(k1), *spoof])  # with the run's secret, as only the run's user can:
         cmd.publish(Float64MultiArray(data=[*values, command_mac(secret_key(token), values.tobytes())]))
-        spin(0.5)
+        wait_until(lambda: steps[-1] > k1 or spin(0.02), "the plant taking that command (the next step announced)")
         os.kill(ems, signal.SIGCONT)
         ems = None
         code, err = run.finish()
@@ -519,6 +517,6 @@ def test_dds_security_plugins_are_missing_from_the_installed_fast_dds(tmp_path: 
            "ROS_SECURITY_STRATEGY": "Enforce", "ROS_SECURITY_ENCLAVE_OVERRIDE": "/probe",
            "ROS_LOG_DIR": str(tmp_path / "ros_log"), "ROS_AUTOMATIC_DISCOVERY_RANGE": "LOCALHOST"}
     res = subprocess.run([sys.executable, "-c", "import rclpy; rclpy.init(); rclpy.create_node('probe')"],
-                         capture_output=True, text=True, timeout=120, env=env)
+                         capture_output=True, text=True, timeout=BUDGET_S, env=env)
     assert res.returncode != 0, "a node was created with an enforced enclave: test DDS-Security for real"
     assert "doesn't have the security libraries" in res.stderr and "-DSECURITY=ON" in res.stderr, res.stderr

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import pandas as pd
 import pytest
+from waits import BUDGET_S, wait_exit
 
 from comems4build_ros.core.config import load_plant_params, scenario_config_files
 from comems4build_ros.core.loop import simulate
@@ -29,7 +30,10 @@ STEPS = 36
 @pytest.mark.parametrize("ems", ["fuzzy", "mpc"])
 def test_year_window_over_ros_equals_in_process(ems: str, tmp_path: Path) -> None:
     out = tmp_path / "run"
-    launch(LaunchOptions(ems=ems, out=out, scenario="year", start=START, steps=STEPS, timeout_s=240))
+    # the plant waits for every command (the budget as its step time-out): this compares runs, a
+    # fallback on a slow MPC step of a loaded machine would be the machine's
+    launch(LaunchOptions(ems=ems, out=out, scenario="year", start=START, steps=STEPS, timeout_s=BUDGET_S,
+                         plant_node_params={"step_timeout_s": BUDGET_S}))
     ros = json.loads((out / "summary.json").read_text())
     params = load_plant_params(scenario_config_files("year"))
     scenario = load_scenario("year", params, START, None, None, STEPS)
@@ -51,23 +55,20 @@ def test_year_window_over_ros_equals_in_process(ems: str, tmp_path: Path) -> Non
 def test_year_inputs_replayed_drive_the_rbc(tmp_path: Path) -> None:
     """The recorded feed of a year window (feed/season included) drives plant_sim and the RBC over ROS:
     the evaluated bag equals the in-process RBC run of that window."""
-    import time
-
     from comems4build_ros.bags.evaluation import evaluate_bag
     from comems4build_ros.run.plan import node_command, ros_args
     from comems4build_ros.run.supervisor import ProcessGroup, acquire_domain_id, child_env
 
     rec_run = launch(LaunchOptions(ems="fuzzy", out=tmp_path / "rec", scenario="year", start=START, steps=STEPS,
-                                   timeout_s=240))
+                                   timeout_s=BUDGET_S))
     files = scenario_config_files("year")
     bag = tmp_path / "rbc_bag"
 
-    def wait(child, timeout_s: float = 120.0) -> int:
-        t0 = time.monotonic()
-        while child.proc.poll() is None:
-            assert time.monotonic() - t0 < timeout_s, child.tail()
-            time.sleep(0.05)
-        return child.proc.returncode
+    def wait(child) -> int:
+        try:
+            return wait_exit(child.proc, f"{child.name} to exit")
+        except AssertionError as exc:
+            raise AssertionError(f"{exc}\n{child.tail()}") from None
 
     with acquire_domain_id() as did, ProcessGroup(child_env(did, tmp_path / "ros_log"), tmp_path / "log") as group:
         rec = group.start("recorder", "recorder", [*node_command("recorder"), *ros_args("", {"bag_path": str(bag)})])
@@ -104,12 +105,12 @@ def test_year_cli_launch_and_evaluate_across_the_heating_season_start(tmp_path: 
     start, steps = "2022-11-30T18:00:00", 12
     out = tmp_path / "run"
     proc = subprocess.run([*cli, "launch", "--ems", "fuzzy", "--scenario", "year", "--start", start, "--steps",
-                           str(steps), "--out", str(out), "--no-progress", "--timeout", "240"],
-                          capture_output=True, text=True, timeout=300)
+                           str(steps), "--out", str(out), "--no-progress"],
+                          capture_output=True, text=True, timeout=BUDGET_S)
     assert proc.returncode == 0, proc.stderr
     ev = tmp_path / "eval"
     proc = subprocess.run([*cli, "evaluate", str(out / "bag"), "--out", str(ev)], capture_output=True, text=True,
-                          timeout=120)
+                          timeout=BUDGET_S)
     assert proc.returncode == 0, proc.stderr
     params = load_plant_params(scenario_config_files("year"))
     ref = simulate("fuzzy", load_scenario("year", params, start, None, None, steps), params)
@@ -147,8 +148,8 @@ def test_bench_year_prints_the_figures_and_the_ros_run_equals_in_process(tmp_pat
 
     cli = [sys.executable, "-c", "import sys; from comems4build_ros.app.cli import main; sys.exit(main())"]
     proc = subprocess.run([*cli, "bench", "year", "--ems", "rbc,fuzzy", "--weeks", "0.25", "--ros",
-                           "--ros-ems", "fuzzy", "--timeout", "240", "--out", str(tmp_path / "bench")],
-                          capture_output=True, text=True, timeout=400)
+                           "--ros-ems", "fuzzy", "--out", str(tmp_path / "bench")],
+                          capture_output=True, text=True, timeout=BUDGET_S)
     assert proc.returncode == 0, proc.stderr
     lines = proc.stdout.splitlines()
     assert lines[0].startswith("year scenario, 0.25 weeks from 2022-03-01; load average")

@@ -1,6 +1,7 @@
 """The cost-optimal MILP model-predictive controller (``--ems mpc``, paper sec:MPC).
 
 Each step: build the horizon numbers from the observation (:func:`.horizon.build_horizon`),
+rounded so that every CPU solves the same problem (:func:`.horizon.same_on_every_cpu`),
 update the MILP in place, warm-start it with the previous plan shifted by one step, solve,
 and apply the first step of the plan. A solve that ends without proven optimality (time
 limit) still uses the best solution found; a solve with no solution at all applies the
@@ -22,7 +23,13 @@ import numpy as np
 from comems4build_ros.core.config import PlantParams
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.fallback import safe_action
-from comems4build_ros.core.ems.mpc.horizon import HorizonData, PlantConstants, build_horizon, season_schedules
+from comems4build_ros.core.ems.mpc.horizon import (
+    HorizonData,
+    PlantConstants,
+    build_horizon,
+    same_on_every_cpu,
+    season_schedules,
+)
 from comems4build_ros.core.ems.mpc.milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
 from comems4build_ros.core.ems.mpc.solvers import MatrixForm, make_backend
 from comems4build_ros.core.ems.settings import MILPSettings, load_settings
@@ -270,7 +277,7 @@ class MPCController:
             bound, target = season_schedules(float(obs.days_to_heating_season), left, self._season_loh0,
                                              self.const, self.settings.loh_season_target)
             h = dataclasses.replace(h, loh_min=bound, loh_season=target)
-        self.last_horizon = h
+        h = self.last_horizon = same_on_every_cpu(h)  # the same plan on every CPU (docs/mpc.md)
         self.model.update(h)
         self.model.set_start(shift_plan(self._prev_plan) if self.settings.warm_start and self._prev_plan else None)
         return h

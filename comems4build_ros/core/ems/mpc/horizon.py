@@ -432,3 +432,78 @@ def _year_horizon(obs: Observation, t_amb: np.ndarray, const: PlantConstants) ->
         out.update(eer=e, p_cool_max_w=const.q_cool_max_w / e)
     return out
 
+
+
+# ---------------------------------------------------------------------- the same numbers on every CPU
+#: Significant bits the MPC keeps of its horizon's forecasts, prices, bounds and coefficients
+#: (relative step 2**-22, 2.4e-7) and of its measured temperatures, LOH and tank volume (2**-28,
+#: 3.7e-9). The MIP search stops at the first plan within the gap, so which plan that is
+#: depends on the last bits of these numbers; those differ between CPUs: the modelled PV and
+#: load series and some plant models (the FC's polarisation curve) go through numpy's
+#: transcendental functions, whose code paths numpy chooses by the CPU (glibc's on AVX2, its
+#: own on AVX-512, a few ulp apart; up to 1e-10 relative after pvlib's transposition near
+#: sunrise), and the plant's states then differ by an ulp. Rounded, numbers that differ in
+#: their last bits become the same number, so every CPU solves the same problem and gets the
+#: same plan. Both steps are far below what a forecast or a measurement knows. The SOC is
+#: passed as it is: it follows from the commands by arithmetic alone (``eq:batt_soc``), so it
+#: is the same on every CPU when the plans are, and rounded it made a plan that fills or
+#: empties the battery ask the plant for up to 8e-5 W more than the room (a clip each time).
+#: docs/mpc.md ("Reproducible plans") gives the measurements and the odds of a number on a
+#: step's middle.
+FORECAST_BITS = 22
+STATE_BITS = 28
+#: Fields of :class:`HorizonData` that are measured states rounded to :data:`STATE_BITS`.
+STATE_FIELDS = ("x0", "loh0", "v0_l")
+#: Fields passed as they are (see above).
+EXACT_FIELDS = ("soc0",)
+
+
+def round_bits(x: np.ndarray | float, bits: int) -> np.ndarray:
+    """``x`` rounded to ``bits`` significant bits (round half to even); zeros and infinities kept.
+
+    Parameters
+    ----------
+    x : numbers [any unit]
+    bits : significant bits kept [-] (53 keeps every float as it is)
+
+    Returns
+    -------
+    numpy.ndarray
+        The rounded numbers, computed by exact binary operations only (``frexp``, ``ldexp``,
+        ``rint``), so the same on every CPU. A number so large that rounding up would leave
+        the float range is kept as it is.
+    """
+    x = np.asarray(x, dtype=float)
+    mantissa, exponent = np.frexp(x)  # x = mantissa * 2**exponent, 0.5 <= |mantissa| < 1
+    with np.errstate(over="ignore"):
+        rounded = np.ldexp(np.rint(np.ldexp(mantissa, bits)), exponent - bits)
+    return np.where(np.isfinite(rounded), rounded, x)
+
+
+def same_on_every_cpu(h: HorizonData) -> HorizonData:
+    """Round the numbers of a horizon so that every CPU solves the same problem.
+
+    Parameters
+    ----------
+    h : HorizonData
+        The horizon as built from the observation.
+
+    Returns
+    -------
+    HorizonData
+        ``h`` with its measured states (:data:`STATE_FIELDS`) rounded to :data:`STATE_BITS`
+        significant bits, the SOC as it is, every other number to :data:`FORECAST_BITS`.
+    """
+    import dataclasses
+
+    out: dict = {}
+    for f in dataclasses.fields(h):
+        if f.name in EXACT_FIELDS:
+            continue
+        value = getattr(h, f.name)
+        bits = STATE_BITS if f.name in STATE_FIELDS else FORECAST_BITS
+        if isinstance(value, np.ndarray):
+            out[f.name] = round_bits(value, bits)
+        elif isinstance(value, float):
+            out[f.name] = float(round_bits(value, bits))
+    return dataclasses.replace(h, **out)
