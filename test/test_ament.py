@@ -65,23 +65,31 @@ def test_installed_recorder_smoke_run(ament_prefix: str, tmp_path: Path) -> None
     assert (bag / "metadata.yaml").is_file() and (bag / "bag.mcap").is_file()
 
 
-#: The package.xml key of each distribution the package imports (rosdep keys; see package.xml).
+#: The package.xml key of each distribution the package imports (rosdep keys; see package.xml);
+#: None where rosdep has no key: pip installs it (:data:`PIP_ONLY`, docs/ros_tools.md).
 IMPORT_KEYS = {
     "rclpy": "rclpy", "std_msgs": "std_msgs", "rcl_interfaces": "rcl_interfaces", "launch": "launch",
     "launch_ros": "launch_ros", "numpy": "python3-numpy", "scipy": "python3-scipy", "pandas": "python3-pandas",
     "yaml": "python3-yaml", "pydantic": "python3-pydantic", "matplotlib": "python3-matplotlib", "PIL": "python3-pil",
-    "tqdm": "python3-tqdm", "pulp": "python3-pulp", "holidays": "python3-holidays", "paho": "python3-paho-mqtt",
-    "distributed": "python3-distributed", "psutil": "python3-psutil", "rosbags": "python3-rosbags-pip",
-    "mcap": "python3-mcap-pip", "skfuzzy": "python3-scikit-fuzzy-pip", "highspy": "python3-highspy-pip",
-    "osqp": "python3-osqp-pip", "pvlib": "python3-pvlib-pip", "OpenDHW": "python3-opendhw-pip",
-    "amqtt": "python3-amqtt-pip", "pwdlib": "python3-pwdlib-pip", "pyenergyplus": "python3-pyenergyplus-lbnl-pip",
-    "fmpy": "python3-fmpy-pip", "pythonfmu": "python3-pythonfmu-pip",
+    "tqdm": "python3-tqdm", "paho": "python3-paho-mqtt", "psutil": "python3-psutil", "rosbags": "python3-rosbags-pip",
+    "pulp": None, "holidays": None, "distributed": None, "mcap": None, "skfuzzy": None, "highspy": None, "osqp": None,
+    "pvlib": None, "OpenDHW": None, "amqtt": None, "pwdlib": None, "pyenergyplus": None, "fmpy": None,
+    "pythonfmu": None,
 }
+#: The PyPI distribution of each import without a rosdep key: what docs/ros_tools.md has a ROS
+#: user install with pip ...
+PIP_ONLY = {"pulp": "PuLP", "holidays": "holidays", "distributed": "distributed", "mcap": "mcap",
+            "skfuzzy": "scikit-fuzzy", "highspy": "highspy", "osqp": "osqp", "pvlib": "pvlib", "OpenDHW": "OpenDHW",
+            "amqtt": "amqtt", "pwdlib": "pwdlib", "pyenergyplus": "pyenergyplus-lbnl", "fmpy": "fmpy",
+            "pythonfmu": "pythonfmu"}
+#: ... with those needed without an import by name (dask, the scheduler under distributed).
+PIP_INDIRECT = ("dask",)
 #: Imported only when present (an optional comparison solver, docs/mpc.md), no dependency.
 OPTIONAL_IMPORTS = frozenset({"gurobipy"})
 #: Dependencies no module imports by name: the contract's message packages (loaded by type
-#: name), the launch front end, and what scikit-fuzzy needs without declaring it (networkx).
-INDIRECT_KEYS = ("rosgraph_msgs", "builtin_interfaces", "ros2launch", "python3-networkx", "python3-dask")
+#: name), the launch front end, what scikit-fuzzy needs without declaring it (networkx) and
+#: what serves the Dask scheduler's dashboard (bokeh).
+INDIRECT_KEYS = ("rosgraph_msgs", "builtin_interfaces", "ros2launch", "python3-networkx", "python3-bokeh-pip")
 
 
 def test_package_xml_lists_every_run_dependency() -> None:
@@ -101,5 +109,24 @@ def test_package_xml_lists_every_run_dependency() -> None:
     imported -= set(sys.stdlib_module_names) | {PACKAGE, "__future__"} | OPTIONAL_IMPORTS
     assert imported <= set(IMPORT_KEYS), f"no package.xml key known for {sorted(imported - set(IMPORT_KEYS))}"
     declared = {e.text for e in ET.parse(root / "package.xml").getroot().iter("exec_depend")}
-    missing = sorted(({IMPORT_KEYS[m] for m in imported} | set(INDIRECT_KEYS)) - declared)
+    missing = sorted(({IMPORT_KEYS[m] for m in imported if IMPORT_KEYS[m]} | set(INDIRECT_KEYS)) - declared)
     assert not missing, f"package.xml lacks exec_depend {missing}"
+    assert {m for m in imported if IMPORT_KEYS[m] is None} <= set(PIP_ONLY)
+
+
+def test_the_docs_say_how_to_install_what_rosdep_cannot() -> None:
+    """docs/ros_tools.md's pip command names every distribution without a rosdep key, and only
+    distributions of requirements.txt (whose versions were tested)."""
+    import re
+
+    root = Path(__file__).resolve().parents[1]
+    text = (root / "docs" / "ros_tools.md").read_text(encoding="utf-8")
+    lines = [ln for ln in text.splitlines() if re.match(r"\s*python3 -m pip install --user ", ln)]
+    assert len(lines) == 1, "one pip command for what rosdep cannot install"
+    named = {w for w in lines[0].split()[5:] if not w.startswith("-")}
+    pinned = {re.split(r"[=<>\[ ]", ln, maxsplit=1)[0].lower()
+              for ln in (root / "requirements.txt").read_text(encoding="utf-8").splitlines()
+              if ln and not ln.startswith("#")}
+    want = {*PIP_ONLY.values(), *PIP_INDIRECT}
+    assert named == want, sorted(named ^ want)
+    assert {n.lower() for n in named} <= pinned

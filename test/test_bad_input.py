@@ -460,17 +460,13 @@ def test_failed_write_leaves_no_partial_files(write_number: int, tmp_path: Path,
 
 
 # ---------------------------------------------------------------------------- damaged bags
-@pytest.fixture(scope="module")
-def recorded_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    """A bag of a 400-step thermostat run written by the project's BagWriter, one chunk per 24 steps."""
-    from comems4build_ros.bags.bag import BagWriter, typestore
-    from comems4build_ros.core.loop import TIMESERIES_COLUMNS, simulate
+def step_messages(ts: pd.DataFrame, n: int) -> list[tuple[bytes, bytes]]:
+    """``(feed/truth, plant/record)`` CDR bytes of each of the first ``n`` steps of an in-process
+    timeseries ``ts``, as the feed and the plant publish them (the other inputs zero)."""
+    from comems4build_ros.bags.bag import typestore
+    from comems4build_ros.core.loop import TIMESERIES_COLUMNS
     from comems4build_ros.wire.contract import load_contract
 
-    params = load_plant_params()
-    n = 400
-    scen = resolve_scenario("default", params, hours=n)
-    ts = simulate("thermostat", scen, params).timeseries
     contract = load_contract()
     record, truth = contract.topic("plant/record").layout({}), contract.topic("feed/truth").layout({})
     store = typestore()
@@ -481,21 +477,37 @@ def recorded_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
         msg = cls(layout=layout, data=np.asarray(values, dtype=float))
         return bytes(store.serialize_cdr(msg, "std_msgs/msg/Float64MultiArray"))
 
+    out = []
+    for k in range(n):
+        row = ts.iloc[k]
+        time_s = pd.Timestamp(row["time"]).timestamp()
+        values = {c: row[c] for c in TIMESERIES_COLUMNS[1:]}
+        values.update(time_unix_s=time_s, fallback_steps=0, rejected_commands=0, wrong_step_commands=0,
+                      foreign_commands=0)
+        exo = dict.fromkeys(truth.index, 0.0)
+        exo.update(step=k, n_steps=n, time_unix_s=time_s)
+        out.append((cdr(truth.pack(exo)), cdr(record.pack(values))))
+    return out
+
+
+@pytest.fixture(scope="module")
+def recorded_bag(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """A bag of a 400-step thermostat run written by the project's BagWriter, one chunk per 24 steps."""
+    from comems4build_ros.bags.bag import BagWriter
+    from comems4build_ros.core.loop import simulate
+
+    params = load_plant_params()
+    n = 400
+    scen = resolve_scenario("default", params, hours=n)
+    messages = step_messages(simulate("thermostat", scen, params).timeseries, n)
     bag = tmp_path_factory.mktemp("bag") / "bag"
     t0 = 1_700_000_000 * 10**9
     with BagWriter(bag) as w:
         w.add_topic("/plant/record", "std_msgs/msg/Float64MultiArray")
         w.add_topic("/feed/truth", "std_msgs/msg/Float64MultiArray")
-        for k in range(n):
-            row = ts.iloc[k]
-            time_s = pd.Timestamp(row["time"]).timestamp()
-            values = {c: row[c] for c in TIMESERIES_COLUMNS[1:]}
-            values.update(time_unix_s=time_s, fallback_steps=0, rejected_commands=0, wrong_step_commands=0,
-                          foreign_commands=0)
-            exo = dict.fromkeys(truth.index, 0.0)
-            exo.update(step=k, n_steps=n, time_unix_s=time_s)
-            w.write("/feed/truth", t0 + 2 * k, cdr(truth.pack(exo)))
-            w.write("/plant/record", t0 + 2 * k + 1, cdr(record.pack(values)))
+        for k, (truth, record) in enumerate(messages):
+            w.write("/feed/truth", t0 + 2 * k, truth)
+            w.write("/plant/record", t0 + 2 * k + 1, record)
             if k % 24 == 23:
                 w.flush_chunk()
     return bag

@@ -138,7 +138,7 @@ def _make(kind: str, context: object, tmp_path: Path, **given: object) -> object
     overrides = [Parameter(k, value=v) for k, v in given.items()]
     make = {"plant": PlantSimNode, "feed": Feed, "recorder": Recorder, "ems": lambda **kw: EMSNode("rbc", **kw)}
     node = make[kind](context=context, parameter_overrides=overrides)
-    node.refuse_undeclared()
+    node.parameters.refuse_undeclared()
     return node
 
 
@@ -209,13 +209,13 @@ def test_read_only_parameters_are_refused_and_live_ones_take_effect(context, tmp
             (res,) = node.set_parameters([Parameter(name, value=value)])
             assert not res.successful and "read-only" in res.reason, (name, res.reason)
         (res,) = plant.set_parameters([Parameter("step_timeout_s", value=2)])  # an integer: the number 2.0
-        assert res.successful and plant.step_timeout_s == 2.0
+        assert res.successful and plant.loop.step_timeout_s == 2.0
         (res,) = plant.set_parameters([Parameter("watchdog_period_s", value=0.05)])
-        assert res.successful and plant._watchdog_timer.timer_period_ns == 50_000_000
+        assert res.successful and plant.loop._watchdog_timer.timer_period_ns == 50_000_000
         (res,) = plant.set_parameters([Parameter("stall_steps", value=1.5)])
-        assert not res.successful and plant.stall_steps == 0
+        assert not res.successful and plant.loop.stall_steps == 0
         (res,) = plant.set_parameters([Parameter("step_timeout_s", value=float("nan"))])
-        assert not res.successful and plant.step_timeout_s == 2.0
+        assert not res.successful and plant.loop.step_timeout_s == 2.0
         (res,) = recorder.set_parameters([Parameter("done_grace_s", value=0.5)])
         assert res.successful and recorder.done_grace_s == 0.5
         (res,) = plant.set_parameters([Parameter("use_sim_time", value=True)])  # the time source subscribes
@@ -234,8 +234,8 @@ def test_the_time_source_may_subscribe_to_clock_under_any_namespace_and_name(con
     node = EMSNode("fuzzy", context=context, namespace="/house_3", cli_args=["--ros-args", "-r", "__node:=shadow"],
                    parameter_overrides=[Parameter("use_sim_time", value=True)])
     try:
-        assert node.get_name() == "shadow" and node.contract_node == "fuzzy_ems"
-        assert "/clock" in node.declared_topics()[1]
+        assert node.get_name() == "shadow" and node.endpoints.role == "fuzzy_ems"
+        assert "/clock" in node.endpoints.declared_topics()[1]
         assert node.get_clock().ros_time_is_active
     finally:
         node.destroy_node()

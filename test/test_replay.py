@@ -148,7 +148,7 @@ def test_evaluate_refuses_a_bag_with_gaps_unless_accepted(recorded: Path, tmp_pa
 
 def test_inputs_only_replay_holds_its_inputs_until_the_recorder_has_matched(recorded: Path, tmp_path: Path) -> None:
     """With ``wait_for_recorder`` the replay answers the plant's announcement only once its
-    writers have matched a recorder's readers (``ContractNode.recorder_gate``): no input goes
+    writers have matched a recorder's readers (``RecorderGate.is_open``): no input goes
     out while no recorder listens, and the held answer for step 0 reaches the recorder's bag."""
     import rclpy
     from rclpy.executors import SingleThreadedExecutor

@@ -42,10 +42,10 @@ def test_ros2_pkg_executables(ros2, domain_id, tmp_path) -> None:
 
 
 def _plan_text(stdout: str) -> str:
-    """The plan printed (launch's own log lines dropped), run tokens masked (drawn per launch)."""
+    """The plan printed (launch's own log lines dropped), run tokens and the run's id masked (drawn per launch)."""
     lines = stdout[stdout.index("run plan:"):].splitlines()
-    return re.sub(r"(run|ems)_token:=\d+", r"\1_token:=T", "\n".join(line for line in lines
-                                                                     if not line.startswith("[INFO]")))
+    text = "\n".join(line for line in lines if not line.startswith("[INFO]"))
+    return re.sub(r"run_id:=(\\?\"?)[0-9a-f]+", r"run_id:=\1ID", re.sub(r"(run|ems)_token:=\d+", r"\1_token:=T", text))
 
 
 @pytest.mark.parametrize("launch_args, cli_args", [

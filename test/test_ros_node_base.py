@@ -18,7 +18,7 @@ rclpy = pytest.importorskip("rclpy")
 
 from comems4build_ros.core.config import ConfigError, load_plant_params, scenario_config_files  # noqa: E402
 from comems4build_ros.core.types import HP_DHW  # noqa: E402
-from comems4build_ros.ros.node import ArrayPublisher, ContractNode, layout_sizes  # noqa: E402
+from comems4build_ros.ros.node import ArrayPublisher, ContractEndpoints, layout_sizes  # noqa: E402
 from comems4build_ros.wire.contract import ContractError, load_contract  # noqa: E402
 from comems4build_ros.wire.ems_command import CommandError, command_bounds, command_to_action  # noqa: E402
 
@@ -33,22 +33,36 @@ def context(rclpy_context):
     return rclpy_context
 
 
+def _node(role: str, context: object, **kwargs: object) -> tuple[object, ContractEndpoints]:
+    """A node named ``role`` and its contract endpoints (as a node of the package composes them)."""
+    from rclpy.node import Node
+
+    from comems4build_ros.ros.package_node import node_options
+
+    node = Node(role, context=context, **node_options(kwargs))
+    try:
+        return node, ContractEndpoints(node, role)
+    except Exception:
+        node.destroy_node()
+        raise
+
+
 
 def test_undeclared_publisher_and_subscription_are_refused(context):
     from std_msgs.msg import Float64MultiArray
 
-    node = ContractNode("fuzzy_ems", context=context)
+    node, ep = _node("fuzzy_ems", context)
     try:
-        node.contract_publisher("ems/command")  # declared
+        ep.publisher("ems/command")  # declared
         with pytest.raises(ContractError, match="'fuzzy_ems' may not publish 'state/soc'"):
-            node.create_publisher(Float64MultiArray, "state/soc", 10)
+            ep.create_publisher(Float64MultiArray, "state/soc", 10)
         with pytest.raises(ContractError, match="'fuzzy_ems' may not subscribe to 'forecast/p_load_w'"):
-            node.contract_subscription("forecast/p_load_w", lambda msg: None)
+            ep.subscription("forecast/p_load_w", lambda msg: None)
         with pytest.raises(ContractError, match="may not subscribe to 'feed/t_amb'"):
-            node.create_subscription(Float64MultiArray, "feed/t_amb", lambda msg: None, 10)
+            ep.create_subscription(Float64MultiArray, "feed/t_amb", lambda msg: None, 10)
         with pytest.raises(ContractError, match="'no/such' is not in the contract"):
-            node.contract_publisher("no/such")
-        pubs, subs = node.declared_topics()
+            ep.publisher("no/such")
+        pubs, subs = ep.declared_topics()
         assert pubs == {"ems/command"} and subs == set()
     finally:
         node.destroy_node()
@@ -57,28 +71,28 @@ def test_undeclared_publisher_and_subscription_are_refused(context):
 def test_enforcement_under_a_namespace(context):
     from std_msgs.msg import Float64MultiArray
 
-    node = ContractNode("rbc_ems", context=context, namespace="/house_2")
+    node, ep = _node("rbc_ems", context, namespace="/house_2")
     try:
-        node.contract_subscription("state/soc", lambda msg: None)
+        ep.subscription("state/soc", lambda msg: None)
         assert node.resolve_topic_name("state/soc") == "/house_2/state/soc"
         with pytest.raises(ContractError, match="outside its namespace"):
-            node.create_publisher(Float64MultiArray, "/ems/command", 10)
+            ep.create_publisher(Float64MultiArray, "/ems/command", 10)
         with pytest.raises(ContractError, match="'rbc_ems' may not subscribe to 'feed/solar'"):
-            node.contract_subscription("feed/solar", lambda msg: None)
-        assert node.declared_topics() == (set(), {"state/soc"})
+            ep.subscription("feed/solar", lambda msg: None)
+        assert ep.declared_topics() == (set(), {"state/soc"})
     finally:
         node.destroy_node()
 
 
 def test_unknown_node_name_is_refused(context):
     with pytest.raises(ContractError, match="node 'intruder' is not in the contract"):
-        ContractNode("intruder", context=context)
+        _node("intruder", context)
 
 
 def test_array_publisher_packs_in_layout_order(context, params):
-    node = ContractNode("plant_sim", context=context)
+    node, ep = _node("plant_sim", context)
     try:
-        pub = ArrayPublisher(node, "state/t_wall", layout_sizes(params))
+        pub = ArrayPublisher(ep, "state/t_wall", layout_sizes(params))
         assert pub.layout.labels == ("step", "t_wall_in_c", "t_wall_out_c")
         from rclpy.serialization import deserialize_message
         from std_msgs.msg import Float64MultiArray
@@ -168,9 +182,11 @@ def test_plant_params_from_ros_parameters(context, tmp_path):
 
     extra = tmp_path / "bigger_battery.yaml"
     extra.write_text("/**:\n  ros__parameters:\n    battery:\n      e_max_kwh: 10.0\n")
-    node = ContractNode(
+    from comems4build_ros.ros.package_node import NodeParameters
+
+    node, _ = _node(
         "plant_sim",
-        context=context,
+        context,
         parameter_overrides=[
             Parameter("config_files", value=[str(extra)]),
             Parameter("dhw.v_max_l", value=350.0),  # as `--params-file` with a dhw section sets it
@@ -178,7 +194,7 @@ def test_plant_params_from_ros_parameters(context, tmp_path):
         ],
     )
     try:
-        p = node.plant_params()
+        p = NodeParameters(node).plant_params()
         assert p.battery.e_max_kwh == 10.0
         assert p.dhw.v_max_l == 350.0
         assert p.pv.n_modules == 20
@@ -190,14 +206,12 @@ def test_plant_params_from_ros_parameters(context, tmp_path):
 def test_invalid_ros_parameter_names_the_parameter(context):
     from rclpy.parameter import Parameter
 
-    node = ContractNode(
-        "feed",
-        context=context,
-        parameter_overrides=[Parameter("battery.soc_min", value=0.95)],
-    )
+    from comems4build_ros.ros.package_node import NodeParameters
+
+    node, _ = _node("feed", context, parameter_overrides=[Parameter("battery.soc_min", value=0.95)])
     try:
         with pytest.raises(ConfigError, match="battery"):
-            node.plant_params()
+            NodeParameters(node).plant_params()
     finally:
         node.destroy_node()
 
@@ -408,7 +422,7 @@ def test_a_silent_ems_whose_feed_stopped_answering_names_the_feed(context):
         now = time.monotonic()
         node._t_truth = now - 0.2  # the feed answered the last announcement
         assert node.silent_ems_cause(now) == ""
-        node._t_truth = now - 3.0 * node.step_timeout_s  # no answer for three step time-outs
+        node._t_truth = now - 3.0 * node.loop.step_timeout_s  # no answer for three step time-outs
         cause = node.silent_ems_cause(now)
         assert "the feed has not answered the step announcements" in cause
         assert "waiting for the feed's inputs on 'feed/truth'" in cause

@@ -71,6 +71,7 @@ class BagRun:
     plant_stats : the lock-step master's final statistics (its ``stats`` line on
         ``plant/events``: name -> value); empty if the run was cut before it
     event_steps : kind -> the steps of the ``plant/events`` lines of :data:`STEP_LIST_EVENTS`
+    silent : the topics of ``gaps`` without any message in the bag
     """
 
     namespace: str
@@ -85,6 +86,7 @@ class BagRun:
     stand_in: list[tuple[int, str]] = field(default_factory=list)
     plant_stats: dict[str, float] = field(default_factory=dict)
     event_steps: dict[str, list[int]] = field(default_factory=dict)
+    silent: set[str] = field(default_factory=set)
 
     def fallback_causes(self) -> dict[str, int]:
         """Fallback steps of the plant side by cause (:data:`FALLBACK_CAUSES`): from the
@@ -148,6 +150,7 @@ def read_run_info(path: str | Path) -> dict[str, Any]:
 #: Entries of ``run_info.json`` that the evaluation reads and their JSON types.
 RUN_INFO_TYPES: dict[str, tuple[type, ...]] = {
     "config_files": (list,), "overrides": (dict,), "ems": (str,), "scenario": (str,), "forecast": (str,),
+    "run_id": (str,),
 }
 
 
@@ -197,6 +200,9 @@ class _Scan:
     plant_stats: dict[str, dict[str, float]] = field(default_factory=dict)  # ns -> the master's final statistics
     step_events: dict[str, dict[str, set[int]]] = field(default_factory=dict)  # ns -> kind -> steps
     first_ns: int | None = None
+    #: ns -> steps whose plant/record came more than once -> whether the copies differ
+    twice: dict[str, dict[int, bool]] = field(default_factory=dict)
+    feed_infos: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # ns -> distinct feed/info documents
 
 
 def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan:
@@ -213,7 +219,13 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
                 raise ValueError(
                     f"bag {path}: topic '{topic}': {len(data)} elements, the contract layout has {layout.length}"
                 )
-            scan.records.setdefault(ns, {}).setdefault(int(data[0]), (t_ns, data))
+            by_step = scan.records.setdefault(ns, {})
+            step = int(data[0])
+            if step in by_step:  # a plant publishes each step's record once: a second plant on the topic
+                twice = scan.twice.setdefault(ns, {})
+                twice[step] = twice.get(step, False) or list(by_step[step][1]) != list(data)
+            else:
+                by_step[step] = (t_ns, data)
         elif msgtype.endswith("Float64MultiArray"):
             data = decode(msgtype, raw).data
             if len(data):
@@ -250,21 +262,68 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
                 scan.stand_in.setdefault(ns, []).append((step_kind[0], line.split(None, 2)[2].split(":", 1)[0]))
         elif (ns := _split(topic, FEED_INFO_TOPIC)) is not None:
             try:
-                doc = load_json_text(decode(msgtype, raw).data, f"bag {path}: '{topic}'")
-                scan.scenarios.setdefault(ns, dict(doc))
+                doc = dict(load_json_text(decode(msgtype, raw).data, f"bag {path}: '{topic}'"))
+                scan.scenarios.setdefault(ns, doc)
+                docs = scan.feed_infos.setdefault(ns, [])
+                if doc not in docs:
+                    docs.append(doc)
             except (ValueError, TypeError) as exc:
                 raise ValueError(f"bag {path}: topic '{topic}': invalid scenario information: {exc}") from None
     return scan
 
 
+class MixedRunsError(ValueError):
+    """A bag whose records in one namespace come from more than one plant or run (never one run's KPIs)."""
+
+
+def check_one_run(ns: str, scan: _Scan, path: str | Path, run_id: str | None) -> None:
+    """Refuse namespace ``ns`` of a bag unless its records are one run's.
+
+    A plant publishes each step's ``plant/record`` once and a feed one ``feed/info`` per run, so
+    a step recorded twice, two different ``feed/info`` documents, or a ``feed/info`` naming
+    another run than the bag's ``run_info.json`` (``run_id``) mean that two runs published in
+    the same namespace (e.g. one launch file included twice without a namespace of its own):
+    summarised as one, the bag would give one run's KPIs under the other's name.
+
+    Raises
+    ------
+    MixedRunsError
+        Naming the topic, the steps or run ids, and what to do.
+    """
+    where = f"bag {path}: namespace '{ns}'"
+    advice = ("records of different runs are never summarised as one; record each run in a namespace of its own "
+              "(namespace:=, or PushRosNamespace around each inclusion of the launch file)")
+    twice = scan.twice.get(ns, {})
+    if twice:
+        differ = sorted(k for k, d in twice.items() if d)
+        how = (f"{len(differ)} of them with different values" if differ else "each time with the same values")
+        raise MixedRunsError(f"{where}: topic '{resolve_ns(ns, RECORD_TOPIC)}' carries records of more than one "
+                             f"plant: {len(twice)} step(s) recorded twice ({_ranges(sorted(twice))}), {how}; a "
+                             f"plant publishes each step's record once; {advice}")
+    docs = scan.feed_infos.get(ns, [])
+    if len(docs) > 1:
+        ids = ", ".join(str(d.get("run_id") or d.get("scenario")) for d in docs)
+        raise MixedRunsError(f"{where}: topic '{resolve_ns(ns, FEED_INFO_TOPIC)}' carries {len(docs)} different "
+                             f"scenario descriptions (runs or scenarios: {ids}): the inputs of more than one feed; "
+                             f"{advice}")
+    foreign = [d.get("run_id") for d in docs if run_id and d.get("run_id") and d.get("run_id") != run_id]
+    if foreign:
+        raise MixedRunsError(f"{where}: topic '{resolve_ns(ns, FEED_INFO_TOPIC)}' names run '{foreign[0]}', the "
+                             f"bag's run_info.json run '{run_id}': the records are another run's; {advice}")
+
+
 def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any, layout: Any,
-            recorded: set[str]) -> BagRun:
-    """The :class:`BagRun` of namespace ``ns`` from a scan of its bag."""
+            recorded: set[str], run_info: dict[str, Any] | None = None) -> BagRun:
+    """The :class:`BagRun` of namespace ``ns`` from a scan of its bag (``run_info``: the bag's
+    ``run_info.json``: its run id, :func:`check_one_run`, and its EMS, :func:`_unread_inputs`)."""
+    run_info = run_info or {}
+    run_id = run_info.get("run_id")
     import pandas as pd
 
     from comems4build_ros.core.loop import TIMESERIES_COLUMNS
 
     by_step = scan.records[ns]
+    check_one_run(ns, scan, path, run_id if isinstance(run_id, str) else None)
     steps = sorted(by_step)
     if steps != list(range(len(steps))):
         missing = sorted(set(range(steps[-1] + 1)) - set(steps))
@@ -284,6 +343,8 @@ def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any
     n_steps = scan.n_steps.get(ns)
     complete = n_steps is not None and len(steps) == n_steps
     fallback = {k for k, r in zip(steps, rows) if r["fallback"]}
+    gaps = find_gaps(contract, ns, len(steps), fallback, scan.seen, complete, recorded, scan.withheld.get(ns, set()),
+                     _unread_inputs(contract, scan.scenarios.get(ns), scan.ems_names.get(ns), run_info.get("ems")))
     counter_names = ("fallback_steps", "rejected_commands", "wrong_step_commands", "foreign_commands")
     return BagRun(
         namespace=ns,
@@ -292,8 +353,8 @@ def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any
         first_ns=int(scan.first_ns or 0),
         last_ns=max(t for t, _ in by_step.values()),
         counters={c: int(rows[-1][c]) for c in counter_names},
-        gaps=find_gaps(contract, ns, len(steps), fallback, scan.seen, complete, recorded,
-                       scan.withheld.get(ns, set()), _unread_inputs(contract, scan.ems_names.get(ns))),
+        gaps=gaps,
+        silent={t for t in gaps if t not in scan.seen},
         ems=scan.ems_names.get(ns),
         scenario=scan.scenarios.get(ns),
         stand_in=sorted(set(scan.stand_in.get(ns, []))),
@@ -326,6 +387,8 @@ def _read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> 
     ValueError
         If the bag has no ``plant/record`` topic, a record does not match the contract
         layout, or steps are missing in the middle of a run (naming topic and steps).
+    MixedRunsError
+        If a namespace holds records of more than one plant or run (:func:`check_one_run`).
     """
     from comems4build_ros.wire.contract import load_contract
 
@@ -338,7 +401,8 @@ def _read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> 
         topics = ", ".join(sorted(info.topics)) or "none"
         damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
         raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
-    return {ns: _run_of(ns, scan, path, timezone, contract, layout, set(info.topics))
+    run_info = read_run_info(path)
+    return {ns: _run_of(ns, scan, path, timezone, contract, layout, set(info.topics), run_info)
             for ns in sorted(scan.records, key=ns_key)}
 
 
@@ -362,10 +426,21 @@ def parse_stats(text: str) -> dict[str, float]:
     return out
 
 
-def _unread_inputs(contract: Any, ems: str | None) -> set[str]:
-    """Feed topics the EMS ``ems`` (as announced on ``ems/info``) does not read (none if unknown)."""
+def _unread_inputs(contract: Any, feed_info: dict[str, Any] | None, ems: str | None,
+                   run_ems: Any = None) -> set[str]:
+    """Feed topics the run's feed did not publish: those its EMS node does not read, the node the
+    feed served as its ``feed/info`` names it (``for_ems``; none when it served every EMS), else
+    the EMS ``ems`` announced on ``ems/info``, else ``run_ems`` of ``run_info.json`` (an EMS of
+    one's own publishes no ``ems/info``); none if the bag names none of them."""
+    if feed_info is not None and "for_ems" in feed_info:
+        node = feed_info.get("for_ems")
+        try:
+            return set(contract.inputs_not_read(node)) if isinstance(node, str) and node else set()
+        except ValueError:  # ContractError: a node this contract does not know
+            return set()
+    name = ems or (run_ems if isinstance(run_ems, str) else None)
     try:
-        return set(contract.inputs_not_read(contract.ems_node_name(ems))) if ems else set()
+        return set(contract.inputs_not_read(contract.ems_node_name(name))) if name else set()
     except ValueError:  # ContractError: an EMS this contract does not know
         return set()
 
@@ -446,9 +521,13 @@ class BagGapError(ValueError):
     """The bag misses messages in the middle of a run (names topics and steps)."""
 
 
-def describe_gaps(gaps: dict[str, list[int]]) -> str:
-    """``topic: N step(s) (ranges)`` per topic, one per line."""
-    return "\n".join(f"  {t}: {len(steps)} step(s) missing ({_ranges(steps)})" for t, steps in sorted(gaps.items()))
+def describe_gaps(gaps: dict[str, list[int]], silent: set[str] | frozenset[str] = frozenset()) -> str:
+    """``topic: N step(s) missing (ranges)`` per topic, one per line; a topic of ``silent`` (no
+    message at all in the bag) says so, and that the bag cannot tell why."""
+    return "\n".join(
+        f"  {t}: no message at all ({len(steps)} step(s)): not published in this run, or never received by "
+        "the recorder (the bag does not tell which)" if t in silent else
+        f"  {t}: {len(steps)} step(s) missing ({_ranges(steps)})" for t, steps in sorted(gaps.items()))
 
 
 def resolve_ns(ns: str, name: str) -> str:
@@ -530,8 +609,10 @@ def evaluate_bag(
     runs, bag_of = read_bag_set(path, params.site.timezone)
     gaps = {t: steps for run in runs.values() for t, steps in run.gaps.items()}
     if gaps and not accept_gaps:
+        silent = {t for run in runs.values() for t in run.silent}
         raise BagGapError(
-            f"bag {path}: messages missing (lost in the recording) on {len(gaps)} topic(s):\n{describe_gaps(gaps)}\n"
+            f"bag {path}: messages of topics published once a step missing on {len(gaps)} topic(s):\n"
+            f"{describe_gaps(gaps, silent)}\n"
             "KPIs from plant/record would still be exact, but the bag is not a complete record of the run; "
             "evaluate it anyway with --accept-gaps"
         )
@@ -637,6 +718,8 @@ def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], Ba
         info = BagInfo(part, [], False)
         try:
             part_runs = read_runs(part, timezone, info)
+        except MixedRunsError:
+            raise  # never left out quietly: the set's figures would lack a house without a word
         except ValueError as exc:
             if len(parts) == 1:
                 raise

@@ -163,6 +163,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
     from rclpy.executors import ExternalShutdownException
 
     from comems4build_ros.core.config import ConfigError
+    from comems4build_ros.ros.package_node import steady_timer
     from comems4build_ros.ros.process import (
         REFUSED_TAG,
         clean_up,
@@ -179,7 +180,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
     roles = [entry_role(e, role) for e in spec["nodes"]]
     makers = {r: node_factory(r, spec) for r in dict.fromkeys(roles)}
     prepared = prepare_feed_scenarios(spec, role)
-    init_rclpy(args)
+    init_rclpy(args, label)
     executor = make_executor()
     nodes: list[Any] = []
     code = 0
@@ -192,7 +193,7 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
         progress_nodes = [n for n, r in zip(nodes, roles) if r == "recorder"]
         period = float(spec.get("progress_period_s", 0.0))
         if progress_nodes and period > 0:
-            progress_nodes[0].create_timer(period, lambda: print_progress(progress_nodes))
+            steady_timer(progress_nodes[0], period, lambda: print_progress(progress_nodes))
         done = all_finished(nodes, role)
         spin_until_done(executor, done)
         # the spin ended with every node done, or because the context was shut down (no exception)
@@ -217,11 +218,13 @@ def run_container(role: str, spec: dict[str, Any], args: list[str] | None = None
 
 def create_node(make: Any, entry: dict[str, Any], prepared: tuple[Any, Any] | None) -> Any:
     """One node of a spec entry (namespace, parameters; a feed's prepared scenario), its
-    parameters checked whole (:meth:`~comems4build_ros.ros.package_node.PackageNode.refuse_undeclared`)."""
+    parameters checked whole (:meth:`~comems4build_ros.ros.package_node.NodeParameters.refuse_undeclared`)."""
+    from comems4build_ros.ros.package_node import refuse_undeclared
+
     extra = {} if prepared is None else {"scenario": prepared[0], "weeks_bound": prepared[1]}
     node = make(namespace=entry["namespace"], parameter_overrides=to_parameters(dict(entry.get("params", {}))),
                 start_parameter_services=False, **extra)
-    node.refuse_undeclared()
+    refuse_undeclared(node)
     return node
 
 

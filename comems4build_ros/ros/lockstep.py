@@ -3,8 +3,8 @@
 A lock-step master announces step ``k`` (the state at its start on ``state/*``, then
 ``plant/step`` = ``k``), waits for the EMS's command for ``k``, applies it (the plant
 model, or the house behind MQTT), publishes the step's ``plant/record`` and ``/clock``,
-and goes on to ``k + 1`` (docs/ros_nodes.md "Lock-step protocol"). :class:`LockStepMaster`
-owns what does not depend on what is stepped:
+and goes on to ``k + 1`` (docs/ros_nodes.md "Lock-step protocol"). :class:`LockStep`, which
+each master composes, owns what does not depend on what is stepped:
 
 * the loop's timing parameters (:data:`LOOP_PARAMS`, each positive) and ``stall_steps``,
   which may change during a run (``ros2 param set``: from the next watchdog tick), and
@@ -15,7 +15,8 @@ owns what does not depend on what is stepped:
 * the start gate (:meth:`recorder_ready`): with ``wait_for_recorder``, the recorder's
   ``recorder/ready`` and this node's writers matched to the recorder's readers;
 * back-pressure (:meth:`behind`): no step announced more than ``record_window_steps``
-  beyond ``recorder/progress``, the time held counted;
+  beyond ``recorder/progress``, the time held counted; a warning when the recorder leaves
+  before the end of the run (:meth:`_check_recorder_stays`);
 * the run's fault counters and statistics (:meth:`stats`), fault events on
   ``plant/events`` (:meth:`event`), ``/clock`` (:meth:`publish_clock`: one clock per run,
   parameter ``publish_clock``);
@@ -28,22 +29,25 @@ owns what does not depend on what is stepped:
 * the end of the run (:meth:`finish_run`): the statistics line, ``plant/done``, the
   acknowledgement of the last messages, and the exit once the recorder has left.
 
-A subclass creates its own publishers of ``state/*`` and ``plant/record`` and its
-subscriptions of ``ems/command`` and ``feed/truth``, and implements
-:meth:`on_recorder_progress` (what to do when the recording caught up).
+The master node creates its own publishers of ``state/*`` and its subscriptions of
+``ems/command`` and ``feed/truth``, and tells the lock-step what to do when the recording
+caught up (``on_progress``) and what it waits for (``waiting_for``).
 """
 
 from __future__ import annotations
 
 import time
 from array import array
+from collections.abc import Callable
 from typing import Any
 
 from rclpy.duration import Duration
+from rclpy.node import Node
 from rclpy.task import Future
 from std_msgs.msg import Bool, String, UInt32
 
-from comems4build_ros.ros.node import RECORDER_NODE, ArrayPublisher, ContractNode, layout_sizes
+from comems4build_ros.ros.node import RECORDER_NODE, ArrayPublisher, ContractEndpoints, RecorderGate, layout_sizes
+from comems4build_ros.ros.package_node import NodeParameters, steady_timer
 from comems4build_ros.ros.process import report_cause
 from comems4build_ros.wire.cdr import clock_cdr, uint32_cdr
 from comems4build_ros.wire.contract import CLOCK_TOPIC
@@ -94,39 +98,66 @@ STATE_TOPICS: dict[str, tuple[str, ...]] = {
 #: loaded machine a reliable writer's retransmission waits for its next heartbeat (seconds),
 #: so a live recorder can be still for a while (measured: 6 s at a load average of 9 on 2 cores).
 RECORDER_STALL_MIN_S = 60.0
+#: Period of the check that the recorder is still in the run (with ``wait_for_recorder``) [s].
+RECORDER_CHECK_S = 1.0
 #: Names of the fault counters, in the order of ``plant/record`` and of the statistics.
 FAULT_COUNTERS = ("fallback_steps", "rejected_commands", "wrong_step_commands", "duplicate_commands",
                   "foreign_commands")
 
 
-class LockStepMaster(ContractNode):
-    """Base class of the lock-step masters (see the module docstring).
+class LockStep:
+    """The master's side of the lock-step loop, composed by ``plant_sim`` and ``mqtt_bridge`` (see
+    the module docstring): its parameters, the run's state and counters, the recorder's
+    back-pressure and gate, stalls, the fault events and the end of the run.
 
     Parameters
     ----------
-    node_name : node name in the contract (``plant_sim``, ``mqtt_bridge``)
-    extra_timing : further positive timing parameters [s] of the subclass and their defaults
-    node_kwargs : passed to ``rclpy.node.Node`` (``namespace``, ``parameter_overrides``, ...)
+    node : the master node (``plant_sim``, ``mqtt_bridge``), whose endpoints and timers these are
+    parameters : the node's parameters (the loop's are declared here)
+    endpoints : the node's contract endpoints
+    on_progress : called when ``recorder/progress`` grew: a held announcement may go out now
+    waiting_for : what the master waits for now, ``(words naming the node or device, contract
+        topic whose publishers to name or None)``; None while it waits for the EMS's command
+        (the step time-out and :attr:`silent_fallbacks` cover that). Called at every watchdog
+        tick: no graph queries there. A wait for ``recorder/progress`` is a stall only after
+        :data:`RECORDER_STALL_MIN_S` at least.
+    silent_ems_cause : words appended to the "EMS is silent" stall when the master sees why (a
+        silent EMS may itself wait for another node), given ``time.monotonic()`` [s]; none by default
+    extra_timing : further positive timing parameters [s] of the master and their defaults
+
+    Attributes
+    ----------
+    step_period_s : a wall clock's step period [s] (0 in lock-step): the stall window is at
+        least ``stall_steps`` of them (:meth:`stall_window_s`)
     """
 
-    def __init__(self, node_name: str, extra_timing: dict[str, float] | None = None, **node_kwargs: Any) -> None:
-        super().__init__(node_name, **node_kwargs)
-        self.params = self.plant_params()
+    def __init__(self, node: Node, parameters: NodeParameters, endpoints: ContractEndpoints,
+                 on_progress: Callable[[], None], waiting_for: Callable[[], tuple[str, str | None] | None],
+                 silent_ems_cause: Callable[[float], str] | None = None,
+                 extra_timing: dict[str, float] | None = None) -> None:
+        self.node = node
+        self.endpoints = endpoints
+        self._on_progress = on_progress
+        self._waiting_for = waiting_for
+        self._silent_ems_cause = silent_ems_cause or (lambda now: "")
+        self.step_period_s = 0.0
+        self.params = parameters.plant_params()
         # The loop's timing may change during a run (ros2 param set): each takes effect at the
         # next watchdog tick; the watchdog's own period changes the timer's.
         for name, default in {**LOOP_PARAMS, **(extra_timing or {})}.items():
-            setattr(self, name, self.param(name, default, on_change=self._timing_setter(name)))
-        self.wait_for_recorder = self.param("wait_for_recorder", False)
-        self.recorder_node = self.param("recorder_node", RECORDER_NODE)
-        self.exit_when_done = self.param("exit_when_done", True)
-        token_file = self.param("ems_token_file", "")
+            setattr(self, name, parameters.param(name, default, on_change=self._timing_setter(name)))
+        self.wait_for_recorder = parameters.param("wait_for_recorder", False)
+        self.recorder_node = parameters.param("recorder_node", RECORDER_NODE)
+        self.gate = RecorderGate(node, self.wait_for_recorder, self.recorder_node)
+        self.exit_when_done = parameters.param("exit_when_done", True)
+        token_file = parameters.param("ems_token_file", "")
         # a run secret (file): every command authenticated; else a plain token (parameter) or none
         self._key = secret_key(read_token_file(token_file)) if token_file else None
-        ems_token = self.param("ems_token", 0)
+        ems_token = parameters.param("ems_token", 0)
         self.ems_token = 0 if token_file else ems_token
-        self.stall_steps = self.param("stall_steps", 0, on_change=lambda v: setattr(self, "stall_steps", v))
-        self.record_window_steps = self.param("record_window_steps", RECORD_WINDOW_STEPS)
-        self.publish_clock_on = self.param("publish_clock", True)
+        self.stall_steps = parameters.param("stall_steps", 0, on_change=lambda v: setattr(self, "stall_steps", v))
+        self.record_window_steps = parameters.param("record_window_steps", RECORD_WINDOW_STEPS)
+        self.publish_clock_on = parameters.param("publish_clock", True)
         self.sizes = layout_sizes(self.params)
         self.dt_ns = int(round(self.params.simulation.time_step_h * 3600.0 * NS_PER_S))
         # the run
@@ -150,13 +181,21 @@ class LockStepMaster(ContractNode):
         self._clock_ns = -1  # the simulated time last published on /clock [ns]
         self._watchdog_timer: Any = None
         # what every master publishes and reads besides its state and commands
-        self._record = ArrayPublisher(self, "plant/record", self.sizes)
-        self._step_pub = self.contract_publisher("plant/step")
-        self._clock_pub = self.contract_publisher(CLOCK_TOPIC) if self.publish_clock_on else None
-        self._done_pub = self.contract_publisher("plant/done")
-        self._events_pub = self.contract_publisher("plant/events")
-        self.contract_subscription("recorder/ready", self._on_recorder_ready)
-        self.contract_subscription("recorder/progress", self._on_recorder_progress)
+        self.record = ArrayPublisher(self.endpoints, "plant/record", self.sizes)
+        self._step_pub = self.endpoints.publisher("plant/step")
+        self._clock_pub = self.endpoints.publisher(CLOCK_TOPIC) if self.publish_clock_on else None
+        self._done_pub = self.endpoints.publisher("plant/done")
+        self._events_pub = self.endpoints.publisher("plant/events")
+        self.endpoints.subscription("recorder/ready", self._on_recorder_ready)
+        self.endpoints.subscription("recorder/progress", self._on_recorder_progress)
+        self._recorder_left = False
+        if self.wait_for_recorder:
+            steady_timer(self.node, RECORDER_CHECK_S, self._check_recorder_stays)
+
+    @property
+    def recorded(self) -> int:
+        """Steps the recorder has written without a gap (``recorder/progress``)."""
+        return self._recorded
 
     def _timing_setter(self, name: str) -> Any:
         """``on_change`` of a timing parameter: the new value is used from the next watchdog tick."""
@@ -170,7 +209,7 @@ class LockStepMaster(ContractNode):
 
     def start_watchdog(self, callback: Any) -> None:
         """The watchdog timer (period ``watchdog_period_s``, changeable during the run)."""
-        self._watchdog_timer = self.create_timer(self.watchdog_period_s, callback)
+        self._watchdog_timer = steady_timer(self.node, self.watchdog_period_s, callback)
 
     # ------------------------------------------------------------------ recorder
     def _on_recorder_ready(self, msg: Bool) -> None:
@@ -180,17 +219,33 @@ class LockStepMaster(ContractNode):
         if int(msg.data) > self._recorded:
             self._recorded = int(msg.data)
             self._t_moved = time.monotonic()
-        self.on_recorder_progress()
+        self._on_progress()
 
-    def on_recorder_progress(self) -> None:
-        """Called when ``recorder/progress`` grew: a held announcement may go out now."""
+    def _check_recorder_stays(self) -> None:
+        """With ``wait_for_recorder``: warn once (a ``recorder_left`` event on ``plant/events`` and
+        in the log) when the recorder has left the graph while the run is in progress.
+
+        The run goes on: the recording of its remaining steps is lost, and back-pressure holds
+        the run ``record_window_steps`` beyond the last step recorded (with ``stall_steps`` the
+        run then ends as stalled, naming the recorder). A recorder killed outright leaves the
+        graph when DDS notices (the participant's lease), a stopped one at once."""
+        if not self.started or self.done or self._recorder_left:
+            return
+        infos = self.node.get_subscriptions_info_by_topic(self.record.publisher.topic_name)
+        if any(i.node_name == self.recorder_node for i in infos):
+            return
+        self._recorder_left = True
+        self.event("recorder_left", f"the recorder '{self.recorder_node}' left the run before its end (step "
+                                    f"{self.k}, recorded: {self._recorded}): the steps from here on are not "
+                                    f"recorded, and the run holds {self.record_window_steps} steps beyond the "
+                                    "last one recorded")
 
     def recorder_ready(self) -> bool:
         """Whether the run may start as far as the recorder is concerned: without
         ``wait_for_recorder`` at once; else once the recorder said ``recorder/ready`` (its
         readers matched) and this node's writers matched its readers too (the first
-        messages could otherwise go unsent, :meth:`~ContractNode.recorder_gate`)."""
-        return not self.wait_for_recorder or (self._recorder_ready and self.recorder_gate())
+        messages could otherwise go unsent, :meth:`~comems4build_ros.ros.node.RecorderGate.is_open`)."""
+        return not self.wait_for_recorder or (self._recorder_ready and self.gate.is_open())
 
     def behind(self, k: int) -> bool:
         """With ``wait_for_recorder``: announcing step ``k`` would run more than
@@ -221,7 +276,7 @@ class LockStepMaster(ContractNode):
                 return False
         elif self._token is None:
             self._token = token  # the first valid command names the run's EMS
-            self.get_logger().info(f"commands of token {int(token)} accepted from now on")
+            self.node.get_logger().info(f"commands of token {int(token)} accepted from now on")
         elif token != self._token:
             self.foreign_commands += 1
             self.event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} ignored "
@@ -232,14 +287,14 @@ class LockStepMaster(ContractNode):
 
     # ------------------------------------------------------------------ stalls
     @property
-    def run_complete(self) -> bool:
+    def complete(self) -> bool:
         """A signal from now on is a normal end (exit code 0): the last step is done and,
         with ``exit_when_done``, the recorder has left (while it has not, a node leaving
         would take its last messages out of the recorder's queues: the run is cut)."""
         return self.done and not self.stalled and (not self.exit_when_done or self.finished.done())
 
     @property
-    def run_over(self) -> bool:
+    def over(self) -> bool:
         """The last step is done (the node may still wait for the recorder to leave)."""
         return self.done and not self.stalled
 
@@ -253,25 +308,13 @@ class LockStepMaster(ContractNode):
         self._t_moved = time.monotonic()
 
     def stall_window_s(self) -> float:
-        """How long a wait may last before it is a stall: ``stall_steps`` step time-outs [s]."""
-        return self.stall_steps * self.step_timeout_s
-
-    def waiting_for(self) -> tuple[str, str | None] | None:
-        """What the master waits for now: ``(words naming the node or device, contract topic
-        whose publishers to name or None)``; None while it waits for the EMS's command (the
-        step time-out and :attr:`silent_fallbacks` cover that). Called at every watchdog
-        tick: no graph queries here. A wait for ``recorder/progress`` is a stall only after
-        :data:`RECORDER_STALL_MIN_S` at least."""
-        return None
-
-    def silent_ems_cause(self, now: float) -> str:
-        """Words appended to the "EMS is silent" stall when the master sees why (a silent EMS
-        may itself wait for another node); "" here. ``now``: ``time.monotonic()`` [s]."""
-        return ""
+        """How long a wait may last before it is a stall: ``stall_steps`` step time-outs, or step
+        periods of a wall clock (:attr:`step_period_s`) if longer [s]."""
+        return self.stall_steps * max(self.step_timeout_s, self.step_period_s)
 
     def publishers_of(self, topic: str) -> str:
         """The nodes publishing contract topic ``topic`` now, in words (for stall messages)."""
-        infos = self.get_publishers_info_by_topic(self.resolve_topic_name(topic))
+        infos = self.node.get_publishers_info_by_topic(self.node.resolve_topic_name(topic))
         names = sorted({f"{i.node_namespace.rstrip('/')}/{i.node_name}" for i in infos})
         return f"publisher: {', '.join(names)}" if names else "no publisher left"
 
@@ -281,7 +324,7 @@ class LockStepMaster(ContractNode):
         A master that was paused (SIGSTOP) or starved of CPU for longer than
         :data:`OWN_PAUSE_S` finds, when it runs again, its step time-out long passed while the
         EMS's command may already wait in its queue: the pause is its own, so the stall clock
-        restarts (the subclass restarts its step wait) and an event names it, instead of a
+        restarts (the master restarts its step wait) and an event names it, instead of a
         fallback counted as a late command of the EMS. ``now``: ``time.monotonic()`` [s].
         """
         gap = now - self._t_tick
@@ -290,24 +333,24 @@ class LockStepMaster(ContractNode):
             return 0.0
         self.paused_s += gap
         self._t_moved += gap
-        self.event("paused", f"node '{self.get_name()}' itself did not run for {gap:.1f} s (paused, e.g. by SIGSTOP, "
-                             "or starved of CPU): the wait for the step's command restarts; no fallback is counted "
-                             "against the EMS for that time")
+        self.event("paused", f"node '{self.node.get_name()}' itself did not run for {gap:.1f} s (paused, e.g. by "
+                             "SIGSTOP, or starved of CPU): the wait for the step's command restarts; no fallback is "
+                             "counted against the EMS for that time")
         return gap
 
     def check_stall(self, now: float) -> bool:
         """End the run as stalled (:meth:`stall`) if, with ``stall_steps`` > 0, the EMS has
         been silent for ``stall_steps`` fallback steps in a row, or no step was possible for
         :meth:`stall_window_s` while the master waited for something else (:meth:`waiting_for`).
-        Called by the subclass's watchdog; returns whether the run stalled."""
+        Called by the master's watchdog; returns whether the run stalled."""
         if not self.stall_steps or not self.started or self.done:
             return self.stalled
         if self.silent_fallbacks >= self.stall_steps:
             self.stall(f"the EMS is silent: no command on 'ems/command' for {self.silent_fallbacks} steps in a row "
                        f"(step time-out {self.step_timeout_s:g} s; {self.publishers_of('ems/command')})"
-                       f"{self.silent_ems_cause(now)}")
+                       f"{self._silent_ems_cause(now)}")
             return True
-        waiting = self.waiting_for()
+        waiting = self._waiting_for()
         if waiting is None:
             self._t_moved = now
         elif now - self._t_moved > (self.stall_window_s() if waiting[1] != "recorder/progress"
@@ -326,9 +369,9 @@ class LockStepMaster(ContractNode):
         if self.stalled or self.finished.done():
             return
         self.stalled = True
-        self.done = True  # no further step: every handler of the subclasses checks done
+        self.done = True  # no further step: every handler of the masters checks done
         self.event("stall", cause)
-        report_cause(self.get_fully_qualified_name(), f"run stalled: {cause}", self.get_logger())
+        report_cause(self.node.get_fully_qualified_name(), f"run stalled: {cause}", self.node.get_logger())
         self.finished.set_result(EXIT_STALLED)
 
     # ------------------------------------------------------------------ output
@@ -336,7 +379,7 @@ class LockStepMaster(ContractNode):
         """Log a fault event and publish it on plant/events (``<step> <kind> <detail>``; the
         step the event concerns, default the current one)."""
         line = f"{self.k if step is None else step} {kind} {detail}"
-        self.get_logger().warning(line)
+        self.node.get_logger().warning(line)
         self._events_pub.publish(String(data=line))
 
     def publish_step(self, k: int) -> None:
@@ -359,7 +402,7 @@ class LockStepMaster(ContractNode):
                 "held_for_recorder_s": self.held_s}
 
     # ------------------------------------------------------------------ end of run
-    def finish_run(self, before_done: Any = None) -> None:
+    def finish_run(self, stats: dict[str, float], before_done: Any = None) -> None:
         """End of the run: log the statistics line, publish plant/done and the line on
         plant/events, wait (at most :data:`ACK_TIMEOUT_S`) for their acknowledgement, then,
         if ``exit_when_done``, finish once the recorder has left (a writer that left at once
@@ -369,17 +412,18 @@ class LockStepMaster(ContractNode):
         callback: a container process spins every house's plant on one executor, and a
         blocking wait (DDS acknowledges on the writer's heartbeat period, seconds) would stall
         the other houses' steps at every end of run. The line is logged first: whoever
-        sees plant/done can rely on it being in the log. ``before_done`` (optional) is
-        called between the log line and plant/done.
+        sees plant/done can rely on it being in the log: ``stats``, the master's statistics
+        (:meth:`stats` and its own). ``before_done`` (optional) is called between the log line
+        and plant/done.
         """
         self.done = True
-        line = " ".join(f"{k}={v:.6g}" for k, v in self.stats().items())
-        self.get_logger().info(f"run done: {line}")
+        line = " ".join(f"{k}={v:.6g}" for k, v in stats.items())
+        self.node.get_logger().info(f"run done: {line}")
         if before_done is not None:
             before_done()
         self._done_pub.publish(Bool(data=True))
         self._events_pub.publish(String(data=f"{self.k} stats {line}"))
-        pubs = (self._record.publisher, self._done_pub, self._events_pub)
+        pubs = (self.record.publisher, self._done_pub, self._events_pub)
         t0 = time.monotonic()
         now_only = Duration(nanoseconds=0)
         timer: Any = None
@@ -389,6 +433,6 @@ class LockStepMaster(ContractNode):
                 return
             timer.cancel()
             if self.exit_when_done:
-                self.finish_when_recorded("plant/record")
+                self.gate.finish_when_recorded(self.finished, "plant/record")
 
-        timer = self.create_timer(ACK_POLL_S, poll)
+        timer = steady_timer(self.node, ACK_POLL_S, poll)

@@ -1,30 +1,33 @@
-"""The node base of the package: parameters as in every ROS 2 package, steady timers, simulated time in the log.
+"""What every node of the package composes: its parameters, steady timers and the simulated time in its log.
 
-:class:`PackageNode` is the ``rclpy.node.Node`` every node of the package inherits
-(:class:`~comems4build_ros.ros.node.ContractNode` and the recorder). What it owns:
+A node of the package is an ``rclpy.node.Node`` of its own (the node file holds the node, as in
+ros2/examples), created with :func:`node_options`; it composes these helpers rather than
+inheriting them:
 
-* **Parameters** (:mod:`comems4build_ros.ros.parameters`). :meth:`PackageNode.param`
-  declares a parameter with its static type, its description (source and unit), its range
-  and, unless the node passes ``on_change``, as read-only: a ``ros2 param set`` of it is
-  refused ("Trying to set a read-only parameter"), as the value is fixed when the node
-  starts. A parameter with ``on_change`` may change during a run and takes effect at once
-  (``on_change`` gets the new value; the node logs it). Every value given, at start or by
-  ``ros2 param set``, follows :func:`~comems4build_ros.ros.parameters.coerce`; an integer
-  set where a number is declared becomes that number (a pre-set callback), every other
-  type is refused. :meth:`PackageNode.plant_params` reads, validates and declares every
-  plant parameter (``battery.e_max_kwh`` ...), so ``ros2 param dump`` shows the plant the
-  node models. :meth:`PackageNode.refuse_undeclared` (called once the node is built, by
-  :func:`~comems4build_ros.ros.process.run_node` and the container) refuses a parameter
-  given to the node that it does not have (a typo), naming the nearest known name.
-* **Timers on the steady clock.** Every timer of the package's nodes is a protocol
-  time-out or period in wall time; with ``use_sim_time`` the node's own clock jumps an
-  hour per step (and stands still before the first ``/clock``), so :meth:`create_timer`
-  uses a steady clock unless given another one.
-* **The simulated time in the log** (:class:`~comems4build_ros.ros.log.SimTimeLogger`).
+* **Parameters** (:class:`NodeParameters`, :mod:`comems4build_ros.ros.parameters`).
+  :meth:`NodeParameters.param` declares a parameter with its static type, its description
+  (source and unit), its range and, unless the node passes ``on_change``, as read-only: a
+  ``ros2 param set`` of it is refused ("Trying to set a read-only parameter"), as the value is
+  fixed when the node starts. A parameter with ``on_change`` may change during a run and takes
+  effect at once (``on_change`` gets the new value; the node logs it). Every value given, at
+  start or by ``ros2 param set``, follows :func:`~comems4build_ros.ros.parameters.coerce`; an
+  integer set where a number is declared becomes that number (a pre-set callback), every other
+  type is refused. :meth:`NodeParameters.plant_params` reads, validates and declares every
+  plant parameter (``battery.e_max_kwh`` ...), so ``ros2 param dump`` shows the plant the node
+  models. :meth:`NodeParameters.refuse_undeclared` (called once the node is built, by
+  :func:`~comems4build_ros.ros.process.run_node` and the container, through
+  :func:`refuse_undeclared`) refuses a parameter given to the node that it does not have (a
+  typo), naming the nearest known name.
+* **Timers on the steady clock** (:func:`steady_timer`). Every timer of the package's nodes is
+  a protocol time-out or period in wall time; with ``use_sim_time`` a node's own clock jumps an
+  hour per step (and stands still before the first ``/clock``).
+* **The simulated time in the log** (:func:`sim_time_logger`,
+  :class:`~comems4build_ros.ros.log.SimTimeLogger`): a node returns it from ``get_logger``.
 """
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
@@ -48,53 +51,68 @@ from comems4build_ros.ros.parameters import (
 _UNSET = object()
 
 
-class PackageNode(Node):
-    """``rclpy.node.Node`` with the package's parameter rules, steady timers and simulated-time log lines.
+def node_options(kwargs: dict[str, Any]) -> dict[str, Any]:
+    """``rclpy.node.Node`` keyword arguments of a node of the package: ``kwargs`` (``namespace``,
+    ``parameter_overrides``, ``context``, ...) with every parameter given kept for
+    :class:`NodeParameters` to declare."""
+    return {**kwargs, "automatically_declare_parameters_from_overrides": True}
+
+
+def sim_time_logger(node: Node) -> SimTimeLogger:
+    """The node's logger, stamped with the simulated time (:class:`~comems4build_ros.ros.log.SimTimeLogger`)."""
+    return SimTimeLogger(Node.get_logger(node).name, node.get_clock())
+
+
+def debug_enabled(logger: Any) -> bool:
+    """Whether ``logger`` logs at debug level (``--log-level debug``, read once at start): the per-step lines."""
+    return bool(logger.is_enabled_for(LoggingSeverity.DEBUG))
+
+
+def steady_timer(node: Node, period_s: float, callback: Callable[[], Any]) -> Any:
+    """``node.create_timer`` on the steady clock (see the module docstring) [s]."""
+    return node.create_timer(period_s, callback, clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+
+def refuse_undeclared(node: Any) -> None:
+    """:meth:`NodeParameters.refuse_undeclared` of a node of the package (nothing for another node)."""
+    parameters = getattr(node, "parameters", None)
+    if isinstance(parameters, NodeParameters):
+        parameters.refuse_undeclared()
+
+
+class NodeParameters:
+    """The parameters of one node: declared with their descriptors, checked, plant parameters included.
 
     Parameters
     ----------
-    node_name : node name (before any ``__node`` remapping)
-    kwargs : passed to ``rclpy.node.Node`` (``namespace``, ``parameter_overrides``, ``context``, ...);
-        parameters given as overrides are collected here and declared by :meth:`param`
+    node : the node, created with :func:`node_options` (every parameter given to it is collected
+        here and declared by :meth:`param`)
+
+    Attributes
+    ----------
+    sim_time : ``use_sim_time`` now (kept current when it is set): the node's clock follows ``/clock``
     """
 
-    def __init__(self, node_name: str, **kwargs: Any) -> None:
-        kwargs["automatically_declare_parameters_from_overrides"] = True
-        super().__init__(node_name, **kwargs)
-        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
-        self._logger_with_time = SimTimeLogger(super().get_logger().name, self.get_clock())
-        #: the node logs at debug level (``--log-level debug``, read once at start): its per-step lines
-        self.debug = bool(self._logger_with_time.is_enabled_for(LoggingSeverity.DEBUG))
+    def __init__(self, node: Node) -> None:
+        self.node = node
         #: values given to the node (command line, parameter files, overrides), by name
         self._given: dict[str, Any] = {
-            name: self.get_parameter(name).value for name in self.list_parameters([], 0).names
+            name: node.get_parameter(name).value for name in node.list_parameters([], 0).names
             if name not in RCLPY_PARAMETERS and not name.startswith("qos_overrides.")}
         self._declared: set[str] = set()
         self._on_change: dict[str, Any] = {}
         self._float_params: set[str] = set()
         self._specs: dict[str, ParamSpec] = {}
-        sim = self.get_parameter("use_sim_time").value
+        sim = node.get_parameter("use_sim_time").value
         if not isinstance(sim, bool):
             raise ParameterError(f"{self._where('use_sim_time')} = {sim!r}: expected true or false")
-        #: ``use_sim_time`` now (kept current when it is set): the node's clock follows ``/clock``
         self.sim_time = sim
-        self.add_pre_set_parameters_callback(self._numbers_as_floats)
-        self.add_on_set_parameters_callback(self._check_set)
-        self.add_post_set_parameters_callback(self._after_set)
+        node.add_pre_set_parameters_callback(self._numbers_as_floats)
+        node.add_on_set_parameters_callback(self._check_set)
+        node.add_post_set_parameters_callback(self._after_set)
 
-    # ------------------------------------------------------------------ log and timers
-    def get_logger(self) -> Any:
-        """The node's logger: rclpy's, stamped with the simulated time (see the module docstring)."""
-        return getattr(self, "_logger_with_time", None) or super().get_logger()
-
-    def create_timer(self, timer_period_sec: float, callback: Any, callback_group: Any = None,
-                     clock: Any = None, autostart: bool = True) -> Any:
-        """``Node.create_timer`` on the steady clock unless ``clock`` is given (see the module docstring)."""
-        return super().create_timer(timer_period_sec, callback, callback_group, clock or self._steady, autostart)
-
-    # ------------------------------------------------------------------ parameters
     def _where(self, name: str) -> str:
-        return f"node '{self.get_fully_qualified_name()}': parameter '{name}'"
+        return f"node '{self.node.get_fully_qualified_name()}': parameter '{name}'"
 
     def param(self, name: str, default: Any, on_change: Any = None, spec: ParamSpec | None = None) -> Any:
         """Value of parameter ``name``: the one given to the node, else ``default``; declared
@@ -124,8 +142,9 @@ class PackageNode(Node):
 
     def _declare(self, name: str, value: Any, desc: Any) -> None:
         """Declare ``name`` with ``value`` (replacing the declaration its given value made)."""
-        if self.has_parameter(name):
-            self.undeclare_parameter(name)
+        node = self.node
+        if node.has_parameter(name):
+            node.undeclare_parameter(name)
         self._declared.add(name)
         if isinstance(value, list) and not value:
             # rclpy infers the type of [] as a byte array: declare the typed array, then set it
@@ -134,12 +153,12 @@ class PackageNode(Node):
 
             writable = copy.copy(desc)
             writable.read_only = False
-            self.declare_parameter(name, Parameter.Type(desc.type), writable, ignore_override=True)
-            self.set_parameters([Parameter(name, Parameter.Type(desc.type), [])])
+            node.declare_parameter(name, Parameter.Type(desc.type), writable, ignore_override=True)
+            node.set_parameters([Parameter(name, Parameter.Type(desc.type), [])])
             if desc.read_only:
-                self.set_descriptor(name, desc)
+                node.set_descriptor(name, desc)
             return
-        self.declare_parameter(name, value, desc, ignore_override=True)
+        node.declare_parameter(name, value, desc, ignore_override=True)
 
     def plant_params(self) -> Any:
         """The plant parameters of the node, validated once, every one of them declared (read-only).
@@ -215,8 +234,8 @@ class PackageNode(Node):
             action = self._on_change.get(p.name)
             if action is not None:
                 action(p.value)
-                self.get_logger().info(f"parameter '{p.name}' = {p.value!r} from now on")
+                self.node.get_logger().info(f"parameter '{p.name}' = {p.value!r} from now on")
             elif p.name == "use_sim_time" and self._declared:
                 self.sim_time = bool(p.value)
-                self.get_logger().info(f"use_sim_time = {p.value}: this node's clock "
-                                       f"{'follows /clock' if p.value else 'is the system clock'} from now on")
+                self.node.get_logger().info(f"use_sim_time = {p.value}: this node's clock "
+                                            f"{'follows /clock' if p.value else 'is the system clock'} from now on")

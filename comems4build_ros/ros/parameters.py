@@ -3,7 +3,7 @@
 Every parameter a node of the package reads is in :data:`PARAMETERS` (or is a plant
 parameter ``<section>.<key>`` of :class:`comems4build_ros.core.config.PlantParams`, whose
 field gives its type, bounds and, through its name's suffix, its unit) and is declared by
-:class:`comems4build_ros.ros.package_node.PackageNode` with a ``ParameterDescriptor`` built
+:class:`comems4build_ros.ros.package_node.NodeParameters` with a ``ParameterDescriptor`` built
 here: its type (static: ``dynamic_typing`` false), a description ending with its source and
 unit, a ``floating_point_range`` or ``integer_range`` for numbers, the allowed values as
 ``additional_constraints`` for the others, and ``read_only`` unless the node lets it change
@@ -196,6 +196,9 @@ PARAMETERS: dict[str, ParamSpec] = {
     "source_namespace": ParamSpec("str", "namespace of the bag to replay (empty = own or the only one)",
                                   allowed="a namespace or empty"),
     "wait_for_subscribers_s": ParamSpec("float", "wait for a subscriber on every replayed topic", "s", 0.0, None),
+    "topic_interval_s": ParamSpec("float", "full replay: shortest interval between two messages of one topic (0 = "
+                                  "none): a default subscriber (ros2 topic echo, depth 5) keeps up with 0.02 s", "s",
+                                  0.0, None, source="docs/ros_tools.md 'replay node'"),
     # mqtt_bridge
     "topic_map": ParamSpec("str", "MQTT topic map (empty = config/mqtt.yaml)", allowed="a file path or empty",
                            source=_MQTT),
@@ -205,8 +208,10 @@ PARAMETERS: dict[str, ParamSpec] = {
     "measure_delay_s": ParamSpec("float", "wall clocks: announce a step this long after it starts "
                                  "(-1 = 0.2 of the period, at most 5 s)", "s", -1.0, None, source=_MQTT),
     "client_id": ParamSpec("str", "MQTT client id", allowed="a string", source=_MQTT),
-    "run_id": ParamSpec("str", "the run's id on its retained MQTT messages (empty = a new random one)",
-                        allowed="1 to 64 of A-Z a-z 0-9 _ . - or empty", source=_MQTT),
+    "run_id": ParamSpec("str", "the run's id: the feed names it on feed/info and the recorder in the bag's "
+                        "run_info.json (evaluate refuses records of another run), mqtt_bridge on its retained MQTT "
+                        "messages (empty: none, for the bridge a new random one)",
+                        allowed="1 to 64 of A-Z a-z 0-9 _ . - or empty", source=_PLAN),
     "mqtt_secret_file": ParamSpec("str", "per-run secret (mode 0600): key of the authentication codes of the "
                                   "messages between bridge and house, and broker_username's password (empty = none)",
                                   allowed="a file path or empty", source=_MQTT),

@@ -28,7 +28,7 @@ from rclpy.task import Future
 
 from comems4build_ros.core.config import ConfigError
 from comems4build_ros.ros.log import process_logger
-from comems4build_ros.ros.package_node import PackageNode
+from comems4build_ros.ros.package_node import refuse_undeclared
 from comems4build_ros.wire.contract import ContractError
 from comems4build_ros.wire.exits import CAUSE_TAG, CLEANUP_TAG, EXIT_BAD_INPUT, EXIT_INTERRUPTED, EXIT_WRITE_FAILED
 
@@ -65,32 +65,74 @@ def make_executor() -> Any:
 SIGNAL_POLL_S = 0.25
 
 
-def init_rclpy(args: list[str] | None) -> None:
+def init_rclpy(args: list[str] | None, name: str = "") -> None:
     """``rclpy.init`` without rclpy's signal handlers; SIGINT and SIGTERM raise
     ``KeyboardInterrupt`` in the main thread instead (see the module's docstring).
 
     Both are installed even when the process started with SIGINT ignored (a background job of
     a shell script), as rclpy does: a node must stop on the signal ``ros2 launch`` sends.
+    The log file under ``ROS_LOG_DIR`` is named after the node (:func:`with_log_file_name`;
+    ``name``: the node's or the process's own name).
     """
     import signal
     import threading
 
     from rclpy.signals import SignalHandlerOptions
 
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    rclpy.init(args=with_log_file_name(list(sys.argv if args is None else args), name),
+               signal_handler_options=SignalHandlerOptions.NO)
     if threading.current_thread() is threading.main_thread():
         signal.signal(signal.SIGINT, _stop_on_signal)
         signal.signal(signal.SIGTERM, _stop_on_signal)
 
 
+def with_log_file_name(argv: list[str], name: str) -> list[str]:
+    """``argv`` with ``--log-file-name`` after the node: ``<namespace>_<node>`` of its remapping
+    (``-r __ns:=/house_0 -r __node:=plant_sim``: ``house_0_plant_sim``), ``name`` without one.
+
+    rcl names a process's log file after its executable, which is the Python interpreter for
+    every node of the package (``python_<pid>_<time>.log``); rcl appends ``_<pid>_<time>.log`` to
+    the name given. An argument list that names the file itself is left as it is.
+    """
+    if "--log-file-name" in argv or not name:
+        return argv
+    ns, node = "", name
+    for flag, value in zip(argv, argv[1:]):
+        if flag not in ("-r", "--remap"):
+            continue
+        target, _, new = value.rpartition(":=")
+        target = target.rpartition(":")[2]  # node-specific remapping: 'node:__ns'
+        if target == "__node" and new:
+            node = new
+        elif target == "__ns":
+            ns = new.strip("/")
+    label = "_".join(p for p in (ns.replace("/", "_"), node) if p)
+    return [*argv, "--ros-args", "--log-file-name", label]
+
+
 #: The stop signal (SIGINT or SIGTERM) this process received, None before one came.
 _stop_signal: int | None = None
+#: When it came (``time.monotonic()``) [s].
+_stop_at = 0.0
+#: A stop signal this soon after the first is the same stop delivered twice (Ctrl-C reaches the
+#: terminal's whole process group, and ``ros2 launch`` passes it on): ignored [s].
+REPEATED_SIGNAL_S = 1.0
 
 
 def _stop_on_signal(signum: int, frame: Any) -> None:
-    """SIGINT and SIGTERM handler: note the signal (:func:`stop_signalled`), stop like Ctrl-C."""
-    global _stop_signal
+    """SIGINT and SIGTERM handler: note the signal (:func:`stop_signalled`), stop like Ctrl-C.
+
+    A second stop signal within :data:`REPEATED_SIGNAL_S` is ignored: a KeyboardInterrupt
+    raised again while the first is being handled would cut the orderly end short.
+    """
+    import time
+
+    global _stop_signal, _stop_at
+    now = time.monotonic()
+    if _stop_signal is not None and now - _stop_at < REPEATED_SIGNAL_S:
+        return
     _stop_signal = signum
+    _stop_at = now
     raise KeyboardInterrupt(f"signal {signum}")
 
 
@@ -121,20 +163,19 @@ def run_node(make_node: Callable[[], Node], args: list[str] | None = None, name:
     context shut down from elsewhere) end the spin with exit code 0 if the node's part of the
     run is complete (:func:`run_complete`), else :data:`EXIT_INTERRUPTED`. A
     :class:`ConfigError`, :class:`ContractError`, ``ValueError`` (a bad parameter, also one the
-    node does not have: :meth:`~comems4build_ros.ros.package_node.PackageNode.refuse_undeclared`)
+    node does not have: :meth:`~comems4build_ros.ros.package_node.NodeParameters.refuse_undeclared`)
     or a missing or existing file raised while the node is created is logged as an error
     (``refused to start: ...``) with exit code :data:`EXIT_BAD_INPUT`.
     The clean-up (:func:`clean_up`) ends the process with the exit code (``end_process``;
     False returns it, for a caller that goes on).
     """
-    init_rclpy(args)
+    init_rclpy(args, name)
     executor = make_executor()
     node: Node | None = None
     code = 0
     try:
         node = make_node()
-        if isinstance(node, PackageNode):
-            node.refuse_undeclared()
+        refuse_undeclared(node)
         executor.add_node(node)
         finished: Future | None = getattr(node, "finished", None)
         if finished is None:
@@ -220,17 +261,29 @@ def clean_up(executor: Any, nodes: list[Any], label: str, code: int, end_process
         os._exit(code)
 
 
+def run_over(node: Any) -> bool:
+    """Whether ``node``'s run is over (a master's last step done, ``plant/done`` seen by the feed
+    or the EMS) though the node may still wait for the recorder to leave: its ``run_end``
+    helper's ``over`` (:class:`~comems4build_ros.ros.lockstep.LockStep`,
+    :class:`~comems4build_ros.ros.node.RunEnd`), else a ``run_over`` attribute."""
+    end = getattr(node, "run_end", None)
+    return bool(end.over) if end is not None else bool(getattr(node, "run_over", False))
+
+
 def run_complete(node: Any) -> bool:
     """Whether ``node``'s part of the run is complete, so that a signal now is a normal end.
 
-    A node says so with a ``run_complete`` attribute (the lock-step master after its last
-    step, the EMS and the feed once they saw ``plant/done``, the recorder once every
-    plant is done); a node with neither that nor a ``finished`` future has no run (always
-    complete); otherwise its ``finished`` future must be done. A node that was never
-    created (None) has not run.
+    A node says so with its ``run_end`` helper's ``complete`` (the lock-step master after its
+    last step, the EMS and the feed once they saw ``plant/done``, each once the recorder has
+    left) or a ``run_complete`` attribute (the recorder once every plant is done); a node with
+    none of these nor a ``finished`` future has no run (always complete); otherwise its
+    ``finished`` future must be done. A node that was never created (None) has not run.
     """
     if node is None:
         return False
+    end = getattr(node, "run_end", None)
+    if end is not None:
+        return bool(end.complete)
     flag = getattr(node, "run_complete", None)
     if flag is not None:
         return bool(flag)
@@ -245,7 +298,7 @@ def interrupted_code(nodes: list[Any], label: str) -> int:
     if nodes and all(run_complete(n) for n in nodes):
         return 0
     logger = nodes[0].get_logger() if len(nodes) == 1 and nodes[0] is not None else None
-    if nodes and all(run_complete(n) or getattr(n, "run_over", False) for n in nodes):
+    if nodes and all(run_complete(n) or run_over(n) for n in nodes):
         # plant/done came, the node was waiting for the recorder to leave: after a complete
         # run that is the supervisor's clean-up; otherwise its last messages may be unrecorded
         report_cause(label, "stopped by a signal after the end of the run, before the recorder had left", logger)

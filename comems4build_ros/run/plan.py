@@ -636,8 +636,10 @@ def house_seeds(opts: LaunchOptions) -> list[int | None]:
     return [opts.seed] * opts.houses
 
 
-def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[str, Any]:
-    """The run's description stored in the bag (``run_info.json``): what evaluate needs."""
+def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None], run_id: str | None = None) -> dict[str, Any]:
+    """The run's description stored in the bag (``run_info.json``): what evaluate needs, and the
+    run's id (``run_id``, which every feed of the run also names on ``feed/info``: a record of
+    another run in the bag is told apart by it)."""
     from comems4build_ros.core.ems import ems_entry
     from comems4build_ros.core.loop import load_forecast_settings
 
@@ -659,13 +661,17 @@ def run_info(opts: LaunchOptions, params: Any, seeds: list[int | None]) -> dict[
         "overrides": opts.overrides,
         "ems_options": opts.ems_options,
         "timezone": params.site.timezone,
+        "run_id": run_id,
     }
 
 
 def house_params(
-    opts: LaunchOptions, seed: int | None, common: dict[str, Any], token_file: str = "", clock: bool = True
+    opts: LaunchOptions, seed: int | None, common: dict[str, Any], token_file: str = "", clock: bool = True,
+    run_id: str = "",
 ) -> dict[str, dict[str, Any]]:
     """Parameters of the EMS, feed and plant of one house (role -> parameters).
+
+    ``run_id``: the run's id, which the feed names on ``feed/info`` (:func:`run_info`).
 
     ``token_file``: the house's run token file (EMS ``run_token_file``, plant
     ``ems_token_file``); the token itself is never a parameter value (any local user sees
@@ -680,6 +686,8 @@ def house_params(
     if opts.ems_options:
         ems_params["ems_options"] = list(opts.ems_options)
     feed_params = dict(common, scenario=str(opts.scenario), weeks=weeks, steps=steps, wait_for_recorder=True)
+    if run_id:
+        feed_params["run_id"] = run_id
     if not opts.all_inputs:
         feed_params["for_ems"] = ems_node_name(opts.ems)
     if seed is not None:
@@ -753,15 +761,18 @@ def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s:
                     skip_topics: Sequence[str] = (), clock: bool = True) -> dict[str, Any]:
     """Parameters of the recorder of namespace ``ns`` writing the bag directory ``bag``
     (``skip_topics``: topics no node of the run publishes, see :func:`unread_inputs`;
-    ``clock``: the house's plant publishes ``/clock``, which its bag records, else none does)."""
+    ``clock``: the house's plant publishes ``/clock``, which its bag records, else none does).
+    The run's id goes as the parameter ``run_id`` (the recorder adds it to ``run_info.json``)."""
     if not clock:
         skip_topics = [*skip_topics, CLOCK_TOPIC]
     params: dict[str, Any] = {
         "bag_path": str(bag.resolve()),
         "namespaces": [ns],
-        "run_info": json.dumps(info),
+        "run_info": json.dumps({k: v for k, v in info.items() if k != "run_id"}),
         "progress_period_s": progress_period_s,
     }
+    if info.get("run_id"):
+        params["run_id"] = info["run_id"]
     if skip_topics:
         params["skip_topics"] = list(skip_topics)
     return params
@@ -874,7 +885,9 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     params = params or opts.params or load_plant_params(opts.config_files, opts.overrides)
     layout = check_layout(opts)
     seeds = house_seeds(opts)
-    info = run_info(opts, params, seeds)
+    from comems4build_ros.mqtt.peer import new_run_id
+
+    info = run_info(opts, params, seeds, new_run_id())
     params_file = (out / PLANT_PARAMS_FILE).resolve()
     common: dict[str, Any] = {"config_files": [str(params_file)]}
     secret_dir = (out / SECRETS_DIR).resolve()
@@ -884,9 +897,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     secrets = [(b.token_file, b.token) for b in houses]
     mqtt_secret: tuple[str, str] | None = None
     if opts.plant == "mqtt":  # the run's MQTT secret and id (mqtt_plant_processes)
-        from comems4build_ros.mqtt.peer import new_run_id
-
-        mqtt_secret = (str(secret_dir / MQTT_SECRET_FILE), new_run_id())
+        mqtt_secret = (str(secret_dir / MQTT_SECRET_FILE), info["run_id"])
         secrets.append((mqtt_secret[0], new_token()))
     if layout in ("role", "house"):
         processes = _container_processes(opts, houses, common, bag, info, out / "containers")
@@ -991,7 +1002,7 @@ def _node_processes(
     ems_name = ems_node_name(opts.ems)
     for b in houses:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = house_params(opts, b.seed, common, b.token_file, b is houses[0])
+        params = house_params(opts, b.seed, common, b.token_file, b is houses[0], info["run_id"])
         ns = b.namespace
         out.append(ProcessPlan(f"{prefix}{opts.ems}_ems", "ems",
                                (*node_command("ems", opts.ems), *ros_args(ns, params["ems"])),
@@ -1019,7 +1030,7 @@ def _contained_nodes(
     nodes = [NodePlan("recorder", "recorder", b.namespace,
                       dict(recorder_params(b.namespace, b.bag, info, 0.0, unread_inputs(opts), clock),
                            tick_s=CONTAINER_RECORDER_TICK_S))]
-    for role, params in house_params(opts, b.seed, common, b.token_file, clock).items():
+    for role, params in house_params(opts, b.seed, common, b.token_file, clock, info["run_id"]).items():
         if role == "plant":
             params = {"step_timeout_s": CONTAINER_STEP_TIMEOUT_S, "watchdog_period_s": CONTAINER_WATCHDOG_PERIOD_S,
                       **params}

@@ -15,7 +15,7 @@ EXIT_BAD_INPUT = 2
 #: complete (:func:`comems4build_ros.ros.process.run_complete`); after it, a signal ends the node with 0.
 EXIT_INTERRUPTED = 3
 #: Exit code of a lock-step master that ended the run because another party fell silent
-#: (:meth:`comems4build_ros.ros.lockstep.LockStepMaster.stall`).
+#: (:meth:`comems4build_ros.ros.lockstep.LockStep.stall`).
 EXIT_STALLED = 4
 #: Exit code of a node that could not write a file during its run (a full disk, a file system
 #: turned read-only): the recorder's bag, a cache.

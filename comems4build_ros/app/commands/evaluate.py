@@ -19,6 +19,10 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--no-timeseries", action="store_true", help="do not write timeseries.csv")
     parser.add_argument("--accept-gaps", action="store_true",
                         help="evaluate a bag that misses messages on some topic (default: refuse, exit 2)")
+    parser.add_argument("--strict", action="store_true",
+                        help="exit 1 when the bag is incomplete or damaged: steps of the run not recorded, the run "
+                             "cut, no metadata.yaml, a truncated or damaged file, or messages missing that "
+                             "--accept-gaps let through (the files are written all the same)")
 
 
 def run(args: argparse.Namespace) -> int:
@@ -73,4 +77,35 @@ def run(args: argparse.Namespace) -> int:
 
     for s in summaries.values():
         warn_run(s, "evaluate")
+    if args.strict:
+        return strict_verdict(bag, summaries)
     return 0
+
+
+def strict_verdict(bag: Path, summaries: dict[str, dict]) -> int:
+    """``--strict``: 1 (with one line per house on stderr saying what is incomplete) when any
+    house's bag is incomplete or damaged or misses messages, else 0."""
+    import sys
+
+    failed = 0
+    for ns, s in summaries.items():
+        d = s.get("bag_incomplete") or {}
+        what = []
+        if d:
+            if d.get("steps_expected") is None or d.get("steps_recorded") != d.get("steps_expected"):
+                what.append(f"{d.get('steps_recorded')} of {d.get('steps_expected') or '?'} steps recorded")
+            if d.get("run_cut"):
+                what.append(f"run cut short ({s.get('run_cut')})")
+            if not d.get("metadata_yaml"):
+                what.append("no metadata.yaml")
+            if d.get("truncated_mcap"):
+                what.append("the .mcap file ends early")
+            what += list(d.get("damage") or [])
+        if s.get("lost_messages"):
+            what.append("messages missing on " + ", ".join(f"{t} ({n} step(s))" for t, n in s["lost_messages"].items()))
+        if what:
+            failed += 1
+            where = "" if len(summaries) == 1 else f" (house {ns.strip('/') or 'root'})"
+            print(f"comems4build evaluate: --strict: bag {bag}{where} is incomplete: {'; '.join(what)}",
+                  file=sys.stderr)
+    return 1 if failed else 0

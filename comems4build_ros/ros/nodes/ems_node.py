@@ -4,7 +4,7 @@ One module for every EMS: the node wraps the controller of the core
 (:func:`comems4build_ros.core.ems.make_controller`) and is swapped by starting another node;
 all publish ``ems/command``. Each node subscribes to exactly the topics its row of
 ``tab:level_of_information`` allows (the contract lists the node as a subscriber of
-those topics only; :class:`~comems4build_ros.ros.node.ContractNode` refuses anything
+those topics only; :class:`~comems4build_ros.ros.node.ContractEndpoints` refuses anything
 else). From the messages tagged with step ``k`` it rebuilds the very
 :class:`~comems4build_ros.core.ems.base.Observation` the in-process loop builds with
 :class:`comems4build_ros.core.loop.ObservationBuilder` (labels = observation fields, float64
@@ -27,7 +27,7 @@ on ``plant/done`` (end of the run); stopped by a signal before it, with exit cod
 Parameters: ``ems`` (set by the entry point), ``ems_options`` (string array of
 ``key=value``, as ``comems4build simulate --ems-option``), ``run_token_file`` or
 ``run_token`` and the plant
-parameters (:meth:`comems4build_ros.ros.package_node.PackageNode.plant_params`), ``wait_for_recorder``
+parameters (:meth:`comems4build_ros.ros.package_node.NodeParameters.plant_params`), ``wait_for_recorder``
 and ``recorder_node`` (the recorder whose readers its writers wait for, and whose leaving
 ends the node), all read-only during the run.
 
@@ -46,13 +46,21 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
-from rclpy.task import Future
+from rclpy.node import Node
 
 from comems4build_ros.core.config import parse_assignments
 from comems4build_ros.core.ems import make_controller
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.types import ACTION_FIELDS
-from comems4build_ros.ros.node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
+from comems4build_ros.ros.node import (
+    RECORDER_NODE,
+    ArrayPublisher,
+    ContractEndpoints,
+    RecorderGate,
+    RunEnd,
+    layout_sizes,
+)
+from comems4build_ros.ros.package_node import NodeParameters, debug_enabled, node_options, sim_time_logger
 from comems4build_ros.ros.process import run_node
 from comems4build_ros.wire.cdr import parse_array, string_cdr
 from comems4build_ros.wire.contract import ContractError, load_contract, nest
@@ -69,7 +77,7 @@ def parse_options(items: list[str], node_name: str) -> dict[str, Any]:
     return parse_assignments([i for i in items if i], f"node '{node_name}': parameter 'ems_options':")
 
 
-class EMSNode(EndsWithRun, ContractNode):
+class EMSNode(Node):
     """Wraps one controller; see the module docstring.
 
     Parameters
@@ -81,10 +89,14 @@ class EMSNode(EndsWithRun, ContractNode):
     def __init__(self, ems: str, **node_kwargs: Any) -> None:
         contract = load_contract()
         node_name = contract.ems_node_name(ems)
-        super().__init__(node_name, contract, **node_kwargs)
+        super().__init__(node_name, **node_options(node_kwargs))
+        self.log = sim_time_logger(self)
+        self.debug = debug_enabled(self.log)
+        self.parameters = NodeParameters(self)
+        self.endpoints = ContractEndpoints(self, node_name, contract)
         spec = contract.node(node_name)
-        params = self.plant_params()
-        options = parse_options(self.param("ems_options", []), node_name)
+        params = self.parameters.plant_params()
+        options = parse_options(self.parameters.param("ems_options", []), node_name)
         self.controller = make_controller(ems, params, options)
         self.controller.reset()
         self.level = self.controller.info_level
@@ -94,13 +106,13 @@ class EMSNode(EndsWithRun, ContractNode):
                 f"the contract says '{spec.info_level}'"
             )
         sizes = layout_sizes(params)
-        token_file = self.param("run_token_file", "")
+        token_file = self.parameters.param("run_token_file", "")
         self._key = secret_key(read_token_file(token_file)) if token_file else None  # authenticate each command
-        run_token = self.param("run_token", 0)
+        run_token = self.parameters.param("run_token", 0)
         token = 0 if token_file else run_token
         self.token = float(token if token > 0 else default_token(self.get_fully_qualified_name()))
-        self._cmd = ArrayPublisher(self, "ems/command", sizes)
-        self._info_pub = self.contract_publisher("ems/info")
+        self._cmd = ArrayPublisher(self.endpoints, "ems/command", sizes)
+        self._info_pub = self.endpoints.publisher("ems/info")
         self.ems = ems
         self._inputs = [t for t in contract.subscribed_by(node_name) if t.is_array]
         self._full = (1 << len(self._inputs)) - 1
@@ -109,17 +121,21 @@ class EMSNode(EndsWithRun, ContractNode):
         self._last_cmd: array | None = None
         self.steps = 0
         for i, topic in enumerate(self._inputs):
-            self.contract_subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name), raw=True)
-        self.exit_when_done = self.param("exit_when_done", True)
-        self.wait_for_recorder = self.param("wait_for_recorder", False)
-        self.recorder_node = self.param("recorder_node", self.recorder_node)
-        self.contract_subscription("plant/done", self._on_done)
+            self.endpoints.subscription(topic.name, self._callback(i, topic.layout(sizes), topic.name), raw=True)
+        self.run_end = RunEnd(self.parameters.param("exit_when_done", True))  # process.run_complete reads it
+        self.finished = self.run_end.finished
+        self.gate = RecorderGate(self, self.parameters.param("wait_for_recorder", False),
+                                 self.parameters.param("recorder_node", RECORDER_NODE))
+        self.endpoints.subscription("plant/done", self._on_done)
         self._done = False
-        self.finished = Future()
         self.get_logger().info(
             f"EMS '{ems}' (level '{self.level}') listening to {len(self._inputs)} topics: "
             + ", ".join(t.name for t in self._inputs)
         )
+
+    def get_logger(self) -> Any:
+        """The node's logger, stamped with the simulated time (``package_node.sim_time_logger``)."""
+        return getattr(self, "log", None) or super().get_logger()
 
     def _callback(self, index: int, layout: Any, topic: str) -> Callable[[bytes], None]:
         bit = 1 << index
@@ -154,11 +170,11 @@ class EMSNode(EndsWithRun, ContractNode):
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
         if msg.data:
-            self.saw_done = True
-        if msg.data and self.exit_when_done and not self._done:
+            self.run_end.saw_done = True
+        if msg.data and self.run_end.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info(f"run done after {self.steps} decisions: exiting once the recorder has left")
-            self.finish_when_recorded("ems/command")
+            self.gate.finish_when_recorded(self.finished, "ems/command")
 
     def _decide_pending(self, step: int) -> None:
         """Decide ``step`` if all its inputs are still pending (not answered meanwhile)."""
@@ -167,8 +183,8 @@ class EMSNode(EndsWithRun, ContractNode):
             self._decide(step, entry[0])
 
     def _decide(self, step: int, fields: dict[str, Any]) -> None:
-        if not self.recorder_gate():  # not yet: decided once the gate opens (or at a repeated announcement)
-            self.when_gate_opens(lambda: self._decide_pending(step))
+        if not self.gate.is_open():  # not yet: decided once the gate opens (or at a repeated announcement)
+            self.gate.when_open(lambda: self._decide_pending(step))
             return
         for s in [s for s in self._pending if s <= step]:
             del self._pending[s]

@@ -10,7 +10,9 @@ For each step ``k`` the feed publishes (topics of ``msg_defs/topics.yaml``, elem
   ``feed/comfort_ahead``, ``feed/solar``, ``feed/h2_allowance`` (fuzzy and MPC);
   ``feed/t_amb`` and ``forecast/*`` (MPC only);
 * once at start-up ``feed/info`` (transient local): scenario name, start, steps, forecast
-  mode and seed as JSON, so that a bag recorded without the launcher knows its scenario.
+  mode, seed, the run's id (parameter ``run_id``) and the EMS node served (``for_ems``, None:
+  every EMS) as JSON, so that a bag recorded without the launcher knows its scenario and which
+  inputs were published, and a bag holding another run's records is told apart.
 
 The values are those of :class:`comems4build_ros.core.loop.ObservationBuilder` (MPC level,
 which contains every other level), so an EMS node rebuilds exactly the observation of
@@ -32,8 +34,8 @@ first N steps, 0 = all), ``start`` (ISO time, empty = from the beginning), ``see
 (empty = ``config/forecast.yaml``), ``lookahead_steps`` (may change during a run),
 ``allow_gap_fill`` (default false), ``for_ems`` (empty = every EMS topic), ``inputs``,
 ``live_config``, ``live_cache_dir``, ``wait_for_recorder``, ``recorder_node``,
-``exit_when_done`` and the plant parameters (see
-:meth:`comems4build_ros.ros.package_node.PackageNode.plant_params`). A scenario with a time gap,
+``exit_when_done``, ``run_id`` (the run's id, named on ``feed/info``) and the plant parameters (see
+:meth:`comems4build_ros.ros.package_node.NodeParameters.plant_params`). A scenario with a time gap,
 a non-finite value, or missing values the core loader would interpolate makes the feed
 refuse to start (exit code 2, the message names file, line and column); with
 ``allow_gap_fill:=true`` the loader's documented interpolation is accepted.
@@ -45,13 +47,27 @@ import json
 from array import array
 from typing import Any
 
-from rclpy.task import Future
+from rclpy.node import Node
 from std_msgs.msg import String, UInt32
 
 from comems4build_ros.core.scenario.base import Scenario
 from comems4build_ros.core.scenario.run import check_scenario, load_scenario
 from comems4build_ros.core.types import EXOGENOUS_FIELDS, PlantState
-from comems4build_ros.ros.node import ArrayPublisher, ContractNode, EndsWithRun, layout_sizes
+from comems4build_ros.ros.node import (
+    RECORDER_NODE,
+    ArrayPublisher,
+    ContractEndpoints,
+    RecorderGate,
+    RunEnd,
+    layout_sizes,
+)
+from comems4build_ros.ros.package_node import (
+    NodeParameters,
+    debug_enabled,
+    node_options,
+    sim_time_logger,
+    steady_timer,
+)
 from comems4build_ros.ros.parameters import ParameterError, spec_of
 from comems4build_ros.ros.process import run_node
 
@@ -185,7 +201,7 @@ class LiveFeed:
     def start(self) -> None:
         """Start the worker thread and the feed's timer that takes new values in."""
         self.thread.start()
-        self.feed.create_timer(0.25, self._tick)
+        steady_timer(self.feed, 0.25, self._tick)
         self._tick()
 
     def _work(self) -> None:
@@ -208,29 +224,36 @@ class LiveFeed:
             self.feed.event("live", f"new live inputs taken in from step {self.feed._next}: {self.prices.describe()}")
 
 
-class Feed(EndsWithRun, ContractNode):
-    """Scenario publisher node (see the module docstring)."""
+class Feed(Node):
+    """Scenario publisher node (see the module docstring).
+
+    Parameters
+    ----------
+    scenario, weeks_bound : the scenario of the node's parameters and the bound of its ``weeks``,
+        prepared beforehand (:func:`prepare_scenario`, used by a container process of feeds to
+        build many in parallel)
+    node_kwargs : passed to ``rclpy.node.Node`` (e.g. ``namespace``, ``parameter_overrides``)
+    """
 
     def __init__(self, scenario: Scenario | None = None, weeks_bound: Any = _UNKNOWN, **node_kwargs: Any) -> None:
-        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``;
-        ``scenario`` and ``weeks_bound``: the scenario of the node's parameters and the bound of
-        its ``weeks``, prepared beforehand (:func:`prepare_scenario`, used by a container process
-        of feeds to build many in parallel)."""
-        super().__init__(NODE_NAME, **node_kwargs)
+        super().__init__(NODE_NAME, **node_options(node_kwargs))
+        self.log = sim_time_logger(self)
+        self.debug = debug_enabled(self.log)
+        self.parameters = NodeParameters(self)
+        self.endpoints = ContractEndpoints(self, NODE_NAME)
         from comems4build_ros.core.loop import load_forecast_settings
 
-        params = self.plant_params()
+        params = self.parameters.plant_params()
         values, mode = self._read_parameters(params, weeks_bound)
-        self.refuse_undeclared()  # before the scenario is built: a typo is named at once
+        self.parameters.refuse_undeclared()  # before the scenario is built: a typo is named at once
         seed = int(values["seed"])
         # Publishers first: DDS discovery (its own threads) matches them with the recorder
         # and the EMS while this thread builds the scenario, the longest part of start-up.
         self._create_publishers(params)
         # (an announcement that comes in meanwhile waits in the queue until the node spins)
-        self.contract_subscription("plant/step", self._on_plant_step)
-        self.contract_subscription("plant/done", self._on_done)
+        self.endpoints.subscription("plant/step", self._on_plant_step)
+        self.endpoints.subscription("plant/done", self._on_done)
         self._done = False
-        self.finished = Future()
         notes: list[str] = []
         if scenario is None:
             scenario = load_scenario(*scenario_args(values, params), notes=notes)
@@ -250,7 +273,8 @@ class Feed(EndsWithRun, ContractNode):
         self._blank = PlantState(soc=0.0, loh=0.0, t_air_c=0.0, t_wall_in_c=0.0, t_wall_out_c=0.0, v_dhw_l=0.0)
         self._check_payload_lengths()
         self.info = {"scenario": scenario.name, "start": scenario.time[0].isoformat(), "n_steps": self.n_steps,
-                     "forecast": self._forecast.mode, "seed": None if seed < 0 else seed}
+                     "forecast": self._forecast.mode, "seed": None if seed < 0 else seed,
+                     "run_id": self.run_id or None, "for_ems": self.for_ems or None}
         self._info_pub.publish(String(data=json.dumps(self.info)))
         self._next = 0  # first step not yet published
         self._last_request = -1
@@ -265,41 +289,45 @@ class Feed(EndsWithRun, ContractNode):
         """Declare and read every parameter besides the plant's: the scenario's (returned with the
         forecast mode), the others as attributes (``lookahead_steps`` may change during a run)."""
         values = self._scenario_values(params, weeks_bound)
-        mode = self.param("forecast_mode", "")
-        self.lookahead = self.param("lookahead_steps", LOOKAHEAD_STEPS,
+        mode = self.parameters.param("forecast_mode", "")
+        self.lookahead = self.parameters.param("lookahead_steps", LOOKAHEAD_STEPS,
                                     on_change=lambda v: setattr(self, "lookahead", v))
-        self.inputs = self.param("inputs", "scenario")
+        self.inputs = self.parameters.param("inputs", "scenario")
         if self.inputs not in ("scenario", "live"):
             raise ValueError(f"node '{NODE_NAME}': parameter 'inputs': '{self.inputs}' is not 'scenario' or 'live'")
-        self.live_config = self.param("live_config", "")
-        self.live_cache_dir = self.param("live_cache_dir", "")
+        self.live_config = self.parameters.param("live_config", "")
+        self.live_cache_dir = self.parameters.param("live_cache_dir", "")
         # With a house behind MQTT its own meters give the PV output and load: the
         # mqtt_bridge publishes feed/measured and the feed leaves it out.
-        self.publish_measured = self.param("publish_measured", True)
+        self.publish_measured = self.parameters.param("publish_measured", True)
         # Serving one EMS, the feed publishes only what that EMS reads (its information
         # level, tab:level_of_information); without, every EMS input (any EMS, or a bag
         # that can later drive any EMS with replay --inputs-only).
-        self.for_ems = self.param("for_ems", "")
-        self.exit_when_done = self.param("exit_when_done", True)
-        self.wait_for_recorder = self.param("wait_for_recorder", False)
-        self.recorder_node = self.param("recorder_node", self.recorder_node)
+        self.for_ems = self.parameters.param("for_ems", "")
+        # the run's id, named on feed/info: evaluate tells this run's records from another's by it
+        self.run_id = self.parameters.param("run_id", "")
+        self.run_end = RunEnd(self.parameters.param("exit_when_done", True))  # process.run_complete reads it
+        self.finished = self.run_end.finished
+        self.gate = RecorderGate(self, self.parameters.param("wait_for_recorder", False),
+                                 self.parameters.param("recorder_node", RECORDER_NODE))
         return values, mode
 
     def _create_publishers(self, params: Any) -> None:
         """feed/truth, the EMS topics the run's EMS reads (``for_ems``), feed/events and feed/info."""
         sizes_ = layout_sizes(params)
-        self._truth = ArrayPublisher(self, "feed/truth", sizes_)
-        forecast_topics = tuple(t.name for t in self.contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
+        self._truth = ArrayPublisher(self.endpoints, "feed/truth", sizes_)
+        contract = self.endpoints.contract
+        forecast_topics = tuple(t.name for t in contract.published_by(NODE_NAME) if t.name.startswith("forecast/"))
         self.level = "mpc"
         unread: set[str] = set()
         if self.for_ems:
-            unread = set(self.contract.inputs_not_read(self.for_ems))
-            self.level = self.contract.node(self.for_ems).info_level or "mpc"
+            unread = set(self.endpoints.contract.inputs_not_read(self.for_ems))
+            self.level = self.endpoints.contract.node(self.for_ems).info_level or "mpc"
         ems_topics = [t for t in EMS_TOPICS if (self.publish_measured or t != "feed/measured") and t not in unread]
         self.topics = (*ems_topics, *(t for t in forecast_topics if t not in unread))
-        self._pubs = [ArrayPublisher(self, t, sizes_) for t in self.topics]
-        self._events = self.contract_publisher("feed/events")
-        self._info_pub = self.contract_publisher("feed/info")
+        self._pubs = [ArrayPublisher(self.endpoints, t, sizes_) for t in self.topics]
+        self._events = self.endpoints.publisher("feed/events")
+        self._info_pub = self.endpoints.publisher("feed/info")
         self._pub_fields = [p.layout.fields for p in self._pubs]
 
     def _scenario_values(self, params: Any, weeks_bound: Any) -> dict[str, Any]:
@@ -309,7 +337,8 @@ class Feed(EndsWithRun, ContractNode):
 
         from comems4build_ros.core.scenario import data_weeks
 
-        values = {name: self.param(name, default) for name, default in SCENARIO_PARAMS.items() if name != "weeks"}
+        values = {name: self.parameters.param(name, default) for name, default in SCENARIO_PARAMS.items()
+                  if name != "weeks"}
         if weeks_bound is _UNKNOWN:
             weeks_bound = data_weeks(values["scenario"], params, values["start"] or None)
         spec = spec_of("weeks")
@@ -319,7 +348,7 @@ class Feed(EndsWithRun, ContractNode):
                     f"{values['start'] or 'its start'} (its look-ahead kept)")
             spec = dataclasses.replace(spec, high=float(weeks_bound), description=f"{spec.description}; {held}")
         try:
-            values["weeks"] = self.param("weeks", SCENARIO_PARAMS["weeks"], spec=spec)
+            values["weeks"] = self.parameters.param("weeks", SCENARIO_PARAMS["weeks"], spec=spec)
         except ParameterError as exc:
             raise ParameterError(f"{exc}{': ' + held if held else ''}") from None
         return values
@@ -334,6 +363,10 @@ class Feed(EndsWithRun, ContractNode):
         self._time_s = [t.timestamp() for t in scenario.time]
         self._spot = scenario.spot_eur_per_mwh.tolist()
         self.scenario = scenario
+
+    def get_logger(self) -> Any:
+        """The node's logger, stamped with the simulated time (``package_node.sim_time_logger``)."""
+        return getattr(self, "log", None) or super().get_logger()
 
     def event(self, kind: str, detail: str, step: int | None = None) -> None:
         """Log an input event and publish it on feed/events (``<step> <kind> <detail>``;
@@ -379,18 +412,18 @@ class Feed(EndsWithRun, ContractNode):
     def _on_done(self, msg: Any) -> None:
         """End of the run (``plant/done``): the node exits with code 0."""
         if msg.data:
-            self.saw_done = True
-        if msg.data and self.exit_when_done and not self._done:
+            self.run_end.saw_done = True
+        if msg.data and self.run_end.exit_when_done and not self._done:
             self._done = True
             self.get_logger().info("run done: exiting once the recorder has left")
-            self.finish_when_recorded("feed/truth")
+            self.gate.finish_when_recorded(self.finished, "feed/truth")
 
     def _on_plant_step(self, msg: UInt32) -> None:
         k = int(msg.data)
         if k >= self.n_steps:
             return
-        if not self.recorder_gate():  # not yet: answered once the gate opens
-            self.when_gate_opens(lambda: self._on_plant_step(msg))
+        if not self.gate.is_open():  # not yet: answered once the gate opens
+            self.gate.when_open(lambda: self._on_plant_step(msg))
             return
         last = min(k + self.lookahead, self.n_steps - 1)
         first = k if k <= self._last_request else max(self._next, k)

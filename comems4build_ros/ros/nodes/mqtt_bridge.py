@@ -10,7 +10,7 @@ The EMS nodes and the step protocol are those of the ROS-only loop, with plant_s
 run contract: commands of one run token only (``ems_token``, else the first valid
 command's; others counted as ``foreign_commands``), in lock-step no step announced more
 than ``record_window_steps`` beyond ``recorder/progress`` (with ``wait_for_recorder``),
-and the end of the run through :func:`~comems4build_ros.ros.nodes.plant_sim.finish_run`
+and the end of the run through :meth:`~comems4build_ros.ros.lockstep.LockStep.finish_run`
 (transient-local ``plant/done``, then the bridge stays until the recorder has left). With
 ``stall_steps`` > 0 (the launcher sets it) the run ends with exit code 4 naming the silent
 party: the EMS (no command for ``stall_steps`` steps), the recorder, or the house and
@@ -75,6 +75,7 @@ from array import array
 from datetime import UTC, datetime
 from typing import Any
 
+from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray, String
 
 from comems4build_ros.core import kpi
@@ -107,8 +108,9 @@ from comems4build_ros.mqtt.peer import (
 from comems4build_ros.mqtt.plant_sim import BRIDGE_RECORD_FIELDS
 from comems4build_ros.mqtt.safety import CommandLimiter, MeasurementWatchdog, Problem, SettingError, parse_setting
 from comems4build_ros.mqtt.topicmap import PayloadError, load_topic_map
-from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
-from comems4build_ros.ros.node import ArrayPublisher
+from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStep
+from comems4build_ros.ros.node import ArrayPublisher, ContractEndpoints
+from comems4build_ros.ros.package_node import NodeParameters, node_options, sim_time_logger
 from comems4build_ros.ros.process import run_node
 from comems4build_ros.wire.contract import WITHHELD_EVENT
 from comems4build_ros.wire.ems_command import CommandError, check_token
@@ -141,29 +143,41 @@ IN_CHARGE_OF_KIND = {"missing": "fallback_watchdog", "stale": "fallback_watchdog
 PERCENT_KEYS = {"soc_pct": "soc", "loh_pct": "loh"}
 
 
-class MqttBridge(LockStepMaster):
-    """The bridge node (see the module docstring)."""
+class MqttBridge(Node):
+    """The bridge node (see the module docstring): the house behind MQTT stepped by the lock-step
+    loop it composes (:class:`~comems4build_ros.ros.lockstep.LockStep`).
+
+    Parameters
+    ----------
+    node_kwargs : passed to ``rclpy.node.Node`` (e.g. ``namespace``, ``parameter_overrides``)
+    """
 
     def __init__(self, **node_kwargs: Any) -> None:
-        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
-        super().__init__(NODE_NAME, {"house_timeout_s": HOUSE_TIMEOUT_S}, **node_kwargs)
+        super().__init__(NODE_NAME, **node_options(node_kwargs))
+        self.log = sim_time_logger(self)
+        self.parameters = NodeParameters(self)
+        self.endpoints = ContractEndpoints(self, NODE_NAME)
+        self.loop = LockStep(self, self.parameters, self.endpoints, on_progress=self.on_recorder_progress,
+                             waiting_for=self.waiting_for, extra_timing={"house_timeout_s": HOUSE_TIMEOUT_S})
+        self.run_end = self.loop  # how the run ends (comems4build_ros.ros.process.run_complete)
+        self.finished = self.loop.finished
         client_id = self._read_parameters()
-        self.dt_h = self.params.simulation.time_step_h
-        sizes = self.sizes
+        self.dt_h = self.loop.params.simulation.time_step_h
+        sizes = self.loop.sizes
         m = self.map.measurements
-        self._state_pubs = [(ArrayPublisher(self, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()
+        self._state_pubs = [(ArrayPublisher(self.endpoints, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()
                             if t != "state/t_wall" or ("t_wall_in_c" in m and "t_wall_out_c" in m)]
-        self._measured = (ArrayPublisher(self, "feed/measured", sizes)
+        self._measured = (ArrayPublisher(self.endpoints, "feed/measured", sizes)
                           if "p_pv_w" in m and "p_load_w" in m else None)
-        self._record_labels = self._record.layout.labels
-        self._alarm_pub = self.contract_publisher("bridge/alarm")
-        self._cmd_layout = self.contract.topic("ems/command").layout(sizes)
-        self._truth_index = self.contract.topic("feed/truth").layout(sizes).index
-        self._cmd_sub = self.contract_subscription("ems/command", self._on_command)
-        self.contract_subscription("feed/truth", self._on_truth)
+        self._record_labels = self.loop.record.layout.labels
+        self._alarm_pub = self.endpoints.publisher("bridge/alarm")
+        self._cmd_layout = self.endpoints.contract.topic("ems/command").layout(sizes)
+        self._truth_index = self.endpoints.contract.topic("feed/truth").layout(sizes).index
+        self._cmd_sub = self.endpoints.subscription("ems/command", self._on_command)
+        self.endpoints.subscription("feed/truth", self._on_truth)
 
         self.watchdog = MeasurementWatchdog(self.map)
-        self.limiter = CommandLimiter.from_map(self.map, self.params)
+        self.limiter = CommandLimiter.from_map(self.map, self.loop.params)
         self._topic_measurement = {spec.topic: name for name, spec in m.items()}
         self._switch_topics = {self.map.switch_topics(n)[0]: n for n in ("ems", "fallback")}
         self._switch_states = {self.map.switch_topics(n)[1]: n for n in ("ems", "fallback")}
@@ -184,7 +198,7 @@ class MqttBridge(LockStepMaster):
                              will=(self.map.availability_topic, NOT_AVAILABLE),
                              on_connect=self._on_connect, wake=self._wake.trigger)
         self.link.start()
-        self.start_watchdog(self._watchdog)
+        self.loop.start_watchdog(self._watchdog)
         self.get_logger().info(
             f"bridge to {self.map.broker.url} (user: {self.map.broker.username or 'anonymous'}, "
             f"TLS: {self.map.broker.tls}), run '{self.peer.run_id}' (authentication codes: "
@@ -195,20 +209,21 @@ class MqttBridge(LockStepMaster):
     def _read_parameters(self) -> str:
         """The broker login, topic map, run id and key, clock and measurement delay from the
         node's parameters (each checked); returns the MQTT client id."""
-        secret_file = self.param("mqtt_secret_file", "")
-        username = self.param("broker_username", "")
+        secret_file = self.parameters.param("mqtt_secret_file", "")
+        username = self.parameters.param("broker_username", "")
         if username and not secret_file:
             raise ValueError(f"node '{NODE_NAME}': parameter 'broker_username' needs 'mqtt_secret_file' (its password)")
-        topic_map, broker_url = self.param("topic_map", ""), self.param("broker_url", "")
+        topic_map, broker_url = self.parameters.param("topic_map", ""), self.parameters.param("broker_url", "")
         self.map = load_topic_map(topic_map or None, broker_url or None, username or None,
                                   secret_file if username else None)
-        self.peer = Peer(check_run_id(self.param("run_id", "") or new_run_id()),
+        self.peer = Peer(check_run_id(self.parameters.param("run_id", "") or new_run_id()),
                          read_peer_key(secret_file) if secret_file else None)
-        self.clock = parse_clock(self.param("clock", "sim"), self.params.simulation.time_step_h)
-        delay = self.param("measure_delay_s", -1.0)
+        self.clock = parse_clock(self.parameters.param("clock", "sim"), self.loop.params.simulation.time_step_h)
+        self.loop.step_period_s = self.clock.period_s if self.clock.wall else 0.0  # the stall window
+        delay = self.parameters.param("measure_delay_s", -1.0)
         self.measure_delay_s = delay if delay >= 0 else min(MEASURE_DELAY_SHARE * self.clock.period_s,
                                                             MEASURE_DELAY_MAX_S)
-        client_id = self.param("client_id", "comems4build_bridge")
+        client_id = self.parameters.param("client_id", "comems4build_bridge")
         if self.clock.wall and self.measure_delay_s >= COMMAND_DEADLINE_SHARE * self.clock.period_s:
             raise ValueError(f"node '{NODE_NAME}': parameter 'measure_delay_s' must be below "
                              f"{COMMAND_DEADLINE_SHARE:g} of the step period ({self.clock.period_s:g} s)")
@@ -326,10 +341,10 @@ class MqttBridge(LockStepMaster):
             return
         except PayloadError as exc:
             self.bad_measurements += 1
-            self.event("rejected", f"measurement '{name}': {exc}")
+            self.loop.event("rejected", f"measurement '{name}': {exc}")
             # lock-step: the house sends only the step the bridge waits for, so
             # the unreadable value stands for it (and gets the fallback)
-            value, step = math.nan, (self.k if self.phase == "measure" and not self.clock.wall else None)
+            value, step = math.nan, (self.loop.k if self.phase == "measure" and not self.clock.wall else None)
         last = self.watchdog.latest.get(name)
         if step is not None and last is not None and last.step is not None and step < last.step:
             self.replayed_measurements += 1  # a repeat or replay of an earlier step: not for a later one
@@ -342,7 +357,7 @@ class MqttBridge(LockStepMaster):
         first ones, then every hundredth), not applied."""
         n = self.peer.foreign_total
         if n <= 3 or n % 100 == 0:
-            self.event("foreign_mqtt", f"{exc} (not applied; {n} foreign message(s) so far)")
+            self.loop.event("foreign_mqtt", f"{exc} (not applied; {n} foreign message(s) so far)")
 
     def _on_own_retained(self, topic: str, payload: bytes) -> None:
         """A message on this bridge's step or run topic: its own (ignored), or a retained one
@@ -357,11 +372,11 @@ class MqttBridge(LockStepMaster):
             return
         self.retained_cleared += 1
         self.link.publish(topic, b"", retain=True)
-        self.event("retained_cleared", f"retained '{topic}' of {('run ' + repr(run)) if run else 'no run'} "
+        self.loop.event("retained_cleared", f"retained '{topic}' of {('run ' + repr(run)) if run else 'no run'} "
                                        f"({payload[:60]!r}) cleared: not this run's ('{self.peer.run_id}')")
-        if self.started and topic == self.map.run_topic and self.t0_unix_s is not None and not self.done:
+        if self.loop.started and topic == self.map.run_topic and self.t0_unix_s is not None and not self.loop.done:
             self.link.publish(topic, self._run_payload(), retain=True)  # in case the clear overtook ours
-        elif self.started and topic == self.map.step_topic:
+        elif self.loop.started and topic == self.map.step_topic:
             self._publish_step_msg()
 
     def _on_record(self, payload: bytes) -> None:
@@ -369,7 +384,7 @@ class MqttBridge(LockStepMaster):
             rec = json.loads(payload)
             step = int(rec["step"])
         except (ValueError, KeyError, TypeError):
-            self.event("rejected", f"topic '{self.map.sim_record_topic}': unreadable record")
+            self.loop.event("rejected", f"topic '{self.map.sim_record_topic}': unreadable record")
             return
         if step >= self.next_record:
             self._records[step] = rec
@@ -379,7 +394,7 @@ class MqttBridge(LockStepMaster):
         if not text:
             return  # a cleared retained command
         if text not in (PAYLOAD_ON, PAYLOAD_OFF):
-            self.event("rejected", f"switch '{name}': payload {text[:20]!r} is not ON/OFF")
+            self.loop.event("rejected", f"switch '{name}': payload {text[:20]!r} is not ON/OFF")
             return
         if not command and name in self._switch_by_command:
             return  # a command (the newer word) already set it
@@ -390,7 +405,7 @@ class MqttBridge(LockStepMaster):
         if command:
             self.link.publish(self.map.switch_topics(name)[1], text, retain=True)
         if changed or command:
-            self.event("switch", f"{name} {text}{'' if command else ' (kept from before the restart)'}")
+            self.loop.event("switch", f"{name} {text}{'' if command else ' (kept from before the restart)'}")
 
     def _on_setting(self, name: str, topic: str, payload: bytes, command: bool) -> None:
         """A user's setting (Home Assistant ``number``): applied from the next command on."""
@@ -402,7 +417,7 @@ class MqttBridge(LockStepMaster):
         try:
             value = parse_setting(topic, payload, 0.0, setting_max(self.limiter.device_limits, name))
         except SettingError as exc:
-            self.event("rejected", f"setting '{name}': {exc}")
+            self.loop.event("rejected", f"setting '{name}': {exc}")
             return
         if command:
             self._switch_by_command.add(key)
@@ -412,7 +427,7 @@ class MqttBridge(LockStepMaster):
         if command:
             self.link.publish(self.map.setting_topics(name)[1], f"{value:g}", retain=True)
         if changed or command:
-            self.event("setting", f"{name} {value:g} ({SETTINGS[name][2]} within [{lo:g}, {hi:g}])"
+            self.loop.event("setting", f"{name} {value:g} ({SETTINGS[name][2]} within [{lo:g}, {hi:g}])"
                                   f"{'' if command else ' (kept from before the restart)'}")
 
     def _send_setpoints(self, k: int, action: Action, fallback: bool) -> None:
@@ -466,7 +481,7 @@ class MqttBridge(LockStepMaster):
                     "hp_mod_pct": round(100.0 * a.hp_mod, 3),
                     "p_fc_set_w": round(a.p_fc_w, 3),
                     "p_bess_set_w": round(a.p_bess_w, 3),
-                    "fallback_steps": self.fallback_steps,
+                    "fallback_steps": self.loop.fallback_steps,
                     "clamped_commands": self.limiter.counters.clamped_commands,
                     "foreign_messages": self.peer.foreign_total + self._house_foreign,
                 }.get(s.key)
@@ -500,9 +515,9 @@ class MqttBridge(LockStepMaster):
             return
         step = int(d[0])
         self._truth[step] = (d[ti["time_unix_s"]], d[ti["t_min_c"]])
-        if self.n_steps is None:
-            self.n_steps = int(d[ti["n_steps"]])
-        for s in [s for s in self._truth if s < self.k - 1]:
+        if self.loop.n_steps is None:
+            self.loop.n_steps = int(d[ti["n_steps"]])
+        for s in [s for s in self._truth if s < self.loop.k - 1]:
             del self._truth[s]
         self._advance()
 
@@ -510,30 +525,30 @@ class MqttBridge(LockStepMaster):
         data = list(msg.data)
         if len(data) != self._cmd_layout.length or not all(math.isfinite(v) for v in data) \
                 or data[0] != int(data[0]) or data[2] != int(data[2]):
-            self.rejected_commands += 1
-            self.event("rejected", f"topic 'ems/command': malformed command {data[:6]}")
+            self.loop.rejected_commands += 1
+            self.loop.event("rejected", f"topic 'ems/command': malformed command {data[:6]}")
             return
         try:
             check_token(data[-1])
         except CommandError as exc:
-            self.rejected_commands += 1
-            self.event("rejected", f"topic 'ems/command' {exc}")
+            self.loop.rejected_commands += 1
+            self.loop.event("rejected", f"topic 'ems/command' {exc}")
             return
         step = int(data[0])
-        if not self.accept_token(data, step):
+        if not self.loop.accept_token(data, step):
             return
-        if step == self.k - 1 and data == self._last_cmd:
-            self.duplicate_commands += 1
+        if step == self.loop.k - 1 and data == self._last_cmd:
+            self.loop.duplicate_commands += 1
             return
-        if not self.started or self.done or step != self.k or self.phase != "command":
-            if not (self.phase == "sent" and step == self.k):  # an answer to a repeated announcement
-                self.wrong_step_commands += 1
-                self.event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
+        if not self.loop.started or self.loop.done or step != self.loop.k or self.phase != "command":
+            if not (self.phase == "sent" and step == self.loop.k):  # an answer to a repeated announcement
+                self.loop.wrong_step_commands += 1
+                self.loop.event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
             return
         raw = Action(hp_mod=data[1], hp_mode=int(data[2]), p_fc_w=data[3], p_bess_w=data[4], p_el_w=data[5])
         action, notes = self.limiter.limit(raw)
         if notes:
-            self.event("clamped", "; ".join(notes))
+            self.loop.event("clamped", "; ".join(notes))
         self._last_cmd = data
         self._ever_commanded = True
         self._send_setpoints(step, action, fallback=False)
@@ -560,7 +575,7 @@ class MqttBridge(LockStepMaster):
         self._t_announce = time.monotonic()
 
     def _publish_step(self, k: int) -> None:
-        self.publish_step(k)
+        self.loop.publish_step(k)
         self._announced = k
         self._publish_step_msg()
 
@@ -578,14 +593,14 @@ class MqttBridge(LockStepMaster):
         t_min = self._truth.get(k, (0.0, math.nan))[1]
         if math.isnan(t_min) and self._truth:
             t_min = self._truth[max(self._truth)][1]
-        action = safe_action(t_air, v_dhw, t_min, self.params)
-        self.fallback_steps += 1
+        action = safe_action(t_air, v_dhw, t_min, self.loop.params)
+        self.loop.fallback_steps += 1
         self.fallback_kinds[kind] = self.fallback_kinds.get(kind, 0) + 1
         self.in_charge = IN_CHARGE_OF_KIND.get(kind, "fallback_watchdog")
         self.fallback_reason = f"step {k}: {kind}: {detail}"
-        self.note_fallback(ems_silent=kind == "ems_silent")
-        self.event("fallback", f"{kind}: {detail}: safe action hp_mode={action.hp_mode} hp_mod={action.hp_mod} "
-                                f"(fallback steps: {self.fallback_steps})")
+        self.loop.note_fallback(ems_silent=kind == "ems_silent")
+        self.loop.event("fallback", f"{kind}: {detail}: safe action hp_mode={action.hp_mode} hp_mod={action.hp_mod} "
+                                f"(fallback steps: {self.loop.fallback_steps})")
         self._alarm(k, kind, detail, action)
         self._send_setpoints(k, action, fallback=True)
 
@@ -595,11 +610,11 @@ class MqttBridge(LockStepMaster):
         self._t_phase = time.monotonic()
         if problems:
             self._publish_step(k)  # the feed keeps pace; the EMS gets no state for k
-            self.event(WITHHELD_EVENT, "no state announced (safety fallback)")
+            self.loop.event(WITHHELD_EVENT, "no state announced (safety fallback)")
             self._fallback(k, problems[0].kind, "; ".join(str(p) for p in problems))
         elif not self.switches["ems"] or self.switches["fallback"]:
             self._publish_step(k)
-            self.event(WITHHELD_EVENT, "no state announced (fallback forced)")
+            self.loop.event(WITHHELD_EVENT, "no state announced (fallback forced)")
             self._fallback(k, "forced", "EMS switched off" if not self.switches["ems"] else "fallback switched on")
         else:
             self._announce(k)
@@ -611,24 +626,24 @@ class MqttBridge(LockStepMaster):
             k = self.next_record
             rec = self._records.pop(k)
             fb = self.fallback_for.pop(k, False)
-            extra = {f: float(getattr(self, f)) for f in BRIDGE_RECORD_FIELDS if f != "fallback"}
+            extra = {f: float(getattr(self.loop, f)) for f in BRIDGE_RECORD_FIELDS if f != "fallback"}  # counters
             extra["fallback"] = 1.0 if fb else 0.0
             try:
                 row = array("d", [float(extra[lab]) if lab in extra else float(rec[lab])
                                   for lab in self._record_labels])
             except (KeyError, TypeError, ValueError) as exc:
-                self.event("rejected", f"topic '{self.map.sim_record_topic}': record {k} lacks {exc}")
+                self.loop.event("rejected", f"topic '{self.map.sim_record_topic}': record {k} lacks {exc}")
                 row = None
             if row is not None:
-                self._record.publish(row)
+                self.loop.record.publish(row)
                 self._last_row = dict(zip(self._record_labels, row))
                 for c, values in self._columns.items():
                     values.append(self._last_row[c])
-                self.publish_clock(float(rec["time_unix_s"]))
+                self.loop.publish_clock(float(rec["time_unix_s"]))
                 self._check_record(k, rec)
             self.next_record = k + 1
-            if self.n_steps is None and "n_steps" in rec:
-                self.n_steps = int(rec["n_steps"])
+            if self.loop.n_steps is None and "n_steps" in rec:
+                self.loop.n_steps = int(rec["n_steps"])
             forwarded = True
         if forwarded:
             self._update_totals()
@@ -640,11 +655,11 @@ class MqttBridge(LockStepMaster):
         if isinstance(of, (int, float)) and int(of) != k:
             self.setpoints_held += 1
             held = f"those of step {int(of)}" if of >= 0 else "none (the devices idle)"
-            self.event("setpoints_held", f"ran on the set-points the house held, {held}: the step's own did not "
+            self.loop.event("setpoints_held", f"ran on the set-points the house held, {held}: the step's own did not "
                                          "reach it before the step's end (a broker outage, or late)", step=k)
         foreign = rec.get("foreign_messages", 0)
         if isinstance(foreign, (int, float)) and foreign > self._house_foreign:
-            self.event("foreign_mqtt", f"the house did not apply {int(foreign - self._house_foreign)} foreign "
+            self.loop.event("foreign_mqtt", f"the house did not apply {int(foreign - self._house_foreign)} foreign "
                                        f"message(s) ({int(foreign)} so far)")
             self._house_foreign = int(foreign)
 
@@ -655,37 +670,38 @@ class MqttBridge(LockStepMaster):
         import pandas as pd
 
         ts = pd.DataFrame({c: np.asarray(v, dtype=float) for c, v in self._columns.items()})  # columns: fast
-        c = self.params.comfort
-        t_comfort = kpi.comfort_sample_c(ts, c.discomfort_sample, self.params.simulation.t_air_init_c)
+        c = self.loop.params.comfort
+        t_comfort = kpi.comfort_sample_c(ts, c.discomfort_sample, self.loop.params.simulation.t_air_init_c)
         totals = kpi.run_totals(ts, self.dt_h, t_comfort)
         self.totals = {key: totals[name] for key, name in TOTAL_KEYS.items()}
 
     def _advance(self) -> None:
-        if not self.started or self.done:
+        if not self.loop.started or self.loop.done:
             return
         self._forward_records()
         records = bool(self.map.sim_record_topic)
-        if self.n_steps is not None and ((records and self.next_record >= self.n_steps)
-                                         or (not records and self.k >= self.n_steps and self.phase == "sent")):
+        n = self.loop.n_steps
+        if n is not None and ((records and self.next_record >= n)
+                              or (not records and self.loop.k >= n and self.phase == "sent")):
             self._finish()
             return
         if self.clock.wall:
             return  # the wall clock drives the steps (watchdog timer)
-        if self.phase == "sent" and (not records or self.next_record > self.k):
-            if self.n_steps is not None and self.k + 1 >= self.n_steps:
+        if self.phase == "sent" and (not records or self.next_record > self.loop.k):
+            if self.loop.n_steps is not None and self.loop.k + 1 >= self.loop.n_steps:
                 return  # the last record completes the run
-            if self.behind(self.k + 1):
+            if self.loop.behind(self.loop.k + 1):
                 return  # back-pressure: the recorder catches up first (recorder/progress)
-            if self.watchdog.complete_for(self.k + 1):
-                self.k += 1
-                self.note_step()
+            if self.watchdog.complete_for(self.loop.k + 1):
+                self.loop.k += 1
+                self.loop.note_step()
                 self.phase = "measure"
                 self._t_phase = time.monotonic()
-        if self.phase == "measure" and self.watchdog.complete_for(self.k):
-            self._begin_step(self.k, self.watchdog.check(time.monotonic(), check_age=False))
+        if self.phase == "measure" and self.watchdog.complete_for(self.loop.k):
+            self._begin_step(self.loop.k, self.watchdog.check(time.monotonic(), check_age=False))
 
     def _start(self) -> None:
-        self.started = True
+        self.loop.started = True
         if self.clock.wall:
             self.t0_unix_s = self.clock.first_boundary(time.time(), lead_s=min(1.0, self.clock.period_s))
         else:
@@ -701,19 +717,20 @@ class MqttBridge(LockStepMaster):
         period = self.clock.period_s
         t0 = self.t0_unix_s if self.t0_unix_s is not None else 0.0
         unix = time.time()
-        if self.phase == "command" and unix > t0 + (self.k + COMMAND_DEADLINE_SHARE) * period:
-            self._fallback(self.k, "ems_silent", f"no valid command on 'ems/command' for step {self.k} in time")
+        if self.phase == "command" and unix > t0 + (self.loop.k + COMMAND_DEADLINE_SHARE) * period:
+            self._fallback(self.loop.k, "ems_silent",
+                           f"no valid command on 'ems/command' for step {self.loop.k} in time")
         due = math.floor((unix - t0 - self.measure_delay_s) / period)
-        nk = self.k if self.phase == "measure" else self.k + 1
-        if due < nk or self.phase == "command" or (self.n_steps is not None and nk >= self.n_steps):
+        nk = self.loop.k if self.phase == "measure" else self.loop.k + 1
+        if due < nk or self.phase == "command" or (self.loop.n_steps is not None and nk >= self.loop.n_steps):
             return
         if self._tagged and not self.watchdog.complete_for(nk) \
                 and unix < t0 + (nk + WALL_TAG_WAIT_SHARE) * period:
             return  # the house tags its measurements: give a late one a moment (machine jitter)
         if self._tagged and not self.watchdog.complete_for(nk):
             self.untagged_announcements += 1
-        self.k = nk
-        self.note_step()
+        self.loop.k = nk
+        self.loop.note_step()
         problems = self.watchdog.check(now, check_age=False)
         for name in self.map.measurements:  # max_age_s is simulated time: scale wall ages by the factor
             r = self.watchdog.latest.get(name)
@@ -723,34 +740,29 @@ class MqttBridge(LockStepMaster):
                                                        f"{self.map.max_age(name):g} s"))
         self._begin_step(nk, problems)
 
-    def stall_window_s(self) -> float:
-        """``stall_steps`` step time-outs, or step periods of a wall clock if longer [s]."""
-        period = self.clock.period_s if self.clock.wall else 0.0
-        return self.stall_steps * max(self.step_timeout_s, period)
-
     def waiting_for(self) -> tuple[str, str | None] | None:
         """The recorder (back-pressure), the house over MQTT (its measurements or its
         record of the step), or None (the EMS's command; a wall clock steps anyway)."""
         if self.clock.wall or self.phase == "command":
             return None
-        if self.phase == "sent" and self.wait_for_recorder and \
-                self.k + 1 - self._recorded > self.record_window_steps:
-            return f"the recorder '{self.recorder_node}' (written: {self._recorded})", "recorder/progress"
+        if self.phase == "sent" and self.loop.wait_for_recorder and \
+                self.loop.k + 1 - self.loop.recorded > self.loop.record_window_steps:
+            return f"the recorder '{self.loop.recorder_node}' (written: {self.loop.recorded})", "recorder/progress"
         what = "measurements" if self.phase == "measure" else "record"
-        return f"the house's {what} of step {self.k} over MQTT ({self.link.describe()})", None
+        return f"the house's {what} of step {self.loop.k} over MQTT ({self.link.describe()})", None
 
     def _watchdog(self) -> None:
         now = time.monotonic()
-        if self.done or self.check_stall(now):
+        if self.loop.done or self.loop.check_stall(now):
             return
-        if self.stall_steps and self.started and now - self._t_house > self.stall_window_s():
-            self.stall(f"nothing from the house for {now - self._t_house:.1f} s at step {self.k} "
+        if self.loop.stall_steps and self.loop.started and now - self._t_house > self.loop.stall_window_s():
+            self.loop.stall(f"nothing from the house for {now - self._t_house:.1f} s at step {self.loop.k} "
                        f"({self.link.describe()})")
             return
-        if not self.started:
-            late = now - self._t_created > self.startup_timeout_s
+        if not self.loop.started:
+            late = now - self._t_created > self.loop.startup_timeout_s
             heard = all(m in self.watchdog.latest for m in self.map.measurements if self.map.measurements[m].required)
-            ready = self.link.connected.is_set() and self._settle_switches(now) and self.recorder_ready() and (
+            ready = self.link.connected.is_set() and self._settle_switches(now) and self.loop.recorder_ready() and (
                 self._cmd_sub.get_publisher_count() > 0 or late) and (heard or late)
             if ready:
                 self._start()
@@ -761,20 +773,20 @@ class MqttBridge(LockStepMaster):
         if self.clock.wall:
             self._wall_tick(now)
         elif self.phase == "command":
-            first = not self._ever_commanded and self.fallback_steps == 0
-            if now - self._t_phase > (self.startup_timeout_s if first else self.step_timeout_s):
-                self._fallback(self.k, "ems_silent", "no valid command on 'ems/command' within the timeout")
-        if self.phase == "command" and now - self._t_announce > self.republish_period_s and self._t_announce:
-            self._announce(self.k)
-        elif self.phase == "sent" and not self.clock.wall and now - self._t_sent > self.republish_period_s:
+            first = not self._ever_commanded and self.loop.fallback_steps == 0
+            if now - self._t_phase > (self.loop.startup_timeout_s if first else self.loop.step_timeout_s):
+                self._fallback(self.loop.k, "ems_silent", "no valid command on 'ems/command' within the timeout")
+        if self.phase == "command" and now - self._t_announce > self.loop.republish_period_s and self._t_announce:
+            self._announce(self.loop.k)
+        elif self.phase == "sent" and not self.clock.wall and now - self._t_sent > self.loop.republish_period_s:
             for topic, payload in self._sent:  # the house may have lost them (broker restart)
                 self.link.publish(topic, payload)
             self._t_sent = now
         # before the house's first message the start-up timeout applies (scenario, imports)
-        silent_limit = self.house_timeout_s if self.watchdog.latest else self.startup_timeout_s
-        if not self.clock.wall and now - self._t_house > silent_limit and self._house_alarmed != self.k:
-            self._house_alarmed = self.k
-            self._alarm(self.k, "house_silent", f"nothing from the house for {now - self._t_house:.1f} s "
+        silent_limit = self.loop.house_timeout_s if self.watchdog.latest else self.loop.startup_timeout_s
+        if not self.clock.wall and now - self._t_house > silent_limit and self._house_alarmed != self.loop.k:
+            self._house_alarmed = self.loop.k
+            self._alarm(self.loop.k, "house_silent", f"nothing from the house for {now - self._t_house:.1f} s "
                                                    f"(broker {self.map.broker.url}, connected: "
                                                    f"{self.link.connected.is_set()})", None)
         self._advance()
@@ -783,8 +795,8 @@ class MqttBridge(LockStepMaster):
         """Run statistics (fault and limiter counters, MQTT reconnects)."""
         c = self.limiter.counters
         return {
-            **super().stats(),
-            "steps": float(self.next_record if self.map.sim_record_topic else self.k),
+            **self.loop.stats(),
+            "steps": float(self.next_record if self.map.sim_record_topic else self.loop.k),
             "clamped_commands": float(c.clamped_commands),
             "rate_limited": float(c.rate_limited),
             "bad_measurements": float(self.bad_measurements),
@@ -802,14 +814,18 @@ class MqttBridge(LockStepMaster):
 
     def _finish(self) -> None:
         def tell_house() -> None:
-            self._publish_step(self.n_steps or self.k)  # the house's acknowledgement
+            self._publish_step(self.loop.n_steps or self.loop.k)  # the house's acknowledgement
             self.link.publish(self.map.run_topic, "", retain=True)
             last = self._last_row
             final = {name: float(last[name]) for name in ("soc", "loh", "t_air_c", "v_dhw_l") if name in last} \
                 if last is not None else None
-            self._publish_ha_state(self.n_steps or self.k, final)  # with the last step's record
+            self._publish_ha_state(self.loop.n_steps or self.loop.k, final)  # with the last step's record
 
-        self.finish_run(tell_house)
+        self.loop.finish_run(self.stats(), tell_house)
+
+    def get_logger(self) -> Any:
+        """The node's logger, stamped with the simulated time (``package_node.sim_time_logger``)."""
+        return getattr(self, "log", None) or super().get_logger()
 
     def destroy_node(self) -> None:  # noqa: D102
         self.link.stop(final=(self.map.availability_topic, NOT_AVAILABLE))

@@ -27,7 +27,7 @@ After the last step the node publishes ``plant/done``, waits until the record me
 are acknowledged, and exits (``exit_when_done``) with code 0. With ``wait_for_recorder`` it
 starts only once the recorder has said ``recorder/ready``. With ``stall_steps`` > 0 (the
 launcher sets it) a silent EMS, feed or recorder ends the run with exit code 4, naming it
-(:meth:`~comems4build_ros.ros.lockstep.LockStepMaster.check_stall`); a signal before the
+(:meth:`~comems4build_ros.ros.lockstep.LockStep.check_stall`); a signal before the
 last step gives exit code 3.
 """
 
@@ -37,13 +37,15 @@ import time
 from array import array
 from typing import Any
 
+from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, PlantState
-from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStepMaster
-from comems4build_ros.ros.node import ArrayPublisher
+from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStep
+from comems4build_ros.ros.node import ArrayPublisher, ContractEndpoints
+from comems4build_ros.ros.package_node import NodeParameters, debug_enabled, node_options, sim_time_logger
 from comems4build_ros.ros.process import run_node
 from comems4build_ros.wire.ems_command import CommandError, command_bounds, command_to_action
 
@@ -51,23 +53,36 @@ NODE_NAME = "plant_sim"
 #: Interval of the "waiting for feed/truth" warning [s].
 FEED_WARN_PERIOD_S = 10.0
 
-class PlantSimNode(LockStepMaster):
-    """Plant simulator node (see the module docstring)."""
+class PlantSimNode(Node):
+    """Plant simulator node (see the module docstring): the plant model stepped by the lock-step
+    loop it composes (:class:`~comems4build_ros.ros.lockstep.LockStep`).
+
+    Parameters
+    ----------
+    node_kwargs : passed to ``rclpy.node.Node`` (e.g. ``namespace``, ``parameter_overrides``)
+    """
 
     def __init__(self, **node_kwargs: Any) -> None:
-        """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
-        super().__init__(NODE_NAME, **node_kwargs)
-        self.plant = Plant(self.params, self._building_model())
+        super().__init__(NODE_NAME, **node_options(node_kwargs))
+        self.log = sim_time_logger(self)
+        self.debug = debug_enabled(self.log)
+        self.parameters = NodeParameters(self)
+        self.endpoints = ContractEndpoints(self, NODE_NAME)
+        self.loop = LockStep(self, self.parameters, self.endpoints, on_progress=self.on_recorder_progress,
+                             waiting_for=self.waiting_for, silent_ems_cause=self.silent_ems_cause)
+        self.run_end = self.loop  # how the run ends (comems4build_ros.ros.process.run_complete)
+        self.finished = self.loop.finished
+        self.plant = Plant(self.loop.params, self._building_model())
         self.state: PlantState = self.plant.initial_state()
-        sizes = self.sizes
-        self._bounds = command_bounds(self.params)
+        sizes = self.loop.sizes
+        self._bounds = command_bounds(self.loop.params)
 
-        self._state_pubs = [(ArrayPublisher(self, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()]
-        self._cmd_layout = self.contract.topic("ems/command").layout(sizes)
-        self._truth_layout = self.contract.topic("feed/truth").layout(sizes)
+        self._state_pubs = [(ArrayPublisher(self.endpoints, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()]
+        self._cmd_layout = self.endpoints.contract.topic("ems/command").layout(sizes)
+        self._truth_layout = self.endpoints.contract.topic("feed/truth").layout(sizes)
         self._ti = self._truth_layout.index
-        self._cmd_sub = self.contract_subscription("ems/command", self._on_command)
-        self.contract_subscription("feed/truth", self._on_truth)
+        self._cmd_sub = self.endpoints.subscription("ems/command", self._on_command)
+        self.endpoints.subscription("feed/truth", self._on_truth)
 
         self._truth: dict[int, Any] = {}
         self._cmd: Action | None = None
@@ -85,10 +100,11 @@ class PlantSimNode(LockStepMaster):
         self._t_step_announced = 0.0
         self._announced = -1
         self._rtt = array("d")  # announce -> command round trips [s]
-        self.start_watchdog(self._watchdog)
+        self.loop.start_watchdog(self._watchdog)
         self.get_logger().info(
-            f"plant ready: step timeout {self.step_timeout_s} s, start-up timeout {self.startup_timeout_s} s, "
-            f"wait for recorder: {self.wait_for_recorder}"
+            f"plant ready: step timeout {self.loop.step_timeout_s} s, "
+            f"start-up timeout {self.loop.startup_timeout_s} s, "
+            f"wait for recorder: {self.loop.wait_for_recorder}"
         )
 
     def _building_model(self) -> Any:
@@ -98,17 +114,21 @@ class PlantSimNode(LockStepMaster):
         EnergyPlus writes its weather from the scenario, which plant_sim loads with the feed's
         scenario parameters (the launcher gives it the same ones).
         """
-        building = self.param("building_model", "rc")
+        building = self.parameters.param("building_model", "rc")
         if building == "rc":
             return None
         from comems4build_ros.core.loop import building_model
         from comems4build_ros.ros.nodes.feed import SCENARIO_PARAMS, load_scenario, scenario_args
 
-        values = {name: self.param(name, default) for name, default in SCENARIO_PARAMS.items()}
-        scenario = load_scenario(*scenario_args(values, self.params))
-        model = building_model(building, self.params, scenario)
+        values = {name: self.parameters.param(name, default) for name, default in SCENARIO_PARAMS.items()}
+        scenario = load_scenario(*scenario_args(values, self.loop.params))
+        model = building_model(building, self.loop.params, scenario)
         self.get_logger().info(f"building model: {model.name} ({building})")
         return model
+
+    def get_logger(self) -> Any:
+        """The node's logger, stamped with the simulated time (``package_node.sim_time_logger``)."""
+        return getattr(self, "log", None) or super().get_logger()
 
     def destroy_node(self) -> None:
         """End the building model's own simulator (EnergyPlus's thread, an FMU instance), then the node."""
@@ -118,7 +138,7 @@ class PlantSimNode(LockStepMaster):
     # ------------------------------------------------------------------ events
     def on_recorder_progress(self) -> None:
         """The recording caught up: announce the held step."""
-        if self._held and not self.behind(self.k):
+        if self._held and not self.loop.behind(self.loop.k):
             self._held = False
             self._t_wait = time.monotonic()
             self._announce()
@@ -126,36 +146,37 @@ class PlantSimNode(LockStepMaster):
     def _on_truth(self, msg: Float64MultiArray) -> None:
         data = msg.data
         if len(data) != self._truth_layout.length:
-            self.event("rejected", f"topic 'feed/truth': {len(data)} elements, layout has {self._truth_layout.length}")
+            self.loop.event("rejected",
+                            f"topic 'feed/truth': {len(data)} elements, layout has {self._truth_layout.length}")
             return
         self._t_truth = time.monotonic()  # the feed answers (every announcement, even a repeated one)
         step = int(data[0])
-        if step < self.k:
+        if step < self.loop.k:
             return
         self._truth[step] = data
-        if self.n_steps is None:
-            self.n_steps = int(data[1])
+        if self.loop.n_steps is None:
+            self.loop.n_steps = int(data[1])
         if step == 0:  # the run's first time: the start of step 0 (later ones come with each step's end)
-            self.publish_clock(data[self._ti["time_unix_s"]], end=False)
+            self.loop.publish_clock(data[self._ti["time_unix_s"]], end=False)
         self._try_advance()
 
     def _on_command(self, msg: Float64MultiArray) -> None:
         try:
             step, action = command_to_action(msg.data, self._cmd_layout, self._bounds)
         except CommandError as exc:
-            self.rejected_commands += 1
-            self.event("rejected", f"topic 'ems/command' {exc}")
+            self.loop.rejected_commands += 1
+            self.loop.event("rejected", f"topic 'ems/command' {exc}")
             return
-        if not self.accept_token(msg.data, step):
+        if not self.loop.accept_token(msg.data, step):
             return
-        if step == self.k - 1 and self._last_cmd is not None and list(msg.data) == self._last_cmd:
+        if step == self.loop.k - 1 and self._last_cmd is not None and list(msg.data) == self._last_cmd:
             # the EMS re-sent the command just applied (answer to a repeated announcement
             # that crossed its first answer): a retransmission, not a wrong step
-            self.duplicate_commands += 1
+            self.loop.duplicate_commands += 1
             return
-        if not self.started or self.done or step != self.k:
-            self.wrong_step_commands += 1
-            self.event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
+        if not self.loop.started or self.loop.done or step != self.loop.k:
+            self.loop.wrong_step_commands += 1
+            self.loop.event("wrong_step", f"topic 'ems/command': command for step {step} ignored")
             return
         self._cmd = action
         self._cmd_data = list(msg.data)
@@ -174,34 +195,35 @@ class PlantSimNode(LockStepMaster):
     def _announce(self) -> None:
         """Publish the state at the start of step k on state/* and plant/step = k."""
         s = self.state
-        kf = float(self.k)
+        kf = float(self.loop.k)
         for pub, attrs in self._state_pubs:
             pub.publish(array("d", [kf, *(float(getattr(s, a)) for a in attrs)]))
-        self.publish_step(self.k)
+        self.loop.publish_step(self.loop.k)
         self._t_announce = time.monotonic()
-        if self._announced != self.k:
-            self._announced = self.k
+        if self._announced != self.loop.k:
+            self._announced = self.loop.k
             self._t_step_announced = self._t_announce
             if self.debug:
-                self.get_logger().debug(f"step {self.k}: announced (state/*, plant/step)")
+                self.get_logger().debug(f"step {self.loop.k}: announced (state/*, plant/step)")
         elif self.debug:
-            self.get_logger().debug(f"step {self.k}: announced again (waiting {self._t_announce - self._t_wait:.2f} s)")
+            self.get_logger().debug(f"step {self.loop.k}: announced again "
+                                    f"(waiting {self._t_announce - self._t_wait:.2f} s)")
 
     def _start(self) -> None:
-        self.started = True
+        self.loop.started = True
         self._t_run0 = time.monotonic()
         self._t_wait = self._t_run0
         self.get_logger().info("starting the run")
         self._announce()
 
     def _try_advance(self) -> None:
-        if self.started and not self.done and self._cmd is not None and self.k in self._truth:
+        if self.loop.started and not self.loop.done and self._cmd is not None and self.loop.k in self._truth:
             action, self._cmd = self._cmd, None
             self._last_cmd = self._cmd_data
             self._step(action, fallback=False)
 
     def _step(self, action: Action, fallback: bool) -> None:
-        k = self.k
+        k = self.loop.k
         t = self._truth.pop(k)
         ti = self._ti
         exo = Exogenous(
@@ -226,34 +248,35 @@ class PlantSimNode(LockStepMaster):
         )
         row.append(1.0 if fallback else 0.0)
         t0 = t[ti["time_unix_s"]]
-        row.extend((t0, float(self.fallback_steps), float(self.rejected_commands), float(self.wrong_step_commands),
-                    float(self.foreign_commands)))
-        self.k = k + 1
-        self._t_wait = self._t_moved = time.monotonic()
-        last = self.n_steps is not None and self.k >= self.n_steps
+        loop = self.loop
+        row.extend((t0, float(loop.fallback_steps), float(loop.rejected_commands), float(loop.wrong_step_commands),
+                    float(loop.foreign_commands)))
+        self.loop.k = k + 1
+        self._t_wait = self.loop._t_moved = time.monotonic()
+        last = self.loop.n_steps is not None and self.loop.k >= self.loop.n_steps
         if not last:
-            if self.behind(self.k):
+            if self.loop.behind(self.loop.k):
                 self._held = True
             else:
                 self._announce()  # first, so the EMS works on k + 1 while the record goes out
-        self._record.publish(row)
-        self.publish_clock(t0)
+        self.loop.record.publish(row)
+        self.loop.publish_clock(t0)
         if self.debug:
             self.get_logger().debug(f"step {k}: stepped ({'fallback' if fallback else 'command'}), plant/record and "
                                     "/clock published")
         if last:
-            self.finish_run()
+            self.loop.finish_run(self.stats())
 
     def _fallback(self) -> None:
-        t = self._truth[self.k]
-        action = safe_action(self.state.t_air_c, self.state.v_dhw_l, t[self._ti["t_min_c"]], self.params)
-        self.fallback_steps += 1
-        self.note_fallback(ems_silent=True)
+        t = self._truth[self.loop.k]
+        action = safe_action(self.state.t_air_c, self.state.v_dhw_l, t[self._ti["t_min_c"]], self.loop.params)
+        self.loop.fallback_steps += 1
+        self.loop.note_fallback(ems_silent=True)
         self._last_cmd = None
-        self.event(
+        self.loop.event(
             "fallback",
             f"no valid command on 'ems/command' within the timeout: safe action hp_mode={action.hp_mode} "
-            f"hp_mod={action.hp_mod} (fallback steps: {self.fallback_steps})",
+            f"hp_mod={action.hp_mod} (fallback steps: {self.loop.fallback_steps})",
         )
         self._step(action, fallback=True)
 
@@ -263,11 +286,11 @@ class PlantSimNode(LockStepMaster):
         rtt = sorted(self._rtt)
         n = len(rtt)
         return {
-            "wall_s": now - self._t_run0 if self.started else 0.0,
+            "wall_s": now - self._t_run0 if self.loop.started else 0.0,
             "wall_from_first_command_s": now - self._t_first_cmd if self._ever_commanded else 0.0,
             "rtt_median_ms": 1e3 * rtt[n // 2] if n else float("nan"),
             "rtt_p99_ms": 1e3 * rtt[min(n - 1, int(0.99 * n))] if n else float("nan"),
-            **super().stats(),
+            **self.loop.stats(),
         }
 
     # ------------------------------------------------------------------ watchdog
@@ -275,9 +298,10 @@ class PlantSimNode(LockStepMaster):
         """The recorder while an announcement is held back, the feed while ``feed/truth`` of
         the step is missing, else None (the EMS)."""
         if self._held:
-            return (f"the recorder '{self.recorder_node}' (step {self.k} held back until it has written step "
-                    f"{self.k - self.record_window_steps}; written: {self._recorded})", "recorder/progress")
-        if self.k not in self._truth:
+            loop = self.loop
+            return (f"the recorder '{loop.recorder_node}' (step {loop.k} held back until it has written step "
+                    f"{loop.k - loop.record_window_steps}; written: {loop.recorded})", "recorder/progress")
+        if self.loop.k not in self._truth:
             return "the feed's inputs on 'feed/truth'", "feed/truth"
         return None
 
@@ -287,39 +311,39 @@ class PlantSimNode(LockStepMaster):
         silent because its inputs stopped: name the feed (the plant itself still had inputs
         of the steps published ahead)."""
         quiet = now - self._t_truth
-        if quiet <= max(self.step_timeout_s, 4 * self.republish_period_s):
+        if quiet <= max(self.loop.step_timeout_s, 4 * self.loop.republish_period_s):
             return ""
         return (f"; the feed has not answered the step announcements for {quiet:.1f} s, so the EMS lacks its "
-                f"inputs: waiting for the feed's inputs on 'feed/truth' ({self.publishers_of('feed/truth')})")
+                f"inputs: waiting for the feed's inputs on 'feed/truth' ({self.loop.publishers_of('feed/truth')})")
 
     def _watchdog(self) -> None:
         now = time.monotonic()
-        if self.own_pause(now):
+        if self.loop.own_pause(now):
             self._t_wait = now  # the EMS's command may wait in the queue: take it before any time-out
             self._t_announce = now
             return
-        if self.done or self.check_stall(now) or self._held:
+        if self.loop.done or self.loop.check_stall(now) or self._held:
             return
-        if not self.started:
-            ready = self.recorder_ready() and (
-                self._cmd_sub.get_publisher_count() > 0 or now - self._t_created > self.startup_timeout_s
+        if not self.loop.started:
+            ready = self.loop.recorder_ready() and (
+                self._cmd_sub.get_publisher_count() > 0 or now - self._t_created > self.loop.startup_timeout_s
             )
             if ready:
                 self._start()
             return
-        have_truth = self.k in self._truth
+        have_truth = self.loop.k in self._truth
         if have_truth and self._cmd is None:
             # The start-up timeout covers the EMS's first answer only; once the run fell
             # back or had a command, every step waits step_timeout_s.
-            first = not self._ever_commanded and self.fallback_steps == 0
-            timeout = self.startup_timeout_s if first else self.step_timeout_s
+            first = not self._ever_commanded and self.loop.fallback_steps == 0
+            timeout = self.loop.startup_timeout_s if first else self.loop.step_timeout_s
             if now - self._t_wait > timeout:
                 self._fallback()
                 return
         elif not have_truth and min(now - self._t_wait, now - self._t_feed_warn) > FEED_WARN_PERIOD_S:
             self._t_feed_warn = now
-            self.get_logger().warning(f"step {self.k}: still waiting for 'feed/truth'")
-        if now - self._t_announce > self.republish_period_s:
+            self.get_logger().warning(f"step {self.loop.k}: still waiting for 'feed/truth'")
+        if now - self._t_announce > self.loop.republish_period_s:
             self._announce()
 
 

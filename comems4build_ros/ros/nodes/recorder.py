@@ -50,7 +50,9 @@ no channel.
 
 Other parameters: ``tick_s`` (housekeeping timer period, default 0.05 s), ``bag_path``
 (directory to create, required), ``run_info`` (JSON string, stored as ``run_info.json`` in
-the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``).
+the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``)
+and ``run_id`` (the run's id, added to it as ``run_id``: the feed names it on ``feed/info``, and
+evaluate refuses a bag whose records name another run).
 ``settle_s``, ``ready_timeout_s``, ``optional_wait_s``, ``done_grace_s``,
 ``done_timeout_s``, ``progress_period_s`` and ``tick_s`` may change during a run (``ros2
 param set``); the others are read-only.
@@ -78,6 +80,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from std_msgs.msg import Bool, UInt32
 
@@ -85,7 +88,7 @@ from comems4build_ros.bags.bag import BagWriter, decode, qos_for_bag
 from comems4build_ros.bags.evaluation import RECORD_TOPIC, STEP_TOPIC, TRUTH_TOPIC, is_per_step, withheld_topics
 from comems4build_ros.ros.interfaces import message_class, qos_profile
 from comems4build_ros.ros.node import FINISHED_LOCAL_RECORDERS, no_default_event_callbacks
-from comems4build_ros.ros.package_node import PackageNode
+from comems4build_ros.ros.package_node import NodeParameters, node_options, sim_time_logger, steady_timer
 from comems4build_ros.ros.process import run_node
 from comems4build_ros.wire.cdr import array_step, parse_array, uint32_value
 from comems4build_ros.wire.contract import (
@@ -104,7 +107,7 @@ RECORD_DEPTH = 100_000
 #: Default wait between "every topic matched" and "ready" for the publishers' side of
 #: discovery to complete [s]. Short: a node started with ``wait_for_recorder`` holds its
 #: first message until its own writers matched the recorder's readers anyway
-#: (:meth:`~comems4build_ros.ros.node.ContractNode.recorder_gate`).
+#: (:meth:`~comems4build_ros.ros.node.RecorderGate.is_open`).
 SETTLE_S = 0.1
 #: Default limit on the wait for publishers [s].
 READY_TIMEOUT_S = 60.0
@@ -175,14 +178,16 @@ def default_wait_topics(contract: Contract) -> list[str]:
     return [t.name for t in contract.topics.values() if any(roles.get(p) in WAIT_ROLES for p in t.publishers)]
 
 
-class Recorder(PackageNode):
+class Recorder(Node):
     """Bag recorder node (see the module docstring)."""
 
     def __init__(self, **node_kwargs: Any) -> None:
         """``node_kwargs`` (e.g. ``namespace``, ``parameter_overrides``) go to ``rclpy.node.Node``."""
         from rclpy.task import Future
 
-        super().__init__(NODE_NAME, **node_kwargs)
+        super().__init__(NODE_NAME, **node_options(node_kwargs))
+        self.log = sim_time_logger(self)
+        self.parameters = NodeParameters(self)
         self.contract = load_contract()
         self.contract.node(NODE_NAME)
         bag_path, wait, info_obj, chunks = self._read_parameters()
@@ -212,30 +217,34 @@ class Recorder(PackageNode):
         self._last_msg_at = self._t0  # last message of any topic (end of run: the queues are drained)
         self._t_progress = 0.0
         self.finished = Future()
-        self._tick_timer = self.create_timer(self.tick_s, self._tick)
+        self._tick_timer = steady_timer(self, self.tick_s, self._tick)
         self.get_logger().info(
             f"recording {len(self.contract.topics)} topics x {len(self.namespaces)} namespace(s) to {bag_path}"
             + (f"; remapped: {', '.join(f'{a} -> {b}' for a, b in remapped)}" if remapped else "")
         )
 
+    def get_logger(self) -> Any:
+        """The node's logger, stamped with the simulated time (``package_node.sim_time_logger``)."""
+        return getattr(self, "log", None) or super().get_logger()
+
     def _read_parameters(self) -> tuple[str, list[str], Any, tuple[float, int]]:
         """Declare and read every parameter: the bag path, the topics to wait for, the run
         information (parsed) and the chunk limits; the others become attributes (those of the
         end of the run and the progress lines may change during a run)."""
-        bag_path = self.bag_path = self.param("bag_path", "")
+        bag_path = self.bag_path = self.parameters.param("bag_path", "")
         if not bag_path:
             raise ValueError(f"node '{NODE_NAME}': parameter 'bag_path' (bag directory to create) is required")
-        namespaces = self.string_list("namespaces") or [self.get_namespace()]
+        namespaces = self.parameters.string_list("namespaces") or [self.get_namespace()]
         self.namespaces = ["/" + ns.strip("/") if ns.strip("/") else "/" for ns in namespaces]
         if len(set(self.namespaces)) != len(self.namespaces):
             raise ValueError(f"node '{NODE_NAME}': parameter 'namespaces' lists a namespace twice: {namespaces}")
-        wait = self.param("wait_for_topics", ["*"])
+        wait = self.parameters.param("wait_for_topics", ["*"])
         if wait == ["*"]:
             wait = default_wait_topics(self.contract)
         # Topics a run does not publish (the feed serving one EMS leaves out what it does
         # not read, the clock of another house): no subscription, no channel in the bag, no
         # wait for a publisher.
-        self.skip = set(self.string_list("skip_topics"))
+        self.skip = set(self.parameters.string_list("skip_topics"))
         for t in (*wait, *sorted(self.skip)):
             self.contract.topic(t)  # ContractError names an unknown topic
         wait = [t for t in wait if t not in self.skip]
@@ -246,17 +255,22 @@ class Recorder(PackageNode):
         for name, default in (("settle_s", SETTLE_S), ("ready_timeout_s", READY_TIMEOUT_S),
                               ("optional_wait_s", OPTIONAL_WAIT_S), ("done_grace_s", DONE_GRACE_S),
                               ("done_timeout_s", DONE_TIMEOUT_S), ("progress_period_s", 0.0)):
-            setattr(self, name, self.param(name, default, on_change=setter(name)))
-        self.stop_when_done = self.param("stop_when_done", True)
-        self.tick_s = self.param("tick_s", TICK_S, on_change=self._set_tick)
-        run_info = self.param("run_info", "")
+            setattr(self, name, self.parameters.param(name, default, on_change=setter(name)))
+        self.stop_when_done = self.parameters.param("stop_when_done", True)
+        self.tick_s = self.parameters.param("tick_s", TICK_S, on_change=self._set_tick)
+        run_info = self.parameters.param("run_info", "")
         info_obj: Any = None
         if run_info:
             try:
                 info_obj = json.loads(run_info)
             except json.JSONDecodeError as exc:
                 raise ValueError(f"node '{NODE_NAME}': parameter 'run_info' is not JSON: {exc}") from None
-        chunks = (self.param("chunk_period_s", 1.0), self.param("chunk_max_bytes", 256 * 1024))
+        run_id = self.parameters.param("run_id", "")
+        if run_id:  # the run's id beside its description: evaluate refuses records of another run by it
+            if info_obj is not None and not isinstance(info_obj, dict):
+                raise ValueError(f"node '{NODE_NAME}': parameter 'run_info' is not a JSON object (with 'run_id')")
+            info_obj = {**(info_obj or {}), "run_id": run_id}
+        chunks = (self.parameters.param("chunk_period_s", 1.0), self.parameters.param("chunk_max_bytes", 256 * 1024))
         return bag_path, wait, info_obj, chunks
 
     def _set_tick(self, value: float) -> None:
@@ -354,7 +368,7 @@ class Recorder(PackageNode):
         def on_msg(raw: bytes, info: Any) -> None:
             while True:
                 t_ns = info.get("received_timestamp") or time.time_ns()
-                if self.sim_time:
+                if self.parameters.sim_time:
                     self._write_sim(full, t_ns, raw)
                 else:
                     write(full, t_ns, raw)
