@@ -61,6 +61,7 @@ NODE_MODULES: dict[str, str] = {
     "replay": "comems4build_ros.ros.nodes.replay",
     "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
     "mqtt_plant": "comems4build_ros.mqtt.plant_sim",
+    "coordinator": "comems4build_ros.ros.nodes.coordinator",
 }
 #: Executables of :data:`NODE_MODULES` that are no ROS node.
 NOT_ROS_NODES = frozenset({"mqtt_plant"})

@@ -101,8 +101,10 @@ class Account:
 
 
 @dataclass(frozen=True, slots=True)
-class NoFlows:
-    """The flows of an absent house: nothing metered, nothing drawn [W]."""
+class HouseMeter:
+    """What the hub reads of a house's flows in one step, as a house's report carries them (the
+    fields of :class:`HouseFlows`, in the order of ``hub/report``); all zero for an absent house
+    (nothing metered, nothing drawn) [W]."""
 
     p_h2_w: float = 0.0
     p_buy_w: float = 0.0
@@ -115,7 +117,8 @@ class NoFlows:
     p_fc_w: float = 0.0
 
 
-#: An absent house's request: no offer.
+#: An absent house's flows and request: nothing metered, no offer.
+NO_FLOWS = HouseMeter()
 NO_REQUEST = Request(0.0, 0.0, 0.0)
 
 
@@ -253,7 +256,7 @@ class HubRun:
         ----------
         k : the step
         accounts : every account after the houses' fuel cells drew from it (credited in place)
-        flows : every house's flows of the step (an absent house's are :class:`NoFlows`)
+        flows : every house's flows of the step (an absent house's are :data:`NO_FLOWS`)
         requests : every house's request (an absent house's is :data:`NO_REQUEST`)
         present : the houses that took part in the step (default: all)
         """

@@ -262,6 +262,73 @@ def _house_params(files: Sequence[str], overrides: Mapping[str, Any], extra: Map
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def hub_size(spec: CommunitySpec, base: PlantParams) -> tuple[float, int]:
+    """The hub's store [Wh LHV] and electrolyser modules: the file's, or else the sum of the
+    houses' own (``hydrogen.e_max_kwh``, ``electrolyser.n_modules``). A house's own hydrogen
+    system is the run's (its variation may not touch the ``hydrogen`` and ``electrolyser``
+    sections, :data:`HUB_SECTIONS`), so the sum is over the run's values, one per house."""
+    store_wh = (spec.hub.store_kwh * W_PER_KW if spec.hub.store_kwh is not None
+                else sum(base.hydrogen.e_max_kwh for _ in spec.houses) * W_PER_KW)
+    n_modules = (spec.hub.electrolyser_modules if spec.hub.electrolyser_modules is not None
+                 else sum(base.electrolyser.n_modules for _ in spec.houses))
+    return store_wh, int(n_modules)
+
+
+def house_params(spec: CommunitySpec, house: HouseSpec, files: Sequence[str], overrides: Mapping[str, Any],
+                 base: PlantParams, source: str = "community file") -> tuple[PlantParams, PlantParams, float]:
+    """One house's parameters as its EMS knows them (the run's plant with the house's variation and
+    its nominal share of the hub's store as its H2 store), its plant's (without electrolyser
+    modules: they are at the hub) and its nominal share [Wh LHV].
+
+    Parameters
+    ----------
+    spec : the community file; house : its house
+    files, overrides : the run's parameter files and dotted overrides (``base`` is what they give)
+    base : the run's plant parameters
+    source : the community file's name (messages)
+
+    Raises
+    ------
+    ConfigError
+        Naming the community file and the house whose variation breaks a plant parameter's rule.
+    """
+    store_wh, _ = hub_size(spec, base)
+    share_kwh = store_wh * house.h2_weight / sum(h.h2_weight for h in spec.houses) / W_PER_KW
+    where = f"{source}: house '{house.name}' (its H2 share {share_kwh:g} kWh)"
+    params = _house_params(files, overrides, {**house_overrides(house, base), "hydrogen.e_max_kwh": share_kwh}, where)
+    plant_params = params.model_copy(update={"electrolyser": params.electrolyser.model_copy(update={"n_modules": 0})})
+    return params, plant_params, params.hydrogen.e_max_kwh * W_PER_KW
+
+
+def house_spec(spec: CommunitySpec, name: str, source: str = "community file") -> HouseSpec:
+    """The house called ``name`` of a community file.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the houses it has.
+    """
+    for house in spec.houses:
+        if house.name == name:
+            return house
+    raise ConfigError(f"{source}: no house '{name}' (houses: {', '.join(h.name for h in spec.houses)})")
+
+
+def cut_scenario(scenario: Scenario, steps: int | None) -> Scenario:
+    """The scenario's run cut to its first ``steps`` steps, the rest kept as look-ahead (None: as it is).
+
+    Raises
+    ------
+    ValueError
+        For ``steps`` outside ``1 .. n_steps``.
+    """
+    if steps is None:
+        return scenario
+    if not 0 < steps <= scenario.n_steps:
+        raise ValueError(f"steps: {steps} outside 1..{scenario.n_steps} of scenario '{scenario.name}'")
+    return dataclasses.replace(scenario, n_steps=steps)
+
+
 def build_community(
     spec: CommunitySpec,
     scenario: str | Path = "default",
@@ -273,6 +340,7 @@ def build_community(
     hours: int | None = None,
     seed: int | None = None,
     extend: str | None = None,
+    steps: int | None = None,
 ) -> Community:
     """The houses' parameters and scenarios and the hub of a community file, for one run.
 
@@ -284,6 +352,8 @@ def build_community(
     overrides : dotted plant overrides for every house (``--set``)
     source : the community file's name (messages)
     start, weeks, hours, seed, extend : the run's window and data (as ``resolve_scenario``)
+    steps : cut the run to its first ``steps`` steps, the rest kept as look-ahead (as a
+        distributed run's ``--steps``; None = the whole window)
 
     Raises
     ------
@@ -295,24 +365,29 @@ def build_community(
     files = scenario_config_files(scenario, [str(c) for c in config])
     overrides = dict(overrides or {})
     base = load_plant_params(files, overrides)
-    base_scenario = resolve_scenario(scenario, base, start=start, weeks=weeks, hours=hours, seed=seed, extend=extend)
-    own = [_house_params(files, overrides, house_overrides(h, base), f"{source}: house '{h.name}'")
-           for h in spec.houses]
-    store_wh = (spec.hub.store_kwh * W_PER_KW if spec.hub.store_kwh is not None
-                else sum(p.hydrogen.e_max_kwh for p in own) * W_PER_KW)
-    n_modules = (spec.hub.electrolyser_modules if spec.hub.electrolyser_modules is not None
-                 else sum(p.electrolyser.n_modules for p in own))
-    total_weight = sum(h.h2_weight for h in spec.houses)
+    base_scenario = cut_scenario(resolve_scenario(scenario, base, start=start, weeks=weeks, hours=hours, seed=seed,
+                                                  extend=extend), steps)
+    return community_of(spec, files, overrides, base, base_scenario, source)
+
+
+def community_of(spec: CommunitySpec, files: Sequence[str], overrides: Mapping[str, Any], base: PlantParams,
+                 base_scenario: Scenario, source: str = "community file") -> Community:
+    """The community of a file on the run's parameters ``base`` (of ``files`` and ``overrides``) and
+    scenario ``base_scenario`` (:func:`build_community`; a node that loaded them itself builds it here).
+
+    Raises
+    ------
+    ConfigError
+        Naming the community file and the house whose variation breaks a plant parameter's rule.
+    """
+    for h in spec.houses:  # each house's own plant (its variation) is a valid plant
+        _house_params(files, overrides, house_overrides(h, base), f"{source}: house '{h.name}'")
+    store_wh, n_modules = hub_size(spec, base)
     houses = []
     for h in spec.houses:
-        share_kwh = store_wh * h.h2_weight / total_weight / W_PER_KW
-        where = f"{source}: house '{h.name}' (its H2 share {share_kwh:g} kWh)"
-        params = _house_params(files, overrides, {**house_overrides(h, base), "hydrogen.e_max_kwh": share_kwh}, where)
-        plant_params = params.model_copy(update={"electrolyser": params.electrolyser.model_copy(
-            update={"n_modules": 0})})
+        params, plant_params, share_wh = house_params(spec, h, files, overrides, base, source)
         houses.append(House(name=h.name, spec=h, params=params, plant_params=plant_params,
-                            scenario=house_scenario(base_scenario, h, params),
-                            share_wh=params.hydrogen.e_max_kwh * W_PER_KW))
+                            scenario=house_scenario(base_scenario, h, params), share_wh=share_wh))
     hub = HubParams(
         e_max_wh=store_wh,
         loh_min=min(p.params.hydrogen.loh_min for p in houses),
