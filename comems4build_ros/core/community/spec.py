@@ -300,6 +300,21 @@ def house_params(spec: CommunitySpec, house: HouseSpec, files: Sequence[str], ov
     return params, plant_params, params.hydrogen.e_max_kwh * W_PER_KW
 
 
+def house_plants(spec: CommunitySpec, files: Sequence[str], overrides: Mapping[str, Any], base: PlantParams,
+                 source: str = "community file") -> list[tuple[PlantParams, PlantParams, float]]:
+    """Every house's parameters, its plant's and its share (:func:`house_params`), after checking that
+    each house's own plant (its variation without the hub) is a valid plant.
+
+    Raises
+    ------
+    ConfigError
+        Naming the community file and the house whose variation breaks a plant parameter's rule.
+    """
+    for h in spec.houses:
+        _house_params(files, overrides, house_overrides(h, base), f"{source}: house '{h.name}'")
+    return [house_params(spec, h, files, overrides, base, source) for h in spec.houses]
+
+
 def house_spec(spec: CommunitySpec, name: str, source: str = "community file") -> HouseSpec:
     """The house called ``name`` of a community file.
 
@@ -380,12 +395,9 @@ def community_of(spec: CommunitySpec, files: Sequence[str], overrides: Mapping[s
     ConfigError
         Naming the community file and the house whose variation breaks a plant parameter's rule.
     """
-    for h in spec.houses:  # each house's own plant (its variation) is a valid plant
-        _house_params(files, overrides, house_overrides(h, base), f"{source}: house '{h.name}'")
     store_wh, n_modules = hub_size(spec, base)
     houses = []
-    for h in spec.houses:
-        params, plant_params, share_wh = house_params(spec, h, files, overrides, base, source)
+    for h, (params, plant_params, share_wh) in zip(spec.houses, house_plants(spec, files, overrides, base, source)):
         houses.append(House(name=h.name, spec=h, params=params, plant_params=plant_params,
                             scenario=house_scenario(base_scenario, h, params), share_wh=share_wh))
     hub = HubParams(
