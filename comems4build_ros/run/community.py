@@ -33,6 +33,7 @@ import math
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.bags.community import COORDINATOR_BAG
 from comems4build_ros.run.plan import (
     CONTAINER_RECORDER_TICK_S,
     CONTAINER_STEP_TIMEOUT_S,
@@ -70,8 +71,6 @@ from comems4build_ros.run.plan import (
 )
 from comems4build_ros.wire.tokens import new_token
 
-#: Name of the coordinator's bag directory under the run's bag, and so a name no house may have.
-COORDINATOR_BAG = "coordinator"
 #: The community file as the run's nodes read it, under the output directory.
 COMMUNITY_FILE = Path("params") / "community.yaml"
 #: Layouts of a community run (``role`` would put several houses' nodes of one kind in one process,
@@ -219,12 +218,18 @@ def community_run_info(opts: LaunchOptions, params: Any, houses: list[CommunityH
     (:func:`~comems4build_ros.run.plan.run_info`) on the run's plant file, and ``community``: the
     community file as the nodes read it, the coordinator, its options and the houses (name,
     namespace, bag); what a community evaluation of the bags needs."""
+    weeks, steps = feed_window(opts.weeks, opts.steps)
+    from comems4build_ros.core.scenario import is_embedded
+
+    scenario = str(opts.scenario) if is_embedded(opts.scenario) else str(Path(opts.scenario).resolve())
+    window = {"scenario": scenario, "weeks": weeks, "steps": steps, "seed": opts.seed, "start": opts.start}
     info = run_info(opts, params, [opts.seed], run_id)
     info.update(config_files=[base_file], overrides={},
                 houses=[{"namespace": c.plan.namespace, "seed": opts.seed} for c in houses],
                 community={"file": community_file, "source": str(Path(opts.community or "").resolve()),
                            "coordinator": opts.coordinator, "coordinator_options": list(opts.coordinator_options),
                            "clock": opts.clock, "namespace": opts.namespace, "bag": COORDINATOR_BAG,
+                           "window": window,
                            "houses": [{"name": c.name, "namespace": c.plan.namespace, "bag": c.name}
                                       for c in houses]})
     return info

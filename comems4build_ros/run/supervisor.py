@@ -685,12 +685,14 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
         with ProcessGroup(env, plan.out / "log") as group:
             recorders: list[Child] = []
             plants: list[Child] = []
+            reporting = 0  # processes that print progress lines so far
             write_plan_files(plan)
             if plan.discovery_server:
                 print(f"launcher: {discovery_hint(plan.discovery_server)}", file=sys.stderr, flush=True)
             for p in plan.processes:
                 extra = {**plan.sides[p.side].env, **p.env}
-                listener = progress.listener(len(recorders)) if p.progress else None
+                listener = progress.listener(reporting) if p.progress else None
+                reporting += p.progress
                 child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
                                     finishes=p.finishes, nodes=[node_label(n) for n in p.nodes],
                                     may_leave=p.may_leave)
