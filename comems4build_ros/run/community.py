@@ -287,7 +287,9 @@ def house_nodes(opts: LaunchOptions, house: CommunityHouse, info: dict[str, Any]
     roles = house_params(opts, b.seed, {"config_files": [base_file]}, b.token_file, clock, info["run_id"])
     roles["ems"]["config_files"] = [house.ems_file]
     roles["feed"].update(community_file=community_file, community_house=house.name)
-    roles["plant"].update(config_files=[house.plant_file], hub=True, hub_token_file=house.hub_token_file,
+    # plant_sim checks the EMS's commands against the house as its EMS knows it, and builds its plant
+    # without the electrolyser modules (core.community.spec.house_plant)
+    roles["plant"].update(config_files=[house.ems_file], hub=True, hub_token_file=house.hub_token_file,
                           clock=opts.clock)
     rec = recorder_params(b.namespace, b.bag, house_run_info(info, house), 0.0 if contained else PROGRESS_PERIOD_S,
                           unread_inputs(opts), clock)

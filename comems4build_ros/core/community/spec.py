@@ -296,8 +296,12 @@ def house_params(spec: CommunitySpec, house: HouseSpec, files: Sequence[str], ov
     share_kwh = store_wh * house.h2_weight / sum(h.h2_weight for h in spec.houses) / W_PER_KW
     where = f"{source}: house '{house.name}' (its H2 share {share_kwh:g} kWh)"
     params = _house_params(files, overrides, {**house_overrides(house, base), "hydrogen.e_max_kwh": share_kwh}, where)
-    plant_params = params.model_copy(update={"electrolyser": params.electrolyser.model_copy(update={"n_modules": 0})})
-    return params, plant_params, params.hydrogen.e_max_kwh * W_PER_KW
+    return params, house_plant(params), params.hydrogen.e_max_kwh * W_PER_KW
+
+
+def house_plant(params: PlantParams) -> PlantParams:
+    """A house's plant in a community: its parameters without electrolyser modules (they are at the hub)."""
+    return params.model_copy(update={"electrolyser": params.electrolyser.model_copy(update={"n_modules": 0})})
 
 
 def house_plants(spec: CommunitySpec, files: Sequence[str], overrides: Mapping[str, Any], base: PlantParams,

@@ -49,6 +49,7 @@ from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
 from comems4build_ros.core.community.plant import without_electrolyser
+from comems4build_ros.core.community.spec import house_plant
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, PlantState
@@ -82,14 +83,16 @@ class PlantSimNode(Node):
                              waiting_for=self.waiting_for, silent_ems_cause=self.silent_ems_cause)
         self.run_end = self.loop  # how the run ends (comems4build_ros.ros.process.run_complete)
         self.finished = self.loop.finished
-        self.plant = Plant(self.loop.params, self._building_model())
+        # a house of a community: its parameters are the house as its EMS knows it (its commands are
+        # checked against them); its plant has no electrolyser modules (they are at the hub)
+        hub_mode = self.parameters.param("hub", False)
+        self.plant = Plant(house_plant(self.loop.params) if hub_mode else self.loop.params, self._building_model())
         self.state: PlantState = self.plant.initial_state()
         sizes = self.loop.sizes
         self._bounds = command_bounds(self.loop.params)
 
         self._state_pubs = [(ArrayPublisher(self.endpoints, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()]
         self._el_pub = next(pub for pub, attrs in self._state_pubs if attrs == ("el_on",))
-        hub_mode = self.parameters.param("hub", False)
         if hub_mode:
             self._state_pubs = [(pub, attrs) for pub, attrs in self._state_pubs if pub is not self._el_pub]
         self._cmd_layout = self.endpoints.contract.topic("ems/command").layout(sizes)
