@@ -165,8 +165,9 @@ PARAMETERS: dict[str, ParamSpec] = {
     "publish_measured": ParamSpec("bool", "publish feed/measured (false when mqtt_bridge publishes the house's "
                                   "meters)", allowed="true or false", source=_MQTT),
     "inputs": ParamSpec("str", "inputs of the feed", allowed="scenario or live", source=_MQTT),
-    "for_ems": ParamSpec("str", "EMS node the feed serves: only the topics it reads are published (empty = every "
-                         "EMS topic)", allowed="an EMS node of the contract (fuzzy_ems, ...) or empty",
+    "for_ems": ParamSpec("str", "EMS node the feed (a community's coordinator: the houses' EMS) serves: only the "
+                         "topics it reads are published (empty = every EMS topic)",
+                         allowed="an EMS node of the contract (fuzzy_ems, ...) or empty",
                          source="tab:level_of_information"),
     "live_config": ParamSpec("str", "live-input settings file (empty = config/live_inputs.yaml)",
                              allowed="a file path or empty", source=_MQTT),

@@ -253,7 +253,7 @@ def coordinator_params(opts: LaunchOptions, houses: list[CommunityHouse], commun
         "config_files": [base_file], "community_file": community_file, "coordinator": opts.coordinator,
         "coordinator_options": list(opts.coordinator_options), "scenario": str(opts.scenario), "weeks": weeks,
         "steps": steps, "hub_token_files": [c.hub_token_file for c in houses], "clock": opts.clock,
-        "wait_for_recorder": True, "stall_steps": STALL_STEPS,
+        "wait_for_recorder": True, "stall_steps": STALL_STEPS, "for_ems": ems_node_name(opts.ems),
         # a house falls back after its plant's step time-out: the coordinator waits for that first
         "step_timeout_s": 2.0 * step_timeout,
     }

@@ -81,7 +81,10 @@ def launch(opts: LaunchOptions) -> LaunchResult:
     if opts.community is not None:  # every house's bag and the coordinator's, composed
         from comems4build_ros.bags.community import evaluate_community_bags
 
-        result = evaluate_community_bags(bag, out, wall_s=wall)
+        try:
+            result = evaluate_community_bags(bag, out, wall_s=wall)
+        except (ValueError, OSError) as exc:  # the run's bags and logs are kept for a look
+            raise LaunchError(f"the community's bags could not be evaluated: {exc}") from None
         summaries = {f"{opts.namespace.rstrip('/')}/{name}": r.summary for name, r in result.houses.items()}
         warn_lost(summaries)
         return LaunchResult(out, bag, domain_id, wall, run_s, summaries, result.summary)

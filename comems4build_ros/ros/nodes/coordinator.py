@@ -12,7 +12,8 @@ the very code of the in-process loop). Per step ``k``:
 1. allot: the coordinator reads the hub and the houses at the end of ``k - 1`` and allots;
    the hub applies the transfers; every house gets ``hub/allotment`` (its account, its
    allotted ``eq:deltaLOH``, the hub's electrolysers' state) and ``feed/h2_allowance`` (the
-   allotted ``eq:deltaLOH``, which its EMS reads where an isolated house's reads its own);
+   allotted ``eq:deltaLOH``, which its EMS reads where an isolated house's reads its own; not for
+   an EMS that does not read it, parameter ``for_ems``);
 2. each house's EMS acts, its plant steps and reports (``hub/report``: its account as its
    fuel cell left it, its flows, its EMS's electrolyser request);
 3. settle, once every house reported: the coordinator dispatches the hub, the hub steps and
@@ -111,6 +112,8 @@ class CoordinatorNode(Node):
             raise ValueError(f"node '{NODE_NAME}': parameter 'community_file' (the community file) is required")
         values = {key: p.param(key, default) for key, default in SCENARIO_PARAMS.items()}
         token_files = p.string_list("hub_token_files")
+        # the houses' EMS node: feed/h2_allowance goes out only if it reads it (tab:level_of_information)
+        for_ems = p.param("for_ems", "")
         self.clock = parse_clock(p.param("clock", "sim"), params.simulation.time_step_h)
         for key, default in LOOP_PARAMS.items():
             setattr(self, key, p.param(key, default, on_change=self._setter(key)))
@@ -139,7 +142,9 @@ class CoordinatorNode(Node):
         contract = self.endpoints.contract
         self._report_length = contract.topic("hub/report").layout({}).length
         self._allot_pubs = [ArrayPublisher(self.endpoints, "hub/allotment", {}, ns) for ns in self.namespaces]
-        self._allowance_pubs = [ArrayPublisher(self.endpoints, "feed/h2_allowance", {}, ns) for ns in self.namespaces]
+        allowance = not for_ems or "feed/h2_allowance" not in contract.inputs_not_read(for_ems)
+        self._allowance_pubs = ([ArrayPublisher(self.endpoints, "feed/h2_allowance", {}, ns) for ns in self.namespaces]
+                                if allowance else [])
         self._settle_pubs = [ArrayPublisher(self.endpoints, "hub/settlement", {}, ns) for ns in self.namespaces]
         self._record = ArrayPublisher(self.endpoints, "hub/record", {})
         self._info_pub = self.endpoints.publisher("coordinator/info")
@@ -261,7 +266,8 @@ class CoordinatorNode(Node):
             message = sign(self.keys[i], array("d", (kf, self.accounts[i].loh, dloh,
                                                      1.0 if allotted.el_on_prev else 0.0, allotted.moved_wh[i])))
             self._allot_msgs[i] = (allowance, message)
-            self._allowance_pubs[i].publish(allowance)  # first: the house's EMS reads it when the plant announces
+            if self._allowance_pubs:  # first: the house's EMS reads it when the plant announces
+                self._allowance_pubs[i].publish(allowance)
             self._allot_pubs[i].publish(message)
         self.allotted = k
         self.reports = {}
@@ -333,7 +339,8 @@ class CoordinatorNode(Node):
             for i in missing:
                 sent = self._allot_msgs[i]
                 if sent is not None:
-                    self._allowance_pubs[i].publish(sent[0])
+                    if self._allowance_pubs:
+                        self._allowance_pubs[i].publish(sent[0])
                     self._allot_pubs[i].publish(sent[1])
                     self.counts["resent_allotments"] += 1
         self._check_stall(now, missing)

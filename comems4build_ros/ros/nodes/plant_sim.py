@@ -376,6 +376,8 @@ class PlantSimNode(Node):
         if self.hub is not None and self._pending is not None:
             return f"the coordinator's settlement of step {k} on 'hub/settlement'", "hub/settlement"
         if self.hub is not None and self._announced != k:
+            if k == 0 and time.monotonic() - self._t_run0 < self.loop.startup_timeout_s:
+                return None  # the coordinator's start-up (its community, its recorder) as the EMS's: no stall
             return f"the coordinator's allotment of step {k} on 'hub/allotment'", "hub/allotment"
         if k not in self._truth:
             return "the feed's inputs on 'feed/truth'", "feed/truth"
