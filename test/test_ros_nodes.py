@@ -337,9 +337,10 @@ def test_closed_loop_over_ros_equals_in_process(graph: Graph, ems: str) -> None:
     c = graph.contract
     ems_node = c.ems_node_name(ems)
     for node in ("plant_sim", "feed", ems_node):
-        want_pub = {t.name for t in c.published_by(node)}
+        # an independent house: no link to a community's coordinator (scope community_house)
+        want_pub = {t.name for t in c.published_by(node) if t.scope == "house"}
         # /clock: the contract lets ROS 2's time source read it; it does with use_sim_time only
-        want_sub = {t.name for t in c.subscribed_by(node)} - {"/clock"}
+        want_sub = {t.name for t in c.subscribed_by(node) if t.scope == "house"} - {"/clock"}
         t_end = time.monotonic() + 10.0  # endpoint discovery is asynchronous: give it time under load
         while graph.graph_topics(node) != (want_pub, want_sub) and time.monotonic() < t_end:
             graph.executor.spin_once(timeout_sec=0.1)
