@@ -21,7 +21,8 @@ from comems4build_ros.core.community.coordinator import (
     Request,
     make_coordinator,
 )
-from comems4build_ros.core.community.loop import community_info, simulate_community
+from comems4build_ros.core.community.hubrun import community_info
+from comems4build_ros.core.community.loop import simulate_community
 from comems4build_ros.core.community.optimal import transfers_from
 from comems4build_ros.core.community.plant import CommunityPlant
 from comems4build_ros.core.community.spec import build_community, load_community
@@ -50,7 +51,7 @@ def _community(tmp_path: Path, houses: int = 3, scenario: str = "default", start
 
 def _views(community, steps: int = 1) -> list[CommunityView]:
     """The views of the first steps of a rule-coordinated run, with the houses' MPC-level observations."""
-    info = community_info(community, CommunityPlant(community))
+    info = community_info(community, CommunityPlant(community).hub)
     views: list[CommunityView] = []
 
     class Grab:
@@ -104,7 +105,7 @@ def test_each_coordinator_runs_a_small_community_with_closed_balances(tmp_path: 
 
 def test_distributed_reaches_the_central_optimum_on_three_houses(tmp_path: Path) -> None:
     community = _community(tmp_path, 3, hours=2)
-    info = community_info(community, CommunityPlant(community))
+    info = community_info(community, CommunityPlant(community).hub)
     view = _views(community)[0]
     central = make_coordinator("central", info, {"mip_rel_gap": 1e-4}).solve(view)
     relaxed = make_coordinator("central", info, {"relaxed": True}).solve(view)
@@ -126,7 +127,7 @@ def test_distributed_reaches_the_central_optimum_on_three_houses(tmp_path: Path)
 
 def test_central_refuses_above_its_limit(tmp_path: Path, capsys) -> None:
     community = _community(tmp_path, 3, hours=1)
-    info = community_info(community, CommunityPlant(community))
+    info = community_info(community, CommunityPlant(community).hub)
     with pytest.raises(ConfigError, match="3 houses exceed its limit of 2 .option max_houses."):
         make_coordinator("central", info, {"max_houses": 2})
     many = dataclasses.replace(info, names=tuple(f"h{i}" for i in range(17)),
@@ -162,7 +163,7 @@ def test_bad_hub_rules_are_refused_naming_file_and_culprit(tmp_path: Path, capsy
                                                            message: str) -> None:
     path = _rules(tmp_path, old, new)
     community = _community(tmp_path, 2, hours=1)
-    info = community_info(community, CommunityPlant(community))
+    info = community_info(community, CommunityPlant(community).hub)
     with pytest.raises(ConfigError, match=message) as exc:
         make_coordinator("fuzzy", info, {"rules": str(path)})
     assert str(path) in str(exc.value)
@@ -173,7 +174,7 @@ def test_bad_hub_rules_are_refused_naming_file_and_culprit(tmp_path: Path, capsy
 
 def test_a_missing_rule_file_is_named(tmp_path: Path) -> None:
     community = _community(tmp_path, 1, hours=1)
-    info = community_info(community, CommunityPlant(community))
+    info = community_info(community, CommunityPlant(community).hub)
     with pytest.raises(ConfigError, match="nosuch.yaml"):
         make_coordinator("fuzzy", info, {"rules": str(tmp_path / "nosuch.yaml")})
 

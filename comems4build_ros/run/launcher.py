@@ -37,6 +37,7 @@ class LaunchResult:
     wall_s: float  # from the first process start to the end of the run [s]
     run_s: float  # from the recorder's first record to the end of the run [s]
     summaries: dict[str, dict[str, Any]]  # namespace -> summary
+    community: dict[str, Any] | None = None  # a community's summary (community.json), None for independent houses
 
 
 def launch(opts: LaunchOptions) -> LaunchResult:
@@ -65,25 +66,40 @@ def launch(opts: LaunchOptions) -> LaunchResult:
         with acquire_domain_id(opts.domain_id) as domain_id:
             plan = plan_run(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
-            if len(plan.houses) > 1:
+            if len(plan.houses) > 1 or opts.community is not None:
                 bag.mkdir(parents=True, mode=0o700)  # the bags hold the run tokens (ems/command)
             try:
                 times = run_plan(plan, opts.on_progress or bar)
             except LaunchError as exc:
                 bar.close()
-                cut_short(exc, bag, out, params)
+                cut_short(exc, bag, out, params, opts.community is not None)
                 raise
     finally:
         bar.close()
     wall = times.t_end - times.t0
     run_s = times.t_end - (times.t_first_record or times.t0)
+    if opts.community is not None:  # every house's bag and the coordinator's, composed
+        from comems4build_ros.bags.community import evaluate_community_bags
+
+        try:
+            result = evaluate_community_bags(bag, out, wall_s=wall)
+        except (ValueError, OSError) as exc:  # the run's bags and logs are kept for a look
+            raise LaunchError(f"the community's bags could not be evaluated: {exc}") from None
+        summaries = {f"{opts.namespace.rstrip('/')}/{name}": r.summary for name, r in result.houses.items()}
+        warn_lost(summaries)
+        return LaunchResult(out, bag, domain_id, wall, run_s, summaries, result.summary)
     summaries = evaluate_bag(bag, out, params=params, wall_s=wall, accept_gaps=True)
+    warn_lost(summaries)
+    warn_stand_in(summaries)
+    return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
+
+
+def warn_lost(summaries: dict[str, dict[str, Any]]) -> None:
+    """Say on the console which topics the recording misses messages of (``lost_messages`` of the summaries)."""
     lost = {t: n for s in summaries.values() for t, n in s.get("lost_messages", {}).items()}
     if lost:
         print(f"launcher: warning: the recording misses messages on {len(lost)} topic(s): {lost} "
               "(summary.json 'lost_messages')", file=sys.stderr)
-    warn_stand_in(summaries)
-    return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
 
 
 def warn_stand_in(summaries: dict[str, dict[str, Any]]) -> None:
@@ -101,7 +117,7 @@ def warn_stand_in(summaries: dict[str, dict[str, Any]]) -> None:
                   "feed/events 'stand_in' lines in the bag", file=sys.stderr)
 
 
-def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
+def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any, community: bool = False) -> None:
     """A run the launcher cut short: mark every bag (:data:`~comems4build_ros.bags.evaluation.RUN_CUT_FILE`:
     cause, process, exit code, log, the ROS nodes of that process) and evaluate what was
     recorded into ``out`` (summaries with ``run_cut`` and ``bag_incomplete``, put on
@@ -118,6 +134,12 @@ def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
     if not marked:
         return
     try:
+        if community:  # what the bags hold of every house and of the coordinator
+            from comems4build_ros.bags.community import evaluate_community_bags
+
+            result = evaluate_community_bags(bag, out)
+            exc.summaries = {name: r.summary for name, r in result.houses.items()}
+            return
         exc.summaries = evaluate_bag(bag, out, params=params, accept_gaps=True)
     except (ValueError, OSError) as err:
         print(f"launcher: the cut run's bag {bag} (marked in {RUN_CUT_FILE}) could not be evaluated: {err}",

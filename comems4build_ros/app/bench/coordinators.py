@@ -81,7 +81,8 @@ def run(args: argparse.Namespace) -> int:
     """Run the benchmark; print and optionally write the figures."""
     from comems4build_ros.app.commands.options import UsageError
     from comems4build_ros.core.community.coordinator import make_coordinator
-    from comems4build_ros.core.community.loop import community_info, simulate_community
+    from comems4build_ros.core.community.hubrun import community_info
+    from comems4build_ros.core.community.loop import simulate_community
     from comems4build_ros.core.community.plant import CommunityPlant
     from comems4build_ros.core.community.spec import build_community
     from comems4build_ros.core.config import ConfigError, parse_assignments
@@ -98,7 +99,7 @@ def run(args: argparse.Namespace) -> int:
         options["central"]["max_houses"] = args.central_max
     spec = community_of(args.community, args.houses)
     community = build_community(spec, args.scenario, source=args.community, start=args.start, hours=args.hours)
-    info = community_info(community, CommunityPlant(community))
+    info = community_info(community, CommunityPlant(community).hub)
     print(f"bench coordinators: {args.houses} houses, {args.scenario}, {args.hours} h, central every {args.every} "
           f"steps; {_load()}", flush=True)
     t_build = time.perf_counter()

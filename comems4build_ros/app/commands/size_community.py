@@ -91,7 +91,7 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import add_scenario_config, check_config_files, check_start, ems_names
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.community.coordinator import make_coordinator
-    from comems4build_ros.core.community.loop import community_info
+    from comems4build_ros.core.community.hubrun import community_info
     from comems4build_ros.core.community.plant import CommunityPlant
     from comems4build_ros.core.community.spec import build_community, load_community, resized
     from comems4build_ros.core.config import W_PER_KW, load_plant_params
@@ -139,7 +139,7 @@ def run(args: argparse.Namespace) -> int:
         community = build_community(resized(spec, {"store_kwh": size.store_kwh, "electrolyser_modules": size.modules},
                                             source=source), "year", args.config, overrides, source=source,
                                     start=args.start, weeks=args.weeks)
-        make_coordinator(coordinator, community_info(community, CommunityPlant(community)), options)
+        make_coordinator(coordinator, community_info(community, CommunityPlant(community).hub), options)
     isolated: dict[str, dict[str, dict[str, Any]]] = {}
     for kwh in kwhs:  # every isolated house: its share of the hub's store and its own electrolyser
         isolated[f"{kwh:g}"] = {}
