@@ -38,7 +38,8 @@ from comems4build_ros.core.community.loop import simulate_community
 from comems4build_ros.core.community.plant import CommunityPlant
 from comems4build_ros.core.community.spec import CommunitySpec, HouseSpec, build_community, load_community
 from comems4build_ros.core.types import Action
-from comems4build_ros.run.plan import LaunchOptions, plan_run
+from comems4build_ros.run.plan import LaunchOptions
+from comems4build_ros.run.plans import plan_any
 from comems4build_ros.run.supervisor import processes_with_env
 from comems4build_ros.wire.contract import load_contract
 from comems4build_ros.wire.tokens import authentic, secret_key, sign
@@ -66,9 +67,10 @@ def _file(tmp_path: Path) -> Path:
     return path
 
 
-def _reference(path: Path, scenario: str, weeks: int, steps: int, start: str | None, ems: str):
+def _reference(path: Path, scenario: str, weeks: int, steps: int, start: str | None, ems: str,
+               coordinator: str = "rule"):
     community = build_community(load_community(path), scenario, weeks=weeks, steps=steps, start=start)
-    return simulate_community(community, "rule", ems)
+    return simulate_community(community, coordinator, ems)
 
 
 def _equal(a: pd.Series, b: pd.Series) -> bool:
@@ -124,6 +126,20 @@ def test_three_houses_and_the_coordinator_equal_in_process_bit_for_bit(tmp_path:
     _same_as_in_process(out, res.bag, ref, tmp_path)
     assert res.community is not None and res.community["houses"] == 3
     assert processes_with_env("ROS_LOG_DIR", str(out / "log" / "ros")) == []
+
+
+@pytest.mark.ros
+def test_the_fuzzy_coordinator_over_ros_equals_in_process(tmp_path: Path) -> None:
+    """FLC_hub (it reads the day-ahead prices and the season of the view) with the RBC in every house."""
+    from comems4build_ros.run.launcher import launch
+
+    path = _file(tmp_path)
+    out = tmp_path / "run"
+    res = launch(LaunchOptions(ems="rbc", out=out, scenario="year", start="2022-05-01", weeks=1, steps=30,
+                               community=str(path), coordinator="fuzzy", timeout_s=BUDGET_S))
+    ref = _reference(path, "year", 1, 30, "2022-05-01", "rbc", "fuzzy")
+    assert ref.summary["coordinator"] == "fuzzy" and ref.hub["p_el_w"].sum() > 0.0  # FLC_hub ran the hub
+    _same_as_in_process(out, res.bag, ref, tmp_path)
 
 
 def _netns_available() -> str | None:
@@ -241,7 +257,7 @@ def _others(out: Path, names: tuple[str, ...], e_max_kwh: float) -> np.ndarray:
 # ----------------------------------------------------------------- without processes
 def test_the_plan_of_a_community(tmp_path: Path) -> None:
     path = _file(tmp_path)
-    plan = plan_run(LaunchOptions(ems="fuzzy", out=tmp_path / "o", weeks=1, steps=5, community=str(path),
+    plan = plan_any(LaunchOptions(ems="fuzzy", out=tmp_path / "o", weeks=1, steps=5, community=str(path),
                                   coordinator="rule", coordinator_options=["h2_split=need"]), 7)
     assert [h.namespace for h in plan.houses] == ["/h1", "/h2", "/h3"]
     coordinator = [n for _p, n in plan.nodes("coordinator")]
@@ -256,7 +272,7 @@ def test_the_plan_of_a_community(tmp_path: Path) -> None:
     assert sum(n.params.get("follows") == "coordinator" for n in recorders) == 1
     assert len(plan.secrets) == 6 and len({t for _f, t in plan.secrets}) == 6  # a run and a hub secret per house
     assert not any(p.may_leave for p in plan.processes)
-    wall = plan_run(LaunchOptions(ems="rbc", out=tmp_path / "o", weeks=1, community=str(path), clock="wall:60",
+    wall = plan_any(LaunchOptions(ems="rbc", out=tmp_path / "o", weeks=1, community=str(path), clock="wall:60",
                                   network="netns"), 7)
     assert {p.side for p in wall.processes} == {"coordinator", "house_h1", "house_h2", "house_h3"}
     assert all(p.may_leave == (p.side != "coordinator") for p in wall.processes)
@@ -275,7 +291,7 @@ def test_the_plan_of_a_community(tmp_path: Path) -> None:
 def test_a_community_plan_refuses_what_it_cannot_run(tmp_path: Path, change: dict, words: str) -> None:
     opts = dataclasses.replace(LaunchOptions(ems="rbc", out=tmp_path / "o", community=str(_file(tmp_path))), **change)
     with pytest.raises(ValueError, match=words):
-        plan_run(opts, 7)
+        plan_any(opts, 7)
 
 
 @pytest.mark.parametrize("argv, words", [
@@ -299,7 +315,7 @@ def test_a_house_named_like_the_coordinator_s_bag_is_refused(tmp_path: Path) -> 
     path = tmp_path / "c.yaml"
     path.write_text(THREE.replace("name: h2,", "name: coordinator,"), encoding="utf-8")
     with pytest.raises(ValueError, match="may not be called 'coordinator'"):
-        plan_run(LaunchOptions(ems="rbc", out=tmp_path / "o", community=str(path)), 7)
+        plan_any(LaunchOptions(ems="rbc", out=tmp_path / "o", community=str(path)), 7)
 
 
 def test_the_contract_s_community_topics_match_the_hub_s_records() -> None:

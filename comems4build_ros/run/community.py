@@ -1,6 +1,6 @@
 """The run plan of a community over ROS 2: its houses' node sets and the coordinator (``launch --community``).
 
-:func:`plan_community` is what :func:`~comems4build_ros.run.plan.plan_run` builds for
+:func:`plan_community` is what :func:`~comems4build_ros.run.plans.plan_any` builds for
 ``LaunchOptions.community``: the same supervisor starts it (docs/community.md "Over ROS").
 
 * Every house of the community file runs its node set under ``<namespace>/<name>``:

@@ -1,7 +1,7 @@
 """Python launcher of the node set: separate OS processes on an isolated ROS 2 domain.
 
 :func:`launch` locks a free ROS domain id, builds the plan of the run
-(:func:`comems4build_ros.run.plan.plan_run`: per house ``plant_sim``, ``feed`` and
+(:func:`comems4build_ros.run.plans.plan_any`: per house ``plant_sim``, ``feed`` and
 the EMS node, plus the recorders, each as its own OS process or, for several houses,
 one process per role), has the supervisor start and watch it
 (:func:`comems4build_ros.run.supervisor.run_plan`), then evaluates the bag with the
@@ -22,7 +22,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.run.plan import LaunchOptions, plan_run
+from comems4build_ros.run.plan import LaunchOptions
+from comems4build_ros.run.plans import plan_any
 from comems4build_ros.run.progress import ProgressBar
 from comems4build_ros.run.supervisor import LaunchError, acquire_domain_id, run_plan
 
@@ -64,7 +65,7 @@ def launch(opts: LaunchOptions) -> LaunchResult:
                       enable=bool(opts.progress) and opts.on_progress is None)
     try:
         with acquire_domain_id(opts.domain_id) as domain_id:
-            plan = plan_run(opts, domain_id, params)
+            plan = plan_any(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
             if len(plan.houses) > 1 or opts.community is not None:
                 bag.mkdir(parents=True, mode=0o700)  # the bags hold the run tokens (ems/command)

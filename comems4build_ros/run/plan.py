@@ -887,6 +887,9 @@ def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]],
 def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan:
     """The plan of ``opts`` on ``domain_id``; starts nothing (see the module docstring).
 
+    A run of independent houses; a community's plan is
+    :func:`comems4build_ros.run.plans.plan_any`'s (:mod:`comems4build_ros.run.community`).
+
     Parameters
     ----------
     opts : launch options
@@ -898,7 +901,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     Raises
     ------
     ValueError
-        For an invalid house count, layout or ``houses_per_recorder``.
+        For an invalid house count, layout or ``houses_per_recorder``, or a community.
     """
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.ros.parameters import plant_params_file_text
@@ -906,10 +909,8 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     out = Path(opts.out)
     bag = Path(opts.bag) if opts.bag is not None else out / "bag"
     params = params or opts.params or load_plant_params(opts.config_files, opts.overrides)
-    if opts.community is not None:  # the houses of a community file and its coordinator
-        from comems4build_ros.run.community import plan_community
-
-        return plan_community(opts, domain_id, params)
+    if opts.community is not None:  # planned by run.community (which builds on this module)
+        raise ValueError("a community run is planned by comems4build_ros.run.plans.plan_any")
     layout = check_layout(opts)
     seeds = house_seeds(opts)
     from comems4build_ros.mqtt.peer import new_run_id

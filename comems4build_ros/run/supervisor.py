@@ -666,7 +666,7 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
 
     Parameters
     ----------
-    plan : what to run (:func:`comems4build_ros.run.plan.plan_run`)
+    plan : what to run (:func:`comems4build_ros.run.plans.plan_any`)
     report : called as ``report(recorded steps, total steps)`` while the run goes (a progress
         bar of :mod:`comems4build_ros.run.progress`; None = silent)
 

@@ -319,9 +319,9 @@ def run(args: argparse.Namespace) -> int:
 
     opts = launch_options(args)
     if args.print_plan:
-        from comems4build_ros.run.plan import plan_run
+        from comems4build_ros.run.plans import plan_any
 
-        print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
+        print(plan_any(opts, args.domain_id if args.domain_id is not None else 0).describe())
         return 0
     output = output_dir(args, "launch", in_place=True)
     output.check()
