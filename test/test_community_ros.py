@@ -24,6 +24,7 @@ import pandas as pd
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
+from launch_probe import netns_available
 from waits import BUDGET_S
 
 from comems4build_ros.core.community.hubrun import (
@@ -142,23 +143,6 @@ def test_the_fuzzy_coordinator_over_ros_equals_in_process(tmp_path: Path) -> Non
     _same_as_in_process(out, res.bag, ref, tmp_path)
 
 
-def _netns_available() -> str | None:
-    """None if network namespaces can be made here, else the reason."""
-    import shutil
-    import subprocess
-
-    if shutil.which("ip") is None:
-        return "no 'ip' command (iproute2)"
-    if os.geteuid() != 0:
-        return "'ip netns' needs root"
-    name = f"c4bprobe{os.getpid() % 10000}"
-    res = subprocess.run(["ip", "netns", "add", name], capture_output=True, text=True)
-    if res.returncode != 0:
-        return f"'ip netns add' failed: {res.stderr.strip()}"
-    subprocess.run(["ip", "netns", "del", name], capture_output=True)
-    return None
-
-
 @pytest.mark.ros
 def test_one_network_namespace_host_per_house_equals_in_process(tmp_path: Path) -> None:
     """Each house on a host of its own and the coordinator on another, joined by a bridge, DDS over UDP."""
@@ -166,7 +150,7 @@ def test_one_network_namespace_host_per_house_equals_in_process(tmp_path: Path) 
 
     from comems4build_ros.run.launcher import launch
 
-    reason = _netns_available()
+    reason = netns_available()
     if reason:
         pytest.skip(f"network namespaces unavailable: {reason}")
     path = _file(tmp_path)

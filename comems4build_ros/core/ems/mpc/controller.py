@@ -239,12 +239,7 @@ class MPCController:
         self._season_loh0: float | None = None
 
     def plan(self, obs: Observation) -> SolveResult:
-        """Update and solve the horizon problem for ``obs`` (no action, no counters).
-
-        Parameters
-        ----------
-        obs : Observation
-            States of step k-1 and 24-step forecasts (:func:`.horizon.build_horizon`).
+        """Update the horizon problem for ``obs`` (:meth:`prepare`) and solve it (no action, no counters).
 
         Returns
         -------
