@@ -1,6 +1,7 @@
 """Fixtures shared by the test modules.
 
-``tmp_path`` is a fresh folder named ``t<N>`` (not after the test). ``params`` is the
+``tmp_path`` is a fresh folder named ``t<N>`` (not after the test). ``mounted_tmpfs`` mounts
+a real small file system for a test (root; skipped where refused). ``params`` is the
 default plant (``config/plant.yaml``), built once per module; a module that tests another
 plant defines its own ``params``. ``ros2`` is the ROS 2 command-line tools
 (``test/ros2_tools.py``). ``domain_id`` is a ROS 2 domain id locked for
@@ -9,6 +10,8 @@ one test with the launcher's own lock files, so tests that start nodes never mee
 
 from __future__ import annotations
 
+import contextlib
+import subprocess
 from collections.abc import Iterator
 from pathlib import Path
 
@@ -23,6 +26,21 @@ def tmp_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
     message names the file, and a folder such as ``test_time_backwards0`` would answer for the
     word ``backwards`` a test expects of the message."""
     return tmp_path_factory.mktemp("t", numbered=True)
+
+
+@contextlib.contextmanager
+def mounted_tmpfs(mount: Path, size: str) -> Iterator[Path]:
+    """A tmpfs of ``size`` (``24m``) mounted on the new folder ``mount`` for the block, unmounted after;
+    the test is skipped where mounting is refused (it needs root)."""
+    mount.mkdir()
+    res = subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}", "tmpfs", str(mount)], capture_output=True,
+                         text=True)
+    if res.returncode != 0:
+        pytest.skip(f"cannot mount a tmpfs here: {res.stderr.strip()}")
+    try:
+        yield mount
+    finally:
+        subprocess.run(["umount", "-l", str(mount)], check=False)
 
 
 @pytest.fixture(scope="module")

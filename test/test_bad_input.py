@@ -211,13 +211,17 @@ def test_battery_power_zero_names_the_battery_parameter(tmp_path: Path, capsys: 
     assert err.split("error: ", 1)[1].startswith("plant parameter battery.p_d_max_w = 0")
 
 
-def test_mpc_that_never_solves_counts_its_fallbacks(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
-    code, _, err = run_cli(["simulate", "--ems", "mpc", "--hours", "6", "--ems-option", "time_limit_s=0",
+def test_mpc_that_never_solves_counts_its_fallbacks_and_fails(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """An "mpc" run in which the MPC decided no step exits 1 saying so (its fallback results are kept)."""
+    code, _, err = run_cli(["simulate", "--ems", "mpc", "--hours", "6", "--ems-option",
+                            "highs_options={simplex_iteration_limit: 0, mip_max_nodes: 0}",
                             "--ems-option", "log_fallback=false", "--no-progress", "--out", tmp_path / "r"], capsys)
-    assert code == 0, err
+    assert code == 1, err
     summary = json.loads((tmp_path / "r" / "summary.json").read_text())
     assert summary["fallback_steps"] == 6 and summary["ems_fallback_steps"] == 6
     assert "warning: 6 of 6 steps ran on the safe fallback action" in err
+    assert "error: the EMS decided none of the 6 steps" in err
 
 
 def test_unmet_hot_water_is_warned_not_only_counted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -317,8 +317,8 @@ OTHERS = [
     (["bench", "mpc", "--configs", "nosuchconfig"], "--configs nosuchconfig: nosuchconfig matches no configuration"),
     (["compare", "--ems", "rbc,rbc", "--weeks", "1"], "--ems rbc,rbc: 'rbc' given twice"),
     (["sweep", "--param", "battery.e_max_kwh=5", "--ems", ",", "--weeks", "1"], "--ems ',': no EMS given"),
-    (["compare", "--ems", "rbc", "--weeks", "1", "--set", "fuel_cell.eta_sys=0.5", "--fc-efficiency", "0.75"],
-     "--fc-efficiency 0.75 and --set fuel_cell.eta_sys=0.5 both set the FC system efficiency"),
+    (["compare", "--ems", "rbc", "--weeks", "1", "--set", "fuel_cell.eta_sys=0.8", "--fc-efficiency", "0.75"],
+     "--fc-efficiency 0.75 and --set fuel_cell.eta_sys=0.8 both set the FC system efficiency"),
     (["fuzzy-surface", "--config", "NOFILE"], "--config NOFILE: no such file"),
 ]
 
@@ -332,12 +332,12 @@ def test_other_option_is_refused_before_any_work(argv: list, named: str, tmp_pat
 def test_compare_runs_the_efficiency_given_by_set(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """--set fuel_cell.eta_sys is not overridden by the default --fc-efficiency 0.75,0.90: it is the one run."""
     out = tmp_path / "cmp"
-    code, _, err = run_cli(["compare", "--ems", "rbc", "--weeks", "1", "--set", "fuel_cell.eta_sys=0.5",
+    code, _, err = run_cli(["compare", "--ems", "rbc", "--weeks", "1", "--set", "fuel_cell.eta_sys=0.8",
                             "--no-progress", "--out", out], capsys)
     assert code == 0, err
     assert sorted(p.name for p in (out / "runs").iterdir()) == ["rbc"]
-    assert json.loads((out / "runs" / "rbc" / "summary.json").read_text())["eta_sys"] == 0.5
-    assert json.loads((out / "compare.json").read_text())["base_eta"] == 0.5
+    assert json.loads((out / "runs" / "rbc" / "summary.json").read_text())["eta_sys"] == 0.8
+    assert json.loads((out / "compare.json").read_text())["base_eta"] == 0.8
 
 
 # ---------------------------------------------------------------------------- all or nothing

@@ -63,7 +63,7 @@ def test_bad_files_are_named(tmp_path: Path) -> None:
         read_ros_params(broken)
     neg = tmp_path / "neg.yaml"
     neg.write_text("/**:\n  ros__parameters:\n    battery:\n      p_ch_max_w: -5.0\n")
-    with pytest.raises(ConfigError, match=r"neg.yaml.*battery.p_ch_max_w.*greater than or equal to 0"):
+    with pytest.raises(ConfigError, match=r"neg.yaml.*battery.p_ch_max_w.*-5.0 is neither 0 \(none\) nor at least 1"):
         load_plant_params([neg])
 
 

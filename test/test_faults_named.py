@@ -21,6 +21,7 @@ from collections.abc import Iterator
 from pathlib import Path
 
 import pytest
+from conftest import mounted_tmpfs
 from launch_probe import pid_of, run_held
 from test_run_faults import CLI, STEP_TIMEOUT, Run
 from waits import BUDGET_S, wait_until
@@ -60,16 +61,8 @@ def test_a_paused_ems_is_named_while_it_is_and_when_the_run_stalls(tmp_path: Pat
 @pytest.fixture()
 def tiny_fs(tmp_path: Path) -> Iterator[Path]:
     """A tmpfs of 24 MiB (mounting needs root; skipped where that is refused)."""
-    mount = tmp_path / "fs"
-    mount.mkdir()
-    res = subprocess.run(["mount", "-t", "tmpfs", "-o", "size=24m", "tmpfs", str(mount)], capture_output=True,
-                         text=True)
-    if res.returncode != 0:
-        pytest.skip(f"cannot mount a tmpfs here: {res.stderr.strip()}")
-    try:
+    with mounted_tmpfs(tmp_path / "fs", "24m") as mount:
         yield mount
-    finally:
-        subprocess.run(["umount", "-l", str(mount)], check=False)
 
 
 def test_a_bag_that_cannot_be_written_is_refused_before_any_node(tiny_fs: Path, tmp_path: Path) -> None:

@@ -191,10 +191,22 @@ def test_no_slack_in_a_feasible_case(params):
     assert ctrl.step_info["slack_used"] == 0.0 and ctrl.step_info["slack_steps_plan"] == 0.0
 
 
+#: HiGHS options that stop every solve before a solution (a time limit that short is refused as no real limit).
+NO_ITERATION = {"simplex_iteration_limit": 0, "mip_max_nodes": 0}
+
+
+def test_a_time_limit_no_solve_can_meet_is_refused(params):
+    from comems4build_ros.core.config import ConfigError
+
+    for limit in (0.0, 5e-324, 0.05):
+        with pytest.raises(ConfigError, match=r"'time_limit_s': .* is below 0.1, the smallest real value"):
+            MPCController(params, {"time_limit_s": limit})
+
+
 def test_solver_failure_falls_back_and_run_continues(params, capsys):
-    """A zero time limit really stops HiGHS before any solution: safe fallback, counted, logged."""
+    """HiGHS stopped before any solution (no simplex iteration, no node): safe fallback, counted, logged."""
     n = params.simulation.horizon_h
-    ctrl = MPCController(params, {"time_limit_s": 0.0})
+    ctrl = MPCController(params, {"highs_options": NO_ITERATION})
     for step in range(2):
         obs = mpc_obs(n, prices=[0.4] * n, load_w=500.0, t_air=18.2, t_min=18.0, t_max=24.0, v_dhw=150.0,
                       dloh=1 / 84, step=step)
@@ -209,7 +221,7 @@ def test_solver_failure_falls_back_and_run_continues(params, capsys):
 def test_time_limited_solve_uses_best_solution(params):
     """A solve stopped by its limit with an incumbent still gives a planned action (status 2 or 1)."""
     n = params.simulation.horizon_h
-    ctrl = MPCController(params, {"time_limit_s": 0.05, "mip_rel_gap": 0.0, "integer_steps": 24})
+    ctrl = MPCController(params, {"time_limit_s": 0.1, "mip_rel_gap": 0.0, "integer_steps": 24})
     ctrl.act(mpc_obs(n, prices=np.linspace(0.2, 0.6, n), load_w=800.0, t_air=19.0, t_min=18.0, t_max=24.0,
                      dloh=1 / 84))
     if ctrl.step_info["fallback"] == 0.0:

@@ -174,9 +174,10 @@ def test_gurobi_and_highs_agree_on_full_horizons(params):
 
 @needs_gurobi
 def test_gurobi_time_limit_zero_falls_back(params):
-    """A zero time limit stops Gurobi before any solution: safe fallback, as with HiGHS."""
+    """Gurobi stopped before any solution (no iteration): safe fallback, as with HiGHS."""
     n = params.simulation.horizon_h
-    ctrl = MPCController(params, {"solver": "gurobi", "time_limit_s": 0.0, "log_fallback": False})
+    ctrl = MPCController(params, {"solver": "gurobi", "gurobi_options": {"IterationLimit": 0, "NodeLimit": 0},
+                                  "log_fallback": False})
     ctrl.act(mpc_obs(n, prices=[0.4] * n, load_w=500.0, t_air=18.2, t_min=18.0, t_max=24.0, dloh=1 / 84))
     assert ctrl.step_info["fallback"] == 1.0 and ctrl.n_fallback == 1
 

@@ -184,11 +184,11 @@ def _fault_points(monkeypatch: pytest.MonkeyPatch, fail_at: int) -> list[int]:
     """Make the ``fail_at``-th ``os.replace`` (every rename of the output layer) a Ctrl-C; the calls so far."""
     real, calls = os.replace, [0]
 
-    def replace(src: object, dst: object) -> None:
+    def replace(src: object, dst: object, **dir_fds: int) -> None:
         calls[0] += 1
         if calls[0] == fail_at:
             raise KeyboardInterrupt
-        real(src, dst)
+        real(src, dst, **dir_fds)
 
     monkeypatch.setattr(os, "replace", replace)
     return calls

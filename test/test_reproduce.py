@@ -57,8 +57,6 @@ NOT_REPRODUCED = {
     "no_dhw_cover_at_75": ("the MPC spends the H2 it saved in the cheap weeks 4-7 in week 8, where its FC heat "
                            "covers the DHW demand at 75 % and its heat pump makes no hot water"),
     "dhw_demand_met": "three morning draws of 209-269 l/h exceed what the RBC's tank holds at that hour",
-    "fuzzy_fc_more_than_mpc": ("the robust defaults (rolling H2 allowance, FLC_flex lowering the load in a warm "
-                               "room) keep a running FC on longer: as many toggles as the MPC, on 2 of 5 seeds more"),
 }
 
 

@@ -265,4 +265,6 @@ def test_data_tariffs_command(tmp_path, capsys):
     assert "\nold\n" not in new and "| 2019/20 | household |" in new and new.endswith("tail\n")
     (tmp_path / "none.md").write_text("no markers\n", encoding="utf-8")
     assert main(["data", "tariffs", "--update-doc", str(tmp_path / "none.md")]) == 2
-    assert "markers <!-- tariffs:begin --> / <!-- tariffs:end --> not found" in capsys.readouterr().err
+    err = capsys.readouterr().err
+    assert f"--update-doc {tmp_path / 'none.md'}: markers <!-- tariffs:begin --> / <!-- tariffs:end --> must " \
+           "each stand once" in err and "<!-- tariffs:begin --> missing" in err, err

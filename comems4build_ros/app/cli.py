@@ -4,8 +4,11 @@ Each subcommand lives in ``comems4build_ros/app/commands/<module>.py`` exposing
 ``add_arguments(parser)`` and ``run(args) -> int``. Only the chosen subcommand's module is
 imported and its options built (:func:`main`), and heavy imports happen inside ``run``, so
 ``comems4build --help`` imports no command module and no numerical library. Exit codes:
-0 success, 1 failure of the job, 2 invalid usage or input (unknown EMS, unreadable file,
-invalid option, an output that cannot be written).
+0 success, 1 failure of the job, 2 invalid usage or input (an error of the input checks,
+:class:`~comems4build_ros.files.errors.InputError`: unknown EMS, unreadable file, invalid
+option; or a file the operating system refuses, such as an output on a full disk), 70
+(``EX_SOFTWARE``) an internal error: any other exception is a defect of the program, never
+reported as the user's input (:func:`internal_error`).
 """
 
 from __future__ import annotations
@@ -15,12 +18,16 @@ import importlib
 import sys
 from collections.abc import Collection, Sequence
 
+from comems4build_ros.files.errors import InputError
+
 #: What ``comems4build --help`` says above the command list (plain text: argparse prints it as is).
 DESCRIPTION = ("ComEMS4Build energy management: simulations in-process and over ROS 2, studies, reports and "
                "benchmarks.")
 #: What it says below the list.
 EPILOG = "'comems4build COMMAND --help' explains a command's options. Exit codes: 0 done, 1 the job failed, " \
-         "2 invalid usage or input, 130 interrupted."
+         "2 invalid usage or input, 70 internal error (a defect: report it with the file named), 130 interrupted."
+#: Exit code of an internal error (``EX_SOFTWARE`` of sysexits.h).
+EX_SOFTWARE = 70
 
 #: subcommand -> (module under comems4build_ros.app.commands, one-line help)
 COMMANDS: dict[str, tuple[str, str]] = {
@@ -62,7 +69,7 @@ COMMANDS: dict[str, tuple[str, str]] = {
 }
 
 
-class UsageError(Exception):
+class UsageError(InputError):
     """Invalid input or option; reported with exit code 2."""
 
 
@@ -107,14 +114,14 @@ def main(argv: list[str] | None = None) -> int:
         print("comems4build: interrupted", file=sys.stderr)
         return 130
     args = parser.parse_args(argv)
-    from comems4build_ros.core.config import ConfigError  # after parsing: --help imports no core module
-
     try:
         return int(args._run(args) or 0)
-    except (UsageError, ConfigError, FileNotFoundError, ValueError) as exc:
+    except InputError as exc:  # the input checks' errors, and only these, are the user's
         print(f"comems4build {args.command}: error: {exc}", file=sys.stderr)
         return 2
-    except OSError as exc:  # an output that cannot be written (full disk, read-only, removed directory)
+    except OSError as exc:  # a file the operating system refuses (full disk, read-only, removed directory)
+        if exc.errno is None:  # an OSError raised by the program itself, not by the system: a defect
+            return internal_error(args.command, argv, exc, getattr(args, "out", None))
         where = f"{exc.filename}: " if exc.filename else ""
         print(f"comems4build {args.command}: error: {where}{exc.strerror or exc}; nothing partial was kept",
               file=sys.stderr)
@@ -122,6 +129,45 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         print(f"comems4build {args.command}: interrupted", file=sys.stderr)
         return 130
+    except Exception as exc:  # noqa: BLE001 (the point: whatever else is raised is a defect, named as one)
+        return internal_error(args.command, argv, exc, getattr(args, "out", None))
+
+
+def internal_error(command: str, argv: Sequence[str], exc: BaseException, out: object = None) -> int:
+    """Report a defect: one line on stderr, the traceback in a file; returns :data:`EX_SOFTWARE`.
+
+    The file is written in the command's output folder ``out`` when it is one (under a name
+    the output layer never counts as a result), else in the temporary folder
+    (:func:`comems4build_ros.files.outputs.write_internal_report`); it holds the command line,
+    the package version and the traceback.
+    """
+    import platform
+    import traceback
+
+    from comems4build_ros.files.outputs import write_internal_report
+
+    try:
+        from importlib.metadata import version
+
+        release = version("comems4build_ros")
+    except Exception:  # noqa: BLE001 (a source tree without metadata)
+        release = "unknown"
+    text = (f"comems4build {' '.join(str(a) for a in argv)}\ncomems4build_ros {release}, Python "
+            f"{platform.python_version()}, {platform.platform()}\n\n"
+            + "".join(traceback.format_exception(type(exc), exc, exc.__traceback__)))
+    try:
+        report: object = write_internal_report(None if out is None else str(out), text)
+    except OSError as err:  # no file could take it: the traceback goes to stderr after the line
+        report = f"the traceback below (no file could be written: {err})"
+        text_after = text
+    else:
+        text_after = ""
+    first = (str(exc).strip().splitlines() or [""])[0]
+    what = f"{type(exc).__name__}: {first}" if first else type(exc).__name__
+    print(f"comems4build {command}: internal error: {what}, report with {report}", file=sys.stderr)
+    if text_after:
+        print(text_after, file=sys.stderr, end="")
+    return EX_SOFTWARE
 
 
 if __name__ == "__main__":

@@ -47,6 +47,7 @@ import sys
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.run.plan import (
     LaunchOptions,
     RunPlan,
@@ -115,7 +116,7 @@ LOG_LEVELS = ("debug", "info", "warn", "error", "fatal")
 BOOLEAN_WORDS = {"true": True, "false": False}
 
 
-class LaunchArgumentError(ValueError):
+class LaunchArgumentError(InputError):
     """A launch argument the launch refuses (the message speaks of ``name:=value``)."""
 
 
@@ -187,9 +188,7 @@ def options_of(values: dict[str, str]) -> tuple[LaunchOptions, int, bool]:
     """
     import argparse
 
-    from comems4build_ros.app.cli import UsageError
     from comems4build_ros.app.commands.launch import add_arguments, launch_options
-    from comems4build_ros.core.config import ConfigError
 
     class Parser(argparse.ArgumentParser):
         def error(self, message: str) -> Any:  # noqa: D102 (argparse's: raise instead of printing the usage)
@@ -200,7 +199,7 @@ def options_of(values: dict[str, str]) -> tuple[LaunchOptions, int, bool]:
     try:
         args = parser.parse_args(command_line(values))
         opts = launch_options(args)
-    except (LaunchArgumentError, UsageError, ConfigError, FileNotFoundError, ValueError) as exc:
+    except (InputError, FileNotFoundError) as exc:  # only the checks' errors: a bug stays a bug
         raise LaunchArgumentError(in_launch_words(str(exc), values)) from None
     return opts, args.domain_id if args.domain_id is not None else 0, bool(args.print_plan)
 
@@ -587,8 +586,10 @@ def plan_actions(plan: RunPlan, global_params: list[Any] | None = None, log_leve
         raise LaunchArgumentError(f"out:={plan.out}: another inclusion of comems4build.launch.py in this launch "
                                   "writes there; give each inclusion its own out:= (or namespace)")
     write_plan_files(plan)
-    if len(plan.houses) > 1:
-        plan.bag.mkdir(parents=True, exist_ok=True)
+    if len(plan.houses) > 1:  # the bags hold the run tokens (ems/command): this user's, never through a link
+        from comems4build_ros.files.outputs import open_dir
+
+        os.close(open_dir(plan.bag, create=True, private=True, what="the folder of the run's bags"))
     write_secrets(plan)
     if not RUNS:
         watch_stop_signals()

@@ -36,6 +36,8 @@ from rosbags.rosbag2 import StoragePlugin, Writer
 from rosbags.rosbag2.writer import CompressionMode
 from rosbags.typesys import Stores, get_typestore
 
+from comems4build_ros.files.errors import InputError
+
 #: rosbag2 metadata version that Jazzy reads (version 9 writes QoS as a list Jazzy rejects).
 METADATA_VERSION = 8
 #: MCAP message record header: opcode, record length, channel id, sequence, log time,
@@ -53,6 +55,10 @@ NS_PER_S = 1_000_000_000
 _TYPESTORE = None
 
 
+class BagError(InputError):
+    """A bag that cannot be read as a run's record; the message names the bag, file or message."""
+
+
 def typestore() -> Any:
     """The rosbags typestore of ROS 2 Jazzy (type hashes match Jazzy's)."""
     global _TYPESTORE
@@ -68,7 +74,7 @@ def ros_type_to_bag_type(ros_type: str) -> str:
         return f"{parts[0]}/msg/{parts[1]}"
     if len(parts) == 3 and parts[1] == "msg":
         return ros_type
-    raise ValueError(f"not a ROS 2 message type name: {ros_type!r}")
+    raise BagError(f"not a ROS 2 message type name: {ros_type!r}")
 
 
 def qos_for_bag(reliable: bool = True, transient_local: bool = False, depth: int = 10) -> Qos:
@@ -230,15 +236,13 @@ def _mcap_string(text: str) -> bytes:
 def set_ros_distro(metadata: Path, distro: str = ROS_DISTRO) -> None:
     """Write ``ros_distro: <distro>`` into a bag's ``metadata.yaml`` (rosbags writes its own
     name there); atomically (temporary file + rename)."""
-    import os
+    from comems4build_ros.files.outputs import write_text_atomic
 
     text = metadata.read_text(encoding="utf-8")
     new = re.sub(r"(?m)^(\s*ros_distro:\s*).*$", lambda m: m.group(1) + distro, text, count=1)
     if new == text:
         return
-    tmp = metadata.with_name(metadata.name + ".tmp")
-    tmp.write_text(new, encoding="utf-8")
-    os.replace(tmp, metadata)
+    write_text_atomic(metadata, new)  # never through a link
 
 
 @dataclass
@@ -273,11 +277,11 @@ def _locate(path: str | Path) -> tuple[Path, list[Path], bool]:
         raise FileNotFoundError(f"bag not found: {p}")
     if p.is_file():
         if p.suffix != ".mcap":
-            raise ValueError(f"not an MCAP file or rosbag2 directory: {p}")
+            raise BagError(f"not an MCAP file or rosbag2 directory: {p}")
         return p, [p], False
     files = sorted(p.glob("*.mcap"))
     if not files:
-        raise ValueError(f"no .mcap file in bag directory {p} (only MCAP storage is supported)")
+        raise BagError(f"no .mcap file in bag directory {p} (only MCAP storage is supported)")
     return p, files, (p / "metadata.yaml").is_file()
 
 
@@ -411,7 +415,7 @@ def decode(msgtype: str, raw: bytes | memoryview) -> Any:
     try:
         return typestore().deserialize_cdr(raw, ros_type_to_bag_type(msgtype))
     except (SerdeError, IndexError, struct.error, UnicodeDecodeError) as exc:
-        raise ValueError(f"a message of type {msgtype} cannot be decoded ({type(exc).__name__}: {exc}); "
+        raise BagError(f"a message of type {msgtype} cannot be decoded ({type(exc).__name__}: {exc}); "
                          "a damaged record") from None
 
 

@@ -14,7 +14,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
-from comems4build_ros.bags.bag import NS_PER_S, BagInfo, bag_set, decode, iter_messages, ns_key
+from comems4build_ros.bags.bag import NS_PER_S, BagError, BagInfo, bag_set, decode, iter_messages, ns_key
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import load_json_text
 from comems4build_ros.wire.contract import EVENTS_TOPIC, WITHHELD_EVENT, event_step_kind
 
@@ -147,7 +148,7 @@ def read_run_info(path: str | Path) -> dict[str, Any]:
         return {}
     out = load_json_file(f, "the bag's run information")
     if not isinstance(out, dict):
-        raise ValueError(f"{f}: expected a JSON object")
+        raise BagError(f"{f}: expected a JSON object")
     return check_run_info(out, str(f))
 
 
@@ -172,11 +173,11 @@ def check_run_info(info: dict[str, Any], source: str) -> dict[str, Any]:
     for key, types in RUN_INFO_TYPES.items():
         value = info.get(key)
         if value is not None and not isinstance(value, types):
-            raise ValueError(f"{source}: '{key}' must be a {types[0].__name__}, got {type(value).__name__}")
+            raise BagError(f"{source}: '{key}' must be a {types[0].__name__}, got {type(value).__name__}")
     if not all(isinstance(f, str) and f for f in info.get("config_files") or []):
-        raise ValueError(f"{source}: 'config_files' must list file names")
+        raise BagError(f"{source}: 'config_files' must list file names")
     if not all(isinstance(k, str) and k for k in info.get("overrides") or {}):
-        raise ValueError(f"{source}: 'overrides' must map parameter names (section.key) to values")
+        raise BagError(f"{source}: 'overrides' must map parameter names (section.key) to values")
     return info
 
 
@@ -221,7 +222,7 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
         if (ns := _split(topic, RECORD_TOPIC)) is not None:
             data = decode(msgtype, raw).data
             if len(data) != layout.length:
-                raise ValueError(
+                raise BagError(
                     f"bag {path}: topic '{topic}': {len(data)} elements, the contract layout has {layout.length}"
                 )
             by_step = scan.records.setdefault(ns, {})
@@ -247,7 +248,7 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
                 step = int(msg["step"])
                 scan.infos.setdefault(ns, {})[step] = {k: float(v) for k, v in msg["info"].items()}
             except (ValueError, KeyError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
+                raise BagError(f"bag {path}: topic '{topic}': invalid step info: {exc}") from None
             scan.seen.setdefault(topic, set()).add(step)
             if isinstance(msg.get("ems"), str):
                 scan.ems_names.setdefault(ns, msg["ems"])
@@ -276,11 +277,11 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
                 if doc not in docs:
                     docs.append(doc)
             except (ValueError, TypeError) as exc:
-                raise ValueError(f"bag {path}: topic '{topic}': invalid scenario information: {exc}") from None
+                raise BagError(f"bag {path}: topic '{topic}': invalid scenario information: {exc}") from None
     return scan
 
 
-class MixedRunsError(ValueError):
+class MixedRunsError(BagError):
     """A bag whose records in one namespace come from more than one plant or run (never one run's KPIs)."""
 
 
@@ -335,7 +336,7 @@ def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any
     steps = sorted(by_step)
     if steps != list(range(len(steps))):
         missing = sorted(set(range(steps[-1] + 1)) - set(steps))
-        raise ValueError(
+        raise BagError(
             f"bag {path}: topic '{resolve_ns(ns, RECORD_TOPIC)}': steps missing in the middle of the run: "
             f"{_ranges(missing)} (recorder overloaded or messages lost)"
         )
@@ -396,7 +397,7 @@ def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> d
     except ValueError as exc:
         if str(path) in str(exc):
             raise
-        raise ValueError(f"bag {path}: {exc}") from None
+        raise BagError(f"bag {path}: {exc}") from None
 
 
 def _read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
@@ -426,7 +427,7 @@ def _read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> 
     if not scan.records:
         topics = ", ".join(sorted(info.topics)) or "none"
         damage = f"; damage: {'; '.join(info.damage)}" if info.damage else ""
-        raise ValueError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
+        raise BagError(f"bag {path}: no '{RECORD_TOPIC}' messages could be read (topics: {topics}){damage}")
     run_info = read_run_info(path)
     return {ns: _run_of(ns, scan, path, timezone, contract, layout, set(info.topics), run_info)
             for ns in sorted(scan.records, key=ns_key)}
@@ -544,7 +545,7 @@ def find_gaps(
     return out
 
 
-class BagGapError(ValueError):
+class BagGapError(InputError):
     """The bag misses messages in the middle of a run (names topics and steps)."""
 
 
@@ -757,7 +758,7 @@ def read_bag_set(path: str | Path, timezone: str) -> tuple[dict[str, BagRun], Ba
             runs[ns] = run
             bag_of[ns] = (info, cut)
     if not runs:
-        raise ValueError("; ".join(errors))
+        raise BagError("; ".join(errors))
     return runs, bag_of
 
 

@@ -25,6 +25,7 @@ from typing import Any, Literal, TypeVar
 
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, ValidationInfo, field_validator, model_validator
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import InputFileError, load_yaml_file, load_yaml_text, path_kind
 from comems4build_ros.files.paths import PACKAGE, SOURCE_ROOT, shared_path
 
@@ -35,7 +36,7 @@ SECONDS_PER_HOUR = 3600.0
 W_PER_KW = 1000.0
 
 
-class ConfigError(ValueError):
+class ConfigError(InputError):
     """A parameter file is unreadable or a parameter breaks a rule."""
 
 
@@ -394,6 +395,9 @@ def parse_model(model: type[M], data: Mapping[str, Any], source: str, prefix: st
         for err in exc.errors():
             loc = prefix + ".".join(str(p) for p in err["loc"]) if err["loc"] else ""
             msg = err["msg"].removeprefix("Value error, ")
+            bound = _bound_reason(model, tuple(err["loc"])) if err["type"] == "greater_than_equal" else None
+            if bound is not None:
+                msg = below_least_text(err.get("input"), bound["least"], bound["why"], bound["off"])
             if err["type"] == "extra_forbidden":
                 msg = "unknown parameter" + _known_keys(model, tuple(err["loc"]))
             lines.append(f"{source}: parameter '{loc}': {msg}" if loc else f"{source}: {msg}")
@@ -465,35 +469,81 @@ class Section(BaseModel):
             raise ValueError(f"expected a number, got the boolean {value!r}")
         return value
 
+    @field_validator("*", mode="after")
+    @classmethod
+    def _off_or_least(cls, value: Any, info: ValidationInfo) -> Any:
+        """Check a :func:`Phys` field with ``off``: 0 (none), or at least its smallest real value."""
+        field = cls.model_fields.get(info.field_name or "")
+        extra = getattr(field, "json_schema_extra", None)
+        if isinstance(extra, dict) and extra.get("off") and value != 0 and value < extra["least"]:
+            raise ValueError(below_least_text(value, extra["least"], extra["why"], off=True))
+        return value
 
-Pos = Field(gt=0)
+
 NonNeg = Field(ge=0)
 Frac = Field(ge=0, le=1)
 
 
-def Phys(lo: float, hi: float, lo_open: bool = False) -> Any:  # noqa: N802 (reads as a field type, like Field)
-    """Declare a parameter's physical range ``[lo, hi]`` (``(lo, hi]`` with ``lo_open``).
+def Phys(lo: float, hi: float, why: str = "", off: bool = False, **field: Any) -> Any:  # noqa: N802 (a field type)
+    """Declare a parameter's physical range ``[lo, hi]``; with ``off``, 0 (none) or ``[lo, hi]``.
 
     The ranges bound what a residential building and its devices can have, generously (a
     decade or more beyond the largest shipped or studied value), so that a value no
-    building has (a room air capacity of 1e-300 J/K, a sell price of 1e300 EUR/kWh) is
-    refused naming the parameter instead of surfacing later as a non-finite state or a
-    solver that finds nothing.
+    building has (a room air capacity of 1e-300 J/K, a sell price of 1e300 EUR/kWh, a
+    battery of 5e-324 kWh) is refused naming the parameter instead of acting as 0 or
+    surfacing later as a non-finite state or a solver that finds nothing. ``lo`` is never a
+    bare "> 0": it is the smallest value the thing the parameter stands for has, and ``why``
+    says so; a refusal names ``lo`` as the smallest real value and gives ``why``.
 
     Parameters
     ----------
     lo, hi : float
-        Bounds, in the parameter's unit.
-    lo_open : bool, optional
-        Exclude ``lo`` (default: include it).
+        Bounds, in the parameter's unit: ``lo`` the smallest real value.
+    why : str, optional
+        Why nothing real lies below ``lo`` (said in a refusal).
+    off : bool, optional
+        Also allow 0, meaning none (default: only ``[lo, hi]``).
+    **field : Any
+        Further arguments of ``Field`` (a ``default``).
 
     Returns
     -------
     pydantic.fields.FieldInfo
         The field with the bounds.
     """
-    return Field(gt=lo, le=hi) if lo_open else Field(ge=lo, le=hi)
+    return Field(ge=0 if off else lo, le=hi, json_schema_extra={"least": lo, "why": why, "off": off}, **field)
 
+
+def _bound_reason(model: type[BaseModel], loc: tuple[Any, ...]) -> dict[str, Any] | None:
+    """Return the :func:`Phys` record (least value, reason) of the field at ``loc`` of ``model``, if it has one."""
+    info = None
+    node: Any = model
+    for part in loc:
+        fields = getattr(node, "model_fields", None)
+        if not isinstance(fields, dict) or str(part) not in fields:
+            return None
+        info = fields[str(part)]
+        node = info.annotation
+    extra = getattr(info, "json_schema_extra", None)
+    return extra if isinstance(extra, dict) and "least" in extra else None
+
+
+def below_least_text(value: Any, least: float, why: str, off: bool = False) -> str:
+    """Return the refusal of a value below a physical lower bound: the value, the smallest real value, why."""
+    shown = value if isinstance(value, str) else repr(value)  # a number PyYAML read as text: as written
+    first = f"{shown} is neither 0 (none) nor at least {least:g}" if off else f"{shown} is below {least:g}"
+    return f"{first}, the smallest real value" + (f": {why}" if why else "")
+
+
+#: Faraday constant [C/mol] (CODATA 2018, exact).
+FARADAY_C_PER_MOL = 96485.33212
+#: Lower heating value of hydrogen [J/mol]: the enthalpy of formation of water vapour, 241.8 kJ/mol
+#: (NIST Chemistry WebBook).
+LHV_H2_J_PER_MOL = 241.8e3
+#: Electrons transferred per H2 molecule.
+ELECTRONS_PER_H2 = 2
+#: Thermoneutral-at-LHV cell voltage LHV / (2F) [V] (about 1.253 V): eta_el = V_cell / this (eq:efficiency_FC).
+V_LHV_V = LHV_H2_J_PER_MOL / (ELECTRONS_PER_H2 * FARADAY_C_PER_MOL)
 
 #: Largest electrical power of one device of the house [W] (1 MW: far beyond any residential device).
 P_MAX_W = 1.0e6
@@ -530,9 +580,10 @@ class SimulationParams(Section):
 
     #: Step [h]: the scenarios have 1 h rows (paper sec:parameters), a run checks the match;
     #: at most a day, since the day-based rules (``eq:deltaLOH``, forecasts) count steps per day.
-    time_step_h: float = Phys(0, 24, lo_open=True)
+    time_step_h: float = Phys(1 / 60, 24, "a minute: no input resolves less (DWD's finest products are 10-minute "
+                                           "values) and a step is a whole number of the scenario's rows")
     horizon_h: int = Field(gt=0, le=168)
-    season_weeks: float = Phys(0, 53, lo_open=True)
+    season_weeks: float = Phys(1 / 7, 53, "a day: eq:deltaLOH gives the store's budget per day")
     soc_init: float = Frac
     loh_init: float = Frac
     t_air_init_c: float = Phys(-30, 50)
@@ -638,9 +689,9 @@ class PVParams(Section):
     """
 
     n_modules: int = Field(ge=0, le=10_000)
-    a_module_m2: float = Phys(0, 10, lo_open=True)
-    eta_stc: float = Phys(0, 0.5)
-    eta_lt: float = Frac
+    a_module_m2: float = Phys(0.1, 10, "the smallest framed modules (about 10 Wp) have about 0.1 m2")
+    eta_stc: float = Phys(0.02, 0.5, "below every commercial module (amorphous silicon about 0.06)")
+    eta_lt: float = Phys(0.5, 1, "inverter, MPPT and wiring: commercial inverters convert above 0.9")
     eta_t_per_k: float = Phys(0, 0.02)
     noct_c: float = Phys(20, 80)
     t_stc_c: float = Phys(15, 35)
@@ -669,9 +720,11 @@ class BatteryParams(Section):
         SOC bounds (``eq:SOC_const``) [-].
     """
 
-    e_max_kwh: float = Phys(0, 1.0e4, lo_open=True)
-    p_ch_max_w: float = Phys(0, P_MAX_W)
-    p_d_max_w: float = Phys(0, P_MAX_W)
+    e_max_kwh: float = Phys(0.1, 1.0e4, "a tenth of the smallest home battery modules (about 1 kWh)")
+    p_ch_max_w: float = Phys(1, P_MAX_W, "less than 1 W moves under 1 Wh an hour into a battery of at least "
+                                         "0.1 kWh", off=True)
+    p_d_max_w: float = Phys(1, P_MAX_W, "less than 1 W moves under 1 Wh an hour out of a battery of at least "
+                                        "0.1 kWh", off=True)
     p_ch_min_w: float = Phys(0, P_MAX_W)
     p_d_min_w: float = Phys(0, P_MAX_W)
     eta_ch: float = Phys(0.5, 1)
@@ -720,17 +773,19 @@ class FuelCellParams(Section):
         Constant electrical efficiency of the MPC's linear model (``sec:MPC``) [-].
     """
 
-    p_max_w: float = Phys(0, P_MAX_W, lo_open=True)
-    p_nom_w: float = Phys(0, P_MAX_W, lo_open=True)
-    p_min_w: float = Phys(0, P_MAX_W)
-    zeta: float = Field(gt=0, le=1)
-    eta_sys: float = Field(gt=0, le=1)
+    p_max_w: float = Phys(10, P_MAX_W, "the smallest PEM stacks sold deliver about 12 W")
+    p_nom_w: float = Phys(10, P_MAX_W, "the smallest PEM stacks sold deliver about 12 W")
+    p_min_w: float = Phys(0, P_MAX_W, "no minimum")
+    zeta: float = Phys(0.1, 1, "a security factor below 0.1 keeps the FC under a tenth of its rating")
+    #: At least the FC's electrical efficiency wherever it runs (checked below): the recovered heat is never negative.
+    eta_sys: float = Phys(0.2, 1, "no PEM system turns less than a fifth of its H2's LHV into electricity and heat")
     n_cells: int = Field(gt=0, le=1000)
     e_ocv_v: float = Phys(0.5, 1.25)  # [V per cell]: below the reversible 1.229 V at 25 degC
     a_tafel_v: float = Phys(0, 0.5)
-    i_tafel_a: float = Phys(0, 1000, lo_open=True)
+    i_tafel_a: float = Phys(1e-3, 1000, "a PEM cell's exchange current: about 1e-3 A/cm2 on tens of cm2")
     r_ohm_ohm: float = Phys(0, 1)
-    eta_el_mpc: float = Field(gt=0, lt=1)
+    eta_el_mpc: float = Phys(0.2, 0.99, "PEM systems deliver 0.4..0.6 of the H2's LHV at their nominal point "
+                                        "(datasheets); a fifth generously below")
 
     @model_validator(mode="after")
     def _check(self) -> FuelCellParams:
@@ -738,7 +793,95 @@ class FuelCellParams(Section):
             raise ValueError(
                 f"p_min_w ({self.p_min_w}) must not exceed zeta * p_max_w ({self.zeta * self.p_max_w})"
             )
+        if self.p_nom_w > self.p_max_w:
+            raise ValueError(f"p_nom_w ({self.p_nom_w}) must not exceed p_max_w ({self.p_max_w})")
+        _, p_mpp = self.max_power_point()
+        if p_mpp < self.p_max_w:
+            raise ValueError(f"the polarization curve peaks at {p_mpp:.1f} W, below p_max_w = {self.p_max_w} W; "
+                             "check e_ocv_v, a_tafel_v, i_tafel_a, r_ohm_ohm, n_cells")
+        if self.eta_sys < self.eta_el_mpc:
+            raise ValueError(f"eta_sys ({self.eta_sys}) is below eta_el_mpc ({self.eta_el_mpc}): the system "
+                             "efficiency counts the electricity and the recovered heat (eq:FC_sys_efficiency)")
+        eta_el = self.eta_el_max()
+        if self.eta_sys < eta_el:
+            where = f"at p_min_w = {self.p_min_w:g} W" if self.p_min_w > 0 else "near no load (p_min_w = 0)"
+            raise ValueError(f"eta_sys ({self.eta_sys}) is below the electrical efficiency {eta_el:.3f} the "
+                             f"polarization curve gives {where} (eq:efficiency_FC): the recovered heat "
+                             "(eq:FC_sys_efficiency) would be negative")
         return self
+
+    # the polarization model (eq:molar_flows, eq:efficiency_FC): core.models.fuel_cell uses these
+    def cell_voltage_v(self, i_a: Any) -> Any:
+        """Compute the cell voltage ``V_cell(i) = E_ocv - A ln(1 + i / i_T) - R_ohm i`` [V].
+
+        Parameters
+        ----------
+        i_a : float or numpy.ndarray
+            Stack current [A] (arrays element-wise).
+
+        Returns
+        -------
+        float or numpy.ndarray
+            V_cell [V].
+        """
+        import numpy as np
+
+        return self.e_ocv_v - self.a_tafel_v * np.log1p(i_a / self.i_tafel_a) - self.r_ohm_ohm * i_a
+
+    def stack_power_w(self, i_a: Any) -> Any:
+        """Compute the stack's electrical output ``P = N_cells V_cell(i) i`` [W] at the current ``i_a`` [A]."""
+        return self.n_cells * self.cell_voltage_v(i_a) * i_a
+
+    def dpower_di(self, i_a: Any) -> Any:
+        """Return ``dP/di`` [W/A] of :meth:`stack_power_w` at the current ``i_a`` [A]."""
+        dv = -self.a_tafel_v / (self.i_tafel_a + i_a) - self.r_ohm_ohm
+        return self.n_cells * (self.cell_voltage_v(i_a) + i_a * dv)
+
+    def max_power_point(self) -> tuple[float, float]:
+        """Find the maximum of ``P(i)``, the end of the monotone branch (bisection on dP/di).
+
+        Returns
+        -------
+        i_mpp_a : float
+            Current at the maximum [A].
+        p_mpp_w : float
+            Output at the maximum [W].
+
+        Raises
+        ------
+        ValueError
+            If the curve rises beyond 1e7 A (no maximum: the parameters describe no cell).
+        """
+        lo, hi = 0.0, 1.0
+        while self.dpower_di(hi) > 0.0:
+            lo, hi = hi, 2.0 * hi
+            if hi > 1e7:
+                raise ValueError("the polarization curve has no maximum power point")
+        for _ in range(200):
+            mid = 0.5 * (lo + hi)
+            if self.dpower_di(mid) > 0.0:
+                lo = mid
+            else:
+                hi = mid
+        i_mpp = 0.5 * (lo + hi)
+        return i_mpp, float(self.stack_power_w(i_mpp))
+
+    def eta_el_max(self) -> float:
+        """Return the highest electrical efficiency ``V_cell / (LHV / 2F)`` [-] where the FC runs.
+
+        That is at ``p_min_w`` (the efficiency falls with the load), the open-circuit limit
+        with ``p_min_w = 0`` (``eq:efficiency_FC``).
+        """
+        if self.p_min_w <= 0.0:
+            return float(self.e_ocv_v / V_LHV_V)
+        lo, hi = 0.0, self.max_power_point()[0]
+        for _ in range(200):  # P rises on [0, i_mpp]: the current that gives p_min_w
+            mid = 0.5 * (lo + hi)
+            if self.stack_power_w(mid) < self.p_min_w:
+                lo = mid
+            else:
+                hi = mid
+        return float(self.cell_voltage_v(hi) / V_LHV_V)
 
 
 class HydrogenParams(Section):
@@ -752,7 +895,7 @@ class HydrogenParams(Section):
         LOH bounds [-].
     """
 
-    e_max_kwh: float = Phys(0, 1.0e6, lo_open=True)
+    e_max_kwh: float = Phys(0.1, 1.0e6, "a third of the smallest metal-hydride canister (about 0.3 kWh)")
     loh_min: float = Frac
     loh_max: float = Frac
 
@@ -799,15 +942,16 @@ class ElectrolyserParams(Section):
     """
 
     n_modules: int = Field(ge=0, le=100)
-    h2_rated_nl_per_h: float = Phys(0, 1.0e6, lo_open=True)
+    h2_rated_nl_per_h: float = Phys(1, 1.0e6, "a tenth of the smallest laboratory electrolysers (about "
+                                              "10 NL/h)")
     load_points: list[float]
     p_el_points_w: list[float]
     p_standby_w: float = Phys(0, 1.0e4)
     start_lost_h: float = NonNeg
-    p_out_bar: float = Phys(0, 1000, lo_open=True)
-    p_store_bar: float = Phys(0, 1000, lo_open=True)
+    p_out_bar: float = Phys(1, 1000, "atmospheric pressure: no electrolyser delivers below it")
+    p_store_bar: float = Phys(1, 1000, "atmospheric pressure: no store holds H2 below it")
     t_compression_c: float = Phys(-40, 100)
-    eta_compressor: float = Field(gt=0, le=1)
+    eta_compressor: float = Phys(0.05, 1, "small compressors reach 0.3..0.7 isothermal efficiency")
     heat_recovery: float = Frac
 
     @model_validator(mode="after")
@@ -854,10 +998,10 @@ class CoolingParams(Section):
     """
 
     enabled: bool
-    q_cool_max_w: float = Phys(0, P_MAX_W, lo_open=True)
+    q_cool_max_w: float = Phys(10, P_MAX_W, "a thirtieth of one room's floor cooling (about 300 W)")
     t_supply_c: float = Phys(5, 30)
     design_room_c: float = Phys(15, 40)
-    design_rh: float = Field(gt=0, le=1)
+    design_rh: float = Phys(0.05, 1, "the driest heated rooms hold about 0.2")
     dew_point_margin_k: float = NonNeg
     eer_t_amb_c: list[float]
     eer: list[float]
@@ -906,7 +1050,7 @@ class HeatPumpParams(Section):
 
     t_supply_sh_c: float = Phys(20, 80)
     t_supply_dhw_c: float = Phys(30, 80)
-    mod_min: float = Field(gt=0, le=1)
+    mod_min: float = Phys(0.05, 1, "inverter heat pumps modulate down to 0.2..0.3 (paper: 0.2)")
     cop_t_amb_c: list[float]
     cop_45c: list[float]
     cop_55c: list[float]
@@ -934,6 +1078,11 @@ class HeatPumpParams(Section):
         return self
 
 
+#: One shower draw [l]: DHWCalc's shower category (40 l per draw-off; the shipped profile's log,
+#: data/OpenDHW_DHWcalc_200L_60min_4cat_sf_nods_max1200_log.txt, category 4, 40 % of the volume).
+DHW_ONE_DRAW_L = 40.0
+
+
 class DHWParams(Section):
     """Hot-water tank, ``eq:DHW_model``.
 
@@ -955,7 +1104,7 @@ class DHWParams(Section):
         Specific heat capacity of water [J/(kg K)].
     """
 
-    v_max_l: float = Phys(0, 1.0e5, lo_open=True)
+    v_max_l: float = Phys(5, 1.0e5, "the smallest hot-water stores (under-sink tanks) hold about 5 l")
     v_min_l: float = Phys(0, 1.0e5)
     t_dhw_c: float = Phys(30, 95)
     t_cold_c: float = Phys(0, 30)
@@ -967,6 +1116,9 @@ class DHWParams(Section):
     def _check(self) -> DHWParams:
         if self.v_min_l >= self.v_max_l:
             raise ValueError(f"v_min_l ({self.v_min_l}) must be below v_max_l ({self.v_max_l})")
+        if self.v_max_l - self.v_min_l < DHW_ONE_DRAW_L:
+            raise ValueError(f"the tank's usable volume v_max_l - v_min_l ({self.v_max_l - self.v_min_l:g} l) holds "
+                             f"less than one shower draw ({DHW_ONE_DRAW_L:g} l, DHWCalc's shower category)")
         if self.t_dhw_c <= self.t_cold_c:
             raise ValueError("t_dhw_c must exceed t_cold_c")
         return self
@@ -1028,7 +1180,8 @@ class GridParams(Section):
     """
 
     buy_offset_eur_per_kwh: float = Phys(-PRICE_MAX_EUR_PER_KWH, PRICE_MAX_EUR_PER_KWH)
-    buy_spot_factor: float = Phys(0, 10, lo_open=True)
+    buy_spot_factor: float = Phys(0.01, 10, "a tariff passing on less than 1 % of the spot price is a flat "
+                                            "tariff, which a + b * spot does not stand for")
     price_sell_eur_per_kwh: float = Phys(0, PRICE_MAX_EUR_PER_KWH)
 
 
@@ -1153,13 +1306,13 @@ class DegradationParams(Section):
     """
 
     sigma_in_fc_eur: float = Phys(0, 1.0e7)
-    l_fc_h: float = Phys(0, 1.0e6, lo_open=True)
+    l_fc_h: float = Phys(100, 1.0e6, "a fiftieth of any PEM stack's lifetime (datasheets: 5000..40000 h)")
     sigma_om_fc_eur_per_h: float = Phys(0, 1.0e3)
     sigma_fc_on_eur: float = Phys(0, 1.0e3)
     sigma_fc_off_eur: float = Phys(0, 1.0e3)
     sigma_in_b_eur: float = Phys(0, 1.0e7)
     sigma_om_b_eur_per_h: float = Phys(0, 1.0e3)
-    n_b_cycles: float = Phys(0, 1.0e6, lo_open=True)
+    n_b_cycles: float = Phys(10, 1.0e6, "a fiftieth of the cycle life of lead-acid batteries (about 500)")
 
 
 class PlantParams(Section):
@@ -1199,6 +1352,14 @@ class PlantParams(Section):
     grid: GridParams
     comfort: ComfortParams
     degradation: DegradationParams
+
+    @model_validator(mode="after")
+    def _check(self) -> PlantParams:
+        """Relations between sections: the initial states within their devices."""
+        if self.simulation.v_dhw_init_l > self.dhw.v_max_l:
+            raise ValueError(f"simulation.v_dhw_init_l ({self.simulation.v_dhw_init_l:g} l) exceeds the tank, "
+                             f"dhw.v_max_l ({self.dhw.v_max_l:g} l)")
+        return self
 
 
 PLANT_SECTIONS = tuple(PlantParams.model_fields)

@@ -43,7 +43,7 @@ from typing import Any
 
 import numpy as np
 
-from comems4build_ros.files.outputs import atomic_write
+from comems4build_ros.files.outputs import atomic_write, open_dir
 
 #: Environment variable of the cache directory (``off``: no cache).
 CACHE_ENV = "COMEMS4BUILD_CACHE_DIR"
@@ -184,8 +184,8 @@ def store(kind: str, key: str, arrays: Sequence[np.ndarray]) -> bool:
         return False
     named = {f"a{i}": np.asarray(a, dtype=float) for i, a in enumerate(arrays)}
     try:
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with atomic_write(path, "wb") as fh:
+        os.close(open_dir(path.parent, create=True, private=True, what="the result cache"))
+        with atomic_write(path, "wb", private=True) as fh:
             np.savez(fh, key=np.array(key), count=np.array(len(arrays)), **named)
     except OSError:
         return False

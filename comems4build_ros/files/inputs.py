@@ -33,6 +33,8 @@ from typing import Any
 
 import yaml
 
+from comems4build_ros.files.errors import InputError
+
 #: libyaml's safe loader where PyYAML has it (same documents, about 10x faster: every node
 #: process parses the contract and the plant parameters at start-up), else the Python one.
 SAFE_LOADER = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
@@ -59,7 +61,7 @@ _STR = "tag:yaml.org,2002:str"
 _MERGE = "tag:yaml.org,2002:merge"
 
 
-class InputFileError(ValueError):
+class InputFileError(InputError):
     """A file that cannot be read as the input it should be; the message names the file and where.
 
     ``problem``: the reason alone, without the source (for messages that name it their own way).
@@ -128,6 +130,38 @@ def read_text(path: str | Path, what: str, max_bytes: int = MAX_DOCUMENT_BYTES, 
     if data_file and not text.strip(ASCII_SPACE + "\ufeff"):
         raise InputFileError(f"{path}: cannot read {what}: empty file")
     return text
+
+
+def between_markers(text: str, begin: str, end: str, where: str) -> tuple[str, str]:
+    """``(head, tail)`` around the block between the markers ``begin`` and ``end`` of a document.
+
+    Each marker must stand once, ``begin`` before ``end``; a document written by hand around
+    a generated block (``--update-doc``) is refused otherwise, before any work.
+
+    Raises
+    ------
+    InputFileError
+        Naming ``where`` (the option and file) and what is wrong with the markers.
+    """
+    counts = {m: text.count(m) for m in (begin, end)}
+    if any(n != 1 for n in counts.values()):
+        said = ", ".join(f"{m} {'missing' if n == 0 else f'{n} times'}" for m, n in counts.items() if n != 1)
+        raise InputFileError(f"{where}: markers {begin} / {end} must each stand once ({said})")
+    head, _, rest = text.partition(begin)
+    if end not in rest:
+        raise InputFileError(f"{where}: marker {end} stands before {begin}")
+    return head, rest.partition(end)[2]
+
+
+def check_markers(path: str | Path, begin: str, end: str, option: str) -> None:
+    """The document ``path`` of ``option`` is readable UTF-8 text with the markers (:func:`between_markers`).
+
+    Raises
+    ------
+    InputFileError
+        Naming the option, the file and the problem.
+    """
+    between_markers(read_text(path, f"the document of {option}"), begin, end, f"{option} {path}")
 
 
 def path_kind(path: str | Path) -> str:
@@ -359,7 +393,7 @@ def parse_decimal(text: str) -> float:
     """
     core = text.strip(ASCII_SPACE)
     if _DECIMAL.fullmatch(core) is None:
-        raise ValueError(f"{text[:40]!r} is not a plain decimal number")
+        raise InputError(f"{text[:40]!r} is not a plain decimal number")
     return float(core)
 
 
@@ -370,7 +404,7 @@ def parse_integer(text: str) -> int:
     """
     core = text.strip(ASCII_SPACE)
     if _INTEGER.fullmatch(core) is None:
-        raise ValueError(f"{text[:40]!r} is not a plain decimal integer")
+        raise InputError(f"{text[:40]!r} is not a plain decimal integer")
     return int(core)
 
 

@@ -12,17 +12,182 @@ directory) before any computation starts.
 from __future__ import annotations
 
 import contextlib
+import errno
 import os
+import secrets
 import shutil
+import stat
 import tempfile
 import time
 from collections.abc import Iterable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 
-class OutputPathError(ValueError):
+
+class OutputPathError(InputError):
     """An output path that cannot be written; the message names the option and the path."""
+
+
+class LinkRefusedError(OutputPathError):
+    """A symbolic link (or a second hard link) where a file or folder of comems4build's own should be."""
+
+
+# ------------------------------------------------------------------------------ no file through a link
+#: Flags of every descriptor the output layer opens: the last component is never followed if a link.
+_NOFOLLOW = os.O_NOFOLLOW | os.O_CLOEXEC
+#: Modes of what comems4build creates: a result follows the umask (``0o666``/``0o777`` less the
+#: umask, as every Unix tool's); what a run reads again later (parameter files, tokens, the lock,
+#: the ownership record, logs the launcher reads) is the user's alone whatever the umask.
+FILE_MODE, DIR_MODE, PRIVATE_FILE_MODE, PRIVATE_DIR_MODE = 0o666, 0o777, 0o600, 0o700
+
+
+def _link_refused(path: str | os.PathLike[str], what: str) -> LinkRefusedError:
+    return LinkRefusedError(f"{path}: a symbolic link where {what} should be; comems4build never writes through a "
+                            "link (anyone who can write into the folder could aim it at any file): remove it")
+
+
+def _is_link(name: str | os.PathLike[str], dir_fd: int | None = None) -> bool:
+    try:
+        return stat.S_ISLNK(os.stat(name, dir_fd=dir_fd, follow_symlinks=False).st_mode)
+    except OSError:
+        return False
+
+
+def _own(fd: int, path: str | os.PathLike[str], what: str, private: bool, directory: bool) -> None:
+    """Check the opened ``fd`` is a file (folder) of this user with one name; make it private if asked."""
+    st = os.fstat(fd)
+    kind_ok = stat.S_ISDIR(st.st_mode) if directory else stat.S_ISREG(st.st_mode)
+    if not kind_ok:
+        raise OutputPathError(f"{path}: not a {'folder' if directory else 'regular file'}; {what} is expected there")
+    if not directory and st.st_nlink != 1:  # a hard link to a file elsewhere: writing it would change that file
+        raise LinkRefusedError(f"{path}: has {st.st_nlink} names (hard links) where {what} should be; comems4build "
+                               "never writes a file that also lives elsewhere: remove it")
+    if private:
+        if st.st_uid != os.geteuid():
+            raise OutputPathError(f"{path}: belongs to another user (uid {st.st_uid}); {what} must be this user's")
+        wanted = PRIVATE_DIR_MODE if directory else PRIVATE_FILE_MODE
+        if stat.S_IMODE(st.st_mode) != wanted:
+            os.fchmod(fd, wanted)
+
+
+def open_dir(path: str | os.PathLike[str], root: str | os.PathLike[str] | None = None, create: bool = False,
+             private: bool = False, what: str = "a folder of comems4build") -> int:
+    """A descriptor of the folder ``path``; no component below ``root`` is followed if it is a link.
+
+    Parameters
+    ----------
+    path : the folder
+    root : the folder the walk starts from, followed as given (the user's ``--out``; default:
+        ``path``'s parent, so that only ``path`` itself must not be a link)
+    create : make ``path`` and the missing folders between ``root`` and it (``root`` as ``mkdir -p``)
+    private : the folders made, and ``path``, get mode 0700 and must be this user's
+    what : what the folder is, for messages
+
+    Raises
+    ------
+    LinkRefusedError
+        If a component below ``root`` is a symbolic link (named).
+    OSError
+        As ``open``/``mkdir`` raise it (a missing folder without ``create``, no permission).
+    """
+    path = Path(path)
+    base = Path(root) if root is not None else path.parent
+    try:
+        parts = path.relative_to(base).parts
+    except ValueError:
+        base, parts = path.parent, (path.name,)
+    if create:
+        base.mkdir(parents=True, exist_ok=True)
+    fd = os.open(base, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+    try:
+        for i, name in enumerate(parts):
+            here = base.joinpath(*parts[: i + 1])
+            made = False
+            if create:
+                try:
+                    os.mkdir(name, PRIVATE_DIR_MODE if private else DIR_MODE, dir_fd=fd)
+                    made = True
+                except FileExistsError:
+                    pass
+            try:
+                sub = os.open(name, os.O_RDONLY | os.O_DIRECTORY | _NOFOLLOW, dir_fd=fd)
+            except OSError as exc:
+                if exc.errno in (errno.ELOOP, errno.ENOTDIR) and _is_link(name, fd):
+                    raise _link_refused(here, what) from None
+                raise OSError(exc.errno, exc.strerror, str(here)) from None
+            os.close(fd)
+            fd = sub
+            if private and (made or i == len(parts) - 1):
+                _own(fd, here, what, True, True)
+        return fd
+    except BaseException:
+        os.close(fd)
+        raise
+
+
+def create_file(path: str | os.PathLike[str], root: str | os.PathLike[str] | None = None, private: bool = False,
+                exclusive: bool = True, what: str = "a file of comems4build") -> int:
+    """Create the file ``path`` for writing (``O_NOFOLLOW``, relative to its folder's descriptor).
+
+    ``exclusive``: the file must not exist (``O_EXCL``); else an existing file of this user with
+    one name is truncated. ``private``: mode 0600 (its folders made 0700), whatever the umask;
+    else ``0o666`` less the umask. Folders between ``root`` and the file are made as by
+    :func:`open_dir`. Returns the descriptor, opened for writing.
+
+    Raises
+    ------
+    LinkRefusedError
+        If ``path`` or a folder below ``root`` is a symbolic link, or ``path`` a second name of a file.
+    OutputPathError
+        If ``exclusive`` and ``path`` exists.
+    """
+    path = Path(path)
+    dfd = open_dir(path.parent, root if root is not None else path.parent, create=True, private=private, what=what)
+    try:
+        flags = os.O_WRONLY | os.O_CREAT | _NOFOLLOW | (os.O_EXCL if exclusive else 0)
+        try:
+            fd = os.open(path.name, flags, PRIVATE_FILE_MODE if private else FILE_MODE, dir_fd=dfd)
+        except FileExistsError:
+            if _is_link(path.name, dfd):
+                raise _link_refused(path, what) from None
+            raise OutputPathError(f"{path}: exists; {what} is only ever created new there (remove it)") from None
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise _link_refused(path, what) from None
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
+    finally:
+        os.close(dfd)
+    try:
+        _own(fd, path, what, private, False)
+        if not exclusive:
+            os.ftruncate(fd, 0)
+    except BaseException:
+        os.close(fd)
+        raise
+    return fd
+
+
+def write_new_file(path: str | os.PathLike[str], data: str | bytes, root: str | os.PathLike[str] | None = None,
+                   private: bool = False, exclusive: bool = True, what: str = "a file of comems4build") -> Path:
+    """Write ``data`` (text as UTF-8) to ``path`` through :func:`create_file`."""
+    fd = create_file(path, root, private=private, exclusive=exclusive, what=what)
+    with os.fdopen(fd, "wb") as fh:
+        fh.write(data.encode("utf-8") if isinstance(data, str) else data)
+    return Path(path)
+
+
+def read_private(path: str | os.PathLike[str], limit: int = 1024 * 1024, what: str = "a file of comems4build") -> bytes:
+    """The first ``limit`` bytes of ``path``, opened without following a link (refused, named)."""
+    try:
+        fd = os.open(path, os.O_RDONLY | _NOFOLLOW)
+    except OSError as exc:
+        if exc.errno == errno.ELOOP:
+            raise _link_refused(path, what) from None
+        raise
+    with os.fdopen(fd, "rb") as fh:
+        return fh.read(limit)
 
 
 def check_out_dir(path: str | Path, option: str = "--out") -> Path:
@@ -75,32 +240,45 @@ def _check_ancestor(start: Path, target: Path, option: str) -> None:
 
 
 @contextlib.contextmanager
-def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-8") -> Iterator:
+def atomic_write(path: str | Path, mode: str = "w", encoding: str | None = "utf-8", private: bool = False) -> Iterator:
     """Open a temporary file beside ``path``; rename it to ``path`` when the block succeeds.
 
     On any error (e.g. ``OSError`` ENOSPC from a full disk) the temporary file is removed
-    and ``path`` keeps its previous content (or stays absent).
+    and ``path`` keeps its previous content (or stays absent). Nothing goes through a link:
+    the temporary file is created new (``O_EXCL | O_NOFOLLOW``) and renamed relative to the
+    folder's descriptor; a symbolic link at ``path`` is refused (:class:`LinkRefusedError`).
+    ``private``: mode 0600 whatever the umask (a file a run reads again); else the umask's.
     """
     path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    dfd = open_dir(path.parent, create=True)
+    tmp = f".{path.name}.{secrets.token_hex(6)}.tmp"
+    try:
+        fd = os.open(tmp, os.O_WRONLY | os.O_CREAT | os.O_EXCL | _NOFOLLOW,
+                     PRIVATE_FILE_MODE if private else FILE_MODE, dir_fd=dfd)
+    except OSError as exc:
+        os.close(dfd)
+        raise _named(exc, path) from exc
     try:
         with os.fdopen(fd, mode, encoding=None if "b" in mode else encoding) as fh:
             yield fh
             fh.flush()
             os.fsync(fh.fileno())
-        os.replace(tmp, path)
+        if _is_link(path.name, dfd):
+            raise _link_refused(path, "the file to write")
+        os.replace(tmp, path.name, src_dir_fd=dfd, dst_dir_fd=dfd)
     except BaseException as exc:
         with contextlib.suppress(OSError):
-            os.unlink(tmp)
+            os.unlink(tmp, dir_fd=dfd)
         if isinstance(exc, OSError):
             raise _named(exc, path) from exc
         raise
+    finally:
+        os.close(dfd)
 
 
-def write_text_atomic(path: str | Path, text: str) -> Path:
-    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_write`."""
-    with atomic_write(path) as fh:
+def write_text_atomic(path: str | Path, text: str, private: bool = False) -> Path:
+    """Write ``text`` (UTF-8) to ``path`` through :func:`atomic_write` (``private``: mode 0600)."""
+    with atomic_write(path, private=private) as fh:
         fh.write(text)
     return Path(path)
 
@@ -149,7 +327,9 @@ def _replace_entries(new: Path, path: Path, replaces: tuple[str, ...]) -> None:
     try:
         for name in names:
             src, dest = new / name, path / name
-            if (dest.is_dir() and not dest.is_symlink()) or (src.is_dir() and dest.exists()):
+            if dest.is_symlink():
+                raise _link_refused(dest, "a result of comems4build")
+            if dest.is_dir() or (src.is_dir() and dest.exists()):
                 os.replace(dest, trash / name)  # a directory is replaced whole
             os.replace(src, dest)
         for name in stale:
@@ -235,6 +415,29 @@ LOCK_FILE = ".comems4build.lock"
 STAGE_PREFIX = ".partial."
 #: Prefix of the directory that keeps an earlier result while an in-place command writes its own.
 PREVIOUS_PREFIX = ".previous."
+#: Prefix of the report of an internal error (a defect's traceback) a command leaves in its output folder;
+#: never a result, never an entry in the way of a later command.
+INTERNAL_ERROR_PREFIX = ".comems4build-internal-error."
+
+
+def write_internal_report(out: str | os.PathLike[str] | None, text: str) -> Path:
+    """Write ``text`` (a defect's traceback) to a new private file in the output folder ``out`` (if it is
+    an existing folder that takes it), else in the temporary folder; returns its path.
+
+    The name starts with :data:`INTERNAL_ERROR_PREFIX` and carries the time and the process id;
+    the file is created new (``O_EXCL``, never through a link), mode 0600 (it names paths).
+    """
+    stamp = f"{time.strftime('%Y%m%dT%H%M%S')}.{os.getpid()}"
+    if out is not None and str(out) and Path(out).is_dir() and not Path(out).is_symlink():
+        target = Path(out) / f"{INTERNAL_ERROR_PREFIX}{stamp}.txt"
+        try:
+            return write_new_file(target, text, private=True, what="the report of an internal error")
+        except (OSError, OutputPathError):
+            pass  # a read-only or full output folder: the temporary folder takes it
+    fd, name = tempfile.mkstemp(prefix=f"{INTERNAL_ERROR_PREFIX}{stamp}.", suffix=".txt")
+    with os.fdopen(fd, "w", encoding="utf-8") as fh:
+        fh.write(text)
+    return Path(name)
 
 
 class OutputInUseError(OutputPathError):
@@ -315,12 +518,19 @@ def check_not_input(out: Path, inputs: Mapping[str, Iterable[str | os.PathLike[s
 
 
 def read_owner(path: Path) -> dict[str, Any]:
-    """The ownership record of the output directory ``path`` (``{}`` without one, or unreadable)."""
+    """The ownership record of the output directory ``path`` (``{}`` without one, or unreadable).
+
+    Raises
+    ------
+    LinkRefusedError
+        If the record is a symbolic link (it is never read or written through one).
+    """
     import json
 
     try:
-        with open(path / OWNER_FILE, encoding="utf-8") as fh:
-            doc = json.loads(fh.read(1024 * 1024))
+        doc = json.loads(read_private(path / OWNER_FILE, what="comems4build's record of its outputs"))
+    except LinkRefusedError:
+        raise
     except (OSError, ValueError, RecursionError):
         return {}
     if not isinstance(doc, dict) or not isinstance(doc.get("entries"), list):
@@ -390,6 +600,7 @@ class OutputDir:
         """The checks of entry without creating or locking anything (:class:`OutputPathError`)."""
         check_out_dir(self.path, self.option)
         check_not_input(self.path, self.inputs, self.option, self.writes)
+        self._check_no_links()
         self._probe_lock()
         self._check_owned(self._existing(self.writes))
 
@@ -398,8 +609,10 @@ class OutputDir:
         import fcntl
 
         try:
-            fd = os.open(self.path / self.lock_name, os.O_RDONLY | getattr(os, "O_CLOEXEC", 0))
-        except OSError:
+            fd = os.open(self.path / self.lock_name, os.O_RDONLY | _NOFOLLOW)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise _link_refused(self.path / self.lock_name, "the lock of comems4build") from None
             return  # no lock file: nobody writes here
         try:
             fcntl.flock(fd, fcntl.LOCK_SH | fcntl.LOCK_NB)
@@ -416,12 +629,14 @@ class OutputDir:
         if not self.path.is_dir():
             return []
         return sorted(p.name for p in self.path.iterdir() if p.name not in (OWNER_FILE, LOCK_FILE)
-                      and not p.name.startswith((STAGE_PREFIX, PREVIOUS_PREFIX, ".replaced."))
+                      and not p.name.startswith((STAGE_PREFIX, PREVIOUS_PREFIX, ".replaced.", INTERNAL_ERROR_PREFIX))
                       and not p.name.endswith(".comems4build.lock")
                       and any(fnmatch.fnmatchcase(p.name, pat) for pat in patterns))
 
     def _check_owned(self, names: Iterable[str]) -> None:
         owned = set(read_owner(self.path).get("entries", []))
+        names = list(names)
+        self._check_no_links(names)
         foreign = [n for n in names if n not in owned]
         if foreign:
             shown = ", ".join(str(self.path / n) for n in foreign[:5]) + (" ..." if len(foreign) > 5 else "")
@@ -430,13 +645,53 @@ class OutputDir:
                                   f"{self.path / OWNER_FILE}); it is never replaced: move it away or choose another "
                                   f"{self.option}")
 
+    def _check_no_links(self, names: Iterable[str] = ()) -> None:
+        """Refuse a symbolic link among ``names`` (entries comems4build writes or replaces) or the
+        hidden entries of the output layer (its record, lock, stages, earlier results)."""
+        if not self.path.is_dir():
+            return
+        hidden = [p.name for p in self.path.iterdir()
+                  if p.name in (OWNER_FILE, self.lock_name)
+                  or p.name.startswith((STAGE_PREFIX, PREVIOUS_PREFIX, ".replaced."))]
+        for name in [*hidden, *names]:
+            if (self.path / name).is_symlink():
+                raise _link_refused(self.path / name, self._what(name))
+
+    def _what(self, name: str) -> str:
+        """What the entry ``name`` of the output folder is, for messages."""
+        if name == self.lock_name:
+            return "the lock of comems4build"
+        if name == OWNER_FILE:
+            return "comems4build's record of its outputs"
+        if name.startswith(STAGE_PREFIX):
+            return "a result comems4build is writing"
+        if name.startswith(PREVIOUS_PREFIX):
+            return "an earlier result comems4build kept aside"
+        if name.startswith(".replaced."):
+            return "an earlier result comems4build is removing"
+        return "a result of comems4build"
+
     # -- lock
     def _lock(self) -> None:
         import fcntl
 
         lock = self.path / self.lock_name
+        dfd = os.open(self.path, os.O_RDONLY | os.O_DIRECTORY | os.O_CLOEXEC)
+        try:
+            self._lock_at(dfd, lock, fcntl)
+        finally:
+            os.close(dfd)
+
+    def _lock_at(self, dfd: int, lock: Path, fcntl: Any) -> None:
+        """:meth:`_lock` with the output folder's descriptor: the lock file is opened relative to it,
+        never through a link, mode 0600, and only a file of this user with one name is written."""
         for _ in range(100):
-            fd = os.open(lock, os.O_RDWR | os.O_CREAT | getattr(os, "O_CLOEXEC", 0), 0o644)
+            try:
+                fd = os.open(self.lock_name, os.O_RDWR | os.O_CREAT | _NOFOLLOW, PRIVATE_FILE_MODE, dir_fd=dfd)
+            except OSError as exc:
+                if exc.errno == errno.ELOOP:
+                    raise _link_refused(lock, "the lock of comems4build") from None
+                raise
             try:
                 for attempt in range(5):  # another command's check (_probe_lock) holds it for microseconds
                     try:
@@ -453,14 +708,19 @@ class OutputDir:
                     os.close(fd)
                 raise OutputInUseError(f"{self.option} {self.path}: in use by {holder}; wait until it ends or choose "
                                        f"another {self.option}") from None
-            try:
-                same = os.fstat(fd).st_ino == os.stat(lock).st_ino  # not a lock file its holder just removed
+            try:  # not a lock file its holder just removed
+                same = os.fstat(fd).st_ino == os.stat(self.lock_name, dir_fd=dfd, follow_symlinks=False).st_ino
             except FileNotFoundError:
                 same = False
             if same:
+                try:
+                    _own(fd, lock, "the lock of comems4build", True, False)
+                except BaseException:
+                    os.close(fd)
+                    raise
+                self._lock_fd = fd  # held: removed again by _unlock, even if the line below finds the disk full
                 os.ftruncate(fd, 0)
                 os.write(fd, f"comems4build {self.command} (pid {os.getpid()})\n".encode())
-                self._lock_fd = fd
                 return
             os.close(fd)
         raise OutputInUseError(f"{self.option} {self.path}: its lock {lock} keeps changing")
@@ -469,7 +729,8 @@ class OutputDir:
         if self._lock_fd is None:
             return
         with contextlib.suppress(OSError):
-            os.unlink(self.path / self.lock_name)
+            if os.fstat(self._lock_fd).st_ino == os.stat(self.path / self.lock_name, follow_symlinks=False).st_ino:
+                os.unlink(self.path / self.lock_name)
         os.close(self._lock_fd)
         self._lock_fd = None
 
@@ -481,6 +742,7 @@ class OutputDir:
         try:
             self.path.mkdir(parents=True, exist_ok=True)
             self._lock()
+            self._check_no_links()
             for stale in [*self.path.glob(f"{STAGE_PREFIX}*"), *self.path.glob(".replaced.*")]:  # of a killed command
                 shutil.rmtree(stale, ignore_errors=True)
             self._restore_killed()
@@ -512,9 +774,19 @@ class OutputDir:
     def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: Any) -> None:
         if exc_type is not None:
             self._abandon()
+            if isinstance(exc, OSError) and not isinstance(exc, OutputPathError):
+                raise self._named(exc) from exc  # a full disk while writing the stage: named as its destination
             return
         self.commit()
         self._unlock()
+
+    def _named(self, exc: OSError) -> OSError:
+        """``exc`` naming the file of the result it was writing (not the stage), or the output folder."""
+        name = str(exc.filename or "")
+        stage = str(self.stage)
+        if name and self.stage != Path() and not self.in_place and name.startswith(stage + os.sep):
+            return OSError(exc.errno, exc.strerror or str(exc), str(self.path / name[len(stage) + 1:]))
+        return _named(exc, self.path)
 
     def commit(self) -> None:
         """Put the stage's entries in place now (once; the lock is kept until the block ends)."""
@@ -543,13 +815,18 @@ class OutputDir:
         owned = set(read_owner(self.path).get("entries", []))
         previous_dirs = sorted(self.path.glob(f"{PREVIOUS_PREFIX}*"))
         for previous in previous_dirs:
-            for entry in previous.iterdir():
-                dest = self.path / entry.name
-                if (dest.exists() or dest.is_symlink()) and entry.name not in owned:
-                    _remove(dest)
-                if not (dest.exists() or dest.is_symlink()):
-                    os.replace(entry, dest)
-                    owned.add(entry.name)
+            # this user's folder, opened without following a link: its entries move back by descriptor
+            pfd = open_dir(previous, private=True, what="an earlier result comems4build kept aside")
+            try:
+                for name in sorted(os.listdir(pfd)):
+                    dest = self.path / name
+                    if (dest.exists() or dest.is_symlink()) and name not in owned:
+                        _remove(dest)
+                    if not (dest.exists() or dest.is_symlink()):
+                        os.replace(name, dest, src_dir_fd=pfd)
+                        owned.add(name)
+            finally:
+                os.close(pfd)
             shutil.rmtree(previous, ignore_errors=True)
         if previous_dirs:
             self._write_owner(owned)
@@ -566,7 +843,7 @@ class OutputDir:
             return
         record = {"written_by": f"comems4build {self.command}", "entries": owned,
                   "note": "entries comems4build wrote here and may replace; nothing else is touched"}
-        write_text_atomic(self.path / OWNER_FILE, json.dumps(record, indent=1) + "\n")
+        write_text_atomic(self.path / OWNER_FILE, json.dumps(record, indent=1) + "\n", private=True)
 
     def _abandon(self) -> None:
         """Remove the stage (and the directory if this command created it and it is empty); unlock."""

@@ -27,13 +27,14 @@ from pathlib import Path
 
 import paho.mqtt.client as paho
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.mqtt.topicmap import BrokerParams
 
 #: Shortest wait between reconnect attempts [s].
 RECONNECT_MIN_S = 0.1
 
 
-class BrokerConfigError(ValueError):
+class BrokerConfigError(InputError):
     """Broker credentials or TLS files cannot be read (the message never holds the password)."""
 
 

@@ -44,6 +44,7 @@ from dataclasses import dataclass
 from typing import Any
 
 from comems4build_ros import __version__
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.mqtt.topicmap import TopicMap
 
 #: Required payload fields per component (HA MQTT discovery); ``unit_of_measurement``
@@ -281,7 +282,7 @@ def discovery_messages(topic_map: TopicMap, limits: dict[str, tuple[float, float
     return out
 
 
-class DiscoveryError(ValueError):
+class DiscoveryError(InputError):
     """A discovery message breaks :data:`DISCOVERY_SCHEMA`; the message names topic and field."""
 
 

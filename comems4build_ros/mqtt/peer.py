@@ -31,6 +31,7 @@ import secrets
 from dataclasses import dataclass
 from pathlib import Path
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.wire.tokens import read_token_file
 
 #: Hex digits of the authentication code (64 bits).
@@ -62,7 +63,7 @@ def check_run_id(run_id: str) -> str:
         Naming the id.
     """
     if not RUN_ID_PATTERN.match(run_id):
-        raise ValueError(f"run id {run_id!r}: 1 to 64 characters of A-Z, a-z, 0-9, '_', '.', '-'")
+        raise InputError(f"run id {run_id!r}: 1 to 64 characters of A-Z, a-z, 0-9, '_', '.', '-'")
     return run_id
 
 

@@ -50,6 +50,7 @@ from comems4build_ros.core.config import ConfigError, PlantParams, load_plant_pa
 from comems4build_ros.core.loop import STATE_COLUMNS, exogenous_series
 from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, Action, Exogenous, Flows, PlantState
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.mqtt.client import BrokerConfigError, MqttLink
 from comems4build_ros.mqtt.clock import Clock, ClockError, parse_clock
 from comems4build_ros.mqtt.peer import ForeignMessageError, Peer, check_run_id, parse_run_json, read_peer_key
@@ -388,9 +389,9 @@ def main(argv: list[str] | None = None) -> int:
         overrides = parse_assignments(args.set, "--set")
         params = load_plant_params(args.config, overrides)
         if args.username and not args.mqtt_secret_file:
-            raise ValueError("--username needs --mqtt-secret-file (the password's file)")
+            raise InputError("--username needs --mqtt-secret-file (the password's file)")
         if args.mqtt_secret_file and not args.run_id:
-            raise ValueError("--mqtt-secret-file needs --run-id (the codes bind each message to its run)")
+            raise InputError("--mqtt-secret-file needs --run-id (the codes bind each message to its run)")
         topic_map = load_topic_map(args.topic_map, args.broker, args.username,
                                    args.mqtt_secret_file if args.username else None)
         clock = parse_clock(args.clock, params.simulation.time_step_h)

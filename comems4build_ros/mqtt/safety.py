@@ -18,6 +18,7 @@ import math
 from dataclasses import dataclass, field
 
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH, Action
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import parse_decimal
 from comems4build_ros.mqtt.topicmap import TopicMap
 
@@ -189,7 +190,7 @@ class CommandLimiter:
         self._t_last_sent = now
 
 
-class SettingError(ValueError):
+class SettingError(InputError):
     """A setting's payload that cannot be applied; the message names the topic and the range."""
 
 

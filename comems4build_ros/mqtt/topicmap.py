@@ -25,6 +25,7 @@ from pydantic import Field, field_validator, model_validator
 
 from comems4build_ros.core.config import ConfigError, PlantParams, Section, config_dir, parse_model, read_ros_params
 from comems4build_ros.core.types import HP_DHW, HP_OFF, HP_SH
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import ASCII_SPACE, parse_decimal, parse_integer
 
 #: Measurements the bridge knows: SI name -> meaning [unit]. The first four are required.
@@ -51,12 +52,26 @@ TRUE_WORDS = frozenset({"on", "true", "yes"})
 FALSE_WORDS = frozenset({"off", "false", "no"})
 
 
-class PayloadError(ValueError):
+class PayloadError(InputError):
     """An MQTT payload cannot be read; the message names the topic."""
 
 
 class _Model(Section):
     """A topic-map section: the parameter rule of :class:`~comems4build_ros.core.config.Section`."""
+
+
+def plain_topic(v: str) -> str:
+    """``v`` if it is a plain MQTT topic: no wildcard (``+``, ``#``: a subscription to it would take every
+    house's messages, a publication is refused by brokers), no leading or trailing ``/``, no empty level."""
+    if not v or any(c in v for c in "+#") or v.startswith("/") or v.endswith("/") or "//" in v:
+        raise InputError(f"'{v}' is not a plain MQTT topic (no wildcards '+' or '#', no empty level, no leading "
+                         "or trailing '/')")
+    return v
+
+
+#: Shortest time of the topic map's durations [s]: a message's way through the broker (milliseconds)
+#: and a house's measurement period (a second or more) make anything shorter meaningless.
+MIN_DURATION_S = 0.1
 
 
 class _Scaled(_Model):
@@ -77,9 +92,7 @@ class _Scaled(_Model):
     @field_validator("topic")
     @classmethod
     def _no_wildcards(cls, v: str) -> str:
-        if any(c in v for c in "+#") or v.startswith("/") or v.endswith("/"):
-            raise ValueError(f"'{v}' is not a plain MQTT topic (no wildcards, no leading or trailing '/')")
-        return v
+        return plain_topic(v)
 
     # -- codec -------------------------------------------------------------------
     def to_si(self, text: str) -> float:
@@ -138,7 +151,7 @@ class MeasurementSpec(_Scaled):
     """One house measurement on MQTT (``range`` and ``max_age_s`` feed the watchdog)."""
 
     range: tuple[float, float]
-    max_age_s: float | None = Field(default=None, gt=0)
+    max_age_s: float | None = Field(default=None, ge=MIN_DURATION_S)
     required: bool = True
 
     @field_validator("range")
@@ -182,6 +195,13 @@ class SetpointSpec(_Scaled):
     max_change_per_step: float = Field(default=0.0, ge=0)
     values: dict[str, str] = Field(default_factory=dict)  # hp_mode: "0" -> "off" ...
 
+    @field_validator("limits")
+    @classmethod
+    def _ordered(cls, v: tuple[float, float] | tuple[()]) -> tuple[float, float] | tuple[()]:
+        if v and not v[0] < v[1]:
+            raise ValueError(f"must be [low, high] with low < high, got {list(v)} (inverted or empty)")
+        return v
+
     def encode(self, value: float, step: int | None = None) -> bytes:
         """Payload of the SI ``value`` (a mapped word if ``values`` is set)."""
         if self.values:
@@ -224,9 +244,9 @@ def check_broker_url(url: str) -> str:
     parts = urlsplit(str(url))
     if parts.scheme not in ("mqtt", "mqtts") or not parts.netloc or parts.path not in ("", "/") or \
             parts.query or parts.fragment or any(c.isspace() for c in str(url)):
-        raise ValueError(f"'{url}' is not mqtt://host[:port] or mqtts://host[:port]")
+        raise InputError(f"'{url}' is not mqtt://host[:port] or mqtts://host[:port]")
     if "@" in parts.netloc:
-        raise ValueError(f"'{parts.scheme}://...@{parts.hostname}': no credentials in the URL (the topic map's "
+        raise InputError(f"'{parts.scheme}://...@{parts.hostname}': no credentials in the URL (the topic map's "
                          "broker.username with password_file or password_env)")
     try:
         port = parts.port
@@ -235,7 +255,7 @@ def check_broker_url(url: str) -> str:
     if not parts.hostname or (port is not None and not 1 <= port <= PORT_MAX):
         what = "no host" if not parts.hostname else \
             f"port {parts.netloc.rpartition(':')[2]} is not a number in 1..{PORT_MAX}"
-        raise ValueError(f"'{url}': {what}")
+        raise InputError(f"'{url}': {what}")
     return str(url)
 
 
@@ -257,7 +277,19 @@ class BrokerParams(_Model):
     tls_insecure: bool = False
     keepalive_s: int = Field(default=10, ge=1)
     qos: int = Field(default=1, ge=0, le=2)
-    reconnect_max_s: float = Field(default=2.0, gt=0)
+    reconnect_max_s: float = Field(default=2.0, ge=MIN_DURATION_S)
+
+    @model_validator(mode="after")
+    def _login(self) -> BrokerParams:
+        """A login needs its password's source, and a password source its login."""
+        if self.username and not (self.password_file or self.password_env):
+            raise ValueError(f"username '{self.username}' without password_file or password_env: the broker would "
+                             "refuse the login (or, without authentication, it means nothing)")
+        if (self.password_file or self.password_env) and not self.username:
+            raise ValueError("password_file or password_env without a username")
+        if self.password_file and self.password_env:
+            raise ValueError("password_file and password_env both given: name one source of the password")
+        return self
 
     @property
     def host(self) -> str:
@@ -300,11 +332,21 @@ class TopicMap(_Model):
     discovery_prefix: str = "homeassistant"
     discovery: bool = True
     device: DeviceInfo
-    max_age_s: float = Field(gt=0)
+    max_age_s: float = Field(ge=MIN_DURATION_S)
     min_interval_s: float = Field(default=0.0, ge=0)
     measurements: dict[str, MeasurementSpec]
     setpoints: dict[str, SetpointSpec]
     sim_record_topic: str = ""
+
+    @field_validator("base_topic", "discovery_prefix")
+    @classmethod
+    def _plain(cls, v: str) -> str:
+        return plain_topic(v)
+
+    @field_validator("sim_record_topic")
+    @classmethod
+    def _plain_or_none(cls, v: str) -> str:
+        return plain_topic(v) if v else v
 
     @model_validator(mode="after")
     def _check(self) -> TopicMap:
@@ -320,8 +362,13 @@ class TopicMap(_Model):
         if set(self.setpoints) != set(SETPOINTS):
             raise ValueError(f"setpoints must be exactly {list(SETPOINTS)}, got {sorted(self.setpoints)}")
         modes = self.setpoints["hp_mode"].values
-        if modes and set(modes) != {str(HP_OFF), str(HP_SH), str(HP_DHW)}:
-            raise ValueError(f"setpoints.hp_mode.values must map '0', '1' and '2', got {sorted(modes)}")
+        if modes:
+            check_mode_words(modes)
+        for name, (lo, hi) in SETPOINT_DOMAINS.items():
+            lim = self.setpoints[name].limits
+            if lim and not (lo <= lim[0] and lim[1] <= hi):
+                raise ValueError(f"setpoints.{name}.limits {list(lim)} outside the set-point's domain [{lo:g}, "
+                                 f"{hi:g}]")
         topics = [s.topic for s in (*self.measurements.values(), *self.setpoints.values())]
         dup = sorted({t for t in topics if topics.count(t) > 1})
         if dup:
@@ -385,6 +432,43 @@ class TopicMap(_Model):
         return self.topic("step")
 
 
+#: Domains of the set-points' device limits (SI side): a modulation is a fraction, a FC delivers power.
+SETPOINT_DOMAINS = {"hp_mod": (0.0, 1.0), "p_fc_w": (0.0, math.inf)}
+#: Payload words that say "off": only heat-pump mode 0 (off) may be sent as one.
+OFF_WORDS = FALSE_WORDS | {"0", "none", "stop", "standby", "idle"}
+
+
+def check_mode_words(modes: dict[str, str]) -> None:
+    """``setpoints.hp_mode.values`` map the modes one to one and say what they mean.
+
+    Each of ``'0'`` (off), ``'1'`` (space heating) and ``'2'`` (hot water) maps to its own word
+    (case and blanks ignored), and only mode 0 to a word of :data:`OFF_WORDS`: a map sending
+    "off" for space heating would switch the heat pump off whenever the EMS heats.
+
+    Raises
+    ------
+    ValueError
+        Naming the modes and words that break the rule.
+    """
+    if set(modes) != {str(HP_OFF), str(HP_SH), str(HP_DHW)}:
+        raise InputError(f"setpoints.hp_mode.values must map '0', '1' and '2', got {sorted(modes)}")
+    words = {k: str(v).strip().lower() for k, v in modes.items()}
+    seen: dict[str, str] = {}
+    for mode, word in sorted(words.items()):
+        if not word:
+            raise InputError(f"setpoints.hp_mode.values: mode {mode} maps to an empty word")
+        if word in seen:
+            raise InputError(f"setpoints.hp_mode.values: modes {seen[word]} and {mode} both map to '{modes[mode]}' "
+                             "(the device could not tell them apart)")
+        seen[word] = mode
+    for mode, word in words.items():
+        if (word in OFF_WORDS) != (mode == str(HP_OFF)):
+            what = "a word that means off" if word in OFF_WORDS else "a word that does not mean off"
+            raise InputError(f"setpoints.hp_mode.values: mode {mode} "
+                             f"({ {str(HP_OFF): 'off', str(HP_SH): 'space heating', str(HP_DHW): 'hot water'}[mode]}) "
+                             f"maps to '{modes[mode]}', {what}")
+
+
 def default_map_file() -> Path:
     """``config/mqtt.yaml``."""
     return config_dir() / "mqtt.yaml"
@@ -412,6 +496,30 @@ def load_topic_map(path: str | Path | None = None, broker_url: str | None = None
     if username:
         data["broker"] = dict(data.get("broker", {}), username=username, password_file=password_file or "",
                               password_env="")
-    return parse_model(TopicMap, data, str(path))
+    topic_map = parse_model(TopicMap, data, str(path))
+    if not username:  # the map's own login: its password's source is there now (the launcher's is written later)
+        check_password_source(topic_map.broker, str(path))
+    return topic_map
+
+
+def check_password_source(broker: BrokerParams, where: str) -> None:
+    """The topic map's ``password_file`` is a readable file, its ``password_env`` a set variable.
+
+    Raises
+    ------
+    ConfigError
+        Naming the map, the parameter and the file or variable.
+    """
+    import os
+
+    from comems4build_ros.core.config import path_kind
+
+    if broker.password_file:
+        kind = path_kind(broker.password_file)
+        if kind:
+            raise ConfigError(f"{where}: parameter 'broker.password_file': {broker.password_file}: {kind}")
+    if broker.password_env and broker.password_env not in os.environ:
+        raise ConfigError(f"{where}: parameter 'broker.password_env': the environment variable "
+                          f"{broker.password_env} is not set")
 
 

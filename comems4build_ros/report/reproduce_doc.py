@@ -12,6 +12,7 @@ from collections.abc import Callable, Mapping, Sequence
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.report.document import Document
 from comems4build_ros.report.figures import CAPTIONS
 from comems4build_ros.report.paper import printed
@@ -222,7 +223,7 @@ def _sections(doc: Document, report: Mapping[str, Any], figures: tuple[Path, str
     _study(doc, report)
 
 
-class ReportFileError(ValueError):
+class ReportFileError(InputError):
     """A ``reproduce.json`` that is not one this version writes; the message names the file and the key."""
 
 
@@ -331,15 +332,12 @@ def replace_doc_section(path: str | Path, report: Mapping[str, Any], figures_fro
     with ``section(report, figures)``; the report's figures, when ``figures_from`` (the command's
     output directory) is given, are copied as PNG of the docs' width under ``figures_dir`` next
     to ``path`` (``figures``: that folder and its relative name, else None)."""
+    from comems4build_ros.files.inputs import between_markers, read_text
     from comems4build_ros.files.outputs import write_text_atomic
 
     path = Path(path)
     begin, end = markers
-    text = path.read_text(encoding="utf-8")
-    head, sep, rest = text.partition(begin)
-    _, sep2, tail = rest.partition(end)
-    if not sep or not sep2:
-        raise ValueError(f"{path}: markers {begin} / {end} not found")
+    head, tail = between_markers(read_text(path, "a document with a generated section"), begin, end, str(path))
     figures = None
     if figures_from is not None and report.get("figures"):
         target = path.parent / figures_dir

@@ -18,6 +18,7 @@ from typing import Any
 import pandas as pd
 
 from comems4build_ros.core.kpi import REQUIRED_COLUMNS
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import InputFileError, load_json_file
 
 #: Name of the manifest file in a comparison directory.
@@ -65,7 +66,7 @@ SUMMARY_KEYS = (
 TIMESERIES_EXTRA = ("soc", "v_dhw_l", "ghi_w_m2", "t_amb_c")
 
 
-class RunDirError(ValueError):
+class RunDirError(InputError):
     """A run or comparison directory is missing, incomplete or corrupt (message names it)."""
 
 

@@ -354,7 +354,7 @@ def update_doc(path: str | Path, report: Mapping[str, Any], figures_from: Path |
 
     Raises
     ------
-    ValueError
+    InputFileError
         For a Markdown file without the markers, or a quoted figure the report does not hold
         (naming the file, its line and the key).
     """
@@ -376,16 +376,19 @@ def fill_quotes(path: Path, stored: Mapping[str, Mapping[str, Any]]) -> str:
 
     Raises
     ------
-    ValueError
-        Naming the file, the line and the key of a figure that cannot be resolved.
+    InputFileError
+        Naming the file, the line and the key of a figure that cannot be resolved, or why the
+        file cannot be read as text.
     """
-    text = path.read_text(encoding="utf-8")
+    from comems4build_ros.files.inputs import InputFileError, read_text
+
+    text = read_text(path, "a document with quoted figures")
     lines = {q.key: q.line for q in quotes(text)}
 
     def value_of(key: str) -> str:
         try:
             return resolve(key, stored)
         except QuoteError as err:
-            raise ValueError(f"{path}:{lines.get(key, '?')}: quoted figure {err}") from None
+            raise InputFileError(f"{path}:{lines.get(key, '?')}: quoted figure {err}") from None
 
     return fill_marks(text, value_of)

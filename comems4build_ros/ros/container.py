@@ -51,6 +51,7 @@ import argparse
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import load_json_file
 from comems4build_ros.ros.log import process_logger
 from comems4build_ros.wire.exits import EXIT_BAD_INPUT
@@ -66,7 +67,7 @@ ROLES = (*NODE_ROLES, CONTAINER)
 FINISHING_ROLES = ROLES
 
 
-class ContainerSpecError(ValueError):
+class ContainerSpecError(InputError):
     """The spec file is unreadable or malformed."""
 
 

@@ -24,6 +24,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
+
 #: Unit words of plant parameter name suffixes (``e_max_kwh`` -> kWh).
 SUFFIX_UNITS = {
     "kwh": "kWh", "wh": "Wh", "w": "W", "kw": "kW", "c": "degC", "k": "K", "s": "s", "h": "h", "l": "l",
@@ -42,7 +44,7 @@ KIND_WORDS = {"bool": "true or false", "int": "an integer", "float": "a number",
 RCLPY_PARAMETERS = frozenset({"use_sim_time", "start_type_description_service"})
 
 
-class ParameterError(ValueError):
+class ParameterError(InputError):
     """A parameter value that breaks its declared type or range, or an unknown parameter."""
 
 

@@ -51,6 +51,7 @@ from comems4build_ros.run.plan import (
     LaunchOptions,
     NetworkSide,
     NodePlan,
+    PlanError,
     ProcessPlan,
     RunPlan,
     backstop_stall_s,
@@ -102,33 +103,33 @@ def community_layout(opts: LaunchOptions) -> str:
 
     Raises
     ------
-    ValueError
+    PlanError
         For layout ``role``.
     """
     layout = opts.layout or "house"
     if layout not in COMMUNITY_LAYOUTS:
-        raise ValueError(f"a community runs in layout {' or '.join(COMMUNITY_LAYOUTS)}, not '{layout}'")
+        raise PlanError(f"a community runs in layout {' or '.join(COMMUNITY_LAYOUTS)}, not '{layout}'")
     return layout
 
 
 def check_community_options(opts: LaunchOptions) -> None:
-    """What a community run cannot take (ValueError naming the option)."""
+    """What a community run cannot take (PlanError naming the option)."""
     from comems4build_ros.mqtt.clock import parse_clock
 
     if opts.plant != "sim":
-        raise ValueError("a community runs plant_sim for every house (plant 'sim')")
+        raise PlanError("a community runs plant_sim for every house (plant 'sim')")
     if opts.houses != 1:
-        raise ValueError("a community's houses are those of its file (no --houses)")
+        raise PlanError("a community's houses are those of its file (no --houses)")
     if opts.building != "rc":
-        raise ValueError("a community runs every house on the 4R3C (no --building)")
+        raise PlanError("a community runs every house on the 4R3C (no --building)")
     if opts.inputs != "scenario":
-        raise ValueError("a community runs on the scenario's inputs (no --inputs live)")
+        raise PlanError("a community runs on the scenario's inputs (no --inputs live)")
     if opts.broker_url or opts.topic_map:
-        raise ValueError("a community has no house behind MQTT (no broker, no topic map)")
+        raise PlanError("a community has no house behind MQTT (no broker, no topic map)")
     if opts.network == "netns" and opts.containers is not None:
-        raise ValueError("on the netns network every house has a host of its own (no --containers)")
+        raise PlanError("on the netns network every house has a host of its own (no --containers)")
     if opts.netem and opts.network != "netns":
-        raise ValueError("netem applies to the 'netns' network only")
+        raise PlanError("netem applies to the 'netns' network only")
     parse_clock(opts.clock)
     community_layout(opts)
 
@@ -142,8 +143,8 @@ def check_over_ros(name: str) -> None:
 
     Raises
     ------
-    ValueError
-        Naming the coordinator and those that run over ROS 2 (also for an unknown name).
+    PlanError, UnknownCoordinatorError
+        Naming the coordinator and those that run over ROS 2; an unknown name.
     """
     from comems4build_ros.core.community.coordinator import coordinator_class, coordinator_names
 
@@ -152,7 +153,7 @@ def check_over_ros(name: str) -> None:
 
     if level(name) != "hub":
         runs = ", ".join(n for n in coordinator_names() if level(n) == "hub")
-        raise ValueError(f"coordinator '{name}' reads every house's MPC-level observation (its states and "
+        raise PlanError(f"coordinator '{name}' reads every house's MPC-level observation (its states and "
                          f"forecasts), which the coordinator node does not receive over ROS 2; over ROS 2 run "
                          f"a coordinator of information level hub ({runs}); compare --community runs every "
                          "coordinator in process")
@@ -163,7 +164,7 @@ def plan_community(opts: LaunchOptions, domain_id: int, params: Any) -> RunPlan:
 
     Raises
     ------
-    ValueError, ConfigError
+    PlanError, ConfigError
         For options a community run cannot take, a bad community file, a house variation the
         plant refuses, or a house named like the coordinator's bag.
     """
@@ -179,9 +180,9 @@ def plan_community(opts: LaunchOptions, domain_id: int, params: Any) -> RunPlan:
     source = Path(opts.community)
     spec = load_community(source)
     if COORDINATOR_BAG in {h.name for h in spec.houses}:
-        raise ValueError(f"{source}: a house may not be called '{COORDINATOR_BAG}' (the coordinator's bag)")
+        raise PlanError(f"{source}: a house may not be called '{COORDINATOR_BAG}' (the coordinator's bag)")
     if opts.network == "netns" and len(spec.houses) > NETNS_MAX_HOUSES:
-        raise ValueError(f"{source}: {len(spec.houses)} houses; the netns network has hosts for "
+        raise PlanError(f"{source}: {len(spec.houses)} houses; the netns network has hosts for "
                          f"{NETNS_MAX_HOUSES} (one /24 link)")
     base_file = str((out / PLANT_PARAMS_FILE).resolve())
     community_file = str((out / COMMUNITY_FILE).resolve())

@@ -17,11 +17,13 @@ subscriptions for 16 houses could not keep up).
 
 from __future__ import annotations
 
+import os
 import sys
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.outputs import open_dir
 from comems4build_ros.run.plan import LaunchOptions
 from comems4build_ros.run.plans import plan_any
 from comems4build_ros.run.progress import ProgressBar
@@ -67,8 +69,9 @@ def launch(opts: LaunchOptions) -> LaunchResult:
         with acquire_domain_id(opts.domain_id) as domain_id:
             plan = plan_any(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
-            if len(plan.houses) > 1 or opts.community is not None:
-                bag.mkdir(parents=True, mode=0o700)  # the bags hold the run tokens (ems/command)
+            if len(plan.houses) > 1 or opts.community is not None:  # the bags hold the run tokens (ems/command):
+                # this user's, no link followed
+                os.close(open_dir(bag, create=True, private=True, what="the folder of the run's bags"))
             try:
                 times = run_plan(plan, opts.on_progress or bar)
             except LaunchError as exc:

@@ -52,6 +52,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.paths import shared_path
 from comems4build_ros.wire.contract import CLOCK_TOPIC
 from comems4build_ros.wire.tokens import new_token
@@ -134,6 +135,10 @@ SECRETS_DIR = ".secrets"
 #: The run's checked plant parameters, one ROS 2 parameter file every node reads
 #: (``config_files``), under the output directory.
 PLANT_PARAMS_FILE = Path("params") / "plant.yaml"
+
+
+class PlanError(InputError):
+    """Launch options that make no run plan (a layout, namespace, plant or clock that do not go together)."""
 
 
 @dataclass
@@ -260,9 +265,9 @@ def effective_layout(opts: LaunchOptions) -> str:
         For an unknown layout, or ``containers`` with a layout other than ``house``.
     """
     if opts.layout is not None and opts.layout not in LAYOUTS:
-        raise ValueError(f"layout '{opts.layout}': one of {', '.join(LAYOUTS)}")
+        raise PlanError(f"layout '{opts.layout}': one of {', '.join(LAYOUTS)}")
     if opts.containers is not None and opts.layout not in (None, "house"):
-        raise ValueError(f"containers need layout 'house', not '{opts.layout}'")
+        raise PlanError(f"containers need layout 'house', not '{opts.layout}'")
     if opts.layout is not None:
         return opts.layout
     if opts.containers is not None:
@@ -617,11 +622,11 @@ def namespaces(houses: int, namespace: str = "/") -> list[str]:
         For fewer than one house or a namespace that is not absolute.
     """
     if houses < 1:
-        raise ValueError(f"--houses must be >= 1, got {houses}")
+        raise PlanError(f"--houses must be >= 1, got {houses}")
     if not namespace.startswith("/") or "//" in namespace or not all(
             part.replace("_", "a").isalnum() and not part[0].isdigit() for part in namespace.strip("/").split("/")
             if namespace.strip("/")):
-        raise ValueError(f"namespace '{namespace}': an absolute ROS namespace such as / or /site_3 is expected")
+        raise PlanError(f"namespace '{namespace}': an absolute ROS namespace such as / or /site_3 is expected")
     root = "/" + namespace.strip("/") if namespace.strip("/") else "/"
     if houses == 1:
         return [root]
@@ -821,16 +826,16 @@ def check_plant_options(opts: LaunchOptions) -> None:
     from comems4build_ros.mqtt.clock import parse_clock
 
     if opts.plant not in ("sim", "mqtt"):
-        raise ValueError(f"plant {opts.plant!r}: expected 'sim' or 'mqtt'")
+        raise PlanError(f"plant {opts.plant!r}: expected 'sim' or 'mqtt'")
     if opts.inputs not in ("scenario", "live"):
-        raise ValueError(f"inputs {opts.inputs!r}: expected 'scenario' or 'live'")
+        raise PlanError(f"inputs {opts.inputs!r}: expected 'scenario' or 'live'")
     clock = parse_clock(opts.clock)
     if opts.plant != "mqtt" and (clock.wall or opts.broker_url or opts.topic_map):
-        raise ValueError("clock 'wall', a broker URL and a topic map need plant 'mqtt' (plant_sim runs lock-step)")
+        raise PlanError("clock 'wall', a broker URL and a topic map need plant 'mqtt' (plant_sim runs lock-step)")
     if opts.plant == "mqtt" and (opts.houses > 1 or effective_layout(opts) != "node"):
-        raise ValueError("plant 'mqtt' runs one house, one process per node")
+        raise PlanError("plant 'mqtt' runs one house, one process per node")
     if opts.plant == "mqtt" and opts.broker_url and opts.network != "local":
-        raise ValueError("a broker URL needs network 'local' (the 'netns' namespaces reach no other host)")
+        raise PlanError("a broker URL needs network 'local' (the 'netns' namespaces reach no other host)")
 
 
 #: Broker users of the run's two MQTT peers on the embedded broker (password: the run's MQTT secret).
@@ -964,15 +969,15 @@ def check_layout(opts: LaunchOptions) -> str:
     check_plant_options(opts)
     layout = effective_layout(opts)
     if opts.network not in NETWORKS:
-        raise ValueError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
+        raise PlanError(f"network '{opts.network}': one of {', '.join(NETWORKS)}")
     if layout == "role" and opts.houses_per_recorder < 1:
-        raise ValueError(f"houses_per_recorder must be >= 1, got {opts.houses_per_recorder}")
+        raise PlanError(f"houses_per_recorder must be >= 1, got {opts.houses_per_recorder}")
     if layout == "house" and opts.containers is not None and opts.containers < 1:
-        raise ValueError(f"containers must be >= 1, got {opts.containers}")
+        raise PlanError(f"containers must be >= 1, got {opts.containers}")
     if layout == "house" and opts.network != "local":
-        raise ValueError("containers run on this host (network 'local'): 'netns' splits plant and EMS between hosts")
+        raise PlanError("containers run on this host (network 'local'): 'netns' splits plant and EMS between hosts")
     if opts.netem and opts.network != "netns":
-        raise ValueError("netem applies to the 'netns' network only")
+        raise PlanError("netem applies to the 'netns' network only")
     return layout
 
 
@@ -984,7 +989,7 @@ def with_discovery_server(opts: LaunchOptions, layout: str, domain_id: int,
     if use_server is None:
         use_server = opts.houses > 1 and layout == "node" and opts.network == "local"
     if use_server and opts.network != "local":
-        raise ValueError("a discovery server is not planned for the 'netns' network (unicast peers are used)")
+        raise PlanError("a discovery server is not planned for the 'netns' network (unicast peers are used)")
     if not use_server:
         return processes, None
     port = DISCOVERY_PORT_BASE + domain_id

@@ -57,6 +57,8 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import IO, Any
 
+from comems4build_ros.files.errors import InputError
+from comems4build_ros.files.outputs import create_file, open_dir, write_new_file
 from comems4build_ros.files.paths import SOURCE_ROOT, installed_from_source
 from comems4build_ros.run.plan import (
     STAGE_NODES,
@@ -126,25 +128,31 @@ def acquire_domain_id(preferred: int | None = None) -> Iterator[int]:
     ids: Sequence[int]
     if preferred is not None:
         if not 0 <= preferred <= 232:
-            raise ValueError(f"ROS domain id {preferred} outside 0..232")
+            raise InputError(f"ROS domain id {preferred} outside 0..232")
         ids = [preferred]
     else:
         n = len(DOMAIN_IDS)
         off = os.getpid() % n
         ids = [DOMAIN_IDS[(off + i) % n] for i in range(n)]
     for did in ids:
-        fh = open(LOCK_DIR / f"comems4build_ros_domain_{did}.lock", "a")  # noqa: SIM115
-        try:
-            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        try:  # shared by every user's launches, read-only: never opened through a link (one is passed over)
+            fd = os.open(LOCK_DIR / f"comems4build_ros_domain_{did}.lock",
+                         os.O_RDONLY | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o644)
         except OSError as exc:
-            fh.close()
+            if exc.errno in (errno.ELOOP, errno.EACCES):
+                continue
+            raise
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except OSError as exc:
+            os.close(fd)
             if exc.errno in (errno.EAGAIN, errno.EACCES):
                 continue
             raise
         try:
             yield did
         finally:
-            fh.close()
+            os.close(fd)
         return
     raise LaunchError(f"no free ROS domain id (tried {ids[0]}..{ids[-1]})")
 
@@ -253,7 +261,8 @@ class ProcessGroup:
         self.env = env
         self.log_dir = log_dir
         self.children: list[Child] = []
-        log_dir.mkdir(parents=True, exist_ok=True)
+        # the launcher reads the logs again (a node's last lines, its decision): this user's alone
+        os.close(open_dir(log_dir, create=True, private=True, what="the folder of the node logs"))
 
     def start(
         self,
@@ -278,7 +287,7 @@ class ProcessGroup:
         ``may_leave``: the run goes on when it leaves (:func:`supervise`).
         """
         log_path = self.log_dir / f"{name.replace('/', '__')}.log"
-        log: IO[bytes] = log_path.open("wb")
+        log: IO[bytes] = os.fdopen(create_file(log_path, private=True, exclusive=False, what="a node's log"), "wb")
         try:
             proc = subprocess.Popen(
                 list(argv),
@@ -711,16 +720,23 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
 
 
 def write_plan_files(plan: RunPlan) -> None:
-    """Write the files the plan's processes read (the plant parameter file, container specs)."""
+    """Write the files the plan's processes read (the plant parameter file, container specs).
+
+    The processes read them after the launcher checked them: each is created new, mode 0600 in
+    folders of mode 0700 whatever the umask, never through a link (refused, named), so another
+    local user can neither read nor replace one before the nodes start.
+    """
+    root = Path(plan.out).resolve()
     for path, text in (*plan.files, *(f for p in plan.processes for f in p.files)):
-        Path(path).parent.mkdir(parents=True, exist_ok=True)
-        Path(path).write_text(text, encoding="utf-8")
+        write_new_file(path, text, root=root, private=True, exclusive=False, what="a file the run's nodes read")
 
 
 def write_secrets(plan: RunPlan) -> None:
     """Write the plan's token files (mode 0600 in a directory of mode 0700,
     :func:`comems4build_ros.wire.tokens.write_token_file`)."""
+    root = Path(plan.out).resolve()
     for d in {Path(path).parent for path, _ in plan.secrets}:
+        os.close(open_dir(d, root=root, create=True, private=True, what="the folder of the run secrets"))
         private_dir(d)
     for path, token in plan.secrets:
         write_token_file(path, token)

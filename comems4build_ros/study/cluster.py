@@ -31,6 +31,8 @@ import time
 from pathlib import Path
 from typing import IO, Any
 
+from comems4build_ros.files.errors import InputError
+
 #: Environment of the scheduler: a worker holds only the runs it executes (no second run
 #: queued behind a long one while another worker is idle).
 SCHEDULER_ENV = {"DASK_DISTRIBUTED__SCHEDULER__WORKER_SATURATION": "1.0"}
@@ -45,6 +47,90 @@ LOOPBACK_HOSTS = ("127.0.0.1", "localhost", "::1")
 
 class ClusterError(RuntimeError):
     """The local cluster did not come up (message names the process and its log)."""
+
+
+class NotASchedulerError(InputError):
+    """The address of ``--scheduler`` answers, but not as a Dask scheduler (or not at all); names it."""
+
+
+#: Wait for the connection and for the scheduler's handshake [s]: a scheduler answers in milliseconds.
+PROBE_TIMEOUT_S = 5.0
+#: Largest first message a scheduler sends (its handshake: a few hundred bytes) [bytes].
+HANDSHAKE_MAX_BYTES = 1 << 20
+
+
+def probe_scheduler(address: str, timeout_s: float = PROBE_TIMEOUT_S) -> None:
+    """Prove that ``address`` (``tcp://HOST:PORT`` or ``tls://HOST:PORT``) is a Dask scheduler, before any work.
+
+    A Dask server sends its handshake as soon as a connection is accepted: an 8-byte
+    little-endian length, then a msgpack message with the keys ``compression``, ``python``
+    and ``pickle-protocol``. The probe reads it with a short timeout from a plain socket
+    (over TLS with the client certificate of the Dask configuration), so a server of
+    another kind (HTTP, SSH, a closed port) is refused at once, naming the address, instead
+    of Dask reading its reply as a frame length of exabytes after 20 s.
+
+    Raises
+    ------
+    NotASchedulerError
+        Naming the address and what it answered.
+    """
+    import ssl
+    import struct
+    from urllib.parse import urlsplit
+
+    url = urlsplit(address)
+    host, port = url.hostname or "", url.port or 0
+    what = f"--scheduler {address}"
+    try:
+        sock = socket.create_connection((host, port), timeout=timeout_s)
+    except TimeoutError:
+        raise NotASchedulerError(f"{what}: no scheduler answered within {timeout_s:g} s") from None
+    except OSError as exc:
+        raise NotASchedulerError(f"{what}: no scheduler answered (cannot connect: {exc.strerror or exc})") from None
+    try:
+        sock.settimeout(timeout_s)
+        if url.scheme == "tls":
+            sock = _tls_client(address).wrap_socket(sock, server_hostname=host)
+        head = _read_exactly(sock, 8)
+        (n,) = struct.unpack("<Q", head)
+        if not 0 < n <= HANDSHAKE_MAX_BYTES:
+            raise NotASchedulerError(f"{what}: answered {head!r}, not a Dask handshake (not a Dask scheduler)")
+        body = _read_exactly(sock, n)
+        if b"pickle-protocol" not in body or b"compression" not in body:
+            raise NotASchedulerError(f"{what}: its first message is not a Dask handshake (not a Dask scheduler)")
+    except TimeoutError:
+        raise NotASchedulerError(f"{what}: sent no Dask handshake within {timeout_s:g} s (not a Dask "
+                                 "scheduler)") from None
+    except ssl.SSLError as exc:
+        raise NotASchedulerError(f"{what}: TLS failed ({exc.reason or exc}): not a Dask scheduler with this "
+                                 "Dask configuration's certificates") from None
+    except (EOFError, OSError) as exc:
+        raise NotASchedulerError(f"{what}: closed the connection before a Dask handshake ({exc}): not a Dask "
+                                 "scheduler") from None
+    finally:
+        sock.close()
+
+
+def _read_exactly(sock: socket.socket, n: int) -> bytes:
+    """``n`` bytes from ``sock`` (EOFError if it closes first)."""
+    out = bytearray()
+    while len(out) < n:
+        chunk = sock.recv(min(n - len(out), 65536))
+        if not chunk:
+            raise EOFError(f"{len(out)} of {n} bytes")
+        out += chunk
+    return bytes(out)
+
+
+def _tls_client(address: str) -> Any:
+    """The client TLS context of the Dask configuration (the certificates a Dask client would present)."""
+    from distributed.security import Security
+
+    ctx = Security().get_connection_args("client").get("ssl_context")
+    if ctx is None:
+        raise NotASchedulerError(f"--scheduler {address}: TLS without a client certificate in the Dask "
+                                 "configuration (distributed.comm.tls.client.cert; docs/cluster.md)")
+    return ctx
 
 
 def dask_command() -> str:
@@ -93,7 +179,7 @@ class LocalDaskCluster:
     def __init__(self, n_workers: int = 2, threads: int = 1, host: str = "127.0.0.1", dashboard: bool = True,
                  nanny: bool = True, log_dir: str | Path | None = None, tls: bool = True) -> None:
         if host not in LOOPBACK_HOSTS:
-            raise ValueError("a local Dask cluster listens on the loopback address only "
+            raise InputError("a local Dask cluster listens on the loopback address only "
                              f"({', '.join(LOOPBACK_HOSTS)}), "
                              f"not {host!r}")
         self.n_workers = n_workers

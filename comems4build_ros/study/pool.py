@@ -45,6 +45,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any, Protocol
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.run.progress import ProgressCallback, RunProgress, echo
 from comems4build_ros.study.spec import differences, environment, spec_hash
 from comems4build_ros.study.store import RunStore, StoredRun, StoreError, materialize, place
@@ -66,7 +67,7 @@ class RunFailedError(RuntimeError):
     """A run ended without its outputs (message names the run directory and the cause)."""
 
 
-class PoolError(ValueError):
+class PoolError(InputError):
     """The study pool cannot be used (no scheduler, no worker, a worker's environment differs); names it."""
 
 
@@ -213,10 +214,15 @@ class Monitor:
         summary = outcome.summary
         record = {"name": s.name, "spec_hash": s.hash, "study": self.study_id, "summary": summary,
                   "attempts": s.attempts, "spec": s.spec}
-        if self.store is not None:
-            materialize(self.store.save(s.name, outcome.files, record), s.job.out_dir)
-        else:
-            place(s.job.out_dir, outcome.files, record)
+        try:
+            if self.store is not None:
+                materialize(self.store.save(s.name, outcome.files, record), s.job.out_dir)
+            else:
+                place(s.job.out_dir, outcome.files, record)
+        except OSError as exc:  # the run store or the output became unwritable (EPERM, ENOSPC, EROFS, ...)
+            where = exc.filename or (self.store.root if self.store is not None else s.job.out_dir)
+            self.failed(i, f"finished, but its files could not be stored: {where}: {exc.strerror or exc}")
+            raise OSError(exc.errno, exc.strerror or str(exc), str(where)) from exc
         s.summary = summary
         s.status = "done"
         wall = attempt.get("wall_s")
@@ -391,22 +397,25 @@ class _LocalPool:
 
     def _handle(self, proc: _Proc, todo: deque) -> None:
         dead = False
-        try:
+        received = []
+        try:  # only the pipe's own failure means a dead worker (not an error of storing its run, below)
             while proc.slot is not None and proc.conn.poll():
                 kind, slot, payload = proc.conn.recv()
-                if kind == "start":
-                    self.monitor.started(slot, payload)
-                elif kind == "done":
+                if kind != "start":
                     proc.slot = proc.job = None
-                    self.monitor.finished(slot, payload)
-                else:
-                    proc.slot = proc.job = None
-                    error, text = payload
-                    self.monitor.failed(slot, _message(error))
-                    if self.failure is None:
-                        self.failure = error
+                received.append((kind, slot, payload))
         except (EOFError, OSError):
             dead = True
+        for kind, slot, payload in received:
+            if kind == "start":
+                self.monitor.started(slot, payload)
+            elif kind == "done":
+                self.monitor.finished(slot, payload)
+            else:
+                error, text = payload
+                self.monitor.failed(slot, _message(error))
+                if self.failure is None:
+                    self.failure = error
         if proc.slot is None and not dead:
             return
         if not dead and proc.proc.is_alive():
@@ -722,7 +731,7 @@ def run_jobs(
     names = [Path(j.out_dir).name for j in jobs]
     dup = sorted({n for n in names if names.count(n) > 1})
     if dup:
-        raise ValueError(f"runs named twice in one study: {', '.join(dup)}")
+        raise PoolError(f"runs named twice in one study: {', '.join(dup)}")
     slots = []
     for job, name in zip(jobs, names):
         spec = job.spec()

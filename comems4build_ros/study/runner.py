@@ -21,6 +21,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import load_json_file
 from comems4build_ros.run.progress import ProgressCallback
 from comems4build_ros.study.pool import RunFailedError
@@ -156,7 +157,7 @@ def run_task(task: RunTask, progress: ProgressCallback | None = None) -> dict[st
     elif task.via == "inprocess":
         summary = _run_inprocess(task, progress)
     else:
-        raise ValueError(f"unknown --via '{task.via}' (inprocess, ros)")
+        raise InputError(f"unknown --via '{task.via}' (inprocess, ros)")
     summary = dict(summary)
     summary["task_wall_s"] = time.perf_counter() - t0
     return summary

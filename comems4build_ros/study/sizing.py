@@ -11,6 +11,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
+
 
 @dataclass(frozen=True)
 class Axis:
@@ -71,11 +73,11 @@ def size_overrides(sizes: Mapping[str, float], plant: Any) -> tuple[dict[str, An
     kwp_per_module = pv.a_module_m2 * pv.eta_stc
     n_pv = round(sizes["pv_kwp"] / kwp_per_module)
     if n_pv < 1:
-        raise ValueError(f"--pv-kwp {sizes['pv_kwp']}: less than half a module of {kwp_per_module:.3f} kWp")
+        raise InputError(f"--pv-kwp {sizes['pv_kwp']}: less than half a module of {kwp_per_module:.3f} kWp")
     ratio_b = sizes["battery_kwh"] / bat.e_max_kwh
     n_cells = round(fc.n_cells * sizes["fc_kw"] * 1000.0 / fc.p_nom_w)
     if n_cells < 1:
-        raise ValueError(f"--fc-kw {sizes['fc_kw']}: less than one cell of the stack "
+        raise InputError(f"--fc-kw {sizes['fc_kw']}: less than one cell of the stack "
                          f"({fc.p_nom_w / fc.n_cells:.0f} W nominal per cell)")
     ratio_fc = n_cells / fc.n_cells
     overrides = {
@@ -113,7 +115,7 @@ def sampled_points(values: Mapping[str, Sequence[float]], n: int, seed: int) -> 
 
     free = [a for a in AXES if min(values[a.key]) != max(values[a.key])]
     if not free:
-        raise ValueError("--sample needs at least one size option with two different values (its range)")
+        raise InputError("--sample needs at least one size option with two different values (its range)")
     unit = qmc.LatinHypercube(d=len(free), seed=seed).random(n)
     points, seen = [], set()
     for row in unit:

@@ -17,6 +17,7 @@ one without ``--resume`` is told what the store holds rather than discarding it.
 from __future__ import annotations
 
 import contextlib
+import errno
 import fcntl
 import json
 import os
@@ -27,6 +28,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import load_json_file
 
 #: Name of the store directory inside a study's output directory.
@@ -36,7 +38,7 @@ RECORD = "run.json"
 _LOCK = ".lock"
 
 
-class StoreError(ValueError):
+class StoreError(InputError):
     """The store cannot be used as asked (locked, another study's runs, not resumed); names the store."""
 
 
@@ -70,8 +72,14 @@ class RunStore:
     @contextlib.contextmanager
     def locked(self) -> Iterator[RunStore]:
         """Hold the store's lock for the block (another command on the same output is refused)."""
-        self.root.mkdir(parents=True, exist_ok=True)
-        fd = os.open(self.root / _LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+        self.make()
+        try:
+            fd = os.open(self.root / _LOCK, os.O_RDWR | os.O_CREAT | os.O_NOFOLLOW | os.O_CLOEXEC, 0o600)
+        except OSError as exc:
+            if exc.errno == errno.ELOOP:
+                raise StoreError(f"{self.root / _LOCK}: a symbolic link where the store's lock should be; "
+                                 "never opened through a link: remove it") from None
+            raise
         try:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError:
@@ -84,6 +92,13 @@ class RunStore:
             self._lock_fd = None
             fcntl.flock(fd, fcntl.LOCK_UN)
             os.close(fd)
+
+    def make(self) -> None:
+        """Create the store's folder (its parents as ``mkdir -p``): mode 0700 whatever the umask (a
+        resumed study reads its runs again), never through a link (refused, named)."""
+        from comems4build_ros.files.outputs import open_dir
+
+        os.close(open_dir(self.root, create=True, private=True, what="the study's run store"))
 
     # ---------------------------------------------------------------- reading
     def finished(self) -> tuple[dict[str, StoredRun], list[str]]:
@@ -108,7 +123,7 @@ class RunStore:
     # ---------------------------------------------------------------- writing
     def save(self, name: str, files: Mapping[str, bytes], record: Mapping[str, Any]) -> StoredRun:
         """Store a finished run whole: its files and ``run.json`` (an older entry of the name is replaced)."""
-        self.root.mkdir(parents=True, exist_ok=True)
+        self.make()
         tmp = Path(tempfile.mkdtemp(prefix=f".tmp.{name}.", dir=self.root))
         try:
             write_run_files(tmp, files, record)

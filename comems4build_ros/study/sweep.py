@@ -10,6 +10,8 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+from comems4build_ros.files.errors import InputError
+
 
 @dataclass
 class SweepCase:
@@ -34,15 +36,15 @@ def parse_param(text: str) -> tuple[str, list[Any]]:
     path, sep, vals = text.partition("=")
     path = path.strip()
     if not sep or "." not in path or not vals.strip():
-        raise ValueError(f"--param '{text}': expected SECTION.KEY=V1,V2,... (e.g. battery.e_max_kwh=5,10)")
+        raise InputError(f"--param '{text}': expected SECTION.KEY=V1,V2,... (e.g. battery.e_max_kwh=5,10)")
     try:
         values = [load_yaml_text(v, f"--param '{text}'") for v in vals.split(",")]
     except InputFileError as exc:
-        raise ValueError(str(exc)) from None
+        raise InputError(str(exc)) from None
     if any(v is None for v in values):
-        raise ValueError(f"--param '{text}': empty value")
+        raise InputError(f"--param '{text}': empty value")
     if len({repr(v) for v in values}) != len(values):
-        raise ValueError(f"--param '{text}': a value is given twice")
+        raise InputError(f"--param '{text}': a value is given twice")
     return path, values
 
 

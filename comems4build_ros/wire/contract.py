@@ -32,6 +32,7 @@ from typing import Any
 import numpy as np
 
 from comems4build_ros.core.config import load_yaml
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.paths import PACKAGE, SOURCE_ROOT, shared_path
 
 #: The lock-step master's event topic: one line ``<step> <kind> <detail>`` per event.
@@ -101,7 +102,7 @@ CLOCK_TOPIC = "/clock"
 COMFORT_AHEAD_STEPS = 6
 
 
-class ContractError(ValueError):
+class ContractError(InputError):
     """The contract file is invalid, or a node breaks it."""
 
 

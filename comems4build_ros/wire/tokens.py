@@ -21,6 +21,8 @@ Two modes:
 
 from __future__ import annotations
 
+import contextlib
+import errno
 import hmac
 import os
 import secrets
@@ -30,7 +32,13 @@ from array import array
 from collections.abc import Sequence
 from pathlib import Path
 
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import parse_integer
+
+
+class TokenFileError(InputError):
+    """A run token file that cannot be trusted or read; names the file."""
+
 
 #: Tokens are integers in 1 .. MAX_TOKEN - 1 (exact in float64).
 MAX_TOKEN = 2**53
@@ -107,6 +115,8 @@ def new_token() -> int:
 def private_dir(path: str | Path) -> Path:
     """Create ``path`` (and parents) if needed and make it accessible to this user only (mode 0700).
 
+    The folder itself is never followed if it is a symbolic link (refused, named).
+
     Parameters
     ----------
     path : str or pathlib.Path
@@ -120,13 +130,13 @@ def private_dir(path: str | Path) -> Path:
     Raises
     ------
     ValueError
-        If it exists and belongs to another user.
+        If it exists and belongs to another user, or is a link
+        (:class:`~comems4build_ros.files.outputs.OutputPathError`).
     """
+    from comems4build_ros.files.outputs import open_dir
+
     p = Path(path)
-    p.mkdir(mode=0o700, parents=True, exist_ok=True)
-    if p.stat().st_uid != os.getuid():
-        raise ValueError(f"{p}: belongs to another user; not a place for a secret")
-    os.chmod(p, 0o700)
+    os.close(open_dir(p, create=True, private=True, what="a folder for run secrets"))
     return p
 
 
@@ -134,7 +144,8 @@ def write_token_file(path: str | Path, token: int) -> Path:
     """Write a token to a file readable by this user only, in a :func:`private_dir`.
 
     The file has mode 0600 from its creation on: never world-readable, not even for a
-    moment.
+    moment. It is created new (``O_EXCL``, never through a link): an earlier file of the
+    name is removed first.
 
     Parameters
     ----------
@@ -148,12 +159,17 @@ def write_token_file(path: str | Path, token: int) -> Path:
     pathlib.Path
         The token file.
     """
+    from comems4build_ros.files.outputs import open_dir, write_new_file
+
     p = Path(path)
     private_dir(p.parent)
-    p.unlink(missing_ok=True)
-    fd = os.open(p, os.O_WRONLY | os.O_CREAT | os.O_EXCL, 0o600)
-    with os.fdopen(fd, "w", encoding="ascii") as fh:
-        fh.write(f"{int(token)}\n")
+    dfd = open_dir(p.parent, private=True, what="a folder for run secrets")
+    try:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(p.name, dir_fd=dfd)  # the name only (a link is removed, not what it names)
+    finally:
+        os.close(dfd)
+    write_new_file(p, f"{int(token)}\n", private=True, what="a run token file")
     return p
 
 
@@ -172,25 +188,35 @@ def read_token_file(path: str | Path) -> int:
 
     Raises
     ------
-    ValueError
-        Naming the file: unreadable, readable or writable by group or others (a secret
+    TokenFileError
+        Naming the file: a link, another user's, unreadable, readable or writable by group or others (a secret
         others can read protects nothing), or not an integer in 1 .. 2^53 - 1.
     """
     p = Path(path)
+    try:  # the file itself, never what a link names (a link could hand over a token others know)
+        fd = os.open(p, os.O_RDONLY | os.O_NOFOLLOW | os.O_CLOEXEC)
+    except OSError as exc:
+        why = "a symbolic link (a token file is never read through a link)" if exc.errno == errno.ELOOP else exc
+        raise TokenFileError(f"token file {p}: {why}") from None
     try:
-        mode = p.stat().st_mode
-        text = p.read_text(encoding="ascii")
+        with os.fdopen(fd, "rb") as fh:
+            st = os.fstat(fh.fileno())
+            mode = st.st_mode
+            text = fh.read(64).decode("ascii")
     except (OSError, UnicodeDecodeError) as exc:
-        raise ValueError(f"token file {p}: {exc}") from None
+        raise TokenFileError(f"token file {p}: {exc}") from None
+    if st.st_uid != os.geteuid():
+        raise TokenFileError(f"token file {p}: belongs to another user (uid {st.st_uid}); a run secret must be this "
+                             "user's")
     if mode & (stat.S_IRWXG | stat.S_IRWXO):
-        raise ValueError(f"token file {p}: mode {stat.filemode(mode)} lets other users read or change it; "
+        raise TokenFileError(f"token file {p}: mode {stat.filemode(mode)} lets other users read or change it; "
                          "give it mode 0600")
     try:
         token = parse_integer(text)
     except ValueError:
-        raise ValueError(f"token file {p}: not an integer") from None
+        raise TokenFileError(f"token file {p}: not an integer") from None
     if not 0 < token < MAX_TOKEN:
-        raise ValueError(f"token file {p}: not in 1 .. 2^53-1")
+        raise TokenFileError(f"token file {p}: not in 1 .. 2^53-1")
     return token
 
 

@@ -31,7 +31,7 @@ TARGET_FMU_OVERHEAD = 3.0
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench cosim``."""
     parser.add_argument("--weeks", metavar="N", type=WEEKS, default=None,
-                        help="run length [weeks], > 0 (default: the scenario's 12)")
+                        help="run length [weeks], one hour .. 30 years (default: the scenario's 12)")
     parser.add_argument("--identified", metavar="FILE.yaml", default=None,
                         help="identified building file of comems4build identify, for the MPC's run")
     parser.add_argument("--no-mpc", action="store_true", help="skip the MPC's run")

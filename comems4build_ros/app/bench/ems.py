@@ -18,7 +18,7 @@ import time
 import warnings
 from typing import Any
 
-from comems4build_ros.app.commands.options import COUNT, integer
+from comems4build_ros.app.commands.options import WHOLE_WEEKS, integer
 
 #: Speed targets of the project (reported, not enforced).
 TARGET_STEP_MS = 0.2
@@ -29,8 +29,8 @@ TARGET_RUN_S = 2.0
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench ems``."""
     parser.add_argument("--ems", choices=("fuzzy", "rbc"), default="fuzzy", help="controller to time (default fuzzy)")
-    parser.add_argument("--weeks", metavar="N", type=COUNT, default=12,
-                        help="run length [weeks], integer >= 1 (default 12)")
+    parser.add_argument("--weeks", metavar="N", type=WHOLE_WEEKS, default=12,
+                        help="run length [weeks], integer, 1 .. 30 years (default 12)")
     parser.add_argument(
         "--skfuzzy-steps", metavar="N", type=integer(0), default=300,
         help="steps replayed with skfuzzy.control for the comparison, integer >= 0 (fuzzy only, default 300)",

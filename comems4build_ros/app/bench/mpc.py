@@ -34,7 +34,7 @@ from collections.abc import Mapping, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from comems4build_ros.app.commands.options import COUNT, SECONDS, WEEKS, real
+from comems4build_ros.app.commands.options import COUNT, SECONDS, WEEKS, WEEKS_OR_OFF
 from comems4build_ros.run.progress import ProgressBar, ProgressCallback
 
 if TYPE_CHECKING:
@@ -91,18 +91,20 @@ KPI_KEYS = (
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``bench mpc``."""
-    parser.add_argument("--loop-weeks", metavar="W", type=real(0), default=1.0,
-                        help="length of the side-by-side closed loops, scenario of that length, >= 0 (0: skip)")
+    parser.add_argument("--loop-weeks", metavar="W", type=WEEKS_OR_OFF, default=1.0,
+                        help="length of the side-by-side closed loops, scenario of that length: 0 (skip) or one "
+                             "hour .. 30 years")
     parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12.0,
-                        help="length of the full run [weeks], > 0")
+                        help="length of the full run [weeks], one hour .. 30 years")
     parser.add_argument("--days-per-kind", metavar="N", type=COUNT, default=1,
                         help="days taken per kind (cold, mild, sunny); 24 problems each (default 1 -> 72)")
     parser.add_argument("--configs", metavar="LIST", default="all",
                         help="problem-set configurations: comma-separated label prefixes, 'all' or 'none'")
     parser.add_argument("--time-limit", metavar="S", type=SECONDS, default=30.0,
-                        help="time limit per benchmark solve [s], > 0")
-    parser.add_argument("--kpi-weeks", metavar="W", type=real(0), default=0.0,
-                        help="also compare KPIs of W weeks at default settings with a gap-0 run, >= 0 (0: skip)")
+                        help="time limit per benchmark solve [s], 0.01 .. a year")
+    parser.add_argument("--kpi-weeks", metavar="W", type=WEEKS_OR_OFF, default=0.0,
+                        help="also compare KPIs of W weeks at default settings with a gap-0 run: 0 (skip) or one "
+                             "hour .. 30 years")
     parser.add_argument("--skip-full-run", action="store_true",
                         help="take the problems from a run of --weeks with the default settings without timing")
     parser.add_argument("--out", metavar="DIR", default=None, help="directory for per-problem results (CSV/JSON)")

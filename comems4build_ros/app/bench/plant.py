@@ -20,7 +20,7 @@ import os
 from typing import Any
 
 from comems4build_ros.app.bench.plant_workload import time_plant, workload
-from comems4build_ros.app.commands.options import COUNT, SEED
+from comems4build_ros.app.commands.options import COUNT, SEED, WHOLE_WEEKS
 
 #: Speed target of the project on a quiet machine [steps/s] (reported, not enforced).
 TARGET_STEPS_PER_S = 200_000.0
@@ -28,8 +28,8 @@ TARGET_STEPS_PER_S = 200_000.0
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench plant``."""
-    parser.add_argument("--weeks", metavar="N", type=COUNT, default=12,
-                        help="run length [weeks], integer >= 1 (default 12)")
+    parser.add_argument("--weeks", metavar="N", type=WHOLE_WEEKS, default=12,
+                        help="run length [weeks], integer, 1 .. 30 years (default 12)")
     parser.add_argument("--repeats", metavar="N", type=COUNT, default=20,
                         help="times the run is stepped through, >= 1 (default 20)")
     parser.add_argument("--seed", metavar="N", type=SEED, default=0,

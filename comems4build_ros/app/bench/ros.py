@@ -48,7 +48,8 @@ TIMING_KEYS = ("wall_s", "ems_s", "bag_duration_s", "lost_messages")  # only in 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``comems4build bench ros``."""
-    parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12, help="run length [weeks], > 0 (default 12)")
+    parser.add_argument("--weeks", metavar="N", type=WEEKS, default=12,
+                        help="run length [weeks], one hour .. 30 years (default 12)")
     parser.add_argument("--houses", metavar="N[,N...]", default="1,4,16",
                         help="house counts of the throughput runs (default 1,4,16)")
     parser.add_argument("--ems", metavar="NAME", default="fuzzy", help="EMS of every run (default fuzzy)")
@@ -60,7 +61,7 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--containers", metavar="N", type=COUNT, default=None,
                         help="container processes of the layout 'house' (default: one per core)")
     parser.add_argument("--timeout", metavar="S", type=SECONDS, default=600.0,
-                        help="give up a throughput run after this [s], > 0")
+                        help="give up a throughput run after this [s], 0.01 .. a year")
 
 
 def plant_stats(bag: Path) -> dict[str, dict[str, float]]:

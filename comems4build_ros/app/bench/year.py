@@ -39,11 +39,11 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--ems", metavar="NAME[,NAME...]", default="rbc,fuzzy,mpc",
                         help="EMS run in-process over the year (default rbc,fuzzy,mpc)")
     parser.add_argument("--weeks", metavar="N", type=WEEKS, default=None,
-                        help="run length [weeks], > 0 (default: the year's 52)")
+                        help="run length [weeks], one hour .. 30 years (default: the year's 52)")
     parser.add_argument("--ros", action="store_true", help="also run the composed ROS year of --ros-ems")
     parser.add_argument("--ros-ems", metavar="NAME", default="fuzzy", help="EMS of the ROS run (default fuzzy)")
     parser.add_argument("--timeout", metavar="S", type=SECONDS, default=900.0,
-                        help="timeout of the ROS run [s], > 0 (default 900)")
+                        help="timeout of the ROS run [s], 0.01 .. a year (default 900)")
     parser.add_argument("--out", metavar="DIR", default=None,
                         help="keep the runs in this directory (default: a temporary one)")
 

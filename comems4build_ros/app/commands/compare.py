@@ -21,6 +21,7 @@ from comems4build_ros.app.commands.options import (
     study_inputs,
     study_pool,
 )
+from comems4build_ros.files.errors import InputError
 
 if TYPE_CHECKING:
     from comems4build_ros.report.build import Report
@@ -69,7 +70,7 @@ def parse_etas(text: str) -> list[float]:
     for part in text.split(","):
         try:
             eta = parse_decimal(part)
-        except ValueError:
+        except InputError:
             raise UsageError(f"--fc-efficiency: '{part}' is not a number") from None
         if not 0.0 < eta <= 1.0:
             raise UsageError(f"--fc-efficiency: {eta} is outside (0, 1]")
@@ -112,7 +113,7 @@ def run(args: argparse.Namespace) -> int:
     """Run the comparison (unless --from-runs) and write the report."""
     from comems4build_ros.app.cli import UsageError
     from comems4build_ros.app.commands.simulate import parse_assignments
-    from comems4build_ros.core.config import load_plant_params
+    from comems4build_ros.core.config import ConfigError, load_plant_params
     from comems4build_ros.core.ems import ems_entry
     from comems4build_ros.report.runs import RunDirError
 
@@ -149,7 +150,12 @@ def run(args: argparse.Namespace) -> int:
     if args.scenario == "year" and args.fc_efficiency is None:
         etas = etas[:1]  # the year's report compares the EMS at the plant's FC efficiency
     for eta in etas:  # check every parameter set before starting any run
-        params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
+        try:
+            params = load_plant_params(args.config, {**overrides, "fuel_cell.eta_sys": eta})
+        except ConfigError as exc:  # an efficiency the plant cannot have (below its electrical one)
+            if args.fc_efficiency is None:
+                raise
+            raise UsageError(f"--fc-efficiency {eta!r}: {exc}") from None
     if args.extend and args.via == "ros":
         raise UsageError("--extend applies to in-process runs; the ROS feed runs the scenario's data only")
     scenario_of(args, params)  # the scenario and the run length, checked once before any run
@@ -221,8 +227,7 @@ def building_task_options(ems: str, args: argparse.Namespace) -> dict[str, Any]:
 def _report_builder(compare_dir: str | Path) -> Any:
     """The report of a comparison: a community's (``report/community.py``) for ``--community``, the
     year-round one (``report/year.py``) for ``--scenario year``, else the paper's (``report/build.py``)."""
-    import json
-
+    from comems4build_ros.files.inputs import InputFileError, load_json_file
     from comems4build_ros.report import community
     from comems4build_ros.report.build import build_report
     from comems4build_ros.report.runs import MANIFEST
@@ -232,9 +237,10 @@ def _report_builder(compare_dir: str | Path) -> Any:
         return community.build_community_report
 
     try:
-        scenario = json.loads((Path(compare_dir) / MANIFEST).read_text(encoding="utf-8")).get("scenario")
-    except (OSError, ValueError):
-        scenario = None  # build_report names the missing or corrupt manifest
+        manifest = load_json_file(Path(compare_dir) / MANIFEST, "a comparison's manifest")
+    except InputFileError:
+        manifest = None  # build_report names the missing or corrupt manifest
+    scenario = manifest.get("scenario") if isinstance(manifest, dict) else None
     return build_year_report if scenario == "year" else build_report
 
 

@@ -17,7 +17,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                              "into DIR/identified.yaml first)")
     add_forecast_option(parser)
     parser.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
-                        help="run length in weeks, > 0 (default: the paper's 12; shorter for a quick try)")
+                        help="run length in weeks, one hour .. 30 years (default: the paper's 12; shorter for a "
+                             "quick try)")
     parser.add_argument("--jobs", type=COUNT, default=None, metavar="N",
                         help="parallel runs in local processes, integer >= 1 (default: CPU count)")
     parser.add_argument("--doc", metavar="FILE.md", default=None,

@@ -119,19 +119,19 @@ def run(args: argparse.Namespace) -> int:
 
 def _tariffs(args: argparse.Namespace) -> int:
     """Print the tariff section (:mod:`comems4build_ros.report.tariffs`); rewrite it in ``--update-doc``."""
-    from comems4build_ros.app.commands.options import UsageError
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.scenario.tariff import load_tariffs
     from comems4build_ros.core.scenario.validation import winter_prices
     from comems4build_ros.report.reproduce_doc import replace_doc_section
     from comems4build_ros.report.tariffs import DOC_BEGIN, DOC_END, tariff_section
 
+    if args.update_doc:  # the document's markers before any work
+        from comems4build_ros.files.inputs import check_markers
+
+        check_markers(args.update_doc, DOC_BEGIN, DOC_END, "--update-doc")
     section = tariff_section(winter_prices(load_plant_params()), load_tariffs())
     print(section)
     if args.update_doc:
-        try:
-            replace_doc_section(args.update_doc, {}, None, (DOC_BEGIN, DOC_END), "", lambda _report, _fig: section)
-        except ValueError as exc:  # the markers are missing
-            raise UsageError(str(exc)) from None
+        replace_doc_section(args.update_doc, {}, None, (DOC_BEGIN, DOC_END), "", lambda _report, _fig: section)
         print(f"updated {args.update_doc}")
     return 0

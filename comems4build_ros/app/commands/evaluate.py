@@ -83,11 +83,10 @@ def run(args: argparse.Namespace) -> int:
     print(f"wrote {len(written)} files: {', '.join(str(p) for p in written)}")
     from comems4build_ros.app.commands.simulate import warn_run
 
-    for s in summaries.values():
-        warn_run(s, "evaluate")
+    code = max([warn_run(s, "evaluate") for s in summaries.values()], default=0)
     if args.strict:
-        return strict_verdict(bag, summaries)
-    return 0
+        return max(code, strict_verdict(bag, summaries))
+    return code
 
 
 def run_community(args: argparse.Namespace, bag: Path) -> int:

@@ -14,7 +14,8 @@ from comems4build_ros.app.commands.options import WEEKS
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``house``."""
     parser.add_argument("--weeks", type=WEEKS, default=12.0, metavar="N",
-                        help="weeks of the thermostat run from 2022-12-01, > 0 (default: the paper's 12)")
+                        help="weeks of the thermostat run from 2022-12-01, one hour .. 30 years (default: the "
+                             "paper's 12)")
     parser.add_argument("--json", metavar="FILE", default=None, help="also write the figures as JSON")
 
 

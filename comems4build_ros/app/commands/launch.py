@@ -21,6 +21,7 @@ from comems4build_ros.app.commands.options import (
     add_scenario_options,
     ems_help,
 )
+from comems4build_ros.files.errors import InputError
 
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
@@ -49,9 +50,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--domain-id", metavar="ID", type=DOMAIN_ID, default=None,
                         help="ROS_DOMAIN_ID of the run, 0 .. 232 (default: a free id, locked for the run)")
     parser.add_argument("--step-timeout", metavar="S", type=SECONDS, default=None,
-                        help="plant_sim's wait for a command before its safe fallback [s], > 0")
+                        help="plant_sim's wait for a command before its safe fallback [s], 0.01 .. a year")
     parser.add_argument("--timeout", metavar="S", type=SECONDS, default=None,
-                        help="give up after this wall time [s], > 0")
+                        help="give up after this wall time [s], 0.01 .. a year")
     parser.add_argument("--plant", choices=("sim", "mqtt"), default="sim",
                         help="sim: plant_sim on ROS; mqtt: the simulated house behind MQTT via mqtt_bridge")
     parser.add_argument("--clock", metavar="sim|wall|wall:F", type=_clock, default="sim",
@@ -110,13 +111,25 @@ def _clock(text: str) -> str:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
+def check_clock(text: str, step_h: float) -> None:
+    """``--clock`` with the run's time step: the wall time of a step in its range
+    (:func:`comems4build_ros.mqtt.clock.check_period`), a usage error naming ``--clock`` otherwise."""
+    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.mqtt.clock import ClockError, parse_clock
+
+    try:
+        parse_clock(text, step_h)
+    except ClockError as exc:
+        raise UsageError(f"--clock: {exc}") from None
+
+
 def _namespace(text: str) -> str:
     """``--namespace`` value: an absolute ROS namespace (:func:`comems4build_ros.run.plan.namespaces`)."""
     from comems4build_ros.run.plan import namespaces
 
     try:
         return namespaces(1, text)[0]
-    except ValueError as exc:
+    except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
@@ -136,7 +149,7 @@ def _broker_url(text: str) -> str:
 
     try:
         return check_broker_url(text)
-    except ValueError as exc:
+    except InputError as exc:
         raise argparse.ArgumentTypeError(str(exc)) from None
 
 
@@ -212,6 +225,7 @@ def launch_options(args: argparse.Namespace) -> Any:
     check_plant_options(args)
     overrides = parse_assignments(args.set, "--set")
     params = load_params(args.config, overrides)
+    check_clock(args.clock, params.simulation.time_step_h)
     ems_controller(args.ems, params, args.ems_option)  # the EMS node's own checks, before any node starts
     check_feed_scenario(args, params)
     check_live_inputs(args, params)
@@ -368,9 +382,7 @@ def run(args: argparse.Namespace) -> int:
               f"{out / 'houses'}/")
     else:
         print(f"wrote {own_bag or out / 'bag'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
-    for s in result.summaries.values():
-        warn_run(s, "launch")
-    return 0
+    return max([warn_run(s, "launch") for s in result.summaries.values()], default=0)
 
 
 def check_bag_dir(args: argparse.Namespace, out: Path) -> Path | None:

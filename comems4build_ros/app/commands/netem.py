@@ -18,6 +18,8 @@ from __future__ import annotations
 import re
 from collections.abc import Callable
 
+from comems4build_ros.files.errors import InputError
+
 #: tc time: a number with an optional unit (no unit: microseconds).
 TIME_RE = re.compile(r"\d+(\.\d+)?(s|sec|secs|ms|msec|msecs|us|usec|usecs|ns|nsec|nsecs)?")
 #: tc percentage: a number in 0..100 with an optional ``%``.
@@ -28,7 +30,7 @@ RATE_RE = re.compile(r"\d+(\.\d+)?([kmgt]i?)?(bit|bps)", re.IGNORECASE)
 DISTRIBUTIONS = ("uniform", "normal", "pareto", "paretonormal")
 
 
-class NetemError(ValueError):
+class NetemError(InputError):
     """A ``--netem`` text that tc-netem(8) would refuse; the message names the parameter."""
 
 

@@ -14,10 +14,12 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 from collections.abc import Callable, Mapping, Sequence
 from typing import Any
 
 from comems4build_ros.app.cli import UsageError
+from comems4build_ros.files.errors import InputError
 
 __all__ = ["UsageError"]  # re-exported for the commands
 
@@ -41,20 +43,23 @@ def range_text(lo: float | None = None, hi: float | None = None, lo_open: bool =
     return "finite"
 
 
-def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool) -> Callable[[str], float]:
+def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_open: bool,
+            zero: bool = False) -> Callable[[str], float]:
     what = "an integer" if kind is int else "a finite number"
-    allowed = range_text(lo, hi, lo_open, hi_open)
+    allowed = ("0 (off) or " if zero else "") + range_text(lo, hi, lo_open, hi_open)
 
     def parse(text: str) -> float:
-        try:
-            value = kind(text)
-        except (TypeError, ValueError):
+        from comems4build_ros.files.inputs import parse_decimal, parse_integer
+
+        try:  # a plain decimal, as every number the project reads (no 1_000, other scripts' digits, nan words)
+            value = parse_integer(text) if kind is int else parse_decimal(text)
+        except InputError:
             raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})") from None
         if kind is float and not math.isfinite(value):
             raise argparse.ArgumentTypeError(f"'{text}' is not {what} (allowed: {allowed})")
         low_bad = lo is not None and (value <= lo if lo_open else value < lo)
         high_bad = hi is not None and (value >= hi if hi_open else value > hi)
-        if low_bad or high_bad:
+        if (low_bad or high_bad) and not (zero and value == 0):
             raise argparse.ArgumentTypeError(f"{text} is outside the allowed range: {what} {allowed}")
         return value
 
@@ -63,9 +68,10 @@ def _number(kind: type, lo: float | None, hi: float | None, lo_open: bool, hi_op
 
 
 def real(lo: float | None = None, hi: float | None = None, lo_open: bool = False,
-         hi_open: bool = False) -> Callable[[str], float]:
-    """argparse type: a finite float within the interval (``lo_open``: ``lo`` itself excluded)."""
-    return _number(float, lo, hi, lo_open, hi_open)
+         hi_open: bool = False, zero: bool = False) -> Callable[[str], float]:
+    """argparse type: a finite float within the interval (``lo_open``: ``lo`` itself excluded; ``zero``: or 0,
+    meaning off, where the smallest real value lies above it)."""
+    return _number(float, lo, hi, lo_open, hi_open, zero)
 
 
 def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int]:
@@ -73,14 +79,28 @@ def integer(lo: int | None = None, hi: int | None = None) -> Callable[[str], int
     return _number(int, lo, hi, False, False)  # type: ignore[return-value]
 
 
-#: Run length in weeks: finite and > 0 (whole hours are checked with the scenario).
-WEEKS = real(0, lo_open=True)
-#: Run length in hours: an integer >= 1.
-HOURS = integer(1)
+#: Longest run [h]: 30 years, the service life of a house's PV, battery and heat pump (20..30 years in
+#: their datasheets' warranties); a longer run stands for no installation, and its end date would soon lie
+#: beyond what a calendar type holds (pandas: 2262).
+MAX_RUN_HOURS = 30 * 8766
+#: Shortest run [h]: one step of the scenario's hourly rows.
+MIN_RUN_HOURS = 1
+#: Run length in weeks: one hour .. 30 years (whole hours are checked with the scenario).
+WEEKS = real(MIN_RUN_HOURS / 168, MAX_RUN_HOURS / 168)
+#: Run length in hours: an integer in 1 .. 30 years.
+HOURS = integer(MIN_RUN_HOURS, MAX_RUN_HOURS)
+#: Run length in whole weeks (the benchmarks' in-process runs): 1 .. 30 years.
+WHOLE_WEEKS = integer(1, MAX_RUN_HOURS // 168)
+#: An optional run length in weeks: 0 (off) or one hour .. 30 years.
+WEEKS_OR_OFF = real(MIN_RUN_HOURS / 168, MAX_RUN_HOURS / 168, zero=True)
 #: A count of runs, houses, steps or repeats: an integer >= 1.
 COUNT = integer(1)
-#: A duration in seconds: finite and > 0.
-SECONDS = real(0, lo_open=True)
+#: Shortest time limit or timeout [s]: 10 ms, below the time any node needs to answer one message.
+MIN_SECONDS = 0.01
+#: Longest time limit or timeout [s]: a year (any run or study of this package ends far sooner).
+MAX_SECONDS = 365 * 24 * 3600.0
+#: A duration in seconds: 10 ms .. a year.
+SECONDS = real(MIN_SECONDS, MAX_SECONDS)
 #: A seed: 0 .. 2**32-1.
 SEED = integer(0, SEED_MAX)
 #: A ROS 2 domain id: 0 .. 232.
@@ -96,12 +116,14 @@ HOUSES = integer(1, MAX_HOUSES)
 
 def parse_values(text: str, option: str, integer: bool) -> list[float]:
     """``"6,9.6,12"`` of a size option -> its values (positive; integers >= 0 for ``integer``), each once."""
+    from comems4build_ros.files.inputs import parse_decimal
+
     values: list[float] = []
     for item in text.split(","):
         item = item.strip()
         try:
-            v = float(item)
-        except ValueError:
+            v = parse_decimal(item)
+        except InputError:
             raise UsageError(f"{option} '{text}': '{item}' is not a number") from None
         if not math.isfinite(v):
             raise UsageError(f"{option} '{text}': '{item}' is not a finite number")
@@ -128,11 +150,12 @@ def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, se
                         help="first step of the window (ISO date/time; naive = site time)")
     group = parser.add_mutually_exclusive_group()
     group.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
-                       help="run length in weeks, > 0 (fractions giving whole hours allowed; default: the "
-                            "scenario's whole weeks)")
+                       help="run length in weeks, one hour .. 30 years (fractions giving whole hours allowed; "
+                            "default: the scenario's whole weeks)")
     if hours:
         group.add_argument("--hours", type=HOURS, default=None, metavar="H",
-                           help="run length in hours, integer >= 1 (short tries; instead of --weeks)")
+                           help=f"run length in hours, integer in 1 .. {MAX_RUN_HOURS} (30 years; short tries; "
+                                "instead of --weeks)")
     if seed:
         parser.add_argument("--seed", metavar="N", type=SEED, default=None,
                             help="seed of the generated scenario data (default scenario, --extend synthetic; "
@@ -250,11 +273,10 @@ def scheduler_address(text: str) -> str:
     from urllib.parse import urlsplit
 
     form = "tcp://HOST:PORT (or tls://HOST:PORT), e.g. tcp://10.0.0.5:8786"
-    try:
-        url = urlsplit(text)
-        port = url.port
-    except ValueError as exc:
-        raise argparse.ArgumentTypeError(f"'{text}' is not {form} ({exc})") from None
+    if re.fullmatch(r"[a-z]+://(\[[0-9A-Fa-f:.]+\]|[^\s/:@\[\]?#]+):[0-9]{1,5}/?", text) is None:
+        raise argparse.ArgumentTypeError(f"'{text}' is not {form}")
+    url = urlsplit(text)
+    port = url.port
     if url.scheme not in SCHEDULER_SCHEMES or not url.hostname or port is None or url.path not in ("", "/") \
             or url.query or url.username or url.password:
         raise argparse.ArgumentTypeError(f"'{text}' is not {form}")
@@ -289,6 +311,10 @@ def study_pool(args: argparse.Namespace, out: str | Any, jobs: int | None = None
     if args.scheduler and args.jobs is not None:
         raise UsageError("--jobs and --scheduler exclude each other (with --scheduler the cluster's workers run "
                          "the runs, as many at once as they have threads)")
+    if args.scheduler:  # a Dask scheduler there, proven by its handshake, before any work
+        from comems4build_ros.study.cluster import probe_scheduler
+
+        probe_scheduler(args.scheduler)
     backend = DaskBackend(args.scheduler) if args.scheduler else LocalBackend(jobs if jobs is not None else args.jobs)
     return StudyPool(backend, RunStore.of(out), resume=args.resume)
 

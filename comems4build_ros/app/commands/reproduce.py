@@ -8,6 +8,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from comems4build_ros.app.commands.options import add_building_options, add_pool_options, real
+from comems4build_ros.files.errors import InputError
 
 if TYPE_CHECKING:
     from comems4build_ros.report.reproduce import ReproduceResult
@@ -24,9 +25,9 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="study only these ambiguities of config/reproduce.yaml")
     add_pool_options(parser)
     add_building_options(parser)
-    parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
-                        help="run length in weeks, in (0, 12] (default 12, the paper's; shorter runs are quick "
-                             "checks that do not compare with the paper's table)")
+    parser.add_argument("--weeks", type=real(1 / 168, 12), default=None, metavar="N",
+                        help="run length in weeks, one hour (1/168) .. 12 (default 12, the paper's; shorter runs "
+                             "are quick checks that do not compare with the paper's table)")
     parser.add_argument("--seeds", default=None, metavar="N[,N...]",
                         help="seeds of the modelled radiation and appliance load, integers in 0..2^32-1 (default: "
                              "the study's, config/reproduce.yaml; the first is the default scenario's)")
@@ -58,9 +59,12 @@ def run(args: argparse.Namespace) -> int:
     if (args.from_json or args.from_runs) and (args.scheduler or args.resume):
         raise UsageError("--scheduler and --resume apply to runs; --from-json and --from-runs make none")
     if args.update_doc:
+        from comems4build_ros.files.inputs import check_markers
         from comems4build_ros.files.outputs import check_out_file, check_out_text
+        from comems4build_ros.report.reproduce_doc import DOC_BEGIN, DOC_END
 
         check_out_file(check_out_text(args.update_doc, "--update-doc"), "--update-doc")
+        check_markers(args.update_doc, DOC_BEGIN, DOC_END, "--update-doc")  # before the first run
     if args.from_json:
         return _from_json(args)
     if args.from_runs:
@@ -74,9 +78,11 @@ def run(args: argparse.Namespace) -> int:
     only = [k for k in args.only.split(",") if k] if args.only else None
     seeds = None
     if args.seeds is not None:
+        from comems4build_ros.files.inputs import parse_integer
+
         try:
-            seeds = [int(x) for x in args.seeds.split(",") if x.strip()]
-        except ValueError:
+            seeds = [parse_integer(x) for x in args.seeds.split(",") if x.strip()]
+        except InputError:
             raise UsageError(f"--seeds {args.seeds}: a comma-separated list of integers") from None
         if not seeds or len(set(seeds)) != len(seeds) or not all(0 <= s < 2**32 for s in seeds):
             raise UsageError(f"--seeds {args.seeds}: distinct integers in 0..2^32-1")

@@ -96,8 +96,7 @@ def run(args: argparse.Namespace) -> int:
         keys = (*keys, "building", "building_heat_balance_max_rel")
     print(json.dumps({k: s[k] for k in keys if k in s}, indent=1))
     print(f"wrote {out / 'timeseries.csv'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
-    warn_run(s, "simulate")
-    return 0
+    return warn_run(s, "simulate")
 
 
 #: Words of the fallback causes of ``summary.json``'s ``fallback_causes`` in the warning.
@@ -108,8 +107,16 @@ FALLBACK_CAUSE_WORDS = {
 }
 
 
-def warn_run(summary: dict, command: str) -> None:
-    """Warnings at the end of a run: fallback steps, unmet hot-water demand, a synthetic extension."""
+def warn_run(summary: dict, command: str) -> int:
+    """Warnings at the end of a run: fallback steps, unmet hot-water demand, a synthetic extension.
+
+    Returns
+    -------
+    int
+        The exit code the run earns: 1 when the EMS decided no step at all (every step ran on
+        the safe fallback action: the results are the fallback's, no EMS's; said as an error),
+        else 0.
+    """
     n, steps = summary.get("fallback_steps") or 0, summary.get("steps") or 0
     unmet = summary.get("dhw_unmet_steps") or 0
     if unmet:
@@ -137,3 +144,9 @@ def warn_run(summary: dict, command: str) -> None:
     if ext:
         print(f"comems4build {command}: note: the scenario was extended with {ext['rows']} generated hours from "
               f"{ext['from']} ({ext['method']}, seed {ext['seed']})", file=sys.stderr)
+    if steps and n >= steps:
+        print(f"comems4build {command}: error: the EMS decided none of the {steps} steps (every one ran on the safe "
+              "fallback action): the results written are the fallback's, not the EMS's; see fallback_causes in "
+              "summary.json (an MPC: its time_limit_s, solver and options)", file=sys.stderr)
+        return 1
+    return 0

@@ -17,6 +17,7 @@ from comems4build_ros.app.commands.options import (
     ems_help,
     parse_values,
 )
+from comems4build_ros.files.errors import InputError
 
 #: What ``size`` writes into its output directory.
 SIZE_FILES = ("runs", "figures", "size.csv", "size.md", "size.json", "report.md", "report.html")
@@ -43,8 +44,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--start", metavar="ISO", default=None,
                         help="first step inside the year (ISO date/time; naive = site time; default 2022-03-01)")
     parser.add_argument("--weeks", type=WEEKS, default=None, metavar="N",
-                        help="run length in weeks, > 0 (default: the year's 52; shorter runs are checks: their "
-                             "annual figures are scaled to 52 weeks)")
+                        help="run length in weeks, one hour .. 30 years (default: the year's 52; shorter runs are "
+                             "checks: their annual figures are scaled to 52 weeks)")
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run (not one of the sized ones)")
     add_study_options(parser, "config/plant.yaml and config/year.yaml")
@@ -85,7 +86,7 @@ def run(args: argparse.Namespace) -> int:
         scenario_of(args, base)  # the window inside the year, checked once before any run
     except UsageError:
         raise
-    except ValueError as exc:
+    except InputError as exc:
         raise UsageError(f"--start/--weeks: {exc}") from None
     output = output_dir(args, "size", writes=SIZE_FILES, replaces=SIZE_FILES)
     output.check()
@@ -130,7 +131,7 @@ def _size_points(args: argparse.Namespace, base: Any, overrides: dict[str, Any],
     if args.sample is not None:
         try:
             points = sampled_points(values, args.sample, args.design_seed)
-        except ValueError as exc:
+        except InputError as exc:
             raise UsageError(str(exc)) from None
         design = f"Latin hypercube, {args.sample} samples, seed {args.design_seed}"
     else:
@@ -141,7 +142,7 @@ def _size_points(args: argparse.Namespace, base: Any, overrides: dict[str, Any],
     for p in points:
         try:
             ov, realised = size_overrides(p, base)
-        except ValueError as exc:
+        except InputError as exc:
             raise UsageError(str(exc)) from None
         clash = sorted(set(ov) & set(overrides))
         if clash:

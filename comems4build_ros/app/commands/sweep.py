@@ -9,6 +9,7 @@ import time
 from pathlib import Path
 
 from comems4build_ros.app.commands import options as opt
+from comems4build_ros.files.errors import InputError
 
 #: What ``sweep`` writes into its output directory.
 SWEEP_FILES = ("runs", "figures", "sweep.csv", "sweep.md", "sweep.json")
@@ -37,7 +38,7 @@ def run(args: argparse.Namespace) -> int:
     for text in args.param:
         try:
             path, values = parse_param(text)
-        except ValueError as exc:
+        except InputError as exc:
             raise UsageError(str(exc)) from None
         if path in params:
             raise UsageError(f"--param {path} given twice")

@@ -94,15 +94,18 @@ def command_table() -> str:
 
 def update_doc(path: str | Path) -> bool:
     """Replace the block between the markers in ``path``; True if the file changed."""
+    from comems4build_ros.files.inputs import InputFileError, between_markers, read_text
+    from comems4build_ros.files.outputs import write_text_atomic
+
     p = Path(path)
-    text = p.read_text(encoding="utf-8")
-    if BEGIN not in text or END not in text:
-        raise SystemExit(f"{p}: markers {BEGIN} / {END} not found")
-    head, rest = text.split(BEGIN, 1)
-    _, tail = rest.split(END, 1)
+    try:
+        text = read_text(p, "a document with the command table")
+        head, tail = between_markers(text, BEGIN, END, str(p))
+    except InputFileError as exc:
+        raise SystemExit(str(exc)) from None
     new = f"{head}{BEGIN}\n{command_table()}\n{END}{tail}"
     if new != text:
-        p.write_text(new, encoding="utf-8")
+        write_text_atomic(p, new)
     return new != text
 
 

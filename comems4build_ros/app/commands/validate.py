@@ -36,8 +36,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
                         help="only these of the paper's EMS: mpc, fuzzy, rbc (default: all three; the checks that "
                              "need a missing EMS are reported as not run)")
     add_pool_options(parser)
-    parser.add_argument("--weeks", type=real(0, 12, lo_open=True), default=None, metavar="N",
-                        help="run length in weeks, in (0, 12] (default 12; shorter runs are quick checks)")
+    parser.add_argument("--weeks", type=real(1 / 168, 12), default=None, metavar="N",
+                        help="run length in weeks, one hour (1/168) .. 12 (default 12; shorter runs are quick checks)")
     add_forecast_option(parser)
     parser.add_argument("--no-figures", action="store_true", help="do not draw the figures")
     parser.add_argument("--no-progress", action="store_true", help="hide the progress bars (one per run)")
@@ -98,9 +98,15 @@ def run(args: argparse.Namespace) -> int:
     if args.from_runs and not (Path(args.from_runs) / "runs").is_dir():
         raise UsageError(f"--from-runs {args.from_runs}: no runs/ directory (the --out of an earlier validate)")
     for doc in args.update_doc or ():
+        from comems4build_ros.files.inputs import check_markers, read_text
         from comems4build_ros.files.outputs import check_out_file, check_out_text
+        from comems4build_ros.report.validation_doc import DOC_BEGIN, DOC_END
 
         check_out_file(check_out_text(doc, "--update-doc"), "--update-doc")
+        if Path(doc).suffix == ".md":  # a Markdown file gets the generated part: its markers before the first run
+            check_markers(doc, DOC_BEGIN, DOC_END, "--update-doc")
+        else:  # any other file only its quoted figures: readable text before the first run
+            read_text(doc, "the document of --update-doc")
     ems = _names(args.ems, "--ems") or list(EMS)
     load = os.getloadavg()[0]
     t0 = time.perf_counter()

@@ -43,6 +43,7 @@ from comems4build_ros.core.config import (
     table_rows,
 )
 from comems4build_ros.core.ems.base import Observation
+from comems4build_ros.files.errors import InputError
 
 #: The coordinator table's file in ``config/``.
 COORDINATOR_TABLE_FILE = "coordinators.yaml"
@@ -246,7 +247,7 @@ class Coordinator(Protocol):
         """Return the hub's dispatch of step ``view.step``."""
 
 
-class UnknownCoordinatorError(ValueError):
+class UnknownCoordinatorError(InputError):
     """The requested coordinator is not in the table (or its class is missing)."""
 
 

@@ -17,6 +17,7 @@ from typing import Any
 from comems4build_ros.core.config import ConfigError, PlantParams, config_dir, load_yaml, table_class, table_rows
 from comems4build_ros.core.ems.base import INFO_LEVELS, Controller
 from comems4build_ros.core.ems.settings import ControllerSettings, load_settings
+from comems4build_ros.files.errors import InputError
 
 #: The EMS table's file in ``config/``.
 EMS_TABLE_FILE = "ems.yaml"
@@ -24,7 +25,7 @@ EMS_TABLE_FILE = "ems.yaml"
 _ROW_KEYS = ("controller", "node", "info_level", "label", "colour", "weight", "summary")
 
 
-class UnknownEMSError(ValueError):
+class UnknownEMSError(InputError):
     """The requested EMS name is not in the table (or its controller class is missing)."""
 
 

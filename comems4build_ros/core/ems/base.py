@@ -35,6 +35,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any, Protocol, runtime_checkable
 
+from comems4build_ros.core.config import ConfigError
 from comems4build_ros.core.types import Action
 
 #: Steps shown in the price window and forecasts (h at 1 h steps), ``eq:EDF_prices``.
@@ -63,7 +64,7 @@ def check_mpc_horizon(horizon_h: float, time_step_h: float) -> None:
         Naming the parameter and the horizon it must be.
     """
     if round(horizon_h / time_step_h) != PRICE_WINDOW:
-        raise ValueError(f"plant parameter simulation.horizon_h = {horizon_h:g}: a run's observation carries "
+        raise ConfigError(f"plant parameter simulation.horizon_h = {horizon_h:g}: a run's observation carries "
                          f"{PRICE_WINDOW} steps of day-ahead prices and forecasts, the MPC's horizon (sec:MPC); it "
                          f"must be {PRICE_WINDOW * time_step_h:g} h")
 

@@ -29,7 +29,7 @@ from __future__ import annotations
 from collections.abc import Mapping
 from typing import Any
 
-from comems4build_ros.core.config import PlantParams
+from comems4build_ros.core.config import ConfigError, PlantParams
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.ems.features import chi_cool, chi_dhw, chi_sh, edf_price, hp_p_el_ref_w
 from comems4build_ros.core.ems.settings import RBCSettings, load_settings
@@ -80,7 +80,7 @@ class RuleBasedController:
         self.params = params
         self.settings = load_settings(RBCSettings, options)
         if params.heat_pump.mod_min > self.settings.hp_mod_on:
-            raise ValueError(f"rbc option hp_mod_on={self.settings.hp_mod_on} is below the HP's minimal modulation")
+            raise ConfigError(f"rbc option hp_mod_on={self.settings.hp_mod_on} is below the HP's minimal modulation")
         self._p_hp_ref_w = hp_p_el_ref_w(params.heat_pump, self.settings.p_el_ref_t_amb_c)
         self._p_fc_w = params.fuel_cell.zeta * params.fuel_cell.p_max_w
         self._cooling = bool(params.cooling.enabled)

@@ -62,6 +62,7 @@ from comems4build_ros.core.models import house_idf as house
 from comems4build_ros.core.models.building import Temperatures
 from comems4build_ros.core.models.epw import Weather, check_epw_covers, standard_offset_h, standard_times, write_epw
 from comems4build_ros.core.types import Exogenous
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import ASCII_SPACE, parse_decimal, parse_integer, text_lines
 
 #: Largest zone time step allowed [min].
@@ -86,7 +87,7 @@ SOLAR_VARIABLE = "Enclosure Windows Total Transmitted Solar Radiation Rate"
 INTERNAL_VARIABLE = "Zone Total Internal Total Heating Rate"
 
 
-class IDFError(ValueError):
+class IDFError(InputError):
     """An IDF that cannot serve the co-simulation; the message names the file and the object or field."""
 
 

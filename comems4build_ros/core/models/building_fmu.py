@@ -33,6 +33,7 @@ from typing import Any
 
 from comems4build_ros.core.models.building import Temperatures
 from comems4build_ros.core.types import Exogenous
+from comems4build_ros.files.errors import InputError
 
 #: Keys of the map: section -> (key -> required).
 MAP_KEYS: dict[str, dict[str, bool]] = {
@@ -44,7 +45,7 @@ MAP_KEYS: dict[str, dict[str, bool]] = {
 CAUSALITY = {"inputs": ("input",), "outputs": ("output",), "start": ("parameter",), "parameters": ("parameter",)}
 
 
-class FMUError(ValueError):
+class FMUError(InputError):
     """An FMU or variable map that cannot serve the run; the message names the file and the variable or field."""
 
 

@@ -23,12 +23,13 @@ from pathlib import Path
 from comems4build_ros.core.config import PlantParams
 from comems4build_ros.core.models.building import BuildingModel, RCBuilding
 from comems4build_ros.core.models.epw import Weather
+from comems4build_ros.files.errors import InputError
 
 #: Kinds of building model.
 KINDS = ("rc", "energyplus", "fmu")
 
 
-class BuildingChoiceError(ValueError):
+class BuildingChoiceError(InputError):
     """A ``--building`` value or one of its files that cannot serve a run."""
 
 

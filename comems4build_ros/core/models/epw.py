@@ -25,6 +25,7 @@ import numpy as np
 import pandas as pd
 
 from comems4build_ros.core.config import SiteParams
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import parse_decimal, parse_integer, text_lines
 
 #: Fields of an EPW data record that the scenario does not give (choices, written in the header).
@@ -213,7 +214,7 @@ def dew_point_c(t_c: float, rh_pct: float) -> float:
     return float(b * g / (a - g))
 
 
-class EPWError(ValueError):
+class EPWError(InputError):
     """An EPW file that cannot serve a run; the message names the file, the line and the field."""
 
 

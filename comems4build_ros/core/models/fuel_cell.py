@@ -27,18 +27,16 @@ import bisect
 
 import numpy as np
 
-from comems4build_ros.core.config import W_PER_KW, FuelCellParams, HydrogenParams
+from comems4build_ros.core.config import (  # the constants re-exported: the model's figures
+    ELECTRONS_PER_H2,
+    FARADAY_C_PER_MOL,
+    LHV_H2_J_PER_MOL,
+    V_LHV_V,
+    W_PER_KW,
+    FuelCellParams,
+    HydrogenParams,
+)
 from comems4build_ros.core.types import CLIP_FC_H2, CLIP_FC_RANGE
-
-#: Faraday constant [C/mol] (CODATA 2018, exact).
-FARADAY_C_PER_MOL = 96485.33212
-#: Lower heating value of hydrogen [J/mol]: the enthalpy of formation of water vapour, 241.8 kJ/mol
-#: (NIST Chemistry WebBook).
-LHV_H2_J_PER_MOL = 241.8e3
-#: Electrons transferred per H2 molecule.
-ELECTRONS_PER_H2 = 2
-#: Thermoneutral-at-LHV cell voltage LHV / (2F) [V] (about 1.253 V): eta_el = V_cell / this.
-V_LHV_V = LHV_H2_J_PER_MOL / (ELECTRONS_PER_H2 * FARADAY_C_PER_MOL)
 
 _NEWTON_MAX_ITER = 60
 _NEWTON_TOL_W = 1e-9
@@ -60,8 +58,7 @@ def cell_voltage_v(i_a, fc: FuelCellParams):
     numpy.ndarray
         V_cell = E_ocv - A ln(1 + i / i_T) - R_ohm i [V].
     """
-    i = np.asarray(i_a, dtype=float)
-    return fc.e_ocv_v - fc.a_tafel_v * np.log1p(i / fc.i_tafel_a) - fc.r_ohm_ohm * i
+    return fc.cell_voltage_v(np.asarray(i_a, dtype=float))
 
 
 def stack_power_w(i_a, fc: FuelCellParams):
@@ -79,18 +76,16 @@ def stack_power_w(i_a, fc: FuelCellParams):
     numpy.ndarray
         P_el,FC [W].
     """
-    i = np.asarray(i_a, dtype=float)
-    return fc.n_cells * cell_voltage_v(i, fc) * i
+    return fc.stack_power_w(np.asarray(i_a, dtype=float))
 
 
 def _dpower_di(i, fc: FuelCellParams):
     """Return dP/di of the stack [W/A]."""
-    dv = -fc.a_tafel_v / (fc.i_tafel_a + i) - fc.r_ohm_ohm
-    return fc.n_cells * (cell_voltage_v(i, fc) + i * dv)
+    return fc.dpower_di(i)
 
 
 def max_power_point(fc: FuelCellParams) -> tuple[float, float]:
-    """Find the maximum of P(i), the end of the monotone branch (bisection on dP/di).
+    """Find the maximum of P(i): :meth:`FuelCellParams.max_power_point` of ``fc``.
 
     Parameters
     ----------
@@ -99,29 +94,10 @@ def max_power_point(fc: FuelCellParams) -> tuple[float, float]:
 
     Returns
     -------
-    i_mpp_a : float
-        Current at the maximum [A].
-    p_mpp_w : float
-        Output at the maximum [W].
-
-    Raises
-    ------
-    ValueError
-        If P(i) has no maximum below 1e7 A.
+    tuple of float
+        Current [A] and output [W] at the maximum (the end of the monotone branch).
     """
-    lo, hi = 0.0, 1.0
-    while _dpower_di(hi, fc) > 0.0:
-        lo, hi = hi, 2.0 * hi
-        if hi > 1e7:
-            raise ValueError("fuel_cell: polarization curve has no maximum power point")
-    for _ in range(200):
-        mid = 0.5 * (lo + hi)
-        if _dpower_di(mid, fc) > 0.0:
-            lo = mid
-        else:
-            hi = mid
-    i_mpp = 0.5 * (lo + hi)
-    return i_mpp, float(stack_power_w(i_mpp, fc))
+    return fc.max_power_point()
 
 
 def current_for_power_a(p_el_w, fc: FuelCellParams):

@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from comems4build_ros.core.scenario.base import CSV_COLUMNS, OPTIONAL_CSV_COLUMNS, Scenario
+from comems4build_ros.files.errors import InputError
 
 #: Longest run of missing values filled by interpolation [h].
 MAX_FILL_H = 3
@@ -71,7 +72,7 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
 }
 
 
-class ScenarioError(ValueError):
+class ScenarioError(InputError):
     """Invalid scenario input; the message names the file, line and column."""
 
 

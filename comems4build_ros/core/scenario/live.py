@@ -28,8 +28,6 @@ from __future__ import annotations
 
 import json
 import math
-import os
-import tempfile
 import time
 import urllib.error
 import urllib.parse
@@ -40,7 +38,7 @@ from typing import Any
 
 import numpy as np
 import pandas as pd
-from pydantic import Field
+from pydantic import Field, field_validator, model_validator
 
 from comems4build_ros.core.config import (
     ConfigError,
@@ -52,6 +50,7 @@ from comems4build_ros.core.scenario import scenario_from_frame
 from comems4build_ros.core.scenario.base import CSV_COLUMNS, Scenario
 from comems4build_ros.core.scenario.csvio import ScenarioError
 from comems4build_ros.core.scenario.loaders import MS_PER_HOUR, parse_awattar
+from comems4build_ros.files.errors import InputError
 from comems4build_ros.files.inputs import InputFileError, load_json_file, load_json_text
 
 SECONDS_PER_DAY = 86400.0
@@ -70,13 +69,53 @@ class _Model(Section):
     """A live-input section: the parameter rule of :class:`~comems4build_ros.core.config.Section`."""
 
 
+#: Most attempts of one fetch: a source that failed ten times in a row is down; more attempts only
+#: delay the step (the feed tries again ``retry_later_s`` later, and stands in meanwhile).
+MAX_RETRIES = 10
+#: Longest time one fetch may take over all its attempts [s]: an hourly step (the feed waits for it).
+MAX_FETCH_S = 3600.0
+
+
+def check_url(url: str) -> str:
+    """``url`` if it is ``http(s)://host[:port]/...`` without credentials or blanks.
+
+    Credentials in the URL (``user:password@``) would stand in the parameter file, the run
+    plan and every node's parameters, which any local user can list; a source that needs a
+    login is not supported.
+
+    Raises
+    ------
+    InputError
+        Saying what is wrong.
+    """
+    parts = urllib.parse.urlsplit(url)
+    if parts.scheme not in ("http", "https") or not parts.hostname or any(c.isspace() for c in url):
+        raise InputError(f"'{url}' is not an http:// or https:// URL with a host")
+    if "@" in parts.netloc:
+        raise InputError(f"'{parts.scheme}://...@{parts.hostname}': no credentials in the URL (they would be "
+                         "readable in the parameter file and by every local user in the nodes' parameters)")
+    try:
+        parts.port  # noqa: B018 (the check: a port that is no number in 0..65535 raises)
+    except ValueError:
+        raise InputError(f"'{url}': the port is not a number in 0..65535") from None
+    return url
+
+
 class _FetchParams(_Model):
     """Fetch settings both live sources share."""
 
-    timeout_s: float = Field(gt=0)  # per attempt [s]
-    retries: int = Field(ge=1)  # attempts per fetch
-    retry_delay_s: float = Field(ge=0)  # wait between attempts [s]
+    timeout_s: float = Field(ge=0.1, le=600)  # per attempt [s]: a network round trip takes at least milliseconds
+    retries: int = Field(ge=1, le=MAX_RETRIES)  # attempts per fetch
+    retry_delay_s: float = Field(ge=0, le=MAX_FETCH_S)  # wait between attempts [s]
     cache_file: str = ""
+
+    @model_validator(mode="after")
+    def _bounded(self) -> _FetchParams:
+        worst = self.retries * self.timeout_s + (self.retries - 1) * self.retry_delay_s
+        if worst > MAX_FETCH_S:
+            raise ValueError(f"retries x timeout_s + (retries - 1) x retry_delay_s = {worst:g} s: one fetch could "
+                             f"block the feed longer than an hourly step ({MAX_FETCH_S:g} s)")
+        return self
 
 
 class LivePriceParams(_FetchParams):
@@ -105,7 +144,12 @@ class LivePriceParams(_FetchParams):
     url: str = Field(pattern=r"^https?://")
     publication_time: str = Field(pattern=r"^([01]\d|2[0-3]):[0-5]\d$")
     days_ahead: int = Field(ge=1, le=7)
-    retry_later_s: float = Field(gt=0)
+    retry_later_s: float = Field(ge=10)  # [s]: sooner than 10 s a source that just failed has not changed
+
+    @field_validator("url")
+    @classmethod
+    def _url(cls, v: str) -> str:
+        return check_url(v)
 
 
 class LiveWeatherParams(_FetchParams):
@@ -131,7 +175,12 @@ class LiveWeatherParams(_FetchParams):
     time_format: str = Field(pattern="^(iso|unix_s|unix_ms)$")
     t_amb_key: str
     ghi_key: str
-    refresh_s: float = Field(gt=0)
+    refresh_s: float = Field(ge=60)  # [s]: forecasts come as hourly values, refreshed hourly at the source
+
+    @field_validator("url")
+    @classmethod
+    def _url(cls, v: str) -> str:
+        return check_url(v) if v else v
 
 
 class LiveInputParams(_Model):
@@ -215,6 +264,9 @@ def http_get(url: str, timeout_s: float, retries: int, retry_delay_s: float,
 def write_json_atomic(path: Path, doc: Any) -> None:
     """Write a document as JSON through a temporary file in the same directory and a rename.
 
+    The file gets mode 0600 (a later run reads the cache again) and is never written through
+    a link (:func:`comems4build_ros.files.outputs.write_text_atomic`).
+
     Parameters
     ----------
     path : pathlib.Path
@@ -222,15 +274,9 @@ def write_json_atomic(path: Path, doc: Any) -> None:
     doc : object
         JSON-serialisable document.
     """
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=path.name + ".", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8") as fh:
-            json.dump(doc, fh)
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
+    from comems4build_ros.files.outputs import write_text_atomic
+
+    write_text_atomic(path, json.dumps(doc), private=True)
 
 
 def _series_to_doc(series: pd.Series) -> dict[str, float]:

@@ -19,6 +19,7 @@ import numpy as np
 
 from comems4build_ros.core.config import SECONDS_PER_HOUR
 from comems4build_ros.core.scenario.base import SERIES, Scenario
+from comems4build_ros.files.errors import InputError
 
 #: Text of the core loader's warning about interpolated missing values.
 GAP_FILL_MARK = "filled by linear interpolation"
@@ -26,7 +27,7 @@ GAP_FILL_MARK = "filled by linear interpolation"
 TIME_STEP_TOL_S = 1e-6
 
 
-class ScenarioInputError(ValueError):
+class ScenarioInputError(InputError):
     """The scenario has a gap, an irregular step or a non-finite value."""
 
 
@@ -127,7 +128,7 @@ def load_scenario(
             notes.append(text)
     if steps is not None:
         if not 0 < steps <= out.n_steps:
-            raise ValueError(f"parameter 'steps': {steps} outside 1..{out.n_steps} of scenario '{out.name}'")
+            raise ScenarioInputError(f"parameter 'steps': {steps} outside 1..{out.n_steps} of scenario '{out.name}'")
         out = dataclasses.replace(out, n_steps=steps)
     return out
 

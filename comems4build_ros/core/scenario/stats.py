@@ -340,17 +340,15 @@ def update_doc(path: str, table: str) -> None:
 
     Raises
     ------
-    ValueError
-        If the markers are not found.
+    InputFileError
+        If the file cannot be read as text or the markers are not found.
     """
-    with open(path, encoding="utf-8") as fh:
-        text = fh.read()
-    head, sep, rest = text.partition(DOC_BEGIN)
-    _, sep2, tail = rest.partition(DOC_END)
-    if not sep or not sep2:
-        raise ValueError(f"{path}: markers {DOC_BEGIN} / {DOC_END} not found")
-    with open(path, "w", encoding="utf-8") as fh:
-        fh.write(f"{head}{DOC_BEGIN}\n{table}\n{DOC_END}{tail}")
+    from comems4build_ros.files.inputs import between_markers, read_text
+    from comems4build_ros.files.outputs import write_text_atomic
+
+    head, tail = between_markers(read_text(path, "a document with the statistics table"), DOC_BEGIN, DOC_END, path)
+
+    write_text_atomic(path, f"{head}{DOC_BEGIN}\n{table}\n{DOC_END}{tail}")
 
 
 def rank_seeds(n: int, params=None) -> list[tuple[int, float]]:
@@ -389,6 +387,10 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--rank-seeds", type=int, default=0, metavar="N", help="rank synthetic seeds 0..N-1 by misfit")
     parser.add_argument("--update-doc", metavar="MD", help="replace the table between the stats markers of MD")
     args = parser.parse_args(argv)
+    if args.update_doc:  # its markers before the work
+        from comems4build_ros.files.inputs import check_markers
+
+        check_markers(args.update_doc, DOC_BEGIN, DOC_END, "--update-doc")
     if args.rank_seeds:
         ranked = rank_seeds(args.rank_seeds)
         for seed, m in ranked[:10]:
