@@ -23,6 +23,7 @@ NODES = {
     "replay": ("comems4build_ros.ros.nodes.replay", "the replay of a recorded bag"),
     "mqtt_bridge": ("comems4build_ros.ros.nodes.mqtt_bridge", "the bridge to a house behind MQTT"),
     "mqtt_plant": ("comems4build_ros.mqtt.plant_sim", "the plant simulator behind MQTT"),
+    "coordinator": ("comems4build_ros.ros.nodes.coordinator", "the coordinator of a community's hydrogen hub"),
 }
 #: The module of every EMS node (its ``main()`` finds the EMS by the executable's name).
 EMS_NODE_MODULE = "comems4build_ros.ros.nodes.ems_node"

@@ -76,3 +76,20 @@ def run_held(out: Path, master: str = "plant_sim") -> Iterator[int]:
     finally:
         with contextlib.suppress(ProcessLookupError):
             os.kill(pid, signal.SIGCONT)
+
+
+def netns_available() -> str | None:
+    """None if network namespaces can be made here, else the reason."""
+    import shutil
+    import subprocess
+
+    if shutil.which("ip") is None:
+        return "no 'ip' command (iproute2)"
+    if os.geteuid() != 0:
+        return "'ip netns' needs root"
+    name = f"c4bprobe{os.getpid() % 10000}"
+    res = subprocess.run(["ip", "netns", "add", name], capture_output=True, text=True)
+    if res.returncode != 0:
+        return f"'ip netns add' failed: {res.stderr.strip()}"
+    subprocess.run(["ip", "netns", "del", name], capture_output=True)
+    return None

@@ -15,7 +15,7 @@ from comems4build_ros.run.supervisor import ProcessGroup, acquire_domain_id, chi
 PACKAGE = "comems4build_ros"
 #: Every executable ``ros2 run comems4build_ros <exe>`` must find (setup.py NODES).
 EXECUTABLES = ("plant_sim", "feed", "fuzzy_ems", "rbc_ems", "mpc_ems", "recorder", "replay", "mqtt_bridge",
-               "mqtt_plant")
+               "mqtt_plant", "coordinator")
 
 
 @pytest.fixture

@@ -221,11 +221,12 @@ def test_the_default_community_has_eight_different_houses_and_a_hub_of_their_own
 
 
 # --------------------------------------------------------------- coordinators
-def test_the_coordinator_table_names_the_rule_based_coordinator() -> None:
-    assert coordinator_names()[0] == "rule"
-    assert coordinator_class("rule").name == "rule"
-    with pytest.raises(UnknownCoordinatorError, match="known: rule"):
-        coordinator_class("central")
+def test_the_coordinator_table_names_the_four_coordinators() -> None:
+    assert coordinator_names() == ("rule", "fuzzy", "central", "distributed")
+    for name in coordinator_names():
+        assert coordinator_class(name).name == name
+    with pytest.raises(UnknownCoordinatorError, match="known: central, distributed, fuzzy, rule"):
+        coordinator_class("auction")
 
 
 @pytest.mark.parametrize("doc, problem", [

@@ -179,6 +179,37 @@ def test_size_random_inputs_never_end_in_an_internal_error(blocked: Path, capsys
                "--out", blocked], capsys)
 
 
+#: The shipped community file, for the community commands' random inputs.
+COMMUNITY_FILE = str(Path(__file__).resolve().parents[1] / "config" / "community" / "default.yaml")
+COORDINATORS = st.sampled_from(["rule", "fuzzy", "central", "distributed", "nosuch"])
+COORDINATOR_OPTIONS = st.sampled_from(["rule.h2_split=need", "rule.need_days=0", "fuzzy.rules=no_such.yaml",
+                                       "central.max_houses=1", "distributed.rho_eur_per_kw2=-1", "rule.x=1",
+                                       "h2_split=need", "nosuch.x=1"])
+
+
+@FEW
+@given(kwh=st.lists(NUMBERS, min_size=1, max_size=2).map(",".join),
+       modules=st.lists(st.integers(-2, 40).map(str) | NUMBERS, min_size=1, max_size=2).map(",".join),
+       weeks=NUMBERS, coordinator=COORDINATORS, option=st.none() | COORDINATOR_OPTIONS)
+def test_size_community_random_inputs_never_end_in_an_internal_error(blocked: Path, capsys: pytest.CaptureFixture[str],
+                                                                     kwh: str, modules: str, weeks: str,
+                                                                     coordinator: str, option: str | None) -> None:
+    _never_70(["size", "--community", COMMUNITY_FILE, "--hub-kwh", kwh, "--hub-modules", modules, "--weeks", weeks,
+               "--coordinator", coordinator, *(["--coordinator-option", option] if option else []), "--no-progress",
+               "--out", blocked], capsys)
+
+
+@FEW
+@given(coordinator=COORDINATORS, option=st.none() | COORDINATOR_OPTIONS, steps=st.integers(-1, 6).map(str) | NUMBERS,
+       ems=EMS)
+def test_launch_community_random_inputs_never_end_in_an_internal_error(blocked: Path,
+                                                                       capsys: pytest.CaptureFixture[str],
+                                                                       coordinator: str, option: str | None,
+                                                                       steps: str, ems: str) -> None:
+    _never_70(["launch", "--community", COMMUNITY_FILE, "--ems", ems, "--coordinator", coordinator,
+               *(["--coordinator-option", option] if option else []), "--steps", steps, "--out", blocked], capsys)
+
+
 @FEW
 @given(weeks=NUMBERS, seeds=st.lists(st.integers(-5, 2**33).map(str) | NUMBERS, min_size=1, max_size=3).map(",".join),
        only=st.none() | st.sampled_from(["rbc", "x,y", ""]))
@@ -248,7 +279,8 @@ def test_export_identify_house_cosim_random_inputs_never_end_in_an_internal_erro
 BENCH_NUMERIC = {"plant": ("--weeks", "--repeats", "--seed"), "ems": ("--weeks", "--skfuzzy-steps"),
                  "mpc": ("--loop-weeks", "--weeks", "--days-per-kind", "--time-limit", "--kpi-weeks"),
                  "ros": ("--weeks", "--containers", "--timeout"), "cut": ("--runs",),
-                 "study": ("--runs", "--seed", "--repeats"), "year": ("--weeks", "--timeout"), "cosim": ("--weeks",)}
+                 "study": ("--runs", "--seed", "--repeats"), "year": ("--weeks", "--timeout"), "cosim": ("--weeks",),
+                 "coordinators": ("--houses", "--hours", "--every", "--central-max")}
 
 
 @FEW

@@ -12,7 +12,7 @@ import warnings
 from pathlib import Path
 
 import pytest
-from launch_probe import pid_of, records_on_disk, run_held
+from launch_probe import netns_available, pid_of, records_on_disk, run_held
 from mcap.reader import make_reader
 from rosbags.highlevel import AnyReader
 from waits import BUDGET_S, wait_until
@@ -253,27 +253,11 @@ def test_a_paused_recorder_cannot_hang_the_launcher(tmp_path: Path, monkeypatch:
     assert left == []
 
 
-def _netns_available() -> str | None:
-    """None if network namespaces can be made here, else the reason."""
-    import shutil
-
-    if shutil.which("ip") is None:
-        return "no 'ip' command (iproute2)"
-    if os.geteuid() != 0:
-        return "'ip netns' needs root"
-    name = f"c4bprobe{os.getpid() % 10000}"
-    res = subprocess.run(["ip", "netns", "add", name], capture_output=True, text=True)
-    if res.returncode != 0:
-        return f"'ip netns add' failed: {res.stderr.strip()}"
-    subprocess.run(["ip", "netns", "del", name], capture_output=True)
-    return None
-
-
 def test_two_network_namespaces_give_the_in_process_kpis(tmp_path: Path, capfd: pytest.CaptureFixture[str]) -> None:
     """Plant + feed and EMS + recorder on two 'hosts' (network namespaces, veth, UDP, unicast
     discovery), netem 5 ms delay and 1 % loss where the kernel has it: the KPIs of the run equal
     the in-process run exactly."""
-    reason = _netns_available()
+    reason = netns_available()
     if reason:
         pytest.skip(f"network namespaces unavailable: {reason}")
     out = tmp_path / "run"

@@ -114,7 +114,7 @@ def test_any_value_of_any_parameter_is_refused_naming_it_or_runs(short_scenario:
 
 # ---------------------------------------------------------------------------- shipped configurations
 def test_every_shipped_configuration_is_admitted() -> None:
-    from comems4build_ros.app.commands.size import parse_values
+    from comems4build_ros.app.commands.options import parse_values
     from comems4build_ros.study.reproduce import prepare
     from comems4build_ros.study.sizing import AXES, grid_points, plant_sizes, size_overrides
 

@@ -67,6 +67,9 @@ def test_feed_publishes_and_recorder_records_what_the_ems_reads(layout: str, tmp
 
     unread = list(load_contract().inputs_not_read("rbc_ems"))
     assert "forecast/p_pv_w" in unread and "feed/solar" in unread
+    # an independent house has no link to a community's coordinator: its recorder leaves those topics out
+    link = [t.name for t in load_contract().in_scope("community_house")]
+    assert "hub/allotment" in link
     for all_inputs in (False, True):
         opts = LaunchOptions(ems="rbc", out=tmp_path / f"run{all_inputs}", steps=6, houses=2, layout=layout,
                              all_inputs=all_inputs)
@@ -76,11 +79,12 @@ def test_feed_publishes_and_recorder_records_what_the_ems_reads(layout: str, tmp
         assert len(feeds) == 2 and len(recorders) == 2
         # one clock per run: only the first house's bag records /clock
         if all_inputs:
-            assert all("for_ems" not in p for p in feeds) and "skip_topics" not in recorders[0]
-            assert recorders[1]["skip_topics"] == ["/clock"]
+            assert all("for_ems" not in p for p in feeds) and recorders[0]["skip_topics"] == link
+            assert recorders[1]["skip_topics"] == [*link, "/clock"]
         else:
             assert all(p["for_ems"] == "rbc_ems" for p in feeds)
-            assert recorders[0]["skip_topics"] == unread and recorders[1]["skip_topics"] == [*unread, "/clock"]
+            assert recorders[0]["skip_topics"] == [*unread, *link]
+            assert recorders[1]["skip_topics"] == [*unread, *link, "/clock"]
 
 
 def test_several_houses_one_process_per_role(tmp_path: Path) -> None:

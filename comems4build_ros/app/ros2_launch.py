@@ -3,7 +3,7 @@
 The launch file takes the arguments of ``comems4build launch`` (:data:`ARGUMENTS`), turns
 them into that command's options with the command's own parser and checks
 (:func:`comems4build_ros.app.commands.launch.launch_options`) and builds the very same
-:class:`~comems4build_ros.run.plan.RunPlan` (:func:`~comems4build_ros.run.plan.plan_run`);
+:class:`~comems4build_ros.run.plan.RunPlan` (:func:`~comems4build_ros.run.plans.plan_any`);
 ``print_plan:=true`` prints it, as ``comems4build launch --print-plan`` does. Each process
 of the plan becomes a launch action: a process running one node of a ``ros2 run``
 executable is a ``launch_ros`` ``Node`` (its namespace, name and parameters as the plan
@@ -54,10 +54,10 @@ from comems4build_ros.run.plan import (
     discovery_hint,
     fastdds_profile,
     node_label,
-    plan_run,
     profile_env,
     ros_node_executables,
 )
+from comems4build_ros.run.plans import plan_any
 from comems4build_ros.run.supervisor import LaunchError, describe_nodes, remove_secrets, write_plan_files, write_secrets
 from comems4build_ros.wire.exits import HangWatch, exit_meaning
 
@@ -618,7 +618,7 @@ def launch_description() -> Any:
             values.update(placed(values, pushed))
             sim, log_level = node_arguments(values)
             opts, domain_id, print_plan = options_of(values)
-            plan = plan_run(opts, domain_id)
+            plan = plan_any(opts, domain_id)
             if plan.setup and not print_plan:
                 raise LaunchArgumentError("network:=netns needs 'comems4build launch --network netns' (root, ip "
                                           "netns); ros2 launch runs network:=local (print_plan:=true shows the plan)")

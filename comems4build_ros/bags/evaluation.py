@@ -33,6 +33,10 @@ FEED_EVENTS_TOPIC = "feed/events"
 #: Steps before the last record of a cut bag that the gap check leaves out (feed
 #: look-ahead + 1) [steps].
 CUT_TAIL_STEPS = 5
+#: The coordinator's messages to a house of a community (docs/community.md "Over ROS"), from which
+#: the house's ``hub_*`` columns come: topic -> (column, label) pairs.
+HUB_TOPICS = {"hub/allotment": (("hub_dloh_per_day", "dloh_per_day"), ("hub_transfer_wh", "transfer_wh")),
+              "hub/settlement": (("hub_credited_wh", "credited_wh"), ("hub_split", "split"))}
 #: File the recorder writes next to the MCAP file with the run's description.
 RUN_INFO_FILE = "run_info.json"
 #: File the launcher writes next to the MCAP file of a run it cut short (why, which node).
@@ -204,6 +208,7 @@ class _Scan:
     #: ns -> steps whose plant/record came more than once -> whether the copies differ
     twice: dict[str, dict[int, bool]] = field(default_factory=dict)
     feed_infos: dict[str, list[dict[str, Any]]] = field(default_factory=dict)  # ns -> distinct feed/info documents
+    hub: dict[str, dict[str, dict[int, Any]]] = field(default_factory=dict)  # ns -> HUB_TOPICS topic -> step -> data
 
 
 def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan:
@@ -231,6 +236,9 @@ def _scan_bag(path: str | Path, info: BagInfo, layout: Any, n_idx: int) -> _Scan
             data = decode(msgtype, raw).data
             if len(data):
                 scan.seen.setdefault(topic, set()).add(int(data[0]))
+                for name in HUB_TOPICS:
+                    if (hub_ns := _split(topic, name)) is not None:
+                        scan.hub.setdefault(hub_ns, {}).setdefault(name, {})[int(data[0])] = data
             ns = _split(topic, TRUTH_TOPIC)
             if ns is not None and ns not in scan.n_steps:
                 scan.n_steps[ns] = int(data[n_idx])
@@ -341,6 +349,7 @@ def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any
     step_infos = scan.infos.get(ns, {})
     if step_infos and all(k in step_infos for k in steps):
         ts = pd.concat([ts, pd.DataFrame([step_infos[k] for k in steps]).add_prefix("ems_")], axis=1)
+    ts = _with_hub_columns(ts, scan.hub.get(ns, {}), contract, steps)
     n_steps = scan.n_steps.get(ns)
     complete = n_steps is not None and len(steps) == n_steps
     fallback = {k for k, r in zip(steps, rows) if r["fallback"]}
@@ -362,6 +371,23 @@ def _run_of(ns: str, scan: _Scan, path: str | Path, timezone: str, contract: Any
         plant_stats=scan.plant_stats.get(ns, {}),
         event_steps={kind: sorted(steps) for kind, steps in scan.step_events.get(ns, {}).items()},
     )
+
+
+def _with_hub_columns(ts: Any, hub: dict[str, dict[int, Any]], contract: Any, steps: list[int]) -> Any:
+    """A community's house: its timeseries with the ``hub_*`` columns of the in-process run (the
+    allotted ``eq:deltaLOH``, the H2 moved into and credited to its account, its production
+    share), from the coordinator's ``hub/allotment`` and ``hub/settlement`` of every step; as it is
+    for a house without them."""
+    import pandas as pd
+
+    if not hub or not all(all(k in hub.get(t, {}) for k in steps) for t in HUB_TOPICS):
+        return ts
+    columns = {}
+    for topic, pairs in HUB_TOPICS.items():
+        index = contract.topic(topic).layout({}).index
+        for column, label in pairs:
+            columns[column] = [float(hub[topic][k][index[label]]) for k in steps]
+    return pd.concat([ts, pd.DataFrame(columns)], axis=1)
 
 
 def read_runs(path: str | Path, timezone: str, info: BagInfo | None = None) -> dict[str, BagRun]:
@@ -484,7 +510,8 @@ def find_gaps(
     for the topics of :func:`withheld_topics` (no state was announced there, by design).
     A topic of ``unread`` (feed inputs the run's EMS does not read,
     :meth:`~comems4build_ros.wire.contract.Contract.inputs_not_read`) without any message was
-    not published in the run (a feed serving that EMS), not lost.
+    not published in the run (a feed serving that EMS), not lost; so is a topic of the link to
+    a community's coordinator (scope ``community_house``) in the bag of an independent house.
     A bag cut short (recorder killed) is checked up to :data:`CUT_TAIL_STEPS` steps before
     its last record (the feed runs ahead and the last messages before the cut need not all
     be in), and each topic with messages only up to its own last recorded step: the
@@ -497,8 +524,8 @@ def find_gaps(
     withheld = withheld or set()
     no_state = withheld_topics(contract) if withheld else set()
     # published only if the run had them at all: ems/info (an EMS without step info), the
-    # inputs the run's EMS does not read
-    unless_absent = (unread or set()) | {INFO_TOPIC}
+    # inputs the run's EMS does not read, the link to a community's coordinator
+    unless_absent = (unread or set()) | {INFO_TOPIC} | {t.name for t in contract.in_scope("community_house")}
     out: dict[str, list[int]] = {}
     for spec in contract.topics.values():
         if spec.name == RECORD_TOPIC:

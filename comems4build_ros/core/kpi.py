@@ -713,6 +713,54 @@ def monthly_table(ts: pd.DataFrame, dt_h: float = 1.0, t_comfort: np.ndarray | N
     return pd.DataFrame(rows)
 
 
+def in_heating_season(times: pd.Series, tz: Any, season_start: str, season_end: str) -> np.ndarray:
+    """Tell whether each time lies in the heating season.
+
+    Parameters
+    ----------
+    times : pandas.Series
+        ISO times (with their offsets).
+    tz : datetime.tzinfo or None
+        The local time zone the ``MM-DD`` bounds are read in; None: UTC.
+    season_start, season_end : str
+        Heating season as local ``MM-DD`` dates, end exclusive (``simulation.heating_season_*``);
+        a start after the end wraps over the new year.
+
+    Returns
+    -------
+    numpy.ndarray
+        True for each time inside the season.
+    """
+    utc = pd.to_datetime(times.astype(str), utc=True)
+    local = utc.dt.tz_convert(tz) if tz is not None else utc
+    mmdd = local.dt.strftime("%m-%d").to_numpy()
+    if season_start < season_end:
+        return (mmdd >= season_start) & (mmdd < season_end)
+    return (mmdd >= season_start) | (mmdd < season_end)
+
+
+def loh_heating_season_start(ts: pd.DataFrame, season_start: str, season_end: str) -> float | None:
+    """Return the LOH when the run's first heating season starts.
+
+    Parameters
+    ----------
+    ts : pandas.DataFrame
+        The run's timeseries (``time``, ``loh``).
+    season_start, season_end : str
+        Heating season as local ``MM-DD`` dates, end exclusive (``simulation.heating_season_*``).
+
+    Returns
+    -------
+    float or None
+        The end state of the step before the season's first step [-]; None when the run
+        starts inside the season or never reaches it.
+    """
+    tz = pd.Timestamp(str(ts["time"].iloc[0])).tzinfo
+    in_season = in_heating_season(ts["time"], tz, season_start, season_end)
+    first = np.flatnonzero(in_season & ~np.concatenate(([True], in_season[:-1])))
+    return float(ts["loh"].iloc[first[0] - 1]) if len(first) and first[0] > 0 else None
+
+
 def year_kpis(
     ts: pd.DataFrame, weekly: pd.DataFrame, dt_h: float, season_start: str, season_end: str,
     t_comfort: np.ndarray | None = None,
@@ -755,18 +803,9 @@ def year_kpis(
     consumption = _sum_kwh(ts, "p_load_w", dt_h) + _sum_kwh(ts, "p_hp_el_w", dt_h) + el_in
     bought = _sum_kwh(ts, "p_buy_w", dt_h)
     t = ts["t_air_c"].to_numpy(dtype=float) if t_comfort is None else np.asarray(t_comfort, dtype=float)
-    times = pd.to_datetime(ts["time"].astype(str), utc=True)
     tz = pd.Timestamp(str(ts["time"].iloc[0])).tzinfo
-    local = times.dt.tz_convert(tz) if tz is not None else times
-    mmdd = local.dt.strftime("%m-%d").to_numpy()
-    in_season = (mmdd >= season_start) & (mmdd < season_end) if season_start < season_end else \
-        (mmdd >= season_start) | (mmdd < season_end)
-    first = np.flatnonzero(in_season & ~np.concatenate(([True], in_season[:-1])))
-    loh_start = float(ts["loh"].iloc[first[0] - 1]) if len(first) and first[0] > 0 else None
-    wk_start = pd.to_datetime(weekly["start"].astype(str), utc=True).dt.tz_convert(tz).dt.strftime("%m-%d")
-    wk_mmdd = wk_start.to_numpy()
-    wk_season = (wk_mmdd >= season_start) & (wk_mmdd < season_end) if season_start < season_end else \
-        (wk_mmdd >= season_start) | (wk_mmdd < season_end)
+    loh_start = loh_heating_season_start(ts, season_start, season_end)
+    wk_season = in_heating_season(weekly["start"], tz, season_start, season_end)
     full = weekly["full_week"].astype(bool).to_numpy() if "full_week" in weekly else np.ones(len(weekly), bool)
     wk_season &= full
     mode = ts["hp_mode"].to_numpy(dtype=float)

@@ -76,6 +76,7 @@ KPI_TABLE = (
     ("h2_balance_max_rel", "H2 balance residual / throughput", "-", None),
     ("electricity_balance_max_w", "electricity balance residual", "W", None),
     ("coordinator_messages_per_step", "coordinator messages per step", "-", 1),
+    ("coordinator_iterations_mean", "coordinator iterations per step, mean", "-", 1),
     ("coordinator_s_per_decision_mean", "coordinator time per decision, mean", "s", None),
     ("coordinator_s_per_decision_max", "coordinator time per decision, max", "s", None),
     ("wall_s", "wall time of the run", "s", 1),

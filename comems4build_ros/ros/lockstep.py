@@ -37,7 +37,6 @@ caught up (``on_progress``) and what it waits for (``waiting_for``).
 from __future__ import annotations
 
 import time
-from array import array
 from collections.abc import Callable
 from typing import Any
 
@@ -52,7 +51,7 @@ from comems4build_ros.ros.process import report_cause
 from comems4build_ros.wire.cdr import clock_cdr, uint32_cdr
 from comems4build_ros.wire.contract import CLOCK_TOPIC
 from comems4build_ros.wire.exits import EXIT_STALLED
-from comems4build_ros.wire.tokens import command_mac, read_token_file, secret_key
+from comems4build_ros.wire.tokens import authentic, read_token_file, secret_key
 
 #: Default wait for the command of a step once the EMS has answered at least once [s].
 STEP_TIMEOUT_S = 5.0
@@ -269,7 +268,7 @@ class LockStep:
         ``foreign_commands``, logged on plant/events and ignored."""
         token = data[-1]
         if self._key is not None:
-            if token != command_mac(self._key, array("d", data[:-1]).tobytes()):
+            if not authentic(self._key, data):
                 self.foreign_commands += 1
                 self.event("foreign", f"topic 'ems/command': command for step {step} with token {int(token)} "
                                       "ignored (not authenticated by the run's secret)")

@@ -31,7 +31,7 @@ from comems4build_ros.core.config import PlantParams
 from comems4build_ros.ros.interfaces import message_class, qos_profile
 from comems4build_ros.ros.package_node import steady_timer
 from comems4build_ros.wire.cdr import cdr_prefix
-from comems4build_ros.wire.contract import Contract, ContractError, Layout, load_contract, relative, sizes
+from comems4build_ros.wire.contract import Contract, ContractError, Layout, load_contract, relative, resolve, sizes
 
 #: Topics rclpy itself creates for every node (parameter events, logging); not in the contract.
 INFRASTRUCTURE_TOPICS = frozenset({"/parameter_events", "/rosout"})
@@ -140,15 +140,27 @@ class ContractEndpoints:
         return self.node.create_subscription(msg_type, topic, callback, qos_profile, **kwargs)
 
     # -- contract-typed helpers --------------------------------------------------
-    def publisher(self, topic: str) -> Any:
-        """Publisher of the contract topic ``topic`` with its type and QoS."""
+    def publisher(self, topic: str, namespace: str | None = None) -> Any:
+        """Publisher of the contract topic ``topic`` with its type and QoS; in ``namespace`` (a house's,
+        for a community's coordinator) instead of the node's own when given."""
         spec = self.contract.topic(topic)
-        return self.create_publisher(message_class(spec), topic, qos_profile(spec))
+        if namespace is None:
+            return self.create_publisher(message_class(spec), topic, qos_profile(spec))
+        self._check("publish", topic, message_class(spec), qos_profile(spec))
+        return self.node.create_publisher(message_class(spec), resolve(namespace, topic), qos_profile(spec),
+                                          event_callbacks=no_default_event_callbacks("publisher"))
 
-    def subscription(self, topic: str, callback: Callable[[Any], None], raw: bool = False) -> Any:
-        """Subscription to the contract topic ``topic`` with its type and QoS."""
+    def subscription(self, topic: str, callback: Callable[[Any], None], raw: bool = False,
+                     namespace: str | None = None) -> Any:
+        """Subscription to the contract topic ``topic`` with its type and QoS; in ``namespace`` instead of
+        the node's own when given."""
         spec = self.contract.topic(topic)
-        return self.create_subscription(message_class(spec), topic, callback, qos_profile(spec), raw=raw)
+        if namespace is None:
+            return self.create_subscription(message_class(spec), topic, callback, qos_profile(spec), raw=raw)
+        self._check("subscribe", topic, message_class(spec), qos_profile(spec))
+        return self.node.create_subscription(message_class(spec), resolve(namespace, topic), callback,
+                                             qos_profile(spec), raw=raw,
+                                             event_callbacks=no_default_event_callbacks("subscription"))
 
     def declared_topics(self) -> tuple[set[str], set[str]]:
         """Contract names of the node's actual publishers and subscriptions (infrastructure excluded)."""
@@ -305,15 +317,17 @@ class ArrayPublisher:
     endpoints : the publishing node's contract endpoints
     topic : contract topic name
     layout_sizes : values of the layout size symbols (:func:`contract.sizes`)
+    namespace : publish in this namespace instead of the node's (:meth:`ContractEndpoints.publisher`)
     """
 
-    def __init__(self, endpoints: ContractEndpoints, topic: str, layout_sizes: dict[str, int]) -> None:
+    def __init__(self, endpoints: ContractEndpoints, topic: str, layout_sizes: dict[str, int],
+                 namespace: str | None = None) -> None:
         from std_msgs.msg import Float64MultiArray, MultiArrayDimension
 
         spec = endpoints.contract.topic(topic)
         self.topic = topic
         self.layout: Layout = spec.layout(layout_sizes)
-        self.publisher = endpoints.publisher(topic)
+        self.publisher = endpoints.publisher(topic, namespace)
         self._msg = Float64MultiArray()
         n = self.layout.length
         self._msg.layout.dim = [MultiArrayDimension(label=self.layout.dim_label, size=n, stride=n)]

@@ -185,6 +185,8 @@ class NodeParameters:
             if spec is not None:
                 given[name] = coerce(spec, value, self._where(name))
         given.update(parse_assignments(items, f"{self._where('overrides')}:"))
+        #: what the plant parameters were loaded from: the files and the dotted overrides
+        self.plant_sources: tuple[list[str], dict[str, Any]] = (files, given)
         params = load_plant_params(files, given)
         for name, value in flat_plant_params(params).items():
             spec = plant_param_spec(name)

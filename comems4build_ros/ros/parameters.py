@@ -80,6 +80,7 @@ _PLAN = "set by the run plan of comems4build launch (docs/ros_tools.md)"
 _TOKENS = "docs/ros_nodes.md 'Run tokens and security'"
 _MQTT = "docs/real_building.md"
 _SCENARIO = "sec:parameters (12 winter weeks from 2022-12-01, Karlsruhe)"
+_COMMUNITY = "docs/community.md 'Over ROS'"
 
 #: Every parameter a node of the package declares itself: name -> meaning (one meaning per name).
 PARAMETERS: dict[str, ParamSpec] = {
@@ -125,6 +126,28 @@ PARAMETERS: dict[str, ParamSpec] = {
                                 "fmu:PATH (not 'building': that is the section of the 4R3C's parameters)",
                                 allowed="rc, energyplus, energyplus:FILE.idf or fmu:FILE.fmu",
                                 source="docs/cosimulation.md"),
+    # plant_sim of a community's house
+    "hub": ParamSpec("bool", "the house's H2 store is its account at a community's hub: the plant steps in lock-step "
+                     "with the coordinator (hub/allotment, hub/report, hub/settlement)", allowed="true or false",
+                     source=_COMMUNITY),
+    "hub_token_file": ParamSpec("str", "file holding the house's hub secret (readable by this user only): every "
+                                "hub/* message carries its authentication code (empty = none checked)",
+                                allowed="a file path or empty", source=_TOKENS),
+    # feed of a community's house, coordinator
+    "community_file": ParamSpec("str", "community file: the feed builds its house's scenario from it, the "
+                                "coordinator the community (empty = no community)",
+                                allowed="a community file (config/community/*.yaml) or empty", source=_COMMUNITY),
+    "community_house": ParamSpec("str", "the house of community_file the feed serves: its load, hot-water draws and "
+                                 "parameters; feed/h2_allowance is the coordinator's (empty = no community)",
+                                 allowed="a house name of the community file or empty", source=_COMMUNITY),
+    # coordinator
+    "coordinator": ParamSpec("str", "the coordinator the node runs", allowed="a coordinator of "
+                             "config/coordinators.yaml", source="config/coordinators.yaml"),
+    "coordinator_options": ParamSpec("str[]", "options of the coordinator 'key=value', over its row's",
+                                     allowed="items 'key=value'", source="config/coordinators.yaml"),
+    "hub_token_files": ParamSpec("str[]", "the houses' hub secret files, in the community file's order (empty = "
+                                 "none checked)", allowed="file paths, a comma-separated list or a string array",
+                                 split=",", source=_TOKENS),
     # feed
     "scenario": ParamSpec("str", "scenario of the run", allowed="'default', 'year', 'synthetic' or a scenario "
                           "CSV path", source=_SCENARIO),
@@ -144,8 +167,9 @@ PARAMETERS: dict[str, ParamSpec] = {
     "publish_measured": ParamSpec("bool", "publish feed/measured (false when mqtt_bridge publishes the house's "
                                   "meters)", allowed="true or false", source=_MQTT),
     "inputs": ParamSpec("str", "inputs of the feed", allowed="scenario or live", source=_MQTT),
-    "for_ems": ParamSpec("str", "EMS node the feed serves: only the topics it reads are published (empty = every "
-                         "EMS topic)", allowed="an EMS node of the contract (fuzzy_ems, ...) or empty",
+    "for_ems": ParamSpec("str", "EMS node the feed (a community's coordinator: the houses' EMS) serves: only the "
+                         "topics it reads are published (empty = every EMS topic)",
+                         allowed="an EMS node of the contract (fuzzy_ems, ...) or empty",
                          source="tab:level_of_information"),
     "live_config": ParamSpec("str", "live-input settings file (empty = config/live_inputs.yaml)",
                              allowed="a file path or empty", source=_MQTT),
@@ -187,6 +211,9 @@ PARAMETERS: dict[str, ParamSpec] = {
     "run_info": ParamSpec("str", "JSON description of the run stored in the bag (run_info.json)",
                           allowed="a JSON object or empty", source=_PLAN),
     "tick_s": ParamSpec("float", "period of the recorder's housekeeping timer", "s", *_POS, source=_RECORDER),
+    "follows": ParamSpec("str", "what the recorder follows: the houses of its namespaces (plant) or a community's "
+                         "coordinator in its namespace (coordinator)", allowed="plant or coordinator",
+                         source=_RECORDER),
     "chunk_period_s": ParamSpec("float", "close the pending MCAP chunk once it is this old", "s", *_POS,
                                 source=_RECORDER),
     "chunk_max_bytes": ParamSpec("int", "close the pending MCAP chunk once it holds this many bytes", "byte",
@@ -206,7 +233,8 @@ PARAMETERS: dict[str, ParamSpec] = {
                            source=_MQTT),
     "broker_url": ParamSpec("str", "MQTT broker replacing the topic map's (empty = the map's)",
                             allowed="mqtt://host:port, mqtts://host:port or empty", source=_MQTT),
-    "clock": ParamSpec("str", "clock of the run", allowed="sim, wall or wall:<factor>", source=_MQTT),
+    "clock": ParamSpec("str", "clock of the run (mqtt_bridge; a community's coordinator and its houses' plant_sim)",
+                       allowed="sim, wall or wall:<factor>", source=_MQTT),
     "measure_delay_s": ParamSpec("float", "wall clocks: announce a step this long after it starts "
                                  "(-1 = 0.2 of the period, at most 5 s)", "s", -1.0, None, source=_MQTT),
     "client_id": ParamSpec("str", "MQTT client id", allowed="a string", source=_MQTT),

@@ -1,7 +1,7 @@
 """Python launcher of the node set: separate OS processes on an isolated ROS 2 domain.
 
 :func:`launch` locks a free ROS domain id, builds the plan of the run
-(:func:`comems4build_ros.run.plan.plan_run`: per house ``plant_sim``, ``feed`` and
+(:func:`comems4build_ros.run.plans.plan_any`: per house ``plant_sim``, ``feed`` and
 the EMS node, plus the recorders, each as its own OS process or, for several houses,
 one process per role), has the supervisor start and watch it
 (:func:`comems4build_ros.run.supervisor.run_plan`), then evaluates the bag with the
@@ -24,7 +24,8 @@ from pathlib import Path
 from typing import Any
 
 from comems4build_ros.files.outputs import open_dir
-from comems4build_ros.run.plan import LaunchOptions, plan_run
+from comems4build_ros.run.plan import LaunchOptions
+from comems4build_ros.run.plans import plan_any
 from comems4build_ros.run.progress import ProgressBar
 from comems4build_ros.run.supervisor import LaunchError, acquire_domain_id, run_plan
 
@@ -39,6 +40,7 @@ class LaunchResult:
     wall_s: float  # from the first process start to the end of the run [s]
     run_s: float  # from the recorder's first record to the end of the run [s]
     summaries: dict[str, dict[str, Any]]  # namespace -> summary
+    community: dict[str, Any] | None = None  # a community's summary (community.json), None for independent houses
 
 
 def launch(opts: LaunchOptions) -> LaunchResult:
@@ -65,27 +67,43 @@ def launch(opts: LaunchOptions) -> LaunchResult:
                       enable=bool(opts.progress) and opts.on_progress is None)
     try:
         with acquire_domain_id(opts.domain_id) as domain_id:
-            plan = plan_run(opts, domain_id, params)
+            plan = plan_any(opts, domain_id, params)
             out.mkdir(parents=True, exist_ok=True)
-            if len(plan.houses) > 1:  # the bags hold the run tokens (ems/command): this user's, no link followed
+            if len(plan.houses) > 1 or opts.community is not None:  # the bags hold the run tokens (ems/command):
+                # this user's, no link followed
                 os.close(open_dir(bag, create=True, private=True, what="the folder of the run's bags"))
             try:
                 times = run_plan(plan, opts.on_progress or bar)
             except LaunchError as exc:
                 bar.close()
-                cut_short(exc, bag, out, params)
+                cut_short(exc, bag, out, params, opts.community is not None)
                 raise
     finally:
         bar.close()
     wall = times.t_end - times.t0
     run_s = times.t_end - (times.t_first_record or times.t0)
+    if opts.community is not None:  # every house's bag and the coordinator's, composed
+        from comems4build_ros.bags.community import evaluate_community_bags
+
+        try:
+            result = evaluate_community_bags(bag, out, wall_s=wall)
+        except (ValueError, OSError) as exc:  # the run's bags and logs are kept for a look
+            raise LaunchError(f"the community's bags could not be evaluated: {exc}") from None
+        summaries = {f"{opts.namespace.rstrip('/')}/{name}": r.summary for name, r in result.houses.items()}
+        warn_lost(summaries)
+        return LaunchResult(out, bag, domain_id, wall, run_s, summaries, result.summary)
     summaries = evaluate_bag(bag, out, params=params, wall_s=wall, accept_gaps=True)
+    warn_lost(summaries)
+    warn_stand_in(summaries)
+    return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
+
+
+def warn_lost(summaries: dict[str, dict[str, Any]]) -> None:
+    """Say on the console which topics the recording misses messages of (``lost_messages`` of the summaries)."""
     lost = {t: n for s in summaries.values() for t, n in s.get("lost_messages", {}).items()}
     if lost:
         print(f"launcher: warning: the recording misses messages on {len(lost)} topic(s): {lost} "
               "(summary.json 'lost_messages')", file=sys.stderr)
-    warn_stand_in(summaries)
-    return LaunchResult(out, bag, domain_id, wall, run_s, summaries)
 
 
 def warn_stand_in(summaries: dict[str, dict[str, Any]]) -> None:
@@ -103,7 +121,7 @@ def warn_stand_in(summaries: dict[str, dict[str, Any]]) -> None:
                   "feed/events 'stand_in' lines in the bag", file=sys.stderr)
 
 
-def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
+def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any, community: bool = False) -> None:
     """A run the launcher cut short: mark every bag (:data:`~comems4build_ros.bags.evaluation.RUN_CUT_FILE`:
     cause, process, exit code, log, the ROS nodes of that process) and evaluate what was
     recorded into ``out`` (summaries with ``run_cut`` and ``bag_incomplete``, put on
@@ -120,6 +138,12 @@ def cut_short(exc: LaunchError, bag: Path, out: Path, params: Any) -> None:
     if not marked:
         return
     try:
+        if community:  # what the bags hold of every house and of the coordinator
+            from comems4build_ros.bags.community import evaluate_community_bags
+
+            result = evaluate_community_bags(bag, out)
+            exc.summaries = {name: r.summary for name, r in result.houses.items()}
+            return
         exc.summaries = evaluate_bag(bag, out, params=params, accept_gaps=True)
     except (ValueError, OSError) as err:
         print(f"launcher: the cut run's bag {bag} (marked in {RUN_CUT_FILE}) could not be evaluated: {err}",

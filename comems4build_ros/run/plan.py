@@ -27,6 +27,9 @@ Every way to run is an option of the plan, never a branch through the supervisor
 * ``clock``: ``sim``, ``wall`` or ``wall:<factor>`` for the bridge and the house
   (wall modes with ``plant="mqtt"`` only);
 * ``inputs``: ``scenario`` or ``live`` (the feed's live prices and weather);
+* ``community``: a community of houses sharing one H2 hub (:mod:`comems4build_ros.run.community`):
+  every house of the community file with its node set in its namespace, plus the coordinator
+  node of ``coordinator`` and its recorder;
 * ``network``: ``local`` (every process on this machine as it is) or ``netns`` (separate
   network sides: plant and feed in one Linux network namespace, EMS and recorder in another,
   joined by a veth pair; UDP only, unicast discovery through ``ROS_STATIC_PEERS``;
@@ -62,6 +65,7 @@ NODE_MODULES: dict[str, str] = {
     "replay": "comems4build_ros.ros.nodes.replay",
     "mqtt_bridge": "comems4build_ros.ros.nodes.mqtt_bridge",
     "mqtt_plant": "comems4build_ros.mqtt.plant_sim",
+    "coordinator": "comems4build_ros.ros.nodes.coordinator",
 }
 #: Executables of :data:`NODE_MODULES` that are no ROS node.
 NOT_ROS_NODES = frozenset({"mqtt_plant"})
@@ -199,6 +203,10 @@ class LaunchOptions:
         lacks netem)
     building : the building model of ``plant_sim`` (``rc``, ``energyplus[:IDF]``, ``fmu:PATH``);
         a detailed model runs inside ``plant_sim``, which then loads the feed's scenario
+    community : a community file (None = independent houses): its houses and a coordinator
+        (:mod:`comems4build_ros.run.community`)
+    coordinator : the community's coordinator (``config/coordinators.yaml``)
+    coordinator_options : options of the coordinator (``key=value`` strings)
     """
 
     ems: str
@@ -235,6 +243,9 @@ class LaunchOptions:
     all_inputs: bool = False
     building: str = "rc"
     params: Any = None
+    community: str | None = None
+    coordinator: str = "rule"
+    coordinator_options: list[str] = field(default_factory=list)
 
     def __post_init__(self) -> None:
         """An embedded scenario's plant file (``--scenario year``: ``config/year.yaml``) goes first."""
@@ -325,6 +336,8 @@ class ProcessPlan:
     progress : the process prints ``progress <recorded> <total>`` lines on stdout
     stop_stage : order of stopping (:data:`STAGE_NODES`, :data:`STAGE_RECORDERS`,
         :data:`STAGE_SERVICES`)
+    may_leave : the run goes on when the process leaves (the houses of a community on a wall
+        clock: the community goes on without them, docs/community.md "Over ROS")
     """
 
     name: str
@@ -337,6 +350,7 @@ class ProcessPlan:
     finishes: bool = False
     progress: bool = False
     stop_stage: int = STAGE_NODES
+    may_leave: bool = False
 
 
 @dataclass(frozen=True)
@@ -490,7 +504,8 @@ class RunPlan:
             "processes": [
                 {"name": p.name, "role": p.role, "side": p.side, "argv": list(p.argv),
                  "nodes": [node(n) for n in p.nodes], "files": [f for f, _ in p.files], "env": p.env,
-                 "finishes": p.finishes, "progress": p.progress, "stop_stage": p.stop_stage}
+                 "finishes": p.finishes, "progress": p.progress, "stop_stage": p.stop_stage,
+                 "may_leave": p.may_leave}
                 for p in self.processes
             ],
         }
@@ -762,6 +777,14 @@ def unread_inputs(opts: LaunchOptions) -> list[str]:
     return [] if opts.all_inputs else list(load_contract().inputs_not_read(ems_node_name(opts.ems)))
 
 
+def not_recorded(opts: LaunchOptions) -> list[str]:
+    """Topics the recorder of an independent house leaves out: the inputs its EMS does not read
+    (:func:`unread_inputs`) and the link to a community's coordinator, which it has not."""
+    from comems4build_ros.wire.contract import load_contract
+
+    return [*unread_inputs(opts), *(t.name for t in load_contract().in_scope("community_house"))]
+
+
 def recorder_params(ns: str, bag: Path, info: dict[str, Any], progress_period_s: float,
                     skip_topics: Sequence[str] = (), clock: bool = True) -> dict[str, Any]:
     """Parameters of the recorder of namespace ``ns`` writing the bag directory ``bag``
@@ -869,6 +892,9 @@ def mqtt_plant_processes(opts: LaunchOptions, params: dict[str, dict[str, Any]],
 def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan:
     """The plan of ``opts`` on ``domain_id``; starts nothing (see the module docstring).
 
+    A run of independent houses; a community's plan is
+    :func:`comems4build_ros.run.plans.plan_any`'s (:mod:`comems4build_ros.run.community`).
+
     Parameters
     ----------
     opts : launch options
@@ -880,7 +906,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     Raises
     ------
     ValueError
-        For an invalid house count, layout or ``houses_per_recorder``.
+        For an invalid house count, layout or ``houses_per_recorder``, or a community.
     """
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.ros.parameters import plant_params_file_text
@@ -888,6 +914,8 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
     out = Path(opts.out)
     bag = Path(opts.bag) if opts.bag is not None else out / "bag"
     params = params or opts.params or load_plant_params(opts.config_files, opts.overrides)
+    if opts.community is not None:  # planned by run.community (which builds on this module)
+        raise ValueError("a community run is planned by comems4build_ros.run.plans.plan_any")
     layout = check_layout(opts)
     seeds = house_seeds(opts)
     from comems4build_ros.mqtt.peer import new_run_id
@@ -998,7 +1026,7 @@ def _node_processes(
     out: list[ProcessPlan] = []
     for b in houses:
         prefix = "" if b.namespace == "/" else b.namespace.strip("/") + "/"
-        params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S, unread_inputs(opts), b is houses[0])
+        params = recorder_params(b.namespace, b.bag, info, PROGRESS_PERIOD_S, not_recorded(opts), b is houses[0])
         out.append(ProcessPlan(
             f"{prefix}recorder", "recorder", (*node_command("recorder"), *ros_args(b.namespace, params)),
             nodes=(NodePlan("recorder", "recorder", b.namespace, params),), finishes=True, progress=True,
@@ -1033,7 +1061,7 @@ def _contained_nodes(
     process: the recorder's and the plant's timers slower, the plant's step timeout longer)."""
     names = {"ems": ems_node_name(opts.ems), "feed": "feed", "plant": "plant_sim"}
     nodes = [NodePlan("recorder", "recorder", b.namespace,
-                      dict(recorder_params(b.namespace, b.bag, info, 0.0, unread_inputs(opts), clock),
+                      dict(recorder_params(b.namespace, b.bag, info, 0.0, not_recorded(opts), clock),
                            tick_s=CONTAINER_RECORDER_TICK_S))]
     for role, params in house_params(opts, b.seed, common, b.token_file, clock, info["run_id"]).items():
         if role == "plant":
@@ -1043,7 +1071,7 @@ def _contained_nodes(
     return nodes
 
 
-def _container_process(name: str, role: str, nodes: Sequence[NodePlan], spec_dir: Path, ems: str,
+def container_process(name: str, role: str, nodes: Sequence[NodePlan], spec_dir: Path, ems: str,
                   progress: bool) -> ProcessPlan:
     """A process of :mod:`comems4build_ros.ros.container` running ``nodes`` (its spec file written first)."""
     path = spec_dir / f"{name}.json"
@@ -1074,7 +1102,7 @@ def _container_processes(
     """
     if effective_layout(opts) == "house":
         n = container_count(opts)
-        return [_container_process(f"container_{j}", "container",
+        return [container_process(f"container_{j}", "container",
                               [node for b in houses[j::n]
                                for node in _contained_nodes(opts, b, common, bag, info, b is houses[0])],
                               spec_dir, opts.ems, True)
@@ -1085,9 +1113,9 @@ def _container_processes(
             by_role[node.role].append(node)
     per = opts.houses_per_recorder
     recorders = by_role["recorder"]
-    out = [_container_process(f"role_recorder_{j // per}", "recorder", recorders[j:j + per], spec_dir, opts.ems, True)
+    out = [container_process(f"role_recorder_{j // per}", "recorder", recorders[j:j + per], spec_dir, opts.ems, True)
            for j in range(0, len(recorders), per)]
-    out += [_container_process(f"role_{role}", role, by_role[role], spec_dir, opts.ems, False)
+    out += [container_process(f"role_{role}", role, by_role[role], spec_dir, opts.ems, False)
             for role in ("ems", "feed", "plant")]
     return out
 

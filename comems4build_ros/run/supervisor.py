@@ -207,6 +207,13 @@ class Child:
     nodes: tuple[str, ...] = ()  # full names of the ROS nodes the process runs ("/house_0/plant_sim")
     hang_reported: bool = False  # exit_code() has warned of a clean-up hang after a complete run
     paused_reported: bool = False  # the supervisor has said that the process is paused (SIGSTOP)
+    may_leave: bool = False  # the run goes on when it leaves (a house of a community on a wall clock)
+    left: bool = False  # it left the run, and the run went on without its houses
+
+    @property
+    def houses(self) -> frozenset[str]:
+        """The namespaces of the ROS nodes the process runs (its houses)."""
+        return frozenset(n.rpartition("/")[0] or "/" for n in self.nodes)
 
     def log_text(self) -> str:
         """The node's log so far ("" if it cannot be read)."""
@@ -268,6 +275,7 @@ class ProcessGroup:
         stage: int | None = None,
         finishes: bool | None = None,
         nodes: Sequence[str] = (),
+        may_leave: bool = False,
     ) -> Child:
         """Start ``argv``; with ``on_stdout_line`` its stdout is read line by line in a thread.
 
@@ -275,7 +283,8 @@ class ProcessGroup:
         ``env`` is added to the group's environment. ``stage`` (stop order) and
         ``finishes`` (exit 0 at the end of the run is normal) default by ``role``:
         recorders stop after the nodes, a discovery server last; plants and recorders finish.
-        ``nodes``: full names of the ROS nodes the process runs (named when it leaves the run).
+        ``nodes``: full names of the ROS nodes the process runs (named when it leaves the run);
+        ``may_leave``: the run goes on when it leaves (:func:`supervise`).
         """
         log_path = self.log_dir / f"{name.replace('/', '__')}.log"
         log: IO[bytes] = os.fdopen(create_file(log_path, private=True, exclusive=False, what="a node's log"), "wb")
@@ -295,7 +304,8 @@ class ProcessGroup:
             stage = {"recorder": STAGE_RECORDERS, "discovery": STAGE_SERVICES}.get(role, STAGE_NODES)
         if finishes is None:
             finishes = role in ("plant", "recorder")
-        child = Child(name, role, proc, log_path, stage=stage, finishes=finishes, nodes=tuple(nodes))
+        child = Child(name, role, proc, log_path, stage=stage, finishes=finishes, nodes=tuple(nodes),
+                      may_leave=may_leave)
         if on_stdout_line is not None:
             assert proc.stdout is not None
             stream = proc.stdout
@@ -496,6 +506,11 @@ def supervise(
     ``stall_s`` (None = never): no new record for this long after the first one, while
     some plant still runs, ends the run (the backstop for a paused or hung master).
 
+    A process marked ``may_leave`` (a house of a community on a wall clock, whose coordinator
+    goes on without it) that exits otherwise does not end the run: the supervisor says so on
+    stderr, and the recorders and plants of the houses it ran (its namespaces) are no longer
+    waited for; what is left of them is stopped with the rest after the run.
+
     Raises
     ------
     LaunchError
@@ -522,13 +537,17 @@ def supervise(
         for c in group.children:
             code = exit_code(c)
             # exit 0 of a node: its part of the run is complete (exits.py); anything else cuts the run
-            if code is None or (c.finishes and code == 0):
+            if code is None or (c.finishes and code == 0) or c.left:
+                continue
+            if c.may_leave:
+                house_left(group, c, code)
                 continue
             raise left_error(c, code, paused=[p.name for p in group.children
                                               if p is not c and p.proc.poll() is None and p.paused()])
-        if recorders and all(exit_code(c) == 0 for c in recorders):
+        staying = [c for c in recorders if not c.left]
+        if staying and all(exit_code(c) == 0 for c in staying):
             return t_first_record
-        plants_done = all(exit_code(p) == 0 for p in plants)
+        plants_done = all(exit_code(p) == 0 for p in plants if not p.left)
         if plants_done and not recorders:
             return t_first_record
         if plants_done:
@@ -555,6 +574,20 @@ def supervise(
                 f"run not finished within the time limit of {timeout_s:g} s (recorded {r} of {n or '?'} steps; "
                 f"{_paused(group)}; --timeout sets the limit)"
             )
+
+
+def house_left(group: ProcessGroup, c: Child, code: int) -> None:
+    """Process ``c`` (``may_leave``) left with exit code ``code``: say so, and mark it and every other
+    process of only its houses as left (the run no longer waits for them)."""
+    houses = c.houses
+    c.left = True
+    for other in group.children:
+        if other.may_leave and other.houses and other.houses <= houses:
+            other.left = True
+    cause = c.cause()
+    print(f"launcher: warning: node '{c.name}' exited with code {code} ({exit_meaning(code)}) and its house(s) "
+          f"{', '.join(sorted(houses))} left the run{': ' + cause if cause else ''}; the community goes on without "
+          f"them (log: {c.log_path})", file=sys.stderr, flush=True)
 
 
 def exit_code(c: Child) -> int | None:
@@ -642,7 +675,7 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
 
     Parameters
     ----------
-    plan : what to run (:func:`comems4build_ros.run.plan.plan_run`)
+    plan : what to run (:func:`comems4build_ros.run.plans.plan_any`)
     report : called as ``report(recorded steps, total steps)`` while the run goes (a progress
         bar of :mod:`comems4build_ros.run.progress`; None = silent)
 
@@ -661,14 +694,17 @@ def run_plan(plan: RunPlan, report: Callable[[int, int], None] | None = None) ->
         with ProcessGroup(env, plan.out / "log") as group:
             recorders: list[Child] = []
             plants: list[Child] = []
+            reporting = 0  # processes that print progress lines so far
             write_plan_files(plan)
             if plan.discovery_server:
                 print(f"launcher: {discovery_hint(plan.discovery_server)}", file=sys.stderr, flush=True)
             for p in plan.processes:
                 extra = {**plan.sides[p.side].env, **p.env}
-                listener = progress.listener(len(recorders)) if p.progress else None
+                listener = progress.listener(reporting) if p.progress else None
+                reporting += p.progress
                 child = group.start(p.name, p.role, p.argv, listener, env=extra, stage=p.stop_stage,
-                                    finishes=p.finishes, nodes=[node_label(n) for n in p.nodes])
+                                    finishes=p.finishes, nodes=[node_label(n) for n in p.nodes],
+                                    may_leave=p.may_leave)
                 if p.role in ("recorder", "container"):  # a container's recorders end with it
                     recorders.append(child)
                 if p.role in ("plant", "container"):  # ... and so do its plants

@@ -41,6 +41,8 @@ class CommunityTask:
     coordinator_options, ems_options : options of the coordinator and of every house's EMS
     forecast : the MPC's forecasts (None = ``config/forecast.yaml``)
     timeseries : write the houses' and the hub's timeseries
+    hub : hub fields of the community file replaced (``store_kwh``, ``electrolyser_modules``; a sizing study)
+    house : run only this house of the file (with ``hub`` its own H2 system: an isolated house)
     inputs : contents of the community file, ``config`` files and a scenario CSV (:meth:`portable`)
     """
 
@@ -59,6 +61,8 @@ class CommunityTask:
     ems_options: dict[str, Any] = field(default_factory=dict)
     forecast: str | None = None
     timeseries: bool = True
+    hub: dict[str, Any] = field(default_factory=dict)
+    house: str | None = None
     inputs: dict[str, bytes] = field(default_factory=dict, repr=False)
 
     @property
@@ -116,10 +120,12 @@ class CommunityTask:
 def run_community_task(task: CommunityTask, progress: ProgressCallback | None = None) -> dict[str, Any]:
     """Build the community of ``task`` and run it into ``task.out_dir``; the summary."""
     from comems4build_ros.core.community.loop import simulate_community, write_community
-    from comems4build_ros.core.community.spec import build_community, load_community
+    from comems4build_ros.core.community.spec import build_community, load_community, resized
     from comems4build_ros.core.loop import load_forecast_settings
 
     spec = load_community(task.community)
+    if task.hub or task.house is not None:
+        spec = resized(spec, task.hub, task.house, source=Path(task.community).name)
     community = build_community(spec, task.scenario, task.config, task.overrides, source=Path(task.community).name,
                                 start=task.start, weeks=task.weeks, seed=task.seed)
     forecast = load_forecast_settings(mode=task.forecast) if task.forecast else None

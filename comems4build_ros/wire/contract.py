@@ -83,9 +83,13 @@ ALLOWED_TYPES = frozenset(
     }
 )
 ARRAY_TYPE = "std_msgs/msg/Float64MultiArray"
-NODE_ROLES = frozenset({"plant", "feed", "ems", "recorder", "replay", "bridge"})
+NODE_ROLES = frozenset({"plant", "feed", "ems", "recorder", "replay", "bridge", "coordinator"})
 QOS_KEYS = frozenset({"reliability", "history", "depth", "durability"})
-TOPIC_KEYS = frozenset({"type", "unit", "publishers", "subscribers", "qos", "layout", "description"})
+TOPIC_KEYS = frozenset({"type", "unit", "publishers", "subscribers", "qos", "layout", "description", "scope"})
+#: Where a topic lives (key ``scope``): ``house`` (a house's namespace, every run; the
+#: default), ``community_house`` (a house's namespace in a community run only: the link
+#: between the house and the coordinator) and ``coordinator`` (the coordinator's namespace).
+SCOPES = ("house", "community_house", "coordinator")
 _LABEL_RE = re.compile(
     r"^(?P<name>[A-Za-z_][A-Za-z0-9_]*(?:\.[A-Za-z_][A-Za-z0-9_]*)?)"  # name or head.key
     r"(?:\[(?P<size>[A-Za-z0-9_]+)\])?$"  # optional [size]
@@ -324,6 +328,7 @@ class TopicSpec:
     qos: QoSSpec
     layout_labels: tuple[str, ...] = ()
     description: str = ""
+    scope: str = "house"
     contract: Contract | None = field(default=None, repr=False, compare=False)
 
     @property
@@ -551,6 +556,10 @@ class Contract:
             The topics whose ``subscribers`` name it, in contract order.
         """
         return tuple(t for t in self.topics.values() if node in t.subscribers)
+
+    def in_scope(self, *scopes: str) -> tuple[TopicSpec, ...]:
+        """Return the topics of the given scopes (:data:`SCOPES`)."""
+        return tuple(t for t in self.topics.values() if t.scope in scopes)
 
     def ems_node_name(self, ems: str) -> str:
         """Return the node name of an EMS (e.g. ``fuzzy`` -> ``fuzzy_ems``).
@@ -787,9 +796,12 @@ def _parse_topic(name: Any, raw: Any, contract: Contract, groups: Mapping[str, t
             raise _err(path, where, f"node '{n}' is not declared under 'nodes' (nor an EMS node of config/ems.yaml)")
     layout = raw.get("layout")
     _check_layout(layout, type_name, path, where)
+    scope = raw.get("scope", "house")
+    if scope not in SCOPES:
+        raise _err(path, f"{where}.scope", f"one of {', '.join(SCOPES)}, got {scope!r}")
     return TopicSpec(name=name, type=type_name, unit=str(raw["unit"]), publishers=pubs, subscribers=subs,
                      qos=_parse_qos(raw, default_qos, path, where), layout_labels=tuple(str(x) for x in (layout or ())),
-                     description=str(raw.get("description", "")), contract=contract)
+                     description=str(raw.get("description", "")), scope=scope, contract=contract)
 
 
 def parse_contract(doc: Any, path: Path, ems_nodes: Mapping[str, tuple[str, str]] | None = None) -> Contract:

@@ -28,6 +28,8 @@ import os
 import secrets
 import stat
 import zlib
+from array import array
+from collections.abc import Sequence
 from pathlib import Path
 
 from comems4build_ros.files.errors import InputError
@@ -216,3 +218,25 @@ def read_token_file(path: str | Path) -> int:
     if not 0 < token < MAX_TOKEN:
         raise TokenFileError(f"token file {p}: not in 1 .. 2^53-1")
     return token
+
+
+def sign(key: bytes | None, values: array) -> array:
+    """Append the token to ``values`` (float64, every element but the token).
+
+    The token is the authentication code under ``key`` (:func:`command_mac`), or 0 without a
+    key (nodes started by hand without a secret). The messages between a community's
+    coordinator and its houses (``hub/*``) are signed so, each under its house's hub secret.
+    """
+    out = array("d", values)
+    out.append(command_mac(key, values.tobytes()) if key is not None else 0.0)
+    return out
+
+
+def authentic(key: bytes | None, data: Sequence[float]) -> bool:
+    """Tell whether the message ``data`` (its token last) carries the authentication code of the rest.
+
+    The code is taken under ``key``; without a key every message is authentic.
+    """
+    if key is None:
+        return True
+    return data[-1] == command_mac(key, array("d", data[:-1]).tobytes())

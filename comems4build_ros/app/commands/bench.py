@@ -15,6 +15,7 @@ TARGETS = {
     "study": "study",
     "year": "year",
     "cosim": "cosim",
+    "coordinators": "coordinators",
 }
 
 

@@ -81,8 +81,8 @@ def run_community(args: argparse.Namespace) -> int:
     from comems4build_ros.app.commands.options import add_scenario_config, check_config_files, ems_names
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.community.coordinator import make_coordinator
-    from comems4build_ros.core.community.loop import community_info
-    from comems4build_ros.core.community.plant import CommunityPlant
+    from comems4build_ros.core.community.hub import community_hub
+    from comems4build_ros.core.community.hubrun import community_info
     from comems4build_ros.core.community.spec import build_community, load_community
     from comems4build_ros.report.community import build_community_report, write_manifest
     from comems4build_ros.report.runs import RUNS_DIR
@@ -103,7 +103,7 @@ def run_community(args: argparse.Namespace) -> int:
     spec = load_community(args.community)
     community = build_community(spec, args.scenario, args.config, overrides, source=str(args.community),
                                 start=args.start, weeks=args.weeks, seed=args.seed)
-    info = community_info(community, CommunityPlant(community))
+    info = community_info(community, community_hub(community))
     for name in names:  # every coordinator's options checked before any run
         make_coordinator(name, info, options[name])
     output = output_dir(args, "compare", writes=COMMUNITY_FILES, replaces=COMMUNITY_FILES)

@@ -9,7 +9,9 @@ from pathlib import Path
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``evaluate``."""
-    parser.add_argument("bag", help="rosbag2 directory (MCAP storage) or .mcap file; a bag cut by SIGKILL is read too")
+    parser.add_argument("bag", help="rosbag2 directory (MCAP storage) or .mcap file; a bag cut by SIGKILL is read too; "
+                                    "the bag directory of a community run (launch --community) evaluates the "
+                                    "community: every house's bag and the coordinator's")
     parser.add_argument("--out", metavar="DIR", required=True,
                         help="output directory (timeseries.csv, weekly.csv, summary.json)")
     parser.add_argument("--config", action="append", default=None, metavar="FILE",
@@ -37,6 +39,12 @@ def run(args: argparse.Namespace) -> int:
     bag = Path(args.bag)
     if not bag.exists():
         raise UsageError(f"bag {bag}: no such file or directory")
+    from comems4build_ros.bags.community import is_community_bag
+
+    if bag.is_dir() and is_community_bag(bag):
+        if args.config is not None or args.set:
+            raise UsageError("a community's bags carry every house's parameters (no --config, --set)")
+        return run_community(args, bag)
     output = output_dir(args, "evaluate", writes=(*RUN_FILES, "house_*"), replaces=(*RUN_FILES, "house_*"))
     output.check()
     params = None
@@ -79,6 +87,29 @@ def run(args: argparse.Namespace) -> int:
     if args.strict:
         return max(code, strict_verdict(bag, summaries))
     return code
+
+
+def run_community(args: argparse.Namespace, bag: Path) -> int:
+    """A community's bags (``launch --community``): the community's run directory, as the launch wrote it."""
+    from comems4build_ros.app.commands.options import output_dir
+    from comems4build_ros.bags.community import community_summary_line, evaluate_community_bags
+    from comems4build_ros.core.community.loop import COMMUNITY_FILES
+
+    output = output_dir(args, "evaluate", writes=(*COMMUNITY_FILES, "events.txt"),
+                        replaces=(*COMMUNITY_FILES, "events.txt"))
+    output.check()
+    with output:
+        result = evaluate_community_bags(bag, output.stage, timeseries=not args.no_timeseries)
+    print(community_summary_line(result.summary))
+    out = Path(args.out)
+    print(f"wrote {out / 'community.json'}, {out / 'hub.csv'}, {out / 'houses.csv'}, {out / 'houses'}/")
+    summaries = {name: r.summary for name, r in result.houses.items()}
+    lost = {name: s["lost_messages"] for name, s in summaries.items() if s.get("lost_messages")}
+    if lost and not args.accept_gaps:
+        print(f"comems4build evaluate: messages missing in the houses' bags: {lost}")
+    if args.strict:
+        return strict_verdict(bag, {f"/{name}": s for name, s in summaries.items()})
+    return 0
 
 
 def strict_verdict(bag: Path, summaries: dict[str, dict]) -> int:

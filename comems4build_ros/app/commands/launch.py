@@ -56,7 +56,8 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--plant", choices=("sim", "mqtt"), default="sim",
                         help="sim: plant_sim on ROS; mqtt: the simulated house behind MQTT via mqtt_bridge")
     parser.add_argument("--clock", metavar="sim|wall|wall:F", type=_clock, default="sim",
-                        help="sim (lock-step), wall (a step per hour), wall:<factor> (faster); wall needs --plant mqtt")
+                        help="sim (lock-step), wall (a step per hour), wall:<factor> (faster); wall needs --plant mqtt "
+                             "or --community (whose coordinator then goes on without a house that leaves)")
     parser.add_argument("--broker", metavar="URL", type=_broker_url, default=None,
                         help="MQTT broker, mqtt://host:port or mqtts://host:port (default: an embedded amqtt broker)")
     parser.add_argument("--topic-map", metavar="FILE", default=None, help="MQTT topic map (default config/mqtt.yaml)")
@@ -86,6 +87,16 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--namespace", metavar="NS", type=_namespace, default="/",
                         help="ROS namespace of the house (one house) or of the houses' namespaces "
                              "house_<i> (default /)")
+    parser.add_argument("--community", metavar="FILE", default=None,
+                        help="run the community of FILE (e.g. config/community/default.yaml): every house's node set "
+                             "under <namespace>/<house>, sharing one H2 hub that the coordinator node keeps; "
+                             "evaluated into community.json, hub.csv, houses.csv and houses/<house>/ "
+                             "(docs/community.md 'Over ROS')")
+    parser.add_argument("--coordinator", metavar="NAME", default=None,
+                        help="with --community: the coordinator of config/coordinators.yaml (default rule)")
+    parser.add_argument("--coordinator-option", action="append", default=[], metavar="KEY=VALUE",
+                        help="with --community: an option of the coordinator over its row's, e.g. h2_split=need "
+                             "(repeatable)")
     parser.add_argument("--print-plan", action="store_true",
                         help="print the run plan (processes, nodes, parameters) and exit without starting anything")
 
@@ -154,8 +165,9 @@ def check_plant_options(args: argparse.Namespace) -> None:
 
     if args.topic_map is not None:
         check_input_file(args.topic_map, "--topic-map")
-    if args.plant != "mqtt" and (args.clock != "sim" or args.broker or args.topic_map):
-        raise UsageError("--clock wall, --broker and --topic-map need --plant mqtt")
+    community = getattr(args, "community", None) is not None
+    if args.plant != "mqtt" and ((args.clock != "sim" and not community) or args.broker or args.topic_map):
+        raise UsageError("--clock wall needs --plant mqtt or --community; --broker and --topic-map need --plant mqtt")
     if args.plant == "mqtt" and args.houses != 1:
         raise UsageError("--plant mqtt runs one house (--houses 1)")
     if args.netem is not None and args.network != "netns":
@@ -218,6 +230,7 @@ def launch_options(args: argparse.Namespace) -> Any:
     check_feed_scenario(args, params)
     check_live_inputs(args, params)
     args.building_text = _building(args)
+    coordinator = check_community(args, overrides)
     return LaunchOptions(
         ems=args.ems,
         out=Path(args.out),
@@ -250,7 +263,61 @@ def launch_options(args: argparse.Namespace) -> Any:
         all_inputs=bool(args.all_inputs),
         building=getattr(args, "building_text", "rc"),
         params=params,  # checked once here; the plan hands them to every node as one file
+        community=getattr(args, "community", None),
+        coordinator=coordinator,
+        coordinator_options=list(getattr(args, "coordinator_option", [])),
     )
+
+
+def check_community(args: argparse.Namespace, overrides: dict[str, Any]) -> str:
+    """``--community``, ``--coordinator`` and ``--coordinator-option``: the community file, its houses'
+    plants, the run's window for every house and the coordinator with its options, built as the
+    nodes will build them, before anything starts; the coordinator's name.
+
+    Raises
+    ------
+    UsageError, ConfigError
+        Naming the option, the file, the house or the option that is invalid.
+    """
+    from comems4build_ros.app.commands.options import UsageError
+    from comems4build_ros.core.community.coordinator import make_coordinator
+    from comems4build_ros.core.community.hub import community_hub
+    from comems4build_ros.core.community.hubrun import community_info
+    from comems4build_ros.core.community.spec import build_community, load_community
+    from comems4build_ros.core.config import parse_assignments
+    from comems4build_ros.run.community import check_over_ros
+    from comems4build_ros.run.plan import feed_window
+
+    community = getattr(args, "community", None)
+    name = getattr(args, "coordinator", None)
+    options = list(getattr(args, "coordinator_option", []))
+    if community is None:
+        if name is not None or options:
+            raise UsageError("--coordinator and --coordinator-option apply with --community")
+        return "rule"
+    if args.houses != 1:
+        raise UsageError("--community runs the houses of its file (no --houses)")
+    if args.plant != "sim" or args.inputs != "scenario" or getattr(args, "building_text", "rc") != "rc":
+        raise UsageError("--community runs plant_sim on the scenario and the 4R3C for every house (no --plant mqtt, "
+                         "--inputs live, --building)")
+    if args.layout == "role":
+        raise UsageError("--community runs in --layout house or node (a netns host per house)")
+    name = name or "rule"
+    try:
+        check_over_ros(name)  # an unknown coordinator, or one that reads the houses' observations
+    except ValueError as exc:
+        raise UsageError(f"--coordinator {name}: {exc}") from None
+    spec = load_community(community)
+    weeks, steps = feed_window(args.weeks, args.steps)
+    built = build_community(spec, args.scenario, args.config, overrides, source=str(community), start=args.start,
+                            weeks=weeks or None, seed=args.seed, steps=steps or None)
+    try:
+        make_coordinator(name, community_info(built, community_hub(built)),
+                         parse_assignments(options, "--coordinator-option"))
+    except (ValueError, TypeError) as exc:
+        raise UsageError(f"--coordinator {name} --coordinator-option: {exc}") from None
+    args.run_steps = int(built.scenario.n_steps) * len(built.houses)  # the bags' size against the free space
+    return name
 
 
 def run(args: argparse.Namespace) -> int:
@@ -266,9 +333,9 @@ def run(args: argparse.Namespace) -> int:
 
     opts = launch_options(args)
     if args.print_plan:
-        from comems4build_ros.run.plan import plan_run
+        from comems4build_ros.run.plans import plan_any
 
-        print(plan_run(opts, args.domain_id if args.domain_id is not None else 0).describe())
+        print(plan_any(opts, args.domain_id if args.domain_id is not None else 0).describe())
         return 0
     output = output_dir(args, "launch", in_place=True)
     output.check()
@@ -307,7 +374,14 @@ def run(args: argparse.Namespace) -> int:
         print(json.dumps({"house": ns, **{k: s.get(k) for k in keys}}))
     print(f"ROS domain {result.domain_id}: {len(result.summaries)} house(s), wall {result.wall_s:.1f} s "
           f"(run {result.run_s:.1f} s after the first record)")
-    print(f"wrote {own_bag or out / 'bag'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
+    if result.community is not None:
+        from comems4build_ros.bags.community import community_summary_line
+
+        print(community_summary_line(result.community))
+        print(f"wrote {own_bag or out / 'bag'}, {out / 'community.json'}, {out / 'hub.csv'}, {out / 'houses.csv'}, "
+              f"{out / 'houses'}/")
+    else:
+        print(f"wrote {own_bag or out / 'bag'}, {out / 'weekly.csv'}, {out / 'summary.json'}")
     return max([warn_run(s, "launch") for s in result.summaries.values()], default=0)
 
 

@@ -114,6 +114,31 @@ MAX_HOUSES = 1000
 HOUSES = integer(1, MAX_HOUSES)
 
 
+def parse_values(text: str, option: str, integer: bool) -> list[float]:
+    """``"6,9.6,12"`` of a size option -> its values (positive; integers >= 0 for ``integer``), each once."""
+    from comems4build_ros.files.inputs import parse_decimal
+
+    values: list[float] = []
+    for item in text.split(","):
+        item = item.strip()
+        try:
+            v = parse_decimal(item)
+        except InputError:
+            raise UsageError(f"{option} '{text}': '{item}' is not a number") from None
+        if not math.isfinite(v):
+            raise UsageError(f"{option} '{text}': '{item}' is not a finite number")
+        if integer:
+            if v != int(v) or v < 0:
+                raise UsageError(f"{option} '{text}': '{item}' is not an integer >= 0")
+            v = int(v)
+        elif v <= 0:
+            raise UsageError(f"{option} '{text}': '{item}' must be > 0")
+        if v in values:
+            raise UsageError(f"{option} '{text}': {item} is given twice")
+        values.append(v)
+    return values
+
+
 def add_scenario_options(parser: argparse.ArgumentParser, hours: bool = True, seed: bool = True,
                          extend: bool = True) -> None:
     """``--scenario``, ``--start``, ``--weeks`` / ``--hours``, ``--seed`` and ``--extend`` of a run."""
@@ -395,8 +420,8 @@ def command_inputs(args: argparse.Namespace) -> dict[str, list[str]]:
         if name == "building":  # energyplus:FILE.idf, fmu:FILE.fmu name a file; rc and energyplus none
             values = [v.partition(":")[2] for v in values if v.partition(":")[2]]
         if name == "from_runs":
-            values = [str(Path(v) / sub) for v in values for sub in ("runs", "compare.json", "reproduce.json",
-                                                                        "validation.json")]
+            values = [str(Path(v) / sub) for v in values
+                      for sub in ("runs", "compare.json", "reproduce.json", "validation.json", "size_community.json")]
         if values:
             out["BAG" if name == "bag" else f"--{name.replace('_', '-')}"] = values
     return out

@@ -4,7 +4,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import math
 import sys
 import time
 from pathlib import Path
@@ -16,6 +15,7 @@ from comems4build_ros.app.commands.options import (
     WEEKS,
     add_study_options,
     ems_help,
+    parse_values,
 )
 from comems4build_ros.files.errors import InputError
 
@@ -25,9 +25,11 @@ SIZE_FILES = ("runs", "figures", "size.csv", "size.md", "size.json", "report.md"
 
 def add_arguments(parser: argparse.ArgumentParser) -> None:
     """Options of ``size``."""
+    from comems4build_ros.app.commands import size_community
     from comems4build_ros.study.sizing import AXES
 
-    parser.add_argument("--ems", metavar="NAME[,NAME...]", required=True, help=ems_help(many=True))
+    parser.add_argument("--ems", metavar="NAME[,NAME...]", default=None,
+                        help=ems_help(many=True) + " (required; with --community the one EMS of every house)")
     for axis in AXES:
         parser.add_argument(axis.option, metavar="V1,V2,...", default=None,
                             help=f"{axis.label} [{axis.unit}], {'integers >= 0' if axis.integer else 'values > 0'} "
@@ -47,38 +49,14 @@ def add_arguments(parser: argparse.ArgumentParser) -> None:
     parser.add_argument("--set", action="append", default=[], metavar="KEY=VALUE",
                         help="override one plant parameter for every run (not one of the sized ones)")
     add_study_options(parser, "config/plant.yaml and config/year.yaml")
-    parser.add_argument("--out", metavar="DIR", required=True, help="output directory")
-
-
-def parse_values(text: str, option: str, integer: bool) -> list[float]:
-    """``"6,9.6,12"`` of a size option -> its values (positive; integers >= 0 for ``integer``), each once."""
-    from comems4build_ros.app.cli import UsageError
-    from comems4build_ros.files.inputs import parse_decimal
-
-    values: list[float] = []
-    for item in text.split(","):
-        item = item.strip()
-        try:
-            v = parse_decimal(item)
-        except InputError:
-            raise UsageError(f"{option} '{text}': '{item}' is not a number") from None
-        if not math.isfinite(v):
-            raise UsageError(f"{option} '{text}': '{item}' is not a finite number")
-        if integer:
-            if v != int(v) or v < 0:
-                raise UsageError(f"{option} '{text}': '{item}' is not an integer >= 0")
-            v = int(v)
-        elif v <= 0:
-            raise UsageError(f"{option} '{text}': '{item}' must be > 0")
-        if v in values:
-            raise UsageError(f"{option} '{text}': {item} is given twice")
-        values.append(v)
-    return values
+    size_community.add_arguments(parser)
+    parser.add_argument("--out", metavar="DIR", default=None, help="output directory (required unless --from-runs)")
 
 
 def run(args: argparse.Namespace) -> int:
     """Run every size point for every EMS over the year; write size.csv, size.md, figures/, report.*."""
     from comems4build_ros.app.cli import UsageError
+    from comems4build_ros.app.commands import size_community
     from comems4build_ros.app.commands.options import (
         check_config_files,
         output_dir,
@@ -90,6 +68,13 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.core.config import load_plant_params
     from comems4build_ros.core.economics import load_costs
 
+    if args.from_runs is not None:
+        return size_community.rebuild(args)
+    if args.community is not None:
+        return size_community.run(args)
+    size_community.refuse_without_community(args)
+    if args.ems is None or args.out is None:
+        raise UsageError(f"{'--ems' if args.ems is None else '--out'} is required (unless --from-runs)")
     args.scenario = "year"
     emss = study_inputs(args)
     check_config_files(args.costs, "--costs")

@@ -29,15 +29,26 @@ builds one. To add one: write a class with the attributes and methods of
 from __future__ import annotations
 
 import functools
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any, Protocol, runtime_checkable
 
-from comems4build_ros.core.config import ConfigError, config_dir, load_yaml, table_class, table_rows
+from comems4build_ros.core.config import (
+    ConfigError,
+    PlantParams,
+    config_dir,
+    load_yaml,
+    table_class,
+    table_rows,
+)
+from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.files.errors import InputError
 
 #: The coordinator table's file in ``config/``.
 COORDINATOR_TABLE_FILE = "coordinators.yaml"
+#: What a coordinator reads of the houses: the reports only, or also their MPC-level observations.
+INFO_LEVELS = ("hub", "mpc")
 #: The keys of a row of the table.
 _ROW_KEYS = ("coordinator", "label", "colour", "options", "summary")
 
@@ -106,6 +117,14 @@ class CommunityView:
     steps_per_day : steps of one day
     hub : the hub's report
     houses : one report per house, in the community file's order
+    price_buy_eur_per_kwh, price_sell_eur_per_kwh : the community's tariff in step ``k`` [EUR/kWh]
+    prices_buy_24h : the day-ahead buy prices of steps ``k .. k+23`` [EUR/kWh] (known in advance,
+        not a forecast, ``tab:level_of_information``)
+    days_to_heating_season : days to the next heating season, 0 inside it [d]
+    observations : only for a coordinator of information level ``mpc``: every house's
+        observation at the MPC's level (``tab:level_of_information``: its states at the end of
+        ``k - 1`` and the 24-step forecasts of the run's forecast model), in the houses' order;
+        empty otherwise
     """
 
     step: int
@@ -115,6 +134,11 @@ class CommunityView:
     steps_per_day: int
     hub: HubReport
     houses: tuple[HouseReport, ...]
+    price_buy_eur_per_kwh: float = math.nan
+    prices_buy_24h: tuple[float, ...] = ()
+    price_sell_eur_per_kwh: float = math.nan
+    days_to_heating_season: float = 0.0
+    observations: tuple[Observation, ...] = ()
 
 
 @dataclass(frozen=True, slots=True)
@@ -177,6 +201,10 @@ class CommunityInfo:
     hub_e_max_wh : the hub store's size [Wh LHV]
     n_modules : electrolyser modules at the hub
     p_el_module_min_w, p_el_module_max_w : intake range of one module [W]
+    hub_loh_min, hub_loh_max : the hub store's bounds [-]
+    eta_el : the electrolysers' rated LHV efficiency, compression included [-] (the MPC's constant)
+    house_params : every house's parameters as its EMS knows them (its share as its store);
+        read only by coordinators of information level ``mpc`` (their forecasting models)
     """
 
     names: tuple[str, ...]
@@ -187,13 +215,19 @@ class CommunityInfo:
     n_modules: int
     p_el_module_min_w: float
     p_el_module_max_w: float
+    hub_loh_min: float = 0.0
+    hub_loh_max: float = 1.0
+    eta_el: float = 0.0
+    house_params: tuple[PlantParams, ...] = ()
 
 
 @runtime_checkable
 class Coordinator(Protocol):
     """A coordinator: allotments before the houses act, the hub's dispatch after.
 
-    Implementations set ``name`` as a class attribute, are built as
+    Implementations set ``name`` as a class attribute (and ``info_level``: ``hub``, the
+    default, reads the reports only; ``mpc`` also reads every house's observation at the
+    MPC's level in :attr:`CommunityView.observations`), are built as
     ``Cls(info, options)`` with the :class:`CommunityInfo` and their options mapping (the
     row's ``options`` of ``config/coordinators.yaml`` with the user's overrides), and keep
     in ``step_info`` what they want recorded per step (numbers; ``messages`` and

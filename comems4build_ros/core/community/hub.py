@@ -37,7 +37,7 @@ import math
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from comems4build_ros.core.community.spec import HubParams
+from comems4build_ros.core.community.spec import Community, HubParams
 from comems4build_ros.core.config import ElectrolyserParams
 from comems4build_ros.core.models.electrolyser import ElectrolyserTable
 from comems4build_ros.core.types import PlantState
@@ -354,3 +354,9 @@ class Hub:
                 loss += take
         take = max(pool, 0.0) * fraction
         return loss + take, pool - take
+
+
+def community_hub(community: Community) -> Hub:
+    """Return the hub of a built community: its store and electrolysers, one account per house (share, bounds)."""
+    return Hub(community.hub, community.shares_wh, [h.params.hydrogen.loh_min for h in community.houses],
+               [h.params.hydrogen.loh_max for h in community.houses])

@@ -4,14 +4,18 @@ One step ``k`` of :func:`simulate_community`:
 
 1. the coordinator reads the hub and the houses at the end of ``k - 1``
    (:class:`~comems4build_ros.core.community.coordinator.CommunityView`) and publishes its
-   allotment; the hub applies its transfers;
+   allotment; the hub applies its transfers (:meth:`~comems4build_ros.core.community.hubrun.HubRun.allot`);
 2. every house's EMS observes its house at its own information level through the house's
    :class:`~comems4build_ros.core.loop.ObservationBuilder`, as an isolated house's EMS does;
    where that EMS reads its own store's figures it reads the hub's: its account as ``loh``,
    the allotted ``dloh_per_day`` (``eq:deltaLOH``) and the hub's ``el_on_prev``;
-3. the coordinator reads the houses' requests (their electrolyser offers, PV and load) and
-   decides the hub's dispatch;
-4. the community plant steps (:class:`~comems4build_ros.core.community.plant.CommunityPlant`).
+3. every house's plant steps (:meth:`~comems4build_ros.core.community.plant.CommunityPlant.houses_step`);
+4. the coordinator reads the houses' requests (their electrolyser offers, PV and load) and
+   decides the hub's dispatch; the hub steps and the connection point exchanges the net of
+   the houses and the hub (:meth:`~comems4build_ros.core.community.hubrun.HubRun.settle`).
+   A house's plant does not depend on the dispatch, so deciding it after the houses'
+   plants stepped is the same as before; the coordinator node over ROS 2 does the same
+   (:mod:`.hubrun`).
 
 Every house's timeseries has the columns of an isolated run (``record_row``: the command
 columns hold what its EMS asked, the electrolyser request included) and its KPIs come from
@@ -35,49 +39,28 @@ from typing import Any
 import numpy as np
 import pandas as pd
 
-from comems4build_ros.core.community.coordinator import (
-    CommunityInfo,
-    CommunityView,
-    Coordinator,
-    HouseReport,
-    HubReport,
-    Request,
-    make_coordinator,
-)
-from comems4build_ros.core.community.hub import HubFlows, HubState
+from comems4build_ros.core.community.coordinator import Coordinator, Request
+from comems4build_ros.core.community.hubrun import HubRun
 from comems4build_ros.core.community.kpi import evaluate_community
-from comems4build_ros.core.community.plant import CommunityPlant, ConnectionFlows
+from comems4build_ros.core.community.plant import CommunityPlant
 from comems4build_ros.core.community.spec import Community
-from comems4build_ros.core.config import W_PER_KW
 from comems4build_ros.core.ems import make_controller
 from comems4build_ros.core.ems.base import Observation
 from comems4build_ros.core.loop import (
-    HOURS_PER_DAY,
     TIMESERIES_COLUMNS,
     ForecastParams,
     ObservationBuilder,
     RunResult,
-    dloh_per_day,
     evaluate_timeseries,
     exogenous_series,
     load_forecast_settings,
     record_row,
     write_run,
 )
-from comems4build_ros.core.types import Flows, PlantState
 from comems4build_ros.files.outputs import atomic_dir
 
 #: Columns a house's timeseries adds to an isolated run's.
 HOUSE_HUB_COLUMNS = ("hub_dloh_per_day", "hub_transfer_wh", "hub_credited_wh", "hub_split")
-#: The hub's flows, state and balance per step.
-HUB_COLUMNS = ("p_el_set_w", "p_el_w", "el_on", "el_start", "modules_on", "p_h2_el_w", "q_el_rec_w", "p_h2_fc_w",
-               "p_h2_loss_w", "h2_credited_wh", "h2_to_pool_wh", "transfer_wh", "clipped", "loh", "store_kwh",
-               "pool_kwh", "accounts_kwh", "h2_residual_wh")
-#: The connection point's flows per step (prefixed ``cp_`` in the hub's timeseries).
-CONNECTION_COLUMNS = ("p_buy_w", "p_sell_w", "balance_residual_w", "p_pv_w", "p_load_w", "p_hp_el_w", "p_ch_w",
-                      "p_dis_w", "p_fc_w", "p_el_w")
-#: The coordinator's record per step (more ``coord_*`` columns from its ``step_info``).
-COORDINATOR_COLUMNS = ("coord_allot_s", "coord_dispatch_s", "coord_messages")
 #: Files of a community run directory (``houses/<name>/`` holds each house's run files).
 COMMUNITY_FILES = ("hub.csv", "houses.csv", "community.json", "houses")
 
@@ -98,21 +81,6 @@ class CommunityResult:
     hub: pd.DataFrame
     table: pd.DataFrame
     summary: dict[str, Any] = field(default_factory=dict)
-
-
-def _hub_report(plant: CommunityPlant, hub: HubState) -> HubReport:
-    bank = plant.hub.bank
-    return HubReport(plant.hub.e_wh, plant.hub.store_wh(hub), hub.pool_wh, hub.el_on, hub.modules_on, bank.n,
-                     bank.p_module_min_w, bank.p_module_max_w)
-
-
-def community_info(community: Community, plant: CommunityPlant) -> CommunityInfo:
-    """Return the fixed figures a coordinator is built with."""
-    bank = plant.hub.bank
-    dt_h = community.hub.dt_h
-    return CommunityInfo(tuple(h.name for h in community.houses), community.shares_wh, dt_h,
-                         int(round(HOURS_PER_DAY / dt_h)), plant.hub.e_wh, bank.n, bank.p_module_min_w,
-                         bank.p_module_max_w)
 
 
 def simulate_community(
@@ -141,9 +109,7 @@ def simulate_community(
     """
     t_start = _time.perf_counter()
     plant = CommunityPlant(community)
-    info = community_info(community, plant)
-    coord = make_coordinator(coordinator, info, coordinator_options) if isinstance(coordinator, str) else coordinator
-    coord.reset()
+    hub = HubRun(community, coordinator, coordinator_options, plant.hub)
     houses = community.houses
     ctrls = [make_controller(ems, h.params, ems_options) for h in houses]
     for c in ctrls:
@@ -152,31 +118,21 @@ def simulate_community(
     exos = [exogenous_series(h.scenario, h.plant_params) for h in houses]
     builders = [ObservationBuilder(h.scenario, h.params, c.info_level, e, forecast) for h, c, e in
                 zip(houses, ctrls, exos)]
-    n_steps = community.scenario.n_steps
-    time = community.scenario.time[:n_steps]
-    times = [t.isoformat() for t in time]
-    day = ((time - time[0]).total_seconds() / 3600.0 // HOURS_PER_DAY).astype(int).tolist()
+    coord_builders = ([ObservationBuilder(h.scenario, h.params, "mpc", e, forecast) for h, e in zip(houses, exos)]
+                      if hub.info_level == "mpc" else [])
+    n_steps = hub.n_steps
+    times = hub.times
     ghi = community.scenario.ghi_w_m2.tolist()
     spot = community.scenario.spot_eur_per_mwh.tolist()
-    own_dloh = [dloh_per_day(h.params) for h in houses]
-    floors = [h.params.hydrogen.loh_min * h.share_wh for h in houses]
-    states, hub = plant.initial_state()
-    prev: list[Flows] | None = None
+    states = plant.initial_states()
+    hub.start(states)
     rows: list[list[list[Any]]] = [[] for _ in houses]
     extra_rows: list[list[tuple[float, ...]]] = [[] for _ in houses]
     infos: list[list[dict[str, float]]] = [[] for _ in houses]
-    hub_rows: list[list[Any]] = []
-    coord_infos: list[dict[str, float]] = []
-    ems_s = coord_s = 0.0
+    ems_s = 0.0
     n = len(houses)
     for k in range(n_steps):
-        view = CommunityView(k, times[k], day[k], k == 0 or day[k] != day[k - 1], info.steps_per_day,
-                             _hub_report(plant, hub), _house_reports(houses, states, floors, own_dloh, prev))
-        t0 = _time.perf_counter()
-        allot = coord.allot(view)
-        coord_allot = _time.perf_counter() - t0
-        _check_lengths(coord, "allotment", n, dloh_per_day=allot.dloh_per_day, transfers_wh=allot.transfers_wh)
-        transfer = plant.begin_step(states, hub, allot.transfers_wh)
+        allot = hub.allot(k, states, observations=tuple(b.build(k, s) for b, s in zip(coord_builders, states)))
         actions = []
         t1 = _time.perf_counter()
         for i, (builder, ctrl) in enumerate(zip(builders, ctrls)):
@@ -184,31 +140,20 @@ def simulate_community(
             if "dloh_per_day" in data:
                 data["dloh_per_day"] = allot.dloh_per_day[i]
             if "el_on_prev" in data:
-                data["el_on_prev"] = hub.el_on
+                data["el_on_prev"] = allot.el_on_prev
             actions.append(ctrl.act(Observation(builder.level, data)))
             step_info = getattr(ctrl, "step_info", None)
             if step_info:
                 infos[i].append(dict(step_info))
         ems_s += _time.perf_counter() - t1
-        requests = tuple(Request(a.p_el_w, e[k].p_pv_w, e[k].p_load_w) for a, e in zip(actions, exos))
-        t2 = _time.perf_counter()
-        dispatch = coord.dispatch(view, requests)
-        coord_dispatch = _time.perf_counter() - t2
-        coord_s += coord_allot + coord_dispatch
-        _check_lengths(coord, "dispatch", n, production_split=dispatch.production_split)
-        out = plant.step(states, hub, actions, [e[k] for e in exos], dispatch.p_el_w, dispatch.production_split,
-                         transfer)
-        states, hub, prev = out.states, out.hub, out.flows
+        requests = [Request(a.p_el_w, e[k].p_pv_w, e[k].p_load_w) for a, e in zip(actions, exos)]
+        states, flows = plant.houses_step(states, actions, [e[k] for e in exos])
+        settled = hub.settle(k, states, flows, requests)
         for i in range(n):
-            rows[i].append(record_row(times[k], k, out.flows[i], states[i], actions[i], exos[i][k], (ghi[k], spot[k]),
+            rows[i].append(record_row(times[k], k, flows[i], states[i], actions[i], exos[i][k], (ghi[k], spot[k]),
                                       False))
-            extra_rows[i].append((allot.dloh_per_day[i], transfer[0][i], out.credited_wh[i],
-                                  float(dispatch.production_split[i])))
-        step_info = dict(getattr(coord, "step_info", None) or {})
-        messages = step_info.pop("messages", 2 * n + 1)
-        coord_infos.append(step_info)
-        hub_rows.append([times[k], k, *_hub_values(plant, out.hub_flows, hub, states), *_cp_values(out.connection),
-                         coord_allot, coord_dispatch, messages])
+            extra_rows[i].append((allot.dloh_per_day[i], allot.moved_wh[i], settled.credited_wh[i],
+                                  float(settled.split[i])))
         if progress is not None:
             progress(k + 1, n_steps)
     results = {}
@@ -217,45 +162,25 @@ def simulate_community(
         if infos[i] and len(infos[i]) == len(ts):
             ts = pd.concat([ts, pd.DataFrame(infos[i]).add_prefix("ems_")], axis=1)
         ts = pd.concat([ts, pd.DataFrame(extra_rows[i], columns=list(HOUSE_HUB_COLUMNS))], axis=1)
-        extra = {"ems": ctrls[i].name, "scenario": community.scenario.name, "house": h.name,
-                 "community": community.name, "forecast": forecast.mode if ctrls[i].info_level == "mpc" else None}
-        results[h.name] = evaluate_timeseries(ts, h.plant_params, extra)
-    hub_ts = pd.DataFrame(hub_rows, columns=["time", "step", *HUB_COLUMNS,
-                                             *(f"cp_{c}" for c in CONNECTION_COLUMNS), *COORDINATOR_COLUMNS])
-    if coord_infos and any(coord_infos):
-        hub_ts = pd.concat([hub_ts, pd.DataFrame(coord_infos).add_prefix("coord_")], axis=1)
-    timing = {"wall_s": _time.perf_counter() - t_start, "ems_s": ems_s, "coordinator_s": coord_s}
-    table, summary = evaluate_community(community, coord.name, ctrls[0].name, results, hub_ts, timing, sharing_file,
-                                        tariff_file)
+        results[h.name] = evaluate_timeseries(ts, h.plant_params, house_extra(community, h.name, ctrls[i].name,
+                                                                             ctrls[i].info_level, forecast))
+    hub_ts = hub.timeseries()
+    timing = {"wall_s": _time.perf_counter() - t_start, "ems_s": ems_s, "coordinator_s": hub.coordinator_s}
+    table, summary = evaluate_community(community, hub.coord.name, ctrls[0].name, results, hub_ts, timing,
+                                        sharing_file, tariff_file)
     return CommunityResult(results, hub_ts, table, summary)
 
 
-def _check_lengths(coord: Coordinator, what: str, n: int, **values: tuple[float, ...]) -> None:
-    for name, v in values.items():
-        if len(v) != n:
-            raise ValueError(f"coordinator '{coord.name}': {what}.{name} has {len(v)} values for {n} houses")
+def house_extra(community: Community, house: str, ems: str, info_level: str,
+                forecast: ForecastParams | None) -> dict[str, Any]:
+    """Return the summary entries of a community's house besides its KPIs.
 
-
-def _house_reports(houses: Any, states: list[PlantState], floors: list[float], own_dloh: list[float],
-                   prev: list[Flows] | None) -> tuple[HouseReport, ...]:
-    out = []
-    for i, (h, s) in enumerate(zip(houses, states)):
-        f = prev[i] if prev is not None else None
-        out.append(HouseReport(h.name, h.share_wh, s.loh * h.share_wh, floors[i], own_dloh[i],
-                               f.p_buy_w if f else 0.0, f.p_sell_w if f else 0.0, f.p_h2_w if f else 0.0))
-    return tuple(out)
-
-
-def _hub_values(plant: CommunityPlant, f: HubFlows, hub: HubState, states: list[PlantState]) -> list[Any]:
-    accounts = math.fsum(plant.hub.accounts_wh(states))
-    return [f.p_el_set_w, f.p_el_w, f.el_on, f.el_start, f.modules_on, f.p_h2_el_w, f.q_el_rec_w, f.p_h2_fc_w,
-            f.p_h2_loss_w, f.h2_credited_wh, f.h2_to_pool_wh, f.transfer_wh, f.clipped, hub.loh,
-            plant.hub.store_wh(hub) / W_PER_KW, hub.pool_wh / W_PER_KW, accounts / W_PER_KW,
-            plant.hub.balance_residual_wh(states, hub)]
-
-
-def _cp_values(c: ConnectionFlows) -> list[float]:
-    return [getattr(c, name) for name in CONNECTION_COLUMNS]
+    These are its EMS, scenario, house, community and, for an EMS of information level
+    ``mpc``, the forecast mode.
+    """
+    mode = (forecast or load_forecast_settings()).mode if info_level == "mpc" else None
+    return {"ems": ems, "scenario": community.scenario.name, "house": house, "community": community.name,
+            "forecast": mode}
 
 
 def _json_default(value: Any) -> Any:

@@ -26,7 +26,7 @@ from __future__ import annotations
 from collections.abc import Sequence
 from dataclasses import dataclass
 
-from comems4build_ros.core.community.hub import Hub, HubFlows, HubState
+from comems4build_ros.core.community.hub import HubFlows, HubState, community_hub
 from comems4build_ros.core.community.spec import Community
 from comems4build_ros.core.models import grid
 from comems4build_ros.core.plant import Plant
@@ -96,6 +96,11 @@ def connection_exchange(flows: Sequence[Flows], p_el_hub_w: float) -> Connection
     return ConnectionFlows(buy, sell, residual, pv, load, hp, ch, dis, fc, p_el_hub_w)
 
 
+def without_electrolyser(action: Action) -> Action:
+    """Return a house's action as its plant applies it: its electrolyser request removed (the hub has them)."""
+    return Action(action.hp_mod, action.hp_mode, action.p_fc_w, action.p_bess_w, 0.0)
+
+
 class CommunityPlant:
     """Every house's plant and the hub.
 
@@ -109,14 +114,16 @@ class CommunityPlant:
         self.community = community
         models = list(buildings) if buildings is not None else [None] * len(community.houses)
         self.plants = [Plant(h.plant_params, b) for h, b in zip(community.houses, models)]
-        self.hub = Hub(community.hub, community.shares_wh,
-                       [h.params.hydrogen.loh_min for h in community.houses],
-                       [h.params.hydrogen.loh_max for h in community.houses])
+        self.hub = community_hub(community)
 
     def initial_state(self) -> tuple[list[PlantState], HubState]:
         """Every house's initial state and the hub's."""
-        states = [p.initial_state() for p in self.plants]
+        states = self.initial_states()
         return states, self.hub.initial_state(states)
+
+    def initial_states(self) -> list[PlantState]:
+        """Every house's initial state."""
+        return [p.initial_state() for p in self.plants]
 
     def begin_step(self, states: list[PlantState], hub: HubState,
                    transfers_wh: Sequence[float]) -> tuple[list[float], int]:
@@ -126,16 +133,25 @@ class CommunityPlant:
         """
         return self.hub.transfer(states, hub, transfers_wh)
 
+    def houses_step(self, states: Sequence[PlantState], actions: Sequence[Action],
+                    exos: Sequence[Exogenous]) -> tuple[list[PlantState], list[Flows]]:
+        """Step every house's plant with its EMS's action, its electrolyser request removed.
+
+        The house has no electrolyser; the request goes to the coordinator as its offer.
+        Return the new states (each account as its fuel cell left it) and the flows.
+        """
+        new_states, flows = [], []
+        for plant, state, action, exo in zip(self.plants, states, actions, exos):
+            s, f = plant.step(state, without_electrolyser(action), exo)
+            new_states.append(s)
+            flows.append(f)
+        return new_states, flows
+
     def step(self, states: Sequence[PlantState], hub: HubState, actions: Sequence[Action],
              exos: Sequence[Exogenous], p_el_set_w: float, split: Sequence[float],
              transfer: tuple[Sequence[float], int] = ((), 0)) -> CommunityStep:
         """Advance every house and the hub by one step (module docstring)."""
-        new_states, flows = [], []
-        for plant, state, action, exo in zip(self.plants, states, actions, exos):
-            own = Action(action.hp_mod, action.hp_mode, action.p_fc_w, action.p_bess_w, 0.0)
-            s, f = plant.step(state, own, exo)
-            new_states.append(s)
-            flows.append(f)
+        new_states, flows = self.houses_step(states, actions, exos)
         hub_new, hub_flows, credits = self.hub.step(new_states, hub, p_el_set_w, split, [f.p_h2_w for f in flows],
                                                     transfer)
         return CommunityStep(new_states, hub_new, flows, hub_flows, connection_exchange(flows, hub_flows.p_el_w),

@@ -52,7 +52,7 @@ class RuleOptions(Section):
     need_days: int = Field(ge=1, le=366)
 
 
-def _offer(request: Request) -> float:
+def offered(request: Request) -> float:
     """Return a house's offer as a finite power >= 0 [W] (anything else offers nothing)."""
     p = request.p_el_w
     return p if isinstance(p, int | float) and math.isfinite(p) and p > 0.0 else 0.0
@@ -144,7 +144,7 @@ class RuleCoordinator:
     # ------------------------------------------------------------- dispatch
     def dispatch(self, view: CommunityView, requests: tuple[Request, ...]) -> Dispatch:
         """Return the hub at the sum of the houses' offers; the production split in proportion to them."""
-        offers = [_offer(r) for r in requests]
+        offers = [offered(r) for r in requests]
         total = offers[0]
         for p in offers[1:]:
             total += p

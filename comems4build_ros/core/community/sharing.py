@@ -169,7 +169,8 @@ class Settlement:
     ----------
     rule : the rule set's name
     houses : per house [kWh, EUR]: ``grid_buy_kwh``, ``grid_sell_kwh``, ``shared_in_kwh``,
-        ``shared_out_kwh``, ``hub_kwh`` (its part of the hub's intake), ``hub_cost_eur``,
+        ``shared_out_kwh``, ``hub_kwh`` (its part of the hub's intake), ``hub_grid_kwh`` (its part of
+        what the hub took from the grid, not shared), ``hub_cost_eur``,
         ``cost_eur`` (its own meter and its part of the hub, net of what it earned)
     totals : ``cost_eur`` (the community's), ``cost_eur_per_household``, ``shared_kwh``,
         ``grid_buy_kwh``, ``grid_sell_kwh``, ``hub_cost_eur``, ``charges_on_shared_eur``
@@ -218,6 +219,7 @@ def settle(rule_name: str, rule: RuleSet, buy_w: np.ndarray, sell_w: np.ndarray,
         "shared_in_kwh": r_houses.sum(axis=1),
         "shared_out_kwh": g_houses.sum(axis=1),
         "hub_kwh": (attribution * d_hub).sum(axis=1),
+        "hub_grid_kwh": (attribution * (d_hub - r_hub)).sum(axis=1),
         "hub_cost_eur": hub_part.sum(axis=1),
         "cost_eur": own.sum(axis=1) + hub_part.sum(axis=1),
     }, index=list(names))

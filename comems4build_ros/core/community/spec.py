@@ -138,6 +138,29 @@ def load_community(path: str | Path) -> CommunitySpec:
     return parse_model(CommunitySpec, doc["community"], str(p))
 
 
+def resized(spec: CommunitySpec, hub: Mapping[str, Any] | None = None, house: str | None = None,
+            source: str = "community file") -> CommunitySpec:
+    """Return the community of ``spec`` with the hub fields of ``hub`` replaced, or one of its houses alone.
+
+    ``house`` keeps only that house: with ``hub`` of ``store_kwh`` its own store and
+    ``electrolyser_modules`` None (its own modules) the house's H2 system is its own, and
+    the rule-based coordinator runs it as an isolated house (docs/community.md, "Checks").
+
+    Raises
+    ------
+    ConfigError
+        Naming ``source`` and the field: an unknown hub field, a value out of its range, a house
+        the file does not hold.
+    """
+    data = spec.model_dump()
+    data["hub"].update(dict(hub or {}))
+    if house is not None:
+        data["houses"] = [h for h in data["houses"] if h["name"] == house]
+        if not data["houses"]:
+            raise ConfigError(f"{source}: no house '{house}' (houses: {', '.join(h.name for h in spec.houses)})")
+    return parse_model(CommunitySpec, data, source)
+
+
 @dataclass(frozen=True)
 class HubParams:
     """The hub's figures (:mod:`.hub`).
@@ -262,6 +285,98 @@ def _house_params(files: Sequence[str], overrides: Mapping[str, Any], extra: Map
         raise ConfigError(f"{where}: {exc}") from None
 
 
+def hub_size(spec: CommunitySpec, base: PlantParams) -> tuple[float, int]:
+    """Return the hub's store [Wh LHV] and electrolyser modules.
+
+    They are the file's, or else the sum of the houses' own (``hydrogen.e_max_kwh``,
+    ``electrolyser.n_modules``). A house's own hydrogen system is the run's (its variation may
+    not touch the ``hydrogen`` and ``electrolyser`` sections, :data:`HUB_SECTIONS`), so the sum
+    is over the run's values, one per house.
+    """
+    store_wh = (spec.hub.store_kwh * W_PER_KW if spec.hub.store_kwh is not None
+                else sum(base.hydrogen.e_max_kwh for _ in spec.houses) * W_PER_KW)
+    n_modules = (spec.hub.electrolyser_modules if spec.hub.electrolyser_modules is not None
+                 else sum(base.electrolyser.n_modules for _ in spec.houses))
+    return store_wh, int(n_modules)
+
+
+def house_params(spec: CommunitySpec, house: HouseSpec, files: Sequence[str], overrides: Mapping[str, Any],
+                 base: PlantParams, source: str = "community file") -> tuple[PlantParams, PlantParams, float]:
+    """Return one house's parameters as its EMS knows them, its plant's and its nominal share.
+
+    The EMS knows the run's plant with the house's variation and its nominal share of the
+    hub's store as its H2 store; its plant's are those without electrolyser modules (they are
+    at the hub); the share is in [Wh LHV].
+
+    Parameters
+    ----------
+    spec : the community file; house : its house
+    files, overrides : the run's parameter files and dotted overrides (``base`` is what they give)
+    base : the run's plant parameters
+    source : the community file's name (messages)
+
+    Raises
+    ------
+    ConfigError
+        Naming the community file and the house whose variation breaks a plant parameter's rule.
+    """
+    store_wh, _ = hub_size(spec, base)
+    share_kwh = store_wh * house.h2_weight / sum(h.h2_weight for h in spec.houses) / W_PER_KW
+    where = f"{source}: house '{house.name}' (its H2 share {share_kwh:g} kWh)"
+    params = _house_params(files, overrides, {**house_overrides(house, base), "hydrogen.e_max_kwh": share_kwh}, where)
+    return params, house_plant(params), params.hydrogen.e_max_kwh * W_PER_KW
+
+
+def house_plant(params: PlantParams) -> PlantParams:
+    """Return a house's plant in a community: its parameters without electrolyser modules (they are at the hub)."""
+    return params.model_copy(update={"electrolyser": params.electrolyser.model_copy(update={"n_modules": 0})})
+
+
+def house_plants(spec: CommunitySpec, files: Sequence[str], overrides: Mapping[str, Any], base: PlantParams,
+                 source: str = "community file") -> list[tuple[PlantParams, PlantParams, float]]:
+    """Return every house's parameters, its plant's and its share (:func:`house_params`).
+
+    Each house's own plant (its variation without the hub) is checked to be a valid plant first.
+
+    Raises
+    ------
+    ConfigError
+        Naming the community file and the house whose variation breaks a plant parameter's rule.
+    """
+    for h in spec.houses:
+        _house_params(files, overrides, house_overrides(h, base), f"{source}: house '{h.name}'")
+    return [house_params(spec, h, files, overrides, base, source) for h in spec.houses]
+
+
+def house_spec(spec: CommunitySpec, name: str, source: str = "community file") -> HouseSpec:
+    """Return the house called ``name`` of a community file.
+
+    Raises
+    ------
+    ConfigError
+        Naming the file and the houses it has.
+    """
+    for house in spec.houses:
+        if house.name == name:
+            return house
+    raise ConfigError(f"{source}: no house '{name}' (houses: {', '.join(h.name for h in spec.houses)})")
+
+
+def cut_scenario(scenario: Scenario, steps: int | None) -> Scenario:
+    """Cut the scenario's run to its first ``steps`` steps, the rest kept as look-ahead (None: as it is).
+
+    Raises
+    ------
+    ValueError
+        For ``steps`` outside ``1 .. n_steps``.
+    """
+    if steps is None:
+        return scenario
+    if not 0 < steps <= scenario.n_steps:
+        raise ValueError(f"steps: {steps} outside 1..{scenario.n_steps} of scenario '{scenario.name}'")
+    return dataclasses.replace(scenario, n_steps=steps)
+
+
 def build_community(
     spec: CommunitySpec,
     scenario: str | Path = "default",
@@ -273,6 +388,7 @@ def build_community(
     hours: int | None = None,
     seed: int | None = None,
     extend: str | None = None,
+    steps: int | None = None,
 ) -> Community:
     """Return the houses' parameters and scenarios and the hub of a community file, for one run.
 
@@ -284,6 +400,8 @@ def build_community(
     overrides : dotted plant overrides for every house (``--set``)
     source : the community file's name (messages)
     start, weeks, hours, seed, extend : the run's window and data (as ``resolve_scenario``)
+    steps : cut the run to its first ``steps`` steps, the rest kept as look-ahead (as a
+        distributed run's ``--steps``; None = the whole window)
 
     Raises
     ------
@@ -295,24 +413,28 @@ def build_community(
     files = scenario_config_files(scenario, [str(c) for c in config])
     overrides = dict(overrides or {})
     base = load_plant_params(files, overrides)
-    base_scenario = resolve_scenario(scenario, base, start=start, weeks=weeks, hours=hours, seed=seed, extend=extend)
-    own = [_house_params(files, overrides, house_overrides(h, base), f"{source}: house '{h.name}'")
-           for h in spec.houses]
-    store_wh = (spec.hub.store_kwh * W_PER_KW if spec.hub.store_kwh is not None
-                else sum(p.hydrogen.e_max_kwh for p in own) * W_PER_KW)
-    n_modules = (spec.hub.electrolyser_modules if spec.hub.electrolyser_modules is not None
-                 else sum(p.electrolyser.n_modules for p in own))
-    total_weight = sum(h.h2_weight for h in spec.houses)
+    base_scenario = cut_scenario(resolve_scenario(scenario, base, start=start, weeks=weeks, hours=hours, seed=seed,
+                                                  extend=extend), steps)
+    return community_of(spec, files, overrides, base, base_scenario, source)
+
+
+def community_of(spec: CommunitySpec, files: Sequence[str], overrides: Mapping[str, Any], base: PlantParams,
+                 base_scenario: Scenario, source: str = "community file") -> Community:
+    """Build the community of a file on the run's parameters ``base`` and scenario ``base_scenario``.
+
+    ``base`` is of ``files`` and ``overrides`` (:func:`build_community`; a node that loaded
+    them itself builds it here).
+
+    Raises
+    ------
+    ConfigError
+        Naming the community file and the house whose variation breaks a plant parameter's rule.
+    """
+    store_wh, n_modules = hub_size(spec, base)
     houses = []
-    for h in spec.houses:
-        share_kwh = store_wh * h.h2_weight / total_weight / W_PER_KW
-        where = f"{source}: house '{h.name}' (its H2 share {share_kwh:g} kWh)"
-        params = _house_params(files, overrides, {**house_overrides(h, base), "hydrogen.e_max_kwh": share_kwh}, where)
-        plant_params = params.model_copy(update={"electrolyser": params.electrolyser.model_copy(
-            update={"n_modules": 0})})
+    for h, (params, plant_params, share_wh) in zip(spec.houses, house_plants(spec, files, overrides, base, source)):
         houses.append(House(name=h.name, spec=h, params=params, plant_params=plant_params,
-                            scenario=house_scenario(base_scenario, h, params),
-                            share_wh=params.hydrogen.e_max_kwh * W_PER_KW))
+                            scenario=house_scenario(base_scenario, h, params), share_wh=share_wh))
     hub = HubParams(
         e_max_wh=store_wh,
         loh_min=min(p.params.hydrogen.loh_min for p in houses),

@@ -9,6 +9,11 @@ For each step ``k`` the feed publishes (topics of ``msg_defs/topics.yaml``, elem
   ``feed/measured``, ``feed/comfort``, ``feed/prices`` (every EMS);
   ``feed/comfort_ahead``, ``feed/solar``, ``feed/h2_allowance`` (fuzzy and MPC);
   ``feed/t_amb`` and ``forecast/*`` (MPC only);
+* for a house of a community (``community_file`` and ``community_house``, docs/community.md
+  "Over ROS"): the house's scenario (its appliance load and hot-water draws of the community
+  file on the run's scenario) and its parameters (the run's plant with its variation and its
+  share of the hub's store), built by the core's community code; ``feed/h2_allowance`` is then
+  the coordinator's (what it allots the house), not the feed's;
 * once at start-up ``feed/info`` (transient local): scenario name, start, steps, forecast
   mode, seed, the run's id (parameter ``run_id``) and the EMS node served (``for_ems``, None:
   every EMS) as JSON, so that a bag recorded without the launcher knows its scenario and which
@@ -50,6 +55,7 @@ from typing import Any
 from rclpy.node import Node
 from std_msgs.msg import String, UInt32
 
+from comems4build_ros.core.community.spec import house_params, house_scenario, house_spec, load_community
 from comems4build_ros.core.scenario.base import Scenario
 from comems4build_ros.core.scenario.run import check_scenario, load_scenario
 from comems4build_ros.core.types import EXOGENOUS_FIELDS, PlantState
@@ -103,17 +109,47 @@ def scenario_args(values: dict[str, Any], params: Any) -> tuple[Any, ...]:
 
 def prepare_scenario(node_params: dict[str, Any]) -> tuple[Scenario, list[str], int | None]:
     """The scenario a feed node with ROS parameters ``node_params`` (``config_files``,
-    ``overrides`` and :data:`SCENARIO_PARAMS`) loads, the loader's notes and the bound of its
-    ``weeks`` (:func:`comems4build_ros.core.scenario.data_weeks`); no rclpy."""
+    ``overrides``, :data:`SCENARIO_PARAMS` and, for a community's house, ``community_file``
+    and ``community_house``) loads, the loader's notes and the bound of its ``weeks``
+    (:func:`comems4build_ros.core.scenario.data_weeks`); no rclpy."""
     from comems4build_ros.core.config import load_plant_params, parse_assignments
     from comems4build_ros.core.scenario import data_weeks
 
     overrides = parse_assignments(node_params.get("overrides") or [], "parameter 'overrides':")
-    params = load_plant_params([f for f in node_params.get("config_files") or [] if f], overrides)
+    files = [f for f in node_params.get("config_files") or [] if f]
+    params = load_plant_params(files, overrides)
     values = {name: node_params.get(name, default) for name, default in SCENARIO_PARAMS.items()}
     notes: list[str] = []
     bound = data_weeks(str(values["scenario"]), params, str(values["start"]) or None)
-    return load_scenario(*scenario_args(values, params), notes=notes), notes, bound
+    scenario = load_scenario(*scenario_args(values, params), notes=notes)
+    house = community_house(str(node_params.get("community_file") or ""),
+                            str(node_params.get("community_house") or ""), files, overrides, params)
+    if house is not None:
+        scenario = house_scenario(scenario, house[0], house[1])
+    return scenario, notes, bound
+
+
+def community_house(community_file: str, name: str, files: list[str], overrides: dict[str, Any],
+                    params: Any) -> tuple[Any, Any] | None:
+    """The community file's house ``name`` and its parameters as its EMS knows them
+    (:func:`~comems4build_ros.core.community.spec.house_params`) on the run's parameters ``params``
+    (of ``files`` and ``overrides``); None without a community.
+
+    Raises
+    ------
+    ConfigError
+        Naming the community file and the field, or the house it lacks.
+    ValueError
+        For a house without a community file, or the reverse.
+    """
+    if not community_file and not name:
+        return None
+    if not (community_file and name):
+        raise ValueError(f"node '{NODE_NAME}': parameters 'community_file' and 'community_house' go together "
+                         f"(got {community_file!r} and {name!r})")
+    spec = load_community(community_file)
+    house = house_spec(spec, name, community_file)
+    return house, house_params(spec, house, files, overrides, params, community_file)[0]
 
 
 class LiveFeed:
@@ -246,6 +282,11 @@ class Feed(Node):
         params = self.parameters.plant_params()
         values, mode = self._read_parameters(params, weeks_bound)
         self.parameters.refuse_undeclared()  # before the scenario is built: a typo is named at once
+        # a community's house: its parameters (its share as its store) and, below, its scenario
+        house = community_house(self.community_file, self.community_house, *self.parameters.plant_sources, params)
+        base_params = params
+        if house is not None:
+            params = house[1]
         seed = int(values["seed"])
         # Publishers first: DDS discovery (its own threads) matches them with the recorder
         # and the EMS while this thread builds the scenario, the longest part of start-up.
@@ -256,7 +297,9 @@ class Feed(Node):
         self._done = False
         notes: list[str] = []
         if scenario is None:
-            scenario = load_scenario(*scenario_args(values, params), notes=notes)
+            scenario = load_scenario(*scenario_args(values, base_params), notes=notes)
+            if house is not None:
+                scenario = house_scenario(scenario, house[0], params)
         for note in notes:
             self.get_logger().warning(note)
         check_scenario(scenario, params.simulation.time_step_h)
@@ -274,7 +317,8 @@ class Feed(Node):
         self._check_payload_lengths()
         self.info = {"scenario": scenario.name, "start": scenario.time[0].isoformat(), "n_steps": self.n_steps,
                      "forecast": self._forecast.mode, "seed": None if seed < 0 else seed,
-                     "run_id": self.run_id or None, "for_ems": self.for_ems or None}
+                     "run_id": self.run_id or None, "for_ems": self.for_ems or None,
+                     **({"house": self.community_house} if house is not None else {})}
         self._info_pub.publish(String(data=json.dumps(self.info)))
         self._next = 0  # first step not yet published
         self._last_request = -1
@@ -306,6 +350,9 @@ class Feed(Node):
         self.for_ems = self.parameters.param("for_ems", "")
         # the run's id, named on feed/info: evaluate tells this run's records from another's by it
         self.run_id = self.parameters.param("run_id", "")
+        # a house of a community: its scenario and parameters; the coordinator publishes its h2 allowance
+        self.community_file = self.parameters.param("community_file", "")
+        self.community_house = self.parameters.param("community_house", "")
         self.run_end = RunEnd(self.parameters.param("exit_when_done", True))  # process.run_complete reads it
         self.finished = self.run_end.finished
         self.gate = RecorderGate(self, self.parameters.param("wait_for_recorder", False),
@@ -323,6 +370,8 @@ class Feed(Node):
         if self.for_ems:
             unread = set(self.endpoints.contract.inputs_not_read(self.for_ems))
             self.level = self.endpoints.contract.node(self.for_ems).info_level or "mpc"
+        if self.community_house:  # what the coordinator allots the house, on its own (contract: publisher coordinator)
+            unread.add("feed/h2_allowance")
         ems_topics = [t for t in EMS_TOPICS if (self.publish_measured or t != "feed/measured") and t not in unread]
         self.topics = (*ems_topics, *(t for t in forecast_topics if t not in unread))
         self._pubs = [ArrayPublisher(self.endpoints, t, sizes_) for t in self.topics]

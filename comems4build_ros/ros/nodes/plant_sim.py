@@ -23,6 +23,14 @@ step (``ems/command``) have arrived. Protocol (docs/ros_nodes.md):
 
 With ``--log-level debug`` the node logs each announcement, command and step.
 
+A house of a community (``hub:=true``, docs/community.md "Over ROS") holds its H2 store as an
+account at the hub its community's coordinator keeps (:mod:`comems4build_ros.ros.hub_link`):
+the plant announces step ``k`` once the coordinator's ``hub/allotment`` of ``k`` is in (the
+announced ``state/loh`` is the account, ``state/el_on`` the hub's electrolysers), steps without
+an electrolyser of its own (the EMS's electrolyser request is the surplus offered to the hub,
+recorded as the command asked it), reports on ``hub/report`` and records the step once the
+coordinator's ``hub/settlement`` of ``k`` gives the account at its end.
+
 After the last step the node publishes ``plant/done``, waits until the record messages
 are acknowledged, and exits (``exit_when_done``) with code 0. With ``wait_for_recorder`` it
 starts only once the recorder has said ``recorder/ready``. With ``stall_steps`` > 0 (the
@@ -40,9 +48,12 @@ from typing import Any
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 
+from comems4build_ros.core.community.plant import without_electrolyser
+from comems4build_ros.core.community.spec import house_plant
 from comems4build_ros.core.ems.fallback import safe_action
 from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.types import ACTION_FIELDS, FLOW_FIELDS, STATE_COLUMNS, Action, Exogenous, PlantState
+from comems4build_ros.ros.hub_link import HubLink
 from comems4build_ros.ros.lockstep import STATE_TOPICS, LockStep
 from comems4build_ros.ros.node import ArrayPublisher, ContractEndpoints
 from comems4build_ros.ros.package_node import NodeParameters, debug_enabled, node_options, sim_time_logger
@@ -72,17 +83,28 @@ class PlantSimNode(Node):
                              waiting_for=self.waiting_for, silent_ems_cause=self.silent_ems_cause)
         self.run_end = self.loop  # how the run ends (comems4build_ros.ros.process.run_complete)
         self.finished = self.loop.finished
-        self.plant = Plant(self.loop.params, self._building_model())
+        # a house of a community: its parameters are the house as its EMS knows it (its commands are
+        # checked against them); its plant has no electrolyser modules (they are at the hub)
+        hub_mode = self.parameters.param("hub", False)
+        self.plant = Plant(house_plant(self.loop.params) if hub_mode else self.loop.params, self._building_model())
         self.state: PlantState = self.plant.initial_state()
         sizes = self.loop.sizes
         self._bounds = command_bounds(self.loop.params)
 
         self._state_pubs = [(ArrayPublisher(self.endpoints, t, sizes), attrs) for t, attrs in STATE_TOPICS.items()]
+        self._el_pub = next(pub for pub, attrs in self._state_pubs if attrs == ("el_on",))
+        if hub_mode:
+            self._state_pubs = [(pub, attrs) for pub, attrs in self._state_pubs if pub is not self._el_pub]
         self._cmd_layout = self.endpoints.contract.topic("ems/command").layout(sizes)
         self._truth_layout = self.endpoints.contract.topic("feed/truth").layout(sizes)
         self._ti = self._truth_layout.index
         self._cmd_sub = self.endpoints.subscription("ems/command", self._on_command)
         self.endpoints.subscription("feed/truth", self._on_truth)
+        # a house of a community: the H2 store is an account at the coordinator's hub
+        self.hub = HubLink(self.parameters, self.endpoints, self.loop, self._on_hub) if hub_mode else None
+        self._pending: tuple[int, Action, Any, Exogenous, Any, bool] | None = None  # stepped, not yet recorded
+        self._hub_el_on = 0.0  # the hub's electrolysers in step k-1 (state/el_on of a community's house)
+        self._t_report = 0.0
 
         self._truth: dict[int, Any] = {}
         self._cmd: Action | None = None
@@ -138,10 +160,39 @@ class PlantSimNode(Node):
     # ------------------------------------------------------------------ events
     def on_recorder_progress(self) -> None:
         """The recording caught up: announce the held step."""
-        if self._held and not self.loop.behind(self.loop.k):
-            self._held = False
-            self._t_wait = time.monotonic()
-            self._announce()
+        if self._held:
+            self._next_step()
+
+    def _on_hub(self) -> None:
+        """An allotment or settlement of the coordinator came: end the step waiting for its
+        settlement, or announce the step waiting for its allotment."""
+        hub, loop = self.hub, self.loop
+        assert hub is not None
+        if not loop.started or loop.done:
+            return
+        if self._pending is not None:
+            if self._pending[0] in hub.settlements:
+                self._end_step()
+        elif self._announced != loop.k and not self._held:
+            self._next_step()
+
+    def _next_step(self) -> None:
+        """Announce step k if it may go out now: not held back by the recording (back-pressure)
+        and, for a community's house, with the coordinator's allotment of k in (its account
+        and the hub's electrolysers become the announced state)."""
+        k = self.loop.k
+        if self.loop.behind(k):
+            self._held = True
+            return
+        self._held = False
+        if self.hub is not None:
+            allotment = self.hub.allotments.get(k)
+            if allotment is None:
+                return  # announced when it comes (_on_hub)
+            self.state.loh = allotment.loh
+            self._hub_el_on = 1.0 if allotment.el_on_prev else 0.0
+        self._t_wait = time.monotonic()
+        self._announce()
 
     def _on_truth(self, msg: Float64MultiArray) -> None:
         data = msg.data
@@ -198,6 +249,8 @@ class PlantSimNode(Node):
         kf = float(self.loop.k)
         for pub, attrs in self._state_pubs:
             pub.publish(array("d", [kf, *(float(getattr(s, a)) for a in attrs)]))
+        if self.hub is not None:  # a community's house: the hub's electrolysers, not its own
+            self._el_pub.publish(array("d", (kf, self._hub_el_on)))
         self.loop.publish_step(self.loop.k)
         self._t_announce = time.monotonic()
         if self._announced != self.loop.k:
@@ -214,10 +267,11 @@ class PlantSimNode(Node):
         self._t_run0 = time.monotonic()
         self._t_wait = self._t_run0
         self.get_logger().info("starting the run")
-        self._announce()
+        self._next_step()
 
     def _try_advance(self) -> None:
-        if self.loop.started and not self.loop.done and self._cmd is not None and self.loop.k in self._truth:
+        if (self.loop.started and not self.loop.done and self._cmd is not None and self.loop.k in self._truth
+                and self._pending is None and self._announced == self.loop.k):
             action, self._cmd = self._cmd, None
             self._last_cmd = self._cmd_data
             self._step(action, fallback=False)
@@ -237,7 +291,27 @@ class PlantSimNode(Node):
             t_min_c=t[ti["t_min_c"]],
             t_max_c=t[ti["t_max_c"]],
         )
-        self.state, flows = self.plant.step(self.state, action, exo)
+        hub = self.hub
+        self.state, flows = self.plant.step(self.state, action if hub is None else without_electrolyser(action), exo)
+        self._pending = (k, action, flows, exo, t, fallback)
+        if hub is not None:  # the step ends with the coordinator's settlement (_on_hub)
+            hub.report(k, self.state.loh, flows, action.p_el_w)
+            self._t_report = time.monotonic()
+            if k in hub.settlements:
+                self._end_step()
+            return
+        self._end_step()
+
+    def _end_step(self) -> None:
+        """Record the step just made (a community's house: its account as the settlement gives
+        it), announce the next one and, after the last, end the run."""
+        assert self._pending is not None
+        k, action, flows, exo, t, fallback = self._pending
+        self._pending = None
+        if self.hub is not None:
+            self.state.loh = self.hub.settlements[k]
+            self.hub.forget(k)
+        ti = self._ti
         s = self.state
         row = array("d", [float(k)])
         row.extend(float(getattr(flows, f)) for f in FLOW_FIELDS)
@@ -255,10 +329,7 @@ class PlantSimNode(Node):
         self._t_wait = self.loop._t_moved = time.monotonic()
         last = self.loop.n_steps is not None and self.loop.k >= self.loop.n_steps
         if not last:
-            if self.loop.behind(self.loop.k):
-                self._held = True
-            else:
-                self._announce()  # first, so the EMS works on k + 1 while the record goes out
+            self._next_step()  # first, so the EMS works on k + 1 while the record goes out
         self.loop.record.publish(row)
         self.loop.publish_clock(t0)
         if self.debug:
@@ -301,7 +372,14 @@ class PlantSimNode(Node):
             loop = self.loop
             return (f"the recorder '{loop.recorder_node}' (step {loop.k} held back until it has written step "
                     f"{loop.k - loop.record_window_steps}; written: {loop.recorded})", "recorder/progress")
-        if self.loop.k not in self._truth:
+        k = self.loop.k
+        if self.hub is not None and self._pending is not None:
+            return f"the coordinator's settlement of step {k} on 'hub/settlement'", "hub/settlement"
+        if self.hub is not None and self._announced != k:
+            if k == 0 and time.monotonic() - self._t_run0 < self.loop.startup_timeout_s:
+                return None  # the coordinator's start-up (its community, its recorder) as the EMS's: no stall
+            return f"the coordinator's allotment of step {k} on 'hub/allotment'", "hub/allotment"
+        if k not in self._truth:
             return "the feed's inputs on 'feed/truth'", "feed/truth"
         return None
 
@@ -330,6 +408,13 @@ class PlantSimNode(Node):
             )
             if ready:
                 self._start()
+            return
+        if self._pending is not None:  # a community's house waits for the settlement: report again
+            if self.hub is not None and now - self._t_report > self.loop.republish_period_s:
+                self._t_report = now
+                self.hub.resend()
+            return
+        if self._announced != self.loop.k:  # waiting for the coordinator's allotment
             return
         have_truth = self.loop.k in self._truth
         if have_truth and self._cmd is None:

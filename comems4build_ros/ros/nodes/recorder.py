@@ -48,6 +48,14 @@ Topics of ``skip_topics`` (contract names; the launcher lists the feed topics th
 EMS does not read, which its feed does not publish) are not recorded: no subscription,
 no channel.
 
+What the recorder follows (parameter ``follows``): ``plant`` (default) records the houses of
+``namespaces``: every topic of a house (the contract's scopes ``house`` and
+``community_house``, the latter only in a community run and never waited for), its run
+known by ``plant/record``, ``feed/truth`` (the steps) and ``plant/done``. ``coordinator``
+records the coordinator of a community (docs/community.md "Over ROS") in its namespace:
+the topics of scope ``coordinator``, its run known by ``hub/record`` (each row names the
+steps) and ``hub/done``; back-pressure and progress as for a plant, on ``hub/record``.
+
 Other parameters: ``tick_s`` (housekeeping timer period, default 0.05 s), ``bag_path``
 (directory to create, required), ``run_info`` (JSON string, stored as ``run_info.json`` in
 the bag directory and as ``custom_data`` entry ``comems4build.run_info`` of ``metadata.yaml``)
@@ -172,10 +180,23 @@ def _info_step(raw: bytes) -> int:
         raise ValueError(f"ems/info without a step: {exc}") from None
 
 
-def default_wait_topics(contract: Contract) -> list[str]:
-    """Topics with a plant, feed or EMS publisher (what a closed-loop run publishes)."""
+#: What a recorder follows (parameter ``follows``) -> (the contract scopes it records, the topic
+#: of one record per step, the topic and label that give the run's steps, the end-of-run topic,
+#: the roles whose topics it waits for).
+FOLLOWS: dict[str, tuple[tuple[str, ...], str, str, str, str, tuple[str, ...]]] = {
+    "plant": (("house", "community_house"), RECORD_TOPIC, TRUTH_TOPIC, "n_steps", DONE_TOPIC, WAIT_ROLES),
+    "coordinator": (("coordinator",), "hub/record", "hub/record", "n_steps", "hub/done", ("coordinator",)),
+}
+
+
+def default_wait_topics(contract: Contract, follows: str = "plant") -> list[str]:
+    """Topics with a publisher of the roles the recorder waits for (a plant's run: plant, feed and
+    EMS), in the scope every such run has (``house``; a coordinator's: ``coordinator``)."""
     roles = {n.name: n.role for n in contract.nodes.values()}
-    return [t.name for t in contract.topics.values() if any(roles.get(p) in WAIT_ROLES for p in t.publishers)]
+    scope = "house" if follows == "plant" else "coordinator"
+    wait_roles = FOLLOWS[follows][5]
+    return [t.name for t in contract.topics.values()
+            if t.scope == scope and any(roles.get(p) in wait_roles for p in t.publishers)]
 
 
 class Recorder(Node):
@@ -238,9 +259,16 @@ class Recorder(Node):
         self.namespaces = ["/" + ns.strip("/") if ns.strip("/") else "/" for ns in namespaces]
         if len(set(self.namespaces)) != len(self.namespaces):
             raise ValueError(f"node '{NODE_NAME}': parameter 'namespaces' lists a namespace twice: {namespaces}")
+        self.follows = self.parameters.param("follows", "plant")
+        if self.follows not in FOLLOWS:
+            raise ValueError(f"node '{NODE_NAME}': parameter 'follows': '{self.follows}' is not one of "
+                             f"{', '.join(FOLLOWS)}")
+        (self.scopes, self.record_topic, self.steps_topic, steps_label, self.done_topic,
+         _roles) = FOLLOWS[self.follows]
+        self._steps_index = self.contract.topic(self.steps_topic).layout({}).index[steps_label]
         wait = self.parameters.param("wait_for_topics", ["*"])
         if wait == ["*"]:
-            wait = default_wait_topics(self.contract)
+            wait = default_wait_topics(self.contract, self.follows)
         # Topics a run does not publish (the feed serving one EMS leaves out what it does
         # not read, the clock of another house): no subscription, no channel in the bag, no
         # wait for a publisher.
@@ -298,7 +326,7 @@ class Recorder(Node):
         for ns in self.namespaces:
             for spec in self.contract.topics.values():
                 full = resolve(ns, spec.name)
-                if spec.name in self.skip or full in seen:
+                if spec.name in self.skip or full in seen or spec.scope not in self.scopes:
                     continue
                 seen.add(full)
                 self.writer.add_topic(full, spec.type, self._bag_qos(spec.qos))
@@ -363,7 +391,7 @@ class Recorder(Node):
         The receive time is the middleware's ``received_timestamp`` [ns since the epoch].
         """
         write = self.writer.write
-        special = name in (RECORD_TOPIC, TRUTH_TOPIC, DONE_TOPIC, EVENTS_TOPIC)
+        special = name in (self.record_topic, self.steps_topic, self.done_topic, EVENTS_TOPIC)
 
         def on_msg(raw: bytes, info: Any) -> None:
             while True:
@@ -405,8 +433,11 @@ class Recorder(Node):
             self.writer.write(full, received_ns if t_ns is None else t_ns, raw)
 
     def _special(self, ns: str, name: str, raw: bytes) -> None:
-        """Progress and end-of-run bookkeeping from plant/record, feed/truth, plant/done."""
-        if name == RECORD_TOPIC:
+        """Progress and end-of-run bookkeeping from plant/record, feed/truth, plant/done (a
+        coordinator's: hub/record, which also gives the steps, and hub/done)."""
+        if name == self.steps_topic and ns not in self.n_steps:
+            self.n_steps[ns] = int(parse_array(raw)[self._steps_index])
+        if name == self.record_topic:
             self.records[ns] += 1
             step = int(parse_array(raw)[0])
             if step == self.contiguous[ns]:
@@ -423,10 +454,7 @@ class Recorder(Node):
             self._last_record_at = time.monotonic()
             if ns not in self.done_at and self.records[ns] >= self.n_steps.get(ns, -1) > 0:
                 self.done_at[ns] = self._last_record_at  # every record in: done even if plant/done is lost
-        elif name == TRUTH_TOPIC:
-            if ns not in self.n_steps:
-                self.n_steps[ns] = int(parse_array(raw)[1])
-        elif name == DONE_TOPIC and decode("std_msgs/msg/Bool", raw).data and ns not in self.done_at:
+        elif name == self.done_topic and decode("std_msgs/msg/Bool", raw).data and ns not in self.done_at:
             self.done_at[ns] = time.monotonic()
         elif name == EVENTS_TOPIC:
             step_kind = event_step_kind(str(decode("std_msgs/msg/String", raw).data))

@@ -31,7 +31,7 @@ from comems4build_ros.core.ems.mpc.horizon import (
     season_schedules,
 )
 from comems4build_ros.core.ems.mpc.milp import SLACKS, MILPModel, Penalties, SolveResult, YearTerms, shift_plan
-from comems4build_ros.core.ems.mpc.solvers import make_backend
+from comems4build_ros.core.ems.mpc.solvers import MatrixForm, make_backend
 from comems4build_ros.core.ems.settings import MILPSettings, load_settings
 from comems4build_ros.core.types import HP_COOL, HP_DHW, HP_OFF, HP_SH, Action
 
@@ -142,6 +142,55 @@ def slack_info(plan: Mapping[str, np.ndarray] | None, tol: float) -> dict[str, f
     return out
 
 
+def milp_model(const: PlantConstants, o: MILPSettings, **model_options: Any) -> MILPModel:
+    """Build the horizon MILP (``eq:mpc_objective``) of the plant ``const`` with the settings ``o``.
+
+    Parameters
+    ----------
+    const : PlantConstants
+        The plant's constants.
+    o : MILPSettings
+        The MPC's settings (formulation, penalties, year terms).
+    **model_options : Any
+        ``prefix``, ``h2_exchange``, ``integer_steps`` for :class:`.milp.MILPModel`: a community's
+        coordinators compose houses' models into one problem with them.
+
+    Returns
+    -------
+    MILPModel
+        The model, not yet updated with a horizon's numbers.
+    """
+    kwargs: dict[str, Any] = {"integer_steps": o.integer_steps, **model_options}
+    year = YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur)
+    return MILPModel(const, penalties_from(o), o.formulation, o.big_m_loose_w,
+                     relax_battery_binary=o.relax_battery_binary, year=year, fc_heat_dump=o.fc_heat_dump, **kwargs)
+
+
+def milp_backend(form: MatrixForm, o: MILPSettings, time_limit_s: float | None = None,
+                 mip_rel_gap: float | None = None) -> Any:
+    """Make the solver backend of the settings ``o`` for the problem ``form``.
+
+    Parameters
+    ----------
+    form : MatrixForm
+        The problem in matrix form.
+    o : MILPSettings
+        The MPC's settings (solver, gap, time limit, threads, warm start, solver options).
+    time_limit_s : float, optional
+        Time limit per solve [s] instead of the settings' own.
+    mip_rel_gap : float, optional
+        Relative MIP gap [-] instead of the settings' own.
+
+    Returns
+    -------
+    Any
+        The backend of :func:`.solvers.make_backend`.
+    """
+    return make_backend(o.solver, form, o.mip_rel_gap if mip_rel_gap is None else mip_rel_gap,
+                        o.time_limit_s if time_limit_s is None else time_limit_s, o.threads, o.warm_start,
+                        highs_options=o.highs_options, gurobi_options=o.gurobi_options)
+
+
 class MPCController:
     """MILP MPC over a 24 h horizon (``eq:mpc_objective``).
 
@@ -152,23 +201,22 @@ class MPCController:
     options : Mapping[str, Any], optional
         Overrides of ``config/mpc.yaml`` section ``mpc``
         (:class:`~comems4build_ros.core.ems.settings.MILPSettings`).
+    model_options : Mapping[str, Any], optional
+        Passed to :func:`milp_model` (a community's coordinators; none for a house's EMS).
     """
 
     name = "mpc"
     info_level = "mpc"
     settings_class = MILPSettings
 
-    def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None) -> None:
+    def __init__(self, params: PlantParams, options: Mapping[str, Any] | None = None,
+                 model_options: Mapping[str, Any] | None = None) -> None:
         self.params = params
         self.settings = load_settings(MILPSettings, options)
         o = self.settings
         self.const = PlantConstants.from_params(params, o.fc_lifecycle_eta)
-        self.model = MILPModel(self.const, penalties_from(o), o.formulation, o.big_m_loose_w, o.integer_steps,
-                               o.relax_battery_binary,
-                               YearTerms(o.penalty_loh_season_eur_per_h, o.h2_value_eur_per_kwh, o.sigma_el_on_eur),
-                               o.fc_heat_dump)
-        self.backend = make_backend(o.solver, self.model.form, o.mip_rel_gap, o.time_limit_s, o.threads,
-                                    o.warm_start, highs_options=o.highs_options, gurobi_options=o.gurobi_options)
+        self.model = milp_model(self.const, o, **dict(model_options or {}))
+        self.backend = milp_backend(self.model.form, o)
         self.step_info: dict[str, float] = {}
         self.observer = None
         if o.observer == "kalman":
@@ -191,7 +239,18 @@ class MPCController:
         self._season_loh0: float | None = None
 
     def plan(self, obs: Observation) -> SolveResult:
-        """Update and solve the horizon problem for ``obs`` (no action, no counters).
+        """Update the horizon problem for ``obs`` (:meth:`prepare`) and solve it (no action, no counters).
+
+        Returns
+        -------
+        SolveResult
+            The solver's status, plan, objective [EUR] and solve time [s].
+        """
+        self.prepare(obs)
+        return self.model.solve(self.backend)
+
+    def prepare(self, obs: Observation) -> HorizonData:
+        """Update the horizon problem for ``obs`` in place and set its warm start.
 
         Parameters
         ----------
@@ -200,8 +259,8 @@ class MPCController:
 
         Returns
         -------
-        SolveResult
-            The solver's status, plan, objective [EUR] and solve time [s].
+        HorizonData
+            The horizon's numbers the model was updated with.
         """
         h = build_horizon(obs, self.const, self.settings.loh_min_mode)
         if self.const.year_round:  # seasonal schedules (memory: the LOH at the season's start)
@@ -216,7 +275,7 @@ class MPCController:
         h = self.last_horizon = same_on_every_cpu(h)  # the same plan on every CPU (docs/mpc.md)
         self.model.update(h)
         self.model.set_start(shift_plan(self._prev_plan) if self.settings.warm_start and self._prev_plan else None)
-        return self.model.solve(self.backend)
+        return h
 
     def act(self, obs: Observation) -> Action:
         """Solve the horizon problem (``eq:mpc_objective``) and return its first step.

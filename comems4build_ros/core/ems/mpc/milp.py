@@ -182,6 +182,13 @@ class MILPModel:
     fc_heat_dump : bool
         Whether recovered FC heat the tank cannot take may be dumped (``q_dump``);
         ``False`` = ``eq:DHW_heat`` as printed (see the module docstring).
+    prefix : str
+        Put before every variable and constraint name (several houses' models in one
+        problem, :mod:`comems4build_ros.core.community.optimal`).
+    h2_exchange : bool
+        The house's store is an account at a shared hub: H2 moved into the account
+        (``h2_in``) and out of it (``h2_out``) [W LHV, >= 0] enter ``loh``, and the account is
+        bounded by ``LOH_max`` (hard); their costs are the composing problem's.
 
     Raises
     ------
@@ -199,6 +206,8 @@ class MILPModel:
         relax_battery_binary: bool = False,
         year: YearTerms | None = None,
         fc_heat_dump: bool = False,
+        prefix: str = "",
+        h2_exchange: bool = False,
     ) -> None:
         if formulation not in ("tight", "paper"):
             raise ValueError(f"formulation: unknown value '{formulation}' (tight, paper)")
@@ -213,7 +222,9 @@ class MILPModel:
         self.relax_battery_binary = relax_battery_binary
         self.year = year
         self.fc_heat_dump = fc_heat_dump
-        self.prob = pulp.LpProblem("mpc_horizon", pulp.LpMinimize)
+        self.prefix = prefix
+        self.h2_exchange = h2_exchange
+        self.prob = pulp.LpProblem(f"{prefix}mpc_horizon", pulp.LpMinimize)
         self.v: dict[str, list[pulp.LpVariable]] = {}
         self.c: dict[str, list[pulp.LpConstraint]] = {}
         #: (constraint, variable) pairs whose coefficient update() changes
@@ -227,15 +238,17 @@ class MILPModel:
     def _var(self, name: str, low: float | None = 0.0, up: float | None = None, binary: bool = False) -> None:
         if binary:  # binary for t < integer_steps, relaxed to [0, 1] after
             self.v[name] = [
-                pulp.LpVariable(f"{name}_{t}", 0, 1, pulp.LpBinary if t < self.integer_steps else pulp.LpContinuous)
+                pulp.LpVariable(f"{self.prefix}{name}_{t}", 0, 1,
+                                pulp.LpBinary if t < self.integer_steps else pulp.LpContinuous)
                 for t in range(self.n)
             ]
         else:
-            self.v[name] = [pulp.LpVariable(f"{name}_{t}", low, up, pulp.LpContinuous) for t in range(self.n)]
+            self.v[name] = [pulp.LpVariable(f"{self.prefix}{name}_{t}", low, up, pulp.LpContinuous)
+                            for t in range(self.n)]
 
     def _con(self, name: str, t: int, con: pulp.LpConstraint) -> None:
         self.c.setdefault(name, []).append(con)
-        self.prob.addConstraint(con, f"{name}_{t}")
+        self.prob.addConstraint(con, f"{self.prefix}{name}_{t}")
 
     # Long on purpose: the whole horizon problem in the order of sec:MPC, one block per equation,
     # so that it reads beside the paper; splitting it would scatter the formulation.
@@ -244,6 +257,11 @@ class MILPModel:
         for name in ("p_buy", "p_sell", "q_dump", "t_wall_in", "t_wall_out", "v_dhw", "soc", "loh"):
             up = 0.0 if name == "q_dump" and not self.fc_heat_dump else None  # eq:DHW_heat as printed: no dump
             self._var(name, None if name.startswith("t_") else 0.0, up)
+        if self.h2_exchange:  # an account at the hub: never above its LOH_max, H2 moved in or out
+            self._var("h2_in", 0.0)
+            self._var("h2_out", 0.0)
+            for var in self.v["loh"]:
+                var.upBound = k.loh_upper
         self._var("t_air", None)
         self._var("p_ch", 0.0, k.p_ch_max_w)
         self._var("p_dis", 0.0, k.p_d_max_w)
@@ -297,6 +315,9 @@ class MILPModel:
             loh_expr = V["loh"][t] - prev("loh") + k.loh_per_wh_fc * k.dt_h * V["p_fc"][t]
             if k.el:
                 loh_expr = loh_expr - k.loh_per_wh_el * k.dt_h * V["p_el"][t]
+            if self.h2_exchange:
+                per_wh = k.dt_h / (k.params.hydrogen.e_max_kwh * W_PER_KW)
+                loh_expr = loh_expr - per_wh * V["h2_in"][t] + per_wh * V["h2_out"][t]
             self._con("loh", t, loh_expr == 0.0)
             # eq:DHW_model + eq:DHW_heat; COP coefficient set by update
             cv = k.l_per_wh * k.dt_h
