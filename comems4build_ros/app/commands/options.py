@@ -124,7 +124,10 @@ def parse_values(text: str, option: str, integer: bool) -> list[float]:
         try:
             v = parse_decimal(item)
         except InputError:
-            raise UsageError(f"{option} '{text}': '{item}' is not a number") from None
+            try:  # 'nan', 'inf', 'infinity' as Python reads them: numbers, but not finite ones
+                v = float(item)
+            except ValueError:
+                raise UsageError(f"{option} '{text}': '{item}' is not a number") from None
         if not math.isfinite(v):
             raise UsageError(f"{option} '{text}': '{item}' is not a finite number")
         if integer:
