@@ -376,7 +376,8 @@ def test_every_parameter_has_a_description_unit_and_range(context, tmp_path):
                     assert d.additional_constraints, (node.get_name(), name)
         plant = _descriptions(nodes[0])
         assert plant["battery.e_max_kwh"].description.endswith("[kWh]")
-        assert plant["battery.e_max_kwh"].floating_point_range[0].from_value == 0.0
+        # from its physical lower bound (core/config.py: a tenth of the smallest home battery module)
+        assert plant["battery.e_max_kwh"].floating_point_range[0].from_value == 0.1
         # given as the integer 3: the number 3.0 of the declared type (double), with its range
         timeout = plant["step_timeout_s"]
         assert timeout.type == Parameter.Type.DOUBLE.value and timeout.floating_point_range
