@@ -507,7 +507,7 @@ def test_tls_broker_with_password_from_file_or_env_never_logged(tmp_path: Path, 
 @pytest.mark.parametrize(
     ("args", "message"),
     [
-        (["--clock", "wall"], "--clock wall, --broker and --topic-map need --plant mqtt"),
+        (["--clock", "wall"], "--clock wall needs --plant mqtt or --community"),
         (["--plant", "mqtt", "--clock", "wall:0"], "--clock: clock 'wall:0'"),
         (["--plant", "mqtt", "--houses", "2"], "--plant mqtt runs one house"),
         (["--plant", "mqtt", "--topic-map", "/nonexistent/m.yaml"], "--topic-map /nonexistent/m.yaml: no such file"),
