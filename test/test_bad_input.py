@@ -224,6 +224,22 @@ def test_mpc_that_never_solves_counts_its_fallbacks_and_fails(tmp_path: Path,
     assert "error: the EMS decided none of the 6 steps" in err
 
 
+@pytest.mark.parametrize(("causes", "code"), [
+    ({"user_switch": 12}, 0),  # the building's user put every step on the fallback: their choice
+    ({"user_switch": 11, "late_command": 1}, 1),  # the EMS decided none of the steps left to it
+    ({"late_command": 12}, 1),
+])
+def test_a_run_all_on_the_fallback_fails_unless_the_user_chose_it(causes: dict, code: int,
+                                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    from comems4build_ros.app.commands.simulate import warn_run
+
+    summary = {"steps": 12, "fallback_steps": 12, "ems_fallback_steps": 0, "fallback_causes": causes}
+    assert warn_run(summary, "launch") == code
+    err = capsys.readouterr().err
+    assert "warning: 12 of 12 steps ran on the safe fallback action" in err
+    assert ("error: the EMS decided none of the 12 steps" in err) == bool(code)
+
+
 def test_unmet_hot_water_is_warned_not_only_counted(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     """A tank started near V_DHW,min cannot serve the first morning draw: the run says so."""
     code, _, err = run_cli(["simulate", "--ems", "rbc", "--hours", "24", "--set", "simulation.v_dhw_init_l=41",

@@ -115,7 +115,8 @@ def warn_run(summary: dict, command: str) -> int:
     int
         The exit code the run earns: 1 when the EMS decided no step at all (every step ran on
         the safe fallback action: the results are the fallback's, no EMS's; said as an error),
-        else 0.
+        else 0. Steps the user put on the fallback (a building's forced-fallback switch) are
+        the user's choice, not a failure: a run whose every step the user switched is exit 0.
     """
     n, steps = summary.get("fallback_steps") or 0, summary.get("steps") or 0
     unmet = summary.get("dhw_unmet_steps") or 0
@@ -144,7 +145,8 @@ def warn_run(summary: dict, command: str) -> int:
     if ext:
         print(f"comems4build {command}: note: the scenario was extended with {ext['rows']} generated hours from "
               f"{ext['from']} ({ext['method']}, seed {ext['seed']})", file=sys.stderr)
-    if steps and n >= steps:
+    chosen = (summary.get("fallback_causes") or {}).get("user_switch") or 0  # the user's own choice
+    if steps and n >= steps and chosen < n:
         print(f"comems4build {command}: error: the EMS decided none of the {steps} steps (every one ran on the safe "
               "fallback action): the results written are the fallback's, not the EMS's; see fallback_causes in "
               "summary.json (an MPC: its time_limit_s, solver and options)", file=sys.stderr)
