@@ -4,7 +4,7 @@ import math
 
 import pytest
 
-from comems4build_ros.core.config import load_plant_params
+from comems4build_ros.core.config import ConfigError, load_plant_params
 from comems4build_ros.core.models import fuel_cell
 from comems4build_ros.core.plant import Plant
 from comems4build_ros.core.types import (
@@ -245,6 +245,6 @@ def test_invalid_state_raises(plant, field, value):
 
 
 def test_invalid_initial_volume_raises():
-    p = Plant(load_plant_params(overrides={"simulation.v_dhw_init_l": 500.0}))
-    with pytest.raises(ValueError, match="v_dhw_l"):
-        p.initial_state()
+    """An initial tank volume beyond the tank is refused when the parameters are read, naming both."""
+    with pytest.raises(ConfigError, match=r"simulation.v_dhw_init_l \(500 l\) exceeds the tank, dhw.v_max_l"):
+        load_plant_params(overrides={"simulation.v_dhw_init_l": 500.0})
