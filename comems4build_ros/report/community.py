@@ -38,7 +38,7 @@ from comems4build_ros.files.inputs import InputFileError, load_json_file  # noqa
 from comems4build_ros.report import style  # noqa: E402
 from comems4build_ros.report.build import Report  # noqa: E402
 from comems4build_ros.report.document import Document  # noqa: E402
-from comems4build_ros.report.figures import _local_naive, run_time_axis  # noqa: E402
+from comems4build_ros.report.figures import _local_naive, group_bar_x, percent_run_axes  # noqa: E402
 from comems4build_ros.report.runs import RUNS_DIR, RunDirError  # noqa: E402
 from comems4build_ros.report.style import axis_label, figsize, save_figure, styled  # noqa: E402
 
@@ -152,10 +152,7 @@ def hub_loh_figure(runs: Mapping[str, CommunityRun], tz: str) -> Figure:
     for i, (name, r) in enumerate(runs.items()):
         t = _local_naive(r.hub["time"], tz)
         ax.plot(t, PERCENT * r.hub["loh"], color=coordinator_colour(name, i), label=coordinator_label(name), lw=1.2)
-    ax.set_ylabel(axis_label("hub LOH", "%"))
-    ax.set_ylim(0, 102)
-    run_time_axis(ax, next(iter(runs.values())).hub["time"], tz)
-    style.outside_legend(ax)
+    percent_run_axes(ax, "hub LOH", next(iter(runs.values())).hub["time"], tz)
     return fig
 
 
@@ -167,7 +164,7 @@ def household_cost_figure(runs: Mapping[str, CommunityRun], rules: Mapping[str, 
     width = 0.8 / len(runs)
     for i, (name, r) in enumerate(runs.items()):
         values = [float(r.summary.get(f"cost_eur_per_household_{rule}", np.nan)) for rule in rules]
-        ax.bar(x + (i - (len(runs) - 1) / 2) * width, values, width=width, color=coordinator_colour(name, i),
+        ax.bar(group_bar_x(x, i, len(runs), width), values, width=width, color=coordinator_colour(name, i),
                label=coordinator_label(name))
     ax.set_xticks(x, [str(lab) for lab in rules.values()])
     ax.tick_params(axis="x", labelsize=6)
@@ -186,7 +183,7 @@ def house_costs_figure(runs: Mapping[str, CommunityRun], rules: Mapping[str, str
         x = np.arange(len(houses))
         width = 0.8 / len(rules)
         for j, (rule, lab) in enumerate(rules.items()):
-            ax.bar(x + (j - (len(rules) - 1) / 2) * width, r.houses[f"cost_eur_{rule}"], width=width,
+            ax.bar(group_bar_x(x, j, len(rules), width), r.houses[f"cost_eur_{rule}"], width=width,
                    color=RULE_COLOURS[j % len(RULE_COLOURS)], label=lab)
         ax.set_ylabel(axis_label("cost", "EUR"))
         ax.text(0.99, 0.95, coordinator_label(name), transform=ax.transAxes, ha="right", va="top")

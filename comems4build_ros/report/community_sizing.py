@@ -42,7 +42,7 @@ from comems4build_ros.files.inputs import InputFileError, load_json_file  # noqa
 from comems4build_ros.report import style  # noqa: E402
 from comems4build_ros.report.document import Document  # noqa: E402
 from comems4build_ros.report.runs import RunDirError  # noqa: E402
-from comems4build_ros.report.sizing import markdown_rows  # noqa: E402
+from comems4build_ros.report.sizing import cost_figures, markdown_rows  # noqa: E402
 from comems4build_ros.report.style import axis_label, figsize, save_figure, styled  # noqa: E402
 from comems4build_ros.study.community_sizing import (  # noqa: E402
     HUB_COST_SPLIT,
@@ -366,9 +366,7 @@ def report(meta: Mapping[str, Any], costs: economics.Costs, households: pd.DataF
     doc.p("The seasonal cycle closes as in size: isolated, for every house's own store; shared, on the hub: the "
           "summer fills it, it ends the year at least as full as it started, no house's account runs dry and no "
           "house has a heating-season week with discomfort.")
-    doc.h(2, "Cost figures")
-    rows = [[c, k, f"{v:g}"] for c in economics.COMPONENTS for k, v in costs[c].items()]
-    doc.table(["component", "figure", "value"], [["all", "interest_rate", f"{costs.interest_rate:g}"], *rows])
+    cost_figures(doc, costs)
     doc.p("Sources and choices: config/costs.yaml. The hub's modules are the houses' Enapter EL 2.1 and its store "
           "the houses' 300 bar steel bottles at the same figures per module and per kWh (no sourced figure for a "
           "cheaper store at this scale).")

@@ -102,6 +102,20 @@ def run_time_axis(ax: plt.Axes, time: pd.Series, tz: str) -> None:
     ax.set_xlabel(f"local time ({tz})")
 
 
+def percent_run_axes(ax: plt.Axes, quantity: str, time: pd.Series, tz: str) -> None:
+    """Finish the axes of a level over a run: its label [%], the range 0 to 102 %, the run's date
+    axis (:func:`run_time_axis`) and the legend outside."""
+    ax.set_ylabel(axis_label(quantity, "%"))
+    ax.set_ylim(0, 102)
+    run_time_axis(ax, time, tz)
+    style.outside_legend(ax)
+
+
+def group_bar_x(x: np.ndarray, i: int, n: int, width: float) -> np.ndarray:
+    """Positions of the ``i``-th of ``n`` bars side by side around each group position ``x``."""
+    return x + (i - (n - 1) / 2) * width
+
+
 def _boxes(ax: plt.Axes, runs: Mapping[str, RunData], column: str, ylabel: str, title: str) -> None:
     """Weekly box plot of one KPI, one box per EMS, weekly values as dots."""
     names = list(runs)

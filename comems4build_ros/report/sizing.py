@@ -121,6 +121,13 @@ def markdown_rows(df: pd.DataFrame, columns: Sequence[str]) -> list[list[Any]]:
     return [[_cell(v) for v in r] for r in df[list(columns)].itertuples(index=False)]
 
 
+def cost_figures(doc: Document, costs: economics.Costs) -> None:
+    """Add the ``Cost figures`` section to ``doc``: the interest rate and every component's figures."""
+    doc.h(2, "Cost figures")
+    rows = [[c, k, f"{v:g}"] for c in economics.COMPONENTS for k, v in costs[c].items()]
+    doc.table(["component", "figure", "value"], [["all", "interest_rate", f"{costs.interest_rate:g}"], *rows])
+
+
 def report(df: pd.DataFrame, meta: Mapping[str, Any], costs: economics.Costs, figure_png: Path) -> Document:
     """The study's report: design, cost figures, table, Pareto figure, the smallest closing sizes."""
     doc = Document("ComEMS4Build: sizing study over the year")
@@ -144,9 +151,7 @@ def report(df: pd.DataFrame, meta: Mapping[str, Any], costs: economics.Costs, fi
           "LOH it started with (LOH_end >= LOH_init), never runs dry (LOH never at LOH_min) and the heating season "
           "is served (no heating-season week with discomfort, eq:discomfort). Not tested (n/a) for a run without a "
           "full heating-season week.")
-    doc.h(2, "Cost figures")
-    rows = [[c, k, f"{v:g}"] for c in economics.COMPONENTS for k, v in costs[c].items()]
-    doc.table(["component", "figure", "value"], [["all", "interest_rate", f"{costs.interest_rate:g}"], *rows])
+    cost_figures(doc, costs)
     doc.p("Sources and choices: config/costs.yaml (the paper's tab:degradation_HESS for the FC and the battery, "
           "Fraunhofer ISE 2024 for PV; figures marked 'choice' there are assumptions).")
     doc.h(2, "Smallest sizes that close the cycle")

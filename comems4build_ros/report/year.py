@@ -34,7 +34,7 @@ from comems4build_ros.core.config import load_plant_params  # noqa: E402
 from comems4build_ros.report import style  # noqa: E402
 from comems4build_ros.report.build import Report  # noqa: E402
 from comems4build_ros.report.document import Document  # noqa: E402
-from comems4build_ros.report.figures import _local_naive, colour, label, ordered, run_time_axis  # noqa: E402
+from comems4build_ros.report.figures import _local_naive, colour, group_bar_x, label, ordered, percent_run_axes  # noqa: E402
 from comems4build_ros.report.runs import RunData, RunDirError, read_comparison  # noqa: E402
 from comems4build_ros.report.style import axis_label, figsize, save_figure, styled  # noqa: E402
 
@@ -99,10 +99,7 @@ def loh_year_figure(runs: Mapping[str, RunData], tz: str, loh_init: float, seaso
     if season_start is not None:
         ax.axvline(season_start.tz_localize(None).to_datetime64(), color=style.GREY, lw=0.8, ls="-.",
                    label="heating season starts")
-    ax.set_ylabel(axis_label("loh", "%"))
-    ax.set_ylim(0, 102)
-    run_time_axis(ax, next(iter(runs.values())).timeseries["time"], tz)
-    style.outside_legend(ax)
+    percent_run_axes(ax, "loh", next(iter(runs.values())).timeseries["time"], tz)
     return fig
 
 
@@ -116,7 +113,7 @@ def monthly_energy_figure(monthly: Mapping[str, pd.DataFrame]) -> Figure:
         m = m.assign(hp_heat_dhw_kwh=m["hp_heating_kwh"] + m["hp_dhw_kwh"])
         x = np.arange(len(m))
         for i, (col, lab, c) in enumerate(BARS):
-            ax.bar(x + (i - (len(BARS) - 1) / 2) * width, m[col], width=width, color=c, label=lab)
+            ax.bar(group_bar_x(x, i, len(BARS), width), m[col], width=width, color=c, label=lab)
         ax.set_ylabel(axis_label("energy", "kWh"))
         ax.text(0.99, 0.95, label(e), transform=ax.transAxes, ha="right", va="top")
         ax.set_xticks(x, [str(s)[2:] for s in m["month"]])

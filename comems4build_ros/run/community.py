@@ -29,7 +29,6 @@
 from __future__ import annotations
 
 import dataclasses
-import math
 from pathlib import Path
 from typing import Any
 
@@ -57,7 +56,6 @@ from comems4build_ros.run.plan import (
     backstop_stall_s,
     container_count,
     container_process,
-    default_time_limit,
     ems_node_name,
     fastdds_profile,
     feed_window,
@@ -67,6 +65,7 @@ from comems4build_ros.run.plan import (
     recorder_params,
     ros_args,
     run_info,
+    run_time_limit,
     unread_inputs,
     with_discovery_server,
 )
@@ -227,8 +226,7 @@ def plan_community(opts: LaunchOptions, domain_id: int, params: Any) -> RunPlan:
         teardown=teardown,
         processes=tuple(processes),
         run_info=info,
-        timeout_s=None if opts.timeout_s == math.inf else (
-            opts.timeout_s if opts.timeout_s is not None else default_time_limit(as_houses)),
+        timeout_s=run_time_limit(as_houses),
         stall_s=backstop_stall_s(opts, layout),
         secrets=tuple(secrets),
         files=tuple(files),

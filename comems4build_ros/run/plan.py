@@ -751,6 +751,14 @@ def default_time_limit(opts: LaunchOptions) -> float:
     return TIME_LIMIT_START_S + per * run_steps(opts) * opts.houses
 
 
+def run_time_limit(opts: LaunchOptions) -> float | None:
+    """The supervisor's overall time limit of a run (:attr:`RunPlan.timeout_s`) [s]: ``timeout_s``,
+    :func:`default_time_limit` where it is None, and None (no limit) where it is infinite."""
+    if opts.timeout_s == math.inf:
+        return None
+    return opts.timeout_s if opts.timeout_s is not None else default_time_limit(opts)
+
+
 def backstop_stall_s(opts: LaunchOptions, layout: str) -> float | None:
     """The supervisor's stall limit of a run (:attr:`RunPlan.stall_s`) [s]: :data:`STALL_BACKSTOP_FACTOR`
     times the masters' window (``stall_steps`` x the step time-out, plus a wall clock's step
@@ -952,8 +960,7 @@ def plan_run(opts: LaunchOptions, domain_id: int, params: Any = None) -> RunPlan
         teardown=teardown,
         processes=tuple(processes),
         run_info=info,
-        timeout_s=None if opts.timeout_s == math.inf else (
-            opts.timeout_s if opts.timeout_s is not None else default_time_limit(opts)),
+        timeout_s=run_time_limit(opts),
         stall_s=backstop_stall_s(opts, layout),
         secrets=tuple(secrets),
         files=((str(params_file), plant_params_file_text(params)),),

@@ -63,6 +63,19 @@ def coordinator_options(items: list[str], names: list[str]) -> dict[str, dict[st
     return out
 
 
+def community_ems(args: argparse.Namespace) -> str:
+    """The one EMS of every house of a community run (``--ems``, default :data:`DEFAULT_COMMUNITY_EMS`),
+    after the check that ``--out`` is given (both refused with a UsageError)."""
+    from comems4build_ros.app.commands.options import ems_names
+
+    if args.out is None:
+        raise UsageError("--out is required (unless --from-runs)")
+    emss = ems_names(args.ems or DEFAULT_COMMUNITY_EMS)
+    if len(emss) != 1:
+        raise UsageError(f"--ems {args.ems}: with --community give the one EMS of every house")
+    return emss[0]
+
+
 def _refuse_house_options(args: argparse.Namespace) -> None:
     """Options of ``compare`` that a community comparison does not take."""
     if args.via != "inprocess":
@@ -78,7 +91,7 @@ def _refuse_house_options(args: argparse.Namespace) -> None:
 
 def run_community(args: argparse.Namespace) -> int:
     """Run every coordinator on the community and write the report (``compare --community``)."""
-    from comems4build_ros.app.commands.options import add_scenario_config, check_config_files, ems_names
+    from comems4build_ros.app.commands.options import add_scenario_config, check_config_files
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.community.coordinator import make_coordinator
     from comems4build_ros.core.community.hub import community_hub
@@ -90,11 +103,7 @@ def run_community(args: argparse.Namespace) -> int:
     from comems4build_ros.study.runner import run_tasks
 
     _refuse_house_options(args)
-    if args.out is None:
-        raise UsageError("--out is required (unless --from-runs)")
-    emss = ems_names(args.ems or DEFAULT_COMMUNITY_EMS)
-    if len(emss) != 1:
-        raise UsageError(f"--ems {args.ems}: with --community give the one EMS of every house")
+    ems = community_ems(args)
     names = coordinator_names(args.coordinator)
     options = coordinator_options(args.coordinator_option, names)
     add_scenario_config(args)
@@ -113,7 +122,7 @@ def run_community(args: argparse.Namespace) -> int:
         stage = output.stage
         tasks = [CommunityTask(coordinator=name, out_dir=str(stage / RUNS_DIR / name),
                                community=str(Path(args.community).resolve()), houses=len(community.houses),
-                               ems=emss[0], scenario=args.scenario, start=args.start, weeks=args.weeks,
+                               ems=ems, scenario=args.scenario, start=args.start, weeks=args.weeks,
                                seed=args.seed, overrides=overrides, config=config,
                                coordinator_options=options[name], forecast=args.forecast) for name in names]
         print(f"compare: {len(tasks)} community runs ({', '.join(names)}) of {len(community.houses)} houses",
@@ -124,7 +133,7 @@ def run_community(args: argparse.Namespace) -> int:
                   progress=False if args.no_progress else None)
         wall = time.perf_counter() - t0
         write_manifest(stage, {"kind": "community", "community_file": str(args.community), "coordinators": names,
-                               "ems": emss[0], "scenario": args.scenario, "start": args.start, "weeks": args.weeks,
+                               "ems": ems, "scenario": args.scenario, "start": args.start, "weeks": args.weeks,
                                "overrides": overrides, "config": config, "coordinator_options": options,
                                "timezone": community.houses[0].params.site.timezone,
                                "wall_s": {**walls, "all_runs": wall}})

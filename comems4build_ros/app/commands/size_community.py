@@ -84,11 +84,11 @@ def _hub_values(args: argparse.Namespace, default_kwh: float, default_modules: i
 def run(args: argparse.Namespace) -> int:
     """Run the isolated houses and the hub sizes over the year; write the tables, figure and report."""
     from comems4build_ros.app.commands.compare_community import (
-        DEFAULT_COMMUNITY_EMS,
+        community_ems,
         coordinator_names,
         coordinator_options,
     )
-    from comems4build_ros.app.commands.options import add_scenario_config, check_config_files, check_start, ems_names
+    from comems4build_ros.app.commands.options import add_scenario_config, check_config_files, check_start
     from comems4build_ros.app.commands.simulate import parse_assignments
     from comems4build_ros.core.community.coordinator import make_coordinator
     from comems4build_ros.core.community.hubrun import community_info
@@ -104,11 +104,7 @@ def run(args: argparse.Namespace) -> int:
     from comems4build_ros.study.sizing import plant_sizes
 
     _refuse(args)
-    if args.out is None:
-        raise UsageError("--out is required (unless --from-runs)")
-    emss = ems_names(args.ems or DEFAULT_COMMUNITY_EMS)
-    if len(emss) != 1:
-        raise UsageError(f"--ems {args.ems}: with --community give the one EMS of every house")
+    ems = community_ems(args)
     names = coordinator_names(args.coordinator or DEFAULT_COORDINATOR)
     if len(names) != 1:
         raise UsageError(f"--coordinator {args.coordinator}: give the one coordinator of the hub")
@@ -155,7 +151,7 @@ def run(args: argparse.Namespace) -> int:
     output.check()
     config = [str(Path(c).resolve()) for c in args.config]
     meta: dict[str, Any] = {
-        "kind": "size_community", "community_file": source, "community": spec.name, "ems": emss[0],
+        "kind": "size_community", "community_file": source, "community": spec.name, "ems": ems,
         "coordinator": coordinator, "coordinator_options": options, "start": args.start, "weeks": args.weeks or 52,
         "set": overrides, "config": config, "hub_sizes": [{"store_kwh": s.store_kwh, "modules": s.modules,
                                                            "run": s.name} for s in sizes],
@@ -170,7 +166,7 @@ def run(args: argparse.Namespace) -> int:
     community_path = str(Path(args.community).resolve())
     with output, study_pool(args, args.out) as pool:
         stage = output.stage
-        common = {"community": community_path, "ems": emss[0], "scenario": "year", "start": args.start,
+        common = {"community": community_path, "ems": ems, "scenario": "year", "start": args.start,
                   "weeks": args.weeks, "overrides": overrides, "config": config}
         tasks = [CommunityTask(coordinator=coordinator, out_dir=str(stage / "runs" / s.name), houses=len(houses),
                                coordinator_options=options, timeseries=False,
