@@ -168,7 +168,7 @@ def test_ros2_run_every_node_and_describe_every_parameter(ros2, domain_id, tmp_p
                 else:
                     assert "Additional constraints" in text, (node, name, text)
         plant = _describe(ros2, "/b0/plant_sim", domain_id, tmp_path)
-        assert "[kWh]" in plant["battery.e_max_kwh"] and "Min value: 0.0" in plant["battery.e_max_kwh"]
+        assert "[kWh]" in plant["battery.e_max_kwh"] and "Min value: 0.1" in plant["battery.e_max_kwh"]
         assert "[s]" in plant["step_timeout_s"]
         got = run_ros2(ros2, ["param", "get", "/fuzzy_ems", "run_token"], domain_id, tmp_path)
         assert "7" in got.stdout
