@@ -20,6 +20,20 @@ import pytest
 from comems4build_ros.core.config import PlantParams, load_plant_params
 
 
+def pytest_configure(config: pytest.Config) -> None:
+    """Let the processes the tests start be interrupted (Ctrl-C, SIGINT) whatever started the suite.
+
+    A shell without job control starts a background command (``bash tools/test.sh &``, nohup)
+    with SIGINT ignored, and an ignored signal stays ignored in every child: a launcher or
+    ``ros2 launch`` a test interrupts would not see it. Python's own handler in this process
+    is reset to the default in each child it starts, so the children react to SIGINT again.
+    """
+    import signal
+
+    if signal.getsignal(signal.SIGINT) is signal.SIG_IGN:
+        signal.signal(signal.SIGINT, signal.default_int_handler)
+
+
 @pytest.fixture
 def tmp_path(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """A fresh folder per test named ``t<N>``, not after the test as pytest's own: an error

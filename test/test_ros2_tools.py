@@ -202,7 +202,7 @@ def test_log_level_and_rosout(ros2, domain_id, tmp_path) -> None:
 # ---------------------------------------------------------------------- ros2 launch
 @pytest.mark.parametrize("args, says", [
     (["weeks:=abc"], "weeks:=abc: 'abc' is not a finite number"),
-    (["clock:=wall"], "clock:=wall, broker:= and topic_map:= need plant:=mqtt"),
+    (["clock:=wall"], "clock:=wall needs plant:=mqtt; broker:= and topic_map:= need plant:=mqtt"),
     (["plant:=mqtt", "houses:=2"], "plant:=mqtt runs one house (houses:=1)"),
     (["use_sim_time:=maybe"], "use_sim_time:=maybe: expected true or false"),
     (["print_plan:=yes"], "print_plan:=yes: expected true or false"),
@@ -316,3 +316,14 @@ def test_bench_cut_kills_a_node_under_both_launchers_and_leaves_nothing(ros2, tm
         line = next(ln for ln in res.stdout.splitlines() if ln.startswith(f"{via} run 0:"))
         assert "exit code 1, 0 process(es) left, .secrets gone" in line, res.stdout
         assert re.search(rf"^{via}: 1 run\(s\), median \d+\.\d\d s", res.stdout, re.M), res.stdout
+
+
+@pytest.mark.parametrize(("message", "says"), [
+    ("--clock wall needs --plant mqtt or --community", "clock:=wall needs plant:=mqtt"),
+    ("--weeks or --steps, not both", "weeks:= or steps:=, not both"),  # both offered: kept
+    ("give --houses or --layout-file or --steps", "give houses:= or steps:="),  # only the one not offered goes
+])
+def test_in_launch_words_leaves_out_what_the_launch_file_does_not_offer(message: str, says: str) -> None:
+    from comems4build_ros.app.ros2_launch import in_launch_words
+
+    assert in_launch_words(message, {"clock": "wall"}) == says

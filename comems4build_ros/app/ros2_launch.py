@@ -167,6 +167,10 @@ def in_launch_words(message: str, values: dict[str, str]) -> str:
             return f"{name}:={value}"
         return f"{name}:={value.strip()}"
 
+    # an alternative the launch file does not offer (``or --community``: a way of comems4build
+    # launch only) is left out rather than named in words no launch argument has
+    offered = {option for _default, _help, option in ARGUMENTS.values() if option}
+    message = re.sub(r" or (--[\w-]+)", lambda m: m.group(0) if m.group(1) in offered else "", message)
     for name, (_default, _help, option) in ARGUMENTS.items():
         if not option:
             continue
